@@ -1,0 +1,1 @@
+"""QuasiTune backend: command-line interface now, FastAPI application later (issue 4)."""

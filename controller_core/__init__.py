@@ -1,0 +1,1 @@
+"""QuasiTune numerics: reference data, features, GPR, GMM/GMR, KMP, quasi-stiffness fit."""

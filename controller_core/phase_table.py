@@ -1,0 +1,199 @@
+"""Loader for the standard phase-indexed table format (CSV or Parquet).
+
+Public locomotion datasets (Reznick 2021, Camargo 2021, Embry 2018, ...) are commonly converted to a long
+table with **one row per stride × phase point**. QuasiTune reads that format so a lab can train on its
+own data or on a public set with ``quasitune train --data PATH``.
+
+Columns
+-------
+* phase: ``phase`` in [0, 1] or ``phase_pct`` in [0, 100]; 0 = ipsilateral heel strike.
+* stride identity (optional): ``subject`` and/or ``stride``; rows with the same task, subject and stride
+  form one stride. Without them each task is a single curve.
+* task columns with units in the name: ``speed_m_s`` (or ``speed_mps``), ``incline_deg``; any other
+  ``*_deg`` / ``*_m_s`` task column can be named in ``task_columns``.
+* joint columns with units in the name: ``knee_angle_deg`` | ``knee_angle_rad``,
+  ``ankle_angle_deg`` | ``ankle_angle_rad``, ``knee_moment_Nm_per_kg``, ``ankle_moment_Nm_per_kg``.
+  Signs as everywhere in QuasiTune: knee flexion +, ankle dorsiflexion +, internal moment positive in
+  the direction of the positive angle (``moment_sign=-1`` converts extensor/plantarflexor-positive data).
+
+Each task (unique combination of task values) becomes one :class:`ReferenceRecord` whose curves are the
+mean and SD over its strides resampled to a 101-point grid. Malformed input raises ``ValueError`` with
+the column and the reason.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from controller_core.reference import JOINTS, ReferenceRecord, ReferenceSet, sha256_of
+
+PHASE_POINTS = 101
+_SPEED_ALIASES = ("speed_m_s", "speed_mps")
+_ANGLE_UNITS = {"deg": np.pi / 180.0, "rad": 1.0}
+_MOMENT_UNITS = {"Nm_per_kg": 1.0}
+
+
+def _find_channel(df: pd.DataFrame, joint: str, quantity: str) -> tuple[str, float]:
+    """Return (column, factor to SI) for a joint channel, refusing unknown units."""
+    units = _ANGLE_UNITS if quantity == "angle" else _MOMENT_UNITS
+    prefix = f"{joint}_{quantity}_"
+    present = [c for c in df.columns if c.startswith(prefix) and not c.endswith("_sd")]
+    known = [c for c in present if c[len(prefix):] in units]
+    unknown = [c for c in present if c[len(prefix):] not in units]
+    if unknown and not known:
+        raise ValueError(
+            f"column {unknown[0]!r}: unknown unit {unknown[0][len(prefix):]!r} "
+            f"(expected one of {sorted(units)})"
+        )
+    if not known:
+        raise ValueError(f"missing column for {joint} {quantity}: expected one of "
+                         f"{[prefix + u for u in units]}")
+    if len(known) > 1:
+        raise ValueError(f"ambiguous {joint} {quantity}: several columns {known}")
+    col = known[0]
+    return col, units[col[len(prefix):]]
+
+
+def _task_columns(df: pd.DataFrame, task_columns: tuple[str, ...] | None) -> list[str]:
+    if task_columns is not None:
+        missing = [c for c in task_columns if c not in df.columns]
+        if missing:
+            raise ValueError(f"task column(s) {missing} not in the table")
+        return list(task_columns)
+    cols = [c for c in _SPEED_ALIASES if c in df.columns][:1]
+    if "incline_deg" in df.columns:
+        cols.append("incline_deg")
+    if not cols:
+        raise ValueError("no task column: expected 'speed_m_s' (or 'speed_mps') and/or 'incline_deg'")
+    return cols
+
+
+def _canonical_task_name(col: str) -> str:
+    return "speed_mps" if col in _SPEED_ALIASES else col
+
+
+def read_phase_table(path: str | Path) -> pd.DataFrame:
+    """Read a CSV or Parquet file into a DataFrame (format chosen by the file ending)."""
+    p = Path(path)
+    if not p.exists():
+        raise ValueError(f"data file {str(p)!r} does not exist")
+    if p.suffix.lower() in (".parquet", ".pq"):
+        return pd.read_parquet(p)
+    if p.suffix.lower() in (".csv", ".txt"):
+        return pd.read_csv(p)
+    raise ValueError(f"data file {p.name!r}: unknown format (use .csv or .parquet)")
+
+
+def phase_table_to_reference(
+    df: pd.DataFrame,
+    task_columns: tuple[str, ...] | None = None,
+    moment_sign: float = 1.0,
+    label: str = "user",
+    data_sha256: str = "",
+) -> ReferenceSet:
+    """Convert a standard-format table to a :class:`ReferenceSet` (one record per task).
+
+    Args:
+        df: the table (see the module docstring for the columns).
+        task_columns: task columns to condition on; default: speed and/or incline if present.
+        moment_sign: +1 for QuasiTune's convention, -1 for extensor/plantarflexor-positive data.
+        label: dataset label stored in each record.
+        data_sha256: hash of the source file, for provenance.
+    """
+    if moment_sign not in (1.0, -1.0):
+        raise ValueError("moment_sign must be +1 or -1")
+    if "phase" in df.columns:
+        phase = df["phase"].to_numpy(dtype=float)
+    elif "phase_pct" in df.columns:
+        phase = df["phase_pct"].to_numpy(dtype=float) / 100.0
+    else:
+        raise ValueError("missing phase column: expected 'phase' (0-1) or 'phase_pct' (0-100)")
+    if not np.all(np.isfinite(phase)) or phase.min() < 0.0 or phase.max() > 1.0 + 1e-9:
+        raise ValueError("phase values must be finite and within [0, 1] ('phase') or [0, 100] ('phase_pct')")
+    tcols = _task_columns(df, task_columns)
+    task_vals = df[tcols].to_numpy(dtype=float)
+    if not np.all(np.isfinite(task_vals)):
+        bad = tcols[int(np.argwhere(~np.isfinite(task_vals))[0, 1])]
+        raise ValueError(f"task column {bad!r} has missing or non-numeric values")
+    for c in tcols:
+        if c in _SPEED_ALIASES and (df[c] <= 0).any():
+            raise ValueError(f"task column {c!r}: speeds must be > 0 m/s")
+    channels = {}
+    for joint in JOINTS:
+        for quantity in ("angle", "moment"):
+            col, factor = _find_channel(df, joint, quantity)
+            sign = moment_sign if quantity == "moment" else 1.0
+            channels[f"{joint}_{quantity}"] = df[col].to_numpy(dtype=float) * factor * sign
+    stride_keys = [c for c in ("subject", "stride") if c in df.columns]
+    work = pd.DataFrame({"_phase": phase})
+    for i, c in enumerate(tcols):
+        work[f"_t{i}"] = np.round(task_vals[:, i], 9)
+    for c in stride_keys:
+        work[c] = df[c].to_numpy()
+    for name, values in channels.items():
+        work[name] = values
+    grid = np.linspace(0.0, 1.0, PHASE_POINTS)
+    tkeys = [f"_t{i}" for i in range(len(tcols))]
+    records: list[ReferenceRecord] = []
+    skipped = 0
+    for tvals, group in work.groupby(tkeys, sort=True):
+        tvals = tvals if isinstance(tvals, tuple) else (tvals,)
+        strides = group.groupby(stride_keys, sort=True) if stride_keys else [(None, group)]
+        curves: dict[str, list[np.ndarray]] = {k: [] for k in channels}
+        for _, stride in strides:
+            stride = stride.sort_values("_phase")
+            values = stride[list(channels)].to_numpy(dtype=float)
+            if len(stride) < 10 or not np.all(np.isfinite(values)):
+                skipped += 1
+                continue
+            sp = stride["_phase"].to_numpy()
+            if np.any(np.diff(sp) <= 0):
+                raise ValueError(f"task {dict(zip(tcols, tvals, strict=True))}: repeated phase values "
+                                 "within one stride (add 'subject'/'stride' columns)")
+            for j, name in enumerate(channels):
+                curves[name].append(np.interp(grid, sp, values[:, j]))
+        n = len(curves["knee_angle"])
+        if n == 0:
+            continue
+        mean = {k: np.mean(v, axis=0) for k, v in curves.items()}
+        sd = {k: (np.std(v, axis=0, ddof=1) if n > 1 else np.full(PHASE_POINTS, np.nan))
+              for k, v in curves.items()}
+        task = {_canonical_task_name(c): float(v) for c, v in zip(tcols, tvals, strict=True)}
+        records.append(ReferenceRecord(
+            name=f"{label}/" + ",".join(f"{k}={v:g}" for k, v in task.items()),
+            dataset=label, task=task, phase=grid, mean=mean, sd=sd, n=n,
+        ))
+    if not records:
+        raise ValueError("no complete stride in the table (every stride had missing values or < 10 points)")
+    task_names = tuple(_canonical_task_name(c) for c in tcols)
+    return ReferenceSet(
+        records=tuple(records), task_names=task_names, data_sha256=data_sha256,
+        provenance={"source": label, "skipped_incomplete_strides": skipped, "task_columns": tcols},
+    )
+
+
+def load_phase_table(path: str | Path, task_columns: tuple[str, ...] | None = None,
+                     moment_sign: float = 1.0) -> ReferenceSet:
+    """Read a standard-format CSV/Parquet file and convert it (see :func:`phase_table_to_reference`)."""
+    p = Path(path)
+    df = read_phase_table(p)
+    return phase_table_to_reference(df, task_columns=task_columns, moment_sign=moment_sign,
+                                    label=p.stem, data_sha256=sha256_of(p))
+
+
+def reference_to_phase_table(ref: ReferenceSet) -> pd.DataFrame:
+    """Write a reference set's mean curves in the standard format (one 'stride' per record)."""
+    rows = []
+    for i, rec in enumerate(ref.records):
+        frame = pd.DataFrame({"subject": rec.dataset, "stride": i, "phase": rec.phase})
+        for name in ref.task_names:
+            col = "speed_m_s" if name == "speed_mps" else name
+            frame[col] = rec.task.get(name, np.nan)
+        for joint in JOINTS:
+            frame[f"{joint}_angle_deg"] = np.rad2deg(rec.mean[f"{joint}_angle"])
+            frame[f"{joint}_moment_Nm_per_kg"] = rec.mean[f"{joint}_moment"]
+        rows.append(frame)
+    return pd.concat(rows, ignore_index=True)
