@@ -1,0 +1,61 @@
+"""Convex hull of training tasks, to flag extrapolation.
+
+Task points are scaled by a tolerance per dimension (e.g. 0.05 m/s, 0.5°); a query counts as inside when
+its distance to the hull is at most one tolerance unit. Degenerate hulls (all tasks on one line, e.g.
+every curve at 0° incline) are handled by projecting onto the affine span of the training tasks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError
+
+
+class TaskHull:
+    """Membership test for the convex hull of training tasks.
+
+    Args:
+        tolerance: per-dimension tolerance in physical units (same order as the task columns).
+    """
+
+    def __init__(self, tolerance: tuple[float, ...] = (0.05, 0.5)) -> None:
+        self.tolerance = tolerance
+
+    def fit(self, X: np.ndarray) -> TaskHull:
+        """Fit on (n, d) training tasks in physical units."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if X.shape[1] != len(self.tolerance):
+            raise ValueError(f"hull has {len(self.tolerance)} task dimensions, data has {X.shape[1]}")
+        Z = X / np.asarray(self.tolerance)
+        self.center_ = Z.mean(axis=0)
+        U, s, Vt = np.linalg.svd(Z - self.center_, full_matrices=False)
+        rank = int(np.sum(s > 1e-9 * max(1.0, s.max(initial=0.0))))
+        self.basis_ = Vt[:rank]                      # (rank, d) orthonormal span of the tasks
+        P = (Z - self.center_) @ self.basis_.T       # (n, rank) coordinates in the span
+        self.rank_ = rank
+        if rank == 0:
+            self.equations_ = np.zeros((0, 1))
+        elif rank == 1:
+            lo, hi = P[:, 0].min(), P[:, 0].max()
+            self.equations_ = np.array([[1.0, -hi], [-1.0, lo]])
+        else:
+            try:
+                self.equations_ = ConvexHull(P).equations  # rows: unit normal, offset; inside: n.x + b <= 0
+            except QhullError as exc:  # pragma: no cover - rank test above prevents flat hulls
+                raise ValueError(f"cannot build task hull: {exc}") from exc
+        return self
+
+    def distance(self, x: np.ndarray) -> float:
+        """Distance (tolerance units) from a task to the hull; 0 inside."""
+        z = np.asarray(x, dtype=float) / np.asarray(self.tolerance) - self.center_
+        in_span = self.basis_ @ z if self.rank_ else np.zeros(0)
+        off_span = float(np.linalg.norm(z - self.basis_.T @ in_span)) if self.rank_ else float(
+            np.linalg.norm(z))
+        if self.rank_ == 0:
+            return off_span
+        out = float(max(0.0, np.max(self.equations_[:, :-1] @ in_span + self.equations_[:, -1])))
+        return float(np.hypot(off_span, out))
+
+    def contains(self, x: np.ndarray) -> bool:
+        """True when the task lies within one tolerance unit of the training hull."""
+        return self.distance(x) <= 1.0
