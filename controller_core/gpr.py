@@ -138,3 +138,60 @@ class FeatureGPR:
     def extrapolates(self, x: np.ndarray) -> bool:
         """True when ``x`` lies outside the convex hull of this target's training tasks."""
         return not self.hull_.contains(x)
+
+
+class FeatureGPRBank:
+    """Many fitted :class:`FeatureGPR` evaluated together at one task (same algebra, batched).
+
+    Training sets are zero-padded to a common length (padded kernel entries are zero and the padded
+    triangular factor is the identity, which leaves means and variances unchanged). Identical training
+    inputs share one hull test.
+    """
+
+    def __init__(self, gprs: list[FeatureGPR]) -> None:
+        if not gprs:
+            raise ValueError("a bank needs at least one fitted GPR")
+        n = max(g._Xs.shape[0] for g in gprs)
+        d = gprs[0]._Xs.shape[1]
+        m = len(gprs)
+        self.Xs = np.zeros((m, n, d))
+        self.alpha = np.zeros((m, n))
+        self.Linv = np.tile(np.eye(n), (m, 1, 1))
+        self.mask = np.zeros((m, n))
+        for i, g in enumerate(gprs):
+            k = g._Xs.shape[0]
+            self.Xs[i, :k] = g._Xs
+            self.alpha[i, :k] = g.alpha_
+            self.Linv[i, :k, :k] = solve_triangular(g.L_, np.eye(k), lower=True)
+            self.mask[i, :k] = 1.0
+        self.ls = np.array([g._ls_scaled for g in gprs])
+        self.scale = gprs[0]._scale
+        self.amp_rbf = np.array([g.amp_rbf_ for g in gprs])
+        self.amp_lin = np.array([g.amp_lin_ for g in gprs])
+        self.sigma0_sq = np.array([g.sigma0_**2 for g in gprs])
+        self.noise = np.array([g.noise_ for g in gprs])
+        self.y_mean = np.array([g.y_mean_ for g in gprs])
+        self.y_std = np.array([g.y_std_ for g in gprs])
+        hulls: dict[bytes, int] = {}
+        self.hulls: list[TaskHull] = []
+        self.hull_of = np.zeros(m, dtype=int)
+        for i, g in enumerate(gprs):
+            key = g.X_train_.tobytes()
+            if key not in hulls:
+                hulls[key] = len(self.hulls)
+                self.hulls.append(g.hull_)
+            self.hull_of[i] = hulls[key]
+
+    def predict_one(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Means (m,), stds (m,) and extrapolation flags (m,) of every GPR at task ``x``."""
+        xs = np.asarray(x, dtype=float) / self.scale
+        diff = (self.Xs - xs) / self.ls[:, None, :]
+        k = self.amp_rbf[:, None] * np.exp(-0.5 * np.einsum("mnd,mnd->mn", diff, diff))
+        k += self.amp_lin[:, None] * (self.sigma0_sq[:, None] + self.Xs @ xs)
+        k *= self.mask
+        mean = np.einsum("mn,mn->m", k, self.alpha) * self.y_std + self.y_mean
+        v = np.einsum("mij,mj->mi", self.Linv, k)
+        prior = self.amp_rbf + self.amp_lin * (self.sigma0_sq + xs @ xs) + self.noise
+        var = np.maximum(prior - np.einsum("mi,mi->m", v, v), 1e-12)
+        outside = np.array([not h.contains(x) for h in self.hulls])
+        return mean, np.sqrt(var) * self.y_std, outside[self.hull_of]

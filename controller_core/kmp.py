@@ -192,13 +192,31 @@ class KMP:
         return X_r, X_v - P_v @ corr, W, T, P_r, corr
 
     # --------------------------------------------------------------- predict
-    def predict(self, vias: list[ViaPoint] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Mean (Q, O) and covariance (Q, O, O) on the default query grid, through ``vias``."""
+    def _alpha_for(self, mu: np.ndarray | None) -> np.ndarray:
+        """A⁻¹μ for the fitted reference means, or for new means on the same grid (covariance unchanged)."""
+        if mu is None:
+            return self._alpha
+        mu = np.asarray(mu, dtype=float)
+        if mu.shape != self.mu_ref_.shape:
+            raise ValueError(f"mu must have shape {self.mu_ref_.shape}")
+        return _solve(self._chol, mu.reshape(-1, 1))
+
+    def predict(self, vias: list[ViaPoint] | None = None,
+                mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Mean (Q, O) and covariance (Q, O, O) on the default query grid, through ``vias``.
+
+        Args:
+            vias: via-points to pass through.
+            mu: optional new reference means (N, O) on the fitted grid (e.g. a task-conditioned GMR);
+                the covariances Σ, hence the cached factorisations, stay those given to ``fit``.
+        """
         vias = list(vias or [])
         O = self.n_outputs_
         Q = self.s_query_.size
+        alpha = self._alpha_for(mu)
         if not vias:
-            return self._mean_base.copy(), self.cov_scale_ * (np.eye(O)[None] - self._quad_base)
+            mean = self._mean_base.copy() if mu is None else (self._Kq @ alpha).reshape(Q, O)
+            return mean, self.cov_scale_ * (np.eye(O)[None] - self._quad_base)
         J = self._replaced(vias)
         rows = (J[:, None] * O + np.arange(O)[None]).reshape(-1)
         sv = np.mod(np.array([p.phase for p in vias], dtype=float), 1.0)
@@ -209,12 +227,12 @@ class KMP:
         # one factorisation, so their right-hand sides are solved together (column 0 is the mean).
         if self.lam == self.lam_c:
             xr, Xv, W, T, P_r, corr = self._update(self._chol, self.lam, sv, cov_v, rows,
-                                                   np.hstack([self._alpha, self._Zc]),
+                                                   np.hstack([alpha, self._Zc]),
                                                    np.hstack([mu_v, Kqv.T]))
             xv, Xv, T = Xv[:, :1], Xv[:, 1:], T[:, 1:]
             corr = None if corr is None else corr[:, 1:]
         else:
-            xr, xv, *_ = self._update(self._chol, self.lam, sv, cov_v, rows, self._alpha, mu_v)
+            xr, xv, *_ = self._update(self._chol, self.lam, sv, cov_v, rows, alpha, mu_v)
             _, Xv, W, T, P_r, corr = self._update(self._chol_c, self.lam_c, sv, cov_v, rows, self._Zc,
                                                   Kqv.T)
         mean = (self._Kq @ xr + Kqv @ xv).reshape(Q, O)
@@ -226,13 +244,15 @@ class KMP:
             quad -= _blocks((self._Kq @ P_r).reshape(Q, O, r), corr.reshape(r, Q, O))
         return mean, self.cov_scale_ * (np.eye(O)[None] - quad)
 
-    def predict_uncached(self, vias: list[ViaPoint] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def predict_uncached(self, vias: list[ViaPoint] | None = None,
+                         mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Same result as :meth:`predict`, building and factorising the whole system from scratch."""
         vias = list(vias or [])
         O = self.n_outputs_
+        mu_ref = self.mu_ref_ if mu is None else np.asarray(mu, dtype=float)
         keep = np.setdiff1d(np.arange(self.s_ref_.size), self._replaced(vias))
         s = np.concatenate([self.s_ref_[keep], np.mod([p.phase for p in vias], 1.0)])
-        mu = np.concatenate([self.mu_ref_[keep].reshape(-1)] + [np.asarray(p.mean, float) for p in vias])
+        mu = np.concatenate([mu_ref[keep].reshape(-1)] + [np.asarray(p.mean, float) for p in vias])
         sig = np.concatenate([self.sigma_ref_[keep]] + ([np.array([p.cov for p in vias])] if vias else []))
         K = _kron_eye(periodic_kernel(s, s, self.length_scale), O)
         S = _blockdiag(sig)

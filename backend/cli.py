@@ -1,0 +1,159 @@
+"""The ``quasitune`` command line.
+
+Commands: ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``. Bad input exits with code 2 and a
+one-line reason on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from controller_core import InvalidTaskError, QuasiStiffnessModel, load_default_model, load_model
+
+
+def _model(args: argparse.Namespace) -> QuasiStiffnessModel:
+    return load_model(args.model) if args.model else load_default_model()
+
+
+def _task_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--speed", type=float, required=True, help="walking speed (m/s), (0, 3]")
+    p.add_argument("--incline", type=float, default=0.0, help="incline (deg, + uphill), within ±20")
+    p.add_argument("--mass", type=float, default=75.0, help="patient body mass (kg), 20-200")
+    p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")
+
+
+def _print_readable(d: dict) -> None:
+    t = d["task"]
+    print(f"Task: {t['speed_mps']:.2f} m/s, incline {t['incline_deg']:+.1f} deg, patient {t['mass_kg']:.1f} kg")
+    print(f"Model: {d['model']['version']}  data sha256 {d['model']['data_sha256'][:16]}…")
+    if d["extrapolation"]:
+        print("WARNING: task outside the training data for some features (extrapolation); see std.")
+    print("\nPredicted features (GPR, mean ± 1 SD)")
+    print(f"  {'feature':34s} {'phase %':>9s} {'value':>16s}  unit")
+    for f in d["features"]:
+        flag = "  (extrapolated)" if f["extrapolation"] else ""
+        print(f"  {f['name']:34s} {100 * f['phase']:5.1f}±{100 * f['phase_std']:<3.1f}"
+              f" {f['value']:8.3f} ± {f['std']:<6.3f} {f['unit']}{flag}")
+    print("\nParameter table (τ = k(θ − θe) − bθ̇; k < 0 is restoring)")
+    print(f"  {'joint':6s} {'sub-phase':17s} {'k N·m/rad':>10s} {'k N·m/deg':>10s} {'θe deg':>8s} "
+          f"{'b N·m·s/rad':>11s} {'R²':>6s}")
+    for r in d["table"]:
+        g = " guarded" if r["guarded"] else ""
+        print(f"  {r['joint']:6s} {r['subphase']:17s} {r['k_Nm_per_rad']:10.1f} {r['k_Nm_per_deg']:10.3f} "
+              f"{r['theta_e_deg']:8.2f} {r['b_Nm_s_per_rad']:11.2f} {r['r2']:6.2f}{g}")
+    th = d["thresholds"]
+    print("\nState-machine thresholds")
+    for k, v in th.items():
+        print(f"  {k:28s} {v:9.2f}")
+    s = d["safety"]
+    print("\nSafety limits: " + ("all within limits" if s["ok"] else "VIOLATIONS:"))
+    for v in s["violations"]:
+        print(f"  - {v['message']}")
+
+
+def cmd_predict(args: argparse.Namespace) -> int:
+    d = _model(args).propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass).to_dict()
+    if args.format == "json":
+        print(json.dumps(d, allow_nan=False))
+    else:
+        _print_readable(d)
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from controller_core.plotting import plot_proposal
+
+    model = _model(args)
+    proposal = model.propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass)
+    out = plot_proposal(model, proposal, args.out)
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from controller_core.features import FEATURES
+    from controller_core.model_io import save_model, train_default, train_from_file
+
+    steps = len(FEATURES) + 2
+    with tqdm(total=steps, desc="training", unit="part", file=sys.stderr) as bar:
+        def tick(name: str) -> None:
+            bar.set_postfix_str(name)
+            bar.update(1)
+        if args.data is None:
+            model = train_default(progress=tick)
+        else:
+            model = train_from_file(args.data, use_published=args.with_published, progress=tick)
+    out = save_model(model, args.out)
+    print(f"model {model.model_version_} ({len(model.reference_.records)} conditions) saved to {out}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from controller_core.evaluation import evaluate, format_report
+
+    report = evaluate()
+    print(format_report(report))
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(report, indent=2))
+        print(f"\nwrote {args.out}")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from controller_core.bench import run_bench
+
+    result = run_bench(repeats=args.repeats)
+    if args.format == "json":
+        print(json.dumps(result))
+    else:
+        for k, v in result.items():
+            print(f"{k:40s} {v}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="quasitune", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("predict", help="propose curves and a parameter table for a task")
+    _task_args(p)
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.set_defaults(func=cmd_predict)
+    p = sub.add_parser("plot", help="torque-angle loops with KMP bands, via-points and regression lines")
+    _task_args(p)
+    p.add_argument("--out", type=Path, required=True, help="output image (.png, .pdf, .svg)")
+    p.set_defaults(func=cmd_plot)
+    p = sub.add_parser("train", help="fit a model from a standard-format dataset (CSV/Parquet)")
+    p.add_argument("--data", type=Path, default=None, help="dataset file; default: the shipped data")
+    p.add_argument("--out", type=Path, required=True, help="model directory to write")
+    p.add_argument("--with-published", action="store_true",
+                   help="also train on the shipped published incline features")
+    p.set_defaults(func=cmd_train)
+    p = sub.add_parser("evaluate", help="leave-one-condition-out evaluation against baselines")
+    p.add_argument("--out", type=Path, default=None, help="also write the report as JSON here")
+    p.set_defaults(func=cmd_evaluate)
+    p = sub.add_parser("bench", help="fit time and propose()/KMP timings")
+    p.add_argument("--repeats", type=int, default=2000)
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (InvalidTaskError, FileNotFoundError, ValueError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f"quasitune: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,302 @@
+"""The learning quasi-stiffness model: GPR features → KMP through GMR reference → per-sub-phase table.
+
+``QuasiStiffnessModel.fit(reference)`` learns, from a :class:`ReferenceSet` (and optional published
+feature points):
+
+1. one :class:`FeatureGPR` per feature value and per feature phase (task → feature);
+2. one GMM per joint on (task dims that vary, phase, angle, moment); GMR conditioned on (task, phase)
+   gives the reference mean for a task, GMR conditioned on phase alone its covariance (the spread of the
+   curves across the training tasks), which is task-independent so the KMP factorisation is cached once;
+3. one :class:`KMP` per joint over (angle, moment) on a phase grid.
+
+``propose(speed_mps, incline_deg, mass_kg)`` predicts the features, turns each into a KMP via-point on
+its channel (covariance = the GPR's predictive variance, so an uncertain feature pulls less), reshapes the
+reference through them, fits the quasi-stiffness per sub-phase and builds the parameter table.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from controller_core.features import CURVE_FEATURES, FEATURES, FeatureSpec, feature_sd, record_features
+from controller_core.gmr import GaussianMixtureRegression
+from controller_core.gpr import FeatureGPR, FeatureGPRBank
+from controller_core.kmp import KMP, ViaPoint
+from controller_core.proposal import FeaturePrediction, Proposal
+from controller_core.published_features import PublishedPoint
+from controller_core.quasi_stiffness import SUBPHASES, fit_quasi_stiffness
+from controller_core.reference import JOINTS, ReferenceSet
+from controller_core.table import ParameterRow, ParameterTable, Provenance, Thresholds, check_table
+
+G = 9.81  # m/s²
+
+SPEED_RANGE_MPS = (0.0, 3.0)       # exclusive low, inclusive high
+INCLINE_LIMIT_DEG = 20.0
+MASS_RANGE_KG = (20.0, 200.0)
+JOINT_RANGE_RAD = {"knee": (0.0, math.radians(120.0)), "ankle": (math.radians(-30.0), math.radians(30.0))}
+# Damping is not learned (the fit is τ = kθ + c): editable defaults per kg body mass, of the order of
+# published finite-state impedance values for adults.
+DEFAULT_DAMPING_NMS_PER_RAD_PER_KG = {"stance_flexion": 0.04, "stance_extension": 0.04,
+                                      "swing_flexion": 0.01, "swing_extension": 0.02}
+
+
+class InvalidTaskError(ValueError):
+    """A requested task or patient value is out of range or not a number."""
+
+
+def validate_task(speed_mps: float, incline_deg: float, mass_kg: float) -> None:
+    """Refuse NaN and out-of-range requests with a one-line reason."""
+    for name, v in (("speed_mps", speed_mps), ("incline_deg", incline_deg), ("mass_kg", mass_kg)):
+        if not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise InvalidTaskError(f"{name} must be a finite number, got {v!r}")
+    if not SPEED_RANGE_MPS[0] < speed_mps <= SPEED_RANGE_MPS[1]:
+        raise InvalidTaskError(f"speed_mps = {speed_mps:g} m/s is outside (0, 3] m/s")
+    if abs(incline_deg) > INCLINE_LIMIT_DEG:
+        raise InvalidTaskError(f"incline_deg = {incline_deg:g} deg is outside [-20, 20] deg")
+    if not MASS_RANGE_KG[0] <= mass_kg <= MASS_RANGE_KG[1]:
+        raise InvalidTaskError(f"mass_kg = {mass_kg:g} kg is outside [20, 200] kg")
+
+
+@dataclass
+class _JointModel:
+    gmm: GaussianMixtureRegression
+    kmp: KMP
+    sigma_ref: np.ndarray          # (N, 2, 2) on the KMP reference grid
+
+
+class QuasiStiffnessModel:
+    """Learning quasi-stiffness model (scikit-learn style: hyperparameters here, fitted state with ``_``).
+
+    Args:
+        n_components: GMM components per joint.
+        n_ref_points: KMP reference grid size over [0, 1).
+        kmp_length_scale: KMP kernel length (phase units).
+        kmp_lambda: KMP λ (= λc).
+        gpr_restarts: marginal-likelihood optimizer restarts per GPR.
+        load_fractions: (toe-off, heel-strike) vertical-load thresholds as fractions of body weight.
+        swing_threshold_fraction: WF→WE knee threshold as a fraction of the predicted swing peak.
+        state_time_s: (min, max) time in a state.
+        random_state: seed for EM and optimizer restarts.
+    """
+
+    def __init__(self, n_components: int = 10, n_ref_points: int = 50, kmp_length_scale: float = 0.04,
+                 kmp_lambda: float = 1.0, gpr_restarts: int = 2,
+                 load_fractions: tuple[float, float] = (0.05, 0.15), swing_threshold_fraction: float = 0.85,
+                 state_time_s: tuple[float, float] = (0.05, 1.5), random_state: int = 0) -> None:
+        self.n_components = n_components
+        self.n_ref_points = n_ref_points
+        self.kmp_length_scale = kmp_length_scale
+        self.kmp_lambda = kmp_lambda
+        self.gpr_restarts = gpr_restarts
+        self.load_fractions = load_fractions
+        self.swing_threshold_fraction = swing_threshold_fraction
+        self.state_time_s = state_time_s
+        self.random_state = random_state
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, reference: ReferenceSet, published: list[PublishedPoint] | None = None,
+            model_version: str = "unversioned", data_sha256: str | None = None,
+            progress=None) -> QuasiStiffnessModel:
+        """Fit every part of the model.
+
+        Args:
+            reference: training curves; their tasks must be finite in every task dimension.
+            published: extra feature-value points (e.g. published incline features).
+            model_version: stored in every proposal's provenance.
+            data_sha256: hash of all training data (defaults to the reference's hash).
+            progress: optional callable ``progress(step_name)`` called after each part.
+        """
+        tick = progress or (lambda _name: None)
+        if list(reference.task_names[:2]) != ["speed_mps", "incline_deg"] and "speed_mps" not in reference.task_names:
+            raise ValueError("the reference set needs a 'speed_mps' task column")
+        tasks = np.column_stack([
+            np.array([r.task.get("speed_mps", np.nan) for r in reference.records]),
+            np.array([r.task.get("incline_deg", 0.0) for r in reference.records]),
+        ])
+        if not np.all(np.isfinite(tasks)):
+            raise ValueError("every training record needs a finite speed (m/s) and incline (deg)")
+        self.reference_ = reference
+        self.train_tasks_ = tasks
+        self.model_version_ = model_version
+        self.data_sha256_ = data_sha256 or reference.data_sha256
+        self.published_ = list(published or [])
+        self._fit_features(reference, tasks, tick)
+        self._fit_joints(reference, tasks, tick)
+        return self
+
+    def _fit_features(self, reference: ReferenceSet, tasks: np.ndarray, tick) -> None:
+        per_record = [record_features(r) for r in reference.records]
+        self.train_features_ = per_record
+        self.value_gprs_: dict[str, FeatureGPR] = {}
+        self.phase_gprs_: dict[str, FeatureGPR] = {}
+        for spec in FEATURES:
+            vals = np.array([f[spec.name][1] for f in per_record])
+            phases = np.array([f[spec.name][0] for f in per_record])
+            se = np.array([feature_sd(r, spec, p) / math.sqrt(r.n) if r.n > 0 else np.nan
+                           for r, p in zip(reference.records, phases, strict=True)])
+            X, y, y_se = tasks, vals, se
+            extra = [p for p in self.published_ if p.feature == spec.name]
+            if extra:
+                X = np.vstack([X, [[p.speed_mps, p.incline_deg] for p in extra]])
+                y = np.concatenate([y, [p.value for p in extra]])
+                y_se = np.concatenate([y_se, [p.se for p in extra]])
+            self.value_gprs_[spec.name] = FeatureGPR(n_restarts=self.gpr_restarts,
+                                                     random_state=self.random_state).fit(X, y, y_se)
+            if spec.quantity != "timing":
+                self.phase_gprs_[spec.name] = FeatureGPR(n_restarts=self.gpr_restarts,
+                                                         random_state=self.random_state).fit(tasks, phases)
+            tick(f"GPR {spec.name}")
+        self._bank_value = FeatureGPRBank([self.value_gprs_[f.name] for f in FEATURES])
+        self._bank_phase = FeatureGPRBank([self.phase_gprs_[f.name] for f in CURVE_FEATURES])
+
+    def _fit_joints(self, reference: ReferenceSet, tasks: np.ndarray, tick) -> None:
+        varying = [j for j in range(tasks.shape[1]) if np.ptp(tasks[:, j]) > 0]
+        self.gmr_task_dims_ = varying
+        phase = reference.phase
+        self.s_ref_ = np.arange(self.n_ref_points) / self.n_ref_points
+        self.s_query_ = np.linspace(0.0, 1.0, 101)
+        self.joints_: dict[str, _JointModel] = {}
+        nt = len(varying)
+        for joint in JOINTS:
+            rows = []
+            for r, t in zip(reference.records, tasks, strict=True):
+                ang, mom = r.mean[f"{joint}_angle"], r.mean[f"{joint}_moment"]
+                base = np.column_stack([np.tile(t[varying], (phase.size, 1)), phase, ang, mom])
+                # wrap 10 % of the cycle across heel strike so the mixture is continuous at s = 0 ≡ 1
+                lo, hi = base[phase <= 0.1].copy(), base[phase >= 0.9].copy()
+                lo[:, nt] += 1.0
+                hi[:, nt] -= 1.0
+                rows += [base, lo, hi]
+            Z = np.vstack(rows)
+            gmm = GaussianMixtureRegression(n_components=self.n_components,
+                                            random_state=self.random_state).fit(Z)
+            _, sigma = gmm.predict(self.s_ref_[:, None], in_idx=(nt,))
+            sigma = sigma[:, -2:, -2:]      # marginalise the task dimensions: keep (angle, moment)
+            floor = np.diag([math.radians(0.5) ** 2, 0.01 ** 2])
+            sigma = 0.5 * (sigma + np.swapaxes(sigma, 1, 2)) + floor[None]
+            mu0 = self._gmr_mean(gmm, tasks[0], self.s_ref_)
+            kmp = KMP(length_scale=self.kmp_length_scale, lam=self.kmp_lambda, lam_c=self.kmp_lambda,
+                      via_tolerance=0.5 / self.n_ref_points).fit(self.s_ref_, mu0, sigma, self.s_query_)
+            self.joints_[joint] = _JointModel(gmm=gmm, kmp=kmp, sigma_ref=sigma)
+            tick(f"GMM/KMP {joint}")
+
+    def _gmr_mean(self, gmm: GaussianMixtureRegression, task: np.ndarray, s: np.ndarray) -> np.ndarray:
+        """GMR reference mean (len(s), 2) for a task: conditioned on (varying task dims, phase)."""
+        nt = len(self.gmr_task_dims_)
+        X = np.column_stack([np.tile(np.asarray(task)[self.gmr_task_dims_], (s.size, 1)), s])
+        mean, _ = gmm.predict(X, in_idx=tuple(range(nt + 1)))
+        return mean
+
+    # -------------------------------------------------------------- predict
+    def predict_features(self, speed_mps: float, incline_deg: float) -> list[FeaturePrediction]:
+        """GPR predictions of every feature at a task (SI values; timing value = its phase)."""
+        x = np.array([speed_mps, incline_deg], dtype=float)
+        vals, val_sd, val_out = self._bank_value.predict_one(x)
+        phs, ph_sd, ph_out = self._bank_phase.predict_one(x)
+        phase_of = {f.name: i for i, f in enumerate(CURVE_FEATURES)}
+        out = []
+        for i, spec in enumerate(FEATURES):
+            if spec.quantity == "timing":
+                phase, phase_std, extrap = vals[i], val_sd[i], bool(val_out[i])
+            else:
+                j = phase_of[spec.name]
+                phase, phase_std, extrap = phs[j], ph_sd[j], bool(val_out[i] or ph_out[j])
+            out.append(FeaturePrediction(spec=spec, phase=float(min(max(phase, 0.0), 1.0)),
+                                         phase_std=float(phase_std), value=float(vals[i]),
+                                         std=float(val_sd[i]), extrapolation=extrap))
+        return out
+
+    def via_points(self, joint: str, mu_ref: np.ndarray, features: list[FeaturePrediction]) -> list[ViaPoint]:
+        """KMP via-points of one joint from predicted features.
+
+        The feature's channel gets the GPR mean and variance; the other channel keeps the task's reference
+        mean and variance at that phase (``mu_ref`` on the KMP grid), so it stays free to follow the data.
+        """
+        jm = self.joints_[joint]
+        s_wrap = np.append(self.s_ref_, 1.0)
+        vias = []
+        for f in features:
+            if f.spec.joint != joint or f.spec.quantity not in ("angle", "moment"):
+                continue
+            ch = 0 if f.spec.quantity == "angle" else 1
+            ref_mean = np.array([np.interp(f.phase, s_wrap, np.append(mu_ref[:, c], mu_ref[0, c]))
+                                 for c in (0, 1)])
+            i = int(np.argmin(np.abs(self.s_ref_ - f.phase)))
+            cov = np.diag(np.diag(jm.sigma_ref[i])).copy()
+            cov[ch, ch] = max(f.std, 1e-6) ** 2
+            mean = ref_mean.copy()
+            mean[ch] = f.value
+            vias.append(ViaPoint(phase=f.phase, mean=mean, cov=cov))
+        return vias
+
+    def propose(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
+                with_vias: bool = True) -> Proposal:
+        """Predict curves and the parameter table for a task and patient.
+
+        Args:
+            speed_mps: walking speed (m/s), in (0, 3].
+            incline_deg: incline (deg, + uphill), within ±20.
+            mass_kg: patient body mass (kg), 20-200.
+            with_vias: False gives the GMR reference through KMP without via-points (a baseline).
+
+        Raises:
+            InvalidTaskError: NaN or out-of-range input.
+        """
+        validate_task(speed_mps, incline_deg, mass_kg)
+        task = np.array([speed_mps, incline_deg], dtype=float)
+        features = self.predict_features(speed_mps, incline_deg)
+        fmap = {f.spec.name: f for f in features}
+        means: dict[str, np.ndarray] = {}
+        stds: dict[str, np.ndarray] = {}
+        vias_by_joint: dict[str, list[ViaPoint]] = {}
+        for joint in JOINTS:
+            jm = self.joints_[joint]
+            mu = self._gmr_mean(jm.gmm, task, self.s_ref_)
+            vias = self.via_points(joint, mu, features) if with_vias else []
+            vias_by_joint[joint] = vias
+            mean, cov = jm.kmp.predict(vias, mu=mu)
+            sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
+            means[f"{joint}_angle"], means[f"{joint}_moment"] = mean[:, 0], mean[:, 1]
+            stds[f"{joint}_angle"], stds[f"{joint}_moment"] = sd[:, 0], sd[:, 1]
+        b1 = fmap["knee_stance_flexion_peak"].phase
+        b2 = fmap["toe_off"].value
+        b3 = fmap["knee_swing_flexion_peak"].phase
+        boundaries = (b1, b2, b3)
+        s = self.s_query_
+        rows: list[ParameterRow] = []
+        fits = {}
+        for joint in JOINTS:
+            jf = fit_quasi_stiffness(s, means[f"{joint}_angle"], means[f"{joint}_moment"] * mass_kg,
+                                     boundaries, JOINT_RANGE_RAD[joint])
+            fits[joint] = jf
+            for f in jf:
+                rows.append(ParameterRow(
+                    joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad,
+                    theta_e_deg=math.degrees(f.theta_e_rad),
+                    b_Nm_s_per_rad=DEFAULT_DAMPING_NMS_PER_RAD_PER_KG[f.subphase] * mass_kg,
+                    r2=f.r2, guarded=f.guarded))
+        extrapolation = any(f.extrapolation for f in features)
+        weight_N = mass_kg * G
+        thresholds = Thresholds(
+            sf_to_se_ankle_moment_Nm=float(np.interp(b1, s, means["ankle_moment"])) * mass_kg,
+            se_to_wf_load_N=self.load_fractions[0] * weight_N,
+            wf_to_we_knee_angle_deg=self.swing_threshold_fraction * math.degrees(
+                fmap["knee_swing_flexion_peak"].value),
+            we_to_sf_load_N=self.load_fractions[1] * weight_N,
+            min_state_time_s=self.state_time_s[0], max_state_time_s=self.state_time_s[1])
+        table = ParameterTable(rows=rows, thresholds=thresholds, provenance=Provenance(
+            model_version=self.model_version_, data_sha256=self.data_sha256_, speed_mps=speed_mps,
+            incline_deg=incline_deg, patient_mass_kg=mass_kg, extrapolation=extrapolation))
+        return Proposal(
+            speed_mps=speed_mps, incline_deg=incline_deg, mass_kg=mass_kg,
+            model_version=self.model_version_, data_sha256=self.data_sha256_,
+            extrapolation=extrapolation, features=features, phase=s, means=means, stds=stds,
+            boundaries=boundaries, fits=fits, table=table, violations=check_table(table),
+            vias=vias_by_joint)
+
+
+__all__ = ["FeatureSpec", "InvalidTaskError", "QuasiStiffnessModel", "validate_task", "CURVE_FEATURES",
+           "SUBPHASES"]

@@ -1,0 +1,106 @@
+"""A proposal: predicted features and curves with their uncertainty, the fitted table, and provenance.
+
+Inside, everything is SI. :meth:`Proposal.to_dict` gives the JSON people and scripts read: angles in
+degrees and moments in N·m/kg, each with the unit in its field name.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controller_core.features import FeatureSpec
+from controller_core.kmp import ViaPoint
+from controller_core.quasi_stiffness import SubphaseFit
+from controller_core.table import LimitViolation, ParameterTable
+
+FEATURE_UNITS = {"angle": "deg", "moment": "N·m/kg", "timing": "fraction of gait cycle"}
+
+
+@dataclass(frozen=True)
+class FeaturePrediction:
+    """GPR prediction of one feature (SI: value rad, N·m/kg or phase; phase in [0, 1])."""
+
+    spec: FeatureSpec
+    phase: float
+    phase_std: float
+    value: float
+    std: float
+    extrapolation: bool
+
+    def display_value(self) -> tuple[float, float, str]:
+        """(value, std, unit) in clinician units."""
+        unit = FEATURE_UNITS[self.spec.quantity]
+        if self.spec.quantity == "angle":
+            return math.degrees(self.value), math.degrees(self.std), unit
+        return self.value, self.std, unit
+
+
+@dataclass
+class Proposal:
+    """Everything the model proposes for one task and patient."""
+
+    speed_mps: float
+    incline_deg: float
+    mass_kg: float
+    model_version: str
+    data_sha256: str
+    extrapolation: bool
+    features: list[FeaturePrediction]
+    phase: np.ndarray
+    means: dict[str, np.ndarray]
+    stds: dict[str, np.ndarray]
+    boundaries: tuple[float, float, float]
+    fits: dict[str, list[SubphaseFit]]
+    table: ParameterTable
+    violations: list[LimitViolation]
+    vias: dict[str, list[ViaPoint]] = field(default_factory=dict)
+
+    def curves_dict(self) -> dict[str, list[float]]:
+        """Curves in display units on the 101-point phase grid."""
+        out: dict[str, list[float]] = {"phase": [round(float(p), 4) for p in self.phase]}
+        for joint in ("knee", "ankle"):
+            a, a_sd = self.means[f"{joint}_angle"], self.stds[f"{joint}_angle"]
+            m, m_sd = self.means[f"{joint}_moment"], self.stds[f"{joint}_moment"]
+            out[f"{joint}_angle_deg"] = np.round(np.degrees(a), 4).tolist()
+            out[f"{joint}_angle_deg_std"] = np.round(np.degrees(a_sd), 4).tolist()
+            out[f"{joint}_moment_Nm_per_kg"] = np.round(m, 5).tolist()
+            out[f"{joint}_moment_Nm_per_kg_std"] = np.round(m_sd, 5).tolist()
+        return out
+
+    def to_dict(self) -> dict:
+        """JSON-ready dictionary (see the CLI's ``predict --format json``)."""
+        feats = []
+        for f in self.features:
+            value, std, unit = f.display_value()
+            feats.append({
+                "joint": f.spec.joint, "quantity": f.spec.quantity, "name": f.spec.name,
+                "label": f.spec.label, "phase": round(f.phase, 4), "phase_std": round(f.phase_std, 4),
+                "value": round(value, 4), "std": round(std, 4), "unit": unit,
+                "extrapolation": f.extrapolation,
+            })
+        table = []
+        for r in self.table.rows:
+            table.append({
+                "joint": r.joint, "subphase": r.subphase, "k_Nm_per_rad": round(r.k_Nm_per_rad, 3),
+                "k_Nm_per_deg": round(r.k_Nm_per_rad * math.pi / 180.0, 4),
+                "theta_e_deg": round(r.theta_e_deg, 3), "b_Nm_s_per_rad": round(r.b_Nm_s_per_rad, 4),
+                "r2": None if r.r2 is None else round(r.r2, 4), "guarded": r.guarded,
+            })
+        return {
+            "task": {"speed_mps": self.speed_mps, "incline_deg": self.incline_deg, "mass_kg": self.mass_kg},
+            "model": {"version": self.model_version, "data_sha256": self.data_sha256},
+            "extrapolation": self.extrapolation,
+            "features": feats,
+            "subphase_boundaries_phase": {
+                "stance_flexion_to_stance_extension": round(self.boundaries[0], 4),
+                "stance_extension_to_swing_flexion": round(self.boundaries[1], 4),
+                "swing_flexion_to_swing_extension": round(self.boundaries[2], 4),
+            },
+            "curves": self.curves_dict(),
+            "table": table,
+            "thresholds": self.table.thresholds.model_dump(),
+            "safety": {"ok": not self.violations, "violations": [v.model_dump() for v in self.violations]},
+        }

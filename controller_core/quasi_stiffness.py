@@ -1,0 +1,95 @@
+"""Quasi-stiffness fit per gait sub-phase: least squares τ = kθ + c, θe = −c/k, with R².
+
+Units: θ in rad, τ in N·m (already multiplied by the patient's mass), k in N·m/rad, θe in rad.
+
+Sign convention: QuasiTune moments are internal and positive in the direction of the positive angle, so a
+spring-like (restoring) phase has **k < 0**; the controller applies τ = k(θ − θe) − bθ̇ with the same
+signs, which makes a negative k restoring and a positive k energy-injecting.
+
+Guard: when |k| is near zero, −c/k is far away and meaningless. If the fitted θe falls outside the joint's
+range (which includes the |k| → 0 case), θe is clamped to the range and k is re-fitted with θe fixed
+(k = Σ(θ−θe)τ / Σ(θ−θe)²); the row is marked ``guarded``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SUBPHASES: tuple[str, ...] = ("stance_flexion", "stance_extension", "swing_flexion", "swing_extension")
+SUBPHASE_CODES: dict[str, str] = {"stance_flexion": "SF", "stance_extension": "SE",
+                                  "swing_flexion": "WF", "swing_extension": "WE"}
+
+
+@dataclass(frozen=True)
+class SubphaseFit:
+    """Result of one sub-phase regression (SI units)."""
+
+    subphase: str
+    k_Nm_per_rad: float
+    theta_e_rad: float
+    r2: float
+    guarded: bool
+    phase_start: float
+    phase_end: float
+    n_points: int
+
+
+def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) -> list[np.ndarray]:
+    """Boolean masks of the four sub-phases for boundaries (SF→SE, SE→WF, WF→WE) in phase units.
+
+    SF: [0, b1], SE: [b1, b2], WF: [b2, b3], WE: [b3, 1]; boundary samples belong to both neighbours.
+    """
+    b1, b2, b3 = boundaries
+    if not 0.0 < b1 < b2 < b3 < 1.0:
+        raise ValueError(f"sub-phase boundaries must satisfy 0 < b1 < b2 < b3 < 1, got {boundaries}")
+    edges = (0.0, b1, b2, b3, 1.0)
+    return [(phase >= lo - 1e-12) & (phase <= hi + 1e-12) for lo, hi in zip(edges[:-1], edges[1:], strict=True)]
+
+
+def fit_line(theta: np.ndarray, tau: np.ndarray, theta_range: tuple[float, float]) -> tuple[float, float, float, bool]:
+    """Fit τ = k(θ − θe) by least squares; returns (k, θe, R², guarded)."""
+    theta = np.asarray(theta, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    if theta.size < 3:
+        raise ValueError("a sub-phase needs at least 3 samples for a line fit")
+    tm, ym = theta.mean(), tau.mean()
+    dt, dy = theta - tm, tau - ym
+    sxx, syy = float(dt @ dt), float(dy @ dy)
+    k = float(dt @ dy) / sxx if sxx > 0 else 0.0
+    c = ym - k * tm
+    lo, hi = theta_range
+    guarded = False
+    theta_e = -c / k if abs(k) > 1e-12 else np.inf
+    if not lo <= theta_e <= hi:
+        guarded = True
+        if np.isfinite(theta_e):
+            theta_e = float(np.clip(theta_e, lo, hi))
+        else:  # k ≈ 0: the farthest bound needs the smallest |k| to carry the mean moment
+            theta_e = lo if abs(tm - lo) > abs(tm - hi) else hi
+        d = theta - theta_e
+        k = float(d @ tau) / float(d @ d) if float(d @ d) > 0 else 0.0
+    resid = tau - k * (theta - theta_e)
+    r2 = 1.0 - float(resid @ resid) / syy if syy > 0 else 0.0
+    return k, float(theta_e), r2, guarded
+
+
+def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.ndarray,
+                        boundaries: tuple[float, float, float],
+                        theta_range_rad: tuple[float, float]) -> list[SubphaseFit]:
+    """Per-sub-phase quasi-stiffness of one joint.
+
+    Args:
+        phase: (P,) phase grid in [0, 1].
+        theta_rad: (P,) joint angle (rad).
+        tau_Nm: (P,) joint moment (N·m, internal, + in the direction of + angle).
+        boundaries: SF→SE, SE→WF (toe-off), WF→WE phases.
+        theta_range_rad: joint range used by the guard.
+    """
+    fits = []
+    for name, mask in zip(SUBPHASES, subphase_masks(phase, boundaries), strict=True):
+        k, te, r2, guarded = fit_line(theta_rad[mask], tau_Nm[mask], theta_range_rad)
+        ph = phase[mask]
+        fits.append(SubphaseFit(name, k, te, r2, guarded, float(ph.min()), float(ph.max()), int(mask.sum())))
+    return fits

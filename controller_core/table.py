@@ -1,0 +1,185 @@
+"""The parameter table pushed to the leg, and the safety limits checked on it.
+
+Field names carry their units. Stiffness and damping are SI (N·m/rad, N·m·s/rad); equilibrium angles and
+angle thresholds are in degrees because this table is what a prosthetist reads, edits and approves.
+
+Safety is layered: :func:`check_table` is run when a table is built (the proposal carries its result),
+again at approval (backend), and again by the device before use (device bridge); every violation names
+the offending field, its value and the allowed range.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from controller_core.quasi_stiffness import SUBPHASES
+
+Joint = Literal["knee", "ankle"]
+Subphase = Literal["stance_flexion", "stance_extension", "swing_flexion", "swing_extension"]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class ParameterRow(_Strict):
+    """Impedance of one joint in one sub-phase: τ = k(θ − θe) − bθ̇."""
+
+    joint: Joint
+    subphase: Subphase
+    k_Nm_per_rad: float = Field(description="quasi-stiffness (N·m/rad); negative = restoring")
+    theta_e_deg: float = Field(description="equilibrium angle (deg; knee flexion +, ankle dorsiflexion +)")
+    b_Nm_s_per_rad: float = Field(description="damping (N·m·s/rad), >= 0")
+    r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
+    guarded: bool = Field(default=False, description="θe clamped to the joint range and k re-fitted")
+
+    @field_validator("k_Nm_per_rad", "theta_e_deg", "b_Nm_s_per_rad")
+    @classmethod
+    def _finite(cls, v: float) -> float:
+        if not math.isfinite(v):
+            raise ValueError("must be a finite number")
+        return v
+
+
+class Thresholds(_Strict):
+    """Transition thresholds and state-time guards of the four-state machine."""
+
+    sf_to_se_ankle_moment_Nm: float = Field(
+        description="SF→SE when the ankle (sagittal) moment falls below this (N·m; plantarflexor negative)")
+    se_to_wf_load_N: float = Field(description="SE→WF (toe-off) when the vertical load falls below this (N)")
+    wf_to_we_knee_angle_deg: float = Field(
+        description="WF→WE when the knee is flexed beyond this (deg) and slowing")
+    we_to_sf_load_N: float = Field(description="WE→SF (heel strike) when the vertical load rises above this (N)")
+    min_state_time_s: float = Field(description="minimum time in any state (s)")
+    max_state_time_s: float = Field(description="maximum time in any state before the guard moves on (s)")
+
+    @field_validator("*")
+    @classmethod
+    def _finite(cls, v: float) -> float:
+        if not math.isfinite(v):
+            raise ValueError("must be a finite number")
+        return v
+
+
+class Provenance(_Strict):
+    """Where a table came from."""
+
+    model_version: str
+    data_sha256: str
+    speed_mps: float
+    incline_deg: float
+    patient_mass_kg: float
+    extrapolation: bool
+    source: Literal["model", "edit"] = "model"
+
+
+class ParameterTable(_Strict):
+    """Per joint × sub-phase impedance, FSM thresholds and provenance."""
+
+    rows: list[ParameterRow]
+    thresholds: Thresholds
+    provenance: Provenance
+
+    @field_validator("rows")
+    @classmethod
+    def _complete(cls, rows: list[ParameterRow]) -> list[ParameterRow]:
+        keys = [(r.joint, r.subphase) for r in rows]
+        expected = {(j, s) for j in ("knee", "ankle") for s in SUBPHASES}
+        if len(keys) != len(set(keys)) or set(keys) != expected:
+            raise ValueError("a table needs exactly one row per joint (knee, ankle) and sub-phase (4)")
+        return rows
+
+    def row(self, joint: str, subphase: str) -> ParameterRow:
+        """The row of one joint and sub-phase."""
+        for r in self.rows:
+            if r.joint == joint and r.subphase == subphase:
+                return r
+        raise KeyError((joint, subphase))
+
+
+class Range(_Strict):
+    """Closed interval [low, high] in the unit of the field it guards."""
+
+    low: float
+    high: float
+
+
+class SafetyLimits(_Strict):
+    """Limits enforced on every table.
+
+    Defaults: joint ranges of the simulated/Open Source Leg-class device (knee 0–120°, ankle ±30°);
+    |k| up to 1200 N·m/rad restoring and 200 N·m/rad energy-injecting (above the quasi-stiffness of a
+    200 kg patient's able-bodied reference, about 3 N·m/kg/rad); damping 0–30 N·m·s/rad; loads 0–3000 N;
+    state times 0.01–3 s.
+    """
+
+    k_Nm_per_rad: Range = Range(low=-1200.0, high=200.0)
+    knee_theta_e_deg: Range = Range(low=0.0, high=120.0)
+    ankle_theta_e_deg: Range = Range(low=-30.0, high=30.0)
+    b_Nm_s_per_rad: Range = Range(low=0.0, high=30.0)
+    load_N: Range = Range(low=0.0, high=3000.0)
+    ankle_moment_Nm: Range = Range(low=-300.0, high=0.0)
+    state_time_s: Range = Range(low=0.01, high=3.0)
+
+
+class LimitViolation(_Strict):
+    """One value outside its allowed range."""
+
+    field: str
+    value: float
+    low: float
+    high: float
+    message: str
+
+
+class SafetyLimitError(ValueError):
+    """A table violates the safety limits; ``violations`` lists every offending field."""
+
+    def __init__(self, violations: list[LimitViolation]) -> None:
+        self.violations = violations
+        super().__init__("; ".join(v.message for v in violations))
+
+
+def _check(field: str, value: float, rng: Range, unit: str, out: list[LimitViolation]) -> None:
+    if not (math.isfinite(value) and rng.low <= value <= rng.high):
+        out.append(LimitViolation(field=field, value=value, low=rng.low, high=rng.high,
+                                  message=f"{field} = {value:.4g} {unit} is outside [{rng.low:g}, {rng.high:g}] {unit}"))
+
+
+def check_table(table: ParameterTable, limits: SafetyLimits | None = None) -> list[LimitViolation]:
+    """All limit violations of a table (empty list = safe)."""
+    lim = limits or SafetyLimits()
+    out: list[LimitViolation] = []
+    for r in table.rows:
+        key = f"{r.joint}.{r.subphase}"
+        _check(f"{key}.k_Nm_per_rad", r.k_Nm_per_rad, lim.k_Nm_per_rad, "N·m/rad", out)
+        theta_rng = lim.knee_theta_e_deg if r.joint == "knee" else lim.ankle_theta_e_deg
+        _check(f"{key}.theta_e_deg", r.theta_e_deg, theta_rng, "deg", out)
+        _check(f"{key}.b_Nm_s_per_rad", r.b_Nm_s_per_rad, lim.b_Nm_s_per_rad, "N·m·s/rad", out)
+    t = table.thresholds
+    _check("thresholds.sf_to_se_ankle_moment_Nm", t.sf_to_se_ankle_moment_Nm, lim.ankle_moment_Nm, "N·m", out)
+    _check("thresholds.se_to_wf_load_N", t.se_to_wf_load_N, lim.load_N, "N", out)
+    _check("thresholds.we_to_sf_load_N", t.we_to_sf_load_N, lim.load_N, "N", out)
+    _check("thresholds.wf_to_we_knee_angle_deg", t.wf_to_we_knee_angle_deg, lim.knee_theta_e_deg, "deg", out)
+    _check("thresholds.min_state_time_s", t.min_state_time_s, lim.state_time_s, "s", out)
+    _check("thresholds.max_state_time_s", t.max_state_time_s, lim.state_time_s, "s", out)
+    if t.min_state_time_s >= t.max_state_time_s:
+        out.append(LimitViolation(field="thresholds.min_state_time_s", value=t.min_state_time_s,
+                                  low=lim.state_time_s.low, high=t.max_state_time_s,
+                                  message="thresholds.min_state_time_s must be below max_state_time_s"))
+    if t.se_to_wf_load_N >= t.we_to_sf_load_N:
+        out.append(LimitViolation(field="thresholds.se_to_wf_load_N", value=t.se_to_wf_load_N,
+                                  low=lim.load_N.low, high=t.we_to_sf_load_N,
+                                  message="thresholds.se_to_wf_load_N (toe-off) must be below we_to_sf_load_N "
+                                          "(heel strike), or the machine chatters"))
+    return out
+
+
+def assert_safe(table: ParameterTable, limits: SafetyLimits | None = None) -> None:
+    """Raise :class:`SafetyLimitError` naming every offending field, if any."""
+    violations = check_table(table, limits)
+    if violations:
+        raise SafetyLimitError(violations)
