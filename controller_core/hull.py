@@ -28,7 +28,7 @@ class TaskHull:
             raise ValueError(f"hull has {len(self.tolerance)} task dimensions, data has {X.shape[1]}")
         Z = X / np.asarray(self.tolerance)
         self.center_ = Z.mean(axis=0)
-        U, s, Vt = np.linalg.svd(Z - self.center_, full_matrices=False)
+        _U, s, Vt = np.linalg.svd(Z - self.center_, full_matrices=False)
         rank = int(np.sum(s > 1e-9 * max(1.0, s.max(initial=0.0))))
         self.basis_ = Vt[:rank]                      # (rank, d) orthonormal span of the tasks
         P = (Z - self.center_) @ self.basis_.T       # (n, rank) coordinates in the span

@@ -100,15 +100,21 @@ class KMP:
         lam_c: λc of the covariance.
         via_tolerance: a reference point closer than this (phase units) to a via-point is replaced.
         cov_scale: ``"calibrated"`` (default) or ``"huang"`` (c = N/λc).
+        via_mean_scale: factor on the via-point covariances in the *mean* system only. Below 1 the mean
+            is pulled harder through the via-points (dense, strongly correlated reference points otherwise
+            out-vote a single via-point); the covariance system keeps the via-points' own covariance,
+            so the reported uncertainty is not shrunk by this choice.
     """
 
     def __init__(self, length_scale: float = 0.05, lam: float = 1.0, lam_c: float = 1.0,
-                 via_tolerance: float = 0.006, cov_scale: str = "calibrated") -> None:
+                 via_tolerance: float = 0.006, cov_scale: str = "calibrated",
+                 via_mean_scale: float = 1.0) -> None:
         self.length_scale = length_scale
         self.lam = lam
         self.lam_c = lam_c
         self.via_tolerance = via_tolerance
         self.cov_scale = cov_scale
+        self.via_mean_scale = via_mean_scale
 
     # ------------------------------------------------------------------ fit
     def fit(self, s_ref: np.ndarray, mu_ref: np.ndarray, sigma_ref: np.ndarray,
@@ -225,14 +231,14 @@ class KMP:
         Kqv = _kron_eye(periodic_kernel(self.s_query_, sv, self.length_scale), O)      # (QO, mO)
         # mean ξ = Kq x_r + Kqv x_v; covariance from the quadratic form k*ᵀ P k*. With λ = λc both share
         # one factorisation, so their right-hand sides are solved together (column 0 is the mean).
-        if self.lam == self.lam_c:
+        if self.lam == self.lam_c and self.via_mean_scale == 1.0:
             xr, Xv, W, T, P_r, corr = self._update(self._chol, self.lam, sv, cov_v, rows,
                                                    np.hstack([alpha, self._Zc]),
                                                    np.hstack([mu_v, Kqv.T]))
             xv, Xv, T = Xv[:, :1], Xv[:, 1:], T[:, 1:]
             corr = None if corr is None else corr[:, 1:]
         else:
-            xr, xv, *_ = self._update(self._chol, self.lam, sv, cov_v, rows, alpha, mu_v)
+            xr, xv, *_ = self._update(self._chol, self.lam, sv, cov_v * self.via_mean_scale, rows, alpha, mu_v)
             _, Xv, W, T, P_r, corr = self._update(self._chol_c, self.lam_c, sv, cov_v, rows, self._Zc,
                                                   Kqv.T)
         mean = (self._Kq @ xr + Kqv @ xv).reshape(Q, O)
@@ -258,7 +264,11 @@ class KMP:
         S = _blockdiag(sig)
         Kq = _kron_eye(periodic_kernel(self.s_query_, s, self.length_scale), O)
         Q = self.s_query_.size
-        mean = (Kq @ cho_solve(cho_factor(K + self.lam * S, lower=True), mu)).reshape(Q, O)
+        n_v = len(vias)
+        S_mean = S.copy()
+        if n_v:
+            S_mean[-n_v * O:, -n_v * O:] *= self.via_mean_scale
+        mean = (Kq @ cho_solve(cho_factor(K + self.lam * S_mean, lower=True), mu)).reshape(Q, O)
         Z = cho_solve(cho_factor(K + self.lam_c * S, lower=True), Kq.T)
         quad = np.einsum("gqa,gqb->qab", Kq.T.reshape(-1, Q, O), Z.reshape(-1, Q, O))
         return mean, self.cov_scale_ * (np.eye(O)[None] - quad)

@@ -9,6 +9,7 @@ change never reuses a stale model.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -125,8 +126,6 @@ def load_default_model(refit: bool = False) -> QuasiStiffnessModel:
         except Exception:  # a corrupt cache entry is rebuilt, never trusted
             shutil.rmtree(directory, ignore_errors=True)
     model = train_default()
-    try:
+    with contextlib.suppress(OSError):  # a read-only home still gets a working (uncached) model
         save_model(model, directory)
-    except OSError:
-        pass  # a read-only home still gets a working (uncached) model
     return model

@@ -129,7 +129,7 @@ def phase_table_to_reference(
             channels[f"{joint}_{quantity}"] = df[col].to_numpy(dtype=float) * factor * sign
     stride_keys = [c for c in ("subject", "stride") if c in df.columns]
     work = pd.DataFrame({"_phase": phase})
-    for i, c in enumerate(tcols):
+    for i in range(len(tcols)):
         work[f"_t{i}"] = np.round(task_vals[:, i], 9)
     for c in stride_keys:
         work[c] = df[c].to_numpy()

@@ -13,6 +13,7 @@ range (which includes the |k| → 0 case), θe is clamped to the range and k is 
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +46,7 @@ def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) ->
     if not 0.0 < b1 < b2 < b3 < 1.0:
         raise ValueError(f"sub-phase boundaries must satisfy 0 < b1 < b2 < b3 < 1, got {boundaries}")
     edges = (0.0, b1, b2, b3, 1.0)
-    return [(phase >= lo - 1e-12) & (phase <= hi + 1e-12) for lo, hi in zip(edges[:-1], edges[1:], strict=True)]
+    return [(phase >= lo - 1e-12) & (phase <= hi + 1e-12) for lo, hi in itertools.pairwise(edges)]
 
 
 def fit_line(theta: np.ndarray, tau: np.ndarray, theta_range: tuple[float, float]) -> tuple[float, float, float, bool]:

@@ -1,0 +1,24 @@
+"""Shared fixtures. The default-model cache goes to a per-session temporary directory."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import pytest
+
+os.environ.setdefault("QUASITUNE_CACHE_DIR", tempfile.mkdtemp(prefix="quasitune-test-cache-"))
+
+
+@pytest.fixture(scope="session")
+def reference():
+    from controller_core.reference import load_shipped_reference
+
+    return load_shipped_reference()
+
+
+@pytest.fixture(scope="session")
+def model():
+    from controller_core import load_default_model
+
+    return load_default_model()
