@@ -236,16 +236,18 @@ class QuasiStiffnessModel:
         mean and variance at that phase (``mu_ref`` on the KMP grid), so it stays free to follow the data.
         """
         jm = self.joints_[joint]
+        mine = [f for f in features if f.spec.joint == joint and f.spec.quantity in ("angle", "moment")]
+        if not mine:
+            return []
+        phases = np.array([f.phase for f in mine])
         s_wrap = np.append(self.s_ref_, 1.0)
+        ref_means = np.column_stack([np.interp(phases, s_wrap, np.append(mu_ref[:, c], mu_ref[0, c]))
+                                     for c in (0, 1)])
+        nearest = np.abs(phases[:, None] - self.s_ref_[None]).argmin(axis=1)
         vias = []
-        for f in features:
-            if f.spec.joint != joint or f.spec.quantity not in ("angle", "moment"):
-                continue
+        for f, ref_mean, i in zip(mine, ref_means, nearest, strict=True):
             ch = 0 if f.spec.quantity == "angle" else 1
-            ref_mean = np.array([np.interp(f.phase, s_wrap, np.append(mu_ref[:, c], mu_ref[0, c]))
-                                 for c in (0, 1)])
-            i = int(np.argmin(np.abs(self.s_ref_ - f.phase)))
-            cov = np.diag(np.diag(jm.sigma_ref[i])).copy()
+            cov = np.diag(np.diag(jm.sigma_ref[i]))
             cov[ch, ch] = max(f.std, 1e-6) ** 2
             mean = ref_mean.copy()
             mean[ch] = f.value
@@ -274,10 +276,14 @@ class QuasiStiffnessModel:
         vias_by_joint: dict[str, list[ViaPoint]] = {}
         for joint in JOINTS:
             jm = self.joints_[joint]
-            mu = self._gmr_mean(jm.gmm, task, self.s_ref_)
+            if self.gmr_task_dims_:   # task-conditioned reference: new means, same cached factorisation
+                mu = self._gmr_mean(jm.gmm, task, self.s_ref_)
+                mu_arg = mu
+            else:                     # pooled reference: what the KMP was fitted on, nothing to redo
+                mu, mu_arg = jm.kmp.mu_ref_, None
             vias = self.via_points(joint, mu, features) if with_vias else []
             vias_by_joint[joint] = vias
-            mean, cov = jm.kmp.predict(vias, mu=mu)
+            mean, cov = jm.kmp.predict(vias, mu=mu_arg)
             sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
             means[f"{joint}_angle"], means[f"{joint}_moment"] = mean[:, 0], mean[:, 1]
             stds[f"{joint}_angle"], stds[f"{joint}_moment"] = sd[:, 0], sd[:, 1]
@@ -293,7 +299,9 @@ class QuasiStiffnessModel:
                                      boundaries, JOINT_RANGE_RAD[joint])
             fits[joint] = jf
             for f in jf:
-                rows.append(ParameterRow(
+                # values computed here are finite floats by construction; check_table() below is the
+                # limit check at build time, and edited tables go through full validation
+                rows.append(ParameterRow.model_construct(
                     joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad,
                     theta_e_deg=math.degrees(f.theta_e_rad),
                     b_Nm_s_per_rad=DEFAULT_DAMPING_NMS_PER_RAD_PER_KG[f.subphase] * mass_kg,
