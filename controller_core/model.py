@@ -21,13 +21,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controller_core.features import CURVE_FEATURES, FEATURES, FeatureSpec, feature_sd, record_features
+from controller_core.features import CURVE_FEATURES, FEATURES, feature_sd, record_features
 from controller_core.gmr import GaussianMixtureRegression
 from controller_core.gpr import FeatureGPR, FeatureGPRBank
 from controller_core.kmp import KMP, ViaPoint
 from controller_core.proposal import FeaturePrediction, Proposal
 from controller_core.published_features import PublishedPoint
-from controller_core.quasi_stiffness import SUBPHASES, fit_quasi_stiffness
+from controller_core.quasi_stiffness import fit_quasi_stiffness
 from controller_core.reference import JOINTS, ReferenceSet
 from controller_core.table import ParameterRow, ParameterTable, Provenance, Thresholds, check_table
 
@@ -123,7 +123,7 @@ class QuasiStiffnessModel:
             progress: optional callable ``progress(step_name)`` called after each part.
         """
         tick = progress or (lambda _name: None)
-        if list(reference.task_names[:2]) != ["speed_mps", "incline_deg"] and "speed_mps" not in reference.task_names:
+        if "speed_mps" not in reference.task_names:
             raise ValueError("the reference set needs a 'speed_mps' task column")
         tasks = np.column_stack([
             np.array([r.task.get("speed_mps", np.nan) for r in reference.records]),
@@ -324,13 +324,3 @@ class QuasiStiffnessModel:
             extrapolation=extrapolation, features=features, phase=s, means=means, stds=stds,
             boundaries=boundaries, fits=fits, table=table, violations=check_table(table),
             vias=vias_by_joint)
-
-
-__all__ = [
-    "CURVE_FEATURES",
-    "SUBPHASES",
-    "FeatureSpec",
-    "InvalidTaskError",
-    "QuasiStiffnessModel",
-    "validate_task",
-]

@@ -22,7 +22,9 @@ Subphase = Literal["stance_flexion", "stance_extension", "swing_flexion", "swing
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """Base of every table model: unknown fields, NaN and ±inf are refused; instances are immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class ParameterRow(_Strict):
@@ -36,13 +38,6 @@ class ParameterRow(_Strict):
     r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
     guarded: bool = Field(default=False, description="θe clamped to the joint range and k re-fitted")
 
-    @field_validator("k_Nm_per_rad", "theta_e_deg", "b_Nm_s_per_rad")
-    @classmethod
-    def _finite(cls, v: float) -> float:
-        if not math.isfinite(v):
-            raise ValueError("must be a finite number")
-        return v
-
 
 class Thresholds(_Strict):
     """Transition thresholds and state-time guards of the four-state machine."""
@@ -55,13 +50,6 @@ class Thresholds(_Strict):
     we_to_sf_load_N: float = Field(description="WE→SF (heel strike) when the vertical load rises above this (N)")
     min_state_time_s: float = Field(description="minimum time in any state (s)")
     max_state_time_s: float = Field(description="maximum time in any state before the guard moves on (s)")
-
-    @field_validator("*")
-    @classmethod
-    def _finite(cls, v: float) -> float:
-        if not math.isfinite(v):
-            raise ValueError("must be a finite number")
-        return v
 
 
 class Provenance(_Strict):
