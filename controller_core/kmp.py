@@ -164,25 +164,32 @@ class KMP:
         gap = np.minimum(gap, 1.0 - gap)
         return np.unique(np.flatnonzero((gap <= self.via_tolerance).any(axis=0)))
 
-    def _update(self, L: np.ndarray, lam: float, sv: np.ndarray, cov_v: np.ndarray, rows: np.ndarray,
-                Y: np.ndarray, B_v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                                          np.ndarray | None, np.ndarray | None]:
-        """Solve the modified database for right-hand sides (B_r, B_v), given Y = A⁻¹B_r.
+    def _border(self, L: np.ndarray, sv: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Pieces of the modified database that do not depend on the via-point covariances.
 
-        The database is the reference minus the flattened ``rows`` plus via-points at ``sv``.
-        Returns the first column of X_r, all of X_v, W = A⁻¹C, the Schur solve T and, when points are
-        removed, the projection pieces (P_r, corr), so callers form only the products they need.
+        Returns C = k(reference, vias) ⊗ I, the via-via kernel, W = A⁻¹C and (if reference rows are
+        replaced) the columns of A⁻¹ at those rows, all from one solve with the cached factor L.
         """
         O = self.n_outputs_
         m = sv.size * O
         C = _kron_eye(periodic_kernel(self.s_ref_, sv, self.length_scale), O)          # (NO, mO)
-        D = _kron_eye(periodic_kernel(sv, sv, self.length_scale), O) + lam * _blockdiag(cov_v)
+        Kvv = _kron_eye(periodic_kernel(sv, sv, self.length_scale), O)
         if rows.size:  # one solve for A⁻¹C and the columns of A⁻¹ at the removed rows
             WE = _solve(L, np.hstack([C, _unit_columns(self.s_ref_.size * O, rows)]))
-            W, Ecols = WE[:, :m], WE[:, m:]
-        else:
-            W = _solve(L, C)
-        Ls = _chol(D - C.T @ W)
+            return C, Kvv, WE[:, :m], WE[:, m:]
+        return C, Kvv, _solve(L, C), None
+
+    def _update(self, border: tuple[np.ndarray, ...], lam: float, cov_v: np.ndarray, rows: np.ndarray,
+                Y: np.ndarray, B_v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                          np.ndarray | None, np.ndarray | None]:
+        """Solve the modified database for right-hand sides (B_r, B_v), given Y = A⁻¹B_r.
+
+        The database is the reference minus the flattened ``rows`` plus the via-points of ``border``.
+        Returns the first column of X_r, all of X_v, W = A⁻¹C, the Schur solve T and, when points are
+        removed, the projection pieces (P_r, corr), so callers form only the products they need.
+        """
+        C, Kvv, W, Ecols = border
+        Ls = _chol(Kvv + lam * _blockdiag(cov_v) - C.T @ W)
         if rows.size:
             TT = _solve(Ls, np.hstack([B_v - C.T @ Y, -(C.T @ Ecols)]))
             T, T_e = TT[:, :B_v.shape[1]], TT[:, B_v.shape[1]:]
@@ -231,16 +238,16 @@ class KMP:
         Kqv = _kron_eye(periodic_kernel(self.s_query_, sv, self.length_scale), O)      # (QO, mO)
         # mean ξ = Kq x_r + Kqv x_v; covariance from the quadratic form k*ᵀ P k*. With λ = λc both share
         # one factorisation, so their right-hand sides are solved together (column 0 is the mean).
+        border = self._border(self._chol, sv, rows)
         if self.lam == self.lam_c and self.via_mean_scale == 1.0:
-            xr, Xv, W, T, P_r, corr = self._update(self._chol, self.lam, sv, cov_v, rows,
-                                                   np.hstack([alpha, self._Zc]),
-                                                   np.hstack([mu_v, Kqv.T]))
+            xr, Xv, W, T, P_r, corr = self._update(border, self.lam, cov_v, rows,
+                                                   np.hstack([alpha, self._Zc]), np.hstack([mu_v, Kqv.T]))
             xv, Xv, T = Xv[:, :1], Xv[:, 1:], T[:, 1:]
             corr = None if corr is None else corr[:, 1:]
         else:
-            xr, xv, *_ = self._update(self._chol, self.lam, sv, cov_v * self.via_mean_scale, rows, alpha, mu_v)
-            _, Xv, W, T, P_r, corr = self._update(self._chol_c, self.lam_c, sv, cov_v, rows, self._Zc,
-                                                  Kqv.T)
+            xr, xv, *_ = self._update(border, self.lam, cov_v * self.via_mean_scale, rows, alpha, mu_v)
+            border_c = border if self.lam_c == self.lam else self._border(self._chol_c, sv, rows)
+            _, Xv, W, T, P_r, corr = self._update(border_c, self.lam_c, cov_v, rows, self._Zc, Kqv.T)
         mean = (self._Kq @ xr + Kqv @ xv).reshape(Q, O)
         m = Kqv.shape[1]
         quad = self._quad_base - _blocks((self._Kq @ W).reshape(Q, O, m), T.reshape(m, Q, O))
