@@ -81,6 +81,9 @@ def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.nda
                         theta_range_rad: tuple[float, float]) -> list[SubphaseFit]:
     """Per-sub-phase quasi-stiffness of one joint.
 
+    The four least-squares lines are computed together from masked sums; a sub-phase whose θe falls outside
+    the joint range goes through :func:`fit_line`'s guard.
+
     Args:
         phase: (P,) phase grid in [0, 1].
         theta_rad: (P,) joint angle (rad).
@@ -88,9 +91,29 @@ def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.nda
         boundaries: SF→SE, SE→WF (toe-off), WF→WE phases.
         theta_range_rad: joint range used by the guard.
     """
+    masks = subphase_masks(phase, boundaries)
+    M = np.array(masks, dtype=float)                        # (4, P)
+    theta = np.asarray(theta_rad, dtype=float)
+    tau = np.asarray(tau_Nm, dtype=float)
+    n = M.sum(axis=1)
+    if np.any(n < 3):
+        raise ValueError("a sub-phase needs at least 3 samples for a line fit")
+    tm, ym = (M @ theta) / n, (M @ tau) / n
+    sxx = M @ (theta * theta) - n * tm * tm
+    sxy = M @ (theta * tau) - n * tm * ym
+    syy = M @ (tau * tau) - n * ym * ym
+    k = np.divide(sxy, sxx, out=np.zeros(4), where=sxx > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        theta_e = np.where(np.abs(k) > 1e-12, tm - ym / k, np.inf)      # θe = −c/k with c = ym − k·tm
+    r2 = np.where(syy > 0, 1.0 - (syy - k * sxy) / np.where(syy > 0, syy, 1.0), 0.0)
+    lo, hi = theta_range_rad
+    start = np.where(M > 0, phase[None], np.inf).min(axis=1)
+    end = np.where(M > 0, phase[None], -np.inf).max(axis=1)
     fits = []
-    for name, mask in zip(SUBPHASES, subphase_masks(phase, boundaries), strict=True):
-        k, te, r2, guarded = fit_line(theta_rad[mask], tau_Nm[mask], theta_range_rad)
-        ph = phase[mask]
-        fits.append(SubphaseFit(name, k, te, r2, guarded, float(ph.min()), float(ph.max()), int(mask.sum())))
+    for i, name in enumerate(SUBPHASES):
+        if lo <= theta_e[i] <= hi:
+            ki, tei, r2i, guarded = float(k[i]), float(theta_e[i]), float(r2[i]), False
+        else:
+            ki, tei, r2i, guarded = fit_line(theta[masks[i]], tau[masks[i]], theta_range_rad)
+        fits.append(SubphaseFit(name, ki, tei, r2i, guarded, float(start[i]), float(end[i]), int(n[i])))
     return fits

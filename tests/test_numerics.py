@@ -159,3 +159,18 @@ def test_subphase_fit_on_real_knee_curve(reference):
     with pytest.raises(ValueError, match="boundaries"):
         fit_quasi_stiffness(nat.phase, nat.mean["knee_angle"], nat.mean["knee_moment"], (0.5, 0.3, 0.7),
                             (0.0, 2.0))
+
+
+def test_vectorised_subphase_fit_equals_line_by_line(model):
+    from controller_core.quasi_stiffness import subphase_masks
+
+    for speed, incline in [(0.9, 0.0), (1.9, 0.0), (1.2, -10.0), (2.8, 0.0)]:
+        p = model.propose(speed, incline, 75.0)
+        for joint, rng in (("knee", (0.0, np.radians(120))), ("ankle", (np.radians(-30), np.radians(30)))):
+            th, tau = p.means[f"{joint}_angle"], p.means[f"{joint}_moment"] * 75.0
+            fits = fit_quasi_stiffness(p.phase, th, tau, p.boundaries, rng)
+            for f, mask in zip(fits, subphase_masks(p.phase, p.boundaries), strict=True):
+                k, te, r2, guarded = fit_line(th[mask], tau[mask], rng)
+                assert guarded == f.guarded
+                assert abs(k - f.k_Nm_per_rad) <= 1e-9 * max(1.0, abs(k))
+                assert abs(te - f.theta_e_rad) < 1e-9 and abs(r2 - f.r2) < 1e-9
