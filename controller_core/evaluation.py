@@ -21,8 +21,9 @@ import math
 
 import numpy as np
 
-from controller_core.features import FEATURES, record_features
+from controller_core.features import FEATURES, FeatureSpec, record_features
 from controller_core.model_io import train
+from controller_core.proposal import FEATURE_UNITS
 from controller_core.reference import CHANNELS, ReferenceSet, load_shipped_reference
 
 DISPLAY = {"knee_angle": ("knee_angle_deg", math.degrees(1.0)), "ankle_angle": ("ankle_angle_deg", math.degrees(1.0)),
@@ -36,8 +37,7 @@ def _interp_curves(speeds: np.ndarray, curves: np.ndarray, speed: float) -> np.n
     return np.array([np.interp(speed, s, c[:, j]) for j in range(c.shape[1])])
 
 
-def _feature_display(name: str, value: float) -> float:
-    spec = next(f for f in FEATURES if f.name == name)
+def _feature_display(spec: FeatureSpec, value: float) -> float:
     return math.degrees(value) if spec.quantity == "angle" else value
 
 
@@ -82,13 +82,11 @@ def evaluate(reference: ReferenceSet | None = None) -> dict:
         train_feats = [truth_feats[j] for j in keep]
         for spec in FEATURES:
             true_phase, true_val = truth_feats[i][spec.name]
-            tv = _feature_display(spec.name, true_val)
-            feat_err["gpr"][spec.name].append(_feature_display(spec.name, fmap[spec.name].value) - tv)
-            lin = np.interp(task, np.sort(speeds[keep]),
-                            np.array([f[spec.name][1] for f in train_feats])[np.argsort(speeds[keep])])
-            feat_err["linear"][spec.name].append(_feature_display(spec.name, lin) - tv)
-            feat_err["nearest"][spec.name].append(
-                _feature_display(spec.name, truth_feats[near][spec.name][1]) - tv)
+            tv = _feature_display(spec, true_val)
+            feat_err["gpr"][spec.name].append(_feature_display(spec, fmap[spec.name].value) - tv)
+            lin = _interp_curves(speeds[keep], np.array([[f[spec.name][1]] for f in train_feats]), task)[0]
+            feat_err["linear"][spec.name].append(_feature_display(spec, lin) - tv)
+            feat_err["nearest"][spec.name].append(_feature_display(spec, truth_feats[near][spec.name][1]) - tv)
             phase_err[spec.name].append(fmap[spec.name].phase - true_phase)
 
     def rms(v: list[float]) -> float:
@@ -101,8 +99,7 @@ def evaluate(reference: ReferenceSet | None = None) -> dict:
              | {"between_subject_sd": root_mean(sd_sq[c])} for c in CHANNELS}
     features = {}
     for spec in FEATURES:
-        unit = {"angle": "deg", "moment": "N·m/kg", "timing": "fraction of cycle"}[spec.quantity]
-        features[spec.name] = {"unit": unit, "gpr": rms(feat_err["gpr"][spec.name]),
+        features[spec.name] = {"unit": FEATURE_UNITS[spec.quantity], "gpr": rms(feat_err["gpr"][spec.name]),
                                "linear": rms(feat_err["linear"][spec.name]),
                                "nearest": rms(feat_err["nearest"][spec.name]),
                                "gpr_phase": rms(phase_err[spec.name])}
