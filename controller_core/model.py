@@ -4,9 +4,10 @@
 feature points):
 
 1. one :class:`FeatureGPR` per feature value and per feature phase (task → feature);
-2. one GMM per joint on (task dims that vary, phase, angle, moment); GMR conditioned on (task, phase)
-   gives the reference mean for a task, GMR conditioned on phase alone its covariance (the spread of the
-   curves across the training tasks), which is task-independent so the KMP factorisation is cached once;
+2. one GMM per joint on (phase, angle, moment) — plus the task dims that vary when
+   ``reference_mode="task"`` — whose GMR conditioned on phase gives the reference mean (by default one
+   pooled reference for every task) and its covariance (the spread of the curves across the training
+   tasks); the covariance is task-independent, so the KMP factorisation is cached once;
 3. one :class:`KMP` per joint over (angle, moment) on a phase grid.
 
 ``propose(speed_mps, incline_deg, mass_kg)`` predicts the features, turns each into a KMP via-point on
@@ -63,8 +64,10 @@ def validate_task(speed_mps: float, incline_deg: float, mass_kg: float) -> None:
 @dataclass
 class _JointModel:
     gmm: GaussianMixtureRegression
-    kmp: KMP
-    sigma_ref: np.ndarray          # (N, 2, 2) on the KMP reference grid
+    kmp: KMP                       # holds the reference mean and covariance on its grid (mu_ref_, sigma_ref_)
+
+
+_PHASE_GPR_INDEX = {f.name: i for i, f in enumerate(CURVE_FEATURES)}  # row of each feature in the phase bank
 
 
 class QuasiStiffnessModel:
@@ -199,7 +202,7 @@ class QuasiStiffnessModel:
             kmp = KMP(length_scale=self.kmp_length_scale, lam=self.kmp_lambda, lam_c=self.kmp_lambda,
                       via_tolerance=0.5 / self.n_ref_points,
                       via_mean_scale=self.via_mean_scale).fit(self.s_ref_, mu0, sigma, self.s_query_)
-            self.joints_[joint] = _JointModel(gmm=gmm, kmp=kmp, sigma_ref=sigma)
+            self.joints_[joint] = _JointModel(gmm=gmm, kmp=kmp)
             tick(f"GMM/KMP {joint}")
 
     def _gmr_mean(self, gmm: GaussianMixtureRegression, task: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -216,13 +219,12 @@ class QuasiStiffnessModel:
         x = np.array([speed_mps, incline_deg], dtype=float)
         vals, val_sd, val_out = self._bank_value.predict_one(x)
         phs, ph_sd, ph_out = self._bank_phase.predict_one(x)
-        phase_of = {f.name: i for i, f in enumerate(CURVE_FEATURES)}
         out = []
         for i, spec in enumerate(FEATURES):
             if spec.quantity == "timing":
                 phase, phase_std, extrap = vals[i], val_sd[i], bool(val_out[i])
             else:
-                j = phase_of[spec.name]
+                j = _PHASE_GPR_INDEX[spec.name]
                 phase, phase_std, extrap = phs[j], ph_sd[j], bool(val_out[i] or ph_out[j])
             out.append(FeaturePrediction(spec=spec, phase=float(min(max(phase, 0.0), 1.0)),
                                          phase_std=float(phase_std), value=float(vals[i]),
@@ -235,7 +237,7 @@ class QuasiStiffnessModel:
         The feature's channel gets the GPR mean and variance; the other channel keeps the task's reference
         mean and variance at that phase (``mu_ref`` on the KMP grid), so it stays free to follow the data.
         """
-        jm = self.joints_[joint]
+        sigma_ref = self.joints_[joint].kmp.sigma_ref_
         mine = [f for f in features if f.spec.joint == joint and f.spec.quantity in ("angle", "moment")]
         if not mine:
             return []
@@ -247,7 +249,7 @@ class QuasiStiffnessModel:
         vias = []
         for f, ref_mean, i in zip(mine, ref_means, nearest, strict=True):
             ch = 0 if f.spec.quantity == "angle" else 1
-            cov = np.diag(np.diag(jm.sigma_ref[i]))
+            cov = np.diag(np.diag(sigma_ref[i]))
             cov[ch, ch] = max(f.std, 1e-6) ** 2
             mean = ref_mean.copy()
             mean[ch] = f.value
