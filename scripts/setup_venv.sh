@@ -11,7 +11,13 @@ if [ ! -x .venv/bin/python ]; then
 fi
 stamp=.venv/.quasitune-installed
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
-  .venv/bin/python -m pip install --quiet --upgrade pip
-  .venv/bin/python -m pip install --quiet -e ".[dev]"
+  log=.venv/install.log
+  echo "Installing QuasiTune and its dependencies into .venv (log: $log) ..." >&2
+  if ! { .venv/bin/python -m pip install --upgrade pip && .venv/bin/python -m pip install -e ".[dev]"; } \
+       > "$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    echo "installation failed; full log in $log" >&2
+    exit 1
+  fi
   touch "$stamp"
 fi
