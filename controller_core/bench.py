@@ -51,5 +51,30 @@ def run_bench(repeats: int = 2000) -> dict[str, float]:
         "kmp_uncached_median_ms": round(float(np.median(uncached)), 4),
         "kmp_uncached_p99_ms": round(float(np.percentile(uncached, 99)), 4),
         "kmp_speedup_ratio": round(float(np.median(uncached) / np.median(cached)), 2),
+        **fsm_step_timings(model.propose(1.2, 0.0, 75.0).table, repeats * 10),
         "repeats": repeats,
     }
+
+
+def fsm_step_timings(table, repeats: int = 20000) -> dict[str, float]:
+    """Median and p99 time (µs) of one state-machine step over a replayed reference stride."""
+    from controller_core.fsm import ImpedanceSchedule, SensorSample, StateMachineController
+    from controller_core.walking_reference import level_walking_reference
+
+    ref = level_walking_reference(1.2)
+    n = ref.phase.shape[0] - 1
+    dt = ref.stride_time_s / n
+    weight = 75.0 * 9.81
+    count = repeats + 50
+    samples = [SensorSample(time_s=i * dt, knee_angle_rad=float(ref.knee_angle_rad[i % n]), knee_velocity_rad_s=0.0,
+                            ankle_angle_rad=float(ref.ankle_angle_rad[i % n]), ankle_velocity_rad_s=0.0,
+                            load_N=float(ref.vgrf_bw[i % n] * weight),
+                            ankle_moment_Nm=float(ref.ankle_moment_Nm_per_kg[i % n] * 75.0)) for i in range(count)]
+    ctrl = StateMachineController(ImpedanceSchedule.from_table(table))
+    it = iter(samples)
+
+    def step() -> None:
+        ctrl.step(next(it))
+
+    t = _timings(step, repeats) * 1e6
+    return {"fsm_step_median_us": round(float(np.median(t)), 3), "fsm_step_p99_us": round(float(np.percentile(t, 99)), 3)}

@@ -91,6 +91,11 @@ class QuasiStiffnessModel:
             range: a mixture's local linear regressions extrapolate badly, the GPR features handle
             extrapolation); ``"pooled"`` uses one reference for every task (GMR on phase only).
         via_mean_scale: KMP via-point pull on the mean (see :class:`KMP`); the curve std is unaffected.
+        min_restoring_stiffness_Nm_per_rad_per_kg: passivity ceiling of unstable sub-phases (N·m/rad per kg
+            of patient mass): an energy-injecting line whose θe lies inside the angles it sweeps is replaced
+            by k = −value·mass and a re-fitted θe (see :mod:`controller_core.quasi_stiffness`). The default,
+            0.25 N·m/rad/kg (about 19 N·m/rad at 75 kg), lies within the swing stiffnesses of the Open Source
+            Leg's published walking example (0.13–0.66 N·m/rad/kg); 0 disables the guard.
         random_state: seed for EM and optimizer restarts.
     """
 
@@ -98,7 +103,7 @@ class QuasiStiffnessModel:
                  kmp_lambda: float = 10.0, gpr_restarts: int = 2,
                  load_fractions: tuple[float, float] = (0.05, 0.15), swing_threshold_fraction: float = 0.85,
                  state_time_s: tuple[float, float] = (0.05, 1.5), reference_mode: str = "pooled",
-                 via_mean_scale: float = 0.1,
+                 via_mean_scale: float = 0.1, min_restoring_stiffness_Nm_per_rad_per_kg: float = 0.25,
                  random_state: int = 0) -> None:
         self.n_components = n_components
         self.n_ref_points = n_ref_points
@@ -110,6 +115,7 @@ class QuasiStiffnessModel:
         self.state_time_s = state_time_s
         self.reference_mode = reference_mode
         self.via_mean_scale = via_mean_scale
+        self.min_restoring_stiffness_Nm_per_rad_per_kg = min_restoring_stiffness_Nm_per_rad_per_kg
         self.random_state = random_state
 
     # ------------------------------------------------------------------ fit
@@ -296,9 +302,11 @@ class QuasiStiffnessModel:
         s = self.s_query_
         rows: list[ParameterRow] = []
         fits = {}
+        floor = self.min_restoring_stiffness_Nm_per_rad_per_kg * mass_kg
+        max_k = -floor if floor > 0 else None
         for joint in JOINTS:
             jf = fit_quasi_stiffness(s, means[f"{joint}_angle"], means[f"{joint}_moment"] * mass_kg,
-                                     boundaries, JOINT_RANGE_RAD[joint])
+                                     boundaries, JOINT_RANGE_RAD[joint], max_k)
             fits[joint] = jf
             for f in jf:
                 # values computed here are finite floats by construction; check_table() below is the
@@ -307,7 +315,7 @@ class QuasiStiffnessModel:
                     joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad,
                     theta_e_deg=math.degrees(f.theta_e_rad),
                     b_Nm_s_per_rad=DEFAULT_DAMPING_NMS_PER_RAD_PER_KG[f.subphase] * mass_kg,
-                    r2=f.r2, guarded=f.guarded))
+                    r2=f.r2, guarded=f.guarded, fit_method=f.method))
         extrapolation = any(f.extrapolation for f in features)
         weight_N = mass_kg * G
         thresholds = Thresholds(

@@ -9,6 +9,15 @@ signs, which makes a negative k restoring and a positive k energy-injecting.
 Guard: when |k| is near zero, −c/k is far away and meaningless. If the fitted θe falls outside the joint's
 range (which includes the |k| → 0 case), θe is clamped to the range and k is re-fitted with θe fixed
 (k = Σ(θ−θe)τ / Σ(θ−θe)²); the row is marked ``guarded``.
+
+Passivity: a least-squares slope can come out energy-injecting (k > 0), typically in swing, where the
+moments are small and the joint is carried by the thigh's motion. That is harmless while θe lies beyond the
+angles the joint sweeps in the sub-phase (the line then only brakes, as the knee's extensor moment does in
+early swing), but with θe inside that span τ = k(θ − θe) pushes the joint away from θe on both sides, into
+an end stop. When a ceiling ``max_k_Nm_per_rad`` (< 0) is given, such a sub-phase is re-fitted with k fixed
+at the ceiling and θe = mean(θ − τ/k) (the least-squares θe for that k), clamped to the range; the row is
+marked ``guarded`` (``passivity_guard``) and its R² says how much of the moment the constrained line still
+explains.
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ class SubphaseFit:
     phase_start: float
     phase_end: float
     n_points: int
+    method: str = "least_squares"   # least_squares | range_guard | passivity_guard
 
 
 def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) -> list[np.ndarray]:
@@ -76,9 +86,25 @@ def fit_line(theta: np.ndarray, tau: np.ndarray, theta_range: tuple[float, float
     return k, float(theta_e), r2, guarded
 
 
+def _r2(theta: np.ndarray, tau: np.ndarray, k: float, theta_e: float) -> float:
+    resid = tau - k * (theta - theta_e)
+    dy = tau - tau.mean()
+    syy = float(dy @ dy)
+    return 1.0 - float(resid @ resid) / syy if syy > 0 else 0.0
+
+
+def fit_fixed_k(theta: np.ndarray, tau: np.ndarray, k: float, theta_range: tuple[float, float]) -> tuple[float, float]:
+    """θe minimising Σ(τ − k(θ − θe))² for a fixed k (clamped to the range), and the R² of that line."""
+    theta = np.asarray(theta, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    theta_e = float(np.clip(np.mean(theta - tau / k), *theta_range))
+    return theta_e, _r2(theta, tau, k, theta_e)
+
+
 def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.ndarray,
                         boundaries: tuple[float, float, float],
-                        theta_range_rad: tuple[float, float]) -> list[SubphaseFit]:
+                        theta_range_rad: tuple[float, float],
+                        max_k_Nm_per_rad: float | None = None) -> list[SubphaseFit]:
     """Per-sub-phase quasi-stiffness of one joint.
 
     The four least-squares lines are computed together from masked sums; a sub-phase whose θe falls outside
@@ -90,7 +116,10 @@ def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.nda
         tau_Nm: (P,) joint moment (N·m, internal, + in the direction of + angle).
         boundaries: SF→SE, SE→WF (toe-off), WF→WE phases.
         theta_range_rad: joint range used by the guard.
+        max_k_Nm_per_rad: passivity ceiling (< 0, N·m/rad); None leaves the slopes unconstrained.
     """
+    if max_k_Nm_per_rad is not None and not max_k_Nm_per_rad < 0:
+        raise ValueError(f"max_k_Nm_per_rad must be negative (restoring), got {max_k_Nm_per_rad!r}")
     masks = subphase_masks(phase, boundaries)
     M = np.array(masks, dtype=float)                        # (4, P)
     theta = np.asarray(theta_rad, dtype=float)
@@ -111,9 +140,17 @@ def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.nda
     end = np.where(M > 0, phase[None], -np.inf).max(axis=1)
     fits = []
     for i, name in enumerate(SUBPHASES):
+        th, ta = theta[masks[i]], tau[masks[i]]
         if lo <= theta_e[i] <= hi:
             ki, tei, r2i, guarded = float(k[i]), float(theta_e[i]), float(r2[i]), False
         else:
-            ki, tei, r2i, guarded = fit_line(theta[masks[i]], tau[masks[i]], theta_range_rad)
-        fits.append(SubphaseFit(name, ki, tei, r2i, guarded, float(start[i]), float(end[i]), int(n[i])))
+            ki, tei, r2i, guarded = fit_line(th, ta, theta_range_rad)
+        method = "range_guard" if guarded else "least_squares"
+        # an energy-injecting line whose θe lies inside the angles the joint sweeps in this sub-phase
+        # would push the joint away from θe in both directions: the unstable case the ceiling removes
+        if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad and th.min() <= tei <= th.max():
+            ki, method = float(max_k_Nm_per_rad), "passivity_guard"
+            tei, r2i = fit_fixed_k(th, ta, ki, theta_range_rad)
+        fits.append(SubphaseFit(name, ki, tei, r2i, method != "least_squares", float(start[i]), float(end[i]),
+                                int(n[i]), method))
     return fits

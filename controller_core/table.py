@@ -36,7 +36,12 @@ class ParameterRow(_Strict):
     theta_e_deg: float = Field(description="equilibrium angle (deg; knee flexion +, ankle dorsiflexion +)")
     b_Nm_s_per_rad: float = Field(description="damping (N·m·s/rad), >= 0")
     r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
-    guarded: bool = Field(default=False, description="θe clamped to the joint range and k re-fitted")
+    guarded: bool = Field(default=False, description="the plain least-squares line was not used (see fit_method)")
+    fit_method: Literal["least_squares", "range_guard", "passivity_guard", "manual", "literature"] = Field(
+        default="least_squares",
+        description="least_squares: τ = kθ + c; range_guard: θe clamped to the joint range, k re-fitted; "
+                    "passivity_guard: an energy-injecting line with θe inside the swept angles, replaced by the "
+                    "restoring floor and a re-fitted θe; manual: edited; literature: a published table")
 
 
 class Thresholds(_Strict):
@@ -61,7 +66,7 @@ class Provenance(_Strict):
     incline_deg: float
     patient_mass_kg: float
     extrapolation: bool
-    source: Literal["model", "edit"] = "model"
+    source: Literal["model", "edit", "literature"] = "model"
 
 
 class ParameterTable(_Strict):

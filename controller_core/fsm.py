@@ -1,0 +1,237 @@
+"""The four-state impedance machine that runs on the leg: τ = k(θ − θe) − bθ̇ per joint and state.
+
+States follow the quasi-stiffness sub-phases: stance flexion (SF) → stance extension (SE) when the sagittal
+(ankle) moment falls below its threshold while the leg is loaded (load at or above the heel-strike threshold)
+→ swing flexion (WF) at toe-off, when the vertical load falls below
+its threshold → swing extension (WE) when the knee is flexed past its swing threshold and has stopped
+flexing → SF at heel strike, when the load rises above its threshold. Every state has a minimum time (no
+transition before it) and a maximum time (the guard moves on to the next state, so a missed event cannot
+hold the leg in one state).
+
+The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
+:class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
+plain floats (no numpy in the loop) because it runs at 1 kHz or faster.
+
+Units are SI: rad, rad/s, N, N·m, N·m/rad, N·m·s/rad, s. Signs as everywhere in QuasiTune: knee flexion
+and ankle dorsiflexion +, torques + in the + angle direction, so k < 0 is a restoring stiffness.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import IntEnum
+
+from controller_core.quasi_stiffness import SUBPHASES
+from controller_core.table import ParameterTable, SafetyLimits, assert_safe
+
+
+class GaitState(IntEnum):
+    """The four states, numbered in walking order (the same order as the table's sub-phases)."""
+
+    STANCE_FLEXION = 0
+    STANCE_EXTENSION = 1
+    SWING_FLEXION = 2
+    SWING_EXTENSION = 3
+
+    @property
+    def subphase(self) -> str:
+        """The table sub-phase name of this state (``stance_flexion`` …)."""
+        return SUBPHASES[int(self)]
+
+
+@dataclass(frozen=True, slots=True)
+class SensorSample:
+    """What the controller reads once per tick (SI).
+
+    Attributes:
+        time_s: time stamp (s), monotonic.
+        knee_angle_rad, ankle_angle_rad: joint angles (rad; knee flexion +, ankle dorsiflexion +).
+        knee_velocity_rad_s, ankle_velocity_rad_s: joint velocities (rad/s).
+        load_N: vertical (axial) load through the pylon load cell (N, compression +).
+        ankle_moment_Nm: sagittal moment at the load cell (N·m, + in the dorsiflexion direction).
+    """
+
+    time_s: float
+    knee_angle_rad: float
+    knee_velocity_rad_s: float
+    ankle_angle_rad: float
+    ankle_velocity_rad_s: float
+    load_N: float
+    ankle_moment_Nm: float
+
+
+@dataclass(frozen=True, slots=True)
+class TorqueCommand:
+    """What the controller asks of the actuators for one tick.
+
+    Attributes:
+        state: the state the torques were computed in.
+        knee_torque_Nm, ankle_torque_Nm: commanded joint torques (N·m), already clipped.
+        saturated: True when either torque was clipped by the actuator limit or the range guard.
+    """
+
+    state: GaitState
+    knee_torque_Nm: float
+    ankle_torque_Nm: float
+    saturated: bool
+
+
+@dataclass(frozen=True)
+class ActuatorLimits:
+    """Torque and range limits of the device (SI).
+
+    The defaults are for an Open Source Leg-class knee-ankle prosthesis and a patient up to about 100 kg:
+    peak torques above the able-bodied peaks at brisk walking (knee ≈ 1 N·m/kg, ankle ≈ 1.6 N·m/kg) and the
+    mechanical ranges the safety limits also use (knee 0–120°, ankle ±30°). Set them to the rating of the
+    device actually driven.
+    """
+
+    knee_torque_Nm: float = 120.0
+    ankle_torque_Nm: float = 160.0
+    knee_range_rad: tuple[float, float] = (0.0, math.radians(120.0))
+    ankle_range_rad: tuple[float, float] = (math.radians(-30.0), math.radians(30.0))
+
+    def __post_init__(self) -> None:
+        for name in ("knee_torque_Nm", "ankle_torque_Nm"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive finite torque (N·m), got {value!r}")
+        for name in ("knee_range_rad", "ankle_range_rad"):
+            lo, hi = getattr(self, name)
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError(f"{name} must be a finite (low, high) pair with low < high (rad), got {(lo, hi)!r}")
+
+
+@dataclass(frozen=True)
+class ImpedanceSchedule:
+    """A parameter table in the controller's SI form: per state (0–3) stiffness, equilibrium and damping.
+
+    Attributes:
+        knee_k, ankle_k: stiffness per state (N·m/rad).
+        knee_theta_e, ankle_theta_e: equilibrium angle per state (rad).
+        knee_b, ankle_b: damping per state (N·m·s/rad).
+        sf_to_se_ankle_moment_Nm, se_to_wf_load_N, wf_to_we_knee_angle_rad, we_to_sf_load_N: thresholds.
+        min_state_time_s, max_state_time_s: state-time guards (s).
+        swing_slowing_rad_s: WF→WE also needs the knee flexion velocity at or below this (rad/s).
+    """
+
+    knee_k: tuple[float, float, float, float]
+    knee_theta_e: tuple[float, float, float, float]
+    knee_b: tuple[float, float, float, float]
+    ankle_k: tuple[float, float, float, float]
+    ankle_theta_e: tuple[float, float, float, float]
+    ankle_b: tuple[float, float, float, float]
+    sf_to_se_ankle_moment_Nm: float
+    se_to_wf_load_N: float
+    wf_to_we_knee_angle_rad: float
+    we_to_sf_load_N: float
+    min_state_time_s: float
+    max_state_time_s: float
+    swing_slowing_rad_s: float = 0.05
+
+    @classmethod
+    def from_table(cls, table: ParameterTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
+        """Convert a parameter table, re-checking every safety limit first (the device's own check).
+
+        Raises:
+            SafetyLimitError: the table violates ``limits``; nothing is converted.
+        """
+        assert_safe(table, limits)
+
+        def per_state(joint: str, attr: str, scale: float = 1.0) -> tuple[float, float, float, float]:
+            v = [float(getattr(table.row(joint, s), attr)) * scale for s in SUBPHASES]
+            return (v[0], v[1], v[2], v[3])
+
+        deg = math.pi / 180.0
+        t = table.thresholds
+        return cls(
+            knee_k=per_state("knee", "k_Nm_per_rad"), knee_theta_e=per_state("knee", "theta_e_deg", deg),
+            knee_b=per_state("knee", "b_Nm_s_per_rad"),
+            ankle_k=per_state("ankle", "k_Nm_per_rad"), ankle_theta_e=per_state("ankle", "theta_e_deg", deg),
+            ankle_b=per_state("ankle", "b_Nm_s_per_rad"),
+            sf_to_se_ankle_moment_Nm=t.sf_to_se_ankle_moment_Nm, se_to_wf_load_N=t.se_to_wf_load_N,
+            wf_to_we_knee_angle_rad=t.wf_to_we_knee_angle_deg * deg, we_to_sf_load_N=t.we_to_sf_load_N,
+            min_state_time_s=t.min_state_time_s, max_state_time_s=t.max_state_time_s)
+
+
+def _clip(tau: float, theta: float, limit: float, lo: float, hi: float) -> tuple[float, bool]:
+    """Clip a torque to ±limit, and refuse any torque that drives the joint further past a range end."""
+    out = tau
+    if out > limit:
+        out = limit
+    elif out < -limit:
+        out = -limit
+    if (theta >= hi and out > 0.0) or (theta <= lo and out < 0.0):
+        out = 0.0
+    return out, out != tau
+
+
+@dataclass
+class StateMachineController:
+    """The four-state impedance machine (one instance per leg and walking session).
+
+    Args:
+        schedule: impedance per state and the transition thresholds.
+        limits: actuator torque limits and joint ranges.
+        initial_state: the state to start in (swing extension: the leg is about to touch down).
+
+    Attributes:
+        state_: the current state.
+        state_entry_time_s_: when the current state was entered (s); None before the first sample.
+        transitions_: number of transitions taken.
+        guard_transitions_: how many of them the maximum-time guard forced.
+    """
+
+    schedule: ImpedanceSchedule
+    limits: ActuatorLimits = field(default_factory=ActuatorLimits)
+    initial_state: GaitState = GaitState.SWING_EXTENSION
+    state_: GaitState = field(init=False)
+    state_entry_time_s_: float | None = field(init=False, default=None)
+    transitions_: int = field(init=False, default=0)
+    guard_transitions_: int = field(init=False, default=0)
+
+    def __post_init__(self) -> None:
+        self.state_ = GaitState(self.initial_state)
+
+    def reset(self, state: GaitState | None = None) -> None:
+        """Forget the history: back to ``state`` (or the initial state), entry time taken at the next sample."""
+        self.state_ = GaitState(self.initial_state if state is None else state)
+        self.state_entry_time_s_ = None
+        self.transitions_ = 0
+        self.guard_transitions_ = 0
+
+    def load(self, schedule: ImpedanceSchedule) -> None:
+        """Swap the impedance schedule (the caller decides when: the device does it at heel strike)."""
+        self.schedule = schedule
+
+    def _event(self, x: SensorSample) -> bool:
+        sch, st = self.schedule, self.state_
+        if st == GaitState.STANCE_FLEXION:  # gated on load: a swinging foot's inertia also makes a moment
+            return x.ankle_moment_Nm <= sch.sf_to_se_ankle_moment_Nm and x.load_N >= sch.we_to_sf_load_N
+        if st == GaitState.STANCE_EXTENSION:
+            return x.load_N < sch.se_to_wf_load_N
+        if st == GaitState.SWING_FLEXION:
+            return x.knee_angle_rad >= sch.wf_to_we_knee_angle_rad and x.knee_velocity_rad_s <= sch.swing_slowing_rad_s
+        return x.load_N > sch.we_to_sf_load_N
+
+    def step(self, x: SensorSample) -> TorqueCommand:
+        """Advance the machine with one sample and return the joint torques for it."""
+        if self.state_entry_time_s_ is None:
+            self.state_entry_time_s_ = x.time_s
+        sch = self.schedule
+        dwell = x.time_s - self.state_entry_time_s_
+        if dwell >= sch.min_state_time_s:
+            guard = dwell >= sch.max_state_time_s
+            if guard or self._event(x):
+                self.state_ = GaitState((int(self.state_) + 1) % 4)
+                self.state_entry_time_s_ = x.time_s
+                self.transitions_ += 1
+                self.guard_transitions_ += int(guard)
+        i = int(self.state_)
+        lim = self.limits
+        tk = sch.knee_k[i] * (x.knee_angle_rad - sch.knee_theta_e[i]) - sch.knee_b[i] * x.knee_velocity_rad_s
+        ta = sch.ankle_k[i] * (x.ankle_angle_rad - sch.ankle_theta_e[i]) - sch.ankle_b[i] * x.ankle_velocity_rad_s
+        tk, sk = _clip(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
+        ta, sa = _clip(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])
+        return TorqueCommand(self.state_, tk, ta, sk or sa)

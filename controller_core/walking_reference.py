@@ -1,0 +1,105 @@
+"""The able-bodied walking pattern at a requested speed: what the simulated bench replays and is scored against.
+
+The learning pipeline needs knee and ankle only; the simulated hip-driven bench also needs the hip angle
+(to drive the socket), the vertical ground reaction force (to load the leg) and the stride time. This module
+interpolates all of them linearly in speed between the shipped Bovi 2011 adult level-walking records
+(0.84, 1.19, 1.20, 1.49, 1.95 m/s), point by point on the common phase grid — the "linear interpolation
+between conditions" baseline of the evaluation, which is the most literal reading of the data between
+its conditions. Outside the covered speeds the nearest record is used and ``extrapolation`` is set.
+
+Units: phase in [0, 1]; angles in rad (hip and knee flexion +, ankle dorsiflexion +, Bovi ankle aligned to the
+anatomical neutral exactly as in :func:`controller_core.reference.load_shipped_reference`); moments in N·m/kg
+(internal, + in the + angle direction); vertical GRF in body weights; stride time in s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from controller_core.reference import SHIPPED_NPZ, _load_npz, bovi_ankle_offset_deg, data_dir, sha256_of
+
+
+@dataclass(frozen=True)
+class WalkingReference:
+    """Mean able-bodied gait cycle for one task.
+
+    Attributes:
+        speed_mps: walking speed (m/s).
+        incline_deg: incline (deg); the shipped curves are level walking only.
+        phase: (P,) gait phase in [0, 1], 0 = heel strike.
+        hip_angle_rad, knee_angle_rad, ankle_angle_rad: (P,) joint angles (rad).
+        knee_moment_Nm_per_kg, ankle_moment_Nm_per_kg: (P,) internal joint moments (N·m/kg).
+        vgrf_bw: (P,) ipsilateral vertical ground reaction force (body weights).
+        stride_time_s: duration of one gait cycle (s).
+        toe_off_phase: toe-off as a fraction of the cycle.
+        source: the records the curves were interpolated from, for provenance.
+        extrapolation: the speed lies outside the records' range (nearest record used).
+        data_sha256: hash of the data file.
+    """
+
+    speed_mps: float
+    incline_deg: float
+    phase: np.ndarray
+    hip_angle_rad: np.ndarray
+    knee_angle_rad: np.ndarray
+    ankle_angle_rad: np.ndarray
+    knee_moment_Nm_per_kg: np.ndarray
+    ankle_moment_Nm_per_kg: np.ndarray
+    vgrf_bw: np.ndarray
+    stride_time_s: float
+    toe_off_phase: float
+    source: str
+    extrapolation: bool
+    data_sha256: str
+
+    def curve(self, channel: str) -> np.ndarray:
+        """A curve by the channel names of :data:`controller_core.reference.CHANNELS` (SI)."""
+        return {"knee_angle": self.knee_angle_rad, "ankle_angle": self.ankle_angle_rad,
+                "knee_moment": self.knee_moment_Nm_per_kg, "ankle_moment": self.ankle_moment_Nm_per_kg}[channel]
+
+
+def _interp_rows(x: float, xs: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Interpolate (R, P) rows sampled at sorted xs linearly at x (clamped at the ends)."""
+    return np.array([np.interp(x, xs, rows[:, p]) for p in range(rows.shape[1])])
+
+
+def level_walking_reference(speed_mps: float) -> WalkingReference:
+    """Interpolate the shipped Bovi 2011 adult level-walking records at ``speed_mps`` (m/s).
+
+    Raises:
+        ValueError: a non-finite or non-positive speed.
+    """
+    if not (np.isfinite(speed_mps) and speed_mps > 0):
+        raise ValueError(f"speed_mps must be a positive finite number (m/s), got {speed_mps!r}")
+    path = data_dir() / SHIPPED_NPZ
+    d = _load_npz(path)
+    keep = np.flatnonzero((d["dataset"] == "bovi2011") & (d["task"] == "level_walking")
+                          & (d["population"] == "adult") & np.isfinite(d["speed_mps"]))
+    order = keep[np.argsort(d["speed_mps"][keep])]
+    speeds = d["speed_mps"][order].astype(float)
+    offset = bovi_ankle_offset_deg(d)
+
+    def rows(key: str, shift: float = 0.0) -> np.ndarray:
+        return _interp_rows(speed_mps, speeds, d[key][order].astype(float) + shift)
+
+    hi = int(np.searchsorted(speeds, speed_mps))
+    lo = max(hi - 1, 0)
+    hi = min(hi, len(speeds) - 1)
+    names = sorted({f"bovi2011/{d['condition'][order[lo]]}", f"bovi2011/{d['condition'][order[hi]]}"})
+    return WalkingReference(
+        speed_mps=float(speed_mps), incline_deg=0.0,
+        phase=d["phase_pct"].astype(float) / 100.0,
+        hip_angle_rad=np.deg2rad(rows("hip_angle_deg")),
+        knee_angle_rad=np.deg2rad(rows("knee_angle_deg")),
+        ankle_angle_rad=np.deg2rad(rows("ankle_angle_deg", offset)),
+        knee_moment_Nm_per_kg=rows("knee_moment_Nm_per_kg"),
+        ankle_moment_Nm_per_kg=rows("ankle_moment_Nm_per_kg"),
+        vgrf_bw=np.clip(rows("vgrf_BW"), 0.0, None),
+        stride_time_s=float(np.interp(speed_mps, speeds, d["stride_time_s"][order].astype(float))),
+        toe_off_phase=float(np.interp(speed_mps, speeds, d["toe_off_pct"][order].astype(float))) / 100.0,
+        source=" + ".join(names) + " (linear in speed)",
+        extrapolation=bool(speed_mps < speeds[0] or speed_mps > speeds[-1]),
+        data_sha256=sha256_of(path),
+    )
