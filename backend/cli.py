@@ -1,6 +1,7 @@
 """The ``quasitune`` command line.
 
-Commands: ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``. Bad input exits with code 2 and a
+Commands: ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``, ``simulate``, ``compare``. Bad input exits
+with code 2 and a
 one-line reason on stderr.
 """
 
@@ -12,6 +13,7 @@ import sys
 from pathlib import Path
 
 from controller_core import InvalidTaskError, QuasiStiffnessModel, load_default_model, load_model
+from controller_core.table import SafetyLimitError
 
 
 def _model(args: argparse.Namespace) -> QuasiStiffnessModel:
@@ -117,6 +119,51 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from device_bridge.sim.experiments import simulate
+
+    model = _model(args) if args.controller == "quasi-stiffness" or args.incline != 0.0 else None
+    score = simulate(args.controller, args.speed, args.incline, args.seconds, args.mass, model,
+                     record=args.record, video=args.video)
+    d = score.to_dict()
+    if args.format == "json":
+        print(json.dumps(d))
+    else:
+        for k, v in d.items():
+            print(f"{k:32s} {v}")
+    return 0
+
+
+def _fmt(v: object) -> str:
+    return "—" if v is None else f"{v:.2f}" if isinstance(v, float) else str(v)
+
+
+def format_compare(rows: list[dict]) -> str:
+    """Markdown table of a comparison (one row per task and controller)."""
+    cols = ["speed_mps", "incline_deg", "controller", "strides", "falls", "toe_catches", "knee_angle_rmse_deg",
+            "ankle_angle_rmse_deg", "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg", "real_time_factor"]
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += ["| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from device_bridge.sim.experiments import compare, plot_compare
+
+    results = compare(_model(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass)
+    rows = [score.to_dict() for score, _ in results]
+    print(format_compare(rows))
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(rows, indent=2))
+        print(f"\nwrote {args.out}")
+    if args.plot:
+        args.plot.parent.mkdir(parents=True, exist_ok=True)
+        plot_compare(results, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="quasitune", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -141,6 +188,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=int, default=2000)
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_bench)
+    p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
+    _task_args(p)
+    p.add_argument("--controller", choices=["quasi-stiffness", "fsmic"], default="quasi-stiffness")
+    p.add_argument("--seconds", type=float, default=20.0, help="simulated time (s), (0, 600]")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.add_argument("--record", type=Path, default=None, help="save per-tick trajectories (.csv or .parquet)")
+    p.add_argument("--video", type=Path, default=None, help="render headless (MUJOCO_GL=egl): FILE.mp4 or a folder")
+    p.set_defaults(func=cmd_simulate)
+    p = sub.add_parser("compare", help="quasi-stiffness vs FSMIC over a task grid on the simulated bench")
+    p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])
+    p.add_argument("--inclines", type=float, nargs="+", default=[0.0])
+    p.add_argument("--seconds", type=float, default=20.0)
+    p.add_argument("--mass", type=float, default=75.0)
+    p.add_argument("--model", type=Path, default=None)
+    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
+    p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
+    p.set_defaults(func=cmd_compare)
     return parser
 
 
@@ -148,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except (InvalidTaskError, FileNotFoundError, ValueError) as exc:
+    except (InvalidTaskError, FileNotFoundError, ValueError, SafetyLimitError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         print(f"quasitune: error: {msg}", file=sys.stderr)
         return 2

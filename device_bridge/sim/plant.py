@@ -1,0 +1,134 @@
+"""The simulated leg: the MuJoCo bench behind a sensor-in, torque-out interface.
+
+:class:`SimulatedLeg` owns one MuJoCo model and data. Each :meth:`SimulatedLeg.step` applies the bench's
+socket targets for the tick, the commanded knee and ankle torques (N·m), advances the physics by one
+timestep and returns the sensor sample the controller reads next. Everything the firmware would see comes
+from the model's sensors (joint encoders, the six-axis load cell above the ankle), converted to the
+controller's conventions: load positive in compression, sagittal moment positive in the dorsiflexion
+direction.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+from controller_core.fsm import SensorSample
+from device_bridge.sim.bench_trajectory import BenchTrajectory
+from device_bridge.sim.leg_model import LegGeometry, build_mjcf
+
+G = 9.81
+
+
+class SimulatedLeg:
+    """A hip-driven knee-ankle prosthesis on a (tilted) floor, stepped at the model timestep.
+
+    Args:
+        geometry: segment lengths and masses.
+        incline_deg: floor incline (deg, + uphill).
+        timestep_s: physics and control period (s); 0.001 for the 1 kHz controller.
+
+    Attributes:
+        model, data: the MuJoCo model and data (read-only use outside this class).
+    """
+
+    def __init__(self, geometry: LegGeometry | None = None, incline_deg: float = 0.0, timestep_s: float = 0.001) -> None:
+        if not (math.isfinite(incline_deg) and abs(incline_deg) <= 20.0):
+            raise ValueError(f"incline_deg must be within ±20 deg, got {incline_deg!r}")
+        self.geometry = geometry or LegGeometry()
+        self.incline_deg = float(incline_deg)
+        self.model = mujoco.MjModel.from_xml_string(build_mjcf(self.geometry, incline_deg, timestep_s))
+        self.data = mujoco.MjData(self.model)
+        self.timestep_s = float(self.model.opt.timestep)
+        m = self.model
+        self._q = {name: int(m.joint(name).qposadr[0]) for name in ("hip_x", "hip_z", "hip", "knee", "ankle")}
+        self._v = {name: int(m.joint(name).dofadr[0]) for name in ("hip_x", "hip_z", "hip", "knee", "ankle")}
+        self._a = {m.actuator(i).name: i for i in range(m.nu)}
+        adr = {m.sensor(i).name: int(m.sensor_adr[i]) for i in range(m.nsensor)}
+        self._s_knee, self._s_kneev = adr["knee_angle"], adr["knee_velocity"]
+        self._s_ankle, self._s_anklev = adr["ankle_angle"], adr["ankle_velocity"]
+        self._s_force, self._s_torque = adr["load_cell_force"], adr["load_cell_torque"]
+        self._floor = m.geom("floor").id
+        self._feet = {m.geom("heel").id, m.geom("toe").id}
+        self._gravity_comp_N = self.geometry.moving_mass_kg * G
+        self.vertical_stiffness_N_per_m = float(m.actuator("hip_z_pos").gainprm[0])
+        self._tick = 0
+        self._traj: BenchTrajectory | None = None
+
+    def reset(self, trajectory: BenchTrajectory, knee_rad: float, ankle_rad: float) -> SensorSample:
+        """Place the socket at the trajectory's first sample and the joints at the given angles (rad)."""
+        mujoco.mj_resetData(self.model, self.data)
+        self._traj = trajectory
+        self._tick = 0
+        q, v = self.data.qpos, self.data.qvel
+        q[self._q["hip_x"]], q[self._q["hip_z"]] = trajectory.x_m[0], trajectory.z_m[0]
+        q[self._q["hip"]], q[self._q["knee"]], q[self._q["ankle"]] = trajectory.hip_rad[0], knee_rad, ankle_rad
+        v[self._v["hip_x"]], v[self._v["hip_z"]] = trajectory.xd_m_s[0], trajectory.zd_m_s[0]
+        v[self._v["hip"]] = trajectory.hipd_rad_s[0]
+        self._apply_bench(0)
+        mujoco.mj_forward(self.model, self.data)
+        return self.sample()
+
+    def _apply_bench(self, i: int) -> None:
+        tr, c, a = self._traj, self.data.ctrl, self._a
+        assert tr is not None
+        c[a["hip_x_pos"]], c[a["hip_x_vel"]] = tr.x_m[i], tr.xd_m_s[i]
+        c[a["hip_z_pos"]], c[a["hip_z_vel"]] = tr.z_m[i], tr.zd_m_s[i]
+        c[a["hip_pos"]], c[a["hip_vel"]] = tr.hip_rad[i], tr.hipd_rad_s[i]
+        c[a["hip_z_load"]] = self._gravity_comp_N - tr.load_N[i]
+
+    def sample(self) -> SensorSample:
+        """The sensors as the controller reads them now."""
+        sd = self.data.sensordata
+        # the force/torque sensors give what the shank exerts on the load-cell subtree, in the site frame
+        # (z up along the shank, y the joint axes): compression pushes it down (−z), and the moment about
+        # +y is a plantarflexion moment in this model's axes (the ankle axis is −y), hence the signs
+        return SensorSample(
+            time_s=float(self.data.time),
+            knee_angle_rad=float(sd[self._s_knee]), knee_velocity_rad_s=float(sd[self._s_kneev]),
+            ankle_angle_rad=float(sd[self._s_ankle]), ankle_velocity_rad_s=float(sd[self._s_anklev]),
+            load_N=-float(sd[self._s_force + 2]), ankle_moment_Nm=-float(sd[self._s_torque + 1]))
+
+    def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> SensorSample:
+        """Apply the joint torques (N·m) for one timestep and return the next sensor sample."""
+        if self._traj is None:
+            raise RuntimeError("reset() the leg with a bench trajectory before stepping it")
+        self._tick += 1
+        i = min(self._tick, self._traj.time_s.shape[0] - 1)
+        self._apply_bench(i)
+        c = self.data.ctrl
+        c[self._a["knee"]] = knee_torque_Nm
+        c[self._a["ankle"]] = ankle_torque_Nm
+        mujoco.mj_step(self.model, self.data)
+        return self.sample()
+
+    @property
+    def tick(self) -> int:
+        """Ticks since reset."""
+        return self._tick
+
+    def foot_contact_force(self) -> float:
+        """Total normal force between the foot's contacts and the floor now (N): ground truth for metrics."""
+        total = 0.0
+        f6 = np.zeros(6)
+        d = self.data
+        for j in range(d.ncon):
+            con = d.contact[j]
+            pair = {int(con.geom1), int(con.geom2)}
+            if self._floor in pair and pair & self._feet:
+                mujoco.mj_contactForce(self.model, d, j, f6)
+                total += abs(f6[0])
+        return total
+
+    def hip_height_m(self) -> float:
+        """Socket height above the floor along its normal (m)."""
+        alpha = math.radians(self.incline_deg)
+        x, z = self.data.qpos[self._q["hip_x"]], self.data.qpos[self._q["hip_z"]]
+        return float(-x * math.sin(alpha) + z * math.cos(alpha))
+
+    def joint_torques(self) -> tuple[float, float]:
+        """Knee and ankle actuator torques applied in the last step (N·m)."""
+        f = self.data.actuator_force
+        return float(f[self._a["knee"]]), float(f[self._a["ankle"]])

@@ -1,0 +1,189 @@
+"""Walk a controller on the simulated bench and score it against the able-bodied reference.
+
+:func:`run_walk` runs the 1 kHz loop (bench targets → physics step → sensors → controller → torques) and
+logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune simulate`` prints:
+
+* strides: complete strides between heel strikes (foot contact rising above 2 % body weight after at least
+  150 ms without contact) after the settling time;
+* RMSE of the stride-averaged knee and ankle angle (deg) and joint torque / body mass (N·m/kg) against the
+  reference at the task, on the 101-point phase grid;
+* ``falls``: episodes in which the bench had to carry more than half the body weight — the socket sank so far
+  below its target height that the vertical servo's spring force exceeds 0.5 × body weight (a person whose
+  leg gives way like that falls) — or the knee reached 100° while loaded above half body weight (buckling);
+* ``toe_catches``: episodes of foot contact in mid-swing (bench phase between toe-off + 8 % and 92 %), the
+  stumbles a person would feel;
+* time in each state, guard-forced transitions, torque saturation, real-time factor (simulated seconds per
+  wall-clock second of the loop).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from controller_core.fsm import GaitState, SensorSample, StateMachineController
+from controller_core.gait_metrics import PHASE_GRID, episodes, heel_strikes, rmse, stride_curves
+from controller_core.walking_reference import WalkingReference
+from device_bridge.sim.bench_trajectory import plan_bench_trajectory
+from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.plant import SimulatedLeg
+
+G = 9.81
+LOG_CHANNELS = ("time_s", "bench_phase", "state", "knee_angle_rad", "knee_velocity_rad_s", "ankle_angle_rad",
+                "ankle_velocity_rad_s", "knee_torque_Nm", "ankle_torque_Nm", "load_N", "ankle_moment_Nm",
+                "contact_N", "hip_height_error_m")
+
+
+@dataclass
+class WalkLog:
+    """Per-tick record of a simulated walk (SI; see :data:`LOG_CHANNELS`)."""
+
+    channels: dict[str, np.ndarray]
+    timestep_s: float
+    mass_kg: float
+    wall_time_s: float
+    saturated_ticks: int
+    guard_transitions: int
+    transitions: int
+    extras: dict[str, object] = field(default_factory=dict)
+
+    def to_frame(self):  # pandas is a dependency of the package; imported lazily to keep the loop module light
+        """The log as a pandas DataFrame with unit-suffixed columns (angles in deg for people)."""
+        import pandas as pd
+
+        c = self.channels
+        return pd.DataFrame({
+            "time_s": c["time_s"], "bench_phase": c["bench_phase"],
+            "state": [GaitState(int(v)).subphase for v in c["state"]],
+            "knee_angle_deg": np.degrees(c["knee_angle_rad"]), "knee_velocity_deg_s": np.degrees(c["knee_velocity_rad_s"]),
+            "ankle_angle_deg": np.degrees(c["ankle_angle_rad"]),
+            "ankle_velocity_deg_s": np.degrees(c["ankle_velocity_rad_s"]),
+            "knee_torque_Nm": c["knee_torque_Nm"], "ankle_torque_Nm": c["ankle_torque_Nm"],
+            "load_N": c["load_N"], "ankle_moment_Nm": c["ankle_moment_Nm"], "contact_N": c["contact_N"],
+            "hip_height_error_m": c["hip_height_error_m"],
+        })
+
+
+def run_walk(controller: StateMachineController, reference: WalkingReference, mass_kg: float, seconds: float,
+             geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0) -> WalkLog:
+    """Walk ``controller`` on the bench for ``seconds`` at the reference's task.
+
+    Args:
+        controller: a fresh (or reset) state machine; it starts in swing extension, the bench in late swing.
+        reference: the task's able-bodied pattern (drives the socket and loads the leg).
+        mass_kg: patient body mass (kg): the bench's load.
+        seconds: simulated time (s).
+        geometry: bench and prosthesis geometry.
+        frame_callback: called with the plant every ``frame_every`` ticks (rendering), if given.
+    """
+    if not (math.isfinite(seconds) and 0.0 < seconds <= 600.0):
+        raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")
+    leg = SimulatedLeg(geometry, reference.incline_deg)
+    traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, seconds, leg.timestep_s)
+    s0 = traj.phase[0]
+    knee0 = float(np.interp(s0, reference.phase, reference.knee_angle_rad))
+    ankle0 = float(np.interp(s0, reference.phase, reference.ankle_angle_rad))
+    x: SensorSample = leg.reset(traj, knee0, ankle0)
+    controller.reset()
+    n = traj.time_s.shape[0]
+    log = {name: np.empty(n) for name in LOG_CHANNELS}
+    log["bench_phase"][:] = traj.phase
+    t_col, st_col = log["time_s"], log["state"]
+    kq, kv, aq, av = log["knee_angle_rad"], log["knee_velocity_rad_s"], log["ankle_angle_rad"], log["ankle_velocity_rad_s"]
+    kt, at, ld, am = log["knee_torque_Nm"], log["ankle_torque_Nm"], log["load_N"], log["ankle_moment_Nm"]
+    cn, he = log["contact_N"], log["hip_height_error_m"]
+    height = traj.height_m
+    saturated = 0
+    t0 = time.perf_counter()
+    for i in range(n):
+        cmd = controller.step(x)
+        t_col[i], st_col[i] = x.time_s, cmd.state
+        kq[i], kv[i], aq[i], av[i] = x.knee_angle_rad, x.knee_velocity_rad_s, x.ankle_angle_rad, x.ankle_velocity_rad_s
+        ld[i], am[i] = x.load_N, x.ankle_moment_Nm
+        kt[i], at[i] = cmd.knee_torque_Nm, cmd.ankle_torque_Nm
+        cn[i] = leg.foot_contact_force() if leg.data.ncon else 0.0
+        he[i] = leg.hip_height_m() - height[i]
+        saturated += cmd.saturated
+        if frame_callback is not None and frame_every and i % frame_every == 0:
+            frame_callback(leg)
+        x = leg.step(cmd.knee_torque_Nm, cmd.ankle_torque_Nm)
+    wall = time.perf_counter() - t0
+    return WalkLog(channels=log, timestep_s=leg.timestep_s, mass_kg=mass_kg, wall_time_s=wall,
+                   saturated_ticks=saturated, guard_transitions=controller.guard_transitions_,
+                   transitions=controller.transitions_,
+                   extras={"stride_time_s": traj.stride_time_s,
+                           "fall_sink_m": 0.5 * mass_kg * G / leg.vertical_stiffness_N_per_m})
+
+
+@dataclass(frozen=True)
+class WalkScore:
+    """Metrics of one walk (see the module docstring); ``to_dict`` gives the JSON of ``quasitune simulate``."""
+
+    summary: dict[str, object]
+    mean_curves: dict[str, np.ndarray]       # stride-averaged measured curves (deg, N·m/kg) on PHASE_GRID
+    reference_curves: dict[str, np.ndarray]  # the reference on PHASE_GRID in the same units
+
+    def to_dict(self) -> dict[str, object]:
+        return dict(self.summary)
+
+
+def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0) -> WalkScore:
+    """Turn a walk log into metrics against ``reference`` (strides starting before ``settle_s`` are skipped)."""
+    c, dt, mass = log.channels, log.timestep_s, log.mass_kg
+    weight = mass * G
+    strikes = heel_strikes(c["contact_N"], 0.02 * weight, round(0.15 / dt))
+    strikes = strikes[c["time_s"][strikes] >= settle_s] if strikes.size else strikes
+    per_channel = {
+        "knee_angle_deg": np.degrees(c["knee_angle_rad"]), "ankle_angle_deg": np.degrees(c["ankle_angle_rad"]),
+        "knee_moment_Nm_per_kg": c["knee_torque_Nm"] / mass, "ankle_moment_Nm_per_kg": c["ankle_torque_Nm"] / mass,
+    }
+    ref_curves = {
+        "knee_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.knee_angle_rad)),
+        "ankle_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.ankle_angle_rad)),
+        "knee_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.knee_moment_Nm_per_kg),
+        "ankle_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.ankle_moment_Nm_per_kg),
+    }
+    n_strides = max(int(strikes.shape[0]) - 1, 0)
+    means: dict[str, np.ndarray] = {}
+    errors: dict[str, float | None] = {}
+    for name, sig in per_channel.items():
+        if n_strides:
+            means[name] = stride_curves(sig, strikes).mean(axis=0)
+            errors[name.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")] = rmse(
+                means[name], ref_curves[name])
+        else:
+            errors[name.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")] = None
+    stride_times = np.diff(c["time_s"][strikes]) if n_strides else np.array([])
+    phase = c["bench_phase"]
+    mid_swing = (phase > reference.toe_off_phase + 0.08) & (phase < 0.92)
+    toe_catch = mid_swing & (c["contact_N"] > 0.02 * weight)
+    sank = c["hip_height_error_m"] < -log.extras["fall_sink_m"]
+    buckled = (c["knee_angle_rad"] >= math.radians(100.0)) & (c["load_N"] > 0.5 * weight)
+    gap = round(0.2 / dt)
+    states = c["state"].astype(int)
+    time_in_state = {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)}
+    seconds = float(c["time_s"].shape[0] * dt)
+    summary: dict[str, object] = {
+        "speed_mps": reference.speed_mps, "incline_deg": reference.incline_deg, "mass_kg": mass,
+        "seconds": seconds,
+        "strides": n_strides,
+        "falls": episodes(sank | buckled, gap),
+        "toe_catches": episodes(toe_catch, gap),
+        **errors,
+        "stride_time_s": float(np.mean(stride_times)) if stride_times.size else None,
+        "reference_stride_time_s": reference.stride_time_s,
+        "cadence_steps_per_min": float(120.0 / np.mean(stride_times)) if stride_times.size else None,
+        "time_in_state_s": time_in_state,
+        "transitions": log.transitions,
+        "guard_transitions": log.guard_transitions,
+        "torque_saturation_fraction": log.saturated_ticks / max(c["time_s"].shape[0], 1),
+        "max_hip_sink_m": float(max(0.0, -np.min(c["hip_height_error_m"]))),
+        "real_time_factor": seconds / log.wall_time_s if log.wall_time_s > 0 else None,
+        "reference_source": reference.source,
+        "reference_extrapolation": reference.extrapolation,
+        "settle_s": settle_s,
+    }
+    return WalkScore(summary=summary, mean_curves=means, reference_curves=ref_curves)

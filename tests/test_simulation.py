@@ -1,0 +1,124 @@
+"""The simulated bench: real reference data in, physics out, metrics that can fail."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from backend.cli import main
+from controller_core.gait_metrics import heel_strikes, rmse, stride_curves
+from controller_core.quasi_stiffness import fit_quasi_stiffness
+from controller_core.reference import load_shipped_reference
+from controller_core.walking_reference import level_walking_reference
+from device_bridge.sim.bench_trajectory import plan_bench_trajectory, stance_hip_height_m, thigh_angle_rad
+from device_bridge.sim.experiments import make_controller
+from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.simulate import run_walk, score_walk
+
+
+def test_walking_reference_reproduces_a_record_and_interpolates_between_two():
+    ref_set = load_shipped_reference()
+    rec = min(ref_set.records, key=lambda r: abs(r.task["speed_mps"] - 1.49))
+    at = level_walking_reference(rec.task["speed_mps"])
+    np.testing.assert_allclose(at.knee_angle_rad, rec.mean["knee_angle"], atol=1e-6)
+    np.testing.assert_allclose(at.ankle_angle_rad, rec.mean["ankle_angle"], atol=1e-6)
+    mid = level_walking_reference(1.7)
+    fast = level_walking_reference(1.95)
+    assert not mid.extrapolation and level_walking_reference(2.5).extrapolation
+    assert at.stride_time_s > mid.stride_time_s > fast.stride_time_s     # faster walking, shorter strides
+    with pytest.raises(ValueError, match="speed_mps"):
+        level_walking_reference(float("nan"))
+
+
+def test_bench_puts_the_reference_foot_flat_and_on_the_floor_in_mid_stance():
+    ref = level_walking_reference(1.2)
+    g = LegGeometry()
+    thigh = thigh_angle_rad(ref, 0.0)
+    mid = (ref.phase >= 0.15) & (ref.phase <= 0.40)
+    pitch = thigh - ref.knee_angle_rad + ref.ankle_angle_rad
+    assert abs(np.mean(pitch[mid])) < 1e-9                      # flat on average, by construction
+    h = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, g, 0.0)
+    leg = g.thigh_m + g.shank_m + g.ankle_height_m
+    assert np.all(h[mid] < leg) and np.all(h[mid] > 0.85 * leg)   # a bent stance leg, never longer than straight
+    traj = plan_bench_trajectory(ref, g, 75.0, 2.0)
+    assert traj.x_m[-1] - traj.x_m[0] == pytest.approx(1.2 * (2.0 - 0.001), rel=1e-6)   # belt speed
+    assert traj.load_N.max() == pytest.approx(ref.vgrf_bw.max() * 75.0 * 9.81, rel=0.05)
+
+
+def test_gait_metrics_on_a_known_signal():
+    contact = np.zeros(1000)
+    for start in (100, 400, 700):
+        contact[start:start + 150] = 500.0
+    strikes = heel_strikes(contact, 20.0, 50)
+    assert strikes.tolist() == [100, 400, 700]
+    curves = stride_curves(np.arange(1000.0), strikes)
+    assert curves.shape == (2, 101)
+    assert curves[0, 0] == 100 and curves[0, -1] == 400
+    assert rmse(np.ones(5), np.zeros(5)) == 1.0
+
+
+def test_passivity_guard_replaces_an_unstable_swing_line():
+    # synthetic line (test-only data): τ = +20(θ − 0.56) over θ in [0.3, 0.7]; only swing flexion
+    # (θ from 0.5 to 0.62) sweeps across θe
+    phase = np.linspace(0, 1, 101)
+    theta = 0.3 + 0.4 * phase
+    tau = 20.0 * (theta - 0.56)
+    free = fit_quasi_stiffness(phase, theta, tau, (0.2, 0.5, 0.8), (0.0, 2.0))
+    assert free[2].k_Nm_per_rad == pytest.approx(20.0) and free[2].method == "least_squares"
+    guarded = fit_quasi_stiffness(phase, theta, tau, (0.2, 0.5, 0.8), (0.0, 2.0), max_k_Nm_per_rad=-10.0)
+    by_name = {f.subphase: f for f in guarded}
+    assert by_name["swing_flexion"].k_Nm_per_rad == -10.0 and by_name["swing_flexion"].method == "passivity_guard"
+    for name in ("stance_flexion", "stance_extension", "swing_extension"):   # θe outside their spans: kept
+        assert by_name[name].k_Nm_per_rad == pytest.approx(20.0) and not by_name[name].guarded
+    with pytest.raises(ValueError, match="negative"):
+        fit_quasi_stiffness(phase, theta, tau, (0.2, 0.5, 0.8), (0.0, 2.0), max_k_Nm_per_rad=5.0)
+
+
+@pytest.fixture(scope="module")
+def fsmic_walk():
+    ref = level_walking_reference(1.2)
+    log = run_walk(make_controller("fsmic", 1.2, 0.0, 75.0), ref, 75.0, seconds=7.0)
+    return log, score_walk(log, ref)
+
+
+def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
+    s = fsmic_walk[1].summary
+    assert s["strides"] >= 3
+    assert s["falls"] == 0
+    assert abs(s["stride_time_s"] - s["reference_stride_time_s"]) < 0.1   # the leg keeps the bench's cadence
+    for key in ("knee_angle_rmse_deg", "ankle_angle_rmse_deg", "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg"):
+        assert math.isfinite(s[key]) and s[key] > 0
+    assert all(v > 0 for v in s["time_in_state_s"].values())           # every state visited
+    assert s["guard_transitions"] == 0
+
+
+def test_load_cell_reads_compression_in_stance_and_a_plantarflexor_moment_at_push_off(fsmic_walk):
+    log, _ = fsmic_walk
+    c = log.channels
+    weight = 75.0 * 9.81
+    stance = c["contact_N"] > 0.5 * weight
+    assert np.median(c["load_N"][stance]) > 0.4 * weight                # compression +
+    push_off = (c["state"] == 1) & stance
+    assert np.median(c["ankle_moment_Nm"][push_off]) < -10.0             # plantarflexor − (QuasiTune signs)
+    swing = c["contact_N"] == 0
+    assert np.median(np.abs(c["load_N"][swing])) < 0.1 * weight          # only the foot's own weight in swing
+
+
+def test_cli_simulate_prints_json_and_refuses_bad_input(capsys, tmp_path):
+    rec = tmp_path / "walk.csv"
+    assert main(["simulate", "--speed", "1.2", "--controller", "quasi-stiffness", "--seconds", "3",
+                 "--format", "json", "--record", str(rec)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("strides", "falls", "toe_catches", "knee_angle_rmse_deg", "ankle_angle_rmse_deg",
+                "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg", "time_in_state_s", "real_time_factor"):
+        assert key in out
+    assert out["controller"] == "quasi-stiffness" and out["real_time_factor"] > 1.0
+    header = rec.read_text().splitlines()[0].split(",")
+    assert "knee_angle_deg" in header and "ankle_torque_Nm" in header and len(rec.read_text().splitlines()) == 3001
+    assert main(["simulate", "--speed", "0", "--controller", "fsmic"]) == 2
+    assert "speed" in capsys.readouterr().err
+    assert main(["simulate", "--speed", "1.2", "--controller", "fsmic", "--seconds", "nan"]) == 2
+    assert "seconds" in capsys.readouterr().err
