@@ -185,7 +185,11 @@ def plot_compare(results: list[tuple[WalkScore, str]], path: Path) -> None:
                     ax.set_ylabel(label)
         axes[0][j].set_title(f"{task[0]:.2f} m/s, {task[1]:+g}°")
         axes[-1][j].set_xlabel("gait cycle (%)")
-    axes[0][0].legend(fontsize=7, loc="upper left")
+    handles: dict[str, object] = {}
+    for ax in axes.ravel():
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(lab, h)
+    fig.legend(list(handles.values()), list(handles.keys()), loc="upper right", fontsize=8)
     fig.suptitle("Simulated bench: stride-averaged joint trajectories (mean over strides after 2 s)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
