@@ -95,6 +95,15 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _emit(d: dict, fmt: str) -> None:
+    """Print a flat result as one JSON object or as aligned ``key value`` lines."""
+    if fmt == "json":
+        print(json.dumps(d))
+    else:
+        for k, v in d.items():
+            print(f"{k:40s} {v}")
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from controller_core.evaluation import evaluate, format_report
 
@@ -111,11 +120,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from controller_core.bench import run_bench
 
     result = run_bench(repeats=args.repeats)
-    if args.format == "json":
-        print(json.dumps(result))
-    else:
-        for k, v in result.items():
-            print(f"{k:40s} {v}")
+    _emit(result, args.format)
     return 0
 
 
@@ -125,12 +130,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     model = _model(args) if args.controller == "quasi-stiffness" or args.incline != 0.0 else None
     score = simulate(args.controller, args.speed, args.incline, args.seconds, args.mass, model,
                      record=args.record, video=args.video)
-    d = score.to_dict()
-    if args.format == "json":
-        print(json.dumps(d))
-    else:
-        for k, v in d.items():
-            print(f"{k:32s} {v}")
+    _emit(score.to_dict(), args.format)
     return 0
 
 

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller_core.model import G
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.leg_model import LegGeometry
 
-G = 9.81
 MID_STANCE = (0.15, 0.40)
 
 

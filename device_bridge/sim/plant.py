@@ -16,10 +16,9 @@ import mujoco
 import numpy as np
 
 from controller_core.fsm import SensorSample
+from controller_core.model import G
 from device_bridge.sim.bench_trajectory import BenchTrajectory
 from device_bridge.sim.leg_model import LegGeometry, build_mjcf
-
-G = 9.81
 
 
 class SimulatedLeg:
@@ -56,6 +55,9 @@ class SimulatedLeg:
         self.vertical_stiffness_N_per_m = float(m.actuator("hip_z_pos").gainprm[0])
         self._tick = 0
         self._traj: BenchTrajectory | None = None
+        self._force6 = np.zeros(6)   # scratch for mj_contactForce (called every tick in contact)
+        alpha = math.radians(self.incline_deg)
+        self._floor_normal = (-math.sin(alpha), math.cos(alpha))
 
     def reset(self, trajectory: BenchTrajectory, knee_rad: float, ankle_rad: float) -> SensorSample:
         """Place the socket at the trajectory's first sample and the joints at the given angles (rad)."""
@@ -104,15 +106,10 @@ class SimulatedLeg:
         mujoco.mj_step(self.model, self.data)
         return self.sample()
 
-    @property
-    def tick(self) -> int:
-        """Ticks since reset."""
-        return self._tick
-
     def foot_contact_force(self) -> float:
         """Total normal force between the foot's contacts and the floor now (N): ground truth for metrics."""
         total = 0.0
-        f6 = np.zeros(6)
+        f6 = self._force6
         d = self.data
         for j in range(d.ncon):
             con = d.contact[j]
@@ -124,11 +121,5 @@ class SimulatedLeg:
 
     def hip_height_m(self) -> float:
         """Socket height above the floor along its normal (m)."""
-        alpha = math.radians(self.incline_deg)
-        x, z = self.data.qpos[self._q["hip_x"]], self.data.qpos[self._q["hip_z"]]
-        return float(-x * math.sin(alpha) + z * math.cos(alpha))
-
-    def joint_torques(self) -> tuple[float, float]:
-        """Knee and ankle actuator torques applied in the last step (N·m)."""
-        f = self.data.actuator_force
-        return float(f[self._a["knee"]]), float(f[self._a["ankle"]])
+        nx, nz = self._floor_normal
+        return float(nx * self.data.qpos[self._q["hip_x"]] + nz * self.data.qpos[self._q["hip_z"]])

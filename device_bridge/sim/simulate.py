@@ -26,12 +26,12 @@ import numpy as np
 
 from controller_core.fsm import GaitState, SensorSample, StateMachineController
 from controller_core.gait_metrics import PHASE_GRID, episodes, heel_strikes, rmse, stride_curves
+from controller_core.model import G
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.plant import SimulatedLeg
 
-G = 9.81
 LOG_CHANNELS = ("time_s", "bench_phase", "state", "knee_angle_rad", "knee_velocity_rad_s", "ankle_angle_rad",
                 "ankle_velocity_rad_s", "knee_torque_Nm", "ankle_torque_Nm", "load_N", "ankle_moment_Nm",
                 "contact_N", "hip_height_error_m")
