@@ -1,1 +1,3 @@
-"""QuasiTune backend: command-line interface now, FastAPI application later (issue 4)."""
+"""QuasiTune backend: the FastAPI application (``backend.app``), its storage and the ``quasitune`` CLI."""
+
+__version__ = "0.1.0"

@@ -1,8 +1,7 @@
 """The ``quasitune`` command line.
 
-Commands: ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``, ``simulate``, ``compare``. Bad input exits
-with code 2 and a
-one-line reason on stderr.
+Commands: ``serve``, ``users``, ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``, ``bench-api``,
+``simulate``, ``compare``. Bad input exits with code 2 and a one-line reason on stderr.
 """
 
 from __future__ import annotations
@@ -164,9 +163,114 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _settings(args: argparse.Namespace):
+    from backend.settings import Settings, default_data_dir
+
+    return Settings(data_dir=args.data_dir or default_data_dir(), model_dir=getattr(args, "model", None))
+
+
+def _port(text: str) -> int:
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"port must be a whole number 0-65535, got {text!r}") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"port must be 0-65535 (0 = any free port), got {port}")
+    return port
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from backend.serve import serve
+
+    serve(_settings(args), host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user)
+    return 0
+
+
+def _read_password() -> str:
+    import getpass
+
+    if sys.stdin.isatty():
+        first = getpass.getpass("password: ")
+        if getpass.getpass("again: ") != first:
+            raise ValueError("the two passwords differ")
+        return first
+    return sys.stdin.readline().rstrip("\r\n")
+
+
+def cmd_users_add(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from backend.db import connect
+    from backend.errors import ConflictError
+    from backend.migrate import migrate
+    from backend.schemas.auth import UserCreate
+    from backend.store.users import create_user
+
+    settings = _settings(args)
+    try:
+        body = UserCreate(username=args.name, role=args.role, password=_read_password())
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        raise ValueError(f"{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    migrate(settings.db_path)
+    conn = connect(settings.db_path)
+    try:
+        user = create_user(conn, body.username, body.role, body.password)
+    except ConflictError as exc:
+        raise ValueError(exc.message) from None
+    finally:
+        conn.close()
+    print(f"user {user['username']} ({user['role']}) added to {settings.db_path}")
+    return 0
+
+
+def cmd_users_list(args: argparse.Namespace) -> int:
+    from backend.db import connect
+    from backend.migrate import migrate
+    from backend.store.users import list_users
+
+    settings = _settings(args)
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    migrate(settings.db_path)
+    conn = connect(settings.db_path)
+    try:
+        for u in list_users(conn):
+            print(f"{u['id']:4d}  {u['username']:24s} {u['role']:12s} {'disabled' if u['disabled'] else ''}")
+    finally:
+        conn.close()
+    return 0
+
+
+def cmd_bench_api(args: argparse.Namespace) -> int:
+    from backend.loadbench import run_load_bench
+
+    _emit(run_load_bench(clients=args.clients, seconds=args.seconds, workers=args.workers), args.format)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="quasitune", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
+    data_dir_help = "data directory holding quasitune.sqlite (default: $QUASITUNE_DATA_DIR or ~/.local/share/quasitune)"
+    p = sub.add_parser("serve", help="run the API server (loopback by default)")
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default loopback only)")
+    p.add_argument("--port", type=_port, default=8000, help="port (0 = any free port; the real one is printed)")
+    p.add_argument("--data-dir", type=Path, default=None, help=data_dir_help)
+    p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")
+    p.add_argument("--no-bootstrap-user", action="store_true",
+                   help="do not create the first user on an empty database")
+    p.set_defaults(func=cmd_serve)
+    p = sub.add_parser("users", help="manage users")
+    users_sub = p.add_subparsers(dest="users_command", required=True)
+    p = users_sub.add_parser("add", help="add a user (password from a prompt, or one line of stdin)")
+    p.add_argument("name")
+    p.add_argument("--role", required=True, choices=["prosthetist", "viewer", "admin"])
+    p.add_argument("--data-dir", type=Path, default=None, help=data_dir_help)
+    p.set_defaults(func=cmd_users_add)
+    p = users_sub.add_parser("list", help="list users")
+    p.add_argument("--data-dir", type=Path, default=None, help=data_dir_help)
+    p.set_defaults(func=cmd_users_list)
     p = sub.add_parser("predict", help="propose curves and a parameter table for a task")
     _task_args(p)
     p.add_argument("--format", choices=["text", "json"], default="text")
@@ -188,6 +292,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=int, default=2000)
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_bench)
+    p = sub.add_parser("bench-api", help="load benchmark: POST proposals with concurrent clients on loopback")
+    p.add_argument("--clients", type=int, default=20)
+    p.add_argument("--seconds", type=float, default=10.0, help="measured duration (s) after a warm-up")
+    p.add_argument("--workers", type=int, default=1, help="server processes")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.set_defaults(func=cmd_bench_api)
     p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
     _task_args(p)
     p.add_argument("--controller", choices=["quasi-stiffness", "fsmic"], default="quasi-stiffness")

@@ -14,7 +14,7 @@ import numpy as np
 from controller_core.features import FeatureSpec
 from controller_core.kmp import ViaPoint
 from controller_core.quasi_stiffness import SubphaseFit
-from controller_core.table import LimitViolation, ParameterTable
+from controller_core.table import LimitViolation, ParameterTable, display_rows
 
 FEATURE_UNITS = {"angle": "deg", "moment": "N·m/kg", "timing": "fraction of gait cycle"}
 
@@ -81,14 +81,6 @@ class Proposal:
                 "value": round(value, 4), "std": round(std, 4), "unit": unit,
                 "extrapolation": f.extrapolation,
             })
-        table = []
-        for r in self.table.rows:
-            table.append({
-                "joint": r.joint, "subphase": r.subphase, "k_Nm_per_rad": round(r.k_Nm_per_rad, 3),
-                "k_Nm_per_deg": round(r.k_Nm_per_rad * math.pi / 180.0, 4),
-                "theta_e_deg": round(r.theta_e_deg, 3), "b_Nm_s_per_rad": round(r.b_Nm_s_per_rad, 4),
-                "r2": None if r.r2 is None else round(r.r2, 4), "guarded": r.guarded,
-            })
         return {
             "task": {"speed_mps": self.speed_mps, "incline_deg": self.incline_deg, "mass_kg": self.mass_kg},
             "model": {"version": self.model_version, "data_sha256": self.data_sha256},
@@ -100,7 +92,7 @@ class Proposal:
                 "swing_flexion_to_swing_extension": round(self.boundaries[2], 4),
             },
             "curves": self.curves_dict(),
-            "table": table,
+            "table": display_rows(self.table),
             "thresholds": self.table.thresholds.model_dump(),
             "safety": {"ok": not self.violations, "violations": [v.model_dump() for v in self.violations]},
         }

@@ -176,3 +176,13 @@ def assert_safe(table: ParameterTable, limits: SafetyLimits | None = None) -> No
     violations = check_table(table, limits)
     if violations:
         raise SafetyLimitError(violations)
+
+
+def display_rows(table: ParameterTable) -> list[dict]:
+    """The table's rows for people and JSON: k in N·m/rad and N·m/deg, θe in deg, b in N·m·s/rad."""
+    return [{
+        "joint": r.joint, "subphase": r.subphase, "k_Nm_per_rad": round(r.k_Nm_per_rad, 3),
+        "k_Nm_per_deg": round(r.k_Nm_per_rad * math.pi / 180.0, 4), "theta_e_deg": round(r.theta_e_deg, 3),
+        "b_Nm_s_per_rad": round(r.b_Nm_s_per_rad, 4), "r2": None if r.r2 is None else round(r.r2, 4),
+        "guarded": r.guarded, "fit_method": r.fit_method,
+    } for r in table.rows]

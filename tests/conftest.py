@@ -22,3 +22,13 @@ def model():
     from controller_core import load_default_model
 
     return load_default_model()
+
+
+@pytest.fixture
+def api(tmp_path, model):
+    """In-process API on a temporary database, one signed-in user per role (see tests/api_helpers.py)."""
+    from api_helpers import make_api
+
+    api, client = make_api(tmp_path, model)
+    with client:
+        yield api

@@ -1,0 +1,122 @@
+"""The FastAPI application: routers per resource, error bodies people can read, start-up work.
+
+``create_app(settings)`` migrates the database, starts loading the model in the background and returns the
+app; ``quasitune serve`` runs it with uvicorn. Error bodies are ``{"detail": "<sentence>", ...}``: request
+validation errors name the field, the value's problem and the allowed range; domain errors carry extra keys
+(``violations``) for scripts.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import AsyncIterator, Callable
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from backend import __version__
+from backend.errors import DomainError
+from backend.migrate import migrate
+from backend.model_service import ModelService
+from backend.pool import ConnectionPool
+from backend.routers import audit, auth, health, patients, proposals
+from backend.schemas.errors import FieldError
+from backend.settings import Settings
+from controller_core import QuasiStiffnessModel, load_default_model, load_model
+
+log = logging.getLogger("quasitune.api")
+
+
+def _field(loc: tuple) -> str:
+    parts = [str(p) for p in loc if p not in ("body", "query", "path", "header", "form")]
+    return ".".join(parts) or "request"
+
+
+def _validation_body(exc: RequestValidationError) -> dict:
+    errors = [{"field": _field(tuple(e.get("loc", ()))), "message": e.get("msg", "invalid"), "type": e.get("type")}
+              for e in exc.errors()]
+    summary = "; ".join(f"{e['field']}: {e['message']}" for e in errors[:5])
+    return {"detail": f"invalid request: {summary}", "errors": errors}
+
+
+def _allowed_methods(app: FastAPI, request: Request) -> list[str]:
+    """Methods the OpenAPI schema documents for the request's path."""
+    methods: set[str] = set()
+    for template, operations in app.openapi()["paths"].items():
+        pattern = "^" + re.sub(r"\\{[^}]+\\}", "[^/]+", re.escape(template)) + "$"
+        if re.match(pattern, request.url.path):
+            methods |= {m.upper() for m in operations}
+    return sorted(methods)
+
+
+def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
+    if settings.model_dir is not None:
+        return lambda: load_model(settings.model_dir)
+    return load_default_model
+
+
+def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None) -> FastAPI:
+    """Build the app for ``settings`` (migrates the database now; the model loads in the background)."""
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    migrate(settings.db_path)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        yield
+        app.state.pool.close()
+
+    app = FastAPI(title="QuasiTune", version=__version__, lifespan=lifespan,
+                  description="Learning quasi-stiffness tuning for a powered knee-ankle prosthesis: patients, "
+                              "proposals with uncertainty, approval, audit. Angles in deg, moments in N·m or "
+                              "N·m/kg, stiffness in N·m/rad — the unit is in every field name.")
+    app.state.settings = settings
+    app.state.pool = ConnectionPool(settings.db_path)
+    app.state.model = ModelService(model_loader or _default_loader(settings)).start()
+
+    @app.exception_handler(RequestValidationError)
+    async def _on_validation(_request: Request, exc: RequestValidationError) -> JSONResponse:
+        return JSONResponse(_validation_body(exc), status_code=422)
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _on_http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        headers = dict(exc.headers or {})
+        if exc.status_code == 405:   # Starlette names only the first matching route's methods; name them all
+            headers["Allow"] = ", ".join(_allowed_methods(app, request))
+        if exc.status_code == 400 and "parsing the body" in str(exc.detail):
+            return JSONResponse({"detail": "the request body could not be parsed: send UTF-8 JSON (or a form where "
+                                           "the operation takes one)"}, status_code=422)
+        return JSONResponse({"detail": exc.detail}, status_code=exc.status_code, headers=headers)
+
+    @app.exception_handler(DomainError)
+    async def _on_domain(_request: Request, exc: DomainError) -> JSONResponse:
+        headers = {"Retry-After": str(exc.extra["retry_after_s"])} if "retry_after_s" in exc.extra else None
+        return JSONResponse({"detail": exc.message, **exc.extra}, status_code=exc.status, headers=headers)
+
+    for router in (health.router, auth.router, patients.router, proposals.router, audit.router):
+        app.include_router(router)
+    app.openapi = lambda: _openapi(app)
+    return app
+
+
+def _openapi(app: FastAPI) -> dict:
+    """FastAPI's schema with its default 422 body replaced by the one this app actually sends."""
+    if app.openapi_schema is None:
+        from fastapi.openapi.utils import get_openapi
+
+        schema = get_openapi(title=app.title, version=app.version, description=app.description, routes=app.routes)
+        components = schema.setdefault("components", {}).setdefault("schemas", {})
+        if "HTTPValidationError" in components:
+            components["HTTPValidationError"] = {
+                "title": "HTTPValidationError", "type": "object", "required": ["detail"],
+                "properties": {
+                    "detail": {"type": "string", "description": "which fields are wrong and why"},
+                    "errors": {"type": "array", "items": {"$ref": "#/components/schemas/FieldError"}},
+                }}
+            components.pop("ValidationError", None)
+            components["FieldError"] = FieldError.model_json_schema()
+        app.openapi_schema = schema
+    return app.openapi_schema

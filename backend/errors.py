@@ -1,0 +1,37 @@
+"""Domain errors raised below the HTTP layer; ``backend.app`` maps each to its status code.
+
+Every message says what was wrong in words a person understands (which field, which value, which range).
+"""
+
+from __future__ import annotations
+
+
+class DomainError(Exception):
+    """Base class: ``status`` is the HTTP status the API answers with; ``extra`` is merged into the body."""
+
+    status = 400
+
+    def __init__(self, message: str, **extra: object) -> None:
+        super().__init__(message)
+        self.message = message
+        self.extra = extra
+
+
+class NotFoundError(DomainError):
+    status = 404
+
+
+class ConflictError(DomainError):
+    """The request is well-formed but clashes with the stored state (duplicate name, already decided …)."""
+
+    status = 409
+
+
+class InvalidError(DomainError):
+    """A value is out of range or inconsistent (beyond what the request schema can express)."""
+
+    status = 422
+
+
+class ServiceUnavailableError(DomainError):
+    status = 503

@@ -1,0 +1,97 @@
+"""Load benchmark of ``POST /api/patients/{id}/proposals`` (a command that prints figures, not a test).
+
+Starts ``quasitune serve`` in a subprocess on a free loopback port with a temporary database, creates a
+prosthetist and a patient, warms up, then runs ``clients`` concurrent clients (each one request at a time,
+back to back, over its own keep-alive connection) for ``seconds``. Tasks are drawn at random over the model's
+range (speed 0.5–2.0 m/s, incline ±10°) so no two requests are alike. Reports proposals per second and
+latency percentiles; any non-201 answer is counted and reported.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import random
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+PASSWORD = "load-bench-password"
+
+
+def start_server(data_dir: Path, workers: int = 1, extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
+    """``quasitune serve --port 0`` in a subprocess; returns (process, base URL) once it listens."""
+    cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir),
+           "--no-bootstrap-user", *extra]
+    if workers > 1:
+        cmd += ["--workers", str(workers)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    line = proc.stdout.readline()
+    if "listening on" not in line:
+        proc.kill()
+        raise RuntimeError(f"server did not start: {line!r} {proc.stderr.read()[-2000:]}")
+    return proc, line.rsplit(" ", 1)[-1].strip()
+
+
+def add_user(data_dir: Path, name: str, role: str, password: str = PASSWORD) -> None:
+    subprocess.run([sys.executable, "-m", "backend.cli", "users", "add", name, "--role", role,
+                    "--data-dir", str(data_dir)], input=password + "\n", text=True, check=True,
+                   capture_output=True)
+
+
+async def _run(base: str, clients: int, seconds: float) -> dict:
+    import httpx
+
+    async with httpx.AsyncClient(base_url=base, timeout=30.0) as setup:
+        while (await setup.get("/api/health")).json()["model"] != "ready":
+            await asyncio.sleep(0.1)
+        token = (await setup.post("/api/auth/token", data={"username": "bench", "password": PASSWORD})).json()
+        headers = {"Authorization": f"Bearer {token['access_token']}"}
+        patient = (await setup.post("/api/patients", headers=headers,
+                                    json={"code_name": "LOAD-1", "body_mass_kg": 75.0, "side": "left"})).json()
+    url = f"/api/patients/{patient['id']}/proposals"
+    latencies: list[float] = []
+    statuses: dict[int, int] = {}
+    rng = random.Random(0)
+
+    async def client(deadline: float, record: bool) -> None:
+        limits = httpx.Limits(max_connections=1, max_keepalive_connections=1)
+        async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0, limits=limits) as c:
+            while time.perf_counter() < deadline:
+                body = {"speed_mps": round(rng.uniform(0.5, 2.0), 3), "incline_deg": round(rng.uniform(-10, 10), 2)}
+                t0 = time.perf_counter()
+                r = await c.post(url, json=body)
+                dt = time.perf_counter() - t0
+                if record:
+                    latencies.append(dt)
+                    statuses[r.status_code] = statuses.get(r.status_code, 0) + 1
+
+    await asyncio.gather(*(client(time.perf_counter() + 2.0, False) for _ in range(clients)))   # warm-up
+    t_start = time.perf_counter()
+    await asyncio.gather(*(client(t_start + seconds, True) for _ in range(clients)))
+    wall = time.perf_counter() - t_start
+    lat = np.array(latencies) * 1e3
+    return {"clients": clients, "seconds": round(wall, 2), "requests": int(lat.size),
+            "proposals_per_s": round(statuses.get(201, 0) / wall, 1),
+            "p50_ms": round(float(np.percentile(lat, 50)), 2), "p95_ms": round(float(np.percentile(lat, 95)), 2),
+            "p99_ms": round(float(np.percentile(lat, 99)), 2), "max_ms": round(float(lat.max()), 2),
+            "non_201": sum(v for k, v in statuses.items() if k != 201)}
+
+
+def run_load_bench(clients: int = 20, seconds: float = 10.0, workers: int = 1) -> dict:
+    """Run the benchmark against a fresh server; the load generator shares the machine with it."""
+    with tempfile.TemporaryDirectory(prefix="quasitune-loadbench-") as tmp:
+        data_dir = Path(tmp)
+        add_user(data_dir, "bench", "prosthetist")
+        proc, base = start_server(data_dir, workers)
+        try:
+            result = asyncio.run(_run(base, clients, seconds))
+        finally:
+            proc.terminate()
+            proc.wait(timeout=10)
+        return {**result, "server_workers": workers, "cpu_count": os.cpu_count()}

@@ -1,0 +1,63 @@
+"""Sign-in (OAuth2 password form → bearer token), the signed-in user, and user management (admin)."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, HTTPException, status
+from fastapi.security import OAuth2PasswordRequestForm
+
+from backend.deps import Admin, Conn, CurrentUser, get_settings
+from backend.schemas.auth import Me, TokenOut, UserCreate, UserOut
+from backend.schemas.errors import CONFLICT, FORBIDDEN, UNAUTHORIZED
+from backend.security import burn_password_check, verify_password
+from backend.settings import Settings
+from backend.store import users
+
+router = APIRouter(prefix="/api", tags=["auth"])
+
+
+def _storable(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
+@router.post("/auth/token", response_model=TokenOut, responses=UNAUTHORIZED)
+def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], conn: Conn,
+          settings: Annotated[Settings, Depends(get_settings)]) -> TokenOut:
+    """Exchange a user name and password (form fields) for a bearer token that expires."""
+    found = users.credentials(conn, form.username) if _storable(form.username) and len(form.username) <= 64 else None
+    if found is None:
+        burn_password_check(form.password)
+        ok = False
+    else:
+        ok = verify_password(form.password, found[1])
+    if not ok:
+        if _storable(form.username):
+            users.record_failed_login(conn, form.username)
+        raise HTTPException(status.HTTP_401_UNAUTHORIZED, "incorrect user name or password",
+                            headers={"WWW-Authenticate": "Bearer"})
+    token = users.issue_token(conn, found[0], settings.token_ttl_s)
+    return TokenOut(access_token=token, expires_in=settings.token_ttl_s)
+
+
+@router.get("/auth/me", response_model=Me, responses=UNAUTHORIZED)
+def me(user: CurrentUser) -> Me:
+    """Who the token belongs to, and their role."""
+    return Me(id=user.id, username=user.username, role=user.role)
+
+
+@router.get("/users", response_model=list[UserOut], responses={**UNAUTHORIZED, **FORBIDDEN})
+def list_users(conn: Conn, _admin: Admin) -> list[dict]:
+    """All users (admin only)."""
+    return users.list_users(conn)
+
+
+@router.post("/users", response_model=UserOut, status_code=status.HTTP_201_CREATED,
+             responses={**UNAUTHORIZED, **FORBIDDEN, **CONFLICT})
+def create_user(body: UserCreate, conn: Conn, admin: Admin) -> dict:
+    """Add a user with a role (admin only)."""
+    return users.create_user(conn, body.username, body.role, body.password, actor=admin)

@@ -1,0 +1,86 @@
+"""Proposals: request a draft for a task, read, edit into a new version, diff, approve or reject."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, status
+from pydantic import ValidationError
+
+from backend.deps import Conn, CurrentUser, Model, Prosthetist
+from backend.errors import InvalidError
+from backend.schemas.common import IdPath
+from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
+from backend.schemas.proposals import (
+    DecisionRequest,
+    DiffOut,
+    EditRequest,
+    ProposalOut,
+    ProposalRequest,
+    ProposalSummary,
+)
+from backend.store import patients, proposals
+from controller_core.table import check_table
+from controller_core.table_edit import EditError, edit_table
+
+router = APIRouter(prefix="/api", tags=["proposals"], responses=UNAUTHORIZED)
+
+
+@router.post("/patients/{patient_id}/proposals", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
+             responses={**FORBIDDEN, **NOT_FOUND, **UNAVAILABLE})
+def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
+    """Predict features, curves and the parameter table for a task and this patient's body mass, and store it
+    as the patient's next draft version (prosthetist). Its safety check and extrapolation flag are included."""
+    patient = patients.get_patient(conn, patient_id)
+    proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
+    return proposals.create_from_model(conn, patient_id, proposal, user)
+
+
+@router.get("/patients/{patient_id}/proposals", response_model=list[ProposalSummary], responses=NOT_FOUND)
+def list_proposals(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
+    """The patient's proposal versions, newest first (without curves)."""
+    patients.get_patient(conn, patient_id)
+    return proposals.list_proposals(conn, patient_id)
+
+
+@router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)
+def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    return proposals.get_proposal(conn, proposal_id)
+
+
+@router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Prosthetist) -> dict:
+    """Derive a new draft version with edited table cells (prosthetist). The edited table is re-checked against
+    every safety limit and refused (nothing stored) if any value is outside."""
+    parent = proposals.get_row(conn, proposal_id)
+    try:
+        table, changes = edit_table(proposals.stored_table(parent),
+                                    [r.model_dump(exclude_none=True) for r in body.rows],
+                                    body.thresholds.model_dump(exclude_none=True) if body.thresholds else None)
+    except (EditError, ValidationError) as exc:
+        raise InvalidError(str(exc).splitlines()[0]) from exc
+    violations = check_table(table)
+    if violations:
+        raise InvalidError("edit refused, nothing stored: " + "; ".join(v.message for v in violations),
+                           violations=[v.model_dump() for v in violations])
+    return proposals.create_edit(conn, proposal_id, table, changes, body.comment, user)
+
+
+@router.get("/proposals/{proposal_id}/diff/{other_id}", response_model=DiffOut, responses=NOT_FOUND)
+def diff_proposals(proposal_id: IdPath, other_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    """What changed from ``proposal_id`` to ``other_id``: task, table cells and thresholds, with units."""
+    return proposals.diff(conn, proposal_id, other_id)
+
+
+@router.post("/proposals/{proposal_id}/approve", response_model=ProposalOut,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def approve(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
+    """Approve a draft (prosthetist). The stored table is re-validated and every limit re-checked first;
+    an approved proposal never changes."""
+    return proposals.decide(conn, proposal_id, "approved", body.comment, user)
+
+
+@router.post("/proposals/{proposal_id}/reject", response_model=ProposalOut,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def reject(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
+    """Reject a draft (prosthetist)."""
+    return proposals.decide(conn, proposal_id, "rejected", body.comment, user)

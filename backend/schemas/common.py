@@ -1,0 +1,50 @@
+"""Shared field types: strict models, text that SQLite can store, database ids."""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated
+
+from fastapi import Path
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+
+MAX_ID = 2**53  # ids beyond what JSON numbers carry exactly are refused before they reach SQLite
+
+_CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
+
+
+def _storable_text(value: str) -> str:
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError as exc:
+        raise ValueError("text must be valid Unicode (no unpaired surrogates)") from exc
+    if _CONTROL.search(value):
+        raise ValueError("text must not contain control characters")
+    return value
+
+
+# the pattern is documented in the schema (so clients and fuzzers know); the validator gives the readable message
+Text = Annotated[str, AfterValidator(_storable_text),
+                 Field(json_schema_extra={"pattern": "^[^\\x00-\\x08\\x0b\\x0c\\x0e-\\x1f\\x7f]*$"})]
+
+
+def json_integer(value: object) -> object:
+    """Use as a ``field_validator(mode="before")``: JSON Schema counts 1.0 as an integer, strict validation
+    would not. Booleans stay refused. (A validator on the type itself would hide ge/le from the schema.)"""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    return value
+IdPath = Annotated[int, Path(ge=1, le=MAX_ID, description="database id")]
+
+
+class StrictIn(BaseModel):
+    """Base of request bodies: unknown fields, NaN, ±inf and type coercion ("1.5" or true for a number) are
+    refused; strings are stripped."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, str_strip_whitespace=True, strict=True)
+
+
+class Message(BaseModel):
+    """Error body: ``detail`` is a sentence for a person; other keys (``errors``, ``violations``) for scripts."""
+
+    detail: str

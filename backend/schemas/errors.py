@@ -1,0 +1,35 @@
+"""Error bodies as documented in the OpenAPI schema (every 4xx/5xx answer has ``detail``, a sentence)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+from controller_core.table import LimitViolation
+
+
+class FieldError(BaseModel):
+    field: str
+    message: str
+    type: str | None = None
+
+
+class ErrorBody(BaseModel):
+    """``detail`` for people; ``errors`` (request validation) or ``violations`` (safety limits) for scripts."""
+
+    model_config = ConfigDict(extra="allow")
+
+    detail: str
+    errors: list[FieldError] | None = None
+    violations: list[LimitViolation] | None = None
+
+
+def _r(description: str) -> dict:
+    return {"model": ErrorBody, "description": description}
+
+
+UNAUTHORIZED = {401: _r("not signed in, or the token is unknown or expired")}
+FORBIDDEN = {403: _r("the signed-in user's role may not do this")}
+NOT_FOUND = {404: _r("no such resource")}
+CONFLICT = {409: _r("clashes with the stored state")}
+UNAVAILABLE = {503: _r("the model is still loading (see Retry-After)")}
+INVALID = {422: _r("a field is missing, malformed or out of range; `detail` names it")}

@@ -1,0 +1,158 @@
+"""Proposals: request a draft for a task, edit cells into a new version, decide, diff."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from backend.schemas.common import StrictIn, Text
+from controller_core.table import LimitViolation, SafetyLimits, Thresholds
+
+Joint = Literal["knee", "ankle"]
+Subphase = Literal["stance_flexion", "stance_extension", "swing_flexion", "swing_extension"]
+
+
+class ProposalRequest(StrictIn):
+    speed_mps: float = Field(gt=0, le=3, description="walking speed (m/s), (0, 3]")
+    incline_deg: float = Field(default=0.0, ge=-20, le=20, description="incline (deg, + uphill), [-20, 20]")
+
+
+class RowEdit(StrictIn):
+    """New values for one row; omitted or null fields keep their value."""
+
+    joint: Joint
+    subphase: Subphase
+    k_Nm_per_rad: float | None = Field(default=None, description="quasi-stiffness (N·m/rad; negative = restoring)")
+    theta_e_deg: float | None = Field(default=None, description="equilibrium angle (deg)")
+    b_Nm_s_per_rad: float | None = Field(default=None, description="damping (N·m·s/rad)")
+
+
+class ThresholdEdit(StrictIn):
+    sf_to_se_ankle_moment_Nm: float | None = None
+    se_to_wf_load_N: float | None = None
+    wf_to_we_knee_angle_deg: float | None = None
+    we_to_sf_load_N: float | None = None
+    min_state_time_s: float | None = None
+    max_state_time_s: float | None = None
+
+
+class EditRequest(StrictIn):
+    rows: list[RowEdit] = Field(default_factory=list, max_length=8)
+    thresholds: ThresholdEdit | None = None
+    comment: Text = Field(min_length=1, max_length=2000, description="why the values were changed (audited)")
+
+
+class DecisionRequest(StrictIn):
+    comment: Text = Field(default="", max_length=2000, description="the prosthetist's comment (audited)")
+
+
+class Task(BaseModel):
+    speed_mps: float
+    incline_deg: float
+    body_mass_kg: float
+
+
+class ModelInfo(BaseModel):
+    version: str
+    data_sha256: str
+
+
+class Decision(BaseModel):
+    status: Literal["approved", "rejected"]
+    by: str
+    at: str
+    comment: str | None
+
+
+class TableRowOut(BaseModel):
+    joint: Joint
+    subphase: Subphase
+    k_Nm_per_rad: float
+    k_Nm_per_deg: float
+    theta_e_deg: float
+    b_Nm_s_per_rad: float
+    r2: float | None
+    guarded: bool
+    fit_method: str
+
+
+class Safety(BaseModel):
+    ok: bool = Field(description="every value within the safety limits (checked now, against the current limits)")
+    violations: list[LimitViolation]
+
+
+class FeatureOut(BaseModel):
+    joint: str
+    quantity: str
+    name: str
+    label: str
+    phase: float = Field(description="gait phase of the feature, [0, 1]")
+    phase_std: float
+    value: float = Field(description="in `unit`")
+    std: float
+    unit: str
+    extrapolation: bool
+
+
+class Boundaries(BaseModel):
+    stance_flexion_to_stance_extension: float
+    stance_extension_to_swing_flexion: float
+    swing_flexion_to_swing_extension: float
+
+
+class Curves(BaseModel):
+    """Predicted curves on 101 phase points, mean and ±1 SD."""
+
+    phase: list[float]
+    knee_angle_deg: list[float]
+    knee_angle_deg_std: list[float]
+    knee_moment_Nm_per_kg: list[float]
+    knee_moment_Nm_per_kg_std: list[float]
+    ankle_angle_deg: list[float]
+    ankle_angle_deg_std: list[float]
+    ankle_moment_Nm_per_kg: list[float]
+    ankle_moment_Nm_per_kg_std: list[float]
+
+
+class ProposalSummary(BaseModel):
+    id: int
+    patient_id: int
+    version: int
+    parent_id: int | None
+    source: Literal["model", "edit"]
+    status: Literal["draft", "approved", "rejected"]
+    created_by: str
+    created_at: str
+    edit_comment: str | None
+    decision: Decision | None
+    task: Task
+    extrapolation: bool
+    model: ModelInfo
+    table: list[TableRowOut]
+    thresholds: Thresholds
+    table_sha256: str
+    safety: Safety
+
+
+class ProposalOut(ProposalSummary):
+    features: list[FeatureOut]
+    subphase_boundaries_phase: Boundaries
+    curves: Curves
+    limits: SafetyLimits
+
+
+class Change(BaseModel):
+    field: str
+    before: float | str | None
+    after: float | str | None
+    unit: str | None
+
+
+class DiffOut(BaseModel):
+    from_id: int
+    to_id: int
+    from_version: int
+    to_version: int
+    same_patient: bool
+    changes: list[Change]

@@ -1,0 +1,77 @@
+"""Password hashing (scrypt, memory-hard) and opaque bearer tokens.
+
+Passwords: ``hashlib.scrypt`` with n = 2¹⁴, r = 8, p = 1 (16 MiB per hash, tens of milliseconds), a 16-byte
+random salt, stored as ``scrypt$n$r$p$salt$hash`` (base64) so the cost can be raised later without breaking
+old hashes. Tokens: 32 random bytes (URL-safe base64) handed to the client once; only their SHA-256 is
+stored, so a copy of the database does not log anyone in. Tokens expire (``expires_in`` seconds).
+"""
+
+from __future__ import annotations
+
+import base64
+import functools
+import hashlib
+import hmac
+import secrets
+
+SCRYPT_N, SCRYPT_R, SCRYPT_P = 2**14, 8, 1
+_MAXMEM = 64 * 1024 * 1024
+MIN_PASSWORD_LENGTH = 8
+MAX_PASSWORD_LENGTH = 1024
+
+
+def _b64(b: bytes) -> str:
+    return base64.b64encode(b).decode("ascii")
+
+
+def _scrypt(password: str, salt: bytes, n: int, r: int, p: int) -> bytes:
+    return hashlib.scrypt(password.encode("utf-8"), salt=salt, n=n, r=r, p=p, maxmem=_MAXMEM, dklen=32)
+
+
+def check_password_policy(password: str) -> None:
+    """Refuse passwords that are too short or absurdly long (ValueError with the reason)."""
+    if len(password) < MIN_PASSWORD_LENGTH:
+        raise ValueError(f"password must be at least {MIN_PASSWORD_LENGTH} characters")
+    if len(password) > MAX_PASSWORD_LENGTH:
+        raise ValueError(f"password must be at most {MAX_PASSWORD_LENGTH} characters")
+
+
+def hash_password(password: str) -> str:
+    """Salted scrypt hash in the self-describing ``scrypt$n$r$p$salt$hash`` form."""
+    salt = secrets.token_bytes(16)
+    digest = _scrypt(password, salt, SCRYPT_N, SCRYPT_R, SCRYPT_P)
+    return f"scrypt${SCRYPT_N}${SCRYPT_R}${SCRYPT_P}${_b64(salt)}${_b64(digest)}"
+
+
+def verify_password(password: str, stored: str) -> bool:
+    """Constant-time check of ``password`` against a stored hash (False on any malformed hash)."""
+    try:
+        scheme, n, r, p, salt, digest = stored.split("$")
+        if scheme != "scrypt":
+            return False
+        expected = base64.b64decode(digest)
+        got = _scrypt(password, base64.b64decode(salt), int(n), int(r), int(p))
+    except (ValueError, TypeError):
+        return False
+    return hmac.compare_digest(got, expected)
+
+
+@functools.cache
+def _dummy_hash() -> str:
+    return hash_password(secrets.token_urlsafe(16))
+
+
+def burn_password_check(password: str) -> None:
+    """Spend the same time as a real check, for unknown users: a failed login takes as long whether or not
+    the name exists (no user enumeration by timing)."""
+    verify_password(password, _dummy_hash())
+
+
+def new_token() -> str:
+    """A fresh bearer token (shown to the client once)."""
+    return secrets.token_urlsafe(32)
+
+
+def token_digest(token: str) -> str:
+    """What is stored for a token: its SHA-256, hex."""
+    return hashlib.sha256(token.encode("utf-8", "surrogatepass")).hexdigest()

@@ -1,0 +1,70 @@
+"""Run the API with uvicorn on a socket we bind ourselves, so port 0 works and the real port is printed.
+
+The first line on stdout is ``QuasiTune listening on http://HOST:PORT`` (scripts and tests read it).
+"""
+
+from __future__ import annotations
+
+import logging
+import secrets
+import socket
+import sys
+
+from backend.app import create_app
+from backend.db import connect
+from backend.settings import Settings
+from backend.store.users import create_user
+
+log = logging.getLogger("quasitune.serve")
+
+BOOTSTRAP_USER = "prosthetist"
+
+
+def bootstrap_user(settings: Settings) -> str | None:
+    """On a database with no users, create ``prosthetist`` with a random password and return the password
+    (printed once, like an initial admin password); None when users exist."""
+    conn = connect(settings.db_path)
+    try:
+        if conn.execute("SELECT 1 FROM users LIMIT 1").fetchone():
+            return None
+        password = secrets.token_urlsafe(12)
+        create_user(conn, BOOTSTRAP_USER, "prosthetist", password)
+        return password
+    finally:
+        conn.close()
+
+
+def bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket (ValueError with the reason when the address cannot be used)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise ValueError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
+    sock.listen(2048)
+    sock.set_inheritable(True)
+    return sock
+
+
+def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstrap: bool = True,
+          log_level: str = "warning") -> None:
+    """Migrate, (maybe) create the first user, bind, print the URL, serve until interrupted."""
+    import uvicorn
+
+    app = create_app(settings)
+    password = bootstrap_user(settings) if bootstrap else None
+    sock = bind(host, port)
+    real_host, real_port = sock.getsockname()[:2]
+    shown = f"[{real_host}]" if ":" in real_host else real_host
+    print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
+    print(f"  database: {settings.db_path}", flush=True)
+    if password:
+        print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
+              "  (shown once; add users with 'quasitune users add NAME --role ROLE')", flush=True)
+    if host not in ("127.0.0.1", "::1", "localhost"):
+        print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
+    config = uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on")
+    uvicorn.Server(config).run(sockets=[sock])

@@ -1,0 +1,37 @@
+"""Server settings: where the data lives and how long a login lasts."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+DB_FILE = "quasitune.sqlite"
+
+
+def default_data_dir() -> Path:
+    """Per-user data directory: ``$QUASITUNE_DATA_DIR``, else ``$XDG_DATA_HOME/quasitune``, else
+    ``~/.local/share/quasitune``."""
+    if os.environ.get("QUASITUNE_DATA_DIR"):
+        return Path(os.environ["QUASITUNE_DATA_DIR"])
+    base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(base) / "quasitune"
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Args:
+        data_dir: holds the SQLite file (created if missing).
+        token_ttl_s: bearer-token lifetime (s).
+        model_dir: a model from ``quasitune train``; None = the default model (shipped data).
+        model_wait_s: how long a request waits for the model while it loads at start-up before a 503.
+    """
+
+    data_dir: Path
+    token_ttl_s: int = 8 * 3600
+    model_dir: Path | None = None
+    model_wait_s: float = 30.0
+
+    @property
+    def db_path(self) -> Path:
+        return self.data_dir / DB_FILE

@@ -1,0 +1,179 @@
+"""Proposal versions: created from the model or derived by an edit, then approved or rejected once.
+
+A proposal's content (task, curves, features, table) is immutable — SQLite triggers refuse any change
+(migration 0001) — and its decision is taken at most once. Versions are numbered per patient (1, 2, …);
+an edit records its parent.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+
+from backend.db import utc_now, write_transaction
+from backend.errors import ConflictError, NotFoundError
+from backend.store import audit
+from backend.store.users import User
+from controller_core.proposal import Proposal
+from controller_core.table import ParameterTable, SafetyLimits, check_table, display_rows
+
+_ACTIONS = {"approved": "proposal.approve", "rejected": "proposal.reject"}
+_MODEL_KEYS = ("model", "features", "subphase_boundaries_phase", "curves")
+_SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name FROM proposals p "
+           "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by")
+
+
+def _sha256(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def stored_table(row: sqlite3.Row) -> ParameterTable:
+    """The proposal's table, re-validated from storage and checked against its recorded sha256."""
+    if _sha256(row["table_json"]) != row["table_sha256"]:
+        raise ConflictError(f"proposal {row['id']}: stored table does not match its sha256; refusing to use it")
+    return ParameterTable.model_validate_json(row["table_json"])
+
+
+def _public(row: sqlite3.Row, full: bool) -> dict:
+    table = stored_table(row)
+    violations = check_table(table)
+    body = json.loads(row["model_json"])
+    out = {
+        "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
+        "source": row["source"], "status": row["status"],
+        "created_by": row["created_by_name"], "created_at": row["created_at"], "edit_comment": row["edit_comment"],
+        "decision": None if row["status"] == "draft" else {
+            "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
+            "comment": row["decision_comment"]},
+        "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
+                 "body_mass_kg": row["body_mass_kg"]},
+        "extrapolation": bool(row["extrapolation"]),
+        "model": body["model"],
+        "table": display_rows(table),
+        "thresholds": table.thresholds.model_dump(),
+        "table_sha256": row["table_sha256"],
+        "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]},
+    }
+    if full:
+        out |= {"features": body["features"], "subphase_boundaries_phase": body["subphase_boundaries_phase"],
+                "curves": body["curves"], "limits": SafetyLimits().model_dump()}
+    return out
+
+
+def get_row(conn: sqlite3.Connection, proposal_id: int) -> sqlite3.Row:
+    row = conn.execute(_SELECT + " WHERE p.id = ?", (proposal_id,)).fetchone()
+    if row is None:
+        raise NotFoundError(f"proposal {proposal_id} not found")
+    return row
+
+
+def get_proposal(conn: sqlite3.Connection, proposal_id: int, full: bool = True) -> dict:
+    return _public(get_row(conn, proposal_id), full)
+
+
+def list_proposals(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
+    """Summaries (no curves or features), newest version first."""
+    rows = conn.execute(_SELECT + " WHERE p.patient_id = ? ORDER BY p.version DESC", (patient_id,)).fetchall()
+    return [_public(r, full=False) for r in rows]
+
+
+def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
+            extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User) -> int:
+    table_json = table.model_dump_json()
+    version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM proposals WHERE patient_id = ?",
+                           (patient_id,)).fetchone()[0]
+    cur = conn.execute(
+        "INSERT INTO proposals (patient_id, version, parent_id, source, speed_mps, incline_deg, body_mass_kg, "
+        "extrapolation, safety_ok, model_json, table_json, table_sha256, edit_comment, created_by, created_at) "
+        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        (patient_id, version, parent_id, source, task["speed_mps"], task["incline_deg"], task["body_mass_kg"],
+         int(extrapolation), int(not check_table(table)), model_json, table_json, _sha256(table_json), comment,
+         actor.id, utc_now()))
+    return int(cur.lastrowid)
+
+
+def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
+    """Store a freshly computed proposal as the patient's next draft version."""
+    d = proposal.to_dict()
+    model_json = json.dumps({k: d[k] for k in _MODEL_KEYS}, allow_nan=False)
+    task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
+    with write_transaction(conn):
+        if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
+            raise NotFoundError(f"patient {patient_id} not found")
+        pid = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
+                      None, actor)
+        out = get_proposal(conn, pid)
+        audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", pid,
+                     after={"patient_id": patient_id, "version": out["version"], "task": task,
+                            "table_sha256": out["table_sha256"], "safety_ok": out["safety"]["ok"],
+                            "extrapolation": out["extrapolation"]})
+    return out
+
+
+def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable, changes: list[dict],
+                comment: str, actor: User) -> dict:
+    """Store ``table`` (already validated and limit-checked) as a new draft derived from ``parent_id``."""
+    with write_transaction(conn):
+        parent = get_row(conn, parent_id)
+        task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],
+                "body_mass_kg": parent["body_mass_kg"]}
+        pid = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
+                      parent["model_json"], table, comment, actor)
+        out = get_proposal(conn, pid)
+        audit.record(conn, actor.id, actor.username, "proposal.edit", "proposal", pid,
+                     before={"proposal_id": parent_id, "version": parent["version"],
+                             "table_sha256": parent["table_sha256"],
+                             **{c["field"]: c["before"] for c in changes}},
+                     after={"version": out["version"], "table_sha256": out["table_sha256"], "comment": comment,
+                            **{c["field"]: c["after"] for c in changes}})
+    return out
+
+
+def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str, actor: User) -> dict:
+    """Approve or reject a draft once. Approval re-validates the stored table and re-checks every limit."""
+    if status not in ("approved", "rejected"):
+        raise ValueError(f"status must be 'approved' or 'rejected', got {status!r}")
+    with write_transaction(conn):
+        row = get_row(conn, proposal_id)
+        if row["status"] != "draft":
+            raise ConflictError(f"proposal {proposal_id} was already {row['status']} by {row['decided_by_name']} "
+                                f"at {row['decided_at']}; derive a new version to change it")
+        if status == "approved":
+            violations = check_table(stored_table(row))
+            if violations:
+                raise ConflictError(f"proposal {proposal_id} cannot be approved: {len(violations)} value(s) outside "
+                                    "the safety limits: " + "; ".join(v.message for v in violations),
+                                    violations=[v.model_dump() for v in violations])
+        conn.execute("UPDATE proposals SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ? "
+                     "WHERE id = ? AND status = 'draft'", (status, actor.id, utc_now(), comment, proposal_id))
+        audit.record(conn, actor.id, actor.username, _ACTIONS[status],
+                     "proposal", proposal_id, before={"status": "draft"},
+                     after={"status": status, "comment": comment, "table_sha256": row["table_sha256"]})
+        return get_proposal(conn, proposal_id)
+
+
+def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
+    """Field-by-field differences from proposal ``a_id`` to ``b_id`` (task, table cells, thresholds)."""
+    a, b = get_row(conn, a_id), get_row(conn, b_id)
+    ta, tb = stored_table(a), stored_table(b)
+    changes: list[dict] = []
+
+    def add(field: str, before: object, after: object, unit: str | None) -> None:
+        if before != after:
+            changes.append({"field": field, "before": before, "after": after, "unit": unit})
+
+    add("task.speed_mps", a["speed_mps"], b["speed_mps"], "m/s")
+    add("task.incline_deg", a["incline_deg"], b["incline_deg"], "deg")
+    add("task.body_mass_kg", a["body_mass_kg"], b["body_mass_kg"], "kg")
+    units = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad", "fit_method": None}
+    for ra in ta.rows:
+        rb = tb.row(ra.joint, ra.subphase)
+        for name, unit in units.items():
+            add(f"{ra.joint}.{ra.subphase}.{name}", getattr(ra, name), getattr(rb, name), unit)
+    th_units = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
+                "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s"}
+    for name, unit in th_units.items():
+        add(f"thresholds.{name}", getattr(ta.thresholds, name), getattr(tb.thresholds, name), unit)
+    return {"from_id": a_id, "to_id": b_id, "from_version": a["version"], "to_version": b["version"],
+            "same_patient": a["patient_id"] == b["patient_id"], "changes": changes}

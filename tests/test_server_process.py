@@ -1,0 +1,150 @@
+"""A real ``quasitune serve`` subprocess on a loopback port with a temporary database."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import httpx
+import pytest
+
+from backend.loadbench import PASSWORD, add_user, start_server
+
+
+def _wait_ready(base: str, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if httpx.get(f"{base}/api/health").json()["model"] == "ready":
+            return
+        time.sleep(0.1)
+    raise AssertionError("model not ready")
+
+
+def _login(base: str, name: str) -> dict[str, str]:
+    r = httpx.post(f"{base}/api/auth/token", data={"username": name, "password": PASSWORD})
+    assert r.status_code == 200, r.text
+    return {"Authorization": f"Bearer {r.json()['access_token']}"}
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def test_serve_login_propose_approve_restart_keeps_everything(tmp_path):
+    add_user(tmp_path, "pat", "prosthetist")
+    proc, base = start_server(tmp_path)
+    try:
+        assert base.startswith("http://127.0.0.1:")
+        _wait_ready(base)
+        h = _login(base, "pat")
+        patient = httpx.post(f"{base}/api/patients", headers=h,
+                             json={"code_name": "SRV-1", "body_mass_kg": 71.0, "side": "right"}).json()
+        proposal = httpx.post(f"{base}/api/patients/{patient['id']}/proposals", headers=h,
+                              json={"speed_mps": 1.1, "incline_deg": 0.0}).json()
+        approved = httpx.post(f"{base}/api/proposals/{proposal['id']}/approve", headers=h,
+                              json={"comment": "looks right"}).json()
+        assert approved["status"] == "approved"
+    finally:
+        _stop(proc)
+    assert proc.returncode is not None
+    proc, base2 = start_server(tmp_path)
+    try:
+        h = _login(base2, "pat")   # a new login works; the old token is still valid too
+        again = httpx.get(f"{base2}/api/proposals/{proposal['id']}", headers=h).json()
+        assert again["status"] == "approved" and again["decision"]["comment"] == "looks right"
+        assert again["table"] == approved["table"] and again["table_sha256"] == approved["table_sha256"]
+        assert httpx.get(f"{base2}/api/patients/{patient['id']}", headers=h).json()["code_name"] == "SRV-1"
+        actions = [e["action"] for e in httpx.get(f"{base2}/api/audit", headers=h).json()["items"]]
+        assert {"patient.create", "proposal.create", "proposal.approve"} <= set(actions)
+    finally:
+        _stop(proc)
+
+
+def test_sigkill_mid_load_loses_no_acknowledged_write(tmp_path):
+    add_user(tmp_path, "pat", "prosthetist")
+    proc, base = start_server(tmp_path)
+    _wait_ready(base)
+    h = _login(base, "pat")
+    patient = httpx.post(f"{base}/api/patients", headers=h,
+                         json={"code_name": "KILL-1", "body_mass_kg": 75.0, "side": "left"}).json()
+    acknowledged: list[int] = []
+    patients_acked: list[str] = []
+    stop = threading.Event()
+
+    def writer(i: int) -> None:
+        with httpx.Client(base_url=base, headers=h, timeout=10) as c:
+            n = 0
+            while not stop.is_set():
+                n += 1
+                try:
+                    if n % 3:
+                        r = c.post(f"/api/patients/{patient['id']}/proposals", json={"speed_mps": 0.8 + (n % 10) / 10})
+                        if r.status_code == 201:
+                            acknowledged.append(r.json()["id"])
+                    else:
+                        code = f"K-{i}-{n}"
+                        r = c.post("/api/patients", json={"code_name": code, "body_mass_kg": 70.0, "side": "left"})
+                        if r.status_code == 201:
+                            patients_acked.append(code)
+                except httpx.HTTPError:
+                    return   # the server is gone
+
+    threads = [threading.Thread(target=writer, args=(i,)) for i in range(6)]
+    for t in threads:
+        t.start()
+    time.sleep(2.0)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    stop.set()
+    for t in threads:
+        t.join(15)
+    assert len(acknowledged) > 20, "the load did not get going before the kill"
+    proc, base = start_server(tmp_path)
+    try:
+        h = _login(base, "pat")
+        stored = {p["id"] for p in httpx.get(f"{base}/api/patients/{patient['id']}/proposals", headers=h).json()}
+        assert set(acknowledged) <= stored
+        codes = {p["code_name"] for p in httpx.get(f"{base}/api/patients", headers=h).json()}
+        assert set(patients_acked) <= codes
+        # every stored proposal is whole: its table re-validates against its sha256 and has its audit entry
+        audited = {e["entity_id"] for e in httpx.get(f"{base}/api/audit", headers=h,
+                                                      params={"entity": "proposal", "limit": 1000}).json()["items"]}
+        assert stored <= audited
+        for pid in list(stored)[:: max(1, len(stored) // 10)]:
+            assert httpx.get(f"{base}/api/proposals/{pid}", headers=h).status_code == 200
+    finally:
+        _stop(proc)
+
+
+def test_users_add_reads_the_password_from_stdin_and_refuses_bad_input(tmp_path):
+    def users_add(name: str, role: str, password: str) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "-m", "backend.cli", "users", "add", name, "--role", role,
+                               "--data-dir", str(tmp_path)], input=password + "\n", text=True, capture_output=True)
+
+    ok = users_add("alex", "viewer", "long-enough-pw")
+    assert ok.returncode == 0 and "alex (viewer)" in ok.stdout
+    dup = users_add("alex", "viewer", "long-enough-pw")
+    assert dup.returncode == 2 and "already exists" in dup.stderr
+    short = users_add("bo", "viewer", "short")
+    assert short.returncode == 2 and "at least 8 characters" in short.stderr
+    bad_role = users_add("cy", "surgeon", "long-enough-pw")
+    assert bad_role.returncode == 2 and "invalid choice" in bad_role.stderr
+    listed = subprocess.run([sys.executable, "-m", "backend.cli", "users", "list", "--data-dir", str(tmp_path)],
+                            text=True, capture_output=True, check=True).stdout
+    assert "alex" in listed and "bo" not in listed
+
+
+@pytest.mark.parametrize("port", ["-1", "nope"])
+def test_serve_refuses_a_bad_port(tmp_path, port):
+    r = subprocess.run([sys.executable, "-m", "backend.cli", "serve", "--port", port, "--data-dir", str(tmp_path)],
+                       text=True, capture_output=True, timeout=60)
+    assert r.returncode == 2 and "port" in r.stderr
