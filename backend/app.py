@@ -19,6 +19,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
+from backend.compute import ComputeLane
 from backend.errors import DomainError
 from backend.migrate import migrate
 from backend.model_service import ModelService
@@ -75,6 +76,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
                               "N·m/kg, stiffness in N·m/rad — the unit is in every field name.")
     app.state.settings = settings
     app.state.pool = ConnectionPool(settings.db_path)
+    app.state.compute = ComputeLane()
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
 
     @app.exception_handler(RequestValidationError)

@@ -182,7 +182,7 @@ def _port(text: str) -> int:
 def cmd_serve(args: argparse.Namespace) -> int:
     from backend.serve import serve
 
-    serve(_settings(args), host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user)
+    serve(_settings(args), host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user, workers=args.workers)
     return 0
 
 
@@ -258,6 +258,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=_port, default=8000, help="port (0 = any free port; the real one is printed)")
     p.add_argument("--data-dir", type=Path, default=None, help=data_dir_help)
     p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")
+    p.add_argument("--workers", type=int, default=1, choices=range(1, 33), metavar="N",
+                   help="server processes (1-32; default 1)")
     p.add_argument("--no-bootstrap-user", action="store_true",
                    help="do not create the first user on an empty database")
     p.set_defaults(func=cmd_serve)

@@ -1,14 +1,21 @@
-"""FastAPI dependencies: the database connection, the signed-in user, role checks, the model."""
+"""FastAPI dependencies: the database connection, the signed-in user, role checks, the model.
+
+They are ``async`` on purpose: each is microseconds of work (a pool checkout, one indexed SQLite lookup), and a
+sync dependency costs a thread-pool hop apiece — seven per request before this, most of a proposal's overhead
+under load. The endpoints themselves stay sync and run in the thread pool.
+"""
 
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Callable, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Annotated
 
+import anyio.to_thread
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
 
+from backend.compute import ComputeLane
 from backend.model_service import ModelService
 from backend.settings import Settings
 from backend.store.users import User, user_for_token
@@ -17,11 +24,11 @@ from controller_core import QuasiStiffnessModel
 oauth2 = OAuth2PasswordBearer(tokenUrl="/api/auth/token", auto_error=False)
 
 
-def get_settings(request: Request) -> Settings:
+async def get_settings(request: Request) -> Settings:
     return request.app.state.settings
 
 
-def get_conn(request: Request) -> Iterator[sqlite3.Connection]:
+async def get_conn(request: Request) -> AsyncIterator[sqlite3.Connection]:
     with request.app.state.pool.connection() as conn:
         yield conn
 
@@ -33,7 +40,7 @@ def _unauthorized(message: str) -> HTTPException:
     return HTTPException(status.HTTP_401_UNAUTHORIZED, message, headers={"WWW-Authenticate": "Bearer"})
 
 
-def current_user(conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> User:
+async def current_user(conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> User:
     """The user holding the request's bearer token (401 when missing, unknown or expired)."""
     if not token:
         raise _unauthorized("not signed in: send 'Authorization: Bearer <token>' from POST /api/auth/token")
@@ -46,9 +53,9 @@ def current_user(conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> U
 CurrentUser = Annotated[User, Depends(current_user)]
 
 
-def require_role(*roles: str) -> Callable[[User], User]:
+def require_role(*roles: str) -> Callable[[User], Awaitable[User]]:
     """Dependency refusing (403) users whose role is not in ``roles``."""
-    def check(user: CurrentUser) -> User:
+    async def check(user: CurrentUser) -> User:
         if user.role not in roles:
             raise HTTPException(status.HTTP_403_FORBIDDEN,
                                 f"this action needs the role {' or '.join(roles)}; {user.username} is {user.role}")
@@ -60,9 +67,18 @@ Prosthetist = Annotated[User, Depends(require_role("prosthetist"))]
 Admin = Annotated[User, Depends(require_role("admin"))]
 
 
-def get_model(request: Request) -> QuasiStiffnessModel:
+async def get_model(request: Request) -> QuasiStiffnessModel:
     service: ModelService = request.app.state.model
-    return service.get(request.app.state.settings.model_wait_s)
+    if service.status == "loading":   # wait off the event loop
+        return await anyio.to_thread.run_sync(service.get, request.app.state.settings.model_wait_s)
+    return service.get(0.0)
 
 
 Model = Annotated[QuasiStiffnessModel, Depends(get_model)]
+
+
+async def get_compute(request: Request) -> ComputeLane:
+    return request.app.state.compute
+
+
+Compute = Annotated[ComputeLane, Depends(get_compute)]

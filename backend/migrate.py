@@ -8,6 +8,7 @@ recorded migration whose file changed since it was applied is refused (its sha25
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import sqlite3
 from dataclasses import dataclass
@@ -15,7 +16,8 @@ from pathlib import Path
 
 from backend.db import connect, utc_now, write_transaction
 
-MIGRATIONS_DIR = Path(__file__).resolve().parents[1] / "migrations"
+# the repository's migrations/ (an installed, non-editable copy is pointed at it with QUASITUNE_MIGRATIONS_DIR)
+MIGRATIONS_DIR = Path(os.environ.get("QUASITUNE_MIGRATIONS_DIR") or Path(__file__).resolve().parents[1] / "migrations")
 _NAME = re.compile(r"^(\d{4})_[a-z0-9_]+\.sql$")
 
 
@@ -70,6 +72,8 @@ def _applied(conn: sqlite3.Connection) -> dict[int, str]:
 
 def migrate(db_path: str | Path, directory: Path = MIGRATIONS_DIR) -> list[int]:
     """Bring the database at ``db_path`` up to date; returns the versions applied by this call."""
+    if not directory.is_dir():
+        raise MigrationError(f"migrations folder {directory} not found; set QUASITUNE_MIGRATIONS_DIR")
     migrations = discover(directory)
     conn = connect(db_path)
     try:

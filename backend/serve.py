@@ -6,9 +6,11 @@ The first line on stdout is ``QuasiTune listening on http://HOST:PORT`` (scripts
 from __future__ import annotations
 
 import logging
+import os
 import secrets
 import socket
 import sys
+from pathlib import Path
 
 from backend.app import create_app
 from backend.db import connect
@@ -49,12 +51,37 @@ def bind(host: str, port: int) -> socket.socket:
     return sock
 
 
+def _one_blas_thread() -> None:
+    """Requests run in parallel; BLAS threads inside each tiny solve only spin against them."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+
+
+def app_from_env():
+    """App factory for worker processes (``--workers`` > 1): settings come from the parent via the environment."""
+    _one_blas_thread()
+    return create_app(Settings(data_dir=Path(os.environ["QUASITUNE_DATA_DIR"]),
+                               model_dir=Path(os.environ["QUASITUNE_MODEL_DIR"]) if os.environ.get(
+                                   "QUASITUNE_MODEL_DIR") else None))
+
+
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstrap: bool = True,
-          log_level: str = "warning") -> None:
-    """Migrate, (maybe) create the first user, bind, print the URL, serve until interrupted."""
+          log_level: str = "warning", workers: int = 1) -> None:
+    """Migrate, (maybe) create the first user, bind, print the URL, serve until interrupted.
+
+    With ``workers`` > 1 the parent binds the socket and uvicorn forks that many worker processes, each with
+    its own copy of the model; SQLite's locking keeps their writes serial.
+    """
     import uvicorn
 
-    app = create_app(settings)
+    _one_blas_thread()
+    app = create_app(settings) if workers == 1 else None
+    if app is None:
+        from backend.migrate import migrate
+
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+        migrate(settings.db_path)
     password = bootstrap_user(settings) if bootstrap else None
     sock = bind(host, port)
     real_host, real_port = sock.getsockname()[:2]
@@ -66,5 +93,12 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
               "  (shown once; add users with 'quasitune users add NAME --role ROLE')", flush=True)
     if host not in ("127.0.0.1", "::1", "localhost"):
         print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
-    config = uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on")
-    uvicorn.Server(config).run(sockets=[sock])
+    if workers == 1:
+        config = uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on")
+        uvicorn.Server(config).run(sockets=[sock])
+        return
+    os.environ["QUASITUNE_DATA_DIR"] = str(settings.data_dir)
+    if settings.model_dir is not None:
+        os.environ["QUASITUNE_MODEL_DIR"] = str(settings.model_dir)
+    uvicorn.run("backend.serve:app_from_env", factory=True, fd=sock.fileno(), workers=workers, log_level=log_level,
+                access_log=False)

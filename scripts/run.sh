@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Install what is missing and run QuasiTune's main job on its embedded defaults.
-# Until the server exists (issue 4) that is a proposal for a nominal task from the default model,
-# trained on the shipped real gait data. Extra arguments replace the default task, e.g.
-#   bash scripts/run.sh --speed 1.6 --incline 5 --mass 82
+# Install what is missing and run QuasiTune on its embedded defaults: the API server on http://127.0.0.1:8000
+# with an SQLite file in the per-user data directory (~/.local/share/quasitune, or $QUASITUNE_DATA_DIR) and the
+# default model trained on the shipped real gait data. On an empty database it creates the user 'prosthetist'
+# and prints its one-time password. Extra arguments go to 'quasitune serve', e.g.
+#   bash scripts/run.sh --port 8080 --data-dir /srv/quasitune
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup_venv.sh
-if [ "$#" -eq 0 ]; then set -- --speed 1.25 --incline 0 --mass 75; fi
-exec .venv/bin/quasitune predict "$@"
+exec .venv/bin/quasitune serve "$@"

@@ -18,6 +18,7 @@ from backend.store.users import User
 from controller_core.proposal import Proposal
 from controller_core.table import ParameterTable, SafetyLimits, check_table, display_rows
 
+_LIMITS = SafetyLimits().model_dump()
 _ACTIONS = {"approved": "proposal.approve", "rejected": "proposal.reject"}
 _MODEL_KEYS = ("model", "features", "subphase_boundaries_phase", "curves")
 _SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name FROM proposals p "
@@ -35,11 +36,25 @@ def stored_table(row: sqlite3.Row) -> ParameterTable:
     return ParameterTable.model_validate_json(row["table_json"])
 
 
-def _public(row: sqlite3.Row, full: bool) -> dict:
-    table = stored_table(row)
+def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool) -> dict:
+    """The API view of a proposal from its metadata, its (validated) table and its stored model body."""
     violations = check_table(table)
-    body = json.loads(row["model_json"])
     out = {
+        **meta,
+        "model": body["model"],
+        "table": display_rows(table),
+        "thresholds": table.thresholds.model_dump(),
+        "table_sha256": meta["table_sha256"],
+        "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]},
+    }
+    if full:
+        out |= {"features": body["features"], "subphase_boundaries_phase": body["subphase_boundaries_phase"],
+                "curves": body["curves"], "limits": _LIMITS}
+    return out
+
+
+def _meta(row: sqlite3.Row) -> dict:
+    return {
         "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
         "source": row["source"], "status": row["status"],
         "created_by": row["created_by_name"], "created_at": row["created_at"], "edit_comment": row["edit_comment"],
@@ -49,16 +64,12 @@ def _public(row: sqlite3.Row, full: bool) -> dict:
         "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
                  "body_mass_kg": row["body_mass_kg"]},
         "extrapolation": bool(row["extrapolation"]),
-        "model": body["model"],
-        "table": display_rows(table),
-        "thresholds": table.thresholds.model_dump(),
         "table_sha256": row["table_sha256"],
-        "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]},
     }
-    if full:
-        out |= {"features": body["features"], "subphase_boundaries_phase": body["subphase_boundaries_phase"],
-                "curves": body["curves"], "limits": SafetyLimits().model_dump()}
-    return out
+
+
+def _public(row: sqlite3.Row, full: bool) -> dict:
+    return _assemble(_meta(row), stored_table(row), json.loads(row["model_json"]), full)
 
 
 def get_row(conn: sqlite3.Connection, proposal_id: int) -> sqlite3.Row:
@@ -79,8 +90,11 @@ def list_proposals(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
 
 
 def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
-            extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User) -> int:
+            extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User) -> dict:
+    """Insert a draft; returns its metadata as :func:`_meta` gives it."""
     table_json = table.model_dump_json()
+    created_at = utc_now()
+    table_sha256 = _sha256(table_json)
     version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM proposals WHERE patient_id = ?",
                            (patient_id,)).fetchone()[0]
     cur = conn.execute(
@@ -88,22 +102,27 @@ def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, so
         "extrapolation, safety_ok, model_json, table_json, table_sha256, edit_comment, created_by, created_at) "
         "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         (patient_id, version, parent_id, source, task["speed_mps"], task["incline_deg"], task["body_mass_kg"],
-         int(extrapolation), int(not check_table(table)), model_json, table_json, _sha256(table_json), comment,
-         actor.id, utc_now()))
-    return int(cur.lastrowid)
+         int(extrapolation), int(not check_table(table)), model_json, table_json, table_sha256, comment,
+         actor.id, created_at))
+    return {"id": int(cur.lastrowid), "patient_id": patient_id, "version": version, "parent_id": parent_id,
+            "source": source, "status": "draft", "created_by": actor.username, "created_at": created_at,
+            "edit_comment": comment, "decision": None, "task": task, "extrapolation": bool(extrapolation),
+            "table_sha256": table_sha256}
 
 
 def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
     """Store a freshly computed proposal as the patient's next draft version."""
     d = proposal.to_dict()
-    model_json = json.dumps({k: d[k] for k in _MODEL_KEYS}, allow_nan=False)
+    body = {k: d[k] for k in _MODEL_KEYS}
+    model_json = json.dumps(body, allow_nan=False)
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
             raise NotFoundError(f"patient {patient_id} not found")
-        pid = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
-                      None, actor)
-        out = get_proposal(conn, pid)
+        meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
+                       None, actor)
+        out = _assemble(meta, proposal.table, body, full=True)
+        pid = meta["id"]
         audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", pid,
                      after={"patient_id": patient_id, "version": out["version"], "task": task,
                             "table_sha256": out["table_sha256"], "safety_ok": out["safety"]["ok"],
@@ -118,9 +137,10 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable,
         parent = get_row(conn, parent_id)
         task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],
                 "body_mass_kg": parent["body_mass_kg"]}
-        pid = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
-                      parent["model_json"], table, comment, actor)
-        out = get_proposal(conn, pid)
+        meta = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
+                       parent["model_json"], table, comment, actor)
+        out = _assemble(meta, table, json.loads(parent["model_json"]), full=True)
+        pid = meta["id"]
         audit.record(conn, actor.id, actor.username, "proposal.edit", "proposal", pid,
                      before={"proposal_id": parent_id, "version": parent["version"],
                              "table_sha256": parent["table_sha256"],
