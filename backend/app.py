@@ -60,10 +60,15 @@ def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
     return load_default_model
 
 
-def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None) -> FastAPI:
-    """Build the app for ``settings`` (migrates the database now; the model loads in the background)."""
+def prepare_storage(settings: Settings) -> None:
+    """Create the data directory and bring its database up to date (safe to call from several processes)."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     migrate(settings.db_path)
+
+
+def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None) -> FastAPI:
+    """Build the app for ``settings`` (migrates the database now; the model loads in the background)."""
+    prepare_storage(settings)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:

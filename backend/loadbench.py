@@ -28,18 +28,22 @@ import numpy as np
 PASSWORD = "load-bench-password"
 
 
-def start_server(data_dir: Path, workers: int = 1, extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
-    """``quasitune serve --port 0`` in a subprocess; returns (process, base URL) once it listens."""
-    cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir),
-           "--no-bootstrap-user", *extra]
+def start_server(data_dir: Path, workers: int = 1, bootstrap: bool = False) -> tuple[subprocess.Popen, str]:
+    """``quasitune serve --port 0`` in a subprocess; returns (process, base URL) once it listens (its further
+    stdout lines are left unread in ``process.stdout``)."""
+    cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir)]
+    if not bootstrap:
+        cmd.append("--no-bootstrap-user")
     if workers > 1:
         cmd += ["--workers", str(workers)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    err_path = data_dir / "serve.stderr.log"    # a file, not a pipe nobody drains
+    with err_path.open("a") as err:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True,
+                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
     line = proc.stdout.readline()
     if "listening on" not in line:
         proc.kill()
-        raise RuntimeError(f"server did not start: {line!r} {proc.stderr.read()[-2000:]}")
+        raise RuntimeError(f"server did not start: {line!r} {err_path.read_text()[-2000:]}")
     return proc, line.rsplit(" ", 1)[-1].strip()
 
 

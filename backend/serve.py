@@ -5,19 +5,17 @@ The first line on stdout is ``QuasiTune listening on http://HOST:PORT`` (scripts
 
 from __future__ import annotations
 
-import logging
 import os
 import secrets
 import socket
 import sys
 from pathlib import Path
 
-from backend.app import create_app
+from backend.app import create_app, prepare_storage
 from backend.db import connect
+from backend.errors import ConflictError
 from backend.settings import Settings
 from backend.store.users import create_user
-
-log = logging.getLogger("quasitune.serve")
 
 BOOTSTRAP_USER = "prosthetist"
 
@@ -30,7 +28,10 @@ def bootstrap_user(settings: Settings) -> str | None:
         if conn.execute("SELECT 1 FROM users LIMIT 1").fetchone():
             return None
         password = secrets.token_urlsafe(12)
-        create_user(conn, BOOTSTRAP_USER, "prosthetist", password)
+        try:
+            create_user(conn, BOOTSTRAP_USER, "prosthetist", password)
+        except ConflictError:   # another process starting at the same moment created it first
+            return None
         return password
     finally:
         conn.close()
@@ -78,10 +79,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
     _one_blas_thread()
     app = create_app(settings) if workers == 1 else None
     if app is None:
-        from backend.migrate import migrate
-
-        settings.data_dir.mkdir(parents=True, exist_ok=True)
-        migrate(settings.db_path)
+        prepare_storage(settings)   # once in the parent; each worker builds its own app
     password = bootstrap_user(settings) if bootstrap else None
     sock = bind(host, port)
     real_host, real_port = sock.getsockname()[:2]

@@ -125,6 +125,25 @@ def test_sigkill_mid_load_loses_no_acknowledged_write(tmp_path):
         _stop(proc)
 
 
+def test_first_start_creates_one_prosthetist_and_prints_the_password_once(tmp_path):
+    proc, base = start_server(tmp_path, bootstrap=True)
+    try:
+        proc.stdout.readline()                      # database path
+        line = proc.stdout.readline()
+        assert "created user 'prosthetist'" in line
+        password = line.split("password ", 1)[1].strip()
+        r = httpx.post(f"{base}/api/auth/token", data={"username": "prosthetist", "password": password})
+        assert r.status_code == 200
+    finally:
+        _stop(proc)
+    proc, base = start_server(tmp_path, bootstrap=True)   # users exist now: nothing created, nothing printed
+    try:
+        assert httpx.get(f"{base}/api/health").status_code == 200
+    finally:
+        _stop(proc)
+    assert "created user" not in proc.stdout.read()
+
+
 def test_users_add_reads_the_password_from_stdin_and_refuses_bad_input(tmp_path):
     def users_add(name: str, role: str, password: str) -> subprocess.CompletedProcess:
         return subprocess.run([sys.executable, "-m", "backend.cli", "users", "add", name, "--role", role,
