@@ -8,7 +8,6 @@ validation errors name the field, the value's problem and the allowed range; dom
 
 from __future__ import annotations
 
-import logging
 import re
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
@@ -28,8 +27,6 @@ from backend.routers import audit, auth, health, patients, proposals
 from backend.schemas.errors import FieldError
 from backend.settings import Settings
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
-
-log = logging.getLogger("quasitune.api")
 
 
 def _field(loc: tuple) -> str:

@@ -11,6 +11,7 @@ import json
 import sys
 from pathlib import Path
 
+from backend.store.users import ROLES
 from controller_core import InvalidTaskError, QuasiStiffnessModel, load_default_model, load_model
 from controller_core.table import SafetyLimitError
 
@@ -267,7 +268,7 @@ def build_parser() -> argparse.ArgumentParser:
     users_sub = p.add_subparsers(dest="users_command", required=True)
     p = users_sub.add_parser("add", help="add a user (password from a prompt, or one line of stdin)")
     p.add_argument("name")
-    p.add_argument("--role", required=True, choices=["prosthetist", "viewer", "admin"])
+    p.add_argument("--role", required=True, choices=ROLES)
     p.add_argument("--data-dir", type=Path, default=None, help=data_dir_help)
     p.set_defaults(func=cmd_users_add)
     p = users_sub.add_parser("list", help="list users")

@@ -10,10 +10,9 @@ from fastapi.testclient import TestClient
 from backend.app import create_app
 from backend.db import connect
 from backend.settings import Settings
-from backend.store.users import create_user
+from backend.store.users import ROLES, create_user
 
 PASSWORD = "correct-horse-battery"
-ROLES = ("prosthetist", "viewer", "admin")
 
 
 @dataclass
@@ -42,9 +41,10 @@ class Api:
         return r.json()
 
 
-def make_api(data_dir: Path, model, **settings) -> tuple[Api, TestClient]:
-    """App on ``data_dir`` with users prosthetist/viewer/admin (password :data:`PASSWORD`), signed in."""
-    app = create_app(Settings(data_dir=data_dir, **settings), model_loader=lambda: model)
+def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]:
+    """App on ``data_dir`` loading its model with ``model_loader``, with users prosthetist/viewer/admin
+    (password :data:`PASSWORD`), signed in."""
+    app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader)
     conn = connect(data_dir / "quasitune.sqlite")
     for role in ROLES:
         create_user(conn, role, role, PASSWORD)

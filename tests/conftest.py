@@ -29,6 +29,6 @@ def api(tmp_path, model):
     """In-process API on a temporary database, one signed-in user per role (see tests/api_helpers.py)."""
     from api_helpers import make_api
 
-    api, client = make_api(tmp_path, model)
+    api, client = make_api(tmp_path, lambda: model)
     with client:
         yield api

@@ -354,9 +354,7 @@ def test_model_still_loading_gives_503_with_retry_after(tmp_path, model):
         gate.wait(10)
         return model
 
-    api, client = make_api(tmp_path, model, model_wait_s=0.05)
-    client.app.state.model.__init__(slow_loader)
-    client.app.state.model.start()
+    api, client = make_api(tmp_path, slow_loader, model_wait_s=0.05)
     with client:
         patient = api.new_patient()
         assert client.get("/api/health").json()["model"] == "loading"

@@ -20,9 +20,7 @@ from schemathesis.checks import positive_data_acceptance
 from controller_core import load_default_model
 
 _tmp = tempfile.TemporaryDirectory(prefix="quasitune-fuzz-")
-_api, _client = make_api(Path(_tmp.name), None)
-_client.app.state.model.__init__(load_default_model)   # the real default model, loaded in the background
-_client.app.state.model.start()
+_api, _client = make_api(Path(_tmp.name), load_default_model)   # the real default model, loaded in the background
 schema = schemathesis.openapi.from_asgi("/openapi.json", _client.app)
 
 

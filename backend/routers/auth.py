@@ -9,6 +9,7 @@ from fastapi.security import OAuth2PasswordRequestForm
 
 from backend.deps import Admin, Conn, CurrentUser, get_settings
 from backend.schemas.auth import Me, TokenOut, UserCreate, UserOut
+from backend.schemas.common import is_utf8_encodable
 from backend.schemas.errors import CONFLICT, FORBIDDEN, UNAUTHORIZED
 from backend.security import burn_password_check, verify_password
 from backend.settings import Settings
@@ -17,26 +18,18 @@ from backend.store import users
 router = APIRouter(prefix="/api", tags=["auth"])
 
 
-def _storable(text: str) -> bool:
-    try:
-        text.encode("utf-8")
-    except UnicodeEncodeError:
-        return False
-    return True
-
-
 @router.post("/auth/token", response_model=TokenOut, responses=UNAUTHORIZED)
 def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], conn: Conn,
           settings: Annotated[Settings, Depends(get_settings)]) -> TokenOut:
     """Exchange a user name and password (form fields) for a bearer token that expires."""
-    found = users.credentials(conn, form.username) if _storable(form.username) and len(form.username) <= 64 else None
+    found = users.credentials(conn, form.username) if is_utf8_encodable(form.username) and len(form.username) <= 64 else None
     if found is None:
         burn_password_check(form.password)
         ok = False
     else:
         ok = verify_password(form.password, found[1])
     if not ok:
-        if _storable(form.username):
+        if is_utf8_encodable(form.username):
             users.record_failed_login(conn, form.username)
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "incorrect user name or password",
                             headers={"WWW-Authenticate": "Bearer"})

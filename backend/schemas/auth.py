@@ -7,6 +7,7 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 from backend.schemas.common import StrictIn, Text
+from backend.store.users import Role
 
 USERNAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9._@-]{0,63}$"
 
@@ -19,14 +20,14 @@ class TokenOut(BaseModel):
 
 class UserCreate(StrictIn):
     username: str = Field(pattern=USERNAME_PATTERN, description="letters, digits, . _ @ -; 1-64 characters")
-    role: Literal["prosthetist", "viewer", "admin"]
+    role: Role
     password: Text = Field(min_length=8, max_length=1024)
 
 
 class UserOut(BaseModel):
     id: int
     username: str
-    role: Literal["prosthetist", "viewer", "admin"]
+    role: Role
     created_at: str
     disabled: bool
 
@@ -34,4 +35,4 @@ class UserOut(BaseModel):
 class Me(BaseModel):
     id: int
     username: str
-    role: Literal["prosthetist", "viewer", "admin"]
+    role: Role

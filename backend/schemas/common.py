@@ -13,11 +13,18 @@ MAX_ID = 2**53  # ids beyond what JSON numbers carry exactly are refused before 
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
 
-def _storable_text(value: str) -> str:
+def is_utf8_encodable(text: str) -> bool:
+    """False for strings SQLite cannot store: unpaired surrogates (which JSON and form decoding let through)."""
     try:
-        value.encode("utf-8")
-    except UnicodeEncodeError as exc:
-        raise ValueError("text must be valid Unicode (no unpaired surrogates)") from exc
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
+def _storable_text(value: str) -> str:
+    if not is_utf8_encodable(value):
+        raise ValueError("text must be valid Unicode (no unpaired surrogates)")
     if _CONTROL.search(value):
         raise ValueError("text must not contain control characters")
     return value

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sqlite3
 import time
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError
@@ -13,7 +13,7 @@ from backend.security import hash_password, new_token, token_digest
 from backend.store import audit
 
 Role = Literal["prosthetist", "viewer", "admin"]
-ROLES: tuple[str, ...] = ("prosthetist", "viewer", "admin")
+ROLES: tuple[str, ...] = get_args(Role)
 
 
 @dataclass(frozen=True)
