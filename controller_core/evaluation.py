@@ -4,8 +4,11 @@ For each labelled reference condition (a record with a speed in m/s), the model 
 others (same recipe as the default model, published incline features included) and asked to propose the
 held-out task. Compared:
 
-* **proposal**: GPR features → KMP through the task-conditioned GMR reference (the product);
-* **gmr**: the same GMR reference through KMP without via-points;
+* **proposal**: GPR features → KMP through the registered reference (the product);
+* **reference**: the same registered reference (GMR mean + task trend, re-timed) through KMP without
+  via-points;
+* **gmr**: the pooled GMR mean (one reference for every task, as in Ma et al.) through KMP without
+  via-points, from a model trained with ``reference_mode="pooled"``;
 * **linear**: linear interpolation between the neighbouring conditions' curves, per phase point
   (the nearest condition outside the training range);
 * **nearest**: the training condition with the closest speed.
@@ -28,7 +31,7 @@ from controller_core.reference import CHANNELS, ReferenceSet, load_shipped_refer
 
 DISPLAY = {"knee_angle": ("knee_angle_deg", math.degrees(1.0)), "ankle_angle": ("ankle_angle_deg", math.degrees(1.0)),
            "knee_moment": ("knee_moment_Nm_per_kg", 1.0), "ankle_moment": ("ankle_moment_Nm_per_kg", 1.0)}
-METHODS = ("proposal", "gmr", "linear", "nearest")
+METHODS = ("proposal", "reference", "gmr", "linear", "nearest")
 
 
 def _interp_curves(speeds: np.ndarray, curves: np.ndarray, speed: float) -> np.ndarray:
@@ -41,8 +44,12 @@ def _feature_display(spec: FeatureSpec, value: float) -> float:
     return math.degrees(value) if spec.quantity == "angle" else value
 
 
-def evaluate(reference: ReferenceSet | None = None) -> dict:
-    """Run the leave-one-condition-out evaluation; returns a JSON-ready report."""
+def evaluate(reference: ReferenceSet | None = None, **params) -> dict:
+    """Run the leave-one-condition-out evaluation; returns a JSON-ready report.
+
+    Args:
+        params: model hyperparameters (:class:`QuasiStiffnessModel`), defaults when omitted.
+    """
     ref = reference or load_shipped_reference()
     speeds = np.array([r.task["speed_mps"] for r in ref.records])
     truth_feats = [record_features(r) for r in ref.records]
@@ -55,16 +62,18 @@ def evaluate(reference: ReferenceSet | None = None) -> dict:
     for i, held in enumerate(ref.records):
         keep = [j for j in range(len(ref.records)) if j != i]
         train_ref = ref.subset(keep)
-        model = train(train_ref, use_published=True)
-        task = held.task["speed_mps"]
-        prop = model.propose(task, held.task.get("incline_deg", 0.0), 75.0)
-        base = model.propose(task, held.task.get("incline_deg", 0.0), 75.0, with_vias=False)
+        model = train(train_ref, use_published=True, **params)
+        pooled = train(train_ref, use_published=True, **(params | {"reference_mode": "pooled"}))
+        task, incline = held.task["speed_mps"], held.task.get("incline_deg", 0.0)
+        prop = model.propose(task, incline, 75.0)
+        base = model.propose(task, incline, 75.0, with_vias=False)
+        gmr = pooled.propose(task, incline, 75.0, with_vias=False)
         near = keep[int(np.argmin(np.abs(speeds[keep] - task)))]
         fold = {"held_out": held.name, "speed_mps": task, "curve_rmse": {}}
         for c in CHANNELS:
             truth = np.interp(prop.phase, held.phase, held.mean[c])
             preds = {
-                "proposal": prop.means[c], "gmr": base.means[c],
+                "proposal": prop.means[c], "reference": base.means[c], "gmr": gmr.means[c],
                 "linear": np.interp(prop.phase, held.phase,
                                     _interp_curves(speeds[keep], np.vstack([ref.records[j].mean[c] for j in keep]),
                                                    task)),
@@ -110,10 +119,12 @@ def evaluate(reference: ReferenceSet | None = None) -> dict:
 def format_report(report: dict) -> str:
     """Markdown tables of an :func:`evaluate` report."""
     lines = ["Leave-one-condition-out curve RMSE (lower is better)", "",
-             "| channel | proposal (GPR+KMP) | GMR, no via-points | linear interp. | nearest | between-subject SD |",
-             "|---|---|---|---|---|---|"]
+             "| channel | proposal (GPR+KMP) | registered reference, no via-points | pooled GMR, no via-points "
+             "| linear interp. | nearest | between-subject SD |",
+             "|---|---|---|---|---|---|---|"]
     for ch, r in report["curve_rmse"].items():
-        lines.append(f"| {ch} | {r['proposal']:.3f} | {r['gmr']:.3f} | {r['linear']:.3f} | {r['nearest']:.3f} "
+        lines.append(f"| {ch} | {r['proposal']:.3f} | {r['reference']:.3f} | {r['gmr']:.3f} | {r['linear']:.3f} "
+                     f"| {r['nearest']:.3f} "
                      f"| {r['between_subject_sd']:.3f} |")
     lines += ["", "Leave-one-condition-out feature RMSE", "",
               "| feature | unit | GPR | linear interp. | nearest | GPR phase (fraction of cycle) |",

@@ -1,18 +1,26 @@
-"""The learning quasi-stiffness model: GPR features → KMP through GMR reference → per-sub-phase table.
+"""The learning quasi-stiffness model: GPR features → KMP through a registered GMR reference → table.
 
 ``QuasiStiffnessModel.fit(reference)`` learns, from a :class:`ReferenceSet` (and optional published
 feature points):
 
 1. one :class:`FeatureGPR` per feature value and per feature phase (task → feature);
-2. one GMM per joint on (phase, angle, moment) — plus the task dims that vary when
-   ``reference_mode="task"`` — whose GMR conditioned on phase gives the reference mean (by default one
-   pooled reference for every task) and its covariance (the spread of the curves across the training
-   tasks); the covariance is task-independent, so the KMP factorisation is cached once;
-3. one :class:`KMP` per joint over (angle, moment) on a phase grid.
+2. per joint, the reference (:mod:`controller_core.registration`): every training curve is re-timed so
+   its push-off landmarks (ankle plantarflexor moment peak, ankle plantarflexion peak) sit at their mean
+   phases; a GMM on (registered phase, angle, moment) gives, by GMR, the reference mean and covariance;
+   a per-phase linear trend of the registered curves in the task variables that vary in the data (speed,
+   for the shipped data) moves that mean with the task, and a linear trend of the landmark phases
+   re-times it. Amplitudes are held at the edge of the training tasks (the Bovi 2011 ankle push-off
+   moment stops growing above 1.5 m/s: a straight line through slower speeds overshoots), timing is
+   extrapolated (toe-off keeps moving earlier with speed); beyond the data the GPR features, whose std
+   grows, carry the task through the via-points. ``reference_mode="pooled"`` keeps one GMR mean for
+   every task (Ma et al.'s set-up; an evaluation baseline);
+3. one :class:`KMP` per joint over (angle, moment) on a phase grid, whose factorisation (it depends only
+   on the covariance) is cached once.
 
-``propose(speed_mps, incline_deg, mass_kg)`` predicts the features, turns each into a KMP via-point on
-its channel (covariance = the GPR's predictive variance, so an uncertain feature pulls less), reshapes the
-reference through them, fits the quasi-stiffness per sub-phase and builds the parameter table.
+``propose(speed_mps, incline_deg, mass_kg)`` predicts the features, builds the task's reference, turns
+each feature into a KMP via-point on its channel (covariance = the GPR's predictive variance, so an
+uncertain feature pulls less), reshapes the reference through them, fits the quasi-stiffness per
+sub-phase and builds the parameter table.
 """
 
 from __future__ import annotations
@@ -30,6 +38,7 @@ from controller_core.proposal import FeaturePrediction, Proposal
 from controller_core.published_features import PublishedPoint
 from controller_core.quasi_stiffness import fit_quasi_stiffness
 from controller_core.reference import JOINTS, ReferenceSet
+from controller_core.registration import TaskTrend, ordered_landmarks, register, unwarp
 from controller_core.table import ParameterRow, ParameterTable, Provenance, Thresholds, check_table
 
 G = 9.81  # m/s²
@@ -64,9 +73,12 @@ def validate_task(speed_mps: float, incline_deg: float, mass_kg: float) -> None:
 @dataclass
 class _JointModel:
     gmm: GaussianMixtureRegression
-    kmp: KMP                       # holds the reference mean and covariance on its grid (mu_ref_, sigma_ref_)
+    kmp: KMP                       # holds the GMR mean and covariance on its grid (mu_ref_, sigma_ref_)
+    trend: TaskTrend | None        # task trend of the registered reference (None: pooled reference)
 
 
+# Gait events whose predicted phases re-time the registered reference (push-off moment peak, toe-off).
+LANDMARKS: tuple[str, ...] = ("ankle_plantarflexor_moment_peak", "ankle_plantarflexion_peak")
 _PHASE_GPR_INDEX = {f.name: i for i, f in enumerate(CURVE_FEATURES)}  # row of each feature in the phase bank
 
 
@@ -74,9 +86,8 @@ class QuasiStiffnessModel:
     """Learning quasi-stiffness model (scikit-learn style: hyperparameters here, fitted state with ``_``).
 
     Defaults were chosen by the leave-one-condition-out evaluation (``quasitune evaluate``; see
-    docs/results.md): the pooled reference with 20 components, λ = 10 and ℓ = 0.08 gave the lowest curve
-    RMSE of the configurations tried (with via_mean_scale = 0.1); the task-conditioned reference fitted
-    the 5 training speeds poorly.
+    docs/results.md), which makes that evaluation optimistic for them: 20 components, λ = 10, ℓ = 0.08
+    and via_mean_scale = 0.1 (tuned for the pooled reference and kept for the registered one).
 
     Args:
         n_components: GMM components per joint.
@@ -87,9 +98,8 @@ class QuasiStiffnessModel:
         load_fractions: (toe-off, heel-strike) vertical-load thresholds as fractions of body weight.
         swing_threshold_fraction: WF→WE knee threshold as a fraction of the predicted swing peak.
         state_time_s: (min, max) time in a state.
-        reference_mode: ``"task"`` conditions the GMR reference on the task (clamped to the training
-            range: a mixture's local linear regressions extrapolate badly, the GPR features handle
-            extrapolation); ``"pooled"`` uses one reference for every task (GMR on phase only).
+        reference_mode: ``"registered"`` (default): GMR reference on registered phase, moved with the task
+            by a linear trend (see the module docstring); ``"pooled"``: one GMR reference for every task.
         via_mean_scale: KMP via-point pull on the mean (see :class:`KMP`); the curve std is unaffected.
         min_restoring_stiffness_Nm_per_rad_per_kg: passivity ceiling of unstable sub-phases (N·m/rad per kg
             of patient mass): an energy-injecting line whose θe lies inside the angles it sweeps is replaced
@@ -102,7 +112,7 @@ class QuasiStiffnessModel:
     def __init__(self, n_components: int = 20, n_ref_points: int = 50, kmp_length_scale: float = 0.08,
                  kmp_lambda: float = 10.0, gpr_restarts: int = 2,
                  load_fractions: tuple[float, float] = (0.05, 0.15), swing_threshold_fraction: float = 0.85,
-                 state_time_s: tuple[float, float] = (0.05, 1.5), reference_mode: str = "pooled",
+                 state_time_s: tuple[float, float] = (0.05, 1.5), reference_mode: str = "registered",
                  via_mean_scale: float = 0.1, min_restoring_stiffness_Nm_per_rad_per_kg: float = 0.25,
                  random_state: int = 0) -> None:
         self.n_components = n_components
@@ -175,49 +185,63 @@ class QuasiStiffnessModel:
         self._bank_phase = FeatureGPRBank([self.phase_gprs_[f.name] for f in CURVE_FEATURES])
 
     def _fit_joints(self, reference: ReferenceSet, tasks: np.ndarray, tick) -> None:
-        if self.reference_mode not in ("task", "pooled"):
-            raise ValueError("reference_mode must be 'task' or 'pooled'")
-        varying = [j for j in range(tasks.shape[1]) if np.ptp(tasks[:, j]) > 0]
-        if self.reference_mode == "pooled":
-            varying = []
-        self.task_lo_, self.task_hi_ = tasks.min(axis=0), tasks.max(axis=0)
-        self.gmr_task_dims_ = varying
+        if self.reference_mode not in ("registered", "pooled"):
+            raise ValueError("reference_mode must be 'registered' or 'pooled'")
+        registered = self.reference_mode == "registered"
+        self.trend_task_dims_ = [j for j in range(tasks.shape[1]) if np.ptp(tasks[:, j]) > 0] if registered else []
+        landmarks = np.array([[f[name][0] for name in LANDMARKS] for f in self.train_features_])
+        self.canonical_landmarks_ = ordered_landmarks(landmarks.mean(axis=0))
+        self.trend_lo_ = tasks[:, self.trend_task_dims_].min(axis=0)
+        self.trend_hi_ = tasks[:, self.trend_task_dims_].max(axis=0)
+        self.landmark_trend_ = (TaskTrend().fit(tasks[:, self.trend_task_dims_], landmarks)
+                                if self.trend_task_dims_ else None)
         phase = reference.phase
         self.s_ref_ = np.arange(self.n_ref_points) / self.n_ref_points
         self.s_query_ = np.linspace(0.0, 1.0, 101)
         self.joints_: dict[str, _JointModel] = {}
-        nt = len(varying)
         for joint in JOINTS:
+            curves = [np.column_stack([r.mean[f"{joint}_angle"], r.mean[f"{joint}_moment"]])
+                      for r in reference.records]
+            if registered:   # re-time every curve to the canonical landmarks before pooling
+                curves = [register(phase, c, lm, self.canonical_landmarks_, phase)
+                          for c, lm in zip(curves, landmarks, strict=True)]
             rows = []
-            for r, t in zip(reference.records, tasks, strict=True):
-                ang, mom = r.mean[f"{joint}_angle"], r.mean[f"{joint}_moment"]
-                base = np.column_stack([np.tile(t[varying], (phase.size, 1)), phase, ang, mom])
+            for c in curves:
+                base = np.column_stack([phase, c])
                 # wrap 10 % of the cycle across heel strike so the mixture is continuous at s = 0 ≡ 1
                 lo, hi = base[phase <= 0.1].copy(), base[phase >= 0.9].copy()
-                lo[:, nt] += 1.0
-                hi[:, nt] -= 1.0
+                lo[:, 0] += 1.0
+                hi[:, 0] -= 1.0
                 rows += [base, lo, hi]
-            Z = np.vstack(rows)
             gmm = GaussianMixtureRegression(n_components=self.n_components,
-                                            random_state=self.random_state).fit(Z)
-            _, sigma = gmm.predict(self.s_ref_[:, None], in_idx=(nt,))
-            sigma = sigma[:, -2:, -2:]      # marginalise the task dimensions: keep (angle, moment)
+                                            random_state=self.random_state).fit(np.vstack(rows))
+            mu0, sigma = gmm.predict(self.s_ref_[:, None], in_idx=(0,))
             floor = np.diag([math.radians(0.5) ** 2, 0.01 ** 2])
             sigma = 0.5 * (sigma + np.swapaxes(sigma, 1, 2)) + floor[None]
-            mu0 = self._gmr_mean(gmm, tasks[0], self.s_ref_)
+            trend = None
+            if self.trend_task_dims_:
+                on_grid = np.array([np.column_stack([np.interp(self.s_ref_, phase, c[:, k]) for k in (0, 1)])
+                                    for c in curves])
+                trend = TaskTrend().fit(tasks[:, self.trend_task_dims_], on_grid - mu0[None])
             kmp = KMP(length_scale=self.kmp_length_scale, lam=self.kmp_lambda, lam_c=self.kmp_lambda,
                       via_tolerance=0.5 / self.n_ref_points,
                       via_mean_scale=self.via_mean_scale).fit(self.s_ref_, mu0, sigma, self.s_query_)
-            self.joints_[joint] = _JointModel(gmm=gmm, kmp=kmp)
+            self.joints_[joint] = _JointModel(gmm=gmm, kmp=kmp, trend=trend)
             tick(f"GMM/KMP {joint}")
 
-    def _gmr_mean(self, gmm: GaussianMixtureRegression, task: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """GMR reference mean (len(s), 2) for a task: conditioned on (varying task dims, phase)."""
-        nt = len(self.gmr_task_dims_)
-        t = np.clip(np.asarray(task, dtype=float), self.task_lo_, self.task_hi_)[self.gmr_task_dims_]
-        X = np.column_stack([np.tile(t, (s.size, 1)), s])
-        mean, _ = gmm.predict(X, in_idx=tuple(range(nt + 1)))
-        return mean
+    def reference_mean(self, joint: str, task: np.ndarray, features: dict[str, FeaturePrediction]) -> np.ndarray:
+        """Reference mean (n_ref_points, 2) of (angle, moment) for a task, before the via-points.
+
+        Registered mode: the GMR mean plus the task trend, in canonical phase, re-timed to the landmark
+        phases the GPRs predict. Pooled mode: the GMR mean (the same for every task).
+        """
+        jm = self.joints_[joint]
+        if jm.trend is None:
+            return jm.kmp.mu_ref_
+        t = task[self.trend_task_dims_]
+        registered = jm.kmp.mu_ref_ + jm.trend.predict(np.clip(t, self.trend_lo_, self.trend_hi_))
+        landmarks = self.canonical_landmarks_ + self.landmark_trend_.predict(t)
+        return unwarp(self.s_ref_, registered, landmarks, self.canonical_landmarks_, self.s_ref_)
 
     # -------------------------------------------------------------- predict
     def predict_features(self, speed_mps: float, incline_deg: float) -> list[FeaturePrediction]:
@@ -284,11 +308,8 @@ class QuasiStiffnessModel:
         vias_by_joint: dict[str, list[ViaPoint]] = {}
         for joint in JOINTS:
             jm = self.joints_[joint]
-            if self.gmr_task_dims_:   # task-conditioned reference: new means, same cached factorisation
-                mu = self._gmr_mean(jm.gmm, task, self.s_ref_)
-                mu_arg = mu
-            else:                     # pooled reference: what the KMP was fitted on, nothing to redo
-                mu, mu_arg = jm.kmp.mu_ref_, None
+            mu = self.reference_mean(joint, task, fmap)
+            mu_arg = None if mu is jm.kmp.mu_ref_ else mu   # None: the cached solve of the fitted means
             vias = self.via_points(joint, mu, features) if with_vias else []
             vias_by_joint[joint] = vias
             mean, cov = jm.kmp.predict(vias, mu=mu_arg)

@@ -123,5 +123,6 @@ def test_cli_evaluate_writes_json(tmp_path):
     out = _run("evaluate", "--out", str(tmp_path / "eval.json"))
     assert out.returncode == 0, out.stderr
     r = json.loads((tmp_path / "eval.json").read_text())
-    assert set(r["curve_rmse"]["knee_angle_deg"]) == {"proposal", "gmr", "linear", "nearest", "between_subject_sd"}
+    assert set(r["curve_rmse"]["knee_angle_deg"]) == {"proposal", "reference", "gmr", "linear", "nearest",
+                                                          "between_subject_sd"}
     assert len(r["folds"]) == 5
