@@ -7,6 +7,8 @@ every curve at 0° incline) are handled by projecting onto the affine span of th
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
@@ -43,18 +45,19 @@ class TaskHull:
                 self.equations_ = ConvexHull(P).equations  # rows: unit normal, offset; inside: n.x + b <= 0
             except QhullError as exc:  # pragma: no cover - rank test above prevents flat hulls
                 raise ValueError(f"cannot build task hull: {exc}") from exc
+        self._scale = 1.0 / np.asarray(self.tolerance, dtype=float)
+        self._normals, self._offsets = self.equations_[:, :-1], self.equations_[:, -1]
         return self
 
     def distance(self, x: np.ndarray) -> float:
         """Distance (tolerance units) from a task to the hull; 0 inside."""
-        z = np.asarray(x, dtype=float) / np.asarray(self.tolerance) - self.center_
-        in_span = self.basis_ @ z if self.rank_ else np.zeros(0)
-        off_span = float(np.linalg.norm(z - self.basis_.T @ in_span)) if self.rank_ else float(
-            np.linalg.norm(z))
+        z = np.asarray(x, dtype=float) * self._scale - self.center_
         if self.rank_ == 0:
-            return off_span
-        out = float(max(0.0, np.max(self.equations_[:, :-1] @ in_span + self.equations_[:, -1])))
-        return float(np.hypot(off_span, out))
+            return math.sqrt(float(z @ z))
+        in_span = self.basis_ @ z
+        r = z - in_span @ self.basis_
+        out = max(0.0, float((self._normals @ in_span + self._offsets).max()))
+        return math.hypot(math.sqrt(float(r @ r)), out)
 
     def contains(self, x: np.ndarray) -> bool:
         """True when the task lies within one tolerance unit of the training hull."""

@@ -12,12 +12,12 @@ reference covariance on average (``cov_scale="calibrated"``), which keeps the st
 Via-points (phase, mean, covariance) are added to the database; a reference point closer than
 ``via_tolerance`` in phase is replaced (removed) by the via-point.
 
-Speed: the Cholesky factors of (K + λΣ) and (K + λcΣ) over the reference, and their solves against the
-default query grid, are computed once in ``fit``. A set of via-points changes the database by a few
-points, so a new prediction only needs solves with a handful of right-hand sides plus a small Schur
-complement (bordering for added points, the inverse-Schur identity for removed ones). No explicit
-inverse of a large matrix is formed. ``predict_uncached`` builds and factorises the full system, for
-tests and the benchmark.
+Speed: the Cholesky factors of (K + λΣ) and (K + λcΣ) over the reference, their explicit inverses and
+their products with the default query grid are computed once in ``fit``. A set of via-points changes the
+database by a few points, so a new prediction needs only products with those cached matrices, gathers of
+their columns and a small Schur complement (bordering for added points, the inverse-Schur identity for
+removed ones). ``predict_std`` forms only the per-output variances. ``predict_uncached`` builds and
+factorises the full system, for tests and the benchmark.
 
 Phases are in [0, 1); the kernel is periodic (heel strike at 0 and at 1 coincide), written so that
 ``length_scale`` is the equivalent squared-exponential length in phase units.
@@ -83,6 +83,11 @@ def _blocks(G: np.ndarray, X: np.ndarray) -> np.ndarray:
     return np.einsum("qac,cqb->qab", G, X)
 
 
+def _block_diagonals(G: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """Diagonals (Q, O) of the per-query blocks of G X, for G (Q, O, c) and X (c, Q, O)."""
+    return (G * X.transpose(1, 2, 0)).sum(axis=2)
+
+
 def _blockdiag(blocks: np.ndarray) -> np.ndarray:
     n, o, _ = blocks.shape
     out = np.zeros((n * o, n * o))
@@ -128,18 +133,26 @@ class KMP:
             raise ValueError("cov_scale must be 'calibrated' or 'huang'")
         self.s_ref_, self.mu_ref_, self.sigma_ref_ = s_ref, np.asarray(mu_ref, float), sigma_ref
         self.n_outputs_ = O
+        self._uniform = bool(np.allclose(s_ref, np.arange(N) / N, atol=1e-12, rtol=0.0))
         self.s_query_ = np.linspace(0.0, 1.0, 101) if s_query is None else np.asarray(s_query, float)
         K = _kron_eye(periodic_kernel(s_ref, s_ref, self.length_scale), O)
         S = _blockdiag(sigma_ref)
         self._chol = _chol(K + self.lam * S)
         self._chol_c = _chol(K + self.lam_c * S)
+        # explicit inverses: a via-point update then needs products and gathers instead of triangular solves
+        eye = np.eye(N * O)
+        self._Ainv = _solve(self._chol, eye)
+        self._Ainv_c = self._Ainv if self.lam_c == self.lam else _solve(self._chol_c, eye)
         self._mu_flat = self.mu_ref_.reshape(-1)
         self._alpha = _solve(self._chol, self._mu_flat[:, None])
         self._Kq = _kron_eye(periodic_kernel(self.s_query_, s_ref, self.length_scale), O)  # (QO, NO)
         self._Zc = _solve(self._chol_c, self._Kq.T.copy())                                 # (NO, QO)
+        self._G = self._Kq @ self._Ainv                                                   # (QO, NO)
+        self._G_c = self._Zc.T.copy()                                                     # Kq A_c⁻¹
         Q = self.s_query_.size
         self._mean_base = (self._Kq @ self._alpha).reshape(Q, O)
         self._quad_base = np.einsum("gqa,gqb->qab", self._Kq.T.reshape(-1, Q, O), self._Zc.reshape(-1, Q, O))
+        self._quad_base_diag = np.diagonal(self._quad_base, axis1=1, axis2=2).copy()
         self.cov_scale_ = 1.0
         if self.cov_scale == "huang":
             self.cov_scale_ = N / self.lam_c
@@ -155,54 +168,56 @@ class KMP:
         return self.sigma_ref_[idx]
 
     # --------------------------------------------------------------- helpers
-    def _replaced(self, vias: list[ViaPoint]) -> np.ndarray:
-        """Indices of reference points replaced by via-points (within tolerance)."""
-        if not vias:
+    def _replaced(self, sv: np.ndarray) -> np.ndarray:
+        """Indices (sorted) of reference points replaced by via-points at phases ``sv`` (within tolerance)."""
+        if not sv.size:
             return np.zeros(0, dtype=int)
-        v = np.mod(np.array([p.phase for p in vias]), 1.0)
-        gap = np.abs(v[:, None] - self.s_ref_[None])
+        n = self.s_ref_.size
+        if self._uniform and self.via_tolerance < 1.0 / n:    # only the two neighbouring grid points can be hit
+            lo = np.floor(sv * n)
+            near = np.concatenate([lo, lo + 1.0])
+            hit = np.abs(np.tile(sv, 2) - near / n) <= self.via_tolerance
+            return np.unique(near[hit].astype(int) % n)
+        gap = np.abs(sv[:, None] - self.s_ref_[None])
         gap = np.minimum(gap, 1.0 - gap)
-        return np.unique(np.flatnonzero((gap <= self.via_tolerance).any(axis=0)))
+        return np.flatnonzero((gap <= self.via_tolerance).any(axis=0))
 
-    def _border(self, L: np.ndarray, sv: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _border(self, Ainv: np.ndarray, sv: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, ...]:
         """Pieces of the modified database that do not depend on the via-point covariances.
 
         Returns C = k(reference, vias) ⊗ I, the via-via kernel, W = A⁻¹C and (if reference rows are
-        replaced) the columns of A⁻¹ at those rows, all from one solve with the cached factor L.
+        replaced) the columns of A⁻¹ at those rows, from the cached inverse ``Ainv``.
         """
         O = self.n_outputs_
-        m = sv.size * O
         C = _kron_eye(periodic_kernel(self.s_ref_, sv, self.length_scale), O)          # (NO, mO)
         Kvv = _kron_eye(periodic_kernel(sv, sv, self.length_scale), O)
-        if rows.size:  # one solve for A⁻¹C and the columns of A⁻¹ at the removed rows
-            WE = _solve(L, np.hstack([C, _unit_columns(self.s_ref_.size * O, rows)]))
-            return C, Kvv, WE[:, :m], WE[:, m:]
-        return C, Kvv, _solve(L, C), None
+        return C, Kvv, Ainv @ C, (Ainv[:, rows] if rows.size else None)
 
     def _update(self, border: tuple[np.ndarray, ...], lam: float, cov_v: np.ndarray, rows: np.ndarray,
-                Y: np.ndarray, B_v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                                          np.ndarray | None, np.ndarray | None]:
-        """Solve the modified database for right-hand sides (B_r, B_v), given Y = A⁻¹B_r.
+                y0: np.ndarray | None, Y_rows: np.ndarray, CtY: np.ndarray, B_v: np.ndarray
+                ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Solve the modified database for right-hand sides (B_r, B_v), given Y = A⁻¹B_r in pieces.
 
         The database is the reference minus the flattened ``rows`` plus the via-points of ``border``.
-        Returns the first column of X_r, all of X_v, W = A⁻¹C, the Schur solve T and, when points are
-        removed, the projection pieces (P_r, corr), so callers form only the products they need.
+        The caller passes the pieces of Y it has: ``y0`` its first column (the mean's, or None when only
+        the covariance is wanted), ``Y_rows`` = Y[rows] and ``CtY`` = CᵀY.
+        Returns the first column of X_r (None without ``y0``), all of X_v, the Schur solve T and, when
+        points are removed, T_e = the Schur solve of −CᵀA⁻¹E and corr, from which callers form only the
+        products they need (A⁻¹ restricted to the kept rows is P_r = A⁻¹E − W T_e).
         """
         C, Kvv, W, Ecols = border
         Ls = _chol(Kvv + lam * _blockdiag(cov_v) - C.T @ W)
-        if rows.size:
-            TT = _solve(Ls, np.hstack([B_v - C.T @ Y, -(C.T @ Ecols)]))
-            T, T_e = TT[:, :B_v.shape[1]], TT[:, B_v.shape[1]:]
-        else:
-            T = _solve(Ls, B_v - C.T @ Y)
-        X_v = T
         if not rows.size:
-            return Y[:, :1] - W @ T[:, :1], X_v, W, T, None, None
+            T = _solve(Ls, B_v - CtY)
+            return (None if y0 is None else y0 - W @ T[:, :1]), T, T, None, None
+        k = B_v.shape[1]
+        TT = _solve(Ls, np.hstack([B_v - CtY, -W[rows].T]))        # Cᵀ A⁻¹ E = (A⁻¹C)ᵀ E = W[rows]ᵀ
+        T, T_e = TT[:, :k], TT[:, k:]
         # inverse-Schur identity: drop the replaced reference rows from the solution
-        P_r, P_v = Ecols - W @ T_e, T_e
-        corr = _solve(_chol(P_r[rows]), Y[rows] - W[rows] @ T)
-        X_r = Y[:, :1] - W @ T[:, :1] - P_r @ corr[:, :1]   # only the first column is ever needed
-        return X_r, X_v - P_v @ corr, W, T, P_r, corr
+        P_r = Ecols - W @ T_e
+        corr = _solve(_chol(P_r[rows]), Y_rows - W[rows] @ T)
+        X_r = None if y0 is None else y0 - W @ T[:, :1] - P_r @ corr[:, :1]   # only the first column is needed
+        return X_r, T - T_e @ corr, T, T_e, corr
 
     # --------------------------------------------------------------- predict
     def _alpha_for(self, mu: np.ndarray | None) -> np.ndarray:
@@ -212,7 +227,7 @@ class KMP:
         mu = np.asarray(mu, dtype=float)
         if mu.shape != self.mu_ref_.shape:
             raise ValueError(f"mu must have shape {self.mu_ref_.shape}")
-        return _solve(self._chol, mu.reshape(-1, 1))
+        return self._Ainv @ mu.reshape(-1, 1)
 
     def predict(self, vias: list[ViaPoint] | None = None,
                 mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -220,42 +235,65 @@ class KMP:
 
         Args:
             vias: via-points to pass through.
-            mu: optional new reference means (N, O) on the fitted grid (e.g. a task-conditioned GMR);
+            mu: optional new reference means (N, O) on the fitted grid (e.g. a task-dependent reference);
                 the covariances Σ, hence the cached factorisations, stay those given to ``fit``.
         """
+        mean, quad = self._predict(vias, mu, _blocks)
+        return mean, self.cov_scale_ * (np.eye(self.n_outputs_)[None] - quad)
+
+    def predict_std(self, vias: list[ViaPoint] | None = None,
+                    mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Mean (Q, O) and standard deviation (Q, O) per output: :meth:`predict` without the off-diagonal
+        covariance terms, which a per-channel display does not need."""
+        mean, quad = self._predict(vias, mu, _block_diagonals)
+        return mean, np.sqrt(np.clip(self.cov_scale_ * (1.0 - quad), 0.0, None))
+
+    def _predict(self, vias: list[ViaPoint] | None, mu: np.ndarray | None,
+                 blocks) -> tuple[np.ndarray, np.ndarray]:
+        """Mean (Q, O) and the quadratic form k*ᵀ P k* (blocks or their diagonals, as ``blocks`` gives)."""
         vias = list(vias or [])
         O = self.n_outputs_
         Q = self.s_query_.size
         alpha = self._alpha_for(mu)
+        full = blocks is _blocks
         if not vias:
             mean = self._mean_base.copy() if mu is None else (self._Kq @ alpha).reshape(Q, O)
-            return mean, self.cov_scale_ * (np.eye(O)[None] - self._quad_base)
-        J = self._replaced(vias)
-        rows = (J[:, None] * O + np.arange(O)[None]).reshape(-1)
+            return mean, self._quad_base.copy() if full else self._quad_base_diag.copy()
         sv = np.mod(np.array([p.phase for p in vias], dtype=float), 1.0)
+        J = self._replaced(sv)
+        rows = (J[:, None] * O + np.arange(O)[None]).reshape(-1)
         cov_v = np.array([p.cov for p in vias], dtype=float)
         mu_v = np.concatenate([np.asarray(p.mean, float) for p in vias])[:, None]
         Kqv = _kron_eye(periodic_kernel(self.s_query_, sv, self.length_scale), O)      # (QO, mO)
         # mean ξ = Kq x_r + Kqv x_v; covariance from the quadratic form k*ᵀ P k*. With λ = λc both share
         # one factorisation, so their right-hand sides are solved together (column 0 is the mean).
-        border = self._border(self._chol, sv, rows)
+        border = self._border(self._Ainv, sv, rows)
         if self.lam == self.lam_c and self.via_mean_scale == 1.0:
-            xr, Xv, W, T, P_r, corr = self._update(border, self.lam, cov_v, rows,
-                                                   np.hstack([alpha, self._Zc]), np.hstack([mu_v, Kqv.T]))
+            G, W = self._G, border[2]
+            KqW = self._Kq @ W                                # Kq A⁻¹C; its transpose is Cᵀ Zc
+            xr, Xv, T, T_e, corr = self._update(
+                border, self.lam, cov_v, rows, alpha, np.hstack([alpha[rows], self._Zc[rows]]),
+                np.hstack([border[0].T @ alpha, KqW.T]), np.hstack([mu_v, Kqv.T]))
             xv, Xv, T = Xv[:, :1], Xv[:, 1:], T[:, 1:]
             corr = None if corr is None else corr[:, 1:]
         else:
-            xr, xv, *_ = self._update(border, self.lam, cov_v * self.via_mean_scale, rows, alpha, mu_v)
-            border_c = border if self.lam_c == self.lam else self._border(self._chol_c, sv, rows)
-            _, Xv, W, T, P_r, corr = self._update(border_c, self.lam_c, cov_v, rows, self._Zc, Kqv.T)
+            xr, xv, *_ = self._update(border, self.lam, cov_v * self.via_mean_scale, rows, alpha, alpha[rows],
+                                      border[0].T @ alpha, mu_v)
+            border_c = border if self.lam_c == self.lam else self._border(self._Ainv_c, sv, rows)
+            G, W = self._G_c, border_c[2]
+            KqW = self._Kq @ W
+            _, Xv, T, T_e, corr = self._update(border_c, self.lam_c, cov_v, rows, None, self._Zc[rows], KqW.T,
+                                               Kqv.T)
         mean = (self._Kq @ xr + Kqv @ xv).reshape(Q, O)
         m = Kqv.shape[1]
-        quad = self._quad_base - _blocks((self._Kq @ W).reshape(Q, O, m), T.reshape(m, Q, O))
-        quad += _blocks(Kqv.reshape(Q, O, m), Xv.reshape(m, Q, O))
-        if P_r is not None:
+        base = self._quad_base if full else self._quad_base_diag
+        quad = base - blocks(KqW.reshape(Q, O, m), T.reshape(m, Q, O))
+        quad += blocks(Kqv.reshape(Q, O, m), Xv.reshape(m, Q, O))
+        if corr is not None:
             r = corr.shape[0]
-            quad -= _blocks((self._Kq @ P_r).reshape(Q, O, r), corr.reshape(r, Q, O))
-        return mean, self.cov_scale_ * (np.eye(O)[None] - quad)
+            KqP_r = G[:, rows] - KqW @ T_e                      # Kq (A⁻¹E − W T_e) without an (NO)-long product
+            quad -= blocks(KqP_r.reshape(Q, O, r), corr.reshape(r, Q, O))
+        return mean, quad
 
     def predict_uncached(self, vias: list[ViaPoint] | None = None,
                          mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -263,7 +301,8 @@ class KMP:
         vias = list(vias or [])
         O = self.n_outputs_
         mu_ref = self.mu_ref_ if mu is None else np.asarray(mu, dtype=float)
-        keep = np.setdiff1d(np.arange(self.s_ref_.size), self._replaced(vias))
+        keep = np.setdiff1d(np.arange(self.s_ref_.size),
+                            self._replaced(np.mod(np.array([p.phase for p in vias], dtype=float), 1.0)))
         s = np.concatenate([self.s_ref_[keep], np.mod([p.phase for p in vias], 1.0)])
         mu = np.concatenate([mu_ref[keep].reshape(-1)] + [np.asarray(p.mean, float) for p in vias])
         sig = np.concatenate([self.sigma_ref_[keep]] + ([np.array([p.cov for p in vias])] if vias else []))

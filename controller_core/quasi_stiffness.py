@@ -22,7 +22,6 @@ explains.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,16 +46,16 @@ class SubphaseFit:
     method: str = "least_squares"   # least_squares | range_guard | passivity_guard
 
 
-def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) -> list[np.ndarray]:
-    """Boolean masks of the four sub-phases for boundaries (SF→SE, SE→WF, WF→WE) in phase units.
+def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) -> np.ndarray:
+    """Boolean masks (4, P) of the four sub-phases for boundaries (SF→SE, SE→WF, WF→WE) in phase units.
 
     SF: [0, b1], SE: [b1, b2], WF: [b2, b3], WE: [b3, 1]; boundary samples belong to both neighbours.
     """
     b1, b2, b3 = boundaries
     if not 0.0 < b1 < b2 < b3 < 1.0:
         raise ValueError(f"sub-phase boundaries must satisfy 0 < b1 < b2 < b3 < 1, got {boundaries}")
-    edges = (0.0, b1, b2, b3, 1.0)
-    return [(phase >= lo - 1e-12) & (phase <= hi + 1e-12) for lo, hi in itertools.pairwise(edges)]
+    edges = np.array([0.0, b1, b2, b3, 1.0])
+    return (phase[None] >= edges[:-1, None] - 1e-12) & (phase[None] <= edges[1:, None] + 1e-12)
 
 
 def fit_line(theta: np.ndarray, tau: np.ndarray, theta_range: tuple[float, float]) -> tuple[float, float, float, bool]:
@@ -118,39 +117,56 @@ def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.nda
         theta_range_rad: joint range used by the guard.
         max_k_Nm_per_rad: passivity ceiling (< 0, N·m/rad); None leaves the slopes unconstrained.
     """
+    return fit_quasi_stiffness_joints(phase, np.atleast_2d(theta_rad), np.atleast_2d(tau_Nm), boundaries,
+                                      [theta_range_rad], max_k_Nm_per_rad)[0]
+
+
+def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.ndarray,
+                               boundaries: tuple[float, float, float],
+                               theta_ranges_rad: list[tuple[float, float]],
+                               max_k_Nm_per_rad: float | None = None) -> list[list[SubphaseFit]]:
+    """:func:`fit_quasi_stiffness` for several joints sharing one phase grid and one set of boundaries.
+
+    Args:
+        theta_rad, tau_Nm: (J, P) angle (rad) and moment (N·m) of J joints.
+        theta_ranges_rad: J joint ranges (rad).
+    """
     if max_k_Nm_per_rad is not None and not max_k_Nm_per_rad < 0:
         raise ValueError(f"max_k_Nm_per_rad must be negative (restoring), got {max_k_Nm_per_rad!r}")
     masks = subphase_masks(phase, boundaries)
-    M = np.array(masks, dtype=float)                        # (4, P)
-    theta = np.asarray(theta_rad, dtype=float)
-    tau = np.asarray(tau_Nm, dtype=float)
+    M = masks.astype(float)                                  # (4, P)
+    theta = np.asarray(theta_rad, dtype=float).T             # (P, J)
+    tau = np.asarray(tau_Nm, dtype=float).T
     n = M.sum(axis=1)
-    if np.any(n < 3):
+    if n.min() < 3:
         raise ValueError("a sub-phase needs at least 3 samples for a line fit")
+    n = n[:, None]                                           # (4, 1) against (4, J) sums
     tm, ym = (M @ theta) / n, (M @ tau) / n
     sxx = M @ (theta * theta) - n * tm * tm
     sxy = M @ (theta * tau) - n * tm * ym
     syy = M @ (tau * tau) - n * ym * ym
-    k = np.divide(sxy, sxx, out=np.zeros(4), where=sxx > 0)
     with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(sxx > 0, sxy / sxx, 0.0)
         theta_e = np.where(np.abs(k) > 1e-12, tm - ym / k, np.inf)      # θe = −c/k with c = ym − k·tm
-    r2 = np.where(syy > 0, 1.0 - (syy - k * sxy) / np.where(syy > 0, syy, 1.0), 0.0)
-    lo, hi = theta_range_rad
-    start = np.where(M > 0, phase[None], np.inf).min(axis=1)
-    end = np.where(M > 0, phase[None], -np.inf).max(axis=1)
-    fits = []
-    for i, name in enumerate(SUBPHASES):
-        th, ta = theta[masks[i]], tau[masks[i]]
-        if lo <= theta_e[i] <= hi:
-            ki, tei, r2i, guarded = float(k[i]), float(theta_e[i]), float(r2[i]), False
-        else:
-            ki, tei, r2i, guarded = fit_line(th, ta, theta_range_rad)
-        method = "range_guard" if guarded else "least_squares"
-        # an energy-injecting line whose θe lies inside the angles the joint sweeps in this sub-phase
-        # would push the joint away from θe in both directions: the unstable case the ceiling removes
-        if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad and th.min() <= tei <= th.max():
-            ki, method = float(max_k_Nm_per_rad), "passivity_guard"
-            tei, r2i = fit_fixed_k(th, ta, ki, theta_range_rad)
-        fits.append(SubphaseFit(name, ki, tei, r2i, method != "least_squares", float(start[i]), float(end[i]),
-                                int(n[i]), method))
-    return fits
+        r2 = np.where(syy > 0, 1.0 - (syy - k * sxy) / syy, 0.0)
+    first = masks.argmax(axis=1)
+    last = phase.size - 1 - masks[:, ::-1].argmax(axis=1)
+    out = []
+    for j, (lo, hi) in enumerate(theta_ranges_rad):
+        fits = []
+        for i, name in enumerate(SUBPHASES):
+            th, ta = theta[masks[i], j], tau[masks[i], j]
+            if lo <= theta_e[i, j] <= hi:
+                ki, tei, r2i, guarded = float(k[i, j]), float(theta_e[i, j]), float(r2[i, j]), False
+            else:
+                ki, tei, r2i, guarded = fit_line(th, ta, (lo, hi))
+            method = "range_guard" if guarded else "least_squares"
+            # an energy-injecting line whose θe lies inside the angles the joint sweeps in this sub-phase
+            # would push the joint away from θe in both directions: the unstable case the ceiling removes
+            if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad and th.min() <= tei <= th.max():
+                ki, method = float(max_k_Nm_per_rad), "passivity_guard"
+                tei, r2i = fit_fixed_k(th, ta, ki, (lo, hi))
+            fits.append(SubphaseFit(name, ki, tei, r2i, method != "least_squares", float(phase[first[i]]),
+                                    float(phase[last[i]]), int(n[i, 0]), method))
+        out.append(fits)
+    return out

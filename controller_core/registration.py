@@ -73,6 +73,34 @@ def unwarp(grid: np.ndarray, registered: np.ndarray, landmarks: np.ndarray, cano
     return _periodic_sample(grid, registered, canonical_phase(s, landmarks, canonical))
 
 
+class UniformUnwarp:
+    """:func:`unwarp` for many curves on one uniform grid ``k/n`` (k = 0…n−1), sampled back on that grid.
+
+    The interpolation indices and weights depend only on the landmarks, so :meth:`at` computes them once
+    and :meth:`apply` re-times any number of curves with two gathers.
+    """
+
+    def __init__(self, n: int, canonical: np.ndarray) -> None:
+        self.n = n
+        self.grid = np.arange(n) / n
+        self.canonical = np.asarray(canonical, dtype=float)
+
+    def at(self, landmarks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Indices (i0, i1) and weights w for the curves' values at the grid, given their landmarks."""
+        c = canonical_phase(self.grid, landmarks, self.canonical) * self.n
+        i0 = np.floor(c).astype(int)
+        w = c - i0
+        i0 %= self.n
+        return i0, (i0 + 1) % self.n, w
+
+    @staticmethod
+    def apply(weights: tuple[np.ndarray, np.ndarray, np.ndarray], registered: np.ndarray) -> np.ndarray:
+        """Re-time ``registered`` (n, ...) with weights from :meth:`at`."""
+        i0, i1, w = weights
+        w = w.reshape((-1,) + (1,) * (registered.ndim - 1))
+        return registered[i0] * (1.0 - w) + registered[i1] * w
+
+
 class TaskTrend:
     """Per-point linear trend of curves in the task variables (ridge-regularised least squares).
 
@@ -105,4 +133,4 @@ class TaskTrend:
     def predict(self, task: np.ndarray) -> np.ndarray:
         """Trend at one task (d,), in the residuals' unit and shape."""
         dt = np.asarray(task, dtype=float) - self.task_mean_
-        return np.tensordot(dt, self.slopes_, axes=1)
+        return (dt @ self.slopes_.reshape(dt.size, -1)).reshape(self.slopes_.shape[1:])

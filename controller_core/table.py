@@ -142,9 +142,12 @@ def _check(field: str, value: float, rng: Range, unit: str, out: list[LimitViola
                                   message=f"{field} = {value:.4g} {unit} is outside [{rng.low:g}, {rng.high:g}] {unit}"))
 
 
+DEFAULT_LIMITS = SafetyLimits()   # frozen: the defaults, built once
+
+
 def check_table(table: ParameterTable, limits: SafetyLimits | None = None) -> list[LimitViolation]:
     """All limit violations of a table (empty list = safe)."""
-    lim = limits or SafetyLimits()
+    lim = limits or DEFAULT_LIMITS
     out: list[LimitViolation] = []
     for r in table.rows:
         key = f"{r.joint}.{r.subphase}"

@@ -128,12 +128,29 @@ def test_kmp_cached_equals_uncached_with_replace_and_insert(knee_kmp):
     kmp, _ = knee_kmp
     vias = [ViaPoint(0.20, np.array([0.3, -0.5]), np.diag([1e-4, 1e-2])),      # on a grid point: replaces
             ViaPoint(0.731, np.array([1.1, 0.0]), np.diag([1e-4, 1.0]))]       # between points: inserts
-    assert kmp._replaced(vias).tolist() == [10]
+    assert kmp._replaced(np.array([v.phase for v in vias])).tolist() == [10]
     m0, c0 = kmp.predict(vias)
     m1, c1 = kmp.predict_uncached(vias)
     assert np.allclose(m0, m1, atol=1e-10) and np.allclose(c0, c1, atol=1e-10)
     mu2 = kmp.mu_ref_ * 1.1
     assert np.allclose(kmp.predict(vias, mu=mu2)[0], kmp.predict_uncached(vias, mu=mu2)[0], atol=1e-10)
+
+
+@pytest.mark.parametrize("lam_c, via_mean_scale", [(1.0, 0.1), (3.0, 1.0), (3.0, 0.1)])
+def test_kmp_split_mean_and_covariance_systems_match_uncached(knee_kmp, lam_c, via_mean_scale):
+    base, _ = knee_kmp
+    kmp = KMP(length_scale=0.05, lam=1.0, lam_c=lam_c, via_tolerance=0.005,
+              via_mean_scale=via_mean_scale).fit(base.s_ref_, base.mu_ref_, base.sigma_ref_)
+    vias = [ViaPoint(0.20, np.array([0.3, -0.5]), np.diag([1e-4, 1e-2])),
+            ViaPoint(0.731, np.array([1.1, 0.0]), np.diag([1e-4, 1.0])),
+            ViaPoint(0.9, np.array([0.2, 0.1]), np.diag([1e-3, 1e-2]))]
+    mu2 = kmp.mu_ref_ * 0.9
+    m0, c0 = kmp.predict(vias, mu=mu2)
+    m1, c1 = kmp.predict_uncached(vias, mu=mu2)
+    assert np.allclose(m0, m1, atol=1e-9) and np.allclose(c0, c1, atol=1e-9)
+    m2, sd = kmp.predict_std(vias, mu=mu2)
+    np.testing.assert_allclose(m2, m0, atol=1e-12)
+    np.testing.assert_allclose(sd, np.sqrt(np.diagonal(c0, axis1=1, axis2=2)), atol=1e-9)
 
 
 # ---------------------------------------------------------------- quasi-stiffness
@@ -174,3 +191,33 @@ def test_vectorised_subphase_fit_equals_line_by_line(model):
                 assert guarded == f.guarded
                 assert abs(k - f.k_Nm_per_rad) <= 1e-9 * max(1.0, abs(k))
                 assert abs(te - f.theta_e_rad) < 1e-9 and abs(r2 - f.r2) < 1e-9
+
+
+def test_joint_batched_fit_equals_one_joint_at_a_time(model):
+    from controller_core.model import JOINT_RANGE_RAD
+    from controller_core.quasi_stiffness import fit_quasi_stiffness_joints
+
+    p = model.propose(1.6, 4.0, 80.0)
+    ranges = [JOINT_RANGE_RAD[j] for j in ("knee", "ankle")]
+    th = np.array([p.means["knee_angle"], p.means["ankle_angle"]])
+    tau = np.array([p.means["knee_moment"], p.means["ankle_moment"]]) * 80.0
+    both = fit_quasi_stiffness_joints(p.phase, th, tau, p.boundaries, ranges, -20.0)
+    singles = [fit_quasi_stiffness(p.phase, th[j], tau[j], p.boundaries, ranges[j], -20.0) for j in range(2)]
+    # propose() fits with the passivity ceiling 0.25 N·m/rad/kg × 80 kg = −20 N·m/rad
+    for fits in (singles, [p.fits["knee"], p.fits["ankle"]]):
+        for a, b in zip(both[0] + both[1], fits[0] + fits[1], strict=True):
+            assert (a.subphase, a.method, a.n_points, a.phase_start, a.phase_end) == \
+                (b.subphase, b.method, b.n_points, b.phase_start, b.phase_end)
+            np.testing.assert_allclose([a.k_Nm_per_rad, a.theta_e_rad, a.r2], [b.k_Nm_per_rad, b.theta_e_rad, b.r2],
+                                       rtol=1e-10, atol=1e-12)
+
+
+def test_kmp_replaced_points_fast_path_matches_brute_force(model):
+    kmp = model.joints_["knee"].kmp
+    n, rng = kmp.s_ref_.size, np.random.default_rng(1)
+    for _ in range(2000):
+        sv = rng.uniform(0.0, 1.0, rng.integers(1, 6))
+        sv[0] = np.mod(rng.integers(0, n) / n + rng.choice([-1, 1]) * rng.choice([0.4999, 0.5001]) / n, 1.0)
+        gap = np.abs(sv[:, None] - kmp.s_ref_[None])
+        gap = np.minimum(gap, 1.0 - gap)
+        assert kmp._replaced(sv).tolist() == np.flatnonzero((gap <= kmp.via_tolerance).any(axis=0)).tolist()

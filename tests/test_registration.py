@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from controller_core.features import record_features
-from controller_core.registration import TaskTrend, canonical_phase, ordered_landmarks, register, unwarp
+from controller_core.registration import TaskTrend, UniformUnwarp, canonical_phase, ordered_landmarks, register, unwarp
 
 LANDMARK_NAMES = ("ankle_plantarflexor_moment_peak", "ankle_plantarflexion_peak")
 
@@ -35,6 +35,16 @@ def test_unwarp_undoes_register_on_a_real_curve(reference):
     registered = register(reference.phase, rec.mean["knee_angle"], own, canonical, s)
     back = unwarp(s, registered, own, canonical, reference.phase[:-1])
     assert np.max(np.abs(back - rec.mean["knee_angle"][:-1])) < np.radians(1.0)
+
+
+def test_uniform_unwarp_equals_unwarp(reference):
+    rec = reference.records[2]
+    grid = np.arange(50) / 50
+    curves = np.column_stack([np.interp(grid, reference.phase, rec.mean[c]) for c in ("knee_angle", "knee_moment")])
+    canonical, landmarks = np.array([0.45, 0.62]), np.array([0.43, 0.60])
+    fast = UniformUnwarp(50, canonical)
+    np.testing.assert_allclose(fast.apply(fast.at(landmarks), curves),
+                               unwarp(grid, curves, landmarks, canonical, grid), atol=1e-12)
 
 
 def test_canonical_phase_keeps_heel_strike_and_maps_landmarks():
@@ -68,8 +78,7 @@ def test_task_trend_refuses_bad_training_data():
 
 
 def test_registered_reference_follows_speed_inside_the_data_and_holds_amplitude_outside(model):
-    fmap = {f.spec.name: f for f in model.predict_features(1.2, 0.0)}
-    knee = {v: model.reference_mean("knee", np.array([v, 0.0]), fmap)[:, 0] for v in (0.9, 1.2, 1.9, 2.6)}
+    knee = {v: model.reference_means(np.array([v, 0.0]))["knee"][:, 0] for v in (0.9, 1.2, 1.9, 2.6)}
     # knee swing flexion grows with speed between the shipped conditions (Bovi 2011: 57° → 64°)
     assert knee[1.9].max() > knee[0.9].max() + np.radians(2.0)
     # beyond the fastest condition (1.95 m/s) the amplitudes are held, only the timing moves on
@@ -81,9 +90,8 @@ def test_pooled_reference_is_the_same_for_every_task(reference):
     from controller_core.model_io import train
 
     pooled = train(reference, use_published=True, reference_mode="pooled")
-    fmap = {f.spec.name: f for f in pooled.predict_features(1.2, 0.0)}
-    a = pooled.reference_mean("ankle", np.array([0.9, 0.0]), fmap)
-    b = pooled.reference_mean("ankle", np.array([1.9, 0.0]), fmap)
+    a = pooled.reference_means(np.array([0.9, 0.0]))["ankle"]
+    b = pooled.reference_means(np.array([1.9, 0.0]))["ankle"]
     np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="reference_mode"):
         train(reference, use_published=False, reference_mode="task")
