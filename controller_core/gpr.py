@@ -33,6 +33,7 @@ from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import RBF, ConstantKernel, DotProduct, WhiteKernel
 
 from controller_core.hull import TaskHull
+from controller_core.training_data import training_arrays
 
 
 class FeatureGPR:
@@ -72,12 +73,7 @@ class FeatureGPR:
         Args:
             y_se: optional (n,) standard error of each target (same unit as ``y``); NaN = unknown.
         """
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        y = np.asarray(y, dtype=float)
-        if X.shape[0] != y.shape[0] or X.shape[0] < 2:
-            raise ValueError("FeatureGPR needs at least two training points with one target each")
-        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(y))):
-            raise ValueError("FeatureGPR training data contain NaN or inf")
+        X, y = training_arrays(X, y, "FeatureGPR", "training points with one target each")
         d = X.shape[1]
         if len(self.length_scale_bounds) != d or len(self.input_scale) != d:
             raise ValueError(f"bounds/scales given for {len(self.input_scale)} task dims, data have {d}")

@@ -147,8 +147,8 @@ class KMP:
         self._alpha = _solve(self._chol, self._mu_flat[:, None])
         self._Kq = _kron_eye(periodic_kernel(self.s_query_, s_ref, self.length_scale), O)  # (QO, NO)
         self._Zc = _solve(self._chol_c, self._Kq.T.copy())                                 # (NO, QO)
-        self._G = self._Kq @ self._Ainv                                                   # (QO, NO)
-        self._G_c = self._Zc.T.copy()                                                     # Kq A_c⁻¹
+        self._G_c = self._Zc.T                                                            # Kq A_c⁻¹ (QO, NO)
+        self._G = self._G_c if self.lam_c == self.lam else self._Kq @ self._Ainv          # Kq A⁻¹
         Q = self.s_query_.size
         self._mean_base = (self._Kq @ self._alpha).reshape(Q, O)
         self._quad_base = np.einsum("gqa,gqb->qab", self._Kq.T.reshape(-1, Q, O), self._Zc.reshape(-1, Q, O))

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from controller_core.training_data import training_arrays
+
 # Landmarks must be this far apart (fraction of the cycle) and from heel strike, so every warp segment
 # keeps a positive length.
 MIN_LANDMARK_GAP = 0.02
@@ -117,12 +119,7 @@ class TaskTrend:
 
     def fit(self, tasks: np.ndarray, residuals: np.ndarray) -> TaskTrend:
         """Fit on tasks (n, d) in physical units and residuals (n, ...) of any trailing shape."""
-        T = np.atleast_2d(np.asarray(tasks, dtype=float))
-        R = np.asarray(residuals, dtype=float)
-        if T.shape[0] != R.shape[0] or T.shape[0] < 2:
-            raise ValueError("TaskTrend needs at least two tasks with one residual curve each")
-        if not (np.all(np.isfinite(T)) and np.all(np.isfinite(R))):
-            raise ValueError("TaskTrend training data contain NaN or inf")
+        T, R = training_arrays(tasks, residuals, "TaskTrend", "tasks with one residual curve each")
         self.task_mean_ = T.mean(axis=0)
         Tc = T - self.task_mean_
         gram = Tc.T @ Tc
