@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from enum import IntEnum
 
 from controller_core.quasi_stiffness import SUBPHASES
-from controller_core.table import ParameterTable, SafetyLimits, assert_safe
+from controller_core.table import ImpedanceTable, SafetyLimits, assert_safe
 
 
 class GaitState(IntEnum):
@@ -131,7 +131,7 @@ class ImpedanceSchedule:
     swing_slowing_rad_s: float = 0.05
 
     @classmethod
-    def from_table(cls, table: ParameterTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
+    def from_table(cls, table: ImpedanceTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
         """Convert a parameter table, re-checking every safety limit first (the device's own check).
 
         Raises:
@@ -155,7 +155,7 @@ class ImpedanceSchedule:
             min_state_time_s=t.min_state_time_s, max_state_time_s=t.max_state_time_s)
 
 
-def _clip(tau: float, theta: float, limit: float, lo: float, hi: float) -> tuple[float, bool]:
+def clip_torque(tau: float, theta: float, limit: float, lo: float, hi: float) -> tuple[float, bool]:
     """Clip a torque to ±limit, and refuse any torque that drives the joint further past a range end."""
     out = tau
     if out > limit:
@@ -232,6 +232,6 @@ class StateMachineController:
         lim = self.limits
         tk = sch.knee_k[i] * (x.knee_angle_rad - sch.knee_theta_e[i]) - sch.knee_b[i] * x.knee_velocity_rad_s
         ta = sch.ankle_k[i] * (x.ankle_angle_rad - sch.ankle_theta_e[i]) - sch.ankle_b[i] * x.ankle_velocity_rad_s
-        tk, sk = _clip(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
-        ta, sa = _clip(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])
+        tk, sk = clip_torque(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
+        ta, sa = clip_torque(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])
         return TorqueCommand(self.state_, tk, ta, sk or sa)

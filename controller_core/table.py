@@ -11,7 +11,8 @@ the offending field, its value and the allowed range.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from collections.abc import Sequence
+from typing import Literal, Protocol
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -93,6 +94,32 @@ class ParameterTable(_Strict):
         raise KeyError((joint, subphase))
 
 
+class ImpedanceRow(Protocol):
+    """What the limit check reads from a row: a :class:`ParameterRow`, or the device's decoded row."""
+
+    @property
+    def joint(self) -> str: ...
+    @property
+    def subphase(self) -> str: ...
+    @property
+    def k_Nm_per_rad(self) -> float: ...
+    @property
+    def theta_e_deg(self) -> float: ...
+    @property
+    def b_Nm_s_per_rad(self) -> float: ...
+
+
+class ImpedanceTable(Protocol):
+    """What the limit check and the controller read from a table: a :class:`ParameterTable`, or the table the
+    device decoded from the wire (which carries no provenance)."""
+
+    @property
+    def rows(self) -> Sequence[ImpedanceRow]: ...
+    @property
+    def thresholds(self) -> Thresholds: ...
+    def row(self, joint: str, subphase: str) -> ImpedanceRow: ...
+
+
 class Range(_Strict):
     """Closed interval [low, high] in the unit of the field it guards."""
 
@@ -145,7 +172,7 @@ def _check(field: str, value: float, rng: Range, unit: str, out: list[LimitViola
 DEFAULT_LIMITS = SafetyLimits()   # frozen: the defaults, built once
 
 
-def check_table(table: ParameterTable, limits: SafetyLimits | None = None) -> list[LimitViolation]:
+def check_table(table: ImpedanceTable, limits: SafetyLimits | None = None) -> list[LimitViolation]:
     """All limit violations of a table (empty list = safe)."""
     lim = limits or DEFAULT_LIMITS
     out: list[LimitViolation] = []
@@ -174,7 +201,7 @@ def check_table(table: ParameterTable, limits: SafetyLimits | None = None) -> li
     return out
 
 
-def assert_safe(table: ParameterTable, limits: SafetyLimits | None = None) -> None:
+def assert_safe(table: ImpedanceTable, limits: SafetyLimits | None = None) -> None:
     """Raise :class:`SafetyLimitError` naming every offending field, if any."""
     violations = check_table(table, limits)
     if violations:

@@ -109,8 +109,10 @@ class BenchTrajectory:
 
 
 def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float,
-                          timestep_s: float = 0.001, start_phase: float = 0.85, harmonics: int = 12) -> BenchTrajectory:
-    """Sample the socket targets and load for ``seconds`` of walking at the reference's task."""
+                          timestep_s: float = 0.001, start_phase: float = 0.85, harmonics: int = 12,
+                          t0_s: float = 0.0) -> BenchTrajectory:
+    """Sample the socket targets and load for ``seconds`` of walking at the reference's task, from time ``t0_s``
+    (a later chunk of the same walk continues the earlier one exactly)."""
     incline = ref.incline_deg
     s_grid = ref.phase
     thigh = thigh_angle_rad(ref, incline)
@@ -124,7 +126,7 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
         raise ValueError("the reference has a flight phase (no leg in stance): not a walking pattern")
     T = ref.stride_time_s
     n = round(seconds / timestep_s)
-    t = np.arange(n) * timestep_s
+    t = t0_s + np.arange(n) * timestep_s
     s = (start_phase + t / T) % 1.0
     a_h, b_h = _fourier(height, harmonics)
     a_t, b_t = _fourier(thigh, harmonics)

@@ -73,6 +73,13 @@ class SimulatedLeg:
         mujoco.mj_forward(self.model, self.data)
         return self.sample()
 
+    def continue_with(self, trajectory: BenchTrajectory) -> None:
+        """Carry on walking along ``trajectory``, the chunk that starts one timestep after the current one ends."""
+        if self._traj is None:
+            raise RuntimeError("reset() the leg with a bench trajectory before continuing it")
+        self._traj = trajectory
+        self._tick = -1   # step() applies the new chunk's first sample next
+
     def _apply_bench(self, i: int) -> None:
         tr, c, a = self._traj, self.data.ctrl, self._a
         assert tr is not None

@@ -1,0 +1,105 @@
+"""Run the firmware on a CAN bus in real time: the simulated prosthesis as a device on the bus.
+
+:class:`DeviceNode` owns a bus, a :class:`device_bridge.firmware.DeviceFirmware` and a leg (anything with
+``sample()`` and ``step(knee_Nm, ankle_Nm)``, e.g. :class:`device_bridge.sim.walker.SimWalker`; or none). Its thread
+runs the 1 kHz control period against the wall clock: it drains the received frames into the firmware, runs the
+ticks that are due (catching up after a stall, at most 100 at a time, then slipping rather than racing), and sends
+what the firmware answers. :meth:`DeviceNode.snapshot` gives tests and the soak tool a consistent view of the
+buffers (an oracle the host never uses).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+import can
+
+from controller_core.fsm import SensorSample
+from device_bridge.firmware import DeviceFirmware, FirmwareConfig, HeldTable
+from device_bridge.protocol import Mode
+
+TICK_S = 0.001
+MAX_CATCH_UP_TICKS = 100
+
+
+class Leg(Protocol):
+    def sample(self) -> SensorSample | None: ...
+    def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None: ...
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """The firmware's buffers and mode at one instant."""
+
+    mode: Mode
+    active: HeldTable | None
+    staged: HeldTable | None
+    safe_mode_entered_s: float | None
+    last_heartbeat_s: float
+
+
+class DeviceNode:
+    """The simulated prosthesis on ``bus`` (see the module docstring)."""
+
+    def __init__(self, bus: can.BusABC, leg: Leg | None = None, config: FirmwareConfig | None = None) -> None:
+        self.bus = bus
+        self.leg = leg
+        self.firmware = DeviceFirmware(config, now_s=time.monotonic())
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="device-node", daemon=True)
+        self.overruns = 0
+
+    def start(self) -> DeviceNode:
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self.bus.shutdown()
+
+    def __enter__(self) -> DeviceNode:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def snapshot(self) -> Snapshot:
+        with self._lock:
+            fw = self.firmware
+            return Snapshot(fw.mode_, fw.active_, fw.staged_, fw.safe_mode_entered_s_, fw.last_heartbeat_s_)
+
+    def _send(self, frames: list[can.Message]) -> None:
+        for f in frames:
+            with contextlib.suppress(can.CanError):   # a full queue (host gone): lost, as on a real bus
+                self.bus.send(f)
+
+    def _loop(self) -> None:
+        fw, bus, leg = self.firmware, self.bus, self.leg
+        next_tick = time.monotonic()
+        while not self._stop.is_set():
+            now = time.monotonic()
+            out: list[can.Message] = []
+            with self._lock:
+                while (msg := bus.recv(0.0)) is not None:
+                    out += fw.receive(msg, now)
+                ticks = 0
+                while next_tick <= now and ticks < MAX_CATCH_UP_TICKS:
+                    sample = leg.sample() if leg is not None else None
+                    knee, ankle, frames = fw.tick(sample, next_tick)
+                    out += frames
+                    if leg is not None:
+                        leg.step(knee, ankle)
+                    next_tick += TICK_S
+                    ticks += 1
+                if next_tick <= now:          # stalled beyond the catch-up budget: slip instead of racing
+                    self.overruns += 1
+                    next_tick = now + TICK_S
+            self._send(out)
+            self._stop.wait(max(0.0002, next_tick - time.monotonic()))

@@ -1,0 +1,340 @@
+"""The code that runs on the leg: table reception, its own safety check, double buffering, heartbeat watchdog,
+safe mode, status and telemetry.
+
+:class:`DeviceFirmware` is pure: it is fed frames (:meth:`DeviceFirmware.receive`) and control ticks
+(:meth:`DeviceFirmware.tick`) with the time they happen at, and returns the frames to send and the joint torques.
+It does no I/O, so every fault path is tested deterministically; :mod:`device_bridge.device_node` runs it on a bus.
+
+Three table buffers: the one being received, the staged one (complete, CRC-verified, safety-checked,
+acknowledged) and the active one the state machine runs. A staged table becomes active at the next heel strike
+(the state machine's swing-extension → stance-flexion transition on load), or at once when the leg is not
+walking (no table yet, safe mode, no sensors, or no load-triggered heel strike for ``idle_switch_s``). Loss,
+corruption, reordering, a bad CRC, a refused limit or a timeout only ever discard the buffer being received:
+the active table runs on untouched, so a mixed table cannot exist.
+
+The host's heartbeat is watched on every tick: when none arrived for ``heartbeat_timeout_s``, the device drops
+into safe mode (passive: τ = −b_safe·θ̇, clipped) on that tick. It leaves safe mode only on a new valid table or
+an explicit LEAVE_SAFE_MODE command while the host is alive and a table is held.
+
+Times are seconds on the device's monotonic clock; torques N·m; angles rad inside, deg on the wire.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import can
+
+from controller_core.fsm import (
+    ActuatorLimits,
+    GaitState,
+    ImpedanceSchedule,
+    SensorSample,
+    StateMachineController,
+    clip_torque,
+)
+from controller_core.table import DEFAULT_LIMITS, SafetyLimits, check_table
+from device_bridge.protocol import (
+    ROW_COUNT,
+    TEMPERATURE_UNKNOWN_RAW,
+    AckResult,
+    Command,
+    DeviceTable,
+    Fault,
+    Mode,
+    ProtocolError,
+    WireTable,
+    decode,
+    encode,
+    encode_scaled,
+)
+
+
+@dataclass(frozen=True)
+class FirmwareConfig:
+    """Device-side settings (s, N·m·s/rad).
+
+    Attributes:
+        heartbeat_timeout_s: safe mode when no host heartbeat arrived for this long.
+        transfer_timeout_s: a transfer not committed this long after its begin is dropped.
+        idle_switch_s: without a load-triggered heel strike for this long the leg is not walking, and a staged
+            table becomes active at once.
+        status_period_s, telemetry_period_s: DEVICE_STATUS/HEALTH and TELEMETRY periods.
+        safe_damping_knee, safe_damping_ankle: damping in safe mode and without a table.
+        limits: the safety limits the device enforces itself (the same defaults as the host's).
+        actuator: torque and range limits.
+    """
+
+    heartbeat_timeout_s: float = 0.2
+    transfer_timeout_s: float = 0.5
+    idle_switch_s: float = 2.0
+    status_period_s: float = 0.1
+    telemetry_period_s: float = 0.01
+    safe_damping_knee: float = 8.0
+    safe_damping_ankle: float = 4.0
+    limits: SafetyLimits = DEFAULT_LIMITS
+    actuator: ActuatorLimits = field(default_factory=ActuatorLimits)
+
+
+@dataclass(frozen=True)
+class HeldTable:
+    """A verified table: its version, CRC-32, decoded values and controller schedule."""
+
+    version: int
+    crc32: int
+    table: DeviceTable
+    schedule: ImpedanceSchedule
+
+
+@dataclass
+class _Transfer:
+    transfer_id: int
+    version: int
+    crc32: int
+    started_s: float
+    rows: dict[int, tuple[int, ...]] = field(default_factory=dict)
+
+
+@dataclass
+class _LastCommit:
+    transfer_id: int
+    version: int
+    crc32: int
+
+
+class DeviceFirmware:
+    """The leg's firmware (see the module docstring).
+
+    Attributes:
+        mode_: NO_TABLE, ACTIVE or SAFE.
+        active_: the table the state machine runs (None before the first).
+        staged_: a verified table waiting for the next heel strike.
+        faults_: current fault flags.
+        rx_errors_: malformed frames seen.
+        safe_mode_entered_s_: when safe mode was last entered (None if never).
+        last_heartbeat_s_: when the host's heartbeat last arrived.
+    """
+
+    def __init__(self, config: FirmwareConfig | None = None, now_s: float = 0.0) -> None:
+        self.config = config or FirmwareConfig()
+        self.mode_ = Mode.NO_TABLE
+        self.active_: HeldTable | None = None
+        self.staged_: HeldTable | None = None
+        self.faults_ = Fault.NO_TABLE
+        self.rx_errors_ = 0
+        self.safe_mode_entered_s_: float | None = None
+        self.last_heartbeat_s_ = now_s   # the host gets one timeout from boot to appear
+        self.controller_: StateMachineController | None = None
+        self._rx: _Transfer | None = None
+        self._last_commit: _LastCommit | None = None
+        self._last_heel_strike_s = -math.inf
+        self._next_status_s = now_s
+        self._next_telemetry_s = now_s
+        self._status_counter = 0
+        self._telemetry_seq = 0
+
+    # ------------------------------------------------------------------------------------------ frames in
+
+    def receive(self, msg: can.Message, now_s: float) -> list[can.Message]:
+        """Handle one received frame; returns the frames to send in reply."""
+        try:
+            decoded = decode(msg)
+        except ProtocolError:
+            self.rx_errors_ += 1
+            self.faults_ |= Fault.MALFORMED_FRAME
+            return []
+        if decoded is None:
+            return []
+        name, raw = decoded
+        if name == "HOST_HEARTBEAT":
+            self.last_heartbeat_s_ = now_s
+            return []
+        if name == "TABLE_BEGIN":
+            self._rx = _Transfer(raw["transfer_id"], raw["version"], raw["crc32"], now_s)
+            if raw["row_count"] != ROW_COUNT:
+                self._rx = None
+                return [self._ack(raw["transfer_id"], AckResult.MALFORMED, version=raw["version"])]
+            return []
+        if name in ("TABLE_ROW", "TABLE_THRESHOLDS_A", "TABLE_THRESHOLDS_B"):
+            rx = self._rx
+            row = WireTable.row_from_frame(name, raw)
+            if rx is not None and raw["transfer_id"] == rx.transfer_id and row is not None:
+                rx.rows.setdefault(row[0], row[1])   # the first copy wins; a corrupt one fails the CRC
+            return []
+        if name == "TABLE_COMMIT":
+            return [self._commit(raw, now_s)]
+        if name == "DEVICE_COMMAND":
+            return self._command(raw["command"], now_s)
+        return []
+
+    def _ack(self, transfer_id: int, result: AckResult, *, crc32: int = 0, missing: int = 0,
+             version: int = 0) -> can.Message:
+        # a refusal carries CRC 0, so that no single corrupted bit can turn it into a believable acknowledgement
+        return encode("TABLE_ACK", {"transfer_id": transfer_id, "result": int(result), "missing_rows": missing,
+                                    "crc32": crc32 if result == AckResult.STAGED else 0,
+                                    "version_low": version & 0xFF})
+
+    def _commit(self, raw: dict[str, int], now_s: float) -> can.Message:
+        tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
+        last = self._last_commit
+        if self._rx is None or self._rx.transfer_id != tid:
+            if last is not None and (last.transfer_id, last.version, last.crc32) == (tid, version, crc) and any(
+                    h is not None and h.crc32 == crc and h.version == version for h in (self.staged_, self.active_)):
+                return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)   # our acknowledgement was lost
+            return self._ack(tid, AckResult.UNKNOWN_TRANSFER, version=version)
+        rx = self._rx
+        if (rx.version, rx.crc32) != (version, crc) or raw["row_count"] != ROW_COUNT:
+            self._rx = None
+            return self._refuse(tid, AckResult.MALFORMED, version)
+        missing = sum(1 << i for i in range(ROW_COUNT) if i not in rx.rows)
+        if missing:
+            return self._ack(tid, AckResult.MISSING_ROWS, missing=missing, version=version)   # keep the rows
+        self._rx = None
+        wire = WireTable.from_row_values(rx.rows)
+        if wire.crc32() != crc:
+            return self._refuse(tid, AckResult.CRC_MISMATCH, version)
+        try:
+            table = wire.to_device_table()
+        except ValueError:
+            return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
+        if check_table(table, self.config.limits):
+            return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
+        schedule = ImpedanceSchedule.from_table(table, self.config.limits)
+        self.staged_ = HeldTable(version=version, crc32=crc, table=table, schedule=schedule)
+        self._last_commit = _LastCommit(tid, version, crc)
+        self.faults_ &= ~Fault.TABLE_REFUSED
+        return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)
+
+    def _refuse(self, tid: int, result: AckResult, version: int) -> can.Message:
+        self.faults_ |= Fault.TABLE_REFUSED
+        return self._ack(tid, result, version=version)
+
+    def _command(self, command: int, now_s: float) -> list[can.Message]:
+        if command == Command.ENTER_SAFE_MODE:
+            self._enter_safe(now_s)
+        elif command == Command.LEAVE_SAFE_MODE:
+            host_alive = now_s - self.last_heartbeat_s_ <= self.config.heartbeat_timeout_s
+            if self.mode_ == Mode.SAFE and self.active_ is not None and host_alive:
+                self._run(now_s)
+        elif command != Command.REQUEST_STATUS:
+            self.rx_errors_ += 1
+            self.faults_ |= Fault.MALFORMED_FRAME
+        return self._status_frames()
+
+    # ------------------------------------------------------------------------------------------ modes
+
+    def _enter_safe(self, now_s: float) -> None:
+        if self.mode_ != Mode.SAFE:
+            self.mode_ = Mode.SAFE
+            self.safe_mode_entered_s_ = now_s
+
+    def _run(self, now_s: float) -> None:
+        """Start (or restart) the state machine on the active table."""
+        assert self.active_ is not None
+        self.controller_ = StateMachineController(self.active_.schedule, self.config.actuator)
+        self.mode_ = Mode.ACTIVE
+        self.faults_ &= ~(Fault.HEARTBEAT_LOST | Fault.NO_TABLE)
+
+    def _activate_staged(self, now_s: float) -> None:
+        staged = self.staged_
+        assert staged is not None
+        self.staged_ = None
+        self.active_ = staged
+        if self.mode_ == Mode.ACTIVE and self.controller_ is not None:
+            self.controller_.load(staged.schedule)   # at heel strike: the state machine carries on
+        else:
+            self._run(now_s)
+
+    # ------------------------------------------------------------------------------------------ control tick
+
+    def tick(self, sample: SensorSample | None, now_s: float) -> tuple[float, float, list[can.Message]]:
+        """One control period: watchdogs, table switch, torques, and the periodic frames.
+
+        Args:
+            sample: the sensors now (None when no leg is attached: torques are 0).
+            now_s: device clock (s).
+
+        Returns:
+            (knee torque N·m, ankle torque N·m, frames to send).
+        """
+        out: list[can.Message] = []
+        cfg = self.config
+        if self._rx is not None and now_s - self._rx.started_s > cfg.transfer_timeout_s:
+            out.append(self._refuse(self._rx.transfer_id, AckResult.TIMEOUT, self._rx.version))
+            self._rx = None
+        if now_s - self.last_heartbeat_s_ > cfg.heartbeat_timeout_s and self.mode_ != Mode.SAFE:
+            self._enter_safe(now_s)
+            self.faults_ |= Fault.HEARTBEAT_LOST
+            out += self._status_frames()
+        if self.staged_ is not None:
+            idle = sample is None or self.mode_ != Mode.ACTIVE or now_s - self._last_heel_strike_s > cfg.idle_switch_s
+            if idle and not (self.mode_ == Mode.SAFE and Fault.HEARTBEAT_LOST in self.faults_
+                             and now_s - self.last_heartbeat_s_ > cfg.heartbeat_timeout_s):
+                self._activate_staged(now_s)
+                out += self._status_frames()
+        knee, ankle, state = 0.0, 0.0, GaitState.SWING_EXTENSION
+        if sample is not None:
+            knee, ankle, state = self._torques(sample, now_s, out)
+        if now_s >= self._next_telemetry_s:
+            self._next_telemetry_s = max(self._next_telemetry_s + cfg.telemetry_period_s, now_s)
+            if sample is not None:
+                out += self._telemetry(sample, state, knee, ankle)
+        if now_s >= self._next_status_s:
+            self._next_status_s = max(self._next_status_s + cfg.status_period_s, now_s)
+            out += self._status_frames()
+        return knee, ankle, out
+
+    def _torques(self, x: SensorSample, now_s: float, out: list[can.Message]) -> tuple[float, float, GaitState]:
+        lim = self.config.actuator
+        ctrl = self.controller_
+        if self.mode_ == Mode.ACTIVE and ctrl is not None:
+            before, guards = ctrl.state_, ctrl.guard_transitions_
+            cmd = ctrl.step(x)
+            heel_strike = before == GaitState.SWING_EXTENSION and cmd.state == GaitState.STANCE_FLEXION
+            if heel_strike and ctrl.guard_transitions_ == guards:
+                self._last_heel_strike_s = now_s
+                if self.staged_ is not None:
+                    self._activate_staged(now_s)
+                    out += self._status_frames()
+            return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
+        cfg = self.config
+        tk, _ = clip_torque(-cfg.safe_damping_knee * x.knee_velocity_rad_s, x.knee_angle_rad, lim.knee_torque_Nm,
+                      *lim.knee_range_rad)
+        ta, _ = clip_torque(-cfg.safe_damping_ankle * x.ankle_velocity_rad_s, x.ankle_angle_rad, lim.ankle_torque_Nm,
+                      *lim.ankle_range_rad)
+        return tk, ta, GaitState.SWING_EXTENSION
+
+    # ------------------------------------------------------------------------------------------ frames out
+
+    @property
+    def fsm_state(self) -> int:
+        return int(self.controller_.state_) if self.mode_ == Mode.ACTIVE and self.controller_ is not None else 15
+
+    def _status_frames(self) -> list[can.Message]:
+        self._status_counter = (self._status_counter + 1) & 0xFF
+        active = self.active_
+        faults = self.faults_ | (Fault.NO_TABLE if active is None else Fault(0))
+        return [
+            encode("DEVICE_STATUS", {"counter": self._status_counter, "mode": int(self.mode_),
+                                     "fsm_state": self.fsm_state,
+                                     "active_version": active.version if active else 0,
+                                     "active_crc32": active.crc32 if active else 0}),
+            encode("DEVICE_HEALTH", {"fault_flags": int(faults), "temperature": TEMPERATURE_UNKNOWN_RAW,
+                                     "pending_version": self.staged_.version if self.staged_ else 0,
+                                     "rx_errors": min(self.rx_errors_, 0xFFFF)}),
+        ]
+
+    def _telemetry(self, x: SensorSample, state: GaitState, knee_Nm: float, ankle_Nm: float) -> list[can.Message]:
+        seq = self._telemetry_seq
+        self._telemetry_seq = (seq + 1) & 0xFFFF
+        deg = 180.0 / math.pi
+        fsm = int(state) if self.mode_ == Mode.ACTIVE else 15
+        return [
+            encode_scaled("TELEMETRY_GAIT", {"seq": seq, "fsm_state": fsm, "mode": int(self.mode_),
+                                             "load": x.load_N, "ankle_moment": x.ankle_moment_Nm}),
+            encode_scaled("TELEMETRY_KNEE", {"seq": seq, "angle": x.knee_angle_rad * deg,
+                                             "velocity": x.knee_velocity_rad_s * deg, "torque": knee_Nm}),
+            encode_scaled("TELEMETRY_ANKLE", {"seq": seq, "angle": x.ankle_angle_rad * deg,
+                                              "velocity": x.ankle_velocity_rad_s * deg, "torque": ankle_Nm}),
+        ]

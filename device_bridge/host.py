@@ -1,0 +1,368 @@
+"""The host's side of the device link: heartbeat, table push with CRC read-back, status and telemetry.
+
+:class:`DeviceLink` owns one python-can bus (any interface: ``virtual`` for tests and the embedded default,
+``socketcan`` or another adapter for a real leg). Two threads: one sends the host heartbeat every
+``heartbeat_period_s``; one receives, decodes and dispatches — acknowledgements to the push in progress,
+DEVICE_STATUS/HEALTH into :attr:`DeviceLink.status` and ``on_status``, telemetry (three frames per sample,
+joined on their sequence number) to ``on_telemetry``.
+
+:meth:`DeviceLink.push` returns only when the device acknowledged the exact CRC-32 of the table sent; on a
+refusal or silence it resends (only the missing rows when the device says which, the whole transfer under a
+new transfer id otherwise) until ``timeout_s``, then raises :class:`PushError`. A refusal for the safety
+limits is final (the same table would be refused again).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import can
+
+from controller_core.table import ParameterTable
+from device_bridge.protocol import (
+    ROW_COUNT,
+    TEMPERATURE_UNKNOWN_RAW,
+    TRANSFER_IDS,
+    AckResult,
+    Command,
+    Fault,
+    Mode,
+    ProtocolError,
+    WireTable,
+    begin_frame,
+    commit_frame,
+    decode,
+    encode,
+    physical,
+)
+
+_DEG = math.pi / 180.0
+
+
+class PushError(RuntimeError):
+    """A push that the device did not acknowledge with the exact CRC (``reason`` says why)."""
+
+    def __init__(self, message: str, reason: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class PushResult:
+    """A push the device acknowledged: the version and CRC-32 it holds, attempts made, time taken (ms)."""
+
+    version: int
+    crc32: int
+    attempts: int
+    elapsed_ms: float
+
+
+@dataclass(frozen=True)
+class DeviceStatus:
+    """The device's latest DEVICE_STATUS and DEVICE_HEALTH, with when they arrived (host clocks)."""
+
+    mode: Mode
+    fsm_state: int | None
+    active_version: int | None
+    active_crc32: int | None
+    fault_flags: Fault
+    temperature_degC: float | None
+    pending_version: int | None
+    rx_errors: int
+    received_monotonic_s: float
+    received_unix_s: float
+
+
+@dataclass(frozen=True)
+class TelemetrySample:
+    """One telemetry sample (SI). ``seq`` counts up without wrapping; ``fsm_state`` is None outside ACTIVE."""
+
+    seq: int
+    fsm_state: int | None
+    mode: Mode
+    knee_angle_rad: float
+    knee_velocity_rad_s: float
+    knee_torque_Nm: float
+    ankle_angle_rad: float
+    ankle_velocity_rad_s: float
+    ankle_torque_Nm: float
+    load_N: float
+    ankle_moment_Nm: float
+    received_unix_s: float
+
+    def to_json(self) -> dict:
+        """Display units with the unit in each name (deg, deg/s, N·m, N)."""
+        d = 1.0 / _DEG
+        return {
+            "seq": self.seq, "fsm_state": self.fsm_state, "mode": self.mode.name.lower(),
+            "knee_angle_deg": round(self.knee_angle_rad * d, 2),
+            "knee_velocity_deg_s": round(self.knee_velocity_rad_s * d, 1),
+            "knee_torque_Nm": round(self.knee_torque_Nm, 2),
+            "ankle_angle_deg": round(self.ankle_angle_rad * d, 2),
+            "ankle_velocity_deg_s": round(self.ankle_velocity_rad_s * d, 1),
+            "ankle_torque_Nm": round(self.ankle_torque_Nm, 2),
+            "load_N": round(self.load_N, 1), "ankle_moment_Nm": round(self.ankle_moment_Nm, 2),
+            "received_unix_s": round(self.received_unix_s, 4),
+        }
+
+
+class _TelemetryJoiner:
+    """Joins the three frames of a sample by their 16-bit sequence number and unwraps it."""
+
+    PARTS = ("TELEMETRY_GAIT", "TELEMETRY_KNEE", "TELEMETRY_ANKLE")
+
+    def __init__(self) -> None:
+        self._partial: dict[int, dict[str, dict[str, float]]] = {}
+        self._last_full: int | None = None   # unwrapped seq of the last complete sample
+
+    def add(self, name: str, raw: dict[str, int]) -> TelemetrySample | None:
+        seq16 = raw["seq"]
+        parts = self._partial.setdefault(seq16, {})
+        parts[name] = physical(name, raw)
+        if len(parts) < 3:
+            if len(self._partial) > 64:   # parts of samples that never completed (lost frames)
+                for k in list(self._partial)[:32]:
+                    del self._partial[k]
+            return None
+        del self._partial[seq16]
+        if self._last_full is None:
+            seq = seq16
+        else:
+            seq = self._last_full + ((seq16 - self._last_full) & 0xFFFF)
+        self._last_full = seq
+        g, k, a = parts["TELEMETRY_GAIT"], parts["TELEMETRY_KNEE"], parts["TELEMETRY_ANKLE"]
+        state = int(g["fsm_state"])
+        return TelemetrySample(
+            seq=seq, fsm_state=None if state > 3 else state, mode=Mode(int(g["mode"])),
+            knee_angle_rad=k["angle"] * _DEG, knee_velocity_rad_s=k["velocity"] * _DEG, knee_torque_Nm=k["torque"],
+            ankle_angle_rad=a["angle"] * _DEG, ankle_velocity_rad_s=a["velocity"] * _DEG, ankle_torque_Nm=a["torque"],
+            load_N=g["load"], ankle_moment_Nm=g["ankle_moment"], received_unix_s=time.time())
+
+
+class DeviceLink:
+    """Host end of one device's CAN link (see the module docstring).
+
+    Args:
+        bus: an open python-can bus to the device (the link closes it on :meth:`close`).
+        heartbeat_period_s: host heartbeat period (s); keep it well under the device's timeout (200 ms).
+        on_status: called with each :class:`DeviceStatus` (from the receive thread: return quickly).
+        on_telemetry: called with each complete :class:`TelemetrySample` (from the receive thread).
+    """
+
+    def __init__(self, bus: can.BusABC, heartbeat_period_s: float = 0.02,
+                 on_status: Callable[[DeviceStatus], None] | None = None,
+                 on_telemetry: Callable[[TelemetrySample], None] | None = None) -> None:
+        if not (math.isfinite(heartbeat_period_s) and 0.001 <= heartbeat_period_s <= 1.0):
+            raise ValueError(f"heartbeat_period_s must be in [0.001, 1] s, got {heartbeat_period_s!r}")
+        self.bus = bus
+        self.heartbeat_period_s = heartbeat_period_s
+        self.on_status = on_status
+        self.on_telemetry = on_telemetry
+        self.status: DeviceStatus | None = None
+        self.rx_errors = 0
+        self.last_heartbeat_sent_s: float | None = None   # host monotonic clock
+        self._health: dict[str, float] | None = None
+        self._acks: queue.Queue[dict[str, int]] = queue.Queue()
+        self._send_lock = threading.Lock()
+        self._push_lock = threading.Lock()
+        self._transfer_id = 0
+        self._heartbeat_paused = threading.Event()
+        self._stop = threading.Event()
+        self._joiner = _TelemetryJoiner()
+        self._threads = [threading.Thread(target=self._rx_loop, name="can-rx", daemon=True),
+                         threading.Thread(target=self._heartbeat_loop, name="can-heartbeat", daemon=True)]
+
+    def start(self) -> DeviceLink:
+        for t in self._threads:
+            t.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        for t in self._threads:
+            if t.is_alive():
+                t.join(timeout=1.0)
+        self.bus.shutdown()
+
+    def __enter__(self) -> DeviceLink:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------------------------------ sending
+
+    def _send(self, msg: can.Message) -> None:
+        with self._send_lock:
+            self.bus.send(msg)
+
+    def pause_heartbeat(self, paused: bool = True) -> None:
+        """Stop (or resume) sending heartbeats: for tests and drills of the device's safe mode."""
+        if paused:
+            self._heartbeat_paused.set()
+        else:
+            self._heartbeat_paused.clear()
+
+    def command(self, command: Command) -> None:
+        """Send a DEVICE_COMMAND (enter/leave safe mode, request status)."""
+        self._send(encode("DEVICE_COMMAND", {"command": int(command)}))
+
+    def _heartbeat_loop(self) -> None:
+        counter = 0
+        next_t = time.monotonic()
+        while not self._stop.is_set():
+            if not self._heartbeat_paused.is_set():
+                # a full or closing bus loses the beat: the device's watchdog is the safety net, not this loop
+                with contextlib.suppress(can.CanError):
+                    self._send(encode("HOST_HEARTBEAT", {"counter": counter}))
+                    self.last_heartbeat_sent_s = time.monotonic()
+                counter = (counter + 1) & 0xFFFF
+            next_t += self.heartbeat_period_s
+            self._stop.wait(max(0.0, next_t - time.monotonic()))
+
+    # ------------------------------------------------------------------------------------------ receiving
+
+    def _rx_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                msg = self.bus.recv(timeout=0.05)
+            except can.CanError:
+                if self._stop.is_set():
+                    return
+                raise
+            if msg is None:
+                continue
+            try:
+                decoded = decode(msg)
+            except ProtocolError:
+                self.rx_errors += 1
+                continue
+            if decoded is not None:
+                self._dispatch(*decoded)
+
+    def _dispatch(self, name: str, raw: dict[str, int]) -> None:
+        if name == "TABLE_ACK":
+            self._acks.put(raw)
+        elif name in _TelemetryJoiner.PARTS:
+            sample = self._joiner.add(name, raw)
+            if sample is not None and self.on_telemetry is not None:
+                self.on_telemetry(sample)
+        elif name == "DEVICE_HEALTH":
+            self._health = dict(raw)
+        elif name == "DEVICE_STATUS":
+            self._on_status(raw)
+
+    def _on_status(self, raw: dict[str, int]) -> None:
+        h = self._health or {}
+        try:
+            mode = Mode(raw["mode"])
+        except ValueError:
+            self.rx_errors += 1
+            return
+        has_table = raw["active_crc32"] != 0 or raw["active_version"] != 0
+        temp_raw = h.get("temperature", TEMPERATURE_UNKNOWN_RAW)
+        status = DeviceStatus(
+            mode=mode, fsm_state=raw["fsm_state"] if raw["fsm_state"] <= 3 else None,
+            active_version=raw["active_version"] if has_table else None,
+            active_crc32=raw["active_crc32"] if has_table else None,
+            fault_flags=Fault(int(h.get("fault_flags", 0)) & 0x1F),
+            temperature_degC=None if temp_raw == TEMPERATURE_UNKNOWN_RAW else temp_raw - 40.0,
+            pending_version=int(h["pending_version"]) or None if h else None,
+            rx_errors=int(h.get("rx_errors", 0)),
+            received_monotonic_s=time.monotonic(), received_unix_s=time.time())
+        self.status = status
+        if self.on_status is not None:
+            self.on_status(status)
+
+    # ------------------------------------------------------------------------------------------ push
+
+    def push(self, table: ParameterTable, version: int, timeout_s: float = 2.0,
+             ack_timeout_s: float = 0.03) -> PushResult:
+        """Send ``table`` as ``version`` and wait until the device acknowledges its exact CRC-32.
+
+        Args:
+            table: the (approved) table; rounded to the wire quanta, so the CRC is that of the rounded values.
+            version: table version, 1–65535 (the backend uses the proposal id).
+            timeout_s: give up after this long (s).
+            ack_timeout_s: how long to wait for one acknowledgement before resending (s).
+
+        Raises:
+            ProtocolError: a value does not fit the wire format (nothing sent).
+            PushError: refused for the safety limits, or no matching acknowledgement before ``timeout_s``.
+        """
+        if not (isinstance(version, int) and 1 <= version <= 0xFFFF):
+            raise ProtocolError(f"table version must be an integer in [1, 65535], got {version!r}")
+        wire = WireTable.from_table(table)
+        crc = wire.crc32()
+        with self._push_lock:
+            return self._push(wire, crc, version, timeout_s, ack_timeout_s)
+
+    def _next_transfer_id(self) -> int:
+        self._transfer_id = (self._transfer_id + 1) % TRANSFER_IDS
+        return self._transfer_id
+
+    def _wait_ack(self, tid: int, version: int, until: float) -> dict[str, int] | None:
+        while True:
+            left = until - time.monotonic()
+            if left <= 0:
+                return None
+            try:
+                ack = self._acks.get(timeout=left)
+            except queue.Empty:
+                return None
+            if ack["transfer_id"] == tid and ack["version_low"] == version & 0xFF:
+                return ack   # anything else is a late answer to an earlier attempt
+
+    def _push(self, wire: WireTable, crc: int, version: int, timeout_s: float, ack_timeout_s: float) -> PushResult:
+        t0 = time.monotonic()
+        deadline = t0 + timeout_s
+        while not self._acks.empty():
+            self._acks.get_nowait()
+        attempts = 0
+        last_reason = "no answer from the device"
+        while time.monotonic() < deadline:
+            attempts += 1
+            tid = self._next_transfer_id()
+            frames = wire.frames(tid)
+            self._send(begin_frame(tid, version, crc))
+            for f in frames:
+                self._send(f)
+            commit = commit_frame(tid, version, crc)
+            self._send(commit)
+            silent = 0
+            while time.monotonic() < deadline:
+                ack = self._wait_ack(tid, version, min(deadline, time.monotonic() + ack_timeout_s))
+                if ack is None:
+                    silent += 1
+                    if silent > 2:      # begin lost, or the device is gone: start over with a new transfer id
+                        break
+                    self._send(commit)  # the commit or its answer was lost: ask again (idempotent)
+                    continue
+                result = AckResult(ack["result"]) if ack["result"] in AckResult._value2member_map_ else None
+                if result == AckResult.STAGED:
+                    if ack["crc32"] == crc:
+                        return PushResult(version=version, crc32=crc, attempts=attempts,
+                                          elapsed_ms=(time.monotonic() - t0) * 1e3)
+                    last_reason = f"the device acknowledged CRC {ack['crc32']:08x}, expected {crc:08x}"
+                    self._send(commit)
+                    continue
+                if result == AckResult.MISSING_ROWS:
+                    missing = [i for i in range(ROW_COUNT) if ack["missing_rows"] >> i & 1]
+                    for i in missing:
+                        self._send(frames[i])
+                    self._send(commit)
+                    last_reason = f"rows {missing} were lost"
+                    continue
+                if result == AckResult.SAFETY_LIMIT:
+                    raise PushError("the device refused the table: a value is outside its own safety limits",
+                                    "safety_limit")
+                last_reason = f"the device refused the transfer ({result.name.lower() if result else ack['result']})"
+                break
+        raise PushError(f"no acknowledgement of CRC {crc:08x} within {timeout_s:g} s after {attempts} attempt(s): "
+                        f"{last_reason}; the device keeps its previous table", "timeout")

@@ -1,0 +1,290 @@
+"""The device link's frames: defined once in ``quasitune.dbc``, encoded and decoded here with cantools.
+
+A parameter table travels as ten classic-CAN frames in fixed-point: eight impedance rows (knee then ankle,
+sub-phases in walking order) and two threshold frames. :class:`WireTable` holds those raw integers; its
+CRC-32 (zlib's polynomial) covers every raw value in row order, packed as little-endian int32, so the host
+and the device compute it from exactly the numbers the device will run. The wire quanta are the table's
+precision on the device: 0.001 N·m/rad, 0.001°, 0.001 N·m·s/rad, 0.01 N·m, 0.1 N, 1 ms; the host rounds to
+them before computing the CRC, and :meth:`WireTable.from_table` refuses any value that does not fit its field.
+
+Every decoded frame is checked for its declared length first: a truncated or over-long frame is a
+:class:`ProtocolError` naming the message, never a partly decoded one.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass
+from enum import IntEnum, IntFlag
+from functools import cache
+from pathlib import Path
+
+import can
+import cantools
+from cantools.database.can import Database, Message
+
+from controller_core.quasi_stiffness import SUBPHASES
+from controller_core.table import ParameterTable, Thresholds
+
+DBC_PATH = Path(__file__).with_name("quasitune.dbc")
+
+JOINTS: tuple[str, str] = ("knee", "ankle")
+ROW_ORDER: tuple[tuple[str, str], ...] = tuple((j, s) for j in JOINTS for s in SUBPHASES)
+THRESHOLDS_A_INDEX = len(ROW_ORDER)        # 8
+THRESHOLDS_B_INDEX = len(ROW_ORDER) + 1    # 9
+ROW_COUNT = len(ROW_ORDER) + 2             # 10 frames between begin and commit
+TRANSFER_IDS = 16                          # 4-bit transfer id
+
+
+class ProtocolError(ValueError):
+    """A frame or a value that the protocol cannot carry (the message says which and why)."""
+
+
+class Mode(IntEnum):
+    """Device operating mode (DEVICE_STATUS.mode)."""
+
+    NO_TABLE = 0   # no valid table yet: passive, damped
+    ACTIVE = 1     # running the four-state machine with the active table
+    SAFE = 2       # passive, damped; left only on a new valid table or an explicit command
+
+
+class AckResult(IntEnum):
+    """TABLE_ACK.result: 0 staged, anything else a refusal with its reason."""
+
+    STAGED = 0
+    UNKNOWN_TRANSFER = 1   # rows or commit for a transfer the device has not begun (or has dropped)
+    MISSING_ROWS = 2       # commit before every row arrived; missing_rows is the bitmask to resend
+    CRC_MISMATCH = 3       # the rows held do not give the announced CRC-32 (loss, corruption): nothing kept
+    SAFETY_LIMIT = 4       # intact, but a value is outside the device's own safety limits: nothing kept
+    TIMEOUT = 5            # the transfer did not complete in time: nothing kept
+    MALFORMED = 6          # begin and commit disagree (version, row count, CRC): nothing kept
+
+
+class Command(IntEnum):
+    """DEVICE_COMMAND.command."""
+
+    ENTER_SAFE_MODE = 1
+    LEAVE_SAFE_MODE = 2
+    REQUEST_STATUS = 3
+
+
+class Fault(IntFlag):
+    """DEVICE_HEALTH.fault_flags."""
+
+    HEARTBEAT_LOST = 1
+    TABLE_REFUSED = 2
+    MALFORMED_FRAME = 4
+    NO_TABLE = 8
+    OVER_TEMPERATURE = 16
+
+
+TEMPERATURE_UNKNOWN_RAW = 255
+
+
+@cache
+def database() -> Database:
+    """The parsed DBC (read once; the file is part of the package)."""
+    return cantools.database.load_file(str(DBC_PATH))
+
+
+@cache
+def message(name: str) -> Message:
+    return database().get_message_by_name(name)
+
+
+@cache
+def _by_id(frame_id: int) -> Message | None:
+    try:
+        return database().get_message_by_frame_id(frame_id)
+    except KeyError:
+        return None
+
+
+def frame_id(name: str) -> int:
+    return message(name).frame_id
+
+
+def _scale(msg_name: str, signal: str) -> float:
+    return float(message(msg_name).get_signal_by_name(signal).scale)
+
+
+def encode(name: str, raw: dict[str, int]) -> can.Message:
+    """A classic-CAN frame of DBC message ``name`` from raw (unscaled) signal values; unnamed signals are 0."""
+    m = message(name)
+    values = {s.name: int(raw.get(s.name, 0)) for s in m.signals}
+    try:
+        data = m.encode(values, scaling=False, strict=True)
+    except Exception as exc:   # cantools raises EncodeError (or ValueError) naming the signal
+        raise ProtocolError(f"{name}: {exc}") from exc
+    return can.Message(arbitration_id=m.frame_id, data=data, is_extended_id=False)
+
+
+def encode_scaled(name: str, values: dict[str, float]) -> can.Message:
+    """A frame from physical values in the DBC's units, rounded to the signal quanta and clamped to range."""
+    m = message(name)
+    raw: dict[str, int] = {}
+    for s in m.signals:
+        v = values.get(s.name, 0.0)
+        r = round((v - s.offset) / s.scale)
+        lo = -(1 << (s.length - 1)) if s.is_signed else 0
+        hi = (1 << (s.length - 1)) - 1 if s.is_signed else (1 << s.length) - 1
+        raw[s.name] = min(max(r, lo), hi)
+    return encode(name, raw)
+
+
+def decode(msg: can.Message) -> tuple[str, dict[str, int]] | None:
+    """(message name, raw signal values) of a frame; None for ids this protocol does not define.
+
+    Raises:
+        ProtocolError: a known id whose length is not the declared one (truncated frame) or that cantools
+            cannot decode.
+    """
+    m = _by_id(msg.arbitration_id)
+    if m is None or msg.is_extended_id or msg.is_remote_frame or msg.is_error_frame:
+        return None
+    if len(msg.data) != m.length:
+        raise ProtocolError(f"{m.name} (id 0x{m.frame_id:03X}) must be {m.length} bytes, got {len(msg.data)}: "
+                            "truncated or malformed frame refused")
+    try:
+        return m.name, m.decode(bytes(msg.data), scaling=False, decode_choices=False)
+    except Exception as exc:
+        raise ProtocolError(f"{m.name}: cannot decode: {exc}") from exc
+
+
+def physical(name: str, raw: dict[str, int]) -> dict[str, float]:
+    """Raw signal values of message ``name`` in the DBC's physical units (scale and offset applied)."""
+    m = message(name)
+    return {s.name: raw[s.name] * s.scale + s.offset for s in m.signals}
+
+
+# --------------------------------------------------------------------------------------------- tables
+
+_ROW_FIELDS = ("k", "theta_e", "b")
+_THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load")
+_THRESH_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time")
+_THRESH_TABLE_FIELDS = {   # wire signal -> Thresholds field
+    "sf_to_se_ankle_moment": "sf_to_se_ankle_moment_Nm", "se_to_wf_load": "se_to_wf_load_N",
+    "we_to_sf_load": "we_to_sf_load_N", "wf_to_we_knee_angle": "wf_to_we_knee_angle_deg",
+    "min_state_time": "min_state_time_s", "max_state_time": "max_state_time_s",
+}
+_ROW_TABLE_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s_per_rad"}
+
+
+def _quantize(msg_name: str, signal: str, value: float, what: str) -> int:
+    s = message(msg_name).get_signal_by_name(signal)
+    raw = round(value / s.scale)
+    lo = -(1 << (s.length - 1)) if s.is_signed else 0
+    hi = (1 << (s.length - 1)) - 1 if s.is_signed else (1 << s.length) - 1
+    if not lo <= raw <= hi:
+        raise ProtocolError(f"{what} = {value:.6g} does not fit the wire field {msg_name}.{signal} "
+                            f"([{lo * s.scale:g}, {hi * s.scale:g}] {s.unit})")
+    return raw
+
+
+@dataclass(frozen=True)
+class DeviceRow:
+    """One impedance row as the device holds it (SI stiffness and damping; θe in deg like the table)."""
+
+    joint: str
+    subphase: str
+    k_Nm_per_rad: float
+    theta_e_deg: float
+    b_Nm_s_per_rad: float
+
+
+@dataclass(frozen=True)
+class DeviceTable:
+    """The table decoded from the wire: what :func:`controller_core.table.check_table` and
+    :meth:`controller_core.fsm.ImpedanceSchedule.from_table` need, without a provenance (the device has none)."""
+
+    rows: tuple[DeviceRow, ...]
+    thresholds: Thresholds
+
+    def row(self, joint: str, subphase: str) -> DeviceRow:
+        for r in self.rows:
+            if r.joint == joint and r.subphase == subphase:
+                return r
+        raise KeyError((joint, subphase))
+
+
+@dataclass(frozen=True)
+class WireTable:
+    """A parameter table as raw fixed-point integers, in transfer order.
+
+    Attributes:
+        rows: eight (k, θe, b) raw triples in :data:`ROW_ORDER`.
+        thresholds: six raw threshold values (A: moment, toe-off load, heel-strike load; B: knee angle,
+            minimum and maximum state time).
+    """
+
+    rows: tuple[tuple[int, int, int], ...]
+    thresholds: tuple[int, int, int, int, int, int]
+
+    @classmethod
+    def from_table(cls, table: ParameterTable) -> WireTable:
+        """Round a table to the wire quanta (ProtocolError when a value does not fit its field)."""
+        rows = []
+        for joint, sub in ROW_ORDER:
+            r = table.row(joint, sub)
+            rows.append(tuple(_quantize("TABLE_ROW", f, getattr(r, _ROW_TABLE_FIELDS[f]), f"{joint}.{sub}.{f}")
+                              for f in _ROW_FIELDS))
+        t = table.thresholds
+        th = [_quantize("TABLE_THRESHOLDS_A", f, getattr(t, _THRESH_TABLE_FIELDS[f]), f"thresholds.{f}")
+              for f in _THRESH_A]
+        th += [_quantize("TABLE_THRESHOLDS_B", f, getattr(t, _THRESH_TABLE_FIELDS[f]), f"thresholds.{f}")
+               for f in _THRESH_B]
+        return cls(rows=tuple(rows), thresholds=tuple(th))  # type: ignore[arg-type]
+
+    def crc32(self) -> int:
+        """CRC-32 of the raw values in transfer order (little-endian int32 each)."""
+        flat = [v for row in self.rows for v in row] + list(self.thresholds)
+        return zlib.crc32(struct.pack(f"<{len(flat)}i", *flat))
+
+    def to_device_table(self) -> DeviceTable:
+        """The physical values the device runs (raises pydantic's ValidationError on a non-physical threshold)."""
+        rows = tuple(DeviceRow(joint, sub, *(raw * _scale("TABLE_ROW", f) for raw, f in zip(r, _ROW_FIELDS, strict=True)))
+                     for (joint, sub), r in zip(ROW_ORDER, self.rows, strict=True))
+        names = [("TABLE_THRESHOLDS_A", f) for f in _THRESH_A] + [("TABLE_THRESHOLDS_B", f) for f in _THRESH_B]
+        values = {_THRESH_TABLE_FIELDS[f]: raw * _scale(m, f) for (m, f), raw in zip(names, self.thresholds, strict=True)}
+        return DeviceTable(rows=rows, thresholds=Thresholds(**values))
+
+    def frames(self, transfer_id: int) -> list[can.Message]:
+        """The ten data frames (row_index 0–9) of a transfer."""
+        out = [encode("TABLE_ROW", {"transfer_id": transfer_id, "row_index": i, "k": k, "theta_e": th, "b": b})
+               for i, (k, th, b) in enumerate(self.rows)]
+        a, b = self.thresholds[:3], self.thresholds[3:]
+        out.append(encode("TABLE_THRESHOLDS_A", {"transfer_id": transfer_id, "row_index": THRESHOLDS_A_INDEX,
+                                                 **dict(zip(_THRESH_A, a, strict=True))}))
+        out.append(encode("TABLE_THRESHOLDS_B", {"transfer_id": transfer_id, "row_index": THRESHOLDS_B_INDEX,
+                                                 **dict(zip(_THRESH_B, b, strict=True))}))
+        return out
+
+    @staticmethod
+    def row_from_frame(name: str, raw: dict[str, int]) -> tuple[int, tuple[int, ...]] | None:
+        """(row index, raw values) of a decoded data frame; None when its index does not belong to its kind."""
+        i = raw["row_index"]
+        if name == "TABLE_ROW" and i < THRESHOLDS_A_INDEX:
+            return i, tuple(raw[f] for f in _ROW_FIELDS)
+        if name == "TABLE_THRESHOLDS_A" and i == THRESHOLDS_A_INDEX:
+            return i, tuple(raw[f] for f in _THRESH_A)
+        if name == "TABLE_THRESHOLDS_B" and i == THRESHOLDS_B_INDEX:
+            return i, tuple(raw[f] for f in _THRESH_B)
+        return None
+
+    @classmethod
+    def from_row_values(cls, values: dict[int, tuple[int, ...]]) -> WireTable:
+        """Assemble from the row values of a complete transfer (index → raw values)."""
+        rows = tuple(values[i] for i in range(THRESHOLDS_A_INDEX))
+        th = values[THRESHOLDS_A_INDEX] + values[THRESHOLDS_B_INDEX]
+        return cls(rows=rows, thresholds=th)  # type: ignore[arg-type]
+
+
+def begin_frame(transfer_id: int, version: int, crc32: int) -> can.Message:
+    return encode("TABLE_BEGIN", {"transfer_id": transfer_id, "version": version, "row_count": ROW_COUNT,
+                                  "crc32": crc32})
+
+
+def commit_frame(transfer_id: int, version: int, crc32: int) -> can.Message:
+    return encode("TABLE_COMMIT", {"transfer_id": transfer_id, "version": version, "row_count": ROW_COUNT,
+                                   "crc32": crc32})

@@ -1,0 +1,168 @@
+"""Soak and drill the device link: many pushes through a faulty bus, and a heartbeat-loss drill.
+
+:func:`soak` pushes real tables (the default model's proposals over a range of speeds, in turn) to a
+:class:`~device_bridge.device_node.DeviceNode` through :class:`~device_bridge.faults.FaultInjectingBus` in both
+directions, and after every push inspects the device's buffers (an oracle the host never has) to classify it:
+
+* ``committed``: the host was told the exact CRC, and the device runs that table, intact;
+* ``kept_old``: the host gave up, and the device still runs the previous table, intact;
+* ``committed_unconfirmed``: the host gave up, but the device did take the new table intact (its status will say so);
+* ``mixed``: the device holds a table that is neither the old nor the new one — must be 0;
+* ``crc_mismatch``: the host was told a CRC the device does not hold, or a held table's values do not give
+  its CRC — must be 0.
+
+:func:`heartbeat_drill` stops the host heartbeat and measures how long after the device's timeout the safe mode
+is reported back on the bus.
+"""
+
+from __future__ import annotations
+
+import itertools
+import statistics
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import can
+import numpy as np
+
+from controller_core.table import ParameterTable
+from device_bridge.device_node import DeviceNode
+from device_bridge.faults import FaultInjectingBus
+from device_bridge.firmware import FirmwareConfig, HeldTable
+from device_bridge.host import DeviceLink, PushError
+from device_bridge.protocol import Mode, WireTable
+
+_channel_counter = itertools.count()
+
+
+def _channel(prefix: str) -> str:
+    return f"quasitune-{prefix}-{time.monotonic_ns()}-{next(_channel_counter)}"
+
+
+def soak_tables(n: int = 12) -> list[ParameterTable]:
+    """Tables the soak pushes in turn: the default model's proposals from 0.8 to 1.9 m/s (75 kg, level)."""
+    from controller_core import load_default_model
+
+    model = load_default_model()
+    return [model.propose(float(s), 0.0, 75.0).table for s in np.linspace(0.8, 1.9, n)]
+
+
+@dataclass
+class _Held:
+    table: HeldTable
+
+    def matches(self, wire: WireTable) -> bool:
+        return self.table.table == wire.to_device_table()
+
+
+def soak(trials: int, drop: float, corrupt: float, reorder: float, seed: int = 0,
+         tables: Sequence[ParameterTable] | None = None, push_timeout_s: float = 2.0) -> dict:
+    """Push ``trials`` tables through a fault-injecting virtual bus and classify each outcome (module docstring)."""
+    if not 1 <= trials <= 100_000:
+        raise ValueError(f"trials must be in [1, 100000], got {trials!r}")
+    tables = list(tables) if tables is not None else soak_tables()
+    wires = [WireTable.from_table(t) for t in tables]
+    channel = _channel("soak")
+    node = DeviceNode(FaultInjectingBus(can.Bus(interface="virtual", channel=channel), drop, corrupt, reorder,
+                                        seed=seed)).start()
+    host_bus = FaultInjectingBus(can.Bus(interface="virtual", channel=channel), drop, corrupt, reorder, seed=seed + 1)
+    link = DeviceLink(host_bus).start()
+    counts = {"committed": 0, "kept_old": 0, "committed_unconfirmed": 0, "mixed": 0, "crc_mismatch": 0}
+    push_ms: list[float] = []
+    try:
+        old: WireTable | None = None
+        for i in range(trials):
+            new = wires[i % len(wires)]
+            if old is not None and new == old:
+                new = wires[(i + 1) % len(wires)]
+            version = i % 0xFFFF + 1
+            t0 = time.monotonic()
+            try:
+                result = link.push(tables[wires.index(new)], version, timeout_s=push_timeout_s)
+                ok_crc: int | None = result.crc32
+                push_ms.append(result.elapsed_ms)
+            except PushError:
+                ok_crc = None
+                push_ms.append((time.monotonic() - t0) * 1e3)
+            snap = _settled(node)
+            outcome = _classify(snap.active, snap.staged, old, new, ok_crc)
+            counts[outcome] += 1
+            if snap.active is not None and _Held(snap.active).matches(new):
+                old = new
+            elif snap.active is not None and old is None:
+                old = next((w for w in wires if _Held(snap.active).matches(w)), None)
+    finally:
+        link.close()
+        node.close()
+    ordered = sorted(push_ms)
+    return {"trials": trials, **counts,
+            "median_push_ms": round(statistics.median(ordered), 3),
+            "p99_push_ms": round(ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))], 3),
+            "faults": {"drop": drop, "corrupt": corrupt, "reorder": reorder, "seed": seed},
+            "frames": {"host": host_bus.counts}}
+
+
+def _settled(node: DeviceNode, wait_s: float = 0.05):
+    """The device's buffers once a staged table (if any) has been switched in (it is not walking: at once)."""
+    deadline = time.monotonic() + wait_s
+    snap = node.snapshot()
+    while snap.staged is not None and time.monotonic() < deadline:
+        time.sleep(0.0005)
+        snap = node.snapshot()
+    return snap
+
+
+def _classify(active: HeldTable | None, staged: HeldTable | None, old: WireTable | None, new: WireTable,
+              ok_crc: int | None) -> str:
+    for held in (active, staged):
+        if held is None:
+            continue
+        candidates = [w for w in (old, new) if w is not None]
+        match = next((w for w in candidates if _Held(held).matches(w)), None)
+        if match is None:
+            return "mixed"
+        if match.crc32() != held.crc32:
+            return "crc_mismatch"
+    if ok_crc is not None:
+        if active is None or active.crc32 != ok_crc or not _Held(active).matches(new) or ok_crc != new.crc32():
+            return "crc_mismatch"
+        return "committed"
+    if active is not None and _Held(active).matches(new):
+        return "committed_unconfirmed"
+    return "kept_old"
+
+
+def heartbeat_drill(repeats: int = 5, timeout_s: float = 0.2) -> dict:
+    """Stop the host heartbeat ``repeats`` times; report how long after the device's timeout the host hears of
+    safe mode (ms), from the last heartbeat the host sent."""
+    channel = _channel("drill")
+    table = soak_tables(1)[0]
+    node = DeviceNode(can.Bus(interface="virtual", channel=channel),
+                      config=FirmwareConfig(heartbeat_timeout_s=timeout_s)).start()
+    link = DeviceLink(can.Bus(interface="virtual", channel=channel)).start()
+    late_ms: list[float] = []
+    try:
+        for r in range(repeats):
+            link.pause_heartbeat(False)
+            link.push(table, version=r + 1)
+            _wait(lambda: link.status is not None and link.status.mode == Mode.ACTIVE, 2.0)
+            link.pause_heartbeat(True)
+            _wait(lambda: link.status is not None and link.status.mode == Mode.SAFE, 2.0)
+            assert link.status is not None and link.last_heartbeat_sent_s is not None
+            last_beat = link.last_heartbeat_sent_s
+            late_ms.append((link.status.received_monotonic_s - last_beat - timeout_s) * 1e3)
+    finally:
+        link.close()
+        node.close()
+    return {"repeats": repeats, "heartbeat_timeout_ms": timeout_s * 1e3,
+            "safe_mode_after_timeout_ms_max": round(max(late_ms), 2),
+            "safe_mode_after_timeout_ms_median": round(statistics.median(late_ms), 2)}
+
+
+def _wait(predicate, timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise TimeoutError("the device did not reach the expected state in time")
+        time.sleep(0.001)
