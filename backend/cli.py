@@ -1,6 +1,6 @@
 """The ``quasitune`` command line.
 
-Commands: ``serve``, ``users``, ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``, ``bench-api``,
+Commands: ``serve``, ``device``, ``users``, ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``, ``bench-api``,
 ``simulate``, ``compare``. Bad input exits with code 2 and a one-line reason on stderr.
 """
 
@@ -181,9 +181,19 @@ def _port(text: str) -> int:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
+    import dataclasses
+    import os
+
+    from backend.devices import parse_device_spec
     from backend.serve import serve
 
-    serve(_settings(args), host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user, workers=args.workers)
+    device = args.device or os.environ.get("QUASITUNE_DEVICE") or "sim"
+    parse_device_spec(device)   # refuse a bad spec before anything starts
+    if args.workers > 1 and device != "none":
+        raise ValueError("a device link lives in one server process: use --workers 1 with a device, "
+                         "or --device none for a multi-process API server")
+    serve(dataclasses.replace(_settings(args), device=device), host=args.host, port=args.port,
+          bootstrap=not args.no_bootstrap_user, workers=args.workers)
     return 0
 
 
@@ -250,6 +260,35 @@ def cmd_bench_api(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_device_soak(args: argparse.Namespace) -> int:
+    from device_bridge.soak import soak
+
+    out = soak(args.trials, args.drop, args.corrupt, args.reorder, seed=args.seed)
+    if args.format == "json":
+        print(json.dumps(out))
+    else:
+        print(f"{out['trials']} pushes through a bus with drop {args.drop:g}, corrupt {args.corrupt:g}, "
+              f"reorder {args.reorder:g}")
+        for key in ("committed", "kept_old", "committed_unconfirmed", "mixed", "crc_mismatch"):
+            print(f"  {key:22s} {out[key]}")
+        print(f"  push median {out['median_push_ms']:.2f} ms, p99 {out['p99_push_ms']:.2f} ms")
+    return 0 if out["mixed"] == 0 and out["crc_mismatch"] == 0 else 1
+
+
+def cmd_device_drill(args: argparse.Namespace) -> int:
+    from device_bridge.soak import heartbeat_drill
+
+    print(json.dumps(heartbeat_drill(args.repeats, args.timeout_ms / 1000.0)))
+    return 0
+
+
+def _probability(text: str) -> float:
+    value = float(text)
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be a probability in [0, 1), got {text}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="quasitune", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -263,7 +302,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="server processes (1-32; default 1)")
     p.add_argument("--no-bootstrap-user", action="store_true",
                    help="do not create the first user on an empty database")
+    p.add_argument("--device", default=None,
+                   help="'sim' (default: the simulated leg on an in-process virtual CAN bus), 'none', or "
+                        "INTERFACE:CHANNEL for a real leg on a python-can bus (e.g. socketcan:can0); "
+                        "default $QUASITUNE_DEVICE or sim")
     p.set_defaults(func=cmd_serve)
+    p = sub.add_parser("device", help="device-link tools: soak test, heartbeat drill")
+    device_sub = p.add_subparsers(dest="device_command", required=True)
+    p = device_sub.add_parser("soak", help="push tables through a fault-injecting virtual bus and count outcomes")
+    p.add_argument("--trials", type=int, default=500)
+    p.add_argument("--drop", type=_probability, default=0.1, help="probability a frame is lost")
+    p.add_argument("--corrupt", type=_probability, default=0.02, help="probability a frame gets one bit flipped")
+    p.add_argument("--reorder", type=_probability, default=0.05, help="probability a frame swaps with the next")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.set_defaults(func=cmd_device_soak)
+    p = device_sub.add_parser("drill", help="stop the host heartbeat and time the device's safe mode")
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--timeout-ms", type=float, default=200.0, help="the device's heartbeat timeout (ms)")
+    p.set_defaults(func=cmd_device_drill)
     p = sub.add_parser("users", help="manage users")
     users_sub = p.add_subparsers(dest="users_command", required=True)
     p = users_sub.add_parser("add", help="add a user (password from a prompt, or one line of stdin)")

@@ -65,6 +65,8 @@ def require_role(*roles: str) -> Callable[[User], Awaitable[User]]:
 
 Prosthetist = Annotated[User, Depends(require_role("prosthetist"))]
 Admin = Annotated[User, Depends(require_role("admin"))]
+# clinicians monitoring remotely (viewer) may record walking sessions: recording changes nothing on the leg
+Monitor = Annotated[User, Depends(require_role("prosthetist", "viewer"))]
 
 
 async def get_model(request: Request) -> QuasiStiffnessModel:

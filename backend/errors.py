@@ -35,3 +35,9 @@ class InvalidError(DomainError):
 
 class ServiceUnavailableError(DomainError):
     status = 503
+
+
+class DeviceError(DomainError):
+    """The device did not do what was asked (no acknowledgement, refused): the body carries the record."""
+
+    status = 502

@@ -28,10 +28,11 @@ import numpy as np
 PASSWORD = "load-bench-password"
 
 
-def start_server(data_dir: Path, workers: int = 1, bootstrap: bool = False) -> tuple[subprocess.Popen, str]:
+def start_server(data_dir: Path, workers: int = 1, bootstrap: bool = False,
+                 device: str = "none") -> tuple[subprocess.Popen, str]:
     """``quasitune serve --port 0`` in a subprocess; returns (process, base URL) once it listens (its further
-    stdout lines are left unread in ``process.stdout``)."""
-    cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir)]
+    stdout lines are left unread in ``process.stdout``). No device by default: the benchmark measures the API."""
+    cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir), "--device", device]
     if not bootstrap:
         cmd.append("--no-bootstrap-user")
     if workers > 1:

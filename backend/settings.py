@@ -25,12 +25,15 @@ class Settings:
         token_ttl_s: bearer-token lifetime (s).
         model_dir: a model from ``quasitune train``; None = the default model (shipped data).
         model_wait_s: how long a request waits for the model while it loads at start-up before a 503.
+        device: ``sim`` (the simulated leg on an in-process virtual CAN bus), ``none``, or ``INTERFACE:CHANNEL``
+            for a python-can bus to a real leg (``socketcan:can0``). ``quasitune serve`` defaults to ``sim``.
     """
 
     data_dir: Path
     token_ttl_s: int = 8 * 3600
     model_dir: Path | None = None
     model_wait_s: float = 30.0
+    device: str = "none"
 
     @property
     def db_path(self) -> Path:

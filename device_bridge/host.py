@@ -15,6 +15,7 @@ limits is final (the same table would be refused again).
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import queue
 import threading
@@ -43,6 +44,7 @@ from device_bridge.protocol import (
 )
 
 _DEG = math.pi / 180.0
+log = logging.getLogger(__name__)
 
 
 class PushError(RuntimeError):
@@ -166,6 +168,7 @@ class DeviceLink:
         self.on_telemetry = on_telemetry
         self.status: DeviceStatus | None = None
         self.rx_errors = 0
+        self.callback_errors = 0
         self.last_heartbeat_sent_s: float | None = None   # host monotonic clock
         self._health: dict[str, float] | None = None
         self._acks: queue.Queue[dict[str, int]] = queue.Queue()
@@ -243,8 +246,13 @@ class DeviceLink:
             except ProtocolError:
                 self.rx_errors += 1
                 continue
-            if decoded is not None:
+            if decoded is None:
+                continue
+            try:
                 self._dispatch(*decoded)
+            except Exception:   # a failing callback must not stop the link (acknowledgements, heartbeats)
+                self.callback_errors += 1
+                log.exception("device link: a status or telemetry callback failed")
 
     def _dispatch(self, name: str, raw: dict[str, int]) -> None:
         if name == "TABLE_ACK":

@@ -128,3 +128,16 @@ def test_the_walking_simulated_leg_streams_telemetry_without_gaps(tables):
     knee = [s.knee_angle_rad for s in got]
     assert max(knee) - min(knee) > 0.2   # the knee moves (about 11° or more of swing in 1.5 s of walking)
     assert {s.mode for s in got} == {Mode.ACTIVE} and {s.fsm_state for s in got} >= {0, 1}
+
+
+def test_a_failing_callback_does_not_stop_the_link(tables):
+    def broken(_status) -> None:
+        raise RuntimeError("dashboard bug")
+
+    node, link = pair(on_status=broken)
+    try:
+        wait_for(lambda: link.callback_errors > 0)
+        assert link.push(tables[0], version=5).crc32 == WireTable.from_table(tables[0]).crc32()
+    finally:
+        link.close()
+        node.close()

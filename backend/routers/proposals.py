@@ -17,7 +17,7 @@ from backend.schemas.proposals import (
     ProposalRequest,
     ProposalSummary,
 )
-from backend.store import patients, proposals
+from backend.store import devices, patients, proposals
 from controller_core.table import check_table
 from controller_core.table_edit import EditError, edit_table
 
@@ -46,7 +46,8 @@ def list_proposals(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[d
 
 @router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)
 def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
-    return proposals.get_proposal(conn, proposal_id)
+    """A proposal with its curves, features, table and safety check, and its deployment state."""
+    return {**proposals.get_proposal(conn, proposal_id), "deployment": devices.deployment_state(conn, proposal_id)}
 
 
 @router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,

@@ -33,3 +33,4 @@ NOT_FOUND = {404: _r("no such resource")}
 CONFLICT = {409: _r("clashes with the stored state")}
 UNAVAILABLE = {503: _r("the model is still loading (see Retry-After)")}
 INVALID = {422: _r("a field is missing, malformed or out of range; `detail` names it")}
+DEVICE_FAILED = {502: _r("the device did not acknowledge (or refused); it keeps its previous table")}

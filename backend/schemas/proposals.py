@@ -136,6 +136,8 @@ class ProposalSummary(BaseModel):
 
 
 class ProposalOut(ProposalSummary):
+    deployment: Literal["pushed", "active_on_device", "push_failed"] | None = Field(
+        default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it")
     features: list[FeatureOut]
     subphase_boundaries_phase: Boundaries
     curves: Curves

@@ -1,0 +1,74 @@
+"""Devices: list, status, commands, and the live telemetry WebSocket."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, status
+
+from backend.deps import Conn, CurrentUser, Prosthetist
+from backend.devices import DeviceManager
+from backend.schemas.devices import CommandRequest, DeviceIdPath, DeviceOut
+from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
+from backend.store import devices as devices_store
+from backend.store.users import user_for_token
+from device_bridge.protocol import Command
+
+router = APIRouter(prefix="/api/devices", tags=["devices"])
+
+_COMMANDS = {"enter_safe_mode": Command.ENTER_SAFE_MODE, "leave_safe_mode": Command.LEAVE_SAFE_MODE}
+
+
+def manager(request: Request) -> DeviceManager:
+    return request.app.state.devices
+
+
+@router.get("", response_model=list[DeviceOut], responses=UNAUTHORIZED)
+def list_devices(request: Request, _user: CurrentUser) -> list[dict]:
+    """The configured devices with their latest status."""
+    m = manager(request)
+    return [m.view(d) for d in m.ids()]
+
+
+@router.get("/{device_id}", response_model=DeviceOut, responses={**UNAUTHORIZED, **NOT_FOUND})
+def get_device(device_id: DeviceIdPath, request: Request, _user: CurrentUser) -> dict:
+    """State, active table version and CRC read back from the device, last heartbeat."""
+    return manager(request).view(device_id)
+
+
+@router.post("/{device_id}/commands", response_model=DeviceOut, status_code=status.HTTP_202_ACCEPTED,
+             responses={**UNAUTHORIZED, **FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def command(device_id: DeviceIdPath, body: CommandRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
+    """Put the device into its passive safe mode, or let it leave safe mode (it does so only with a table and a
+    live host). The device's status reports the outcome."""
+    m = manager(request)
+    m.command(device_id, _COMMANDS[body.command])
+    devices_store.record_command(conn, device_id, body.command, user)
+    return m.view(device_id)
+
+
+@router.websocket("/{device_id}/telemetry")
+async def telemetry(websocket: WebSocket, device_id: str,
+                    token: Annotated[str | None, Query(description="bearer token (browsers cannot set headers)")] = None
+                    ) -> None:
+    """Live telemetry: one JSON message per sample (``type: telemetry``, 100 Hz, ``seq`` without gaps) and one per
+    device status (``type: status``, 10 Hz). Sign in with ``?token=<bearer token>``."""
+    app = websocket.app
+    with app.state.pool.connection() as conn:
+        user = user_for_token(conn, token) if token else None
+    m: DeviceManager = app.state.devices
+    if user is None or device_id not in m.ids():
+        await websocket.close(code=1008, reason="sign in with ?token=" if user is None else "unknown device")
+        return
+    await websocket.accept()
+    queue: asyncio.Queue = asyncio.Queue(maxsize=1000)
+    m.subscribe(device_id, queue, asyncio.get_running_loop())
+    try:
+        await websocket.send_json({"type": "status", **m.view(device_id)})
+        while True:
+            await websocket.send_json(await queue.get())
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        m.unsubscribe(device_id, queue)

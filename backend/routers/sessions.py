@@ -1,0 +1,99 @@
+"""Walking sessions: start and stop recording a device's telemetry for a patient; the summary and the samples."""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+import numpy as np
+from fastapi import APIRouter, Query, Request, status
+
+from backend.deps import Conn, CurrentUser, Model, Monitor
+from backend.devices import DeviceManager
+from backend.errors import InvalidError
+from backend.schemas.common import IdPath
+from backend.schemas.devices import SamplesOut, SessionOut, SessionRequest
+from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
+from backend.store import devices as store
+from backend.store import patients, proposals
+from controller_core.session_summary import summarize_session
+from device_bridge.sim.experiments import task_reference
+
+router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
+
+
+@router.post("/patients/{patient_id}/sessions", response_model=SessionOut, status_code=status.HTTP_201_CREATED,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def start_session(patient_id: IdPath, body: SessionRequest, request: Request, conn: Conn, user: Monitor,
+                  model: Model) -> dict:
+    """Start recording the device's telemetry for this patient (prosthetist or viewer). The task defaults to that
+    of the proposal active on the device; the simulated leg starts walking at it."""
+    devices: DeviceManager = request.app.state.devices
+    patient = patients.get_patient(conn, patient_id)
+    devices.get(body.device_id)
+    active = store.active_push(conn, body.device_id)
+    if body.speed_mps is not None:
+        speed, incline = body.speed_mps, body.incline_deg or 0.0
+    elif active is not None:
+        row = proposals.get_row(conn, active["proposal_id"])
+        speed, incline = row["speed_mps"], row["incline_deg"]
+    else:
+        raise InvalidError("give speed_mps (and incline_deg), or push a table to the device first: the session's "
+                           "task sets the reference its errors are measured against")
+    mass = patient["body_mass_kg"]
+    reference = task_reference(speed, incline, model, mass)
+    task = {"speed_mps": speed, "incline_deg": incline, "body_mass_kg": mass}
+    session_id = store.start_session(conn, patient_id, body.device_id, task, active, user)
+    devices.start_recording(body.device_id, session_id, reference, mass)
+    return store.get_session(conn, session_id)
+
+
+@router.post("/sessions/{session_id}/stop", response_model=SessionOut,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor, model: Model) -> dict:
+    """Stop recording and store the summary: strides, cadence, joint RMSE against the reference for the task."""
+    devices: DeviceManager = request.app.state.devices
+    session = store.get_session(conn, session_id)
+    if session["status"] == "recording" and session["device_id"] in devices.ids():
+        devices.stop_recording(session["device_id"])
+    t = session["task"]
+    cols = store.samples(conn, session_id)
+    reference = task_reference(t["speed_mps"], t["incline_deg"], model, t["body_mass_kg"])
+    summary = summarize_session(np.asarray(cols["t_s"]), np.asarray(cols["knee_angle_rad"]),
+                                np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
+                                np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
+                                reference)
+    seqs = cols["seq"]
+    summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
+    store.stop_session(conn, session_id, summary, user)
+    return store.get_session(conn, session_id)
+
+
+@router.get("/patients/{patient_id}/sessions", response_model=list[SessionOut], responses=NOT_FOUND)
+def list_sessions(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
+    patients.get_patient(conn, patient_id)
+    return store.sessions_of_patient(conn, patient_id)
+
+
+@router.get("/sessions/{session_id}", response_model=SessionOut, responses=NOT_FOUND)
+def get_session(session_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    return store.get_session(conn, session_id)
+
+
+_DEG = 180 / math.pi
+_DISPLAY = {"knee_angle_rad": ("knee_angle_deg", _DEG), "knee_velocity_rad_s": ("knee_velocity_deg_s", _DEG),
+            "ankle_angle_rad": ("ankle_angle_deg", _DEG), "ankle_velocity_rad_s": ("ankle_velocity_deg_s", _DEG)}
+
+
+@router.get("/sessions/{session_id}/samples", response_model=SamplesOut, responses=NOT_FOUND)
+def get_samples(session_id: IdPath, conn: Conn, _user: CurrentUser,
+                every: Annotated[int, Query(ge=1, le=1000, description="keep every n-th sample")] = 1) -> dict:
+    """The recorded telemetry in display units (deg, deg/s, N·m, N), columns of equal length."""
+    store.get_session(conn, session_id)
+    cols = store.samples(conn, session_id)
+    out: dict[str, list] = {}
+    for name, values in cols.items():
+        new, scale = _DISPLAY.get(name, (name, None))
+        kept = values[::every]
+        out[new] = [round(v * scale, 3) for v in kept] if scale else kept
+    return {"session_id": session_id, "count": len(out["seq"]), "every": every, "columns": out}

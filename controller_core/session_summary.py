@@ -1,0 +1,75 @@
+"""Summary of a monitored walking session from its telemetry: strides, cadence, errors against the reference.
+
+Telemetry arrives at a fixed period (10 ms from the device). Heel strikes are the pylon load rising above 10 % of
+body weight after at least 150 ms below it; each stride between consecutive heel strikes is resampled on the
+101-point phase grid and averaged, and the averages are compared with the able-bodied reference at the
+session's task — the same metrics as ``quasitune simulate`` (angles in deg, moments in N·m/kg).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from controller_core.gait_metrics import PHASE_GRID, heel_strikes, rmse, stride_curves
+from controller_core.model import G
+from controller_core.walking_reference import WalkingReference
+
+CHANNELS = ("knee_angle_deg", "ankle_angle_deg", "knee_moment_Nm_per_kg", "ankle_moment_Nm_per_kg")
+
+
+def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray,
+                      knee_torque_Nm: np.ndarray, ankle_torque_Nm: np.ndarray, load_N: np.ndarray,
+                      mass_kg: float, reference: WalkingReference) -> dict:
+    """Metrics of one session (see the module docstring); ``None`` for what fewer than two heel strikes cannot give.
+
+    Args:
+        t_s: sample times (s), increasing.
+        knee_angle_rad, ankle_angle_rad, knee_torque_Nm, ankle_torque_Nm, load_N: telemetry (SI).
+        mass_kg: the patient's body mass (kg): normalises torque and sets the load threshold.
+        reference: the able-bodied reference at the session's task.
+    """
+    t = np.asarray(t_s, dtype=float)
+    n = t.shape[0]
+    dt = float(np.median(np.diff(t))) if n > 1 else 0.01
+    strikes = heel_strikes(np.asarray(load_N, dtype=float), 0.1 * mass_kg * G, max(1, round(0.15 / dt)))
+    strides = max(int(strikes.shape[0]) - 1, 0)
+    measured = {
+        "knee_angle_deg": np.degrees(knee_angle_rad), "ankle_angle_deg": np.degrees(ankle_angle_rad),
+        "knee_moment_Nm_per_kg": np.asarray(knee_torque_Nm) / mass_kg,
+        "ankle_moment_Nm_per_kg": np.asarray(ankle_torque_Nm) / mass_kg,
+    }
+    ref = {
+        "knee_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.knee_angle_rad)),
+        "ankle_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.ankle_angle_rad)),
+        "knee_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.knee_moment_Nm_per_kg),
+        "ankle_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.ankle_moment_Nm_per_kg),
+    }
+    errors: dict[str, float | None] = {}
+    means: dict[str, list[float] | None] = {}
+    for name in CHANNELS:
+        key = name.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")
+        if strides:
+            mean = stride_curves(measured[name], strikes).mean(axis=0)
+            errors[key] = round(rmse(mean, ref[name]), 4)
+            means[name] = [round(float(v), 3) for v in mean]
+        else:
+            errors[key], means[name] = None, None
+    stride_time = float(np.mean(np.diff(t[strikes]))) if strides else None
+    return {
+        "samples": n,
+        "duration_s": round(float(t[-1] - t[0]), 3) if n > 1 else 0.0,
+        "strides": strides,
+        "stride_time_s": None if stride_time is None else round(stride_time, 4),
+        "cadence_steps_per_min": None if stride_time is None else round(120.0 / stride_time, 2),
+        "reference_stride_time_s": round(reference.stride_time_s, 4),
+        **errors,
+        "mean_curves": means,
+        "reference_curves": {k: [round(float(v), 3) for v in ref[k]] for k in CHANNELS},
+        "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
+        "reference_source": reference.source,
+        "reference_extrapolation": bool(reference.extrapolation),
+        "heel_strike_load_threshold_N": round(0.1 * mass_kg * G, 1),
+        "sample_period_s": round(dt, 5) if math.isfinite(dt) else None,
+    }
