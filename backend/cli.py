@@ -1,7 +1,7 @@
 """The ``quasitune`` command line.
 
-Commands: ``serve``, ``device``, ``users``, ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``, ``bench-api``,
-``simulate``, ``compare``. Bad input exits with code 2 and a one-line reason on stderr.
+Commands: ``serve``, ``bridge``, ``device``, ``users``, ``predict``, ``plot``, ``train``, ``evaluate``, ``bench``,
+``bench-api``, ``simulate``, ``compare``. Bad input exits with code 2 and a one-line reason on stderr.
 """
 
 from __future__ import annotations
@@ -282,6 +282,28 @@ def cmd_device_drill(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bridge(args: argparse.Namespace) -> int:
+    import can
+
+    from device_bridge.gateway import Gateway
+
+    def open_bus(spec: str) -> can.BusABC:
+        interface, sep, channel = spec.partition(":")
+        if not sep or interface not in can.VALID_INTERFACES or not channel:
+            raise ValueError(f"a bus is INTERFACE:CHANNEL with a python-can interface, got {spec!r}")
+        return can.Bus(interface=interface, channel=channel)
+
+    gateway = Gateway(open_bus(args.can), open_bus(args.to)).start()
+    print(f"QuasiTune bridge: {args.can} <-> {args.to}", flush=True)
+    try:
+        gateway.wait()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        gateway.close()
+    return 0
+
+
 def _probability(text: str) -> float:
     value = float(text)
     if not 0.0 <= value < 1.0:
@@ -321,6 +343,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=int, default=5)
     p.add_argument("--timeout-ms", type=float, default=200.0, help="the device's heartbeat timeout (ms)")
     p.set_defaults(func=cmd_device_drill)
+    p = sub.add_parser("bridge", help="forward frames between the leg's CAN bus and the API server's bus")
+    p.add_argument("--can", required=True, help="the leg's bus, INTERFACE:CHANNEL (e.g. socketcan:can0)")
+    p.add_argument("--to", default="udp_multicast:239.74.163.2",
+                   help="the bus 'quasitune serve --device' uses (default udp_multicast:239.74.163.2)")
+    p.set_defaults(func=cmd_bridge)
     p = sub.add_parser("users", help="manage users")
     users_sub = p.add_subparsers(dest="users_command", required=True)
     p = users_sub.add_parser("add", help="add a user (password from a prompt, or one line of stdin)")

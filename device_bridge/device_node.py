@@ -41,6 +41,11 @@ class Snapshot:
     safe_mode_entered_s: float | None
     last_heartbeat_s: float
 
+    def staged_or_active_crc32(self) -> int | None:
+        """CRC-32 of the newest verified table held (staged if any, else active)."""
+        held = self.staged or self.active
+        return None if held is None else held.crc32
+
 
 class DeviceNode:
     """The simulated prosthesis on ``bus`` (see the module docstring)."""

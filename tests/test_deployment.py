@@ -1,29 +1,64 @@
 """docker-compose.yml describes the deployment: checked structurally here, and by `docker-compose config -q`
-where that command exists (it does not on every CI machine)."""
+where that command exists (it does not on every CI machine). The bridge it runs is tested for real: a gateway
+between two buses carries a whole push and the telemetry."""
 
 from __future__ import annotations
 
+import shlex
 import shutil
 import subprocess
 from pathlib import Path
 
+import can
 import pytest
 import yaml
+
+from backend.cli import build_parser
+from backend.devices import parse_device_spec
+from device_bridge.device_node import DeviceNode
+from device_bridge.gateway import Gateway
+from device_bridge.host import DeviceLink
+from device_bridge.protocol import WireTable
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_compose_runs_the_api_with_its_database_on_a_volume():
+def test_compose_runs_the_api_with_its_database_on_a_volume_and_a_bridge_holding_the_can_interface():
     compose = yaml.safe_load((ROOT / "docker-compose.yml").read_text())
-    api = compose["services"]["api"]
+    api, bridge = compose["services"]["api"], compose["services"]["bridge"]
     data_volume = next(v for v in api["volumes"] if v.endswith(":/data"))
     assert data_volume.split(":")[0] in compose["volumes"]
     assert api["environment"]["QUASITUNE_DATA_DIR"] == "/data"
     assert (ROOT / api["environment"]["QUASITUNE_MIGRATIONS_DIR"].removeprefix("/src/")).is_dir()
-    assert "quasitune serve" in api["command"] and any(p.startswith("127.0.0.1:") for p in api["ports"])
+    assert "quasitune serve --host 127.0.0.1" in api["command"]
+    # the bridge gets the CAN interface (host network namespace) and forwards to the bus the API uses
+    assert bridge["network_mode"] == "host" and "QUASITUNE_CAN" in bridge["environment"]
+    last = bridge["command"].split("&&")[-1].strip().rstrip('"')
+    bridge_cmd = shlex.split(last.replace("$$QUASITUNE_CAN", "socketcan:can0"))
+    args = build_parser().parse_args(bridge_cmd[1:])
+    assert args.can == "socketcan:can0" and args.to == api["environment"]["QUASITUNE_DEVICE"]
+    spec = parse_device_spec(api["environment"]["QUASITUNE_DEVICE"])
+    assert spec is not None and spec.interface == "udp_multicast"
 
 
 @pytest.mark.skipif(shutil.which("docker-compose") is None, reason="docker-compose is not installed here")
 def test_docker_compose_config_is_valid():
     r = subprocess.run(["docker-compose", "config", "-q"], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+def test_a_push_and_telemetry_cross_the_bridge(model):
+    leg_side, server_side = "test-gw-leg", "test-gw-server"
+    node = DeviceNode(can.Bus(interface="virtual", channel=leg_side)).start()
+    gateway = Gateway(can.Bus(interface="virtual", channel=leg_side),
+                      can.Bus(interface="virtual", channel=server_side)).start()
+    link = DeviceLink(can.Bus(interface="virtual", channel=server_side)).start()
+    try:
+        table = model.propose(1.3, 0.0, 70.0).table
+        result = link.push(table, version=12)
+        assert result.crc32 == WireTable.from_table(table).crc32() == node.snapshot().staged_or_active_crc32()
+        assert gateway.forwarded["a_to_b"] > 0 and gateway.forwarded["b_to_a"] >= 12
+    finally:
+        link.close()
+        gateway.close()
+        node.close()
