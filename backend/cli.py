@@ -282,6 +282,13 @@ def cmd_device_drill(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_device(args: argparse.Namespace) -> int:
+    from backend.devicebench import run_device_bench
+
+    print(json.dumps(run_device_bench(args.seconds, args.pushes)))
+    return 0
+
+
 def cmd_bridge(args: argparse.Namespace) -> int:
     import can
 
@@ -385,6 +392,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=1, help="server processes")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_bench_api)
+    p = sub.add_parser("bench-device", help="device loop through a real server: API push latency, telemetry rate")
+    p.add_argument("--seconds", type=float, default=10.0, help="telemetry measured for this long (s)")
+    p.add_argument("--pushes", type=int, default=50, help="approved proposals pushed through the API")
+    p.set_defaults(func=cmd_bench_device)
     p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
     _task_args(p)
     p.add_argument("--controller", choices=["quasi-stiffness", "fsmic"], default="quasi-stiffness")
