@@ -120,16 +120,21 @@ def encode(name: str, raw: dict[str, int]) -> can.Message:
     return can.Message(arbitration_id=m.frame_id, data=data, is_extended_id=False)
 
 
+def _raw_range(signal) -> tuple[int, int]:
+    """The raw integer range of a cantools signal (two's complement when signed)."""
+    if signal.is_signed:
+        return -(1 << (signal.length - 1)), (1 << (signal.length - 1)) - 1
+    return 0, (1 << signal.length) - 1
+
+
 def encode_scaled(name: str, values: dict[str, float]) -> can.Message:
     """A frame from physical values in the DBC's units, rounded to the signal quanta and clamped to range."""
     m = message(name)
     raw: dict[str, int] = {}
     for s in m.signals:
         v = values.get(s.name, 0.0)
-        r = round((v - s.offset) / s.scale)
-        lo = -(1 << (s.length - 1)) if s.is_signed else 0
-        hi = (1 << (s.length - 1)) - 1 if s.is_signed else (1 << s.length) - 1
-        raw[s.name] = min(max(r, lo), hi)
+        lo, hi = _raw_range(s)
+        raw[s.name] = min(max(round((v - s.offset) / s.scale), lo), hi)
     return encode(name, raw)
 
 
@@ -174,8 +179,7 @@ _ROW_TABLE_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s
 def _quantize(msg_name: str, signal: str, value: float, what: str) -> int:
     s = message(msg_name).get_signal_by_name(signal)
     raw = round(value / s.scale)
-    lo = -(1 << (s.length - 1)) if s.is_signed else 0
-    hi = (1 << (s.length - 1)) - 1 if s.is_signed else (1 << s.length) - 1
+    lo, hi = _raw_range(s)
     if not lo <= raw <= hi:
         raise ProtocolError(f"{what} = {value:.6g} does not fit the wire field {msg_name}.{signal} "
                             f"([{lo * s.scale:g}, {hi * s.scale:g}] {s.unit})")

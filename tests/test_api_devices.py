@@ -84,6 +84,8 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     r = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer)
     assert r.status_code == 200, r.text
     summary = r.json()["summary"]
+    again = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer)
+    assert again.status_code == 409 and "already stopped" in again.json()["detail"]
     assert summary["samples"] >= 350 and summary["missing_samples"] == 0
     assert summary["strides"] >= 2 and 60 < summary["cadence_steps_per_min"] < 160
     assert 0 < summary["knee_angle_rmse_deg"] < 60

@@ -10,7 +10,7 @@ from fastapi import APIRouter, Query, Request, status
 
 from backend.deps import Conn, CurrentUser, Model, Monitor
 from backend.devices import DeviceManager
-from backend.errors import InvalidError
+from backend.errors import ConflictError, InvalidError
 from backend.schemas.common import IdPath
 from backend.schemas.devices import SamplesOut, SessionOut, SessionRequest
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
@@ -54,7 +54,9 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
     """Stop recording and store the summary: strides, cadence, joint RMSE against the reference for the task."""
     devices: DeviceManager = request.app.state.devices
     session = store.get_session(conn, session_id)
-    if session["status"] == "recording" and session["device_id"] in devices.ids():
+    if session["status"] != "recording":
+        raise ConflictError(f"session {session_id} was already stopped at {session['stopped_at']}")
+    if session["device_id"] in devices.ids():
         devices.stop_recording(session["device_id"])
     t = session["task"]
     cols = store.samples(conn, session_id)
