@@ -291,14 +291,16 @@ class DeviceLink:
     # ------------------------------------------------------------------------------------------ push
 
     def push(self, table: ParameterTable, version: int, timeout_s: float = 2.0,
-             ack_timeout_s: float = 0.03) -> PushResult:
+             ack_timeout_s: float = 0.01) -> PushResult:
         """Send ``table`` as ``version`` and wait until the device acknowledges its exact CRC-32.
 
         Args:
             table: the (approved) table; rounded to the wire quanta, so the CRC is that of the rounded values.
             version: table version, 1–65535 (the backend uses the proposal id).
             timeout_s: give up after this long (s).
-            ack_timeout_s: how long to wait for one acknowledgement before resending (s).
+            ack_timeout_s: how long to wait for one acknowledgement before resending (s). The device answers
+                within its 1 ms control period; 10 ms leaves room for a busy host, and an answer that comes
+                later only costs a repeated commit, which the device answers again (it is idempotent).
 
         Raises:
             ProtocolError: a value does not fit the wire format (nothing sent).
