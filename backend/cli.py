@@ -290,15 +290,8 @@ def cmd_bench_device(args: argparse.Namespace) -> int:
 
 
 def cmd_bridge(args: argparse.Namespace) -> int:
-    import can
-
+    from device_bridge.buses import open_bus
     from device_bridge.gateway import Gateway
-
-    def open_bus(spec: str) -> can.BusABC:
-        interface, sep, channel = spec.partition(":")
-        if not sep or interface not in can.VALID_INTERFACES or not channel:
-            raise ValueError(f"a bus is INTERFACE:CHANNEL with a python-can interface, got {spec!r}")
-        return can.Bus(interface=interface, channel=channel)
 
     gateway = Gateway(open_bus(args.can), open_bus(args.to)).start()
     print(f"QuasiTune bridge: {args.can} <-> {args.to}", flush=True)

@@ -28,6 +28,7 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import devices as store
 from controller_core.table import ParameterTable
 from controller_core.walking_reference import WalkingReference
+from device_bridge.buses import parse_bus_spec
 from device_bridge.device_node import DeviceNode
 from device_bridge.host import DeviceLink, DeviceStatus, PushResult, TelemetrySample
 from device_bridge.protocol import Command, Fault
@@ -57,10 +58,10 @@ def parse_device_spec(text: str) -> DeviceSpec | None:
     if text == "sim":
         channel = f"quasitune-sim-{os.getpid()}-{next(_sim_counter)}"
         return DeviceSpec(SIM_DEVICE_ID, "simulated", "virtual", channel)
-    interface, sep, channel = text.partition(":")
-    if not sep or not interface or not channel or interface not in can.VALID_INTERFACES:
-        raise ValueError(f"device must be 'sim', 'none' or INTERFACE:CHANNEL with a python-can interface "
-                         f"({', '.join(sorted(can.VALID_INTERFACES))}); got {text!r}")
+    try:
+        interface, channel = parse_bus_spec(text)
+    except ValueError as exc:
+        raise ValueError(f"device must be 'sim', 'none' or {str(exc).removeprefix('expected ')}") from None
     device_id = re.sub(r"[^A-Za-z0-9._-]", "-", f"{interface}-{channel}")[:64]
     return DeviceSpec(device_id, "can", interface, channel)
 
@@ -231,7 +232,8 @@ class DeviceManager:
             with self._db_lock:
                 store.mark_active(self._conn, dev.spec.device_id, active[0], active[1])
             dev.noted_active = active
-        self._publish(dev, {"type": "status", **self.view(dev.spec.device_id)})
+        if dev.subscribers:
+            self._publish(dev, {"type": "status", **self.view(dev.spec.device_id)})
 
     def _on_telemetry(self, dev: ManagedDevice, x: TelemetrySample) -> None:
         dev.samples_seen += 1

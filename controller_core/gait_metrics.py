@@ -10,7 +10,10 @@ import itertools
 
 import numpy as np
 
+from controller_core.walking_reference import WalkingReference
+
 PHASE_GRID = np.linspace(0.0, 1.0, 101)
+GAIT_CHANNELS = ("knee_angle_deg", "ankle_angle_deg", "knee_moment_Nm_per_kg", "ankle_moment_Nm_per_kg")
 
 
 def rising_edges(signal: np.ndarray, threshold: float, min_low_samples: int = 1) -> np.ndarray:
@@ -55,3 +58,41 @@ def episodes(flag: np.ndarray, min_gap_samples: int = 1) -> int:
     """Number of separate runs of True in ``flag`` (runs closer than ``min_gap_samples`` count as one)."""
     starts = rising_edges(np.asarray(flag, dtype=float), 0.5, min_gap_samples).shape[0]
     return int(starts + (1 if len(flag) and flag[0] else 0))
+
+
+def gait_channels(knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray, knee_torque_Nm: np.ndarray,
+                  ankle_torque_Nm: np.ndarray, mass_kg: float) -> dict[str, np.ndarray]:
+    """Recorded joint signals (SI) in the units they are scored in: :data:`GAIT_CHANNELS` (deg, N·m/kg)."""
+    return {"knee_angle_deg": np.degrees(knee_angle_rad), "ankle_angle_deg": np.degrees(ankle_angle_rad),
+            "knee_moment_Nm_per_kg": np.asarray(knee_torque_Nm) / mass_kg,
+            "ankle_moment_Nm_per_kg": np.asarray(ankle_torque_Nm) / mass_kg}
+
+
+def reference_curves(reference: WalkingReference, grid: np.ndarray = PHASE_GRID) -> dict[str, np.ndarray]:
+    """The reference's :data:`GAIT_CHANNELS` on the phase grid (deg, N·m/kg)."""
+    s = reference.phase
+    return {"knee_angle_deg": np.degrees(np.interp(grid, s, reference.knee_angle_rad)),
+            "ankle_angle_deg": np.degrees(np.interp(grid, s, reference.ankle_angle_rad)),
+            "knee_moment_Nm_per_kg": np.interp(grid, s, reference.knee_moment_Nm_per_kg),
+            "ankle_moment_Nm_per_kg": np.interp(grid, s, reference.ankle_moment_Nm_per_kg)}
+
+
+def rmse_key(channel: str) -> str:
+    """``knee_angle_deg`` → ``knee_angle_rmse_deg``; ``knee_moment_Nm_per_kg`` → ``knee_moment_rmse_Nm_per_kg``."""
+    return channel.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")
+
+
+def stride_errors(measured: dict[str, np.ndarray], strikes: np.ndarray, reference: dict[str, np.ndarray]
+                  ) -> tuple[dict[str, np.ndarray], dict[str, float | None]]:
+    """Stride-averaged curves of each measured channel and their RMSE against the reference curves, keyed by
+    :func:`rmse_key`. With fewer than two strikes: no curves and every error None."""
+    means: dict[str, np.ndarray] = {}
+    errors: dict[str, float | None] = {}
+    strided = strikes.shape[0] >= 2
+    for name, signal in measured.items():
+        if strided:
+            means[name] = stride_curves(signal, strikes).mean(axis=0)
+            errors[rmse_key(name)] = rmse(means[name], reference[name])
+        else:
+            errors[rmse_key(name)] = None
+    return means, errors

@@ -12,11 +12,16 @@ import math
 
 import numpy as np
 
-from controller_core.gait_metrics import PHASE_GRID, heel_strikes, rmse, stride_curves
+from controller_core.gait_metrics import (
+    GAIT_CHANNELS,
+    PHASE_GRID,
+    gait_channels,
+    heel_strikes,
+    reference_curves,
+    stride_errors,
+)
 from controller_core.model import G
 from controller_core.walking_reference import WalkingReference
-
-CHANNELS = ("knee_angle_deg", "ankle_angle_deg", "knee_moment_Nm_per_kg", "ankle_moment_Nm_per_kg")
 
 
 def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray,
@@ -35,27 +40,12 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
     dt = float(np.median(np.diff(t))) if n > 1 else 0.01
     strikes = heel_strikes(np.asarray(load_N, dtype=float), 0.1 * mass_kg * G, max(1, round(0.15 / dt)))
     strides = max(int(strikes.shape[0]) - 1, 0)
-    measured = {
-        "knee_angle_deg": np.degrees(knee_angle_rad), "ankle_angle_deg": np.degrees(ankle_angle_rad),
-        "knee_moment_Nm_per_kg": np.asarray(knee_torque_Nm) / mass_kg,
-        "ankle_moment_Nm_per_kg": np.asarray(ankle_torque_Nm) / mass_kg,
-    }
-    ref = {
-        "knee_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.knee_angle_rad)),
-        "ankle_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.ankle_angle_rad)),
-        "knee_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.knee_moment_Nm_per_kg),
-        "ankle_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.ankle_moment_Nm_per_kg),
-    }
-    errors: dict[str, float | None] = {}
-    means: dict[str, list[float] | None] = {}
-    for name in CHANNELS:
-        key = name.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")
-        if strides:
-            mean = stride_curves(measured[name], strikes).mean(axis=0)
-            errors[key] = round(rmse(mean, ref[name]), 4)
-            means[name] = [round(float(v), 3) for v in mean]
-        else:
-            errors[key], means[name] = None, None
+    measured = gait_channels(knee_angle_rad, ankle_angle_rad, knee_torque_Nm, ankle_torque_Nm, mass_kg)
+    ref = reference_curves(reference)
+    mean_curves, raw_errors = stride_errors(measured, strikes, ref)
+    errors = {k: None if v is None else round(v, 4) for k, v in raw_errors.items()}
+    means = {name: [round(float(v), 3) for v in mean_curves[name]] if name in mean_curves else None
+             for name in GAIT_CHANNELS}
     stride_time = float(np.mean(np.diff(t[strikes]))) if strides else None
     return {
         "samples": n,
@@ -66,7 +56,7 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
         "reference_stride_time_s": round(reference.stride_time_s, 4),
         **errors,
         "mean_curves": means,
-        "reference_curves": {k: [round(float(v), 3) for v in ref[k]] for k in CHANNELS},
+        "reference_curves": {k: [round(float(v), 3) for v in ref[k]] for k in GAIT_CHANNELS},
         "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
         "reference_source": reference.source,
         "reference_extrapolation": bool(reference.extrapolation),

@@ -163,7 +163,7 @@ class DeviceFirmware:
                 rx.rows.setdefault(row[0], row[1])   # the first copy wins; a corrupt one fails the CRC
             return []
         if name == "TABLE_COMMIT":
-            return [self._commit(raw, now_s)]
+            return [self._commit(raw)]
         if name == "DEVICE_COMMAND":
             return self._command(raw["command"], now_s)
         return []
@@ -175,7 +175,7 @@ class DeviceFirmware:
                                     "crc32": crc32 if result == AckResult.STAGED else 0,
                                     "version_low": version & 0xFF})
 
-    def _commit(self, raw: dict[str, int], now_s: float) -> can.Message:
+    def _commit(self, raw: dict[str, int]) -> can.Message:
         tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
         last = self._last_commit
         if self._rx is None or self._rx.transfer_id != tid:
@@ -216,7 +216,7 @@ class DeviceFirmware:
         elif command == Command.LEAVE_SAFE_MODE:
             host_alive = now_s - self.last_heartbeat_s_ <= self.config.heartbeat_timeout_s
             if self.mode_ == Mode.SAFE and self.active_ is not None and host_alive:
-                self._run(now_s)
+                self._run()
         elif command != Command.REQUEST_STATUS:
             self.rx_errors_ += 1
             self.faults_ |= Fault.MALFORMED_FRAME
@@ -229,14 +229,14 @@ class DeviceFirmware:
             self.mode_ = Mode.SAFE
             self.safe_mode_entered_s_ = now_s
 
-    def _run(self, now_s: float) -> None:
+    def _run(self) -> None:
         """Start (or restart) the state machine on the active table."""
         assert self.active_ is not None
         self.controller_ = StateMachineController(self.active_.schedule, self.config.actuator)
         self.mode_ = Mode.ACTIVE
         self.faults_ &= ~(Fault.HEARTBEAT_LOST | Fault.NO_TABLE)
 
-    def _activate_staged(self, now_s: float) -> None:
+    def _activate_staged(self) -> None:
         staged = self.staged_
         assert staged is not None
         self.staged_ = None
@@ -244,7 +244,7 @@ class DeviceFirmware:
         if self.mode_ == Mode.ACTIVE and self.controller_ is not None:
             self.controller_.load(staged.schedule)   # at heel strike: the state machine carries on
         else:
-            self._run(now_s)
+            self._run()
 
     # ------------------------------------------------------------------------------------------ control tick
 
@@ -271,7 +271,7 @@ class DeviceFirmware:
             idle = sample is None or self.mode_ != Mode.ACTIVE or now_s - self._last_heel_strike_s > cfg.idle_switch_s
             if idle and not (self.mode_ == Mode.SAFE and Fault.HEARTBEAT_LOST in self.faults_
                              and now_s - self.last_heartbeat_s_ > cfg.heartbeat_timeout_s):
-                self._activate_staged(now_s)
+                self._activate_staged()
                 out += self._status_frames()
         knee, ankle, state = 0.0, 0.0, GaitState.SWING_EXTENSION
         if sample is not None:
@@ -295,7 +295,7 @@ class DeviceFirmware:
             if heel_strike and ctrl.guard_transitions_ == guards:
                 self._last_heel_strike_s = now_s
                 if self.staged_ is not None:
-                    self._activate_staged(now_s)
+                    self._activate_staged()
                     out += self._status_frames()
             return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
         cfg = self.config

@@ -31,7 +31,7 @@ from device_bridge.device_node import DeviceNode
 from device_bridge.faults import FaultInjectingBus
 from device_bridge.firmware import FirmwareConfig, HeldTable
 from device_bridge.host import DeviceLink, PushError
-from device_bridge.protocol import Mode, WireTable
+from device_bridge.protocol import DeviceTable, Mode, WireTable
 
 _channel_counter = itertools.count()
 
@@ -48,12 +48,21 @@ def soak_tables(n: int = 12) -> list[ParameterTable]:
     return [model.propose(float(s), 0.0, 75.0).table for s in np.linspace(0.8, 1.9, n)]
 
 
-@dataclass
-class _Held:
-    table: HeldTable
+@dataclass(frozen=True)
+class _Known:
+    """A table the soak pushes, with the values and CRC-32 the device holds when it arrives intact."""
 
-    def matches(self, wire: WireTable) -> bool:
-        return self.table.table == wire.to_device_table()
+    table: ParameterTable
+    values: DeviceTable
+    crc32: int
+
+    @classmethod
+    def of(cls, table: ParameterTable) -> _Known:
+        wire = WireTable.from_table(table)
+        return cls(table, wire.to_device_table(), wire.crc32())
+
+    def held_as(self, held: HeldTable) -> bool:
+        return held.table == self.values
 
 
 def soak(trials: int, drop: float, corrupt: float, reorder: float, seed: int = 0,
@@ -61,8 +70,7 @@ def soak(trials: int, drop: float, corrupt: float, reorder: float, seed: int = 0
     """Push ``trials`` tables through a fault-injecting virtual bus and classify each outcome (module docstring)."""
     if not 1 <= trials <= 100_000:
         raise ValueError(f"trials must be in [1, 100000], got {trials!r}")
-    tables = list(tables) if tables is not None else soak_tables()
-    wires = [WireTable.from_table(t) for t in tables]
+    known = [_Known.of(t) for t in (tables if tables is not None else soak_tables())]
     channel = _channel("soak")
     node = DeviceNode(FaultInjectingBus(can.Bus(interface="virtual", channel=channel), drop, corrupt, reorder,
                                         seed=seed)).start()
@@ -71,27 +79,24 @@ def soak(trials: int, drop: float, corrupt: float, reorder: float, seed: int = 0
     counts = {"committed": 0, "kept_old": 0, "committed_unconfirmed": 0, "mixed": 0, "crc_mismatch": 0}
     push_ms: list[float] = []
     try:
-        old: WireTable | None = None
+        old: _Known | None = None
         for i in range(trials):
-            new = wires[i % len(wires)]
-            if old is not None and new == old:
-                new = wires[(i + 1) % len(wires)]
+            new = known[i % len(known)]
+            if new is old:
+                new = known[(i + 1) % len(known)]
             version = i % 0xFFFF + 1
             t0 = time.monotonic()
             try:
-                result = link.push(tables[wires.index(new)], version, timeout_s=push_timeout_s)
+                result = link.push(new.table, version, timeout_s=push_timeout_s)
                 ok_crc: int | None = result.crc32
                 push_ms.append(result.elapsed_ms)
             except PushError:
                 ok_crc = None
                 push_ms.append((time.monotonic() - t0) * 1e3)
             snap = _settled(node)
-            outcome = _classify(snap.active, snap.staged, old, new, ok_crc)
-            counts[outcome] += 1
-            if snap.active is not None and _Held(snap.active).matches(new):
+            counts[_classify(snap.active, snap.staged, old, new, ok_crc)] += 1
+            if snap.active is not None and new.held_as(snap.active):
                 old = new
-            elif snap.active is not None and old is None:
-                old = next((w for w in wires if _Held(snap.active).matches(w)), None)
     finally:
         link.close()
         node.close()
@@ -113,22 +118,21 @@ def _settled(node: DeviceNode, wait_s: float = 0.05):
     return snap
 
 
-def _classify(active: HeldTable | None, staged: HeldTable | None, old: WireTable | None, new: WireTable,
+def _classify(active: HeldTable | None, staged: HeldTable | None, old: _Known | None, new: _Known,
               ok_crc: int | None) -> str:
     for held in (active, staged):
         if held is None:
             continue
-        candidates = [w for w in (old, new) if w is not None]
-        match = next((w for w in candidates if _Held(held).matches(w)), None)
+        match = next((k for k in (old, new) if k is not None and k.held_as(held)), None)
         if match is None:
             return "mixed"
-        if match.crc32() != held.crc32:
+        if match.crc32 != held.crc32:
             return "crc_mismatch"
     if ok_crc is not None:
-        if active is None or active.crc32 != ok_crc or not _Held(active).matches(new) or ok_crc != new.crc32():
+        if active is None or active.crc32 != ok_crc or not new.held_as(active) or ok_crc != new.crc32:
             return "crc_mismatch"
         return "committed"
-    if active is not None and _Held(active).matches(new):
+    if active is not None and new.held_as(active):
         return "committed_unconfirmed"
     return "kept_old"
 

@@ -32,7 +32,7 @@ def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, u
     row = proposals.get_row(conn, proposal_id)
     if row["status"] != "approved":
         raise ConflictError(f"proposal {proposal_id} is {row['status']}; only approved proposals can be pushed")
-    devices.get(body.device_id)
+    device = devices.get(body.device_id)
     table = proposals.stored_table(row)
     violations = check_table(table)
     if violations:
@@ -44,7 +44,7 @@ def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, u
         crc = WireTable.from_table(table).crc32()
     except ProtocolError as exc:
         raise InvalidError(f"the table cannot be sent: {exc}") from exc
-    if not devices.online(devices.get(body.device_id)):
+    if not devices.online(device):
         raise ConflictError(f"device {body.device_id} is offline (no status in the last second); nothing was sent")
     push_id = store.begin_push(conn, proposal_id, body.device_id, proposal_id, crc, user)
     t0 = time.monotonic()

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controller_core.fsm import GaitState, SensorSample, StateMachineController
-from controller_core.gait_metrics import PHASE_GRID, episodes, heel_strikes, rmse, stride_curves
+from controller_core.gait_metrics import episodes, gait_channels, heel_strikes, reference_curves, stride_errors
 from controller_core.model import G
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import plan_bench_trajectory
@@ -136,26 +136,11 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     weight = mass * G
     strikes = heel_strikes(c["contact_N"], 0.02 * weight, round(0.15 / dt))
     strikes = strikes[c["time_s"][strikes] >= settle_s] if strikes.size else strikes
-    per_channel = {
-        "knee_angle_deg": np.degrees(c["knee_angle_rad"]), "ankle_angle_deg": np.degrees(c["ankle_angle_rad"]),
-        "knee_moment_Nm_per_kg": c["knee_torque_Nm"] / mass, "ankle_moment_Nm_per_kg": c["ankle_torque_Nm"] / mass,
-    }
-    ref_curves = {
-        "knee_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.knee_angle_rad)),
-        "ankle_angle_deg": np.degrees(np.interp(PHASE_GRID, reference.phase, reference.ankle_angle_rad)),
-        "knee_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.knee_moment_Nm_per_kg),
-        "ankle_moment_Nm_per_kg": np.interp(PHASE_GRID, reference.phase, reference.ankle_moment_Nm_per_kg),
-    }
+    per_channel = gait_channels(c["knee_angle_rad"], c["ankle_angle_rad"], c["knee_torque_Nm"], c["ankle_torque_Nm"],
+                                mass)
+    ref_curves = reference_curves(reference)
     n_strides = max(int(strikes.shape[0]) - 1, 0)
-    means: dict[str, np.ndarray] = {}
-    errors: dict[str, float | None] = {}
-    for name, sig in per_channel.items():
-        if n_strides:
-            means[name] = stride_curves(sig, strikes).mean(axis=0)
-            errors[name.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")] = rmse(
-                means[name], ref_curves[name])
-        else:
-            errors[name.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")] = None
+    means, errors = stride_errors(per_channel, strikes, ref_curves)
     stride_times = np.diff(c["time_s"][strikes]) if n_strides else np.array([])
     phase = c["bench_phase"]
     mid_swing = (phase > reference.toe_off_phase + 0.08) & (phase < 0.92)
