@@ -263,14 +263,14 @@ class DeviceFirmware:
         if self._rx is not None and now_s - self._rx.started_s > cfg.transfer_timeout_s:
             out.append(self._refuse(self._rx.transfer_id, AckResult.TIMEOUT, self._rx.version))
             self._rx = None
-        if now_s - self.last_heartbeat_s_ > cfg.heartbeat_timeout_s and self.mode_ != Mode.SAFE:
+        host_alive = now_s - self.last_heartbeat_s_ <= cfg.heartbeat_timeout_s
+        if not host_alive and Fault.HEARTBEAT_LOST not in self.faults_:   # also when already in safe mode
             self._enter_safe(now_s)
             self.faults_ |= Fault.HEARTBEAT_LOST
             out += self._status_frames()
-        if self.staged_ is not None:
+        if self.staged_ is not None and host_alive:
             idle = sample is None or self.mode_ != Mode.ACTIVE or now_s - self._last_heel_strike_s > cfg.idle_switch_s
-            if idle and not (self.mode_ == Mode.SAFE and Fault.HEARTBEAT_LOST in self.faults_
-                             and now_s - self.last_heartbeat_s_ > cfg.heartbeat_timeout_s):
+            if idle:
                 self._activate_staged()
                 out += self._status_frames()
         knee, ankle, state = 0.0, 0.0, GaitState.SWING_EXTENSION

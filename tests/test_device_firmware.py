@@ -335,3 +335,21 @@ def test_telemetry_carries_the_sample_in_display_units(tables):
     assert parts["TELEMETRY_ANKLE"]["angle"] == pytest.approx(-5.0, abs=0.005)
     assert parts["TELEMETRY_GAIT"]["load"] == pytest.approx(650.0) and parts["TELEMETRY_GAIT"]["ankle_moment"] == -40.0
     assert len({decode(m)[1]["seq"] for m in out if decode(m)[0].startswith("TELEMETRY")}) == 1
+
+
+def test_a_host_lost_during_commanded_safe_mode_is_flagged_and_no_table_switches_in(tables):
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    old = install(fw, tables[0], 1)
+    heartbeat(fw, 0.1)
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.ENTER_SAFE_MODE)}), 0.1)
+    _, _, out = fw.tick(None, 0.35)                 # the host has gone quiet
+    assert Fault.HEARTBEAT_LOST in fw.faults_ and fw.mode_ == Mode.SAFE
+    assert status(out)["mode"] == Mode.SAFE
+    begin, rows, commit, new = transfer(tables[1], 2, 2)
+    [ack] = feed(fw, [begin, *rows, commit], 0.36)  # its heartbeats are lost, its table frames are not
+    assert ack["result"] == AckResult.STAGED
+    fw.tick(None, 0.37)
+    assert fw.mode_ == Mode.SAFE and fw.active_.crc32 == old   # no new table runs without a live host
+    heartbeat(fw, 0.38)
+    fw.tick(None, 0.39)
+    assert fw.mode_ == Mode.ACTIVE and fw.active_.crc32 == new
