@@ -21,12 +21,14 @@ from backend import __version__
 from backend.compute import ComputeLane
 from backend.devices import DeviceManager, parse_device_spec
 from backend.errors import DomainError
+from backend.frontend import mount_frontend
 from backend.migrate import migrate
 from backend.model_service import ModelService
 from backend.pool import ConnectionPool
-from backend.routers import audit, auth, devices, health, patients, proposals, pushes, sessions
+from backend.routers import audit, auth, devices, health, patients, previews, proposals, pushes, sessions
 from backend.schemas.errors import FieldError
 from backend.settings import Settings
+from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
 
 
@@ -71,6 +73,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
+        app.state.viewers.close()
         app.state.devices.close()
         app.state.pool.close()
 
@@ -81,9 +84,11 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.settings = settings
     app.state.pool = ConnectionPool(settings.db_path)
     app.state.compute = ComputeLane()
+    app.state.preview_lane = ComputeLane()   # seconds of simulation must not queue behind (or block) proposals
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
     app.state.devices = DeviceManager(settings.db_path, [spec] if spec else []).start()
+    app.state.viewers = ViewerRegistry(app.state.devices)
 
     @app.exception_handler(RequestValidationError)
     async def _on_validation(_request: Request, exc: RequestValidationError) -> JSONResponse:
@@ -104,9 +109,10 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         headers = {"Retry-After": str(exc.extra["retry_after_s"])} if "retry_after_s" in exc.extra else None
         return JSONResponse({"detail": exc.message, **exc.extra}, status_code=exc.status, headers=headers)
 
-    for router in (health.router, auth.router, patients.router, proposals.router, pushes.router, sessions.router,
-                   devices.router, audit.router):
+    for router in (health.router, auth.router, patients.router, proposals.router, previews.router, pushes.router,
+                   sessions.router, devices.router, audit.router):
         app.include_router(router)
+    mount_frontend(app, settings.frontend_dir)
     app.openapi = lambda: _openapi(app)
     return app
 

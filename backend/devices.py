@@ -78,6 +78,7 @@ class ManagedDevice:
     recording: int | None = None          # session id
     buffer: list[tuple] = field(default_factory=list)
     samples_seen: int = 0
+    last_sample: TelemetrySample | None = None
 
 
 class DeviceManager:
@@ -130,6 +131,10 @@ class DeviceManager:
             known = ", ".join(self._devices) or "none configured"
             raise NotFoundError(f"device {device_id!r} not found (devices: {known})")
         return dev
+
+    def latest_sample(self, device_id: str) -> TelemetrySample | None:
+        """The last telemetry sample received from a device (``None`` before the first)."""
+        return self.get(device_id).last_sample
 
     def ids(self) -> list[str]:
         return list(self._devices)
@@ -237,6 +242,7 @@ class DeviceManager:
 
     def _on_telemetry(self, dev: ManagedDevice, x: TelemetrySample) -> None:
         dev.samples_seen += 1
+        dev.last_sample = x
         if dev.recording is not None:
             row = (x.seq, x.received_unix_s, int(x.mode), x.fsm_state, x.knee_angle_rad, x.knee_velocity_rad_s,
                    x.knee_torque_Nm, x.ankle_angle_rad, x.ankle_velocity_rad_s, x.ankle_torque_Nm, x.load_N,

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 DB_FILE = "quasitune.sqlite"
+FRONTEND_DIR = Path(__file__).resolve().parents[1] / "frontend"
 
 
 def default_data_dir() -> Path:
@@ -27,6 +28,7 @@ class Settings:
         model_wait_s: how long a request waits for the model while it loads at start-up before a 503.
         device: ``sim`` (the simulated leg on an in-process virtual CAN bus), ``none``, or ``INTERFACE:CHANNEL``
             for a python-can bus to a real leg (``socketcan:can0``). ``quasitune serve`` defaults to ``sim``.
+        frontend_dir: the dashboard (``index.html``, ``app/``) and its npm packages (``node_modules/``).
     """
 
     data_dir: Path
@@ -34,6 +36,7 @@ class Settings:
     model_dir: Path | None = None
     model_wait_s: float = 30.0
     device: str = "none"
+    frontend_dir: Path = FRONTEND_DIR
 
     @property
     def db_path(self) -> Path:

@@ -58,6 +58,13 @@ class Proposal:
     violations: list[LimitViolation]
     vias: dict[str, list[ViaPoint]] = field(default_factory=dict)
 
+    def via_points_dict(self) -> list[dict[str, float | str]]:
+        """The KMP via-points (from the GPR features) in display units: (angle deg, moment N·m/kg) at a phase."""
+        return [{"joint": joint, "phase": round(float(v.phase), 4),
+                 "angle_deg": round(math.degrees(float(v.mean[0])), 4),
+                 "moment_Nm_per_kg": round(float(v.mean[1]), 5)}
+                for joint, vias in self.vias.items() for v in vias]
+
     def curves_dict(self) -> dict[str, list[float]]:
         """Curves in display units on the 101-point phase grid."""
         out: dict[str, list[float]] = {"phase": [round(float(p), 4) for p in self.phase]}
@@ -92,6 +99,7 @@ class Proposal:
                 "swing_flexion_to_swing_extension": round(self.boundaries[2], 4),
             },
             "curves": self.curves_dict(),
+            "via_points": self.via_points_dict(),
             "table": display_rows(self.table),
             "thresholds": self.table.thresholds.model_dump(),
             "safety": {"ok": not self.violations, "violations": [v.model_dump() for v in self.violations]},

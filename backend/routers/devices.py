@@ -9,7 +9,7 @@ from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, s
 
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
-from backend.schemas.devices import CommandRequest, DeviceIdPath, DeviceOut
+from backend.schemas.devices import CommandRequest, DeviceIdPath, DeviceOut, ViewerOut
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.store import devices as devices_store
 from backend.store.users import user_for_token
@@ -35,6 +35,16 @@ def list_devices(request: Request, _user: CurrentUser) -> list[dict]:
 def get_device(device_id: DeviceIdPath, request: Request, _user: CurrentUser) -> dict:
     """State, active table version and CRC read back from the device, last heartbeat."""
     return manager(request).view(device_id)
+
+
+@router.get("/{device_id}/viewer", response_model=ViewerOut, responses={**UNAUTHORIZED, **NOT_FOUND})
+def get_viewer(device_id: DeviceIdPath, request: Request, _user: CurrentUser) -> dict:
+    """The live 3D view of the leg (viser): started on first request, bound to loopback on a port the OS assigns,
+    read back here. Embed ``url`` in a page served from the same machine."""
+    manager(request).get(device_id)
+    viewer = request.app.state.viewers.get(device_id)
+    return {"device_id": device_id, "host": viewer.host, "port": viewer.port,
+            "url": f"http://{viewer.host}:{viewer.port}/", "frames_drawn": viewer.frames_drawn}
 
 
 @router.post("/{device_id}/commands", response_model=DeviceOut, status_code=status.HTTP_202_ACCEPTED,

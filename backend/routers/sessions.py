@@ -6,11 +6,12 @@ import math
 from typing import Annotated
 
 import numpy as np
-from fastapi import APIRouter, Query, Request, status
+from fastapi import APIRouter, Query, Request, Response, status
 
 from backend.deps import Conn, CurrentUser, Model, Monitor
 from backend.devices import DeviceManager
 from backend.errors import ConflictError, InvalidError
+from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
 from backend.schemas.devices import SamplesOut, SessionOut, SessionRequest
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
@@ -75,6 +76,19 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
 def list_sessions(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     patients.get_patient(conn, patient_id)
     return store.sessions_of_patient(conn, patient_id)
+
+
+@router.get("/sessions/{session_id}/report.pdf", response_class=Response,
+            responses={**NOT_FOUND, **CONFLICT, 200: {"content": {"application/pdf": {}}, "description": "one A4 page"}})
+def get_report_pdf(session_id: IdPath, conn: Conn, _user: CurrentUser) -> Response:
+    """The session report as a PDF: task, active table version and CRC, strides, cadence, trajectories against
+    the reference, errors (a stopped session: the summary is made on stop)."""
+    session = store.get_session(conn, session_id)
+    if session["status"] != "stopped":
+        raise ConflictError(f"session {session_id} is still recording; stop it first, the report needs its summary")
+    pdf = session_report_pdf(session, patients.get_patient(conn, session["patient_id"]))
+    return Response(pdf, media_type="application/pdf",
+                    headers={"Content-Disposition": f'attachment; filename="quasitune-session-{session_id}.pdf"'})
 
 
 @router.get("/sessions/{session_id}", response_model=SessionOut, responses=NOT_FOUND)

@@ -35,6 +35,14 @@ class DeviceOut(BaseModel):
     recording_session_id: int | None
 
 
+class ViewerOut(BaseModel):
+    device_id: str
+    host: str = Field(description="always loopback")
+    port: int = Field(description="the port viser bound, read back from it")
+    url: str
+    frames_drawn: int = Field(description="leg poses drawn from telemetry so far (30 per second while it streams)")
+
+
 class PushRequest(StrictIn):
     device_id: DeviceId
 

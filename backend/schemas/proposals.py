@@ -115,6 +115,15 @@ class Curves(BaseModel):
     ankle_moment_Nm_per_kg_std: list[float]
 
 
+class ViaPointOut(BaseModel):
+    """A KMP via-point: the curve is pulled through (angle, moment) at this phase by the GPR features."""
+
+    joint: Joint
+    phase: float = Field(description="gait phase, [0, 1]")
+    angle_deg: float
+    moment_Nm_per_kg: float
+
+
 class ProposalSummary(BaseModel):
     id: int
     patient_id: int
@@ -141,6 +150,8 @@ class ProposalOut(ProposalSummary):
     features: list[FeatureOut]
     subphase_boundaries_phase: Boundaries
     curves: Curves
+    via_points: list[ViaPointOut] = Field(default_factory=list,
+                                          description="KMP via-points from the GPR features (empty for old rows)")
     limits: SafetyLimits
 
 

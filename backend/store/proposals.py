@@ -23,7 +23,7 @@ from controller_core.table import ParameterTable, SafetyLimits, check_table, dis
 
 _LIMITS = SafetyLimits().model_dump()
 _ACTIONS = {"approved": "proposal.approve", "rejected": "proposal.reject"}
-_MODEL_KEYS = ("model", "features", "subphase_boundaries_phase", "curves")
+_MODEL_KEYS = ("model", "features", "subphase_boundaries_phase", "curves", "via_points")
 _SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name FROM proposals p "
            "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by")
 
@@ -52,7 +52,7 @@ def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool) -> dict
     }
     if full:
         out |= {"features": body["features"], "subphase_boundaries_phase": body["subphase_boundaries_phase"],
-                "curves": body["curves"], "limits": _LIMITS}
+                "curves": body["curves"], "via_points": body.get("via_points", []), "limits": _LIMITS}
     return out
 
 

@@ -22,6 +22,7 @@ import numpy as np
 from controller_core.fsm import ImpedanceSchedule, StateMachineController
 from controller_core.fsmic import fsmic_table
 from controller_core.model import QuasiStiffnessModel, validate_task
+from controller_core.table import ImpedanceTable
 from controller_core.walking_reference import WalkingReference, level_walking_reference
 from device_bridge.sim.simulate import WalkScore, run_walk, score_walk
 
@@ -194,3 +195,32 @@ def plot_compare(results: list[tuple[WalkScore, str]], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, mass_kg: float,
+                  model: QuasiStiffnessModel | None = None, seconds: float = 10.0) -> dict[str, object]:
+    """Walk a given (e.g. proposed or edited) table and the FSMIC benchmark on the bench at a task.
+
+    The dashboard's "simulated preview": same plant, same reference, same metrics as ``quasitune simulate``.
+    Returns JSON-ready data: ``phase_grid`` (101 points), ``reference_curves`` and, per controller
+    (``table``, ``fsmic``), its summary and stride-averaged ``mean_curves`` (deg, N·m/kg).
+
+    Raises:
+        SafetyLimitError: a table fails the safety limits (checked again, as the device does).
+    """
+    from controller_core.gait_metrics import PHASE_GRID
+
+    validate_task(speed_mps, incline_deg, mass_kg)
+    ref = task_reference(speed_mps, incline_deg, model, mass_kg)
+    out: dict[str, object] = {"seconds": seconds, "phase_grid": [round(float(s), 3) for s in PHASE_GRID]}
+    controllers: dict[str, object] = {}
+    reference: dict[str, list[float]] = {}
+    for name, tab in (("table", table), ("fsmic", fsmic_table(mass_kg))):
+        score = score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(tab)), ref, mass_kg, seconds),
+                           ref)
+        controllers[name] = {**score.summary,
+                             "mean_curves": {k: [round(float(v), 3) for v in c] for k, c in score.mean_curves.items()}}
+        reference = {k: [round(float(v), 3) for v in c] for k, c in score.reference_curves.items()}
+    out["reference_curves"] = reference
+    out["controllers"] = controllers
+    return out

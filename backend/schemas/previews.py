@@ -1,0 +1,56 @@
+"""The simulated preview of a proposal and the measured reference conditions."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+
+class ControllerPreview(BaseModel):
+    """One controller walked on the simulated bench (the metrics of ``quasitune simulate``)."""
+
+    model_config = {"extra": "allow"}
+
+    strides: int
+    falls: int
+    toe_catches: int
+    knee_angle_rmse_deg: float | None
+    ankle_angle_rmse_deg: float | None
+    knee_moment_rmse_Nm_per_kg: float | None
+    ankle_moment_rmse_Nm_per_kg: float | None
+    cadence_steps_per_min: float | None
+    mean_curves: dict[str, list[float]] = Field(description="stride-averaged curves on phase_grid (deg, N·m/kg)")
+
+
+class PreviewOut(BaseModel):
+    proposal_id: int
+    table_sha256: str = Field(description="the table that was simulated")
+    created_at: str
+    seconds: float = Field(description="simulated walking time per controller (s)")
+    phase_grid: list[float]
+    reference_curves: dict[str, list[float]] = Field(description="able-bodied reference at the task (deg, N·m/kg)")
+    controllers: dict[Literal["table", "fsmic"], ControllerPreview] = Field(
+        description="table: this proposal's table; fsmic: the hand-tuned benchmark (never re-tuned per task)")
+
+
+class ReferenceCondition(BaseModel):
+    """One measured able-bodied walking condition the model was trained on (mean curves, display units)."""
+
+    name: str
+    dataset: str
+    citation: str
+    speed_mps: float | None
+    incline_deg: float | None
+    subjects_or_strides: int | None
+    phase: list[float]
+    knee_angle_deg: list[float]
+    knee_moment_Nm_per_kg: list[float]
+    ankle_angle_deg: list[float]
+    ankle_moment_Nm_per_kg: list[float]
+
+
+class ReferenceOut(BaseModel):
+    model_version: str
+    data_sha256: str
+    conditions: list[ReferenceCondition]

@@ -1,0 +1,32 @@
+"""Stored simulated previews of proposals (computed once: a proposal's table never changes)."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+
+from backend.db import utc_now, write_transaction
+from backend.errors import ConflictError
+
+
+def get_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str) -> dict | None:
+    """The stored preview of a proposal, or ``None``; refuses one made from a different table."""
+    row = conn.execute("SELECT * FROM proposal_previews WHERE proposal_id = ?", (proposal_id,)).fetchone()
+    if row is None:
+        return None
+    if row["table_sha256"] != table_sha256:
+        raise ConflictError(f"the stored preview of proposal {proposal_id} was simulated from another table; "
+                            "refusing to show it")
+    return {"proposal_id": proposal_id, "table_sha256": table_sha256, "created_at": row["created_at"],
+            **json.loads(row["result_json"])}
+
+
+def store_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str, result: dict) -> dict:
+    """Keep a freshly simulated preview (the first one wins if two requests raced) and return the stored one."""
+    with write_transaction(conn):
+        conn.execute("INSERT OR IGNORE INTO proposal_previews (proposal_id, table_sha256, seconds, created_at, "
+                     "result_json) VALUES (?, ?, ?, ?, ?)",
+                     (proposal_id, table_sha256, float(result["seconds"]), utc_now(), json.dumps(result)))
+    stored = get_preview(conn, proposal_id, table_sha256)
+    assert stored is not None
+    return stored
