@@ -1,1 +1,78 @@
+// Hash router: #/login, #/patients, #/patients/:id, #/proposals/:id, #/monitor/:deviceId, #/sessions/:id/report
+import { get, signOut, token } from "./api.js";
+import { h, notice } from "./ui.js";
+import { loginPage } from "./pages/login.js";
+import { patientsPage } from "./pages/patients.js";
+import { patientPage } from "./pages/patient.js";
+import { proposalPage } from "./pages/proposal.js";
+import { monitorPage } from "./pages/monitor.js";
+import { reportPage } from "./pages/report.js";
 
+const routes = [
+  [/^#\/login$/, loginPage],
+  [/^#\/patients$/, patientsPage],
+  [/^#\/patients\/(\d+)$/, patientPage],
+  [/^#\/proposals\/(\d+)$/, proposalPage],
+  [/^#\/monitor\/([\w.-]+)$/, monitorPage],
+  [/^#\/sessions\/(\d+)\/report$/, reportPage],
+];
+
+export const app = { me: null, cleanup: [] };
+window.quasitune = app;   // read by the browser tests and the UI benchmark (timings, frame rates)
+
+async function whoAmI() {
+  if (!token()) return null;
+  try {
+    return await get("/api/auth/me");
+  } catch {
+    return null;
+  }
+}
+
+function renderChrome() {
+  const nav = document.getElementById("nav");
+  const who = document.getElementById("who");
+  if (!app.me) {
+    nav.replaceChildren();
+    who.replaceChildren();
+    return;
+  }
+  nav.replaceChildren(h("a", { href: "#/patients" }, "Patients"), h("a", { href: "#/monitor/sim-leg-1", id: "nav-monitor" },
+    "Live monitor"));
+  who.replaceChildren(h("span", {}, `${app.me.username} · ${app.me.role}`),
+    h("button", { class: "link", onclick: () => { signOut(); app.me = null; location.hash = "#/login"; } }, "Sign out"));
+}
+
+async function route() {
+  for (const fn of app.cleanup.splice(0)) fn();
+  notice("");
+  const [hash, query = ""] = (location.hash || "#/patients").split("?");
+  if (hash !== "#/login" && !app.me) app.me = await whoAmI();
+  if (hash !== "#/login" && !app.me) {
+    location.hash = "#/login";
+    return;
+  }
+  renderChrome();
+  const view = document.getElementById("view");
+  for (const [re, page] of routes) {
+    const m = hash.match(re);
+    if (m) {
+      view.replaceChildren(h("p", { class: "muted" }, "Loading…"));
+      try {
+        await page(view, ...m.slice(1), new URLSearchParams(query));
+      } catch (err) {
+        view.replaceChildren(h("p", { class: "error" }, err.message));
+      }
+      if (!view.contains(document.activeElement)) view.focus({ preventScroll: true });   // screen readers start here
+      return;
+    }
+  }
+  view.replaceChildren(h("p", {}, "No such page. "), h("a", { href: "#/patients" }, "Back to patients"));
+}
+
+export function onLeave(fn) {
+  app.cleanup.push(fn);
+}
+
+window.addEventListener("hashchange", route);
+route();

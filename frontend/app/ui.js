@@ -1,0 +1,60 @@
+// Small DOM helpers and the number formats used on every page (unit always shown).
+
+export function h(tag, attrs = {}, ...children) {
+  const el = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (v === undefined || v === null || v === false) continue;
+    if (k === "class") el.className = v;
+    else if (k.startsWith("on")) el.addEventListener(k.slice(2), v);
+    else if (k === "dataset") Object.assign(el.dataset, v);
+    else el.setAttribute(k, v === true ? "" : v);
+  }
+  for (const c of children.flat()) {
+    if (c === undefined || c === null || c === false) continue;
+    el.append(c instanceof Node ? c : document.createTextNode(String(c)));
+  }
+  return el;
+}
+
+export function fmt(value, digits = 1, unit = "") {
+  if (value === null || value === undefined || Number.isNaN(value)) return "—";
+  const s = Number(value).toFixed(digits);
+  return unit ? `${s} ${unit}` : s;
+}
+
+export function pm(value, sd, digits = 1, unit = "") {
+  return `${fmt(value, digits)} ± ${fmt(sd, digits)}${unit ? " " + unit : ""}`;
+}
+
+export function notice(message, kind = "error") {
+  const el = document.getElementById("notice");
+  el.textContent = message;
+  el.className = `notice ${kind}`;
+  el.hidden = !message;
+  if (message && kind !== "error") setTimeout(() => { if (el.textContent === message) el.hidden = true; }, 4000);
+}
+
+export function when(iso) {
+  return iso ? iso.replace("T", " ").replace(/\.\d+Z$/, " UTC").replace(/Z$/, " UTC") : "—";
+}
+
+export const SUBPHASES = ["stance_flexion", "stance_extension", "swing_flexion", "swing_extension"];
+export const SUBPHASE_LABEL = {
+  stance_flexion: "stance flexion", stance_extension: "stance extension",
+  swing_flexion: "swing flexion", swing_extension: "swing extension",
+};
+// colour-blind safe (Okabe–Ito) per sub-phase
+export const SUBPHASE_COLOUR = {
+  stance_flexion: "#009E73", stance_extension: "#D55E00", swing_flexion: "#0072B2", swing_extension: "#CC79A7",
+};
+export const FSM_STATES = ["stance flexion", "stance extension", "swing flexion", "swing extension"];
+
+export function chip(text, kind = "") {
+  return h("span", { class: `chip ${kind}` }, text);
+}
+
+export function table(headers, rows, attrs = {}) {
+  return h("table", attrs,
+    h("thead", {}, h("tr", {}, headers.map((x) => h("th", { scope: "col" }, x)))),
+    h("tbody", {}, rows));
+}
