@@ -289,6 +289,17 @@ def cmd_bench_device(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_ui(args: argparse.Namespace) -> int:
+    try:
+        from backend.uibench import run_ui_bench
+    except ImportError as exc:   # playwright is a dev dependency
+        print(f"quasitune: bench-ui needs the dev dependencies (bash scripts/test.sh installs them): {exc}",
+              file=sys.stderr)
+        return 2
+    print(json.dumps(run_ui_bench(args.repeats, args.monitor_seconds)))
+    return 0
+
+
 def cmd_bridge(args: argparse.Namespace) -> int:
     from device_bridge.buses import open_bus
     from device_bridge.gateway import Gateway
@@ -389,6 +400,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seconds", type=float, default=10.0, help="telemetry measured for this long (s)")
     p.add_argument("--pushes", type=int, default=50, help="approved proposals pushed through the API")
     p.set_defaults(func=cmd_bench_device)
+    p = sub.add_parser("bench-ui", help="dashboard in Chromium: proposal view time to interactive, live-monitor fps")
+    p.add_argument("--repeats", type=int, default=20, help="proposals requested through the page")
+    p.add_argument("--monitor-seconds", type=float, default=5.0, help="live monitor measured for this long (s)")
+    p.set_defaults(func=cmd_bench_ui)
     p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
     _task_args(p)
     p.add_argument("--controller", choices=["quasi-stiffness", "fsmic"], default="quasi-stiffness")

@@ -1,23 +1,12 @@
-"""A real ``quasitune serve`` (simulated leg on its virtual CAN bus) and Debian's Chromium driven by Playwright,
-shared by the browser tests and ``quasitune bench-ui``-style checks. Screenshots go to ``artifacts/browser/``."""
+"""Helpers for the browser tests: screenshots (under ``artifacts/browser/``, or ``$QUASITUNE_ARTIFACTS/browser``)
+and a check that a canvas has something drawn on it."""
 
 from __future__ import annotations
 
 import os
-import shutil
 from pathlib import Path
 
-CHROMIUM = os.environ.get("QUASITUNE_CHROMIUM", "/usr/bin/chromium")
 ARTIFACTS = Path(os.environ.get("QUASITUNE_ARTIFACTS", Path(__file__).resolve().parents[1] / "artifacts")) / "browser"
-
-
-def chromium_path() -> str:
-    """Debian's Chromium (installed by scripts/test.sh); a clear failure if it is missing, never a skip."""
-    path = shutil.which(CHROMIUM) or (CHROMIUM if Path(CHROMIUM).exists() else None)
-    if path is None:
-        raise RuntimeError(f"Chromium not found at {CHROMIUM}: run 'bash scripts/test.sh', which installs Debian's "
-                           "chromium package (never 'playwright install')")
-    return path
 
 
 def shot(page, name: str) -> Path:

@@ -15,7 +15,8 @@ import pytest
 from backend.app import prepare_storage
 from backend.loadbench import PASSWORD, add_user, start_server
 from backend.settings import Settings
-from tests.browser_helpers import canvas_ink, chromium_path, shot
+from backend.uibench import CHROMIUM_ARGS, chromium_path
+from tests.browser_helpers import canvas_ink, shot
 
 playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright is a dev dependency")
 
@@ -41,7 +42,7 @@ def server(tmp_path_factory):
 @pytest.fixture(scope="module")
 def browser():
     with playwright_api.sync_playwright() as pw:
-        b = pw.chromium.launch(executable_path=chromium_path(), args=["--no-sandbox"])
+        b = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS)
         yield b
         b.close()
 
@@ -148,8 +149,10 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     stats = page.evaluate("window.quasitune.monitor")
     assert stats["gaps"] == 0 and stats["frames"] > 10
     assert min(canvas_ink(page, "#view .three canvas")) > 200
+    page.click("#viewer3d-toggle summary")                                  # the 3D view opens on request
     src = page.get_attribute("#viewer3d iframe", "src")
-    assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", src) and not src.endswith(":8000/")
+    assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", src) and src != server + "/"
+    page.frame_locator("#viewer3d iframe").locator("canvas").first.wait_for(timeout=20_000)   # viser's WebGL scene
     assert "version" in page.inner_text("#active-version")
     shot(page, "05-monitor")
     page.wait_for_timeout(2500)                                            # a few strides

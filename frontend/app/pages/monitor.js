@@ -10,7 +10,11 @@ export async function monitorPage(view, deviceId, params) {
   const statusBox = h("div", { id: "device-status", "aria-live": "polite" });
   const readout = h("dl", { class: "readout", id: "readout" });
   const sessionBox = h("section", { class: "card", id: "session" });
-  const viewerBox = h("figure", { class: "viewer", id: "viewer3d" }, h("figcaption", { class: "muted" }, "Starting the 3D view…"));
+  const viewerBox = h("figure", { class: "viewer", id: "viewer3d" });
+  // The 3D scene is WebGL: on a machine without a GPU it is rendered in software and costs the charts their
+  // frame rate, so it opens on request (and the choice is remembered).
+  const viewerToggle = h("details", { id: "viewer3d-toggle", open: localStorage.getItem("quasitune.show3d") === "1" },
+    h("summary", {}, "3D view of the leg (viser, WebGL)"), viewerBox);
   const charts = h("div", { class: "three" });
   view.replaceChildren(
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / live monitor"),
@@ -21,7 +25,7 @@ export async function monitorPage(view, deviceId, params) {
         h("button", { class: "secondary", id: "leave-safe", onclick: () => command("leave_safe_mode") }, "Leave safe mode")) : null),
     sessionBox,
     h("section", { class: "card" }, h("h2", {}, "Telemetry (last 5 s, 100 Hz)"), readout, charts),
-    h("section", { class: "card" }, h("h2", {}, "3D view (viser)"), viewerBox));
+    h("section", { class: "card" }, viewerToggle));
 
   const figs = [0, 1, 2].map(() => h("figure", { class: "chart" }));
   charts.append(...figs);
@@ -72,14 +76,24 @@ export async function monitorPage(view, deviceId, params) {
   raf = requestAnimationFrame(frame);
   onLeave(() => { cancelAnimationFrame(raf); ws.close(); });
 
-  try {
-    const v = await get(`/api/devices/${deviceId}/viewer`);
-    viewerBox.replaceChildren(h("iframe", { src: v.url, title: `3D view of ${deviceId}` }),
-      h("figcaption", { class: "muted small" }, `viser on ${v.host}:${v.port} (loopback). Thigh drawn upright: the device `,
-        "measures knee and ankle only. Foot colour: pylon load (grey unloaded → orange at body weight)."));
-  } catch (err) {
-    viewerBox.replaceChildren(h("p", { class: "error" }, `3D view unavailable: ${err.message}`));
-  }
+  const show3d = async () => {
+    localStorage.setItem("quasitune.show3d", viewerToggle.open ? "1" : "0");
+    if (!viewerToggle.open) {
+      viewerBox.replaceChildren();
+      return;
+    }
+    viewerBox.replaceChildren(h("figcaption", { class: "muted" }, "Starting the 3D view…"));
+    try {
+      const v = await get(`/api/devices/${deviceId}/viewer`);
+      viewerBox.replaceChildren(h("iframe", { src: v.url, title: `3D view of ${deviceId}` }),
+        h("figcaption", { class: "muted small" }, `viser on ${v.host}:${v.port} (loopback). Thigh drawn upright: the `,
+          "device measures knee and ankle only. Foot colour: pylon load (grey unloaded → orange at body weight)."));
+    } catch (err) {
+      viewerBox.replaceChildren(h("p", { class: "error" }, `3D view unavailable: ${err.message}`));
+    }
+  };
+  viewerToggle.addEventListener("toggle", show3d);
+  if (viewerToggle.open) show3d();
 
   async function command(name) {
     try {
