@@ -14,23 +14,29 @@ from fastapi.staticfiles import StaticFiles
 VENDOR = {"uplot": "uplot/dist"}
 
 _MISSING = """<!doctype html><meta charset="utf-8"><title>QuasiTune</title>
-<p style="font:16px sans-serif;margin:2em">The dashboard's npm packages are not installed ({missing}).
-Run <code>bash scripts/run.sh</code>, which installs them with <code>npm ci</code> in <code>frontend/</code>.</p>"""
+<p style="font:16px sans-serif;margin:2em">The dashboard cannot be shown: {missing}.
+Run <code>bash scripts/run.sh</code>, which installs the npm packages with <code>npm ci</code> in <code>frontend/</code>,
+or point <code>QUASITUNE_FRONTEND_DIR</code> at the repository's <code>frontend/</code>. The API works regardless.</p>"""
 
 
 def mount_frontend(app: FastAPI, frontend_dir: Path) -> None:
     """Add the dashboard routes; if an npm package is missing, ``/`` says so instead of a broken page."""
-    missing = [name for name, sub in VENDOR.items() if not (frontend_dir / "node_modules" / sub).is_dir()]
     index = frontend_dir / "index.html"
+    if not (index.is_file() and (frontend_dir / "app").is_dir()):
+        problems = [f"no dashboard files in {frontend_dir}"]
+    else:
+        problems = [f"npm package {name} not installed" for name, sub in VENDOR.items()
+                    if not (frontend_dir / "node_modules" / sub).is_dir()]
 
     @app.get("/", include_in_schema=False, response_model=None)
     def dashboard() -> FileResponse | HTMLResponse:
-        if missing:
-            return HTMLResponse(_MISSING.format(missing=", ".join(missing)), status_code=503)
+        if problems:
+            return HTMLResponse(_MISSING.format(missing="; ".join(problems)), status_code=503)
         return FileResponse(index, headers={"Cache-Control": "no-cache"})
 
-    app.mount("/app", StaticFiles(directory=frontend_dir / "app"), name="app")
+    if (frontend_dir / "app").is_dir():
+        app.mount("/app", StaticFiles(directory=frontend_dir / "app"), name="app")
     for name, sub in VENDOR.items():
-        if name not in missing:
+        if (frontend_dir / "node_modules" / sub).is_dir():
             app.mount(f"/vendor/{name}", StaticFiles(directory=frontend_dir / "node_modules" / sub),
                       name=f"vendor-{name}")

@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 DB_FILE = "quasitune.sqlite"
-FRONTEND_DIR = Path(__file__).resolve().parents[1] / "frontend"
+
+
+def default_frontend_dir() -> Path:
+    """The dashboard: ``$QUASITUNE_FRONTEND_DIR``, else the repository's ``frontend/`` (editable install)."""
+    if os.environ.get("QUASITUNE_FRONTEND_DIR"):
+        return Path(os.environ["QUASITUNE_FRONTEND_DIR"])
+    return Path(__file__).resolve().parents[1] / "frontend"
 
 
 def default_data_dir() -> Path:
@@ -36,7 +42,7 @@ class Settings:
     model_dir: Path | None = None
     model_wait_s: float = 30.0
     device: str = "none"
-    frontend_dir: Path = FRONTEND_DIR
+    frontend_dir: Path = field(default_factory=default_frontend_dir)
 
     @property
     def db_path(self) -> Path:

@@ -200,9 +200,25 @@ def test_extrapolation_is_flagged_and_the_layout_holds_on_a_tablet(server, brows
         assert "outside the walking data" in page.inner_text("#extrapolation")
         overflow = page.evaluate("document.documentElement.scrollWidth - window.innerWidth")
         assert overflow <= 0, f"page is {overflow}px wider than a tablet screen"
+        # readable colours: WCAG AA contrast (4.5:1) for body, muted, warning and error text on their backgrounds
+        ratios = page.evaluate(_CONTRAST_JS, ["h1", ".provenance", "#extrapolation", "th", "td", ".chip.draft"])
+        assert min(ratios.values()) >= 4.5, ratios
         shot(page, "08-tablet-extrapolation")
     finally:
         context.close()
+
+
+_CONTRAST_JS = """(selectors) => {
+  const rgb = (s) => s.match(/[\\d.]+/g).slice(0, 4).map(Number);
+  const lum = ([r, g, b]) => { const f = (c) => { c /= 255; return c <= 0.03928 ? c / 12.92 : ((c + 0.055) / 1.055) ** 2.4; };
+    return 0.2126 * f(r) + 0.7152 * f(g) + 0.0722 * f(b); };
+  const background = (el) => { for (; el; el = el.parentElement) { const c = rgb(getComputedStyle(el).backgroundColor);
+    if (c.length < 4 || c[3] > 0) return c; } return [255, 255, 255]; };
+  const out = {};
+  for (const sel of selectors) { const el = document.querySelector(sel); if (!el) continue;
+    const a = lum(rgb(getComputedStyle(el).color)), b = lum(background(el));
+    out[sel] = (Math.max(a, b) + 0.05) / (Math.min(a, b) + 0.05); }
+  return out; }"""
 
 
 def test_keyboard_only_sign_in_and_navigation(server, page):
