@@ -92,6 +92,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     assert page.locator("#loop-knee svg path.fit").count() == 4              # one fit line per sub-phase
     assert page.locator("#loop-knee svg path.via").count() >= 2
     assert page.locator("#loop-knee svg path.ref").count() >= 5              # the measured reference conditions
+    assert "0" in page.locator("#loop-knee svg .grid text").all_text_contents()  # axes labelled, zero included
     ink = canvas_ink(page, "#curves canvas")
     assert len(ink) == 4 and min(ink) > 500, ink
     assert page.locator("#features tbody tr").count() >= 6

@@ -13,6 +13,7 @@ const routes = [
   [/^#\/patients$/, patientsPage],
   [/^#\/patients\/(\d+)$/, patientPage],
   [/^#\/proposals\/(\d+)$/, proposalPage],
+  [/^#\/monitor$/, firstDevice],
   [/^#\/monitor\/([\w.-]+)$/, monitorPage],
   [/^#\/sessions\/(\d+)\/report$/, reportPage],
 ];
@@ -37,7 +38,7 @@ function renderChrome() {
     who.replaceChildren();
     return;
   }
-  nav.replaceChildren(h("a", { href: "#/patients" }, "Patients"), h("a", { href: "#/monitor/sim-leg-1", id: "nav-monitor" },
+  nav.replaceChildren(h("a", { href: "#/patients" }, "Patients"), h("a", { href: "#/monitor", id: "nav-monitor" },
     "Live monitor"));
   who.replaceChildren(h("span", {}, `${app.me.username} · ${app.me.role}`),
     h("button", { class: "link", onclick: () => { signOut(); app.me = null; location.hash = "#/login"; } }, "Sign out"));
@@ -68,6 +69,13 @@ async function route() {
     }
   }
   view.replaceChildren(h("p", {}, "No such page. "), h("a", { href: "#/patients" }, "Back to patients"));
+}
+
+async function firstDevice(view) {
+  const devices = await get("/api/devices");
+  if (devices.length) location.replace(`#/monitor/${devices[0].id}`);
+  else view.replaceChildren(h("h1", {}, "Live monitor"), h("p", { class: "muted" },
+    "No device is configured on this server (start it with quasitune serve --device sim or INTERFACE:CHANNEL)."));
 }
 
 export function onLeave(fn) {
