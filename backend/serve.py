@@ -85,6 +85,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
     real_host, real_port = sock.getsockname()[:2]
     shown = f"[{real_host}]" if ":" in real_host else real_host
     print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
+    print(f"  dashboard: http://{shown}:{real_port}/   API docs: http://{shown}:{real_port}/docs", flush=True)
     print(f"  database: {settings.db_path}", flush=True)
     if password:
         print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
