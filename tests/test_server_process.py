@@ -128,7 +128,8 @@ def test_sigkill_mid_load_loses_no_acknowledged_write(tmp_path):
 def test_first_start_creates_one_prosthetist_and_prints_the_password_once(tmp_path):
     proc, base = start_server(tmp_path, bootstrap=True)
     try:
-        proc.stdout.readline()                      # database path
+        assert "dashboard: http://127.0.0.1:" in proc.stdout.readline()
+        assert "database:" in proc.stdout.readline()
         line = proc.stdout.readline()
         assert "created user 'prosthetist'" in line
         password = line.split("password ", 1)[1].strip()
