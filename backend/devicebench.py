@@ -11,11 +11,9 @@ import asyncio
 import itertools
 import json
 import statistics
-import tempfile
 import time
-from pathlib import Path
 
-from backend.loadbench import PASSWORD, add_user, start_server
+from backend.loadbench import PASSWORD, bench_server
 
 
 async def _run(base: str, seconds: float, pushes: int) -> dict:
@@ -67,12 +65,5 @@ async def _run(base: str, seconds: float, pushes: int) -> dict:
 
 
 def run_device_bench(seconds: float = 10.0, pushes: int = 50) -> dict:
-    with tempfile.TemporaryDirectory(prefix="quasitune-devicebench-") as tmp:
-        data_dir = Path(tmp)
-        add_user(data_dir, "bench", "prosthetist")
-        proc, base = start_server(data_dir, device="sim")
-        try:
-            return asyncio.run(_run(base, seconds, pushes))
-        finally:
-            proc.terminate()
-            proc.wait(timeout=10)
+    with bench_server("quasitune-devicebench-", device="sim") as base:
+        return asyncio.run(_run(base, seconds, pushes))

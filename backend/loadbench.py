@@ -21,6 +21,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +48,21 @@ def start_server(data_dir: Path, workers: int = 1, bootstrap: bool = False,
         proc.kill()
         raise RuntimeError(f"server did not start: {line!r} {err_path.read_text()[-2000:]}")
     return proc, line.rsplit(" ", 1)[-1].strip()
+
+
+@contextmanager
+def bench_server(prefix: str, workers: int = 1, device: str = "none") -> Iterator[str]:
+    """A fresh server on a temporary database with the prosthetist ``bench`` (password :data:`PASSWORD`); yields
+    its base URL and stops it afterwards. Shared by the load, device and dashboard benchmarks."""
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+        data_dir = Path(tmp)
+        add_user(data_dir, "bench", "prosthetist")
+        proc, base = start_server(data_dir, workers, device=device)
+        try:
+            yield base
+        finally:
+            proc.terminate()
+            proc.wait(timeout=10)
 
 
 def add_user(data_dir: Path, name: str, role: str, password: str = PASSWORD) -> None:
@@ -115,13 +132,6 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
 
 def run_load_bench(clients: int = 20, seconds: float = 10.0, workers: int = 1) -> dict:
     """Run the benchmark against a fresh server; the load generator shares the machine with it."""
-    with tempfile.TemporaryDirectory(prefix="quasitune-loadbench-") as tmp:
-        data_dir = Path(tmp)
-        add_user(data_dir, "bench", "prosthetist")
-        proc, base = start_server(data_dir, workers)
-        try:
-            result = asyncio.run(_run(base, clients, seconds))
-        finally:
-            proc.terminate()
-            proc.wait(timeout=10)
-        return {**result, "server_workers": workers, "cpu_count": os.cpu_count()}
+    with bench_server("quasitune-loadbench-", workers) as base:
+        result = asyncio.run(_run(base, clients, seconds))
+    return {**result, "server_workers": workers, "cpu_count": os.cpu_count()}

@@ -17,11 +17,10 @@ from __future__ import annotations
 import os
 import shutil
 import statistics
-import tempfile
 import time
 from pathlib import Path
 
-from backend.loadbench import PASSWORD, add_user, start_server
+from backend.loadbench import PASSWORD, bench_server
 
 # SwiftShader gives headless Chromium WebGL for the viser view; no sandbox: CI runs as root in a container
 CHROMIUM_ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader"]
@@ -43,10 +42,11 @@ def _pct(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
 
 
-def _login(page, base: str) -> None:
+def sign_in(page, base: str, username: str, password: str = PASSWORD) -> None:
+    """Sign in through the dashboard's login form and wait for the patient list."""
     page.goto(base + "/")
-    page.fill("input[name=username]", "bench")
-    page.fill("input[name=password]", PASSWORD)
+    page.fill("input[name=username]", username)
+    page.fill("input[name=password]", password)
     page.click("#login-form button[type=submit]")
     page.wait_for_selector("h1:has-text('Patients')")
 
@@ -65,7 +65,7 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
     with sync_playwright() as pw:
         browser = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS)
         page = browser.new_page(viewport={"width": 1366, "height": 900})
-        _login(page, base)
+        sign_in(page, base, "bench")
         for i in range(repeats):
             page.goto(f"{base}/#/patients/{patient['id']}")
             page.wait_for_selector("#propose")
@@ -118,12 +118,5 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
 
 
 def run_ui_bench(repeats: int = 20, monitor_s: float = 5.0) -> dict:
-    with tempfile.TemporaryDirectory(prefix="quasitune-uibench-") as tmp:
-        data_dir = Path(tmp)
-        add_user(data_dir, "bench", "prosthetist")
-        proc, base = start_server(data_dir, device="sim")
-        try:
-            return _measure(base, repeats, monitor_s)
-        finally:
-            proc.terminate()
-            proc.wait(timeout=10)
+    with bench_server("quasitune-uibench-", device="sim") as base:
+        return _measure(base, repeats, monitor_s)

@@ -15,7 +15,7 @@ import pytest
 from backend.app import prepare_storage
 from backend.loadbench import PASSWORD, add_user, start_server
 from backend.settings import Settings
-from backend.uibench import CHROMIUM_ARGS, chromium_path
+from backend.uibench import CHROMIUM_ARGS, chromium_path, sign_in
 from tests.browser_helpers import canvas_ink, shot
 
 playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright is a dev dependency")
@@ -61,14 +61,6 @@ def page(browser):
     assert not errors, f"the page logged errors: {errors}"
 
 
-def login(page, base: str, user: str) -> None:
-    page.goto(base + "/")
-    page.fill("input[name=username]", user)
-    page.fill("input[name=password]", PASSWORD)
-    page.click("#login-form button[type=submit]")
-    page.wait_for_selector("h1:has-text('Patients')")
-
-
 def create_patient_and_propose(page, code: str, speed: str = "1.25", incline: str = "0") -> int:
     page.fill("#new-patient input[name=code_name]", code)
     page.fill("#new-patient input[name=body_mass_kg]", "78")
@@ -82,7 +74,7 @@ def create_patient_and_propose(page, code: str, speed: str = "1.25", incline: st
 
 
 def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
-    login(page, server, "dana")
+    sign_in(page, server, "dana")
     shot(page, "01-patients")
     first_id = create_patient_and_propose(page, "P-100")
 
@@ -175,10 +167,10 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
 
 
 def test_viewer_sees_no_approval_controls_and_the_server_refuses_them(server, browser, page):
-    login(page, server, "dana")
+    sign_in(page, server, "dana")
     pid = create_patient_and_propose(page, "P-200")
     page.evaluate("sessionStorage.clear()")
-    login(page, server, "vic")
+    sign_in(page, server, "vic")
     page.goto(f"{server}/#/proposals/{pid}")
     page.wait_for_selector("#decision")
     assert page.locator("#approve").count() == 0 and page.locator("#edit-form").count() == 0
@@ -195,7 +187,7 @@ def test_extrapolation_is_flagged_and_the_layout_holds_on_a_tablet(server, brows
     context = browser.new_context(viewport={"width": 820, "height": 1180}, is_mobile=True, has_touch=True)
     page = context.new_page()
     try:
-        login(page, server, "dana")
+        sign_in(page, server, "dana")
         create_patient_and_propose(page, "P-300", speed="2.6", incline="12")
         assert page.locator("#extrapolation").is_visible()
         assert "outside the walking data" in page.inner_text("#extrapolation")

@@ -40,8 +40,7 @@ def get_device(device_id: DeviceIdPath, request: Request, _user: CurrentUser) ->
 @router.get("/{device_id}/viewer", response_model=ViewerOut, responses={**UNAUTHORIZED, **NOT_FOUND})
 def get_viewer(device_id: DeviceIdPath, request: Request, _user: CurrentUser) -> dict:
     """The live 3D view of the leg (viser): started on first request, bound to loopback on a port the OS assigns,
-    read back here. Embed ``url`` in a page served from the same machine."""
-    manager(request).get(device_id)
+    read back here. Embed ``url`` in a page served from the same machine. An unknown device is a 404."""
     viewer = request.app.state.viewers.get(device_id)
     return {"device_id": device_id, "host": viewer.host, "port": viewer.port,
             "url": f"http://{viewer.host}:{viewer.port}/", "frames_drawn": viewer.frames_drawn}

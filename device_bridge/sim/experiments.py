@@ -208,19 +208,17 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
     Raises:
         SafetyLimitError: a table fails the safety limits (checked again, as the device does).
     """
-    from controller_core.gait_metrics import PHASE_GRID
+    from controller_core.gait_metrics import PHASE_GRID, reference_curves
+
+    def rounded(curves: dict[str, np.ndarray]) -> dict[str, list[float]]:
+        return {k: [round(float(v), 3) for v in c] for k, c in curves.items()}
 
     validate_task(speed_mps, incline_deg, mass_kg)
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
-    out: dict[str, object] = {"seconds": seconds, "phase_grid": [round(float(s), 3) for s in PHASE_GRID]}
     controllers: dict[str, object] = {}
-    reference: dict[str, list[float]] = {}
     for name, tab in (("table", table), ("fsmic", fsmic_table(mass_kg))):
         score = score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(tab)), ref, mass_kg, seconds),
                            ref)
-        controllers[name] = {**score.summary,
-                             "mean_curves": {k: [round(float(v), 3) for v in c] for k, c in score.mean_curves.items()}}
-        reference = {k: [round(float(v), 3) for v in c] for k, c in score.reference_curves.items()}
-    out["reference_curves"] = reference
-    out["controllers"] = controllers
-    return out
+        controllers[name] = {**score.summary, "mean_curves": rounded(score.mean_curves)}
+    return {"seconds": seconds, "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
+            "reference_curves": rounded(reference_curves(ref)), "controllers": controllers}

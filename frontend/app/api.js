@@ -44,4 +44,3 @@ export async function api(path, { method = "GET", body } = {}) {
 
 export const get = (path) => api(path);
 export const post = (path, body = {}) => api(path, { method: "POST", body });
-export const patch = (path, body) => api(path, { method: "PATCH", body });

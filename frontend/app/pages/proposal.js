@@ -138,7 +138,7 @@ function drawCurves(p, nearest, box) {
   }
 }
 
-export function interp(x, xs, ys) {
+function interp(x, xs, ys) {
   if (x <= xs[0]) return ys[0];
   for (let i = 1; i < xs.length; i++) {
     if (x <= xs[i]) return ys[i - 1] + (ys[i] - ys[i - 1]) * (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
