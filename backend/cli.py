@@ -43,9 +43,11 @@ def _print_readable(d: dict) -> None:
     print(f"  {'joint':6s} {'sub-phase':17s} {'k N·m/rad':>10s} {'k N·m/deg':>10s} {'θe deg':>8s} "
           f"{'b N·m·s/rad':>11s} {'R²':>6s}")
     for r in d["table"]:
-        g = " guarded" if r["guarded"] else ""
+        g = f" {r['fit_method'].replace('_', ' ')}" if r["guarded"] else ""
         print(f"  {r['joint']:6s} {r['subphase']:17s} {r['k_Nm_per_rad']:10.1f} {r['k_Nm_per_deg']:10.3f} "
               f"{r['theta_e_deg']:8.2f} {r['b_Nm_s_per_rad']:11.2f} {r['r2']:6.2f}{g}")
+    if any(r["fit_method"] == "swing_target" for r in d["table"]):
+        print("  swing target: not a fit; θe is the predicted swing target, k the model's swing stiffness")
     th = d["thresholds"]
     print("\nState-machine thresholds")
     for k, v in th.items():

@@ -48,9 +48,14 @@ INCLINE_LIMIT_DEG = 20.0
 MASS_RANGE_KG = (20.0, 200.0)
 JOINT_RANGE_RAD = {"knee": (0.0, math.radians(120.0)), "ankle": (math.radians(-30.0), math.radians(30.0))}
 # Damping is not learned (the fit is τ = kθ + c): editable defaults per kg body mass, of the order of
-# published finite-state impedance values for adults.
-DEFAULT_DAMPING_NMS_PER_RAD_PER_KG = {"stance_flexion": 0.04, "stance_extension": 0.04,
-                                      "swing_flexion": 0.01, "swing_extension": 0.02}
+# published finite-state impedance values for adults. The knee's swing values brake the swinging shank
+# (late-swing 0.06 ≈ the Open Source Leg example's 3.816 N·m·s/rad for 60 kg; early swing 0.03 chosen on the
+# simulated bench, see docs/results.md).
+DEFAULT_DAMPING_NMS_PER_RAD_PER_KG = {
+    "knee": {"stance_flexion": 0.04, "stance_extension": 0.04, "swing_flexion": 0.03, "swing_extension": 0.06},
+    "ankle": {"stance_flexion": 0.04, "stance_extension": 0.04, "swing_flexion": 0.01, "swing_extension": 0.02},
+}
+SWING_RULES: tuple[str, ...] = ("target", "least_squares")
 
 
 class InvalidTaskError(ValueError):
@@ -109,6 +114,18 @@ class QuasiStiffnessModel:
             by k = −value·mass and a re-fitted θe (see :mod:`controller_core.quasi_stiffness`). The default,
             0.25 N·m/rad/kg (about 19 N·m/rad at 75 kg), lies within the swing stiffnesses of the Open Source
             Leg's published walking example (0.13–0.66 N·m/rad/kg); 0 disables the guard.
+        swing_rule: ``"target"`` (default): the swing rows aim at the predicted swing targets (knee swing
+            flexion at the GPR's swing-flexion peak, knee swing extension at the predicted heel-strike angle,
+            the ankle through swing at its predicted swing dorsiflexion plus ``swing_ankle_clearance_deg``)
+            with the restoring stiffnesses below; ``"least_squares"``: the swing rows are fitted like the
+            stance rows (the literal framework; on the simulated bench that table falls, see docs/results.md).
+        swing_knee_stiffness_Nm_per_rad_per_kg: (swing flexion, swing extension) knee stiffness magnitudes per
+            kg of patient mass under the target rule: 0.66 and 0.25, about the Open Source Leg example's
+            39.7 and 15.9 N·m/rad for 60 kg.
+        swing_ankle_stiffness_Nm_per_rad_per_kg: ankle swing stiffness magnitude per kg (target rule).
+        swing_ankle_clearance_deg: dorsiflexion added to the ankle's predicted swing angle (deg). On the bench's
+            foot the able-bodied swing angles leave −8 to +2 mm of toe clearance where people keep about
+            13 mm (Winter 1992); each degree lifts the toe about 3.4 mm, so 5° restores that margin.
         random_state: seed for EM and optimizer restarts.
     """
 
@@ -117,6 +134,9 @@ class QuasiStiffnessModel:
                  load_fractions: tuple[float, float] = (0.05, 0.15), swing_threshold_fraction: float = 0.85,
                  state_time_s: tuple[float, float] = (0.05, 1.5), reference_mode: str = "registered",
                  via_mean_scale: float = 1.0, min_restoring_stiffness_Nm_per_rad_per_kg: float = 0.25,
+                 swing_rule: str = "target",
+                 swing_knee_stiffness_Nm_per_rad_per_kg: tuple[float, float] = (0.66, 0.25),
+                 swing_ankle_stiffness_Nm_per_rad_per_kg: float = 0.25, swing_ankle_clearance_deg: float = 5.0,
                  random_state: int = 0) -> None:
         self.n_components = n_components
         self.n_ref_points = n_ref_points
@@ -129,6 +149,10 @@ class QuasiStiffnessModel:
         self.reference_mode = reference_mode
         self.via_mean_scale = via_mean_scale
         self.min_restoring_stiffness_Nm_per_rad_per_kg = min_restoring_stiffness_Nm_per_rad_per_kg
+        self.swing_rule = swing_rule
+        self.swing_knee_stiffness_Nm_per_rad_per_kg = swing_knee_stiffness_Nm_per_rad_per_kg
+        self.swing_ankle_stiffness_Nm_per_rad_per_kg = swing_ankle_stiffness_Nm_per_rad_per_kg
+        self.swing_ankle_clearance_deg = swing_ankle_clearance_deg
         self.random_state = random_state
 
     # ------------------------------------------------------------------ fit
@@ -145,6 +169,7 @@ class QuasiStiffnessModel:
             progress: optional callable ``progress(step_name)`` called after each part.
         """
         tick = progress or (lambda _name: None)
+        self._check_swing_params()
         if "speed_mps" not in reference.task_names:
             raise ValueError("the reference set needs a 'speed_mps' task column")
         tasks = np.column_stack([
@@ -293,6 +318,38 @@ class QuasiStiffnessModel:
         var[k, channel] = np.maximum([f.std for f in mine], 1e-6) ** 2
         return [ViaPoint(phase=float(p), mean=m, cov=np.diag(v)) for p, m, v in zip(phases, means, var, strict=True)]
 
+    def _check_swing_params(self) -> None:
+        if self.swing_rule not in SWING_RULES:
+            raise ValueError(f"swing_rule must be one of {', '.join(SWING_RULES)}, got {self.swing_rule!r}")
+        stiffnesses = (*self.swing_knee_stiffness_Nm_per_rad_per_kg, self.swing_ankle_stiffness_Nm_per_rad_per_kg)
+        if len(stiffnesses) != 3 or not all(math.isfinite(k) and k > 0 for k in stiffnesses):
+            raise ValueError("swing stiffnesses must be positive finite magnitudes (N·m/rad per kg), got "
+                             f"knee {self.swing_knee_stiffness_Nm_per_rad_per_kg!r}, "
+                             f"ankle {self.swing_ankle_stiffness_Nm_per_rad_per_kg!r}")
+        if not (math.isfinite(self.swing_ankle_clearance_deg) and 0.0 <= self.swing_ankle_clearance_deg <= 15.0):
+            raise ValueError(f"swing_ankle_clearance_deg must be within [0, 15] deg, got {self.swing_ankle_clearance_deg!r}")
+
+    def _swing_lines(self, means: dict[str, np.ndarray], fmap: dict[str, FeaturePrediction], toe_off: float,
+                     mass_kg: float) -> list[dict[str, tuple[float, float]]]:
+        """Swing rows under the target rule, per joint in :data:`JOINTS` order: sub-phase → (k N·m/rad, θe rad).
+
+        Knee swing flexion aims at the predicted swing-flexion peak, knee swing extension at the predicted
+        heel-strike angle (the curve at phase 0); the ankle holds its predicted swing dorsiflexion (the most
+        dorsiflexed angle after toe-off) plus the clearance margin through both swing sub-phases.
+        """
+        k_wf, k_we = self.swing_knee_stiffness_Nm_per_rad_per_kg
+        k_a = self.swing_ankle_stiffness_Nm_per_rad_per_kg
+        knee_lo, knee_hi = JOINT_RANGE_RAD["knee"]
+        ankle_lo, ankle_hi = JOINT_RANGE_RAD["ankle"]
+        ankle_swing = means["ankle_angle"][self.s_query_ >= toe_off]
+        ankle_target = min(max(float(ankle_swing.max()) + math.radians(self.swing_ankle_clearance_deg), ankle_lo),
+                           ankle_hi)
+        knee = {"swing_flexion": (-k_wf * mass_kg, min(max(fmap["knee_swing_flexion_peak"].value, knee_lo), knee_hi)),
+                "swing_extension": (-k_we * mass_kg, min(max(float(means["knee_angle"][0]), knee_lo), knee_hi))}
+        ankle = {"swing_flexion": (-k_a * mass_kg, ankle_target), "swing_extension": (-k_a * mass_kg, ankle_target)}
+        lines = {"knee": knee, "ankle": ankle}
+        return [lines[j] for j in JOINTS]
+
     def propose(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
                 with_vias: bool = True) -> Proposal:
         """Predict curves and the parameter table for a task and patient.
@@ -332,9 +389,10 @@ class QuasiStiffnessModel:
         fits = {}
         floor = self.min_restoring_stiffness_Nm_per_rad_per_kg * mass_kg
         max_k = -floor if floor > 0 else None
+        fixed = self._swing_lines(means, fmap, b2, mass_kg) if self.swing_rule == "target" else None
         joint_fits = fit_quasi_stiffness_joints(
             s, np.array([means[f"{j}_angle"] for j in JOINTS]), np.array([means[f"{j}_moment"] for j in JOINTS]) * mass_kg,
-            boundaries, [JOINT_RANGE_RAD[j] for j in JOINTS], max_k)
+            boundaries, [JOINT_RANGE_RAD[j] for j in JOINTS], max_k, fixed)
         for joint, jf in zip(JOINTS, joint_fits, strict=True):
             fits[joint] = jf
             for f in jf:
@@ -343,7 +401,7 @@ class QuasiStiffnessModel:
                 rows.append(ParameterRow.model_construct(
                     joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad,
                     theta_e_deg=math.degrees(f.theta_e_rad),
-                    b_Nm_s_per_rad=DEFAULT_DAMPING_NMS_PER_RAD_PER_KG[f.subphase] * mass_kg,
+                    b_Nm_s_per_rad=DEFAULT_DAMPING_NMS_PER_RAD_PER_KG[joint][f.subphase] * mass_kg,
                     r2=f.r2, guarded=f.guarded, fit_method=f.method))
         extrapolation = any(f.extrapolation for f in features)
         weight_N = mass_kg * G

@@ -18,6 +18,14 @@ an end stop. When a ceiling ``max_k_Nm_per_rad`` (< 0) is given, such a sub-phas
 at the ceiling and θe = mean(θ − τ/k) (the least-squares θe for that k), clamped to the range; the row is
 marked ``guarded`` (``passivity_guard``) and its R² says how much of the moment the constrained line still
 explains.
+
+Swing targets: in swing the foot is off the ground and the able-bodied knee and ankle moments are inertial
+and braking (the hamstrings slowing the swinging shank), which a line in θ does not capture; on the simulated
+bench the least-squares swing lines do not carry a prosthetic shank through swing (docs/results.md). A caller
+can therefore give, per swing sub-phase, a fixed restoring k and a target θe (the model takes θe from its
+predicted swing features); :func:`fit_quasi_stiffness_joints` then uses that line, marks it ``swing_target``
+and reports its R² against the predicted moment, so the table still says how little of the able-bodied
+swing moment the line explains.
 """
 
 from __future__ import annotations
@@ -43,7 +51,7 @@ class SubphaseFit:
     phase_start: float
     phase_end: float
     n_points: int
-    method: str = "least_squares"   # least_squares | range_guard | passivity_guard
+    method: str = "least_squares"   # least_squares | range_guard | passivity_guard | swing_target
 
 
 def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) -> np.ndarray:
@@ -124,12 +132,16 @@ def fit_quasi_stiffness(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.nda
 def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm: np.ndarray,
                                boundaries: tuple[float, float, float],
                                theta_ranges_rad: list[tuple[float, float]],
-                               max_k_Nm_per_rad: float | None = None) -> list[list[SubphaseFit]]:
+                               max_k_Nm_per_rad: float | None = None,
+                               fixed_lines: list[dict[str, tuple[float, float]]] | None = None,
+                               ) -> list[list[SubphaseFit]]:
     """:func:`fit_quasi_stiffness` for several joints sharing one phase grid and one set of boundaries.
 
     Args:
         theta_rad, tau_Nm: (J, P) angle (rad) and moment (N·m) of J joints.
         theta_ranges_rad: J joint ranges (rad).
+        fixed_lines: per joint, sub-phase name → (k N·m/rad, θe rad) to use instead of a fit (the swing
+            targets; see the module docstring); k must be restoring (< 0) and θe within the joint range.
     """
     if max_k_Nm_per_rad is not None and not max_k_Nm_per_rad < 0:
         raise ValueError(f"max_k_Nm_per_rad must be negative (restoring), got {max_k_Nm_per_rad!r}")
@@ -154,8 +166,17 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
     out = []
     for j, (lo, hi) in enumerate(theta_ranges_rad):
         fits = []
+        fixed = fixed_lines[j] if fixed_lines is not None else {}
         for i, name in enumerate(SUBPHASES):
             th, ta = theta[masks[i], j], tau[masks[i], j]
+            if name in fixed:
+                kf, tef = fixed[name]
+                if not (kf < 0 and lo <= tef <= hi):
+                    raise ValueError(f"the fixed {name} line needs k < 0 and θe within the joint range, "
+                                     f"got k = {kf!r} N·m/rad, θe = {tef!r} rad")
+                fits.append(SubphaseFit(name, float(kf), float(tef), _r2(th, ta, kf, tef), True,
+                                        float(phase[first[i]]), float(phase[last[i]]), int(n[i, 0]), "swing_target"))
+                continue
             if lo <= theta_e[i, j] <= hi:
                 ki, tei, r2i, guarded = float(k[i, j]), float(theta_e[i, j]), float(r2[i, j]), False
             else:

@@ -38,11 +38,14 @@ class ParameterRow(_Strict):
     b_Nm_s_per_rad: float = Field(description="damping (N·m·s/rad), >= 0")
     r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
     guarded: bool = Field(default=False, description="the plain least-squares line was not used (see fit_method)")
-    fit_method: Literal["least_squares", "range_guard", "passivity_guard", "manual", "literature"] = Field(
+    fit_method: Literal["least_squares", "range_guard", "passivity_guard", "swing_target", "manual",
+                        "literature"] = Field(
         default="least_squares",
         description="least_squares: τ = kθ + c; range_guard: θe clamped to the joint range, k re-fitted; "
                     "passivity_guard: an energy-injecting line with θe inside the swept angles, replaced by the "
-                    "restoring floor and a re-fitted θe; manual: edited; literature: a published table")
+                    "restoring floor and a re-fitted θe; swing_target: a swing sub-phase whose θe is the model's "
+                    "predicted swing target and whose k is the model's swing stiffness; manual: edited; "
+                    "literature: a published table")
 
 
 class Thresholds(_Strict):

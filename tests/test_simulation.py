@@ -95,6 +95,27 @@ def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
     assert s["guard_transitions"] == 0
 
 
+@pytest.fixture(scope="module")
+def quasi_stiffness_walk(model):
+    ref = level_walking_reference(1.2)
+    log = run_walk(make_controller("quasi-stiffness", 1.2, 0.0, 75.0, model), ref, 75.0, seconds=7.0)
+    return log, score_walk(log, ref)
+
+
+def test_learned_table_walks_strides_on_the_bench_without_falling(quasi_stiffness_walk):
+    s = quasi_stiffness_walk[1].summary
+    assert s["strides"] >= 3
+    assert s["falls"] == 0 and s["toe_catches"] == 0
+    assert abs(s["stride_time_s"] - s["reference_stride_time_s"]) < 0.1
+    assert all(v > 0 for v in s["time_in_state_s"].values())
+    assert s["guard_transitions"] == 0
+    # the swing targets carry the knee through swing: it is nearly straight again before heel strike
+    log = quasi_stiffness_walk[0].channels
+    strikes = heel_strikes(log["contact_N"], 0.02 * 75.0 * 9.81, 150)
+    late = [s for s in strikes if log["time_s"][s] > 2.0]
+    assert late and max(math.degrees(log["knee_angle_rad"][s]) for s in late) < 25.0
+
+
 def test_load_cell_reads_compression_in_stance_and_a_plantarflexor_moment_at_push_off(fsmic_walk):
     log, _ = fsmic_walk
     c = log.channels

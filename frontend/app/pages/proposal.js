@@ -14,6 +14,15 @@ async function reference() {
   return referenceCache;
 }
 
+const FIT_METHOD_HELP = {
+  least_squares: "least-squares line τ = kθ + c through the predicted loop",
+  range_guard: "the fitted θe lay outside the joint range: θe clamped to the range and k re-fitted",
+  passivity_guard: "the fitted line would inject energy with θe inside the swept angles: k set to the restoring floor, θe re-fitted",
+  swing_target: "not a fit: θe is the predicted swing target, k the model's swing stiffness (restoring)",
+  manual: "edited by hand",
+  literature: "published table",
+};
+
 export async function proposalPage(view, id) {
   const [p, ref] = await Promise.all([get(`/api/proposals/${id}`), reference()]);
   const patient = await get(`/api/patients/${p.patient_id}`);
@@ -178,6 +187,8 @@ function parameterTable(p, canEdit) {
       : fmt(shown, digits);
     return h("td", { class: `num${out ? " out" : ""}`, title: out ? `outside the safety limits` : "" }, content);
   };
+  const fitChip = (r) => r.fit_method === "swing_target" ? chip("swing target")
+    : r.guarded ? chip("guarded fit", "warn") : r.fit_method;
   const rows = p.table.map((r) => {
     const thetaLim = r.joint === "knee" ? L.knee_theta_e_deg : L.ankle_theta_e_deg;
     return h("tr", {},
@@ -186,7 +197,7 @@ function parameterTable(p, canEdit) {
       cell(r, "theta_e_deg", r.theta_e_deg, 2, thetaLim),
       cell(r, "b_Nm_s_per_rad", r.b_Nm_s_per_rad, 2, L.b_Nm_s_per_rad),
       h("td", { class: "num" }, r.r2 === null ? "—" : fmt(r.r2, 2)),
-      h("td", {}, r.guarded ? chip("guarded fit", "warn") : r.fit_method));
+      h("td", { title: FIT_METHOD_HELP[r.fit_method] ?? "" }, fitChip(r)));
   });
   const th = p.thresholds;
   const thUnits = { sf_to_se_ankle_moment_Nm: ["SF→SE: ankle moment below", "N·m", L.ankle_moment_Nm],
@@ -207,7 +218,8 @@ function parameterTable(p, canEdit) {
     table(["Joint", "Sub-phase", `k (${kUnit})`, "θe (deg)", "b (N·m·s/rad)", "R²", "Fit"], rows, { id: "param-table" }),
     h("p", { class: "muted small" }, `Limits: k ${range(L.k_Nm_per_rad, state.kUnit === "rad" ? 1 : RAD, state.kUnit === "rad" ? 0 : 2)} ${kUnit} (negative = restoring); `,
       `θe knee ${range(L.knee_theta_e_deg)}°, ankle ${range(L.ankle_theta_e_deg)}°; b ${range(L.b_Nm_s_per_rad)} N·m·s/rad. `,
-      "Cells outside the limits are marked red. R²: how well a straight line fits the predicted loop in that sub-phase."),
+      "Cells outside the limits are marked red. R²: how well the row's straight line fits the predicted loop in that sub-phase. ",
+      "Swing-target rows are not fits: in swing the foot is unloaded, so θe is the predicted swing target (knee: swing-flexion peak, then heel-strike angle; ankle: swing dorsiflexion plus a toe-clearance margin) and k a set swing stiffness; their R² (often far below 0) says how little of the able-bodied swing moment such a line explains."),
     h("h3", {}, "State-machine thresholds"),
     table(["Transition", "Value", "Unit", "Limits"], thRows, { id: "thresholds" }));
   if (canEdit) box.append(editForm(p));
