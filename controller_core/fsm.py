@@ -6,7 +6,10 @@ States follow the quasi-stiffness sub-phases: stance flexion (SF) → stance ext
 its threshold → swing extension (WE) when the knee is flexed past its swing threshold and has stopped
 flexing → SF at heel strike, when the load rises above its threshold. Every state has a minimum time (no
 transition before it) and a maximum time (the guard moves on to the next state, so a missed event cannot
-hold the leg in one state).
+hold the leg in one state). An event counts only once its condition has held for ``event_hold_s``
+(20 ms by default): a load cell rings at heel strike and when a straight knee meets its end stop, and on the
+simulated bench a single low sample in mid-stance was enough to fire a false toe-off and put a loaded leg
+into swing flexion (docs/results.md).
 
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
@@ -114,6 +117,7 @@ class ImpedanceSchedule:
         sf_to_se_ankle_moment_Nm, se_to_wf_load_N, wf_to_we_knee_angle_rad, we_to_sf_load_N: thresholds.
         min_state_time_s, max_state_time_s: state-time guards (s).
         swing_slowing_rad_s: WF→WE also needs the knee flexion velocity at or below this (rad/s).
+        event_hold_s: a transition's condition must hold this long, uninterrupted, before it fires (s).
     """
 
     knee_k: tuple[float, float, float, float]
@@ -129,6 +133,7 @@ class ImpedanceSchedule:
     min_state_time_s: float
     max_state_time_s: float
     swing_slowing_rad_s: float = 0.05
+    event_hold_s: float = 0.02
 
     @classmethod
     def from_table(cls, table: ImpedanceTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
@@ -179,6 +184,7 @@ class StateMachineController:
     Attributes:
         state_: the current state.
         state_entry_time_s_: when the current state was entered (s); None before the first sample.
+        event_since_s_: since when the current state's exit condition has held (s); None while it does not.
         transitions_: number of transitions taken.
         guard_transitions_: how many of them the maximum-time guard forced.
     """
@@ -188,6 +194,7 @@ class StateMachineController:
     initial_state: GaitState = GaitState.SWING_EXTENSION
     state_: GaitState = field(init=False)
     state_entry_time_s_: float | None = field(init=False, default=None)
+    event_since_s_: float | None = field(init=False, default=None)
     transitions_: int = field(init=False, default=0)
     guard_transitions_: int = field(init=False, default=0)
 
@@ -198,6 +205,7 @@ class StateMachineController:
         """Forget the history: back to ``state`` (or the initial state), entry time taken at the next sample."""
         self.state_ = GaitState(self.initial_state if state is None else state)
         self.state_entry_time_s_ = None
+        self.event_since_s_ = None
         self.transitions_ = 0
         self.guard_transitions_ = 0
 
@@ -223,9 +231,17 @@ class StateMachineController:
         dwell = x.time_s - self.state_entry_time_s_
         if dwell >= sch.min_state_time_s:
             guard = dwell >= sch.max_state_time_s
-            if guard or self._event(x):
+            if self._event(x):
+                if self.event_since_s_ is None:
+                    self.event_since_s_ = x.time_s
+                held = x.time_s - self.event_since_s_ >= sch.event_hold_s - 1e-9
+            else:
+                self.event_since_s_ = None
+                held = False
+            if guard or held:
                 self.state_ = GaitState((int(self.state_) + 1) % 4)
                 self.state_entry_time_s_ = x.time_s
+                self.event_since_s_ = None
                 self.transitions_ += 1
                 self.guard_transitions_ += int(guard)
         i = int(self.state_)

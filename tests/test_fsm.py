@@ -18,7 +18,7 @@ def schedule(**over) -> ImpedanceSchedule:
     base = dict(knee_k=(-100.0, -50.0, -20.0, -10.0), knee_theta_e=(0.1, 0.05, 1.0, 0.1), knee_b=(2.0, 2.0, 1.0, 1.0),
                 ankle_k=(-80.0, -120.0, -10.0, -10.0), ankle_theta_e=(0.0, -0.3, 0.0, 0.0), ankle_b=(1.0, 1.0, 0.5, 0.5),
                 sf_to_se_ankle_moment_Nm=-5.0, se_to_wf_load_N=40.0, wf_to_we_knee_angle_rad=math.radians(50.0),
-                we_to_sf_load_N=110.0, min_state_time_s=0.05, max_state_time_s=1.5)
+                we_to_sf_load_N=110.0, min_state_time_s=0.05, max_state_time_s=1.5, event_hold_s=0.0)
     base.update(over)
     return ImpedanceSchedule(**base)
 
@@ -63,6 +63,25 @@ def test_a_swinging_foot_moment_without_load_does_not_end_stance_flexion():
     c.step(sample(0.0, load=500.0))
     assert c.step(sample(0.2, load=10.0, moment=-30.0)).state == SF
     assert c.step(sample(0.3, load=500.0, moment=-30.0)).state == SE
+
+
+def test_an_event_fires_only_after_its_condition_has_held_uninterrupted():
+    c = StateMachineController(schedule(event_hold_s=0.02), initial_state=SE)
+    c.step(sample(0.0, load=600.0))
+    assert c.step(sample(0.100, load=20.0)).state == SE     # one low load sample (a ringing load cell) ...
+    assert c.step(sample(0.101, load=400.0)).state == SE    # ... then loaded again: the hold restarts
+    assert c.step(sample(0.200, load=20.0)).state == SE
+    assert c.step(sample(0.210, load=20.0)).state == SE     # 10 ms below the toe-off load: not yet
+    assert c.step(sample(0.220, load=20.0)).state == WF     # 20 ms: toe-off
+    assert c.transitions_ == 1 and c.event_since_s_ is None  # the hold is forgotten with the state
+
+
+def test_the_max_time_guard_does_not_wait_for_the_event_hold():
+    c = StateMachineController(schedule(event_hold_s=0.02, max_state_time_s=1.0))
+    c.step(sample(0.0))
+    assert c.step(sample(0.995, load=800.0)).state == WE   # heel strike seen, 5 ms held
+    assert c.step(sample(1.000, load=800.0)).state == SF   # the guard moves on at 1.0 s regardless
+    assert c.guard_transitions_ == 1
 
 
 def test_torque_law_and_clipping():
