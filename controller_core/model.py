@@ -20,7 +20,8 @@ feature points):
 ``propose(speed_mps, incline_deg, mass_kg)`` predicts the features, builds the task's reference, turns
 each feature into a KMP via-point on its channel (covariance = the GPR's predictive variance, so an
 uncertain feature pulls less), reshapes the reference through them, fits the quasi-stiffness per
-sub-phase and builds the parameter table.
+stance sub-phase, aims the swing sub-phases at the predicted swing targets (``swing_rule``) and builds the
+parameter table.
 """
 
 from __future__ import annotations
@@ -341,7 +342,7 @@ class QuasiStiffnessModel:
         k_a = self.swing_ankle_stiffness_Nm_per_rad_per_kg
         knee_lo, knee_hi = JOINT_RANGE_RAD["knee"]
         ankle_lo, ankle_hi = JOINT_RANGE_RAD["ankle"]
-        ankle_swing = means["ankle_angle"][self.s_query_ >= toe_off]
+        ankle_swing = means["ankle_angle"][int(np.searchsorted(self.s_query_, toe_off)):]
         ankle_target = min(max(float(ankle_swing.max()) + math.radians(self.swing_ankle_clearance_deg), ankle_lo),
                            ankle_hi)
         knee = {"swing_flexion": (-k_wf * mass_kg, min(max(fmap["knee_swing_flexion_peak"].value, knee_lo), knee_hi)),

@@ -168,15 +168,19 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
         fits = []
         fixed = fixed_lines[j] if fixed_lines is not None else {}
         for i, name in enumerate(SUBPHASES):
-            th, ta = theta[masks[i], j], tau[masks[i], j]
             if name in fixed:
                 kf, tef = fixed[name]
                 if not (kf < 0 and lo <= tef <= hi):
                     raise ValueError(f"the fixed {name} line needs k < 0 and θe within the joint range, "
                                      f"got k = {kf!r} N·m/rad, θe = {tef!r} rad")
-                fits.append(SubphaseFit(name, float(kf), float(tef), _r2(th, ta, kf, tef), True,
+                # residual τ − k(θ − θe) = (τ − ȳ) − k(θ − θ̄) + (ȳ − k(θ̄ − θe)), from the masked sums
+                offset = ym[i, j] - kf * (tm[i, j] - tef)
+                ss_res = syy[i, j] - 2.0 * kf * sxy[i, j] + kf * kf * sxx[i, j] + n[i, 0] * offset * offset
+                r2f = 1.0 - ss_res / syy[i, j] if syy[i, j] > 0 else 0.0
+                fits.append(SubphaseFit(name, float(kf), float(tef), float(r2f), True,
                                         float(phase[first[i]]), float(phase[last[i]]), int(n[i, 0]), "swing_target"))
                 continue
+            th, ta = theta[masks[i], j], tau[masks[i], j]
             if lo <= theta_e[i, j] <= hi:
                 ki, tei, r2i, guarded = float(k[i, j]), float(theta_e[i, j]), float(r2[i, j]), False
             else:
