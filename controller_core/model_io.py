@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import inspect
 import json
 import os
 import shutil
@@ -103,6 +104,11 @@ def load_model(directory: str | Path) -> QuasiStiffnessModel:
     model = joblib.load(path)
     if not isinstance(model, QuasiStiffnessModel):
         raise ValueError(f"{path} does not hold a QuasiStiffnessModel")
+    settings = [p for p in inspect.signature(QuasiStiffnessModel.__init__).parameters if p != "self"]
+    missing = [p for p in settings if not hasattr(model, p)]
+    if missing:
+        raise ValueError(f"the model at {directory!s} was trained by an older QuasiTune and lacks the settings "
+                         f"{', '.join(missing)}; re-train it with 'quasitune train'")
     return model
 
 
