@@ -338,17 +338,19 @@ class QuasiStiffnessModel:
         heel-strike angle (the curve at phase 0); the ankle holds its predicted swing dorsiflexion (the most
         dorsiflexed angle after toe-off) plus the clearance margin through both swing sub-phases.
         """
+        def within(joint: str, theta: float) -> float:   # a target clamped to the joint's range (rad)
+            lo, hi = JOINT_RANGE_RAD[joint]
+            return min(max(float(theta), lo), hi)
+
         k_wf, k_we = self.swing_knee_stiffness_Nm_per_rad_per_kg
-        k_a = self.swing_ankle_stiffness_Nm_per_rad_per_kg
-        knee_lo, knee_hi = JOINT_RANGE_RAD["knee"]
-        ankle_lo, ankle_hi = JOINT_RANGE_RAD["ankle"]
+        k_a = -self.swing_ankle_stiffness_Nm_per_rad_per_kg * mass_kg
         ankle_swing = means["ankle_angle"][int(np.searchsorted(self.s_query_, toe_off)):]
-        ankle_target = min(max(float(ankle_swing.max()) + math.radians(self.swing_ankle_clearance_deg), ankle_lo),
-                           ankle_hi)
-        knee = {"swing_flexion": (-k_wf * mass_kg, min(max(fmap["knee_swing_flexion_peak"].value, knee_lo), knee_hi)),
-                "swing_extension": (-k_we * mass_kg, min(max(float(means["knee_angle"][0]), knee_lo), knee_hi))}
-        ankle = {"swing_flexion": (-k_a * mass_kg, ankle_target), "swing_extension": (-k_a * mass_kg, ankle_target)}
-        lines = {"knee": knee, "ankle": ankle}
+        ankle_target = within("ankle", ankle_swing.max() + math.radians(self.swing_ankle_clearance_deg))
+        lines = {
+            "knee": {"swing_flexion": (-k_wf * mass_kg, within("knee", fmap["knee_swing_flexion_peak"].value)),
+                     "swing_extension": (-k_we * mass_kg, within("knee", means["knee_angle"][0]))},
+            "ankle": {"swing_flexion": (k_a, ankle_target), "swing_extension": (k_a, ankle_target)},
+        }
         return [lines[j] for j in JOINTS]
 
     def propose(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
