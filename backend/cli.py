@@ -194,9 +194,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if args.workers > 1 and device != "none":
         raise ValueError("a device link lives in one server process: use --workers 1 with a device, "
                          "or --device none for a multi-process API server")
-    serve(dataclasses.replace(_settings(args), device=device), host=args.host, port=args.port,
-          bootstrap=not args.no_bootstrap_user, workers=args.workers)
-    return 0
+    return serve(dataclasses.replace(_settings(args), device=device), host=args.host, port=args.port,
+                 bootstrap=not args.no_bootstrap_user, workers=args.workers)
 
 
 def _read_password() -> str:

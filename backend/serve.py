@@ -5,17 +5,17 @@ The first line on stdout is ``QuasiTune listening on http://HOST:PORT`` (scripts
 
 from __future__ import annotations
 
-import os
 import secrets
 import socket
 import sys
-from pathlib import Path
 
 from backend.app import create_app, prepare_storage
 from backend.db import connect
 from backend.errors import ConflictError
 from backend.settings import Settings
 from backend.store.users import create_user
+from backend.workers import reserve_port, run_workers
+from backend.workers import supported as workers_supported
 
 BOOTSTRAP_USER = "prosthetist"
 
@@ -52,52 +52,50 @@ def bind(host: str, port: int) -> socket.socket:
     return sock
 
 
-def _one_blas_thread() -> None:
+def one_blas_thread() -> None:
     """Requests run in parallel; BLAS threads inside each tiny solve only spin against them."""
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1)
 
 
-def app_from_env():
-    """App factory for worker processes (``--workers`` > 1): settings come from the parent via the environment."""
-    _one_blas_thread()
-    return create_app(Settings(data_dir=Path(os.environ["QUASITUNE_DATA_DIR"]),
-                               model_dir=Path(os.environ["QUASITUNE_MODEL_DIR"]) if os.environ.get(
-                                   "QUASITUNE_MODEL_DIR") else None))
-
-
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstrap: bool = True,
-          log_level: str = "warning", workers: int = 1) -> None:
-    """Migrate, (maybe) create the first user, bind, print the URL, serve until interrupted.
+          log_level: str = "warning", workers: int = 1) -> int:
+    """Migrate, (maybe) create the first user, bind, print the URL, serve until interrupted; the exit status.
 
-    With ``workers`` > 1 the parent binds the socket and uvicorn forks that many worker processes, each with
-    its own copy of the model; SQLite's locking keeps their writes serial.
+    With ``workers`` > 1, :mod:`backend.workers` runs that many processes, each with its own copy of the
+    model and its own listening socket; SQLite's locking (and :mod:`backend.db`'s write lock) keeps their
+    writes serial.
     """
     import uvicorn
 
-    _one_blas_thread()
+    if workers > 1 and not workers_supported():
+        raise ValueError("--workers above 1 needs SO_REUSEPORT load balancing (Linux); use --workers 1")
+    one_blas_thread()
     app = create_app(settings) if workers == 1 else None
     if app is None:
         prepare_storage(settings)   # once in the parent; each worker builds its own app
     password = bootstrap_user(settings) if bootstrap else None
-    sock = bind(host, port)
+    sock = bind(host, port) if workers == 1 else reserve_port(host, port)
     real_host, real_port = sock.getsockname()[:2]
-    shown = f"[{real_host}]" if ":" in real_host else real_host
-    print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
-    print(f"  dashboard: http://{shown}:{real_port}/   API docs: http://{shown}:{real_port}/docs", flush=True)
-    print(f"  database: {settings.db_path}", flush=True)
-    if password:
-        print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
-              "  (shown once; add users with 'quasitune users add NAME --role ROLE')", flush=True)
-    if host not in ("127.0.0.1", "::1", "localhost"):
-        print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
+
+    def announce() -> None:
+        shown = f"[{real_host}]" if ":" in real_host else real_host
+        print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
+        print(f"  dashboard: http://{shown}:{real_port}/   API docs: http://{shown}:{real_port}/docs", flush=True)
+        print(f"  database: {settings.db_path}", flush=True)
+        if password:
+            print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
+                  "  (shown once; add users with 'quasitune users add NAME --role ROLE')", flush=True)
+        if host not in ("127.0.0.1", "::1", "localhost"):
+            print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
+
     if workers == 1:
+        announce()
         config = uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on")
         uvicorn.Server(config).run(sockets=[sock])
-        return
-    os.environ["QUASITUNE_DATA_DIR"] = str(settings.data_dir)
-    if settings.model_dir is not None:
-        os.environ["QUASITUNE_MODEL_DIR"] = str(settings.model_dir)
-    uvicorn.run("backend.serve:app_from_env", factory=True, fd=sock.fileno(), workers=workers, log_level=log_level,
-                access_log=False)
+        return 0
+    try:
+        return run_workers(settings, real_host, real_port, workers, log_level, announce)
+    finally:
+        sock.close()
