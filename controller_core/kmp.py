@@ -25,6 +25,7 @@ Phases are in [0, 1); the kernel is periodic (heel strike at 0 and at 1 coincide
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,11 @@ def _kron_eye(k: np.ndarray, o: int) -> np.ndarray:
     for i in range(o):
         out[i::o, i::o] = k
     return out
+
+
+def _kron_eye_times(k: np.ndarray, M: np.ndarray, o: int) -> np.ndarray:
+    """(k ⊗ I_o) @ M from k alone: a quarter of the memory traffic of the dense product (for o = 2)."""
+    return (k @ M.reshape(k.shape[1], -1)).reshape(k.shape[0] * o, -1)
 
 
 def _unit_columns(n: int, rows: np.ndarray) -> np.ndarray:
@@ -89,11 +95,12 @@ def _block_diagonals(G: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 def _blockdiag(blocks: np.ndarray) -> np.ndarray:
+    """Block-diagonal (n·o, n·o) matrix of n blocks (n, o, o), in one scatter."""
     n, o, _ = blocks.shape
-    out = np.zeros((n * o, n * o))
-    for i in range(n):
-        out[i * o:(i + 1) * o, i * o:(i + 1) * o] = blocks[i]
-    return out
+    out = np.zeros((n, o, n, o))
+    idx = np.arange(n)
+    out[idx, :, idx, :] = blocks
+    return out.reshape(n * o, n * o)
 
 
 class KMP:
@@ -145,13 +152,15 @@ class KMP:
         self._Ainv_c = self._Ainv if self.lam_c == self.lam else _solve(self._chol_c, eye)
         self._mu_flat = self.mu_ref_.reshape(-1)
         self._alpha = _solve(self._chol, self._mu_flat[:, None])
-        self._Kq = _kron_eye(periodic_kernel(self.s_query_, s_ref, self.length_scale), O)  # (QO, NO)
-        self._Zc = _solve(self._chol_c, self._Kq.T.copy())                                 # (NO, QO)
+        self._s_query_ref = np.concatenate([self.s_query_, s_ref])
+        self._kq = periodic_kernel(self.s_query_, s_ref, self.length_scale)               # (Q, N); Kq = kq ⊗ I
+        Kq = _kron_eye(self._kq, O)                                                       # (QO, NO)
+        self._Zc = _solve(self._chol_c, Kq.T.copy())                                      # (NO, QO)
         self._G_c = self._Zc.T                                                            # Kq A_c⁻¹ (QO, NO)
-        self._G = self._G_c if self.lam_c == self.lam else self._Kq @ self._Ainv          # Kq A⁻¹
+        self._G = self._G_c if self.lam_c == self.lam else Kq @ self._Ainv                # Kq A⁻¹
         Q = self.s_query_.size
-        self._mean_base = (self._Kq @ self._alpha).reshape(Q, O)
-        self._quad_base = np.einsum("gqa,gqb->qab", self._Kq.T.reshape(-1, Q, O), self._Zc.reshape(-1, Q, O))
+        self._mean_base = (Kq @ self._alpha).reshape(Q, O)
+        self._quad_base = np.einsum("gqa,gqb->qab", Kq.T.reshape(-1, Q, O), self._Zc.reshape(-1, Q, O))
         self._quad_base_diag = np.diagonal(self._quad_base, axis1=1, axis2=2).copy()
         self.cov_scale_ = 1.0
         if self.cov_scale == "huang":
@@ -162,6 +171,15 @@ class KMP:
             self.cov_scale_ = float(np.trace(ref_at_q, axis1=1, axis2=2).mean()
                                     / np.trace(raw, axis1=1, axis2=2).mean())
         return self
+
+    def __setstate__(self, state: dict) -> None:
+        """Unpickle; a KMP saved before ``_kq`` existed kept the dense Kq = kq ⊗ I instead: recompute kq
+        (and the grid the via-point kernels are evaluated on)."""
+        self.__dict__.update(state)
+        if "_Kq" in state:
+            del self.__dict__["_Kq"]
+            self._kq = periodic_kernel(self.s_query_, self.s_ref_, self.length_scale)
+            self._s_query_ref = np.concatenate([self.s_query_, self.s_ref_])
 
     def _ref_cov_at(self, s: np.ndarray) -> np.ndarray:
         idx = np.argmin(np.abs(np.angle(np.exp(2j * np.pi * (s[:, None] - self.s_ref_[None])))), axis=1)
@@ -174,23 +192,29 @@ class KMP:
             return np.zeros(0, dtype=int)
         n = self.s_ref_.size
         if self._uniform and self.via_tolerance < 1.0 / n:    # only the two neighbouring grid points can be hit
-            lo = np.floor(sv * n)
-            near = np.concatenate([lo, lo + 1.0])
-            hit = np.abs(np.tile(sv, 2) - near / n) <= self.via_tolerance
-            return np.unique(near[hit].astype(int) % n)
+            tol = self.via_tolerance                          # a handful of vias: plain floats beat array calls
+            hit = {int(c) % n for p in sv.tolist() for c in (math.floor(p * n), math.floor(p * n) + 1.0)
+                   if abs(p - c / n) <= tol}
+            return np.array(sorted(hit), dtype=int)
         gap = np.abs(sv[:, None] - self.s_ref_[None])
         gap = np.minimum(gap, 1.0 - gap)
         return np.flatnonzero((gap <= self.via_tolerance).any(axis=0))
 
-    def _border(self, Ainv: np.ndarray, sv: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _via_kernels(self, sv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """k(·, vias) ⊗ I for the query grid (QO, mO), the reference grid C (NO, mO) and the vias themselves
+        (mO, mO), from one kernel evaluation."""
+        O = self.n_outputs_
+        split = (self.s_query_.size * O, (self.s_query_.size + self.s_ref_.size) * O)
+        K = _kron_eye(periodic_kernel(np.concatenate([self._s_query_ref, sv]), sv, self.length_scale), O)
+        return K[:split[0]], K[split[0]:split[1]], K[split[1]:]
+
+    @staticmethod
+    def _border(Ainv: np.ndarray, C: np.ndarray, Kvv: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, ...]:
         """Pieces of the modified database that do not depend on the via-point covariances.
 
         Returns C = k(reference, vias) ⊗ I, the via-via kernel, W = A⁻¹C and (if reference rows are
         replaced) the columns of A⁻¹ at those rows, from the cached inverse ``Ainv``.
         """
-        O = self.n_outputs_
-        C = _kron_eye(periodic_kernel(self.s_ref_, sv, self.length_scale), O)          # (NO, mO)
-        Kvv = _kron_eye(periodic_kernel(sv, sv, self.length_scale), O)
         return C, Kvv, Ainv @ C, (Ainv[:, rows] if rows.size else None)
 
     def _update(self, border: tuple[np.ndarray, ...], lam: float, cov_v: np.ndarray, rows: np.ndarray,
@@ -257,20 +281,20 @@ class KMP:
         alpha = self._alpha_for(mu)
         full = blocks is _blocks
         if not vias:
-            mean = self._mean_base.copy() if mu is None else (self._Kq @ alpha).reshape(Q, O)
+            mean = self._mean_base.copy() if mu is None else _kron_eye_times(self._kq, alpha, O).reshape(Q, O)
             return mean, self._quad_base.copy() if full else self._quad_base_diag.copy()
         sv = np.mod(np.array([p.phase for p in vias], dtype=float), 1.0)
         J = self._replaced(sv)
         rows = (J[:, None] * O + np.arange(O)[None]).reshape(-1)
         cov_v = np.array([p.cov for p in vias], dtype=float)
         mu_v = np.concatenate([np.asarray(p.mean, float) for p in vias])[:, None]
-        Kqv = _kron_eye(periodic_kernel(self.s_query_, sv, self.length_scale), O)      # (QO, mO)
+        Kqv, C, Kvv = self._via_kernels(sv)                                              # Kqv (QO, mO)
         # mean ξ = Kq x_r + Kqv x_v; covariance from the quadratic form k*ᵀ P k*. With λ = λc both share
         # one factorisation, so their right-hand sides are solved together (column 0 is the mean).
-        border = self._border(self._Ainv, sv, rows)
+        border = self._border(self._Ainv, C, Kvv, rows)
         if self.lam == self.lam_c and self.via_mean_scale == 1.0:
             G, W = self._G, border[2]
-            KqW = self._Kq @ W                                # Kq A⁻¹C; its transpose is Cᵀ Zc
+            KqW = _kron_eye_times(self._kq, W, O)             # Kq A⁻¹C; its transpose is Cᵀ Zc
             xr, Xv, T, T_e, corr = self._update(
                 border, self.lam, cov_v, rows, alpha, np.hstack([alpha[rows], self._Zc[rows]]),
                 np.hstack([border[0].T @ alpha, KqW.T]), np.hstack([mu_v, Kqv.T]))
@@ -279,21 +303,21 @@ class KMP:
         else:
             xr, xv, *_ = self._update(border, self.lam, cov_v * self.via_mean_scale, rows, alpha, alpha[rows],
                                       border[0].T @ alpha, mu_v)
-            border_c = border if self.lam_c == self.lam else self._border(self._Ainv_c, sv, rows)
+            border_c = border if self.lam_c == self.lam else self._border(self._Ainv_c, C, Kvv, rows)
             G, W = self._G_c, border_c[2]
-            KqW = self._Kq @ W
+            KqW = _kron_eye_times(self._kq, W, O)
             _, Xv, T, T_e, corr = self._update(border_c, self.lam_c, cov_v, rows, None, self._Zc[rows], KqW.T,
                                                Kqv.T)
-        mean = (self._Kq @ xr + Kqv @ xv).reshape(Q, O)
-        m = Kqv.shape[1]
+        mean = (_kron_eye_times(self._kq, xr, O) + Kqv @ xv).reshape(Q, O)
         base = self._quad_base if full else self._quad_base_diag
-        quad = base - blocks(KqW.reshape(Q, O, m), T.reshape(m, Q, O))
-        quad += blocks(Kqv.reshape(Q, O, m), Xv.reshape(m, Q, O))
+        # k*ᵀ P k* = base − (Kq W) T + Kqv Xv − (Kq P_r) corr, as one product of stacked factors
+        lefts, rights = [KqW, Kqv], [T, -Xv]
         if corr is not None:
-            r = corr.shape[0]
-            KqP_r = G[:, rows] - KqW @ T_e                      # Kq (A⁻¹E − W T_e) without an (NO)-long product
-            quad -= blocks(KqP_r.reshape(Q, O, r), corr.reshape(r, Q, O))
-        return mean, quad
+            lefts.append(G[:, rows] - KqW @ T_e)               # Kq (A⁻¹E − W T_e) without an (NO)-long product
+            rights.append(corr)
+        left, right = np.concatenate(lefts, axis=1), np.concatenate(rights, axis=0)
+        c = left.shape[1]
+        return mean, base - blocks(left.reshape(Q, O, c), right.reshape(c, Q, O))
 
     def predict_uncached(self, vias: list[ViaPoint] | None = None,
                          mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

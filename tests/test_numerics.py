@@ -136,6 +136,23 @@ def test_kmp_cached_equals_uncached_with_replace_and_insert(knee_kmp):
     assert np.allclose(kmp.predict(vias, mu=mu2)[0], kmp.predict_uncached(vias, mu=mu2)[0], atol=1e-10)
 
 
+def test_kmp_pickled_with_the_dense_query_kernel_still_predicts_the_same(knee_kmp):
+    import pickle
+
+    from controller_core.kmp import _kron_eye
+
+    kmp, _ = knee_kmp
+    vias = [ViaPoint(0.20, np.array([0.3, -0.5]), np.diag([1e-4, 1e-2]))]
+    state = dict(kmp.__dict__)                    # how a KMP saved before the factored kernel looked
+    state["_Kq"] = _kron_eye(state.pop("_kq"), kmp.n_outputs_)
+    old = KMP.__new__(KMP)
+    old.__dict__.update(state)
+    restored = pickle.loads(pickle.dumps(old))
+    assert not hasattr(restored, "_Kq")
+    for a, b in zip(restored.predict_std(vias), kmp.predict_std(vias), strict=True):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("lam_c, via_mean_scale", [(1.0, 0.1), (3.0, 1.0), (3.0, 0.1)])
 def test_kmp_split_mean_and_covariance_systems_match_uncached(knee_kmp, lam_c, via_mean_scale):
     base, _ = knee_kmp
