@@ -67,7 +67,7 @@ class Proposal:
 
     def curves_dict(self) -> dict[str, list[float]]:
         """Curves in display units on the 101-point phase grid."""
-        out: dict[str, list[float]] = {"phase": [round(float(p), 4) for p in self.phase]}
+        out: dict[str, list[float]] = {"phase": np.round(self.phase, 4).tolist()}
         for joint in ("knee", "ankle"):
             a, a_sd = self.means[f"{joint}_angle"], self.stds[f"{joint}_angle"]
             m, m_sd = self.means[f"{joint}_moment"], self.stds[f"{joint}_moment"]
@@ -79,6 +79,23 @@ class Proposal:
 
     def to_dict(self) -> dict:
         """JSON-ready dictionary (see the CLI's ``predict --format json``)."""
+        body = self.model_body()
+        return {
+            "task": {"speed_mps": self.speed_mps, "incline_deg": self.incline_deg, "mass_kg": self.mass_kg},
+            "model": body["model"],
+            "extrapolation": self.extrapolation,
+            "features": body["features"],
+            "subphase_boundaries_phase": body["subphase_boundaries_phase"],
+            "curves": body["curves"],
+            "via_points": body["via_points"],
+            "table": display_rows(self.table),
+            "thresholds": self.table.thresholds.model_dump(),
+            "safety": {"ok": not self.violations, "violations": [v.model_dump() for v in self.violations]},
+        }
+
+    def model_body(self) -> dict:
+        """What the model predicted, in display units: model, features, sub-phase boundaries, curves and
+        via-points (:meth:`to_dict` without the task, table and safety check, which are stored apart)."""
         feats = []
         for f in self.features:
             value, std, unit = f.display_value()
@@ -89,9 +106,7 @@ class Proposal:
                 "extrapolation": f.extrapolation,
             })
         return {
-            "task": {"speed_mps": self.speed_mps, "incline_deg": self.incline_deg, "mass_kg": self.mass_kg},
             "model": {"version": self.model_version, "data_sha256": self.data_sha256},
-            "extrapolation": self.extrapolation,
             "features": feats,
             "subphase_boundaries_phase": {
                 "stance_flexion_to_stance_extension": round(self.boundaries[0], 4),
@@ -100,7 +115,4 @@ class Proposal:
             },
             "curves": self.curves_dict(),
             "via_points": self.via_points_dict(),
-            "table": display_rows(self.table),
-            "thresholds": self.table.thresholds.model_dump(),
-            "safety": {"ok": not self.violations, "violations": [v.model_dump() for v in self.violations]},
         }

@@ -19,11 +19,10 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.users import User
 from controller_core.proposal import Proposal
-from controller_core.table import ParameterTable, SafetyLimits, check_table, display_rows
+from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, check_table, display_rows
 
 _LIMITS = SafetyLimits().model_dump()
 _ACTIONS = {"approved": "proposal.approve", "rejected": "proposal.reject"}
-_MODEL_KEYS = ("model", "features", "subphase_boundaries_phase", "curves", "via_points")
 _SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name FROM proposals p "
            "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by")
 
@@ -39,9 +38,11 @@ def stored_table(row: sqlite3.Row) -> ParameterTable:
     return ParameterTable.model_validate_json(row["table_json"])
 
 
-def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool) -> dict:
-    """The API view of a proposal from its metadata, its (validated) table and its stored model body."""
-    violations = check_table(table)
+def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
+              violations: list[LimitViolation] | None = None) -> dict:
+    """The API view of a proposal from its metadata, its (validated) table and its stored model body
+    (``violations``: the table's limit check when the caller has just made it)."""
+    violations = check_table(table) if violations is None else violations
     out = {
         **meta,
         "model": body["model"],
@@ -93,8 +94,9 @@ def list_proposals(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
 
 
 def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
-            extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User) -> dict:
-    """Insert a draft; returns its metadata as :func:`_meta` gives it."""
+            extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User,
+            violations: list[LimitViolation]) -> dict:
+    """Insert a draft (``violations``: its table's limit check); returns its metadata as :func:`_meta` gives it."""
     table_json = table.model_dump_json()
     created_at = utc_now()
     table_sha256 = _sha256(table_json)
@@ -105,7 +107,7 @@ def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, so
         "extrapolation, safety_ok, model_json, table_json, table_sha256, edit_comment, created_by, created_at) "
         "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         (patient_id, version, parent_id, source, task["speed_mps"], task["incline_deg"], task["body_mass_kg"],
-         int(extrapolation), int(not check_table(table)), model_json, table_json, table_sha256, comment,
+         int(extrapolation), int(not violations), model_json, table_json, table_sha256, comment,
          actor.id, created_at))
     return {"id": int(cur.lastrowid), "patient_id": patient_id, "version": version, "parent_id": parent_id,
             "source": source, "status": "draft", "created_by": actor.username, "created_at": created_at,
@@ -123,17 +125,17 @@ def _refuse_non_finite(proposal: Proposal) -> None:
 
 def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
     """Store a freshly computed proposal as the patient's next draft version."""
-    d = proposal.to_dict()
-    body = {k: d[k] for k in _MODEL_KEYS}
+    body = proposal.model_body()
     _refuse_non_finite(proposal)
     model_json = to_json(body).decode()   # pydantic-core's encoder: ~7x faster than json.dumps on 808 floats
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
             raise NotFoundError(f"patient {patient_id} not found")
+        violations = check_table(proposal.table)   # of the table stored, whatever the proposal says of it
         meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
-                       None, actor)
-        out = _assemble(meta, proposal.table, body, full=True)
+                       None, actor, violations)
+        out = _assemble(meta, proposal.table, body, full=True, violations=violations)
         pid = meta["id"]
         audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", pid,
                      after={"patient_id": patient_id, "version": out["version"], "task": task,
@@ -149,9 +151,10 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable,
         parent = get_row(conn, parent_id)
         task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],
                 "body_mass_kg": parent["body_mass_kg"]}
+        violations = check_table(table)
         meta = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
-                       parent["model_json"], table, comment, actor)
-        out = _assemble(meta, table, json.loads(parent["model_json"]), full=True)
+                       parent["model_json"], table, comment, actor, violations)
+        out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
         pid = meta["id"]
         audit.record(conn, actor.id, actor.username, "proposal.edit", "proposal", pid,
                      before={"proposal_id": parent_id, "version": parent["version"],
