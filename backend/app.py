@@ -83,7 +83,6 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
                               "N·m/kg, stiffness in N·m/rad — the unit is in every field name.")
     app.state.settings = settings
     app.state.pool = ConnectionPool(settings.db_path)
-    app.state.compute = ComputeLane()
     app.state.preview_lane = ComputeLane()   # seconds of simulation must not queue behind (or block) proposals
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)

@@ -1,8 +1,9 @@
-"""A lane for CPU-bound work (the model's ``propose``) — one request at a time per process, in a worker thread.
+"""A lane: work run in a worker thread, at most ``width`` calls at once per process (the dashboard's
+simulated walking previews, seconds of MuJoCo each, use one so they queue instead of piling up).
 
-Forty threads all running NumPy-heavy Python fight over the GIL: under 20 concurrent proposal requests that
-contention cost about as much as the proposals themselves (load benchmark: 186 → 245 proposals/s on one
-process when the work was queued into one lane). The event loop stays free for light requests meanwhile.
+Not for the proposal request: there 1-2 ms of NumPy-heavy Python only contended for the GIL with the event
+loop (see ``backend/routers/proposals.py``). History: forty request threads fighting over the GIL first
+became one lane (186 → 245 proposals/s on one process), then no thread at all.
 """
 
 from __future__ import annotations

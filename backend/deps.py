@@ -2,7 +2,8 @@
 
 They are ``async`` on purpose: each is microseconds of work (a pool checkout, one indexed SQLite lookup), and a
 sync dependency costs a thread-pool hop apiece — seven per request before this, most of a proposal's overhead
-under load. The endpoints themselves stay sync and run in the thread pool.
+under load. Most endpoints are sync and run in the thread pool; the proposal request runs on the loop
+(``backend/routers/proposals.py`` says why).
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ import anyio.to_thread
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
 
-from backend.compute import ComputeLane
 from backend.model_service import ModelService
 from backend.settings import Settings
 from backend.store.users import User, user_for_token
@@ -78,9 +78,3 @@ async def get_model(request: Request) -> QuasiStiffnessModel:
 
 Model = Annotated[QuasiStiffnessModel, Depends(get_model)]
 
-
-async def get_compute(request: Request) -> ComputeLane:
-    return request.app.state.compute
-
-
-Compute = Annotated[ComputeLane, Depends(get_compute)]
