@@ -4,7 +4,8 @@ Starts ``quasitune serve`` in a subprocess on a free loopback port with a tempor
 prosthetist and a patient, warms up, then runs ``clients`` concurrent clients (each one request at a time,
 back to back, over its own keep-alive connection) for ``seconds``. Tasks are drawn at random over the model's
 range (speed 0.5–2.0 m/s, incline ±10°) so no two requests are alike. Reports proposals per second and
-latency percentiles; any non-201 answer is counted and reported.
+latency percentiles, and how the clients' connections are split over the server processes (see
+:func:`connection_split`); any non-201 answer is counted and reported.
 
 The clients speak HTTP/1.1 directly over asyncio streams: the load generator shares the two cores with the
 server, and a full HTTP client library spent as much CPU per request as the server did, which measured the
