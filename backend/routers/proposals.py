@@ -33,7 +33,7 @@ async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn,
     # All of it runs here, on the event loop (a process serves one proposal at a time; --workers gives more
     # processes): 1-2 ms of CPU and one short transaction. In a worker thread the same work contended for the
     # GIL with the loop, and each of the transaction's statements waited up to Python's 5 ms switch interval
-    # to get the GIL back: 10-15 % fewer proposals per second in the load benchmark (docs/results.md).
+    # to get the GIL back: 13-27 % fewer proposals per second in the load benchmark (docs/results.md).
     patient = patients.get_patient(conn, patient_id)
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
     return proposals.create_from_model(conn, patient_id, proposal, user)
