@@ -152,7 +152,6 @@ class KMP:
         self._Ainv_c = self._Ainv if self.lam_c == self.lam else _solve(self._chol_c, eye)
         self._mu_flat = self.mu_ref_.reshape(-1)
         self._alpha = _solve(self._chol, self._mu_flat[:, None])
-        self._s_query_ref = np.concatenate([self.s_query_, s_ref])
         self._kq = periodic_kernel(self.s_query_, s_ref, self.length_scale)               # (Q, N); Kq = kq ⊗ I
         Kq = _kron_eye(self._kq, O)                                                       # (QO, NO)
         self._Zc = _solve(self._chol_c, Kq.T.copy())                                      # (NO, QO)
@@ -173,13 +172,11 @@ class KMP:
         return self
 
     def __setstate__(self, state: dict) -> None:
-        """Unpickle; a KMP saved before ``_kq`` existed kept the dense Kq = kq ⊗ I instead: recompute kq
-        (and the grid the via-point kernels are evaluated on)."""
+        """Unpickle; a KMP saved before ``_kq`` existed kept the dense Kq = kq ⊗ I instead: recompute kq."""
         self.__dict__.update(state)
         if "_Kq" in state:
             del self.__dict__["_Kq"]
             self._kq = periodic_kernel(self.s_query_, self.s_ref_, self.length_scale)
-            self._s_query_ref = np.concatenate([self.s_query_, self.s_ref_])
 
     def _ref_cov_at(self, s: np.ndarray) -> np.ndarray:
         idx = np.argmin(np.abs(np.angle(np.exp(2j * np.pi * (s[:, None] - self.s_ref_[None])))), axis=1)
@@ -205,7 +202,7 @@ class KMP:
         (mO, mO), from one kernel evaluation."""
         O = self.n_outputs_
         split = (self.s_query_.size * O, (self.s_query_.size + self.s_ref_.size) * O)
-        K = _kron_eye(periodic_kernel(np.concatenate([self._s_query_ref, sv]), sv, self.length_scale), O)
+        K = _kron_eye(periodic_kernel(np.concatenate([self.s_query_, self.s_ref_, sv]), sv, self.length_scale), O)
         return K[:split[0]], K[split[0]:split[1]], K[split[1]:]
 
     @staticmethod
