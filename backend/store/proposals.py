@@ -10,7 +10,6 @@ from __future__ import annotations
 import hashlib
 import json
 import sqlite3
-from dataclasses import dataclass
 
 import numpy as np
 from pydantic_core import to_json
@@ -124,54 +123,23 @@ def _refuse_non_finite(proposal: Proposal) -> None:
         raise RuntimeError("the model produced a non-finite curve or feature; nothing stored")
 
 
-@dataclass(frozen=True)
-class PreparedProposal:
-    """A computed proposal made ready to store: everything but the SQL (CPU only, no database)."""
-
-    task: dict
-    extrapolation: bool
-    body: dict
-    model_json: str
-    table: ParameterTable
-    violations: list[LimitViolation]
-
-
-def prepare(proposal: Proposal) -> PreparedProposal:
-    """Encode a freshly computed proposal for storage; refuses a non-finite one."""
+def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
+    """Store a freshly computed proposal as the patient's next draft version; returns its API view."""
     body = proposal.model_body()
     _refuse_non_finite(proposal)
-    return PreparedProposal(
-        task={"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg},
-        extrapolation=proposal.extrapolation, body=body,
-        model_json=to_json(body).decode(),   # pydantic-core's encoder: ~7x faster than json.dumps on 808 floats
-        table=proposal.table,
-        violations=check_table(proposal.table))   # of the table stored, whatever the proposal says of it
-
-
-def store_prepared(conn: sqlite3.Connection, patient_id: int, prepared: PreparedProposal, actor: User) -> dict:
-    """Insert a prepared proposal as the patient's next draft version with its audit entry, in one
-    transaction; returns its metadata (for :func:`view_created`)."""
+    model_json = to_json(body).decode()   # pydantic-core's encoder: ~7x faster than json.dumps on 808 floats
+    task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
+    violations = check_table(proposal.table)   # of the table stored, whatever the proposal says of it
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
             raise NotFoundError(f"patient {patient_id} not found")
-        meta = _insert(conn, patient_id, None, "model", prepared.task, prepared.extrapolation, prepared.model_json,
-                       prepared.table, None, actor, prepared.violations)
+        meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
+                       None, actor, violations)
         audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
-                     after={"patient_id": patient_id, "version": meta["version"], "task": prepared.task,
-                            "table_sha256": meta["table_sha256"], "safety_ok": not prepared.violations,
+                     after={"patient_id": patient_id, "version": meta["version"], "task": task,
+                            "table_sha256": meta["table_sha256"], "safety_ok": not violations,
                             "extrapolation": meta["extrapolation"]})
-    return meta
-
-
-def view_created(meta: dict, prepared: PreparedProposal) -> dict:
-    """The API view of a proposal just stored by :func:`store_prepared`."""
-    return _assemble(meta, prepared.table, prepared.body, full=True, violations=prepared.violations)
-
-
-def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
-    """Store a freshly computed proposal as the patient's next draft version; returns its API view."""
-    prepared = prepare(proposal)
-    return view_created(store_prepared(conn, patient_id, prepared, actor), prepared)
+    return _assemble(meta, proposal.table, body, full=True, violations=violations)
 
 
 def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable, changes: list[dict],
