@@ -154,6 +154,7 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
             writer.close()
 
     await asyncio.gather(*(client(time.perf_counter() + 2.0, False) for _ in range(clients)))   # warm-up
+    await asyncio.sleep(0.2)   # let the server see the warm-up connections close before the measured ones open
     async def probe() -> None:     # once every client is connected
         await asyncio.sleep(min(1.0, seconds / 2))
         split.append(await asyncio.to_thread(connection_split, int(port), ports))

@@ -14,7 +14,7 @@ from backend.db import connect
 from backend.errors import ConflictError
 from backend.settings import Settings
 from backend.store.users import create_user
-from backend.workers import reserve_port, run_workers
+from backend.workers import run_workers
 from backend.workers import supported as workers_supported
 
 BOOTSTRAP_USER = "prosthetist"
@@ -70,13 +70,14 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
     import uvicorn
 
     if workers > 1 and not workers_supported():
-        raise ValueError("--workers above 1 needs SO_REUSEPORT load balancing (Linux); use --workers 1")
+        raise ValueError("--workers above 1 needs Linux (worker processes die with the server: prctl); "
+                         "use --workers 1")
     one_blas_thread()
     app = create_app(settings) if workers == 1 else None
     if app is None:
         prepare_storage(settings)   # once in the parent; each worker builds its own app
     password = bootstrap_user(settings) if bootstrap else None
-    sock = bind(host, port) if workers == 1 else reserve_port(host, port)
+    sock = bind(host, port)
     real_host, real_port = sock.getsockname()[:2]
 
     def announce() -> None:
@@ -96,6 +97,6 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
         uvicorn.Server(config).run(sockets=[sock])
         return 0
     try:
-        return run_workers(settings, real_host, real_port, workers, log_level, announce)
+        return run_workers(settings, sock, workers, log_level, announce)
     finally:
         sock.close()

@@ -1,18 +1,16 @@
-"""``quasitune serve --workers N``: N server processes, each accepting on its own ``SO_REUSEPORT`` socket.
+"""``quasitune serve --workers N``: N server processes sharing one listening socket, least-connections first.
 
-Why not uvicorn's own ``--workers``: there the processes share one listening socket, and whichever process is
-awake first accepts every connection waiting (the event loop accepts up to the backlog per wake-up).
-Keep-alive clients stay with the process that accepted them, so 20 clients mostly landed on one process: the
-connection split seen under the load benchmark was 20/0, 20/0 and 15/5, with one core idle. With a socket per
-process in one ``SO_REUSEPORT`` group, the kernel spreads new connections over the processes by a hash of
-the address pair.
+Keep-alive clients stay with the process that accepted them, so the split of connections is the split of the
+work. uvicorn's own ``--workers`` share a socket and whichever process is awake first accepts every waiting
+connection (20/0, 20/0, 15/5 in three load-benchmark runs, one core idle); ``SO_REUSEPORT`` sockets, which we
+used next, leave it to a hash of the address pair (10/10 … 16/4). Now a process accepts only while it holds no
+more connections than any other (:mod:`backend.balancer`), which gives 10/10.
 
-The parent reserves the port (bound but not listening, so no connection is ever queued on it), starts the
-workers, waits until each one listens, and only then announces the address, so the "listening on" line is
-true when printed. A worker that dies takes the server down (the others are stopped, exit status 1): a loud
-failure for the supervisor (systemd, docker) to restart, instead of a server quietly running short of a
-process. Workers die with the parent (``PR_SET_PDEATHSIG``), also when it is killed with SIGKILL.
-Linux only (``SO_REUSEPORT`` load balancing, ``prctl``).
+The parent binds and listens, starts the workers, waits until each one accepts, and only then announces the
+address, so the "listening on" line is true when printed (a client that connects earlier waits in the backlog).
+A worker that dies takes the server down (the others are stopped, exit status 1): a loud failure for the
+supervisor (systemd, docker) to restart, instead of a server quietly running short of a process. Workers die
+with the parent (``PR_SET_PDEATHSIG``), also when it is killed with SIGKILL. Linux only (``prctl``).
 """
 
 from __future__ import annotations
@@ -27,6 +25,7 @@ import socket
 import sys
 import time
 from collections.abc import Callable
+from typing import Any
 
 from backend.settings import Settings
 
@@ -36,26 +35,7 @@ _PR_SET_PDEATHSIG = 1
 
 
 def supported() -> bool:
-    return sys.platform.startswith("linux") and hasattr(socket, "SO_REUSEPORT")
-
-
-def _socket(host: str, port: int) -> socket.socket:
-    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
-    return sock
-
-
-def reserve_port(host: str, port: int) -> socket.socket:
-    """A bound, not listening, ``SO_REUSEPORT`` socket holding ``port`` (0 = any free port) for the workers
-    (ValueError with the reason when the address cannot be used)."""
-    sock = _socket(host, port)
-    try:
-        sock.bind((host, port))
-    except OSError as exc:
-        sock.close()
-        raise ValueError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from None
-    return sock
+    return sys.platform.startswith("linux")
 
 
 def _die_with_parent(parent_pid: int) -> None:
@@ -66,21 +46,25 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _worker_main(settings: Settings, host: str, port: int, log_level: str, ready: multiprocessing.Queue,
-                 parent_pid: int) -> None:
+def _worker_main(settings: Settings, listener: socket.socket, counts: Any, index: int, log_level: str,
+                 ready: multiprocessing.Queue, parent_pid: int) -> None:
     import uvicorn
 
     from backend.app import create_app
+    from backend.balancer import BalancedServer
     from backend.serve import one_blas_thread
 
     _die_with_parent(parent_pid)
     one_blas_thread()
-    sock = _socket(host, port)
-    sock.bind((host, port))
-    sock.listen(2048)        # from here connections queue on this process's socket
-    ready.put(os.getpid())
+
+    class AnnouncingServer(BalancedServer):
+        async def startup(self, sockets: list[socket.socket] | None = None) -> None:
+            await super().startup(sockets)
+            if not self.should_exit:
+                ready.put(os.getpid())        # accepting from here
+
     config = uvicorn.Config(create_app(settings), log_level=log_level, access_log=False, lifespan="on")
-    uvicorn.Server(config).run(sockets=[sock])
+    AnnouncingServer(config, listener, counts, index).run()
 
 
 def _report_dead(procs: list[multiprocessing.Process]) -> bool:
@@ -91,13 +75,15 @@ def _report_dead(procs: list[multiprocessing.Process]) -> bool:
     return bool(dead)
 
 
-def run_workers(settings: Settings, host: str, port: int, workers: int, log_level: str,
+def run_workers(settings: Settings, listener: socket.socket, workers: int, log_level: str,
                 announce: Callable[[], None]) -> int:
-    """Start ``workers`` processes serving on ``host:port`` (a port held by :func:`reserve_port`), call
-    ``announce`` once all listen, and supervise until SIGTERM/SIGINT (exit status 0) or a worker's death (1)."""
+    """Start ``workers`` processes accepting from ``listener`` (a listening socket), call ``announce`` once all
+    accept, and supervise until SIGTERM/SIGINT (exit status 0) or a worker's death (1)."""
     ctx = multiprocessing.get_context("spawn")
     ready = ctx.Queue()
-    procs = [ctx.Process(target=_worker_main, args=(settings, host, port, log_level, ready, os.getpid()),
+    counts = ctx.RawArray("i", workers)       # open connections per worker, for least-connections accepting
+    procs = [ctx.Process(target=_worker_main,
+                         args=(settings, listener, counts, i, log_level, ready, os.getpid()),
                          name=f"quasitune-worker-{i + 1}") for i in range(workers)]
     stop = {"signal": None}
 

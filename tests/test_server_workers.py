@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -12,7 +13,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from backend.loadbench import PASSWORD, add_user, start_server
+from backend.loadbench import PASSWORD, add_user, connection_split, start_server
 
 pytestmark = pytest.mark.skipif(not os.path.exists("/proc/self/task"), reason="reads process trees from /proc")
 
@@ -68,7 +69,7 @@ def test_two_workers_listen_before_the_address_is_announced_and_serve_proposals(
     patient = httpx.post(f"{base}/api/patients", headers=h,
                          json={"code_name": "W-1", "body_mass_kg": 70.0, "side": "left"}).json()
     ids = set()
-    for i in range(12):   # a fresh connection each: the kernel spreads them over the two sockets
+    for i in range(12):   # a fresh connection each
         r = httpx.post(f"{base}/api/patients/{patient['id']}/proposals", headers=h,
                        json={"speed_mps": 0.9 + 0.05 * i, "incline_deg": 0.0}, timeout=60)
         assert r.status_code == 201, r.text
@@ -78,6 +79,25 @@ def test_two_workers_listen_before_the_address_is_announced_and_serve_proposals(
     proc.send_signal(signal.SIGTERM)
     assert proc.wait(timeout=20) == 0
     _wait_gone(workers)
+
+
+def test_keep_alive_connections_are_spread_evenly_over_the_workers(two_workers):
+    """Least-connections accepting: 20 clients that stay connected end up 10 and 10 (the SO_REUSEPORT hash
+    split them anywhere from 10/10 to 16/4)."""
+    _proc, base = two_workers
+    host, port = base.removeprefix("http://").rsplit(":", 1)
+    clients = []
+    try:
+        for _ in range(20):
+            sock = socket.create_connection((host, int(port)), timeout=30)
+            clients.append(sock)
+            sock.sendall(f"GET /api/health HTTP/1.1\r\nHost: {host}\r\n\r\n".encode())
+            assert sock.recv(65536).startswith(b"HTTP/1.1 200")     # accepted and answered, still open
+        split = connection_split(int(port), [s.getsockname()[1] for s in clients])
+        assert split == [10, 10]
+    finally:
+        for sock in clients:
+            sock.close()
 
 
 def test_a_worker_that_dies_stops_the_server_loudly(two_workers, tmp_path):
