@@ -22,6 +22,7 @@ from backend.compute import ComputeLane
 from backend.devices import DeviceManager, parse_device_spec
 from backend.errors import DomainError
 from backend.frontend import mount_frontend
+from backend.group_commit import GroupCommitter
 from backend.migrate import migrate
 from backend.model_service import ModelService
 from backend.pool import ConnectionPool
@@ -83,6 +84,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
                               "N·m/kg, stiffness in N·m/rad — the unit is in every field name.")
     app.state.settings = settings
     app.state.pool = ConnectionPool(settings.db_path)
+    app.state.committer = GroupCommitter(app.state.pool)   # proposals: one transaction per loop round
     app.state.preview_lane = ComputeLane()   # seconds of simulation must not queue behind (or block) proposals
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)

@@ -115,15 +115,17 @@ def _enable_wal(conn: sqlite3.Connection) -> None:
 
 @contextmanager
 def write_transaction(conn: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
-    """``BEGIN IMMEDIATE`` … ``COMMIT``; any exception rolls everything back and propagates."""
+    """``BEGIN IMMEDIATE`` … ``COMMIT``; any exception, the COMMIT's own included (a deferred constraint, a
+    full disk), rolls everything back and propagates."""
     with _exclusive(conn):
         conn.execute("BEGIN IMMEDIATE")
         try:
             yield conn
+            conn.execute("COMMIT")
         except BaseException:
-            conn.execute("ROLLBACK")
+            if conn.in_transaction:
+                conn.execute("ROLLBACK")
             raise
-        conn.execute("COMMIT")
 
 
 def utc_now() -> str:

@@ -16,6 +16,7 @@ import anyio.to_thread
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
 
+from backend.group_commit import GroupCommitter
 from backend.model_service import ModelService
 from backend.settings import Settings
 from backend.store.users import User, user_for_token
@@ -34,6 +35,13 @@ async def get_conn(request: Request) -> AsyncIterator[sqlite3.Connection]:
 
 
 Conn = Annotated[sqlite3.Connection, Depends(get_conn)]
+
+
+async def get_committer(request: Request) -> GroupCommitter:
+    return request.app.state.committer
+
+
+Committer = Annotated[GroupCommitter, Depends(get_committer)]
 
 
 def _unauthorized(message: str) -> HTTPException:

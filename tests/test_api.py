@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import asyncio
 import sqlite3
 import threading
 
+import httpx
 import pytest
 from api_helpers import PASSWORD, make_api
 
@@ -172,6 +174,27 @@ def test_proposal_carries_features_curves_table_units_and_provenance(api, model)
     assert p["limits"]["k_Nm_per_rad"] == {"low": -1200.0, "high": 200.0}
     listed = api.client.get(f"/api/patients/{patient['id']}/proposals", headers=api.as_("viewer")).json()
     assert [x["id"] for x in listed] == [p["id"]] and "curves" not in listed[0]
+
+
+def test_concurrent_proposals_go_through_the_group_commit_with_consecutive_versions(api):
+    patient = api.new_patient()
+    app = api.client.app
+
+    async def main() -> list[httpx.Response]:
+        async with httpx.AsyncClient(transport=httpx.ASGITransport(app=app), base_url="http://test") as client:
+            return await asyncio.gather(*(
+                client.post(f"/api/patients/{patient['id']}/proposals", headers=api.as_("prosthetist"),
+                            json={"speed_mps": 0.8 + 0.1 * i}) for i in range(6)))
+
+    answers = asyncio.run(main())
+    assert [r.status_code for r in answers] == [201] * 6
+    assert sorted(r.json()["version"] for r in answers) == [1, 2, 3, 4, 5, 6]
+    assert app.state.committer.stats_.writes == 6
+    stored = {r.json()["id"]: r.json()["task"]["speed_mps"] for r in answers}
+    for pid, speed in stored.items():      # each answer is its own stored row
+        assert api.client.get(f"/api/proposals/{pid}", headers=api.as_("viewer")).json()["task"]["speed_mps"] == speed
+    actions = [e["action"] for e in api.client.get("/api/audit", headers=api.as_("viewer")).json()["items"]]
+    assert actions.count("proposal.create") == 6
 
 
 def test_task_outside_the_data_is_flagged_with_larger_std(api):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, status
 from pydantic import ValidationError
 
-from backend.deps import Conn, CurrentUser, Model, Prosthetist
+from backend.deps import Committer, Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
@@ -27,16 +27,17 @@ router = APIRouter(prefix="/api", tags=["proposals"], responses=UNAUTHORIZED)
 @router.post("/patients/{patient_id}/proposals", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
              responses={**FORBIDDEN, **NOT_FOUND, **UNAVAILABLE})
 async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn, user: Prosthetist,
-                          model: Model) -> dict:
+                          model: Model, committer: Committer) -> dict:
     """Predict features, curves and the parameter table for a task and this patient's body mass, and store it
     as the patient's next draft version (prosthetist). Its safety check and extrapolation flag are included."""
     # All of it runs here, on the event loop (a process serves one proposal at a time; --workers gives more
-    # processes): 1-2 ms of CPU and one short transaction. In a worker thread the same work contended for the
-    # GIL with the loop, and each of the transaction's statements waited up to Python's 5 ms switch interval
-    # to get the GIL back: 13-27 % fewer proposals per second in the load benchmark (docs/results.md).
+    # processes): 1-2 ms of CPU, then the write, which shares one transaction (one fsync) with the other
+    # proposals ready in the same loop round (backend/group_commit.py). In a worker thread the same work
+    # contended for the GIL with the loop, and each of the transaction's statements waited up to Python's 5 ms
+    # switch interval to get the GIL back: 13-27 % fewer proposals per second (docs/results.md).
     patient = patients.get_patient(conn, patient_id)
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
-    return proposals.create_from_model(conn, patient_id, proposal, user)
+    return await committer.run(lambda write_conn: proposals.insert_from_model(write_conn, patient_id, proposal, user))
 
 
 @router.get("/patients/{patient_id}/proposals", response_model=list[ProposalSummary], responses=NOT_FOUND)

@@ -123,23 +123,29 @@ def _refuse_non_finite(proposal: Proposal) -> None:
         raise RuntimeError("the model produced a non-finite curve or feature; nothing stored")
 
 
-def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
-    """Store a freshly computed proposal as the patient's next draft version; returns its API view."""
+def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
+    """Store a freshly computed proposal as the patient's next draft version, inside the caller's write
+    transaction (the API runs it in a group commit, ``backend/group_commit.py``); returns its API view."""
     body = proposal.model_body()
     _refuse_non_finite(proposal)
     model_json = to_json(body).decode()   # pydantic-core's encoder: ~7x faster than json.dumps on 808 floats
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
     violations = check_table(proposal.table)   # of the table stored, whatever the proposal says of it
-    with write_transaction(conn):
-        if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
-            raise NotFoundError(f"patient {patient_id} not found")
-        meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
-                       None, actor, violations)
-        audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
-                     after={"patient_id": patient_id, "version": meta["version"], "task": task,
-                            "table_sha256": meta["table_sha256"], "safety_ok": not violations,
-                            "extrapolation": meta["extrapolation"]})
+    if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
+        raise NotFoundError(f"patient {patient_id} not found")
+    meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
+                   None, actor, violations)
+    audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
+                 after={"patient_id": patient_id, "version": meta["version"], "task": task,
+                        "table_sha256": meta["table_sha256"], "safety_ok": not violations,
+                        "extrapolation": meta["extrapolation"]})
     return _assemble(meta, proposal.table, body, full=True, violations=violations)
+
+
+def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
+    """:func:`insert_from_model` in a write transaction of its own."""
+    with write_transaction(conn):
+        return insert_from_model(conn, patient_id, proposal, actor)
 
 
 def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable, changes: list[dict],
