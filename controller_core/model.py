@@ -104,7 +104,12 @@ class QuasiStiffnessModel:
         kmp_length_scale: KMP kernel length (phase units).
         kmp_lambda: KMP λ (= λc).
         gpr_restarts: marginal-likelihood optimizer restarts per GPR.
-        load_fractions: (toe-off, heel-strike) vertical-load thresholds as fractions of body weight.
+        load_fractions: (toe-off, heel-strike) vertical-load thresholds as fractions of body weight. The
+            default, 15 % and 40 %, is the Open Source Leg walking example's published pair, which the FSMIC
+            benchmark uses too (``controller_core/fsmic.py``): the two controllers then differ only in their
+            impedance rows, which is what the comparison is about. Until 2026-11-21 it was 5 % and 15 %; with
+            the published pair the simulated bench showed no toe catches and a smaller knee moment error
+            (docs/results.md).
         swing_threshold_fraction: WF→WE knee threshold as a fraction of the predicted swing peak.
         state_time_s: (min, max) time in a state.
         reference_mode: ``"registered"`` (default): GMR reference on registered phase, moved with the task
@@ -115,6 +120,15 @@ class QuasiStiffnessModel:
             by k = −value·mass and a re-fitted θe (see :mod:`controller_core.quasi_stiffness`). The default,
             0.25 N·m/rad/kg (about 19 N·m/rad at 75 kg), lies within the swing stiffnesses of the Open Source
             Leg's published walking example (0.13–0.66 N·m/rad/kg); 0 disables the guard.
+        knee_extension_window: False (default): the knee's stance-extension row is fitted over the whole
+            sub-phase, stance-flexion peak to toe-off (the literal framework; R² 0.06 at 1.2 m/s, θe clamped to
+            0°). True: over the knee's extension only, up to its late-stance minimum on the predicted curve
+            (``extension_window``, R² 0.8–0.99; see :mod:`controller_core.quasi_stiffness`). Not the default
+            because the four-state machine runs this row through pre-swing too: on the simulated bench the
+            stiff line (about −180 N·m/rad, θe 8.6° at 1.2 m/s, 75 kg) tracked the knee angle better at 7 of 8
+            tasks but pushed up to −1.4 N·m/kg of extensor moment against the pre-swing knee flexion, where
+            people have −0.2 (docs/results.md). It is the stance-extension row a machine with a separate
+            pre-swing state would use.
         swing_rule: ``"target"`` (default): the swing rows aim at the predicted swing targets (knee swing
             flexion at the GPR's swing-flexion peak, knee swing extension at the predicted heel-strike angle,
             the ankle through swing at its predicted swing dorsiflexion plus ``swing_ankle_clearance_deg``)
@@ -132,10 +146,10 @@ class QuasiStiffnessModel:
 
     def __init__(self, n_components: int = 20, n_ref_points: int = 50, kmp_length_scale: float = 0.08,
                  kmp_lambda: float = 10.0, gpr_restarts: int = 2,
-                 load_fractions: tuple[float, float] = (0.05, 0.15), swing_threshold_fraction: float = 0.85,
+                 load_fractions: tuple[float, float] = (0.15, 0.40), swing_threshold_fraction: float = 0.85,
                  state_time_s: tuple[float, float] = (0.05, 1.5), reference_mode: str = "registered",
                  via_mean_scale: float = 1.0, min_restoring_stiffness_Nm_per_rad_per_kg: float = 0.25,
-                 swing_rule: str = "target",
+                 knee_extension_window: bool = False, swing_rule: str = "target",
                  swing_knee_stiffness_Nm_per_rad_per_kg: tuple[float, float] = (0.66, 0.25),
                  swing_ankle_stiffness_Nm_per_rad_per_kg: float = 0.25, swing_ankle_clearance_deg: float = 5.0,
                  random_state: int = 0) -> None:
@@ -150,6 +164,7 @@ class QuasiStiffnessModel:
         self.reference_mode = reference_mode
         self.via_mean_scale = via_mean_scale
         self.min_restoring_stiffness_Nm_per_rad_per_kg = min_restoring_stiffness_Nm_per_rad_per_kg
+        self.knee_extension_window = knee_extension_window
         self.swing_rule = swing_rule
         self.swing_knee_stiffness_Nm_per_rad_per_kg = swing_knee_stiffness_Nm_per_rad_per_kg
         self.swing_ankle_stiffness_Nm_per_rad_per_kg = swing_ankle_stiffness_Nm_per_rad_per_kg
@@ -320,6 +335,8 @@ class QuasiStiffnessModel:
         return [ViaPoint(phase=float(p), mean=m, cov=np.diag(v)) for p, m, v in zip(phases, means, var, strict=True)]
 
     def _check_swing_params(self) -> None:
+        if not isinstance(self.knee_extension_window, bool):
+            raise ValueError(f"knee_extension_window must be True or False, got {self.knee_extension_window!r}")
         if self.swing_rule not in SWING_RULES:
             raise ValueError(f"swing_rule must be one of {', '.join(SWING_RULES)}, got {self.swing_rule!r}")
         stiffnesses = (*self.swing_knee_stiffness_Nm_per_rad_per_kg, self.swing_ankle_stiffness_Nm_per_rad_per_kg)
@@ -352,6 +369,17 @@ class QuasiStiffnessModel:
             "ankle": {"swing_flexion": (k_a, ankle_target), "swing_extension": (k_a, ankle_target)},
         }
         return [lines[j] for j in JOINTS]
+
+    def _knee_extension_window(self, knee_angle: np.ndarray, b1: float, b2: float) -> dict[str, tuple[float, float]]:
+        """The knee's stance-extension fit window: from the stance-flexion peak ``b1`` to the knee's smallest
+        angle before toe-off ``b2`` on the predicted curve (phase units); empty (the whole sub-phase) when the
+        curve has fewer than 5 grid points of extension there."""
+        s = self.s_query_
+        i1, i2 = int(np.searchsorted(s, b1)), int(np.searchsorted(s, b2))
+        i_min = i1 + int(np.argmin(knee_angle[i1:i2 + 1]))
+        if i_min - i1 < 4:
+            return {}
+        return {"stance_extension": (float(s[i1]), float(s[i_min]))}
 
     def propose(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
                 with_vias: bool = True) -> Proposal:
@@ -393,9 +421,11 @@ class QuasiStiffnessModel:
         floor = self.min_restoring_stiffness_Nm_per_rad_per_kg * mass_kg
         max_k = -floor if floor > 0 else None
         fixed = self._swing_lines(means, fmap, b2, mass_kg) if self.swing_rule == "target" else None
+        windows = ([self._knee_extension_window(means["knee_angle"], b1, b2) if j == "knee" else {} for j in JOINTS]
+                   if self.knee_extension_window else None)
         joint_fits = fit_quasi_stiffness_joints(
             s, np.array([means[f"{j}_angle"] for j in JOINTS]), np.array([means[f"{j}_moment"] for j in JOINTS]) * mass_kg,
-            boundaries, [JOINT_RANGE_RAD[j] for j in JOINTS], max_k, fixed)
+            boundaries, [JOINT_RANGE_RAD[j] for j in JOINTS], max_k, fixed, windows)
         for joint, jf in zip(JOINTS, joint_fits, strict=True):
             fits[joint] = jf
             for f in jf:

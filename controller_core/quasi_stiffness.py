@@ -19,6 +19,14 @@ at the ceiling and θe = mean(θ − τ/k) (the least-squares θe for that k), c
 marked ``guarded`` (``passivity_guard``) and its R² says how much of the moment the constrained line still
 explains.
 
+Fit windows: a line can be fitted over part of its sub-phase. The knee's stance-extension sub-phase
+(stance-flexion peak to toe-off) holds two movements: the loaded knee extending to its late-stance minimum,
+a clean spring (R² 0.8–0.99 over the speed grid), and the pre-swing flexion towards toe-off, where the moment
+is small and no line fits; over both, the least-squares line had R² 0.06 at 1.2 m/s and θe below the joint
+range (clamped to 0°, pulling the knee into its end stop). With ``fit_windows`` the caller gives, per joint
+and sub-phase, the phase window to fit over; the row is marked ``extension_window`` and reports the window
+as its phase span and R² over it.
+
 Swing targets: in swing the foot is off the ground and the able-bodied knee and ankle moments are inertial
 and braking (the hamstrings slowing the swinging shank), which a line in θ does not capture; on the simulated
 bench the least-squares swing lines do not carry a prosthetic shank through swing (docs/results.md). A caller
@@ -51,7 +59,7 @@ class SubphaseFit:
     phase_start: float
     phase_end: float
     n_points: int
-    method: str = "least_squares"   # least_squares | range_guard | passivity_guard | swing_target
+    method: str = "least_squares"   # least_squares | extension_window | range_guard | passivity_guard | swing_target
 
 
 def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) -> np.ndarray:
@@ -134,6 +142,7 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
                                theta_ranges_rad: list[tuple[float, float]],
                                max_k_Nm_per_rad: float | None = None,
                                fixed_lines: list[dict[str, tuple[float, float]]] | None = None,
+                               fit_windows: list[dict[str, tuple[float, float]]] | None = None,
                                ) -> list[list[SubphaseFit]]:
     """:func:`fit_quasi_stiffness` for several joints sharing one phase grid and one set of boundaries.
 
@@ -142,6 +151,8 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
         theta_ranges_rad: J joint ranges (rad).
         fixed_lines: per joint, sub-phase name → (k N·m/rad, θe rad) to use instead of a fit (the swing
             targets; see the module docstring); k must be restoring (< 0) and θe within the joint range.
+        fit_windows: per joint, sub-phase name → (start, end) phase window to fit that sub-phase's line over
+            instead of its whole span (see the module docstring); at least 3 samples.
     """
     if max_k_Nm_per_rad is not None and not max_k_Nm_per_rad < 0:
         raise ValueError(f"max_k_Nm_per_rad must be negative (restoring), got {max_k_Nm_per_rad!r}")
@@ -180,18 +191,27 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
                 fits.append(SubphaseFit(name, float(kf), float(tef), float(r2f), True,
                                         float(phase[first[i]]), float(phase[last[i]]), int(n[i, 0]), "swing_target"))
                 continue
-            th, ta = theta[masks[i], j], tau[masks[i], j]
-            if lo <= theta_e[i, j] <= hi:
-                ki, tei, r2i, guarded = float(k[i, j]), float(theta_e[i, j]), float(r2[i, j]), False
-            else:
+            window = (fit_windows[j] if fit_windows is not None else {}).get(name)
+            if window is not None:
+                inside = (phase >= window[0] - 1e-12) & (phase <= window[1] + 1e-12)
+                th, ta = theta[inside, j], tau[inside, j]
                 ki, tei, r2i, guarded = fit_line(th, ta, (lo, hi))
-            method = "range_guard" if guarded else "least_squares"
+                span = (float(phase[inside][0]), float(phase[inside][-1]), int(inside.sum()))
+                method = "range_guard" if guarded else "extension_window"
+            else:
+                th, ta = theta[masks[i], j], tau[masks[i], j]
+                if lo <= theta_e[i, j] <= hi:
+                    ki, tei, r2i, guarded = float(k[i, j]), float(theta_e[i, j]), float(r2[i, j]), False
+                else:
+                    ki, tei, r2i, guarded = fit_line(th, ta, (lo, hi))
+                span = (float(phase[first[i]]), float(phase[last[i]]), int(n[i, 0]))
+                method = "range_guard" if guarded else "least_squares"
             # an energy-injecting line whose θe lies inside the angles the joint sweeps in this sub-phase
             # would push the joint away from θe in both directions: the unstable case the ceiling removes
             if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad and th.min() <= tei <= th.max():
                 ki, method = float(max_k_Nm_per_rad), "passivity_guard"
                 tei, r2i = fit_fixed_k(th, ta, ki, (lo, hi))
-            fits.append(SubphaseFit(name, ki, tei, r2i, method != "least_squares", float(phase[first[i]]),
-                                    float(phase[last[i]]), int(n[i, 0]), method))
+            fits.append(SubphaseFit(name, ki, tei, r2i, method not in ("least_squares", "extension_window"),
+                                    *span, method))
         out.append(fits)
     return out

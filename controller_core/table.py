@@ -38,10 +38,12 @@ class ParameterRow(_Strict):
     b_Nm_s_per_rad: float = Field(description="damping (N·m·s/rad), >= 0")
     r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
     guarded: bool = Field(default=False, description="the plain least-squares line was not used (see fit_method)")
-    fit_method: Literal["least_squares", "range_guard", "passivity_guard", "swing_target", "manual",
-                        "literature"] = Field(
+    fit_method: Literal["least_squares", "extension_window", "range_guard", "passivity_guard", "swing_target",
+                        "manual", "literature"] = Field(
         default="least_squares",
-        description="least_squares: τ = kθ + c; range_guard: θe clamped to the joint range, k re-fitted; "
+        description="least_squares: τ = kθ + c; extension_window: the same line fitted over the knee's stance "
+                    "extension only (stance-flexion peak to the knee's late-stance minimum), leaving out the "
+                    "pre-swing flexion that no line fits; range_guard: θe clamped to the joint range, k re-fitted; "
                     "passivity_guard: an energy-injecting line with θe inside the swept angles, replaced by the "
                     "restoring floor and a re-fitted θe; swing_target: a swing sub-phase whose θe is the model's "
                     "predicted swing target and whose k is the model's swing stiffness; manual: edited; "

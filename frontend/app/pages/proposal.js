@@ -16,6 +16,7 @@ async function reference() {
 
 const FIT_METHOD_HELP = {
   least_squares: "least-squares line τ = kθ + c through the predicted loop",
+  extension_window: "least-squares line over the knee's stance extension only (stance-flexion peak to its late-stance minimum); pre-swing left out",
   range_guard: "the fitted θe lay outside the joint range: θe clamped to the range and k re-fitted",
   passivity_guard: "the fitted line would inject energy with θe inside the swept angles: k set to the restoring floor, θe re-fitted",
   swing_target: "not a fit: θe is the predicted swing target, k the model's swing stiffness (restoring)",
