@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import logging
 import select
 import socket
 from collections.abc import Callable
@@ -26,6 +27,9 @@ from typing import Any
 import uvicorn
 
 RECHECK_S = 0.025
+ACCEPT_RETRY_S = 1.0       # after running out of descriptors or memory, as asyncio's own servers do
+
+logger = logging.getLogger("quasitune.balancer")
 
 
 class LeastConnectionsAcceptor:
@@ -36,15 +40,19 @@ class LeastConnectionsAcceptor:
     """
 
     def __init__(self, listener: socket.socket, counts: Any, index: int,
-                 serve: Callable[[socket.socket], None], recheck_s: float = RECHECK_S) -> None:
+                 serve: Callable[[socket.socket], None], recheck_s: float = RECHECK_S,
+                 retry_s: float = ACCEPT_RETRY_S) -> None:
         self.listener = listener
         self.recheck_s = recheck_s
+        self.retry_s = retry_s
         self.counts = counts
         self.index = index
         self.serve = serve
         self.open = 0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._reading = False
+        self._active = False          # between start() and stop(), and not paused after an accept error
+        self._stopped = False
         self._waiting_seen = False
         self._timer: asyncio.TimerHandle | None = None
         self._poll = select.poll()
@@ -54,22 +62,29 @@ class LeastConnectionsAcceptor:
         self.listener.setblocking(False)
         self._loop = asyncio.get_running_loop()
         self.counts[self.index] = self.open
+        self._active = True
         self._update()
 
     def stop(self) -> None:
+        """Stop accepting (the connections already accepted are not touched); this slot reads 0."""
+        self._stopped = True
+        self._halt()
+        self.counts[self.index] = 0
+
+    def _halt(self) -> None:
+        self._active = False
         if self._reading and self._loop is not None:
             self._loop.remove_reader(self.listener.fileno())
         self._reading = False
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
-        self.counts[self.index] = 0
 
     def closed(self) -> None:
         """One of this process's connections has closed."""
         self.open -= 1
-        self.counts[self.index] = self.open
-        if self._loop is not None:
+        if self._active:
+            self.counts[self.index] = self.open
             self._update()
 
     def least_loaded(self) -> bool:
@@ -90,29 +105,41 @@ class LeastConnectionsAcceptor:
     def _accept_one(self) -> bool:
         try:
             sock, _ = self.listener.accept()
-        except (BlockingIOError, InterruptedError):
-            return False        # another process took it
-        except OSError:
-            return False        # e.g. the client gave up (ECONNABORTED) or out of descriptors: try again later
+        except (BlockingIOError, InterruptedError, ConnectionAbortedError):
+            return False        # another process took it, or the client gave up first
+        except OSError as exc:  # out of descriptors or memory: the socket stays readable, so do not spin on it
+            logger.error("cannot accept a connection (%s); not accepting for %g s", exc, self.retry_s)
+            self._halt()
+            self._loop.call_later(self.retry_s, self._resume)
+            return False
         self.open += 1
         self.counts[self.index] = self.open
         self.serve(sock)
         return True
 
+    def _resume(self) -> None:
+        if not self._stopped and not self._active:
+            self._active = True
+            self._update()
+
     def _on_readable(self) -> None:
-        while self.least_loaded() and self._accept_one():
+        while self._active and self.least_loaded() and self._accept_one():
             pass
-        self._update()
+        if self._active:
+            self._update()
 
     def _recheck(self) -> None:
         self._timer = None
+        if not self._active:
+            return
         if not self.least_loaded():
             waiting = bool(self._poll.poll(0))
             if waiting and self._waiting_seen:       # the least-loaded process has not taken it: we do
                 self._accept_one()
                 waiting = False
             self._waiting_seen = waiting
-        self._update()
+        if self._active:
+            self._update()
 
 
 class BalancedServer(uvicorn.Server):

@@ -69,3 +69,59 @@ def test_closing_connections_makes_a_process_least_loaded_again():
             s.close()
         return n
     assert asyncio.run(scenario()) == 2
+
+
+class _OutOfDescriptors:
+    """A listening socket whose accept() fails as when the process has no file descriptors left."""
+
+    def __init__(self, real: socket.socket) -> None:
+        self.real = real
+        self.accept_calls = 0
+
+    def fileno(self) -> int:
+        return self.real.fileno()
+
+    def setblocking(self, flag: bool) -> None:
+        self.real.setblocking(flag)
+
+    def accept(self):
+        self.accept_calls += 1
+        raise OSError(24, "Too many open files")
+
+
+def test_an_accept_error_pauses_accepting_instead_of_spinning_on_the_readable_socket(caplog):
+    async def scenario() -> tuple[int, int]:
+        listener = _listener()
+        failing = _OutOfDescriptors(listener)
+        acceptor = LeastConnectionsAcceptor(failing, [0, 0], 0, lambda s: None, RECHECK_S, retry_s=0.3)
+        acceptor.start()
+        client = socket.create_connection(listener.getsockname())   # the socket stays readable
+        await asyncio.sleep(0.15)
+        during_pause = failing.accept_calls
+        await asyncio.sleep(0.3)                                     # retried once the pause is over
+        after_pause = failing.accept_calls
+        acceptor.stop()
+        client.close()
+        listener.close()
+        return during_pause, after_pause
+    during_pause, after_pause = asyncio.run(scenario())
+    assert during_pause == 1 and 2 <= after_pause <= 3
+    assert "Too many open files" in caplog.text and "not accepting for 0.3 s" in caplog.text
+
+
+def test_closing_connections_after_stop_does_not_start_accepting_again():
+    async def scenario() -> int:
+        listener = _listener()
+        accepted: list[socket.socket] = []
+        acceptor = LeastConnectionsAcceptor(listener, [0, 5], 0, accepted.append, RECHECK_S)
+        acceptor.start()
+        first = socket.create_connection(listener.getsockname())
+        await asyncio.sleep(RECHECK_S / 4)
+        acceptor.stop()                          # graceful shutdown: connections drain after this
+        second = socket.create_connection(listener.getsockname())
+        acceptor.closed()                        # the first one closes while draining
+        await asyncio.sleep(RECHECK_S * 3)
+        for s in (first, second, *accepted, listener):
+            s.close()
+        return len(accepted)
+    assert asyncio.run(scenario()) == 1
