@@ -94,10 +94,14 @@ class GroupCommitter:
                     else:
                         conn.execute("RELEASE request")
                         outcomes.append((future, True, result))
-        except Exception as exc:          # BEGIN or COMMIT failed: nothing of the group is stored
+        except BaseException as exc:      # BEGIN or COMMIT failed, or a write was interrupted: nothing stored
+            failure = exc if isinstance(exc, Exception) else RuntimeError(
+                f"the group commit was interrupted ({exc!r}); nothing of this request was stored")
             for _write, future in group:
                 if not future.done():
-                    future.set_exception(exc)
+                    future.set_exception(failure)
+            if failure is not exc:
+                raise                      # SystemExit, KeyboardInterrupt …: after every request has its answer
             return
         finally:
             self.stats_.add(len(group))

@@ -119,3 +119,22 @@ def test_write_transaction_rolls_back_when_the_commit_itself_fails(pool):
             _insert("dangling", parent_id=99)(conn)
         assert not conn.in_transaction
     assert _labels(pool) == []
+
+
+def test_an_interrupted_group_answers_every_request_and_stores_nothing(pool):
+    class Interrupt(BaseException):      # not an Exception: escapes the per-write savepoint handling
+        pass
+
+    committer = GroupCommitter(pool)
+
+    def interrupted(conn: sqlite3.Connection) -> None:
+        raise Interrupt()
+
+    async def main() -> list:
+        # the flush's exception goes to the loop's handler; every request still gets an answer, none hangs
+        return await asyncio.wait_for(asyncio.gather(committer.run(_insert("a")), committer.run(interrupted),
+                                                     return_exceptions=True), timeout=5)
+
+    results = asyncio.run(main())
+    assert all(isinstance(r, RuntimeError) and "nothing of this request was stored" in str(r) for r in results)
+    assert _labels(pool) == []
