@@ -176,6 +176,19 @@ def test_proposal_carries_features_curves_table_units_and_provenance(api, model)
     assert [x["id"] for x in listed] == [p["id"]] and "curves" not in listed[0]
 
 
+def test_a_new_proposal_answer_is_exactly_its_schema_and_what_is_stored(api):
+    from backend.schemas.proposals import ProposalOut
+
+    patient = api.new_patient()
+    r = api.client.post(f"/api/patients/{patient['id']}/proposals", headers=api.as_("prosthetist"),
+                        json={"speed_mps": 1.1, "incline_deg": 3.0})
+    assert r.status_code == 201 and r.headers["content-type"] == "application/json"
+    answer = r.json()
+    assert answer == ProposalOut.model_validate(answer).model_dump(mode="json")     # no extra, none missing
+    stored = api.client.get(f"/api/proposals/{answer['id']}", headers=api.as_("viewer")).json()
+    assert answer == stored
+
+
 def test_concurrent_proposals_go_through_the_group_commit_with_consecutive_versions(api):
     patient = api.new_patient()
     app = api.client.app
