@@ -15,12 +15,13 @@ timeout, as before: the lock only orders writers that cooperate, SQLite's own lo
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import sqlite3
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
@@ -52,6 +53,32 @@ def _lock_file(path: str) -> int | None:
         if fd is None:
             fd = _lock_files[key] = os.open(path + ".writelock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
         return fd
+
+
+def try_write_lock(conn: sqlite3.Connection) -> Callable[[], None] | None:
+    """Take this process's write lock and the cross-process ``flock`` for ``conn``'s database without waiting.
+
+    Returns the function that releases both, or None (holding nothing) when another writer holds either. For a
+    caller that must not block while it waits, such as the event loop (``backend/group_commit.py``); it then
+    runs its transaction with ``write_transaction(conn, locked=True)``.
+    """
+    path = _database_path(conn)
+    lock = _write_lock(path)
+    if not lock.acquire(blocking=False):
+        return None
+    fd = _lock_file(path)
+    if fd is None:
+        return lock.release
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.release()
+        return None
+
+    def release() -> None:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        lock.release()
+    return release
 
 
 @contextmanager
@@ -114,10 +141,11 @@ def _enable_wal(conn: sqlite3.Connection) -> None:
 
 
 @contextmanager
-def write_transaction(conn: sqlite3.Connection) -> Iterator[sqlite3.Connection]:
+def write_transaction(conn: sqlite3.Connection, locked: bool = False) -> Iterator[sqlite3.Connection]:
     """``BEGIN IMMEDIATE`` … ``COMMIT``; any exception, the COMMIT's own included (a deferred constraint, a
-    full disk), rolls everything back and propagates."""
-    with _exclusive(conn):
+    full disk), rolls everything back and propagates. ``locked``: the caller already holds the write locks
+    (:func:`try_write_lock`)."""
+    with contextlib.nullcontext() if locked else _exclusive(conn):
         conn.execute("BEGIN IMMEDIATE")
         try:
             yield conn

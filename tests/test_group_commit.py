@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import asyncio
 import sqlite3
+import threading
 
 import pytest
 
-from backend.db import connect, write_transaction
+from backend import group_commit
+from backend.db import connect, try_write_lock, write_transaction
 from backend.group_commit import GroupCommitter
 from backend.pool import ConnectionPool
 
@@ -138,3 +140,63 @@ def test_an_interrupted_group_answers_every_request_and_stores_nothing(pool):
     results = asyncio.run(main())
     assert all(isinstance(r, RuntimeError) and "nothing of this request was stored" in str(r) for r in results)
     assert _labels(pool) == []
+
+
+def test_waiting_for_the_write_lock_leaves_the_loop_free_and_gathers_the_writes_that_arrive(pool):
+    committer = GroupCommitter(pool)
+    with pool.connection() as holder_conn:
+        release = try_write_lock(holder_conn)            # another writer is committing
+        assert release is not None
+        threading.Timer(0.3, release).start()
+
+        async def main() -> int:
+            ticks = 0
+
+            async def ticker() -> None:                   # would stall if the flush blocked the loop
+                nonlocal ticks
+                while not done.is_set():
+                    ticks += 1
+                    await asyncio.sleep(0.01)
+
+            done = asyncio.Event()
+            tick_task = asyncio.ensure_future(ticker())
+            first = asyncio.ensure_future(committer.run(_insert("early")))
+            await asyncio.sleep(0.1)
+            late = asyncio.ensure_future(committer.run(_insert("late")))   # arrives while the first waits
+            await asyncio.gather(first, late)
+            done.set()
+            await tick_task
+            return ticks
+
+        ticks = asyncio.run(main())
+    assert ticks >= 15                                   # about 30 in the 0.3 s; the loop was never held
+    assert _labels(pool) == ["early", "late"]
+    assert (committer.stats_.groups, committer.stats_.writes) == (1, 2)
+
+
+def test_a_write_lock_held_past_the_busy_timeout_fails_the_waiting_writes_and_stores_nothing(pool, monkeypatch):
+    monkeypatch.setattr(group_commit, "BUSY_TIMEOUT_MS", 100)
+    committer = GroupCommitter(pool)
+    with pool.connection() as holder_conn:
+        release = try_write_lock(holder_conn)
+        try:
+            async def main() -> list:
+                return await asyncio.gather(committer.run(_insert("a")), committer.run(_insert("b")),
+                                            return_exceptions=True)
+            results = asyncio.run(main())
+        finally:
+            release()
+    assert all(isinstance(r, sqlite3.OperationalError) and "database is locked" in str(r) for r in results)
+    assert _labels(pool) == []
+    asyncio.run(committer.run(_insert("after")))          # and the committer works again once it is free
+    assert _labels(pool) == ["after"]
+
+
+def test_try_write_lock_refuses_while_another_holds_it_and_takes_it_after(pool):
+    with pool.connection() as a, pool.connection() as b:
+        release = try_write_lock(a)
+        assert release is not None and try_write_lock(b) is None
+        release()
+        again = try_write_lock(b)
+        assert again is not None
+        again()
