@@ -7,11 +7,15 @@ clients 10/10 … 16/4 from run to run, and a process holding 16 queues 16 reque
 core idles between its 4. Counting connections and letting the least-loaded process take the next one is what
 load balancers call least-connections (nginx ``least_conn``).
 
-How: each process publishes its open-connection count in a shared array (one slot per process). A process
-watches the shared socket only while its count is the smallest (ties: every tied process may accept; the kernel
-gives the connection to one, the others see ``EAGAIN``). A process that is not the least loaded looks again
-every :data:`RECHECK_S` (25 ms); if a connection has been waiting on two looks in a row (the least-loaded process is
-busy or stuck), it takes it anyway: balance never costs a client more than about two re-check intervals.
+How: each process publishes its open-connection count in a shared array (one slot per process), and every
+process watches the shared socket. The least-loaded ones accept (ties: every tied process may; the kernel gives
+the connection to one, the others see ``EAGAIN``). A process that is not the least loaded, woken by a waiting
+connection, stops watching (the socket stays readable until someone accepts, so watching would spin) and looks
+again every :data:`PENDING_RECHECK_S` (0.5 ms) until the connection is gone, or until it has itself become the
+least loaded (another process accepted meanwhile), when it accepts. A connection that has waited
+:data:`TAKEOVER_S` (50 ms) for a busy or stuck least-loaded process is taken by whichever process looks.
+(An earlier version looked again every 25 ms whatever happened: a burst of 20 connections then took 250 ms to
+accept, the process that had become least loaded sleeping out its interval after each accept.)
 """
 
 from __future__ import annotations
@@ -26,7 +30,8 @@ from typing import Any
 
 import uvicorn
 
-RECHECK_S = 0.025
+PENDING_RECHECK_S = 0.0005
+TAKEOVER_S = 0.05
 ACCEPT_RETRY_S = 1.0       # after running out of descriptors or memory, as asyncio's own servers do
 
 logger = logging.getLogger("quasitune.balancer")
@@ -40,20 +45,21 @@ class LeastConnectionsAcceptor:
     """
 
     def __init__(self, listener: socket.socket, counts: Any, index: int,
-                 serve: Callable[[socket.socket], None], recheck_s: float = RECHECK_S,
-                 retry_s: float = ACCEPT_RETRY_S) -> None:
+                 serve: Callable[[socket.socket], None], pending_recheck_s: float = PENDING_RECHECK_S,
+                 takeover_s: float = TAKEOVER_S, retry_s: float = ACCEPT_RETRY_S) -> None:
         self.listener = listener
-        self.recheck_s = recheck_s
-        self.retry_s = retry_s
         self.counts = counts
         self.index = index
         self.serve = serve
+        self.pending_recheck_s = pending_recheck_s
+        self.takeover_s = takeover_s
+        self.retry_s = retry_s
         self.open = 0
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._reading = False
+        self._watching = False
         self._active = False          # between start() and stop(), and not paused after an accept error
         self._stopped = False
-        self._waiting_seen = False
+        self._waiting_since: float | None = None   # when a waiting connection woke us while not least loaded
         self._timer: asyncio.TimerHandle | None = None
         self._poll = select.poll()
         self._poll.register(listener.fileno(), select.POLLIN)
@@ -63,7 +69,7 @@ class LeastConnectionsAcceptor:
         self._loop = asyncio.get_running_loop()
         self.counts[self.index] = self.open
         self._active = True
-        self._update()
+        self._watch()
 
     def stop(self) -> None:
         """Stop accepting (the connections already accepted are not touched); this slot reads 0."""
@@ -71,36 +77,35 @@ class LeastConnectionsAcceptor:
         self._halt()
         self.counts[self.index] = 0
 
-    def _halt(self) -> None:
-        self._active = False
-        if self._reading and self._loop is not None:
-            self._loop.remove_reader(self.listener.fileno())
-        self._reading = False
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
-
     def closed(self) -> None:
         """One of this process's connections has closed."""
         self.open -= 1
         if self._active:
             self.counts[self.index] = self.open
-            self._update()
 
     def least_loaded(self) -> bool:
         mine = self.counts[self.index]
         return all(mine <= c for c in self.counts)
 
-    def _update(self) -> None:
-        """Watch the socket when least loaded; otherwise stop watching and look again later."""
-        want = self.least_loaded()
-        if want and not self._reading:
+    def _watch(self) -> None:
+        if not self._watching:
             self._loop.add_reader(self.listener.fileno(), self._on_readable)
-        elif not want and self._reading:
+            self._watching = True
+
+    def _halt(self) -> None:
+        self._active = False
+        if self._watching and self._loop is not None:
             self._loop.remove_reader(self.listener.fileno())
-        self._reading = want
-        if not want and self._timer is None:
-            self._timer = self._loop.call_later(self.recheck_s, self._recheck)
+        self._watching = False
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._waiting_since = None
+
+    def _resume(self) -> None:
+        if not self._stopped and not self._active:
+            self._active = True
+            self._watch()
 
     def _accept_one(self) -> bool:
         try:
@@ -117,29 +122,30 @@ class LeastConnectionsAcceptor:
         self.serve(sock)
         return True
 
-    def _resume(self) -> None:
-        if not self._stopped and not self._active:
-            self._active = True
-            self._update()
-
     def _on_readable(self) -> None:
         while self._active and self.least_loaded() and self._accept_one():
             pass
-        if self._active:
-            self._update()
+        if self._active and not self.least_loaded():     # one may still be waiting for the least loaded
+            self._loop.remove_reader(self.listener.fileno())
+            self._watching = False
+            self._waiting_since = self._loop.time()
+            self._timer = self._loop.call_later(self.pending_recheck_s, self._recheck)
 
     def _recheck(self) -> None:
         self._timer = None
         if not self._active:
             return
-        if not self.least_loaded():
-            waiting = bool(self._poll.poll(0))
-            if waiting and self._waiting_seen:       # the least-loaded process has not taken it: we do
-                self._accept_one()
-                waiting = False
-            self._waiting_seen = waiting
-        if self._active:
-            self._update()
+        if not self._poll.poll(0) or self.least_loaded():   # taken by another process, or ours to take now
+            self._waiting_since = None
+            self._watch()                                    # fires at once if one is still waiting
+            return
+        if self._loop.time() - self._waiting_since >= self.takeover_s:
+            self._accept_one()                               # the least-loaded process has not taken it
+            if self._active:
+                self._waiting_since = None
+                self._watch()
+            return
+        self._timer = self._loop.call_later(self.pending_recheck_s, self._recheck)
 
 
 class BalancedServer(uvicorn.Server):

@@ -8,7 +8,9 @@ import socket
 
 from backend.balancer import LeastConnectionsAcceptor
 
-RECHECK_S = 0.2     # long, so that a slow test machine does not turn "at once" into "after two re-checks"
+RECHECK_S = 0.2          # a time scale long enough that a slow test machine keeps "at once" apart from "later"
+PENDING_RECHECK_S = 0.01
+TAKEOVER_S = 0.2
 
 
 def _listener() -> socket.socket:
@@ -21,7 +23,7 @@ def _listener() -> socket.socket:
 async def _run(counts: list[int], connect: int, wait_s: float) -> tuple[list[socket.socket], list[int]]:
     listener = _listener()
     accepted: list[socket.socket] = []
-    acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, RECHECK_S)
+    acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, PENDING_RECHECK_S, TAKEOVER_S)
     acceptor.start()
     clients = [socket.create_connection(listener.getsockname()) for _ in range(connect)]
     await asyncio.sleep(wait_s)
@@ -40,10 +42,34 @@ def test_the_least_loaded_process_accepts_until_it_holds_more_than_another():
     assert counts[0] == 0     # stop() clears the slot
 
 
-def test_a_connection_the_least_loaded_process_does_not_take_is_taken_after_two_rechecks():
+def test_a_connection_the_least_loaded_process_does_not_take_is_taken_after_the_takeover_time():
     # slot 1 claims fewer connections but never accepts (busy or stuck): no client waits for ever
-    accepted, _ = asyncio.run(_run([0, 3], connect=5, wait_s=RECHECK_S * 4))
+    accepted, _ = asyncio.run(_run([0, 3], connect=5, wait_s=TAKEOVER_S * 3))
     assert len(accepted) == 5
+
+
+def test_a_process_that_becomes_least_loaded_takes_a_waiting_connection_at_once():
+    async def scenario() -> list[int]:
+        listener = _listener()
+        accepted: list[socket.socket] = []
+        counts = [0, 0]
+        acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, PENDING_RECHECK_S,
+                                            TAKEOVER_S)
+        acceptor.start()
+        first = socket.create_connection(listener.getsockname())
+        await asyncio.sleep(RECHECK_S / 8)
+        seen = [len(accepted)]                   # 1: now 1 vs 0, it leaves the next one to the other process
+        second = socket.create_connection(listener.getsockname())
+        await asyncio.sleep(RECHECK_S / 8)
+        seen.append(len(accepted))               # still 1
+        counts[1] = 1                            # the other process accepted one elsewhere: a tie
+        await asyncio.sleep(RECHECK_S / 8)       # well before the idle re-check and the takeover time
+        seen.append(len(accepted))
+        acceptor.stop()
+        for s in (first, second, *accepted, listener):
+            s.close()
+        return seen
+    assert asyncio.run(scenario()) == [1, 1, 2]
 
 
 def test_closing_connections_makes_a_process_least_loaded_again():
@@ -51,7 +77,8 @@ def test_closing_connections_makes_a_process_least_loaded_again():
         listener = _listener()
         accepted: list[socket.socket] = []
         counts = [0, 1]
-        acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, RECHECK_S)
+        acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, PENDING_RECHECK_S,
+                                            TAKEOVER_S)
         acceptor.start()
         first = socket.create_connection(listener.getsockname())
         await asyncio.sleep(RECHECK_S / 4)
@@ -93,7 +120,7 @@ def test_an_accept_error_pauses_accepting_instead_of_spinning_on_the_readable_so
     async def scenario() -> tuple[int, int]:
         listener = _listener()
         failing = _OutOfDescriptors(listener)
-        acceptor = LeastConnectionsAcceptor(failing, [0, 0], 0, lambda s: None, RECHECK_S, retry_s=0.3)
+        acceptor = LeastConnectionsAcceptor(failing, [0, 0], 0, lambda s: None, retry_s=0.3)
         acceptor.start()
         client = socket.create_connection(listener.getsockname())   # the socket stays readable
         await asyncio.sleep(0.15)
@@ -113,7 +140,7 @@ def test_closing_connections_after_stop_does_not_start_accepting_again():
     async def scenario() -> int:
         listener = _listener()
         accepted: list[socket.socket] = []
-        acceptor = LeastConnectionsAcceptor(listener, [0, 5], 0, accepted.append, RECHECK_S)
+        acceptor = LeastConnectionsAcceptor(listener, [0, 5], 0, accepted.append, PENDING_RECHECK_S, TAKEOVER_S)
         acceptor.start()
         first = socket.create_connection(listener.getsockname())
         await asyncio.sleep(RECHECK_S / 4)
