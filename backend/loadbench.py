@@ -135,6 +135,8 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
 
     ports: list[int] = []
     split: list[list[int] | None] = []
+    finished: list[float] = []                   # when each measured client's last request came back
+    all_finished, counted = asyncio.Event(), asyncio.Event()
 
     async def client(deadline: float, record: bool) -> None:
         reader, writer = await asyncio.open_connection(host, int(port))
@@ -150,18 +152,26 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
                 if record:
                     latencies.append(dt)
                     statuses[status] = statuses.get(status, 0) + 1
+            if record:                           # stay connected until the split has been read
+                finished.append(time.perf_counter())
+                if len(finished) == clients:
+                    all_finished.set()
+                await counted.wait()
         finally:
             writer.close()
 
+    async def count_connections() -> None:
+        # after the measured window: reading /proc holds this process's GIL for tens of milliseconds, which
+        # would have shown up as client-side latency had it run during the window
+        await all_finished.wait()
+        split.append(await asyncio.to_thread(connection_split, int(port), ports))
+        counted.set()
+
     await asyncio.gather(*(client(time.perf_counter() + 2.0, False) for _ in range(clients)))   # warm-up
     await asyncio.sleep(0.2)   # let the server see the warm-up connections close before the measured ones open
-    async def probe() -> None:     # once every client is connected
-        await asyncio.sleep(min(1.0, seconds / 2))
-        split.append(await asyncio.to_thread(connection_split, int(port), ports))
-
     t_start = time.perf_counter()
-    await asyncio.gather(probe(), *(client(t_start + seconds, True) for _ in range(clients)))
-    wall = time.perf_counter() - t_start
+    await asyncio.gather(count_connections(), *(client(t_start + seconds, True) for _ in range(clients)))
+    wall = max(finished) - t_start
     lat = np.array(latencies) * 1e3
     return {"clients": clients, "seconds": round(wall, 2), "requests": int(lat.size),
             "proposals_per_s": round(statuses.get(201, 0) / wall, 1),
