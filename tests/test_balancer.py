@@ -8,7 +8,7 @@ import socket
 
 from backend.balancer import LeastConnectionsAcceptor
 
-RECHECK_S = 0.2          # a time scale long enough that a slow test machine keeps "at once" apart from "later"
+TICK_S = 0.2             # a time scale long enough that a slow test machine keeps "at once" apart from "later"
 PENDING_RECHECK_S = 0.01
 TAKEOVER_S = 0.2
 
@@ -20,11 +20,17 @@ def _listener() -> socket.socket:
     return sock
 
 
-async def _run(counts: list[int], connect: int, wait_s: float) -> tuple[list[socket.socket], list[int]]:
+def _started(counts: list[int]) -> tuple[socket.socket, list[socket.socket], LeastConnectionsAcceptor]:
+    """A listening socket and a started acceptor in slot 0 of ``counts`` (call from a running loop)."""
     listener = _listener()
     accepted: list[socket.socket] = []
     acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, PENDING_RECHECK_S, TAKEOVER_S)
     acceptor.start()
+    return listener, accepted, acceptor
+
+
+async def _run(counts: list[int], connect: int, wait_s: float) -> tuple[list[socket.socket], list[int]]:
+    listener, accepted, acceptor = _started(counts)
     clients = [socket.create_connection(listener.getsockname()) for _ in range(connect)]
     await asyncio.sleep(wait_s)
     acceptor.stop()
@@ -37,7 +43,7 @@ async def _run(counts: list[int], connect: int, wait_s: float) -> tuple[list[soc
 def test_the_least_loaded_process_accepts_until_it_holds_more_than_another():
     # the other process (slot 1) holds 3: we take three to catch up and one more at the tie (3 vs 3), then
     # hold 4 and leave the fifth to it for now
-    accepted, counts = asyncio.run(_run([0, 3], connect=5, wait_s=RECHECK_S / 4))
+    accepted, counts = asyncio.run(_run([0, 3], connect=5, wait_s=TICK_S / 4))
     assert len(accepted) == 4
     assert counts[0] == 0     # stop() clears the slot
 
@@ -50,20 +56,16 @@ def test_a_connection_the_least_loaded_process_does_not_take_is_taken_after_the_
 
 def test_a_process_that_becomes_least_loaded_takes_a_waiting_connection_at_once():
     async def scenario() -> list[int]:
-        listener = _listener()
-        accepted: list[socket.socket] = []
         counts = [0, 0]
-        acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, PENDING_RECHECK_S,
-                                            TAKEOVER_S)
-        acceptor.start()
+        listener, accepted, acceptor = _started(counts)
         first = socket.create_connection(listener.getsockname())
-        await asyncio.sleep(RECHECK_S / 8)
+        await asyncio.sleep(TICK_S / 8)
         seen = [len(accepted)]                   # 1: now 1 vs 0, it leaves the next one to the other process
         second = socket.create_connection(listener.getsockname())
-        await asyncio.sleep(RECHECK_S / 8)
+        await asyncio.sleep(TICK_S / 8)
         seen.append(len(accepted))               # still 1
         counts[1] = 1                            # the other process accepted one elsewhere: a tie
-        await asyncio.sleep(RECHECK_S / 8)       # well before the idle re-check and the takeover time
+        await asyncio.sleep(TICK_S / 8)          # well before the takeover time
         seen.append(len(accepted))
         acceptor.stop()
         for s in (first, second, *accepted, listener):
@@ -74,22 +76,18 @@ def test_a_process_that_becomes_least_loaded_takes_a_waiting_connection_at_once(
 
 def test_closing_connections_makes_a_process_least_loaded_again():
     async def scenario() -> int:
-        listener = _listener()
-        accepted: list[socket.socket] = []
         counts = [0, 1]
-        acceptor = LeastConnectionsAcceptor(listener, counts, 0, accepted.append, PENDING_RECHECK_S,
-                                            TAKEOVER_S)
-        acceptor.start()
+        listener, accepted, acceptor = _started(counts)
         first = socket.create_connection(listener.getsockname())
-        await asyncio.sleep(RECHECK_S / 4)
+        await asyncio.sleep(TICK_S / 4)
         assert len(accepted) == 1 and counts[0] == 1        # 1 vs 1: still least loaded (ties accept)
         counts[1] = 0                                        # the other process lost its connection
         second = socket.create_connection(listener.getsockname())
-        await asyncio.sleep(RECHECK_S / 4)
+        await asyncio.sleep(TICK_S / 4)
         assert len(accepted) == 1                            # 1 vs 0: leave it to the other
         accepted[0].close()
         acceptor.closed()                                    # ours closed: 0 vs 0
-        await asyncio.sleep(RECHECK_S / 4)
+        await asyncio.sleep(TICK_S / 4)
         n = len(accepted)
         acceptor.stop()
         for s in (first, second, *accepted, listener):
@@ -143,11 +141,11 @@ def test_closing_connections_after_stop_does_not_start_accepting_again():
         acceptor = LeastConnectionsAcceptor(listener, [0, 5], 0, accepted.append, PENDING_RECHECK_S, TAKEOVER_S)
         acceptor.start()
         first = socket.create_connection(listener.getsockname())
-        await asyncio.sleep(RECHECK_S / 4)
+        await asyncio.sleep(TICK_S / 4)
         acceptor.stop()                          # graceful shutdown: connections drain after this
         second = socket.create_connection(listener.getsockname())
         acceptor.closed()                        # the first one closes while draining
-        await asyncio.sleep(RECHECK_S * 3)
+        await asyncio.sleep(TICK_S * 3)
         for s in (first, second, *accepted, listener):
             s.close()
         return len(accepted)
