@@ -7,35 +7,39 @@ import weakref
 
 import pytest
 
+from backend import model_service
 from backend.errors import ServiceUnavailableError
-from backend.model_service import ModelService
+from backend.model_service import ModelService, freeze_long_lived_objects
 
 
 class _Node:
     pass
 
 
-def test_the_loaded_model_and_everything_alive_then_are_frozen_out_of_the_cyclic_collector(model):
+def test_freezing_collects_garbage_first_and_freezes_what_is_alive():
     garbage = _Node()
     garbage.me = garbage                     # a reference cycle that only the cyclic collector frees
     gone = weakref.ref(garbage)
     before = gc.get_freeze_count()
     del garbage
-    service = ModelService(lambda: model).start()
-    assert service.get(30.0) is model and service.status == "ready"
-    # the freeze happens after the load, in the loader thread: wait for it through the thread
-    service._thread.join(30.0)
+    freeze_long_lived_objects()
+    assert gone() is None                    # collected, not frozen with the rest
     assert gc.get_freeze_count() > before
-    assert gone() is None                    # garbage is collected first, not frozen with the model
 
 
-def test_a_model_that_fails_to_load_is_reported_and_nothing_is_frozen():
-    before = gc.get_freeze_count()
+def test_the_service_freezes_the_heap_after_a_load_and_not_after_a_failed_one(model, monkeypatch):
+    calls = []
+    monkeypatch.setattr(model_service, "freeze_long_lived_objects", lambda: calls.append("freeze"))
+    ok = ModelService(lambda: model).start()
+    assert ok.get(30.0) is model and ok.status == "ready"
+    ok._thread.join(30.0)                    # the freeze runs in the loader thread, after the model is set
+    assert calls == ["freeze"]
 
     def broken():
         raise OSError("no model file")
 
-    service = ModelService(broken).start()
+    failed = ModelService(broken).start()
     with pytest.raises(ServiceUnavailableError, match="no model file"):
-        service.get(30.0)
-    assert service.status == "failed" and gc.get_freeze_count() == before
+        failed.get(30.0)
+    failed._thread.join(30.0)
+    assert failed.status == "failed" and calls == ["freeze"]
