@@ -33,7 +33,8 @@ _lock_files: dict[tuple[int, str], int] = {}     # (pid, database path) → open
 _registry_lock = threading.Lock()
 
 
-def _database_path(conn: sqlite3.Connection) -> str:
+def database_path(conn: sqlite3.Connection) -> str:
+    """The file ``conn`` has open, as SQLite names it (the key of the write locks; "" when in memory)."""
     return conn.execute("PRAGMA database_list").fetchone()[2]
 
 
@@ -55,23 +56,30 @@ def _lock_file(path: str) -> int | None:
         return fd
 
 
-def try_write_lock(conn: sqlite3.Connection) -> Callable[[], None] | None:
-    """Take this process's write lock and the cross-process ``flock`` for ``conn``'s database without waiting.
+def _try_flock(fd: int) -> bool:
+    """Take the exclusive ``flock`` on ``fd`` if no other process holds it; False (not taken) otherwise."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def try_write_lock(path: str) -> Callable[[], None] | None:
+    """Take this process's write lock and the cross-process ``flock`` for the database at ``path`` (as
+    :func:`database_path` gives it) without waiting.
 
     Returns the function that releases both, or None (holding nothing) when another writer holds either. For a
     caller that must not block while it waits, such as the event loop (``backend/group_commit.py``); it then
     runs its transaction with ``write_transaction(conn, locked=True)``.
     """
-    path = _database_path(conn)
     lock = _write_lock(path)
     if not lock.acquire(blocking=False):
         return None
     fd = _lock_file(path)
     if fd is None:
         return lock.release
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
+    if not _try_flock(fd):
         lock.release()
         return None
 
@@ -84,7 +92,7 @@ def try_write_lock(conn: sqlite3.Connection) -> Callable[[], None] | None:
 @contextmanager
 def _exclusive(conn: sqlite3.Connection) -> Iterator[None]:
     """Hold this process's per-file lock, then the cross-process ``flock``, for one write transaction."""
-    path = _database_path(conn)
+    path = database_path(conn)
     with _write_lock(path):
         fd = _lock_file(path)
         if fd is None:
@@ -101,16 +109,12 @@ def _flock_within_busy_timeout(fd: int, path: str) -> None:
     """Take the exclusive ``flock``, polling every 0.2 ms, and fail like SQLite after the busy timeout
     (a blocking ``flock`` has no timeout: a hung writer would hang every other one silently)."""
     deadline = time.monotonic() + BUSY_TIMEOUT_MS / 1000
-    while True:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            return
-        except BlockingIOError:
-            if time.monotonic() > deadline:
-                raise sqlite3.OperationalError(
-                    f"database is locked: another process has been writing to {path} for more than "
-                    f"{BUSY_TIMEOUT_MS / 1000:g} s") from None
-            time.sleep(0.0002)
+    while not _try_flock(fd):
+        if time.monotonic() > deadline:
+            raise sqlite3.OperationalError(
+                f"database is locked: another process has been writing to {path} for more than "
+                f"{BUSY_TIMEOUT_MS / 1000:g} s")
+        time.sleep(0.0002)
 
 
 def connect(path: str | Path) -> sqlite3.Connection:

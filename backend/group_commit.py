@@ -33,7 +33,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-from backend.db import BUSY_TIMEOUT_MS, try_write_lock, write_transaction
+from backend.db import BUSY_TIMEOUT_MS, database_path, try_write_lock, write_transaction
 from backend.pool import ConnectionPool
 
 T = TypeVar("T")
@@ -67,6 +67,7 @@ class GroupCommitter:
         self._pending: list[tuple[Callable[[sqlite3.Connection], Any], asyncio.Future]] = []
         self._scheduled = False
         self._lock_wait_started: float | None = None
+        self._path: str | None = None            # the database file as the write locks know it, read once
 
     async def run(self, write: Callable[[sqlite3.Connection], T]) -> T:
         """Run ``write(conn)`` inside a write transaction shared with the other writes of this loop round;
@@ -81,16 +82,19 @@ class GroupCommitter:
 
     def _flush(self) -> None:
         loop = asyncio.get_running_loop()
-        with self.pool.connection() as conn:
-            release = try_write_lock(conn)
-            if release is None:                  # another writer (thread or process) is committing
-                self._wait_for_lock(loop)
-                return
-            self._lock_wait_started = None
-            try:
+        if self._path is None:
+            with self.pool.connection() as conn:
+                self._path = database_path(conn)
+        release = try_write_lock(self._path)
+        if release is None:                      # another writer (thread or process) is committing
+            self._wait_for_lock(loop)
+            return
+        self._lock_wait_started = None
+        try:
+            with self.pool.connection() as conn:
                 self._commit_group(conn, loop)
-            finally:
-                release()
+        finally:
+            release()
 
     def _wait_for_lock(self, loop: asyncio.AbstractEventLoop) -> None:
         """Look again shortly, leaving the loop free meanwhile (writes that arrive join the group); after

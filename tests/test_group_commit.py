@@ -10,7 +10,7 @@ import threading
 import pytest
 
 from backend import group_commit
-from backend.db import connect, try_write_lock, write_transaction
+from backend.db import connect, database_path, try_write_lock, write_transaction
 from backend.group_commit import GroupCommitter
 from backend.pool import ConnectionPool
 
@@ -145,7 +145,7 @@ def test_an_interrupted_group_answers_every_request_and_stores_nothing(pool):
 def test_waiting_for_the_write_lock_leaves_the_loop_free_and_gathers_the_writes_that_arrive(pool):
     committer = GroupCommitter(pool)
     with pool.connection() as holder_conn:
-        release = try_write_lock(holder_conn)            # another writer is committing
+        release = try_write_lock(database_path(holder_conn))            # another writer is committing
         assert release is not None
         threading.Timer(0.3, release).start()
 
@@ -178,7 +178,7 @@ def test_a_write_lock_held_past_the_busy_timeout_fails_the_waiting_writes_and_st
     monkeypatch.setattr(group_commit, "BUSY_TIMEOUT_MS", 100)
     committer = GroupCommitter(pool)
     with pool.connection() as holder_conn:
-        release = try_write_lock(holder_conn)
+        release = try_write_lock(database_path(holder_conn))
         try:
             async def main() -> list:
                 return await asyncio.gather(committer.run(_insert("a")), committer.run(_insert("b")),
@@ -193,10 +193,11 @@ def test_a_write_lock_held_past_the_busy_timeout_fails_the_waiting_writes_and_st
 
 
 def test_try_write_lock_refuses_while_another_holds_it_and_takes_it_after(pool):
-    with pool.connection() as a, pool.connection() as b:
-        release = try_write_lock(a)
-        assert release is not None and try_write_lock(b) is None
-        release()
-        again = try_write_lock(b)
-        assert again is not None
-        again()
+    with pool.connection() as conn:
+        path = database_path(conn)
+    release = try_write_lock(path)
+    assert release is not None and try_write_lock(path) is None
+    release()
+    again = try_write_lock(path)
+    assert again is not None
+    again()
