@@ -64,8 +64,8 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
     """Migrate, (maybe) create the first user, bind, print the URL, serve until interrupted; the exit status.
 
     With ``workers`` > 1, :mod:`backend.workers` runs that many processes, each with its own copy of the
-    model and its own listening socket; SQLite's locking (and :mod:`backend.db`'s write lock) keeps their
-    writes serial.
+    model, accepting from the one listening socket bound here (least connections first); SQLite's locking
+    (and :mod:`backend.db`'s write lock) keeps their writes serial.
     """
     import uvicorn
 

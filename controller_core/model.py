@@ -185,7 +185,7 @@ class QuasiStiffnessModel:
             progress: optional callable ``progress(step_name)`` called after each part.
         """
         tick = progress or (lambda _name: None)
-        self._check_swing_params()
+        self._check_table_rules()
         if "speed_mps" not in reference.task_names:
             raise ValueError("the reference set needs a 'speed_mps' task column")
         tasks = np.column_stack([
@@ -334,7 +334,7 @@ class QuasiStiffnessModel:
         var[k, channel] = np.maximum([f.std for f in mine], 1e-6) ** 2
         return [ViaPoint(phase=float(p), mean=m, cov=np.diag(v)) for p, m, v in zip(phases, means, var, strict=True)]
 
-    def _check_swing_params(self) -> None:
+    def _check_table_rules(self) -> None:
         if not isinstance(self.knee_extension_window, bool):
             raise ValueError(f"knee_extension_window must be True or False, got {self.knee_extension_window!r}")
         if self.swing_rule not in SWING_RULES:
