@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -13,7 +14,12 @@ from controller_core.gait_metrics import heel_strikes, rmse, stride_curves
 from controller_core.quasi_stiffness import fit_quasi_stiffness
 from controller_core.reference import load_shipped_reference
 from controller_core.walking_reference import level_walking_reference
-from device_bridge.sim.bench_trajectory import plan_bench_trajectory, stance_hip_height_m, thigh_angle_rad
+from device_bridge.sim.bench_trajectory import (
+    hip_height_mismatch_mm,
+    plan_bench_trajectory,
+    stance_hip_height_m,
+    thigh_angle_rad,
+)
 from device_bridge.sim.experiments import make_controller
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import run_walk, score_walk
@@ -77,6 +83,25 @@ def test_passivity_guard_replaces_an_unstable_swing_line():
         fit_quasi_stiffness(phase, theta, tau, (0.2, 0.5, 0.8), (0.0, 2.0), max_k_Nm_per_rad=5.0)
 
 
+def test_hip_height_mismatch_is_zero_when_both_legs_agree_and_measures_the_plan_otherwise():
+    # synthetic gait, said so: a leg frozen at one posture touches the floor at one height all cycle long,
+    # so the two legs agree in double support and the bench's path meets the touching height everywhere
+    ref = level_walking_reference(1.2)
+    frozen = dataclasses.replace(ref, hip_angle_rad=np.full_like(ref.phase, 0.2),
+                                 knee_angle_rad=np.full_like(ref.phase, 0.1), ankle_angle_rad=np.zeros_like(ref.phase))
+    g = LegGeometry()
+    agree = hip_height_mismatch_mm(frozen, g)
+    assert agree["heel_strike"] == pytest.approx(0.0, abs=1e-6) and agree["pre_swing"] == pytest.approx(0.0, abs=1e-6)
+    # the shipped curves: the rigid foot puts the contralateral leg's late stance higher than the ipsilateral
+    # heel strike, so the hip is too high when the foot should land and too low in pre-swing
+    real = hip_height_mismatch_mm(ref, g)
+    assert real["heel_strike"] > 5.0 and real["pre_swing"] < -20.0
+    traj = plan_bench_trajectory(ref, g, 75.0, 0.01, start_phase=0.0)
+    thigh = thigh_angle_rad(ref, 0.0)
+    touch = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, g, 0.0)
+    assert real["heel_strike"] == pytest.approx(1000.0 * (traj.height_m[0] - touch[0]), abs=1e-6)
+
+
 @pytest.fixture(scope="module")
 def fsmic_walk():
     ref = level_walking_reference(1.2)
@@ -93,6 +118,7 @@ def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
         assert math.isfinite(s[key]) and s[key] > 0
     assert all(v > 0 for v in s["time_in_state_s"].values())           # every state visited
     assert s["guard_transitions"] == 0
+    assert s["bench_hip_height_mismatch_mm"] == hip_height_mismatch_mm(level_walking_reference(1.2), LegGeometry())
 
 
 @pytest.fixture(scope="module")

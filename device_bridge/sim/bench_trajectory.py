@@ -31,6 +31,7 @@ from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.leg_model import LegGeometry
 
 MID_STANCE = (0.15, 0.40)
+HARMONICS = 12   # harmonics kept when smoothing the periodic socket signals
 
 
 def _fourier(values: np.ndarray, harmonics: int) -> tuple[np.ndarray, np.ndarray]:
@@ -81,6 +82,45 @@ def stance_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, 
     return g.contact_radius_m - lowest
 
 
+def _grid_hip_heights_m(ref: WalkingReference, thigh: np.ndarray, geometry: LegGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """(hip height target, height at which the ipsilateral reference leg touches) on the reference grid (m)."""
+    s_grid = ref.phase
+    h_ipsi = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, geometry, ref.incline_deg)
+    stance = s_grid <= ref.toe_off_phase
+    h_own = np.where(stance, h_ipsi, np.inf)
+    contra_s = (s_grid - 0.5) % 1.0
+    h_contra = np.where(contra_s <= ref.toe_off_phase, np.interp(contra_s, s_grid, h_ipsi), np.inf)
+    height = np.minimum(h_own, h_contra)
+    if not np.all(np.isfinite(height)):
+        raise ValueError("the reference has a flight phase (no leg in stance): not a walking pattern")
+    return height, h_ipsi
+
+
+def hip_height_mismatch_mm(ref: WalkingReference, geometry: LegGeometry, harmonics: int = HARMONICS) -> dict[str, float]:
+    """How far the bench's hip height target is from where the ipsilateral reference leg touches the floor (mm).
+
+    The target comes from whichever reference leg is in stance, and this bench's rigid foot and segment lengths
+    make the two legs disagree in double support. The bench then does not let a leg with the reference angles
+    land and push off on time:
+
+    * ``heel_strike``: target minus touching height at the reference heel strike (phase 0), after the same
+      smoothing as the bench's path. Positive: the hip is that much too high, and the foot has to reach down
+      (knee extending, ankle plantarflexing) to land.
+    * ``pre_swing``: the most negative target minus touching height while the ipsilateral leg is in stance.
+      Negative: the contralateral leg's loading response holds the hip that much lower, compressing the leg.
+
+    Both are properties of the bench at the task, the same for every controller; docs/results.md explains
+    what they do to the stance knee.
+    """
+    thigh = thigh_angle_rad(ref, ref.incline_deg)
+    height, h_ipsi = _grid_hip_heights_m(ref, thigh, geometry)
+    a, b = _fourier(height, harmonics)
+    smooth, _ = _eval_fourier(a, b, ref.phase)
+    excess = smooth - h_ipsi
+    stance = ref.phase <= ref.toe_off_phase
+    return {"heel_strike": float(1000.0 * excess[0]), "pre_swing": float(1000.0 * excess[stance].min())}
+
+
 @dataclass(frozen=True)
 class BenchTrajectory:
     """Sampled socket trajectory and load for a whole run (arrays of one length, one row per tick).
@@ -109,21 +149,14 @@ class BenchTrajectory:
 
 
 def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float,
-                          timestep_s: float = 0.001, start_phase: float = 0.85, harmonics: int = 12,
+                          timestep_s: float = 0.001, start_phase: float = 0.85, harmonics: int = HARMONICS,
                           t0_s: float = 0.0) -> BenchTrajectory:
     """Sample the socket targets and load for ``seconds`` of walking at the reference's task, from time ``t0_s``
     (a later chunk of the same walk continues the earlier one exactly)."""
     incline = ref.incline_deg
     s_grid = ref.phase
     thigh = thigh_angle_rad(ref, incline)
-    h_ipsi = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, geometry, incline)
-    stance = s_grid <= ref.toe_off_phase
-    h_own = np.where(stance, h_ipsi, np.inf)
-    contra_s = (s_grid - 0.5) % 1.0
-    h_contra = np.where(contra_s <= ref.toe_off_phase, np.interp(contra_s, s_grid, h_ipsi), np.inf)
-    height = np.minimum(h_own, h_contra)
-    if not np.all(np.isfinite(height)):
-        raise ValueError("the reference has a flight phase (no leg in stance): not a walking pattern")
+    height, _ = _grid_hip_heights_m(ref, thigh, geometry)
     T = ref.stride_time_s
     n = round(seconds / timestep_s)
     t = t0_s + np.arange(n) * timestep_s

@@ -13,7 +13,10 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
 * ``toe_catches``: episodes of foot contact in mid-swing (bench phase between toe-off + 8 % and 92 %), the
   stumbles a person would feel;
 * time in each state, guard-forced transitions, torque saturation, real-time factor (simulated seconds per
-  wall-clock second of the loop).
+  wall-clock second of the loop);
+* ``bench_hip_height_mismatch_mm``: how far the bench's hip path is, at heel strike and in pre-swing, from
+  where a leg with the reference angles touches the floor (a property of the bench at the task, the same for
+  every controller; :func:`device_bridge.sim.bench_trajectory.hip_height_mismatch_mm`).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from controller_core.fsm import GaitState, SensorSample, StateMachineController
 from controller_core.gait_metrics import episodes, gait_channels, heel_strikes, reference_curves, stride_errors
 from controller_core.model import G
 from controller_core.walking_reference import WalkingReference
-from device_bridge.sim.bench_trajectory import plan_bench_trajectory
+from device_bridge.sim.bench_trajectory import hip_height_mismatch_mm, plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.plant import SimulatedLeg
 
@@ -115,7 +118,8 @@ def run_walk(controller: StateMachineController, reference: WalkingReference, ma
                    saturated_ticks=saturated, guard_transitions=controller.guard_transitions_,
                    transitions=controller.transitions_,
                    extras={"stride_time_s": traj.stride_time_s,
-                           "fall_sink_m": 0.5 * mass_kg * G / leg.vertical_stiffness_N_per_m})
+                           "fall_sink_m": 0.5 * mass_kg * G / leg.vertical_stiffness_N_per_m,
+                           "hip_height_mismatch_mm": hip_height_mismatch_mm(reference, leg.geometry)})
 
 
 @dataclass(frozen=True)
@@ -166,6 +170,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
         "guard_transitions": log.guard_transitions,
         "torque_saturation_fraction": log.saturated_ticks / max(c["time_s"].shape[0], 1),
         "max_hip_sink_m": float(max(0.0, -np.min(c["hip_height_error_m"]))),
+        "bench_hip_height_mismatch_mm": log.extras.get("hip_height_mismatch_mm"),
         "real_time_factor": seconds / log.wall_time_s if log.wall_time_s > 0 else None,
         "reference_source": reference.source,
         "reference_extrapolation": reference.extrapolation,
