@@ -92,8 +92,8 @@ def test_hip_height_mismatch_is_zero_when_both_legs_agree_and_measures_the_plan_
     g = LegGeometry()
     agree = hip_height_mismatch_mm(frozen, g)
     assert agree["heel_strike"] == pytest.approx(0.0, abs=1e-6) and agree["pre_swing"] == pytest.approx(0.0, abs=1e-6)
-    # the shipped curves: the rigid foot puts the contralateral leg's late stance higher than the ipsilateral
-    # heel strike, so the hip is too high when the foot should land and too low in pre-swing
+    # the shipped curves: the two legs disagree in double support, so the hip is too high when the foot should
+    # land and too low in pre-swing (docs/results.md); the heel-strike figure is the planned path's own
     real = hip_height_mismatch_mm(ref, g)
     assert real["heel_strike"] > 5.0 and real["pre_swing"] < -20.0
     traj = plan_bench_trajectory(ref, g, 75.0, 0.01, start_phase=0.0)

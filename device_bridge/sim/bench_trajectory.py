@@ -9,7 +9,8 @@ For a task the bench replays the able-bodied pattern of :class:`controller_core.
 * **Hip height** h(s) above the floor (m, along the floor normal) = the height at which the reference leg
   — this bench's segment lengths, the reference knee and ankle angles — touches the floor with its lowest
   contact, taken from whichever leg is in stance (the contralateral leg is the same pattern half a cycle
-  later; in double support the lower of the two).
+  later; in double support the lower of the two). The two legs disagree there, so a leg with the reference
+  angles would not land or push off on time: :func:`hip_height_mismatch_mm` says by how much.
 * **Forward motion**: the socket moves along the floor at the task speed (belt speed).
 * **Load**: the bench pushes the socket down with the reference vertical ground reaction force
   (vgrf(s) × body weight) and carries the bench's own moving mass; a stiff servo holds the socket near
@@ -99,9 +100,9 @@ def _grid_hip_heights_m(ref: WalkingReference, thigh: np.ndarray, geometry: LegG
 def hip_height_mismatch_mm(ref: WalkingReference, geometry: LegGeometry, harmonics: int = HARMONICS) -> dict[str, float]:
     """How far the bench's hip height target is from where the ipsilateral reference leg touches the floor (mm).
 
-    The target comes from whichever reference leg is in stance, and this bench's rigid foot and segment lengths
-    make the two legs disagree in double support. The bench then does not let a leg with the reference angles
-    land and push off on time:
+    The target comes from whichever reference leg is in stance, and on this bench (rigid foot, segment lengths,
+    thigh-angle offset, sagittal plane only) the two legs disagree in double support. The bench then does not
+    let a leg with the reference angles land and push off on time:
 
     * ``heel_strike``: target minus touching height at the reference heel strike (phase 0), after the same
       smoothing as the bench's path. Positive: the hip is that much too high, and the foot has to reach down
