@@ -146,6 +146,20 @@ def format_compare(rows: list[dict]) -> str:
             "ankle_angle_rmse_deg", "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg", "real_time_factor"]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     lines += ["| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |" for r in rows]
+    verdicts = [r for r in rows if r.get("vs_fsmic")]
+    if verdicts:
+        chans = [("knee_angle", "deg"), ("ankle_angle", "deg"), ("knee_moment", "Nm_per_kg"),
+                 ("ankle_moment", "Nm_per_kg")]
+        lines += ["", "learned − FSMIC RMSE, 95 % interval over strides (bootstrap), verdict:", "",
+                  "| speed_mps | incline_deg | " + " | ".join(f"{c}_rmse_difference_{u}" for c, u in chans) + " |",
+                  "|" + "---|" * (2 + len(chans))]
+        for r in verdicts:
+            v = r["vs_fsmic"]
+            cells = []
+            for c, u in chans:
+                d, ci = v.get(f"{c}_rmse_difference_{u}"), v.get(f"{c}_rmse_difference_ci95_{u}")
+                cells.append("—" if d is None else f"{d:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}] {v[f'{c}_verdict']}")
+            lines.append(f"| {_fmt(r.get('speed_mps'))} | {_fmt(r.get('incline_deg'))} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

@@ -96,3 +96,58 @@ def stride_errors(measured: dict[str, np.ndarray], strikes: np.ndarray, referenc
         else:
             errors[rmse_key(name)] = None
     return means, errors
+
+
+def bootstrap_rmse(strides: np.ndarray, reference: np.ndarray, n_boot: int = 2000,
+                   rng: np.random.Generator | None = None) -> np.ndarray:
+    """RMSE against ``reference`` of the stride-averaged curve, for ``n_boot`` resamples of the strides.
+
+    Each resample draws as many strides as were walked, with replacement (rows of ``strides``, shape
+    (strides, grid)); its mean curve is scored like the walk itself. The spread of the returned (n_boot,) values
+    is how much the walk's RMSE depends on which strides happened to be walked. Strides are treated as
+    exchangeable, which holds for a walk that has settled into a cycle; strides that alternate (a limp) would
+    need a block bootstrap.
+
+    Raises:
+        ValueError: fewer than two strides, or shapes that do not match.
+    """
+    strides = np.asarray(strides, dtype=float)
+    reference = np.asarray(reference, dtype=float)
+    if strides.ndim != 2 or strides.shape[0] < 2:
+        raise ValueError(f"need at least two strides as rows, got an array of shape {strides.shape}")
+    if strides.shape[1] != reference.shape[0]:
+        raise ValueError(f"strides have {strides.shape[1]} grid points, the reference {reference.shape[0]}")
+    n = strides.shape[0]
+    rng = np.random.default_rng(0) if rng is None else rng
+    counts = rng.multinomial(n, np.full(n, 1.0 / n), size=n_boot)   # how often each stride is drawn
+    d = counts @ strides / n - reference
+    return np.sqrt(np.mean(d * d, axis=1))
+
+
+def percentile_interval(samples: np.ndarray, level: float = 0.95) -> tuple[float, float]:
+    """Central ``level`` interval of bootstrap samples (percentile method)."""
+    if not 0.0 < level < 1.0:
+        raise ValueError(f"level must be within (0, 1), got {level!r}")
+    lo, hi = np.percentile(np.asarray(samples, dtype=float), [50.0 * (1.0 - level), 50.0 * (1.0 + level)])
+    return float(lo), float(hi)
+
+
+def rmse_difference(strides_a: np.ndarray, strides_b: np.ndarray, reference: np.ndarray, level: float = 0.95,
+                    n_boot: int = 2000, seed: int = 0) -> dict[str, object]:
+    """How much walk A's stride-averaged RMSE exceeds walk B's, with a bootstrap interval.
+
+    The two walks are independent, so their strides are resampled independently (:func:`bootstrap_rmse`);
+    ``verdict`` is ``"A lower"`` or ``"B lower"`` when the interval excludes zero, else ``"not resolved"``:
+    the difference is within what the stride-to-stride variation of the two walks allows.
+
+    Returns:
+        ``difference`` (RMSE_A − RMSE_B, in the curves' unit), ``interval`` (lo, hi) at ``level``, ``verdict``.
+    """
+    rng = np.random.default_rng(seed)
+    a = bootstrap_rmse(strides_a, reference, n_boot, rng)
+    b = bootstrap_rmse(strides_b, reference, n_boot, rng)
+    diff = rmse(np.asarray(strides_a, dtype=float).mean(axis=0), reference) - \
+        rmse(np.asarray(strides_b, dtype=float).mean(axis=0), reference)
+    lo, hi = percentile_interval(a - b, level)
+    verdict = "A lower" if hi < 0.0 else "B lower" if lo > 0.0 else "not resolved"
+    return {"difference": diff, "interval": (lo, hi), "verdict": verdict}

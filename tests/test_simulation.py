@@ -10,7 +10,14 @@ import numpy as np
 import pytest
 
 from backend.cli import main
-from controller_core.gait_metrics import heel_strikes, rmse, stride_curves
+from controller_core.gait_metrics import (
+    bootstrap_rmse,
+    heel_strikes,
+    percentile_interval,
+    rmse,
+    rmse_difference,
+    stride_curves,
+)
 from controller_core.quasi_stiffness import fit_quasi_stiffness
 from controller_core.reference import load_shipped_reference
 from controller_core.walking_reference import level_walking_reference
@@ -20,7 +27,7 @@ from device_bridge.sim.bench_trajectory import (
     stance_hip_height_m,
     thigh_angle_rad,
 )
-from device_bridge.sim.experiments import make_controller
+from device_bridge.sim.experiments import against_fsmic, make_controller
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import run_walk, score_walk
 
@@ -64,6 +71,35 @@ def test_gait_metrics_on_a_known_signal():
     assert curves.shape == (2, 101)
     assert curves[0, 0] == 100 and curves[0, -1] == 400
     assert rmse(np.ones(5), np.zeros(5)) == 1.0
+
+
+def test_stride_bootstrap_brackets_the_rmse_and_tells_a_real_difference_from_stride_noise():
+    # synthetic strides (a sine "reference" plus offsets and noise), only to check the statistics
+    rng = np.random.default_rng(7)
+    grid = np.linspace(0.0, 1.0, 101)
+    ref = 10.0 * np.sin(2 * np.pi * grid)
+    same = np.tile(ref + 2.0, (12, 1))                  # every stride identical: no stride-to-stride spread
+    boots = bootstrap_rmse(same, ref)
+    assert np.allclose(boots, 2.0)
+    noisy = ref + 2.0 + rng.normal(0.0, 1.5, (12, 101)) + rng.normal(0.0, 1.0, (12, 1))
+    lo, hi = percentile_interval(bootstrap_rmse(noisy, ref))
+    assert lo < rmse(noisy.mean(axis=0), ref) < hi and hi - lo > 0.1
+    wider = ref + 2.0 + rng.normal(0.0, 1.5, (12, 101)) + rng.normal(0.0, 4.0, (12, 1))
+    lo_w, hi_w = percentile_interval(bootstrap_rmse(wider, ref))
+    assert hi_w - lo_w > hi - lo                        # more stride-to-stride variation, a wider interval
+
+    better = ref + 0.5 + rng.normal(0.0, 0.5, (12, 101))
+    d = rmse_difference(better, noisy, ref)
+    assert d["verdict"] == "A lower" and d["difference"] < 0 and d["interval"][1] < 0
+    assert rmse_difference(noisy, better, ref)["verdict"] == "B lower"
+    twin = ref + 2.0 + rng.normal(0.0, 1.5, (12, 101)) + rng.normal(0.0, 1.0, (12, 1))
+    assert rmse_difference(twin, noisy, ref)["verdict"] == "not resolved"   # same process, different strides
+    with pytest.raises(ValueError, match="two strides"):
+        bootstrap_rmse(same[:1], ref)
+    with pytest.raises(ValueError, match="grid points"):
+        bootstrap_rmse(same[:, :50], ref)
+    with pytest.raises(ValueError, match="level"):
+        percentile_interval(boots, 1.5)
 
 
 def test_passivity_guard_replaces_an_unstable_swing_line():
@@ -119,6 +155,9 @@ def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
     assert all(v > 0 for v in s["time_in_state_s"].values())           # every state visited
     assert s["guard_transitions"] == 0
     assert s["bench_hip_height_mismatch_mm"] == hip_height_mismatch_mm(level_walking_reference(1.2), LegGeometry())
+    lo, hi = s["knee_angle_rmse_ci95_deg"]                              # how sure: an interval over the strides
+    assert 0 < lo <= hi and hi - lo < s["knee_angle_rmse_deg"]
+    assert s["ankle_moment_rmse_ci95_Nm_per_kg"][0] <= s["ankle_moment_rmse_ci95_Nm_per_kg"][1]
 
 
 @pytest.fixture(scope="module")
@@ -140,6 +179,20 @@ def test_learned_table_walks_strides_on_the_bench_without_falling(quasi_stiffnes
     strikes = heel_strikes(log["contact_N"], 0.02 * 75.0 * 9.81, 150)
     late = [s for s in strikes if log["time_s"][s] > 2.0]
     assert late and max(math.degrees(log["knee_angle_rad"][s]) for s in late) < 25.0
+
+
+def test_learned_against_fsmic_reports_each_difference_with_an_interval_and_a_verdict(quasi_stiffness_walk, fsmic_walk):
+    learned, fsmic = quasi_stiffness_walk[1], fsmic_walk[1]
+    v = against_fsmic(learned, fsmic)
+    d = v["ankle_angle_rmse_difference_deg"]
+    assert d == pytest.approx(learned.summary["ankle_angle_rmse_deg"] - fsmic.summary["ankle_angle_rmse_deg"])
+    lo, hi = v["ankle_angle_rmse_difference_ci95_deg"]
+    assert lo <= hi
+    expected = "learned lower" if hi < 0 else "FSMIC lower" if lo > 0 else "not resolved"
+    assert v["ankle_angle_verdict"] == expected
+    assert set(v) >= {"knee_angle_verdict", "knee_moment_rmse_difference_Nm_per_kg",
+                      "ankle_moment_rmse_difference_ci95_Nm_per_kg"}
+    assert against_fsmic(learned, dataclasses.replace(fsmic, stride_curves={}))["knee_angle_verdict"] is None
 
 
 def test_load_cell_reads_compression_in_stance_and_a_plantarflexor_moment_at_push_off(fsmic_walk):
@@ -169,3 +222,16 @@ def test_cli_simulate_prints_json_and_refuses_bad_input(capsys, tmp_path):
     assert "speed" in capsys.readouterr().err
     assert main(["simulate", "--speed", "1.2", "--controller", "fsmic", "--seconds", "nan"]) == 2
     assert "seconds" in capsys.readouterr().err
+
+
+def test_cli_compare_prints_the_table_and_the_verdicts_and_writes_them(capsys, tmp_path):
+    out = tmp_path / "compare.json"
+    assert main(["compare", "--speeds", "1.2", "--seconds", "5", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "| 1.20 | 0.00 | quasi-stiffness |" in text and "| 1.20 | 0.00 | fsmic |" in text
+    assert "95 % interval over strides" in text
+    rows = json.loads(out.read_text())
+    learned = next(r for r in rows if r["controller"] == "quasi-stiffness")
+    verdict = learned["vs_fsmic"]["knee_angle_verdict"]
+    assert verdict in ("learned lower", "FSMIC lower", "not resolved") and verdict in text
+    assert "vs_fsmic" not in next(r for r in rows if r["controller"] == "fsmic")

@@ -21,6 +21,7 @@ import numpy as np
 
 from controller_core.fsm import ImpedanceSchedule, StateMachineController
 from controller_core.fsmic import fsmic_table
+from controller_core.gait_metrics import GAIT_CHANNELS, rmse_difference, rmse_key
 from controller_core.model import QuasiStiffnessModel, validate_task
 from controller_core.table import ImpedanceTable
 from controller_core.walking_reference import WalkingReference, level_walking_reference
@@ -144,12 +145,41 @@ class _VideoRecorder:
 def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_SPEEDS_MPS,
             inclines_deg: tuple[float, ...] = (0.0,), seconds: float = 20.0, mass_kg: float = 75.0
             ) -> list[tuple[WalkScore, str]]:
-    """Both controllers over the task grid; returns (score, controller) pairs in grid order."""
+    """Both controllers over the task grid; returns (score, controller) pairs in grid order.
+
+    Each learned walk's summary also carries ``vs_fsmic`` (:func:`against_fsmic`): how its RMSEs differ from
+    the FSMIC's at the same task, and whether the strides walked resolve the difference.
+    """
     out = []
     for incline in inclines_deg:
         for speed in speeds_mps:
-            for name in CONTROLLERS:
-                out.append((simulate(name, speed, incline, seconds, mass_kg, model), name))
+            pair = {name: simulate(name, speed, incline, seconds, mass_kg, model) for name in CONTROLLERS}
+            pair["quasi-stiffness"].summary["vs_fsmic"] = against_fsmic(pair["quasi-stiffness"], pair["fsmic"])
+            out.extend((pair[name], name) for name in CONTROLLERS)
+    return out
+
+
+def against_fsmic(learned: WalkScore, fsmic: WalkScore, level: float = 0.95) -> dict[str, object]:
+    """Learned minus FSMIC stride-averaged RMSE per channel, with a bootstrap interval over strides.
+
+    Keys per channel (units in the names): ``knee_angle_rmse_difference_deg``,
+    ``knee_angle_rmse_difference_ci95_deg`` (lo, hi) and ``knee_angle_verdict``: ``"learned lower"`` or
+    ``"FSMIC lower"`` when the interval excludes zero, ``"not resolved"`` when the two walks' stride-to-stride
+    variation allows either (:func:`controller_core.gait_metrics.rmse_difference`). A channel either walk could
+    not score (fewer than two strides) is None.
+    """
+    words = {"A lower": "learned lower", "B lower": "FSMIC lower", "not resolved": "not resolved"}
+    out: dict[str, object] = {}
+    for name in GAIT_CHANNELS:
+        key = rmse_key(name).replace("_rmse_", "_rmse_difference_")
+        ci_key = key.replace("_difference_", "_difference_ci95_")
+        verdict_key = name.replace("_deg", "").replace("_Nm_per_kg", "") + "_verdict"
+        a, b = learned.stride_curves.get(name), fsmic.stride_curves.get(name)
+        if a is None or b is None or a.shape[0] < 2 or b.shape[0] < 2:
+            out[key] = out[ci_key] = out[verdict_key] = None
+            continue
+        d = rmse_difference(a, b, learned.reference_curves[name], level)
+        out[key], out[ci_key], out[verdict_key] = d["difference"], list(d["interval"]), words[str(d["verdict"])]
     return out
 
 

@@ -6,7 +6,9 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
 * strides: complete strides between heel strikes (foot contact rising above 2 % body weight after at least
   150 ms without contact) after the settling time;
 * RMSE of the stride-averaged knee and ankle angle (deg) and joint torque / body mass (N·m/kg) against the
-  reference at the task, on the 101-point phase grid;
+  reference at the task, on the 101-point phase grid, each with a 95 % interval (``*_rmse_ci95_*``: the strides
+  resampled with replacement, :func:`controller_core.gait_metrics.bootstrap_rmse`) that says how much the number
+  depends on which strides were walked; it says nothing about the bench's own assumptions;
 * ``falls``: episodes in which the bench had to carry more than half the body weight — the socket sank so far
   below its target height that the vertical servo's spring force exceeds 0.5 × body weight (a person whose
   leg gives way like that falls) — or the knee reached 100° while loaded above half body weight (buckling);
@@ -28,7 +30,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from controller_core.fsm import GaitState, SensorSample, StateMachineController
-from controller_core.gait_metrics import episodes, gait_channels, heel_strikes, reference_curves, stride_errors
+from controller_core.gait_metrics import (
+    bootstrap_rmse,
+    episodes,
+    gait_channels,
+    heel_strikes,
+    percentile_interval,
+    reference_curves,
+    rmse,
+    rmse_key,
+    stride_curves,
+)
 from controller_core.model import G
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import hip_height_mismatch_mm, plan_bench_trajectory
@@ -129,6 +141,7 @@ class WalkScore:
     summary: dict[str, object]
     mean_curves: dict[str, np.ndarray]       # stride-averaged measured curves (deg, N·m/kg) on PHASE_GRID
     reference_curves: dict[str, np.ndarray]  # the reference on PHASE_GRID in the same units
+    stride_curves: dict[str, np.ndarray] = field(default_factory=dict)  # (strides, PHASE_GRID) per channel
 
     def to_dict(self) -> dict[str, object]:
         return dict(self.summary)
@@ -144,7 +157,16 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
                                 mass)
     ref_curves = reference_curves(reference)
     n_strides = max(int(strikes.shape[0]) - 1, 0)
-    means, errors = stride_errors(per_channel, strikes, ref_curves)
+    strided = {name: stride_curves(signal, strikes) for name, signal in per_channel.items()} if n_strides else {}
+    means = {name: curves.mean(axis=0) for name, curves in strided.items()}
+    errors: dict[str, object] = {}
+    rng = np.random.default_rng(0)   # fixed: the same walk always reports the same interval
+    for name in per_channel:
+        key = rmse_key(name)
+        errors[key] = rmse(means[name], ref_curves[name]) if name in means else None
+        ci = key.replace("_rmse_", "_rmse_ci95_")
+        errors[ci] = (list(percentile_interval(bootstrap_rmse(strided[name], ref_curves[name], rng=rng)))
+                      if name in strided and strided[name].shape[0] >= 2 else None)
     stride_times = np.diff(c["time_s"][strikes]) if n_strides else np.array([])
     phase = c["bench_phase"]
     mid_swing = (phase > reference.toe_off_phase + 0.08) & (phase < 0.92)
@@ -176,4 +198,4 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
         "reference_extrapolation": reference.extrapolation,
         "settle_s": settle_s,
     }
-    return WalkScore(summary=summary, mean_curves=means, reference_curves=ref_curves)
+    return WalkScore(summary=summary, mean_curves=means, reference_curves=ref_curves, stride_curves=strided)
