@@ -13,6 +13,7 @@ from pathlib import Path
 
 from backend.store.users import ROLES
 from controller_core import InvalidTaskError, QuasiStiffnessModel, load_default_model, load_model
+from controller_core.gait_metrics import GAIT_CHANNELS, difference_keys
 from controller_core.table import SafetyLimitError
 
 
@@ -148,17 +149,16 @@ def format_compare(rows: list[dict]) -> str:
     lines += ["| " + " | ".join(_fmt(r.get(c)) for c in cols) + " |" for r in rows]
     verdicts = [r for r in rows if r.get("vs_fsmic")]
     if verdicts:
-        chans = [("knee_angle", "deg"), ("ankle_angle", "deg"), ("knee_moment", "Nm_per_kg"),
-                 ("ankle_moment", "Nm_per_kg")]
+        keys = [difference_keys(channel) for channel in GAIT_CHANNELS]
         lines += ["", "learned − FSMIC RMSE, 95 % interval over strides (bootstrap), verdict:", "",
-                  "| speed_mps | incline_deg | " + " | ".join(f"{c}_rmse_difference_{u}" for c, u in chans) + " |",
-                  "|" + "---|" * (2 + len(chans))]
+                  "| speed_mps | incline_deg | " + " | ".join(k for k, _, _ in keys) + " |",
+                  "|" + "---|" * (2 + len(keys))]
         for r in verdicts:
             v = r["vs_fsmic"]
             cells = []
-            for c, u in chans:
-                d, ci = v.get(f"{c}_rmse_difference_{u}"), v.get(f"{c}_rmse_difference_ci95_{u}")
-                cells.append("—" if d is None else f"{d:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}] {v[f'{c}_verdict']}")
+            for key, ci_key, verdict_key in keys:
+                d, ci = v.get(key), v.get(ci_key)
+                cells.append("—" if d is None else f"{d:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}] {v[verdict_key]}")
             lines.append(f"| {_fmt(r.get('speed_mps'))} | {_fmt(r.get('incline_deg'))} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

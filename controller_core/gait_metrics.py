@@ -82,20 +82,54 @@ def rmse_key(channel: str) -> str:
     return channel.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")
 
 
-def stride_errors(measured: dict[str, np.ndarray], strikes: np.ndarray, reference: dict[str, np.ndarray]
-                  ) -> tuple[dict[str, np.ndarray], dict[str, float | None]]:
-    """Stride-averaged curves of each measured channel and their RMSE against the reference curves, keyed by
-    :func:`rmse_key`. With fewer than two strikes: no curves and every error None."""
-    means: dict[str, np.ndarray] = {}
-    errors: dict[str, float | None] = {}
-    strided = strikes.shape[0] >= 2
-    for name, signal in measured.items():
-        if strided:
-            means[name] = stride_curves(signal, strikes).mean(axis=0)
-            errors[rmse_key(name)] = rmse(means[name], reference[name])
-        else:
-            errors[rmse_key(name)] = None
+def ci95_key(key: str) -> str:
+    """The key of a value's 95 % interval: ``knee_angle_rmse_deg`` → ``knee_angle_rmse_ci95_deg`` (the unit stays
+    last)."""
+    for unit in ("_deg", "_Nm_per_kg"):
+        if key.endswith(unit):
+            return key[: -len(unit)] + "_ci95" + unit
+    raise ValueError(f"{key!r} does not end in a unit this module knows (_deg, _Nm_per_kg)")
+
+
+def difference_keys(channel: str) -> tuple[str, str, str]:
+    """Keys of a two-walk comparison of a channel's RMSE: the difference, its 95 % interval, the verdict
+    (``knee_angle_deg`` → ``knee_angle_rmse_difference_deg``, ``knee_angle_rmse_difference_ci95_deg``,
+    ``knee_angle_verdict``)."""
+    key = rmse_key(channel).replace("_rmse_", "_rmse_difference_")
+    return key, ci95_key(key), channel.removesuffix("_deg").removesuffix("_Nm_per_kg") + "_verdict"
+
+
+def channel_strides(measured: dict[str, np.ndarray], strikes: np.ndarray) -> dict[str, np.ndarray]:
+    """Each measured channel cut into strides on the phase grid (:func:`stride_curves`); empty with fewer than
+    two strikes."""
+    if strikes.shape[0] < 2:
+        return {}
+    return {name: stride_curves(signal, strikes) for name, signal in measured.items()}
+
+
+def strided_errors(strided: dict[str, np.ndarray], channels: tuple[str, ...] | list[str],
+                   reference: dict[str, np.ndarray], rng: np.random.Generator | None = None
+                   ) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """Stride-averaged curves of ``strided`` (:func:`channel_strides`) and their RMSE against the reference,
+    keyed by :func:`rmse_key`; a channel without strides gets None. With ``rng``, each RMSE also gets its 95 %
+    interval over strides under :func:`ci95_key` (:func:`bootstrap_rmse`; None with fewer than two strides)."""
+    means = {name: curves.mean(axis=0) for name, curves in strided.items()}
+    errors: dict[str, object] = {}
+    for name in channels:
+        key = rmse_key(name)
+        errors[key] = rmse(means[name], reference[name]) if name in means else None
+        if rng is not None:
+            errors[ci95_key(key)] = (list(percentile_interval(bootstrap_rmse(strided[name], reference[name], rng=rng)))
+                                     if name in strided and strided[name].shape[0] >= 2 else None)
     return means, errors
+
+
+def stride_errors(measured: dict[str, np.ndarray], strikes: np.ndarray, reference: dict[str, np.ndarray]
+                  ) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """Stride-averaged curves of each measured channel and their RMSE (float) against the reference curves,
+    keyed by :func:`rmse_key`. With fewer than two strikes: no curves and every error None."""
+    return strided_errors(channel_strides(measured, strikes), list(measured), reference)
+
 
 
 def bootstrap_rmse(strides: np.ndarray, reference: np.ndarray, n_boot: int = 2000,

@@ -21,7 +21,7 @@ import numpy as np
 
 from controller_core.fsm import ImpedanceSchedule, StateMachineController
 from controller_core.fsmic import fsmic_table
-from controller_core.gait_metrics import GAIT_CHANNELS, rmse_difference, rmse_key
+from controller_core.gait_metrics import GAIT_CHANNELS, difference_keys, rmse_difference
 from controller_core.model import QuasiStiffnessModel, validate_task
 from controller_core.table import ImpedanceTable
 from controller_core.walking_reference import WalkingReference, level_walking_reference
@@ -171,9 +171,7 @@ def against_fsmic(learned: WalkScore, fsmic: WalkScore, level: float = 0.95) -> 
     words = {"A lower": "learned lower", "B lower": "FSMIC lower", "not resolved": "not resolved"}
     out: dict[str, object] = {}
     for name in GAIT_CHANNELS:
-        key = rmse_key(name).replace("_rmse_", "_rmse_difference_")
-        ci_key = key.replace("_difference_", "_difference_ci95_")
-        verdict_key = name.replace("_deg", "").replace("_Nm_per_kg", "") + "_verdict"
+        key, ci_key, verdict_key = difference_keys(name)
         a, b = learned.stride_curves.get(name), fsmic.stride_curves.get(name)
         if a is None or b is None or a.shape[0] < 2 or b.shape[0] < 2:
             out[key] = out[ci_key] = out[verdict_key] = None

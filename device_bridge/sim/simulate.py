@@ -31,15 +31,12 @@ import numpy as np
 
 from controller_core.fsm import GaitState, SensorSample, StateMachineController
 from controller_core.gait_metrics import (
-    bootstrap_rmse,
+    channel_strides,
     episodes,
     gait_channels,
     heel_strikes,
-    percentile_interval,
     reference_curves,
-    rmse,
-    rmse_key,
-    stride_curves,
+    strided_errors,
 )
 from controller_core.model import G
 from controller_core.walking_reference import WalkingReference
@@ -157,16 +154,9 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
                                 mass)
     ref_curves = reference_curves(reference)
     n_strides = max(int(strikes.shape[0]) - 1, 0)
-    strided = {name: stride_curves(signal, strikes) for name, signal in per_channel.items()} if n_strides else {}
-    means = {name: curves.mean(axis=0) for name, curves in strided.items()}
-    errors: dict[str, object] = {}
-    rng = np.random.default_rng(0)   # fixed: the same walk always reports the same interval
-    for name in per_channel:
-        key = rmse_key(name)
-        errors[key] = rmse(means[name], ref_curves[name]) if name in means else None
-        ci = key.replace("_rmse_", "_rmse_ci95_")
-        errors[ci] = (list(percentile_interval(bootstrap_rmse(strided[name], ref_curves[name], rng=rng)))
-                      if name in strided and strided[name].shape[0] >= 2 else None)
+    strided = channel_strides(per_channel, strikes)
+    # fixed seed: the same walk always reports the same intervals
+    means, errors = strided_errors(strided, list(per_channel), ref_curves, rng=np.random.default_rng(0))
     stride_times = np.diff(c["time_s"][strikes]) if n_strides else np.array([])
     phase = c["bench_phase"]
     mid_swing = (phase > reference.toe_off_phase + 0.08) & (phase < 0.92)
