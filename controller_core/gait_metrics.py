@@ -60,6 +60,28 @@ def episodes(flag: np.ndarray, min_gap_samples: int = 1) -> int:
     return int(starts + (1 if len(flag) and flag[0] else 0))
 
 
+def state_entry_delays(states: np.ndarray, state: int, events: np.ndarray, lead_samples: int = 0) -> np.ndarray:
+    """Samples from each event to the machine's next entry into ``state`` (float array, one per event).
+
+    An entry counts for an event if it lies at or after ``event − lead_samples`` (an entry just before the
+    event gives a negative delay) and before the next event (or the end of the record); an event with no such
+    entry gives NaN. ``states`` is the state per sample; an entry is a sample in ``state`` whose predecessor is
+    not (the first sample never counts).
+    """
+    states = np.asarray(states)
+    events = np.asarray(events, dtype=int)
+    if lead_samples < 0:
+        raise ValueError(f"lead_samples must be >= 0, got {lead_samples}")
+    entries = np.flatnonzero((states[1:] == state) & (states[:-1] != state)) + 1
+    ends = np.append(events[1:], states.shape[0])
+    delays = np.full(events.shape[0], np.nan)
+    for i, (event, end) in enumerate(zip(events, ends, strict=True)):
+        j = int(np.searchsorted(entries, event - lead_samples))
+        if j < entries.shape[0] and entries[j] < end:
+            delays[i] = entries[j] - event
+    return delays
+
+
 def gait_channels(knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray, knee_torque_Nm: np.ndarray,
                   ankle_torque_Nm: np.ndarray, mass_kg: float) -> dict[str, np.ndarray]:
     """Recorded joint signals (SI) in the units they are scored in: :data:`GAIT_CHANNELS` (deg, N·m/kg)."""

@@ -16,6 +16,7 @@ from controller_core.gait_metrics import (
     percentile_interval,
     rmse,
     rmse_difference,
+    state_entry_delays,
     stride_curves,
 )
 from controller_core.quasi_stiffness import fit_quasi_stiffness
@@ -71,6 +72,24 @@ def test_gait_metrics_on_a_known_signal():
     assert curves.shape == (2, 101)
     assert curves[0, 0] == 100 and curves[0, -1] == 400
     assert rmse(np.ones(5), np.zeros(5)) == 1.0
+
+
+def test_state_entry_delays_on_a_scripted_machine():
+    # synthetic, labelled: a machine that enters state 0 five samples after the first event, two samples before
+    # the second, and never within the third event's stride (it enters only after the fourth event)
+    states = np.full(100, 3)
+    states[15:30] = 0
+    states[48:60] = 0
+    states[95:] = 0
+    events = np.array([10, 50, 70, 90])
+    delays = state_entry_delays(states, 0, events, lead_samples=3)
+    assert delays[:2].tolist() == [5.0, -2.0]
+    assert np.isnan(delays[2])               # the entry at 95 belongs to the event at 90, not to 70
+    assert delays[3] == 5.0
+    # without the lead, an entry before the event is not this event's: the next one is after the next event
+    assert np.isnan(state_entry_delays(states, 0, events, lead_samples=0)[1])
+    with pytest.raises(ValueError, match="lead_samples"):
+        state_entry_delays(states, 0, events, lead_samples=-1)
 
 
 def test_stride_bootstrap_brackets_the_rmse_and_tells_a_real_difference_from_stride_noise():
@@ -158,6 +177,10 @@ def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
     lo, hi = s["knee_angle_rmse_ci95_deg"]                              # how sure: an interval over the strides
     assert 0 < lo <= hi and hi - lo < s["knee_angle_rmse_deg"]
     assert s["ankle_moment_rmse_ci95_Nm_per_kg"][0] <= s["ankle_moment_rmse_ci95_Nm_per_kg"][1]
+    # heel strike reaches stance on every stride, and never sooner than the 20 ms event hold allows
+    assert s["heel_strikes_without_stance"] == 0
+    assert 20.0 <= s["heel_strike_to_stance_ms_median"] <= s["heel_strike_to_stance_ms_max"] < 500.0
+    assert s["loaded_swing_ms_per_stride"] >= 0.0
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,12 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
   leg gives way like that falls) — or the knee reached 100° while loaded above half body weight (buckling);
 * ``toe_catches``: episodes of foot contact in mid-swing (bench phase between toe-off + 8 % and 92 %), the
   stumbles a person would feel;
+* how late the machine noticed each heel strike: ``heel_strike_to_stance_ms_median`` and ``_max`` run from
+  the foot's contact to the state machine's entry into stance flexion (negative: it entered up to 100 ms
+  before contact, e.g. by the time guard), ``heel_strikes_without_stance`` counts strides on which it did not
+  enter stance at all, and ``loaded_swing_ms_per_stride`` is the time per stride the leg spent on a swing row
+  (swing flexion or extension) while the load cell read more than half the body weight — a loaded leg on the
+  weak swing impedance, which is a safety question, not a score;
 * time in each state, guard-forced transitions, torque saturation, real-time factor (simulated seconds per
   wall-clock second of the loop);
 * ``bench_hip_height_mismatch_mm``: how far the bench's hip path is, at heel strike and in pre-swing, from
@@ -36,6 +42,7 @@ from controller_core.gait_metrics import (
     gait_channels,
     heel_strikes,
     reference_curves,
+    state_entry_delays,
     strided_errors,
 )
 from controller_core.model import G
@@ -43,6 +50,8 @@ from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import hip_height_mismatch_mm, plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.plant import SimulatedLeg
+
+STANCE_ENTRY_LEAD_S = 0.1  # an entry into stance up to this long before the foot touches counts for that strike
 
 LOG_CHANNELS = ("time_s", "bench_phase", "state", "knee_angle_rad", "knee_velocity_rad_s", "ankle_angle_rad",
                 "ankle_velocity_rad_s", "knee_torque_Nm", "ankle_torque_Nm", "load_N", "ankle_moment_Nm",
@@ -131,6 +140,26 @@ def run_walk(controller: StateMachineController, reference: WalkingReference, ma
                            "hip_height_mismatch_mm": hip_height_mismatch_mm(reference, leg.geometry)})
 
 
+def _stance_entry(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, weight_N: float,
+                  dt: float) -> dict[str, object]:
+    """How late the machine noticed each heel strike (see the module docstring): None without a whole stride."""
+    keys = ("heel_strike_to_stance_ms_median", "heel_strike_to_stance_ms_max", "heel_strikes_without_stance",
+            "loaded_swing_ms_per_stride")
+    if strikes.shape[0] < 2:
+        return dict.fromkeys(keys)
+    delays_ms = 1000.0 * dt * state_entry_delays(states, int(GaitState.STANCE_FLEXION), strikes[:-1],
+                                                 round(STANCE_ENTRY_LEAD_S / dt))
+    found = delays_ms[np.isfinite(delays_ms)]
+    walked = slice(int(strikes[0]), int(strikes[-1]))
+    loaded_swing = (states[walked] >= int(GaitState.SWING_FLEXION)) & (load_N[walked] > 0.5 * weight_N)
+    return dict(zip(keys, (
+        float(np.median(found)) if found.size else None,
+        float(np.max(found)) if found.size else None,
+        int(delays_ms.shape[0] - found.shape[0]),
+        1000.0 * dt * float(np.count_nonzero(loaded_swing)) / (strikes.shape[0] - 1),
+    ), strict=True))
+
+
 @dataclass(frozen=True)
 class WalkScore:
     """Metrics of one walk (see the module docstring); ``to_dict`` gives the JSON of ``quasitune simulate``."""
@@ -166,6 +195,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     gap = round(0.2 / dt)
     states = c["state"].astype(int)
     time_in_state = {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)}
+    stance_entry = _stance_entry(states, c["load_N"], strikes, weight, dt)
     seconds = float(c["time_s"].shape[0] * dt)
     summary: dict[str, object] = {
         "speed_mps": reference.speed_mps, "incline_deg": reference.incline_deg, "mass_kg": mass,
@@ -178,6 +208,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
         "reference_stride_time_s": reference.stride_time_s,
         "cadence_steps_per_min": float(120.0 / np.mean(stride_times)) if stride_times.size else None,
         "time_in_state_s": time_in_state,
+        **stance_entry,
         "transitions": log.transitions,
         "guard_transitions": log.guard_transitions,
         "torque_saturation_fraction": log.saturated_ticks / max(c["time_s"].shape[0], 1),
