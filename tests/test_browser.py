@@ -91,7 +91,12 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     assert page.locator("#param-table tbody tr").count() == 8
     assert page.evaluate("window.quasitune.proposalViewMs") < 5000           # the 1 s target is in bench-ui
     page.wait_for_selector("#preview-metrics", timeout=30_000)
-    assert page.locator("#preview-metrics tbody tr").count() == 8
+    assert page.locator("#preview-metrics tbody tr").count() == 10
+    # every RMSE says how sure it is: an interval per controller and the difference's verdict
+    knee = page.locator("#preview-metrics tbody tr", has_text="knee angle RMSE").inner_text()
+    assert re.search(r"\d+\.\d \[\d+\.\d, \d+\.\d\] deg", knee), knee
+    assert re.search(r"(this table lower|FSMIC lower|not resolved)", knee), knee
+    assert re.search(r"\d+ / \d+ ms", page.inner_text("#preview-metrics")), "heel strike → stance delay missing"
     assert min(canvas_ink(page, "#preview canvas")) > 500
     shot(page, "02-proposal")
 

@@ -231,7 +231,8 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
 
     The dashboard's "simulated preview": same plant, same reference, same metrics as ``quasitune simulate``.
     Returns JSON-ready data: ``phase_grid`` (101 points), ``reference_curves`` and, per controller
-    (``table``, ``fsmic``), its summary and stride-averaged ``mean_curves`` (deg, N·m/kg).
+    (``table``, ``fsmic``), its summary and stride-averaged ``mean_curves`` (deg, N·m/kg); the table's entry
+    also carries ``vs_fsmic`` (:func:`against_fsmic`: its RMSEs minus the FSMIC's, with 95 % intervals).
 
     Raises:
         SafetyLimitError: a table fails the safety limits (checked again, as the device does).
@@ -243,10 +244,11 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
 
     validate_task(speed_mps, incline_deg, mass_kg)
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
-    controllers: dict[str, object] = {}
-    for name, tab in (("table", table), ("fsmic", fsmic_table(mass_kg))):
-        score = score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(tab)), ref, mass_kg, seconds),
-                           ref)
-        controllers[name] = {**score.summary, "mean_curves": rounded(score.mean_curves)}
+    scores = {name: score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(tab)), ref, mass_kg,
+                                        seconds), ref)
+              for name, tab in (("table", table), ("fsmic", fsmic_table(mass_kg)))}
+    controllers: dict[str, object] = {name: {**score.summary, "mean_curves": rounded(score.mean_curves)}
+                                      for name, score in scores.items()}
+    controllers["table"]["vs_fsmic"] = against_fsmic(scores["table"], scores["fsmic"])
     return {"seconds": seconds, "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
             "reference_curves": rounded(reference_curves(ref)), "controllers": controllers}

@@ -393,21 +393,46 @@ async function renderPreview(box, p) {
     return;
   }
   if (!alive) return;
-  const t = pv.controllers.table, f = pv.controllers.fsmic;
+  const t = pv.controllers.table, f = pv.controllers.fsmic, vs = t.vs_fsmic || {};
   const metric = (label, key, d, unit) => h("tr", {}, h("td", {}, label), h("td", { class: "num" }, fmt(t[key], d, unit)),
-    h("td", { class: "num" }, fmt(f[key], d, unit)));
+    h("td", { class: "num" }, fmt(f[key], d, unit)), h("td", {}));
+  // an RMSE with its 95 % interval over strides, and this table's difference from the FSMIC with its verdict;
+  // previews stored before the intervals existed show the point estimates only
+  const rmseRow = (label, base, u, unit, d) => {
+    const key = `${base}_rmse_${u}`, ciKey = `${base}_rmse_ci95_${u}`;
+    const withCi = (run) => fmt(run[key], d) + (run[ciKey] ? ` [${fmt(run[ciKey][0], d)}, ${fmt(run[ciKey][1], d)}]` : "")
+      + ` ${unit}`;
+    const diff = vs[`${base}_rmse_difference_${u}`], diffCi = vs[`${base}_rmse_difference_ci95_${u}`];
+    const verdict = { "learned lower": "this table lower", "FSMIC lower": "FSMIC lower" }[vs[`${base}_verdict`]]
+      || vs[`${base}_verdict`];
+    const signed = (v) => (v > 0 ? "+" : "") + fmt(v, d);
+    const diffCell = diff === undefined || diff === null ? "—"
+      : `${signed(diff)} [${signed(diffCi[0])}, ${signed(diffCi[1])}] ${unit}: ${verdict}`;
+    return h("tr", {}, h("td", {}, label), h("td", { class: "num" }, withCi(t)), h("td", { class: "num" }, withCi(f)),
+      h("td", { class: verdict === "not resolved" ? "num muted" : "num" }, diffCell));
+  };
+  const medMax = (run) => run.heel_strike_to_stance_ms_median === undefined ? "—"
+    : `${fmt(run.heel_strike_to_stance_ms_median, 0)} / ${fmt(run.heel_strike_to_stance_ms_max, 0)} ms`;
   const x = pv.phase_grid.map((s) => s * 100);
   const charts = h("div", { class: "two" });
   box.replaceChildren(h("h2", {}, "Simulated preview: this table vs the FSMIC"),
     h("p", { class: "muted small" }, `Both controllers walked ${fmt(pv.seconds, 0, "s")} each on the MuJoCo bench at this task `,
       `(socket driven along the able-bodied hip trajectory; metrics as in quasitune simulate). Reference: ${t.reference_source}. `,
       `Simulated ${when(pv.created_at)}.`),
-    table(["Metric", "This table", "FSMIC (hand-tuned, not re-tuned)"], [
+    table(["Metric", "This table", "FSMIC (hand-tuned, not re-tuned)", "This table − FSMIC, 95 % interval"], [
       metric("falls", "falls", 0), metric("toe catches", "toe_catches", 0), metric("strides", "strides", 0),
-      metric("knee angle RMSE", "knee_angle_rmse_deg", 1, "deg"), metric("ankle angle RMSE", "ankle_angle_rmse_deg", 1, "deg"),
-      metric("knee moment RMSE", "knee_moment_rmse_Nm_per_kg", 3, "N·m/kg"),
-      metric("ankle moment RMSE", "ankle_moment_rmse_Nm_per_kg", 3, "N·m/kg"),
-      metric("cadence", "cadence_steps_per_min", 1, "steps/min")], { id: "preview-metrics" }),
+      rmseRow("knee angle RMSE", "knee_angle", "deg", "deg", 1), rmseRow("ankle angle RMSE", "ankle_angle", "deg", "deg", 1),
+      rmseRow("knee moment RMSE", "knee_moment", "Nm_per_kg", "N·m/kg", 3),
+      rmseRow("ankle moment RMSE", "ankle_moment", "Nm_per_kg", "N·m/kg", 3),
+      metric("cadence", "cadence_steps_per_min", 1, "steps/min"),
+      h("tr", {}, h("td", {}, "foot contact → stance state, median / max"), h("td", { class: "num" }, medMax(t)),
+        h("td", { class: "num" }, medMax(f)), h("td", {})),
+      metric("on a swing row with > ½ body weight, per stride", "loaded_swing_ms_per_stride", 0, "ms")],
+    { id: "preview-metrics" }),
+    h("p", { class: "muted small" }, "[a, b]: 95 % interval over the strides walked (strides resampled with replacement). ",
+      "\"not resolved\": with these strides either controller could be the lower one. The intervals say nothing about ",
+      "the bench's own assumptions (docs/results.md). The last two rows are safety figures, not scores: how long ",
+      "a loaded leg stays on the weak swing impedance after the foot touches down."),
     charts);
   if (t.falls > 0) box.insertBefore(h("div", { class: "banner bad" }, `This table fell ${t.falls} time(s) on the simulated bench. `,
     "Do not push it without understanding why."), box.children[1]);
