@@ -104,6 +104,11 @@ def rmse_key(channel: str) -> str:
     return channel.replace("_deg", "_rmse_deg").replace("_Nm_per_kg", "_rmse_Nm_per_kg")
 
 
+def per_stride_key(channel: str) -> str:
+    """``knee_angle_deg`` → ``knee_angle_per_stride_rmse_deg``: the mean over strides of each stride's RMSE."""
+    return rmse_key(channel).replace("_rmse_", "_per_stride_rmse_")
+
+
 def ci95_key(key: str) -> str:
     """The key of a value's 95 % interval: ``knee_angle_rmse_deg`` → ``knee_angle_rmse_ci95_deg`` (the unit stays
     last)."""
@@ -130,16 +135,25 @@ def channel_strides(measured: dict[str, np.ndarray], strikes: np.ndarray) -> dic
 
 
 def strided_errors(strided: dict[str, np.ndarray], channels: tuple[str, ...] | list[str],
-                   reference: dict[str, np.ndarray], rng: np.random.Generator | None = None
-                   ) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+                   reference: dict[str, np.ndarray], rng: np.random.Generator | None = None,
+                   per_stride: bool = False) -> tuple[dict[str, np.ndarray], dict[str, object]]:
     """Stride-averaged curves of ``strided`` (:func:`channel_strides`) and their RMSE against the reference,
     keyed by :func:`rmse_key`; a channel without strides gets None. With ``rng``, each RMSE also gets its 95 %
-    interval over strides under :func:`ci95_key` (:func:`bootstrap_rmse`; None with fewer than two strides)."""
+    interval over strides under :func:`ci95_key` (:func:`bootstrap_rmse`; None with fewer than two strides).
+
+    With ``per_stride``, each channel also gets the mean of its strides' own RMSEs under :func:`per_stride_key`.
+    The two differ when strides scatter: errors of opposite sign on different strides cancel in the
+    stride-averaged curve, not in the per-stride mean, which is what the leg does on a typical stride.
+    """
     means = {name: curves.mean(axis=0) for name, curves in strided.items()}
     errors: dict[str, object] = {}
     for name in channels:
         key = rmse_key(name)
         errors[key] = rmse(means[name], reference[name]) if name in means else None
+        if per_stride:
+            errors[per_stride_key(name)] = (float(np.mean(np.sqrt(np.mean((strided[name] - reference[name]) ** 2,
+                                                                          axis=1))))
+                                            if name in strided else None)
         if rng is not None:
             errors[ci95_key(key)] = (list(percentile_interval(bootstrap_rmse(strided[name], reference[name], rng=rng)))
                                      if name in strided and strided[name].shape[0] >= 2 else None)

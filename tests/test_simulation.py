@@ -18,6 +18,7 @@ from controller_core.gait_metrics import (
     rmse_difference,
     state_entry_delays,
     stride_curves,
+    strided_errors,
 )
 from controller_core.quasi_stiffness import fit_quasi_stiffness
 from controller_core.reference import load_shipped_reference
@@ -90,6 +91,18 @@ def test_state_entry_delays_on_a_scripted_machine():
     assert np.isnan(state_entry_delays(states, 0, events, lead_samples=0)[1])
     with pytest.raises(ValueError, match="lead_samples"):
         state_entry_delays(states, 0, events, lead_samples=-1)
+
+
+def test_per_stride_rmse_counts_errors_that_cancel_in_the_stride_average():
+    # synthetic, labelled: strides alternately 2 deg above and below the reference
+    ref = np.sin(np.linspace(0, 2 * np.pi, 101))
+    strides = np.array([ref + 2.0, ref - 2.0, ref + 2.0, ref - 2.0])
+    _, errors = strided_errors({"knee_angle_deg": strides}, ["knee_angle_deg"], {"knee_angle_deg": ref},
+                               per_stride=True)
+    assert errors["knee_angle_rmse_deg"] == pytest.approx(0.0, abs=1e-12)
+    assert errors["knee_angle_per_stride_rmse_deg"] == pytest.approx(2.0)
+    _, plain = strided_errors({"knee_angle_deg": strides}, ["knee_angle_deg"], {"knee_angle_deg": ref})
+    assert "knee_angle_per_stride_rmse_deg" not in plain
 
 
 def test_stride_bootstrap_brackets_the_rmse_and_tells_a_real_difference_from_stride_noise():
@@ -177,6 +190,8 @@ def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
     lo, hi = s["knee_angle_rmse_ci95_deg"]                              # how sure: an interval over the strides
     assert 0 < lo <= hi and hi - lo < s["knee_angle_rmse_deg"]
     assert s["ankle_moment_rmse_ci95_Nm_per_kg"][0] <= s["ankle_moment_rmse_ci95_Nm_per_kg"][1]
+    for channel in ("knee_angle", "ankle_angle"):   # an average curve is never further off than its strides
+        assert s[f"{channel}_per_stride_rmse_deg"] >= s[f"{channel}_rmse_deg"]
     # heel strike reaches stance on every stride, and never sooner than the 20 ms event hold allows
     assert s["heel_strikes_without_stance"] == 0
     assert 20.0 <= s["heel_strike_to_stance_ms_median"] <= s["heel_strike_to_stance_ms_max"] < 500.0

@@ -8,7 +8,8 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
 * RMSE of the stride-averaged knee and ankle angle (deg) and joint torque / body mass (N·m/kg) against the
   reference at the task, on the 101-point phase grid, each with a 95 % interval (``*_rmse_ci95_*``: the strides
   resampled with replacement, :func:`controller_core.gait_metrics.bootstrap_rmse`) that says how much the number
-  depends on which strides were walked; it says nothing about the bench's own assumptions;
+  depends on which strides were walked; it says nothing about the bench's own assumptions; and the mean of the
+  strides' own RMSEs (``*_per_stride_rmse_*``), which errors that differ from stride to stride cannot cancel;
 * ``falls``: episodes in which the bench had to carry more than half the body weight — the socket sank so far
   below its target height that the vertical servo's spring force exceeds 0.5 × body weight (a person whose
   leg gives way like that falls) — or the knee reached 100° while loaded above half body weight (buckling);
@@ -185,7 +186,8 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     n_strides = max(int(strikes.shape[0]) - 1, 0)
     strided = channel_strides(per_channel, strikes)
     # fixed seed: the same walk always reports the same intervals
-    means, errors = strided_errors(strided, list(per_channel), ref_curves, rng=np.random.default_rng(0))
+    means, errors = strided_errors(strided, list(per_channel), ref_curves, rng=np.random.default_rng(0),
+                                   per_stride=True)
     stride_times = np.diff(c["time_s"][strikes]) if n_strides else np.array([])
     phase = c["bench_phase"]
     mid_swing = (phase > reference.toe_off_phase + 0.08) & (phase < 0.92)
