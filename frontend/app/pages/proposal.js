@@ -430,8 +430,9 @@ async function renderPreview(box, p) {
       metric("on a swing row with > ½ body weight, per stride", "loaded_swing_ms_per_stride", 0, "ms")],
     { id: "preview-metrics" }),
     h("p", { class: "muted small" }, "[a, b]: 95 % interval over the strides walked (strides resampled with replacement). ",
-      "\"not resolved\": with these strides either controller could be the lower one. The intervals say nothing about ",
-      "the bench's own assumptions (docs/results.md). The last two rows are safety figures, not scores: how long ",
+      "\"not resolved\": with these strides either controller could be the lower one. A preview walks only a few strides, ",
+      "and the FSMIC's strides change over a longer walk, so a longer walk can change the verdict (quasitune simulate ",
+      "--seconds 20). The intervals say nothing about the bench's own assumptions (docs/results.md). The last two rows are safety figures, not scores: how long ",
       "a loaded leg stays on the weak swing impedance after the foot touches down."),
     charts);
   if (t.falls > 0) box.insertBefore(h("div", { class: "banner bad" }, `This table fell ${t.falls} time(s) on the simulated bench. `,
