@@ -152,7 +152,8 @@ def _stance_entry(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, w
                                                  round(STANCE_ENTRY_LEAD_S / dt))
     found = delays_ms[np.isfinite(delays_ms)]
     walked = slice(int(strikes[0]), int(strikes[-1]))
-    loaded_swing = (states[walked] >= int(GaitState.SWING_FLEXION)) & (load_N[walked] > 0.5 * weight_N)
+    swing = np.isin(states[walked], (int(GaitState.SWING_FLEXION), int(GaitState.SWING_EXTENSION)))
+    loaded_swing = swing & (load_N[walked] > 0.5 * weight_N)
     return dict(zip(keys, (
         float(np.median(found)) if found.size else None,
         float(np.max(found)) if found.size else None,
