@@ -151,8 +151,7 @@ def strided_errors(strided: dict[str, np.ndarray], channels: tuple[str, ...] | l
         key = rmse_key(name)
         errors[key] = rmse(means[name], reference[name]) if name in means else None
         if per_stride:
-            errors[per_stride_key(name)] = (float(np.mean(np.sqrt(np.mean((strided[name] - reference[name]) ** 2,
-                                                                          axis=1))))
+            errors[per_stride_key(name)] = (float(np.mean([rmse(stride, reference[name]) for stride in strided[name]]))
                                             if name in strided else None)
         if rng is not None:
             errors[ci95_key(key)] = (list(percentile_interval(bootstrap_rmse(strided[name], reference[name], rng=rng)))
@@ -165,7 +164,6 @@ def stride_errors(measured: dict[str, np.ndarray], strikes: np.ndarray, referenc
     """Stride-averaged curves of each measured channel and their RMSE (float) against the reference curves,
     keyed by :func:`rmse_key`. With fewer than two strikes: no curves and every error None."""
     return strided_errors(channel_strides(measured, strikes), list(measured), reference)
-
 
 
 def bootstrap_rmse(strides: np.ndarray, reference: np.ndarray, n_boot: int = 2000,

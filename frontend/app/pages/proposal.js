@@ -432,8 +432,9 @@ async function renderPreview(box, p) {
     h("p", { class: "muted small" }, "[a, b]: 95 % interval over the strides walked (strides resampled with replacement). ",
       "\"not resolved\": with these strides either controller could be the lower one. A preview walks only a few strides, ",
       "and the FSMIC's strides change over a longer walk, so a longer walk can change the verdict (quasitune simulate ",
-      "--seconds 20). The intervals say nothing about the bench's own assumptions (docs/results.md). The last two rows are safety figures, not scores: how long ",
-      "a loaded leg stays on the weak swing impedance after the foot touches down."),
+      "--seconds 20). The intervals say nothing about the bench's own assumptions (docs/results.md). ",
+      "The last two rows are safety figures, not scores: how long a loaded leg stays on the weak swing impedance ",
+      "after the foot touches down."),
     charts);
   if (t.falls > 0) box.insertBefore(h("div", { class: "banner bad" }, `This table fell ${t.falls} time(s) on the simulated bench. `,
     "Do not push it without understanding why."), box.children[1]);
