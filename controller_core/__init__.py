@@ -8,12 +8,13 @@ Pure numerics: no web, database or CAN code. Typical use::
     proposal.to_dict()["table"]
 """
 
-from controller_core.model import InvalidTaskError, QuasiStiffnessModel
+from controller_core.model import QuasiStiffnessModel
 from controller_core.model_io import load_default_model, load_model, save_model
 from controller_core.proposal import Proposal
 from controller_core.table import ParameterTable, SafetyLimitError, SafetyLimits, assert_safe, check_table
+from controller_core.task import InvalidTaskError, validate_task
 
 __all__ = [
     "InvalidTaskError", "ParameterTable", "Proposal", "QuasiStiffnessModel", "SafetyLimitError",
-    "SafetyLimits", "assert_safe", "check_table", "load_default_model", "load_model", "save_model",
+    "SafetyLimits", "assert_safe", "check_table", "load_default_model", "load_model", "save_model", "validate_task",
 ]

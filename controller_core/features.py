@@ -2,7 +2,9 @@
 
 A feature is found in a phase window as the most extreme *interior local* extremum (first-difference sign
 change), refined by a parabola through the three samples around it, so a curve that is monotonic in the
-window raises :class:`FeatureNotFoundError` instead of silently returning the window edge.
+window raises :class:`FeatureNotFoundError` instead of silently returning the window edge. A feature of kind
+``at`` is the curve's value at a fixed phase instead (the knee's flexion at heel strike, the feature a slope
+moves most: about 1° on the level, 28° up a 10° ramp).
 
 Units: phase in [0, 1]; angle values in rad; moment values in N·m/kg (project sign convention: knee
 flexion +, ankle dorsiflexion +, internal moment + in the direction of + angle). Toe-off is a timing
@@ -30,7 +32,7 @@ class FeatureSpec:
         name: stable identifier used in JSON and in the model.
         joint: ``knee``, ``ankle`` or ``limb`` (timing).
         quantity: ``angle``, ``moment`` or ``timing``.
-        kind: ``max`` or ``min``.
+        kind: ``max``, ``min`` or ``at`` (the value at ``window[0]``: a fixed phase).
         window: (start, end) phase window searched, in [0, 1].
         label: clinician-readable description.
     """
@@ -43,12 +45,19 @@ class FeatureSpec:
     label: str
 
     @property
+    def fixed_phase(self) -> bool:
+        """The feature sits at a fixed phase (kind ``at``): only its value is predicted."""
+        return self.kind == "at"
+
+    @property
     def channel(self) -> str:
         """Curve channel the feature is read from (``knee_angle`` ...); empty for timing features."""
         return f"{self.joint}_{self.quantity}" if self.quantity in ("angle", "moment") else ""
 
 
 FEATURES: tuple[FeatureSpec, ...] = (
+    FeatureSpec("knee_heel_strike_angle", "knee", "angle", "at", (0.0, 0.0),
+                "knee flexion at heel strike"),
     FeatureSpec("knee_stance_flexion_peak", "knee", "angle", "max", (0.03, 0.30),
                 "knee stance-flexion peak (loading response)"),
     FeatureSpec("knee_swing_flexion_peak", "knee", "angle", "max", (0.55, 0.90),
@@ -70,6 +79,7 @@ FEATURES: tuple[FeatureSpec, ...] = (
 )
 FEATURES_BY_NAME: dict[str, FeatureSpec] = {f.name: f for f in FEATURES}
 CURVE_FEATURES: tuple[FeatureSpec, ...] = tuple(f for f in FEATURES if f.quantity != "timing")
+PHASED_FEATURES: tuple[FeatureSpec, ...] = tuple(f for f in CURVE_FEATURES if not f.fixed_phase)
 
 
 def find_extremum(phase: np.ndarray, curve: np.ndarray, spec: FeatureSpec) -> tuple[float, float]:
@@ -118,11 +128,17 @@ def estimate_toe_off(phase: np.ndarray, ankle_moment: np.ndarray, fraction: floa
     raise FeatureNotFoundError("toe_off: ankle moment never returns near zero after its plantarflexor peak")
 
 
+def curve_feature(rec: ReferenceRecord, spec: FeatureSpec) -> tuple[float, float]:
+    """One curve feature of a record: (phase, value) in SI (raises :class:`FeatureNotFoundError`)."""
+    if spec.fixed_phase:
+        at = spec.window[0]
+        return at, float(np.interp(at, rec.phase, rec.mean[spec.channel]))
+    return find_extremum(rec.phase, rec.mean[spec.channel], spec)
+
+
 def record_features(rec: ReferenceRecord) -> dict[str, tuple[float, float]]:
     """All features of one record: name -> (phase, value) in SI (timing value = its phase)."""
-    out: dict[str, tuple[float, float]] = {}
-    for spec in CURVE_FEATURES:
-        out[spec.name] = find_extremum(rec.phase, rec.mean[spec.channel], spec)
+    out: dict[str, tuple[float, float]] = {spec.name: curve_feature(rec, spec) for spec in CURVE_FEATURES}
     if np.isfinite(rec.toe_off_phase):
         to = float(rec.toe_off_phase)
     else:

@@ -28,9 +28,10 @@ from __future__ import annotations
 
 import math
 
-from controller_core.model import G, validate_task
 from controller_core.quasi_stiffness import SUBPHASES
 from controller_core.table import ParameterRow, ParameterTable, Provenance, Thresholds, assert_safe
+from controller_core.task import validate_task
+from controller_core.units import G_MPS2
 
 SOURCE_MASS_KG = 60.0
 NOMINAL_SPEED_MPS = 1.2
@@ -71,7 +72,7 @@ def fsmic_table(mass_kg: float = 75.0, min_state_time_s: float = 0.05, max_state
             for sub, (K, B, theta_e) in ((s, per_state[s]) for s in SUBPHASES)]
     k_es, _, theta_es = OSL_EXAMPLE_IMPEDANCE["ankle"]["stance_flexion"]
     moment = -k_es * scale * math.radians(OSL_LATE_STANCE_ANKLE_DEG - theta_es)
-    weight_N = mass_kg * G
+    weight_N = mass_kg * G_MPS2
     table = ParameterTable(
         rows=rows,
         thresholds=Thresholds(

@@ -1,12 +1,16 @@
 """Gaussian-process regression from a walking task to one feature value (or phase).
 
 Hyperparameters are fitted by maximising the marginal likelihood with scikit-learn's
-``GaussianProcessRegressor``. Prediction uses our own cached arrays instead of ``gpr.predict``: the
-proposal calls ~17 of these per task and sklearn's per-call overhead (~60 µs) would dominate the
-sub-millisecond budget; the algebra is the same (mean k*ᵀα, variance k** − ‖L⁻¹k*‖²).
+``GaussianProcessRegressor``, which :meth:`FeatureGPR.predict` calls. A proposal needs every feature's GPR at one
+task: :class:`FeatureGPRBank` evaluates them together from their fitted factors (the same algebra, mean k*ᵀα and
+variance k** − ‖L⁻¹k*‖², batched), because one sklearn call per GPR would take most of the sub-millisecond budget.
 
 Kernel (on inputs divided by ``input_scale``):
-``C_rbf · RBF(ℓ) + C_lin · (σ0² + x·x') + white``. The RBF length scales are bounded in physical units
+``C_rbf · RBF(ℓ) + C_lin · (σ0² + x·x') + white``, or with ``additive=True`` one RBF term per task dimension,
+``Σ_j C_j · RBF_j(ℓ_j) + C_lin · (σ0² + x·x') + white``, so that the target is a sum of one function per dimension
+(a level value over speed plus a change over incline: a slope's effect does not change with speed, and data on a
+slope do not pass for level data at a nearby speed, as they do under the product kernel when ℓ_incline is long).
+The RBF length scales are bounded in physical units
 (default speed 0.3–3 m/s, incline 3–30°); the linear part lets a trend (e.g. knee flexion rising with
 speed) extrapolate with growing uncertainty instead of reverting to the mean; the white term absorbs
 differences between labs. ``C_lin`` is a fixed, broad prior variance of the trend (``linear_prior_var``,
@@ -24,16 +28,26 @@ Published per-point standard errors enter as fixed noise (``alpha``).
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
 from scipy.linalg import solve_triangular
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, DotProduct, WhiteKernel
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, DotProduct, Sum, WhiteKernel
 
 from controller_core.hull import TaskHull
 from controller_core.training_data import training_arrays
+
+_IGNORED = 1e6   # RBF length (scaled input units) of a dimension an additive term does not use
+
+
+def _terms(kernel) -> list:
+    """The summands of a fitted sum kernel, flattened."""
+    if isinstance(kernel, Sum):
+        return _terms(kernel.k1) + _terms(kernel.k2)
+    return [kernel]
 
 
 class FeatureGPR:
@@ -47,6 +61,9 @@ class FeatureGPR:
         linear_prior_var: fixed prior variance C_lin of the linear trend (see the module docstring).
         n_restarts: optimizer restarts for the marginal likelihood.
         random_state: seed for the restarts.
+        y_scale: the target's unit of normalisation (default: its SD over the training points, or 1).
+        center: subtract the targets' mean first; a model of *changes* keeps 0 as its prior mean instead.
+        additive: one RBF term per task dimension instead of one over all of them (see the module docstring).
     """
 
     def __init__(
@@ -58,6 +75,9 @@ class FeatureGPR:
         linear_prior_var: float = 10.0,
         n_restarts: int = 2,
         random_state: int = 0,
+        y_scale: float | None = None,
+        center: bool = True,
+        additive: bool = False,
     ) -> None:
         self.length_scale_bounds = length_scale_bounds
         self.input_scale = input_scale
@@ -66,6 +86,9 @@ class FeatureGPR:
         self.linear_prior_var = linear_prior_var
         self.n_restarts = n_restarts
         self.random_state = random_state
+        self.y_scale = y_scale
+        self.center = center
+        self.additive = additive
 
     def fit(self, X: np.ndarray, y: np.ndarray, y_se: np.ndarray | None = None) -> FeatureGPR:
         """Fit on tasks ``X`` (n, d) in physical units and targets ``y`` (n,).
@@ -79,8 +102,10 @@ class FeatureGPR:
             raise ValueError(f"bounds/scales given for {len(self.input_scale)} task dims, data have {d}")
         scale = np.asarray(self.input_scale, dtype=float)
         Xs = X / scale
-        self.y_mean_ = float(y.mean())
-        self.y_std_ = float(y.std()) if y.std() > 0 else 1.0
+        self.y_mean_ = float(y.mean()) if self.center else 0.0
+        if self.y_scale is not None and not (math.isfinite(self.y_scale) and self.y_scale > 0):
+            raise ValueError(f"y_scale must be a positive finite number, got {self.y_scale!r}")
+        self.y_std_ = self.y_scale or (float(y.std()) if y.std() > 0 else 1.0)
         yn = (y - self.y_mean_) / self.y_std_
         se = np.zeros_like(y) if y_se is None else np.nan_to_num(np.asarray(y_se, float), nan=0.0)
         alpha = (se / self.y_std_) ** 2 + 1e-8
@@ -94,52 +119,56 @@ class FeatureGPR:
             else:
                 bounds.append((lo_s, hi_s))
                 init.append(float(np.sqrt(lo_s * hi_s)))
-        kernel = (
-            ConstantKernel(1.0, (1e-2, 1e2)) * RBF(length_scale=init, length_scale_bounds=bounds)
-            + ConstantKernel(self.linear_prior_var, "fixed") * DotProduct(sigma_0=1.0, sigma_0_bounds="fixed")
-            + WhiteKernel(1e-2, self.noise_bounds)
-        )
+        if self.additive:        # one RBF per dimension: the others get a fixed, effectively infinite length
+            rbf = None
+            for j in range(d):
+                ls = [_IGNORED] * d
+                ls[j] = init[j]
+                lb = [(_IGNORED, _IGNORED * (1.0 + 1e-9))] * d
+                lb[j] = bounds[j]
+                term = ConstantKernel(1.0, (1e-2, 1e2)) * RBF(length_scale=ls, length_scale_bounds=lb)
+                rbf = term if rbf is None else rbf + term
+        else:
+            rbf = ConstantKernel(1.0, (1e-2, 1e2)) * RBF(length_scale=init, length_scale_bounds=bounds)
+        kernel = (rbf + ConstantKernel(self.linear_prior_var, "fixed") * DotProduct(sigma_0=1.0, sigma_0_bounds="fixed")
+                  + WhiteKernel(1e-2, self.noise_bounds))
         gpr = GaussianProcessRegressor(kernel=kernel, alpha=alpha, normalize_y=False,
                                        n_restarts_optimizer=self.n_restarts, random_state=self.random_state)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             gpr.fit(Xs, yn)
-        k = gpr.kernel_
-        self.amp_rbf_ = float(k.k1.k1.k1.constant_value)
-        self.length_scale_ = np.atleast_1d(k.k1.k1.k2.length_scale).astype(float) * scale  # physical
-        self.amp_lin_ = float(k.k1.k2.k1.constant_value)
-        self.sigma0_ = float(k.k1.k2.k2.sigma_0)
-        self.noise_ = float(k.k2.noise_level)
+        self.gpr_ = gpr
+        self.input_scale_ = scale
+        amps, inverse = [], []
+        for term in _terms(gpr.kernel_):
+            if isinstance(term, WhiteKernel):
+                self.noise_ = float(term.noise_level)
+            elif isinstance(term.k2, RBF):
+                ls = np.broadcast_to(np.asarray(term.k2.length_scale, dtype=float), (d,))
+                amps.append(float(term.k1.constant_value))
+                inverse.append(np.where(ls >= _IGNORED, 0.0, 1.0 / ls))
+            else:
+                self.amp_lin_ = float(term.k1.constant_value)
+                self.sigma0_ = float(term.k2.sigma_0)
+        self.rbf_amplitudes_ = np.array(amps)                     # per RBF term
+        self.rbf_inverse_lengths_ = np.array(inverse)              # (terms, d), scaled units; 0: ignored
+        with np.errstate(divide="ignore"):
+            # physical length per dimension (the term that uses it)
+            self.length_scale_ = scale / self.rbf_inverse_lengths_.max(axis=0)
         self.log_marginal_likelihood_ = float(gpr.log_marginal_likelihood_value_)
         self.X_train_ = X
-        self._Xs = Xs
-        self._ls_scaled = self.length_scale_ / scale
-        self._scale = scale
-        self.L_ = gpr.L_
-        self.alpha_ = gpr.alpha_
         self.hull_ = TaskHull(self.hull_tolerance).fit(X)
         return self
 
-    def predict_one(self, x: np.ndarray) -> tuple[float, float]:
-        """Mean and std (target unit) at one task ``x`` (d,) in physical units.
-
-        The std includes the fitted white-noise term, i.e. it is the uncertainty of a new group mean,
-        not only of the latent function.
-        """
-        xs = np.asarray(x, dtype=float) / self._scale
-        diff = (self._Xs - xs) / self._ls_scaled
-        k = self.amp_rbf_ * np.exp(-0.5 * np.einsum("ij,ij->i", diff, diff))
-        k += self.amp_lin_ * (self.sigma0_**2 + self._Xs @ xs)
-        mean = float(k @ self.alpha_) * self.y_std_ + self.y_mean_
-        v = solve_triangular(self.L_, k, lower=True, check_finite=False)
-        prior = self.amp_rbf_ + self.amp_lin_ * (self.sigma0_**2 + xs @ xs) + self.noise_
-        var = max(prior - float(v @ v), 1e-12)
-        return mean, float(np.sqrt(var)) * self.y_std_
-
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Means and stds at tasks ``X`` (m, d)."""
-        out = np.array([self.predict_one(x) for x in np.atleast_2d(X)])
-        return out[:, 0], out[:, 1]
+        """Means and stds (target unit) at tasks ``X`` (m, d) in physical units.
+
+        The std includes the fitted white-noise term: it is the uncertainty of a new group mean, not only of the
+        latent function.
+        """
+        Xs = np.atleast_2d(np.asarray(X, dtype=float)) / self.input_scale_
+        mean, std = self.gpr_.predict(Xs, return_std=True)
+        return mean * self.y_std_ + self.y_mean_, std * self.y_std_
 
     def extrapolates(self, x: np.ndarray) -> bool:
         """True when ``x`` lies outside the convex hull of this target's training tasks."""
@@ -157,22 +186,27 @@ class FeatureGPRBank:
     def __init__(self, gprs: list[FeatureGPR]) -> None:
         if not gprs:
             raise ValueError("a bank needs at least one fitted GPR")
-        n = max(g._Xs.shape[0] for g in gprs)
-        d = gprs[0]._Xs.shape[1]
+        scaled = [g.X_train_ / g.input_scale_ for g in gprs]
+        n = max(x.shape[0] for x in scaled)
+        d = scaled[0].shape[1]
         m = len(gprs)
         self.Xs = np.zeros((m, n, d))
         self.alpha = np.zeros((m, n))
         self.Linv = np.tile(np.eye(n), (m, 1, 1))
         self.mask = np.zeros((m, n))
-        for i, g in enumerate(gprs):
-            k = g._Xs.shape[0]
-            self.Xs[i, :k] = g._Xs
-            self.alpha[i, :k] = g.alpha_
-            self.Linv[i, :k, :k] = solve_triangular(g.L_, np.eye(k), lower=True)
+        for i, (g, x) in enumerate(zip(gprs, scaled, strict=True)):
+            k = x.shape[0]
+            self.Xs[i, :k] = x
+            self.alpha[i, :k] = g.gpr_.alpha_
+            self.Linv[i, :k, :k] = solve_triangular(g.gpr_.L_, np.eye(k), lower=True)
             self.mask[i, :k] = 1.0
-        self.ls = np.array([g._ls_scaled for g in gprs])
-        self.scale = gprs[0]._scale
-        self.amp_rbf = np.array([g.amp_rbf_ for g in gprs])
+        terms = max(g.rbf_amplitudes_.size for g in gprs)
+        self.amp_rbf = np.zeros((m, terms))                 # padded terms have zero amplitude
+        self.inv_ls = np.zeros((m, terms, d))
+        for i, g in enumerate(gprs):
+            self.amp_rbf[i, :g.rbf_amplitudes_.size] = g.rbf_amplitudes_
+            self.inv_ls[i, :g.rbf_amplitudes_.size] = g.rbf_inverse_lengths_
+        self.scale = gprs[0].input_scale_
         self.amp_lin = np.array([g.amp_lin_ for g in gprs])
         self.sigma0_sq = np.array([g.sigma0_**2 for g in gprs])
         self.noise = np.array([g.noise_ for g in gprs])
@@ -187,17 +221,32 @@ class FeatureGPRBank:
                 hulls[key] = len(self.hulls)
                 self.hulls.append(g.hull_)
             self.hull_of[i] = hulls[key]
+        # full-rank hulls are tested together: every face of every hull in one product (M x + q), then the
+        # largest value per hull; degenerate ones (a line, a point) one by one
+        forms = [h.halfspaces() for h in self.hulls]
+        self.flat_hulls = [j for j, f in enumerate(forms) if f is None]
+        full = [(j, f) for j, f in enumerate(forms) if f is not None]
+        self.full_hulls = np.array([j for j, _ in full], dtype=int)
+        self.faces_M = np.vstack([f[0] for _, f in full]) if full else np.zeros((0, d))
+        self.faces_q = np.concatenate([f[1] for _, f in full]) if full else np.zeros(0)
+        self.faces_start = np.cumsum([0] + [f[0].shape[0] for _, f in full[:-1]]).astype(int)
 
-    def predict_one(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Means (m,), stds (m,) and extrapolation flags (m,) of every GPR at task ``x``."""
+    def predict(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Means (m,), stds (m,) and extrapolation flags (m,) of every GPR at one task ``x`` (d,)."""
         xs = np.asarray(x, dtype=float) / self.scale
-        diff = (self.Xs - xs) / self.ls[:, None, :]
-        k = self.amp_rbf[:, None] * np.exp(-0.5 * np.einsum("mnd,mnd->mn", diff, diff))
+        diff = self.Xs - xs                                                  # (m, n, d)
+        z = np.einsum("mnd,mtd->mtn", diff * diff, self.inv_ls * self.inv_ls)  # per term: ‖Δ/ℓ‖²
+        k = np.einsum("mt,mtn->mn", self.amp_rbf, np.exp(-0.5 * z))
         k += self.amp_lin[:, None] * (self.sigma0_sq[:, None] + self.Xs @ xs)
         k *= self.mask
         mean = np.einsum("mn,mn->m", k, self.alpha) * self.y_std + self.y_mean
         v = np.einsum("mij,mj->mi", self.Linv, k)
-        prior = self.amp_rbf + self.amp_lin * (self.sigma0_sq + xs @ xs) + self.noise
+        prior = self.amp_rbf.sum(axis=1) + self.amp_lin * (self.sigma0_sq + xs @ xs) + self.noise
         var = np.maximum(prior - np.einsum("mi,mi->m", v, v), 1e-12)
-        outside = np.array([not h.contains(x) for h in self.hulls])
+        outside = np.zeros(len(self.hulls), dtype=bool)
+        if self.full_hulls.size:
+            faces = self.faces_M @ np.asarray(x, dtype=float) + self.faces_q
+            outside[self.full_hulls] = np.maximum.reduceat(faces, self.faces_start) > 1.0
+        for j in self.flat_hulls:
+            outside[j] = not self.hulls[j].contains(x)
         return mean, np.sqrt(var) * self.y_std, outside[self.hull_of]

@@ -62,3 +62,13 @@ class TaskHull:
     def contains(self, x: np.ndarray) -> bool:
         """True when the task lies within one tolerance unit of the training hull."""
         return self.distance(x) <= 1.0
+
+    def halfspaces(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """For a full-rank hull, (M, q) with distance-to-each-face (tolerance units) = M x + q for a task x in
+        physical units: inside within tolerance when max(M x + q) ≤ 1. None for a degenerate hull."""
+        d = len(self.tolerance)
+        if self.rank_ < d or self.rank_ < 2:
+            return None
+        M = self._normals @ self.basis_ * self._scale[None, :]
+        q = self._offsets - self._normals @ (self.basis_ @ self.center_)
+        return M, q

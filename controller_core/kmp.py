@@ -17,7 +17,8 @@ their products with the default query grid are computed once in ``fit``. A set o
 database by a few points, so a new prediction needs only products with those cached matrices, gathers of
 their columns and a small Schur complement (bordering for added points, the inverse-Schur identity for
 removed ones). ``predict_std`` forms only the per-output variances. ``predict_uncached`` builds and
-factorises the full system, for tests and the benchmark.
+factorises the full system: the tests' oracle, and the fallback when an update's small system is too
+ill-conditioned to trust (nearly coincident, very confident via-points at a small λ; ``fallbacks_`` counts them).
 
 Phases are in [0, 1); the kernel is periodic (heel strike at 0 and at 1 coincide), written so that
 ``length_scale`` is the equivalent squared-exponential length in phase units.
@@ -73,6 +74,34 @@ def _chol(A: np.ndarray) -> np.ndarray:
     L, info = dpotrf(A, lower=1, clean=1)
     if info != 0:
         raise np.linalg.LinAlgError(f"matrix not positive definite (LAPACK dpotrf info={info})")
+    return L
+
+
+class _IllConditioned(np.linalg.LinAlgError):
+    """A via-point update whose small system is too ill-conditioned for the cached solve to be trusted."""
+
+
+# Largest error amplification at which the cached update is trusted: its small system is built from the cached
+# inverse A⁻¹, so its error grows with cond(A) × cond(small system), both estimated from Cholesky diagonals.
+# Measured against the plain solve: below 1e6 the two agree to about 1e-6 rad and N·m/kg; at 7e9 they differed
+# by 1.8e-3 rad, and past that the update's Cholesky fails outright (two nearly coincident, very confident
+# via-points at a small λ). The model's own updates stay near 1e4.
+MAX_UPDATE_AMPLIFICATION = 1e6
+
+
+def _condition(L: np.ndarray) -> float:
+    """Condition estimate of L Lᵀ from a Cholesky factor's diagonal (a lower bound of the true one)."""
+    d = [abs(x) for x in L.diagonal().tolist()]     # a dozen values: plain floats beat array reductions
+    lo = min(d)
+    return (max(d) / lo) ** 2 if lo > 0.0 else float("inf")
+
+
+def _update_chol(A: np.ndarray, cond_ref: float) -> np.ndarray:
+    """Cholesky factor of a via-point update's small system; :class:`_IllConditioned` when it is not positive
+    definite or the update's error amplification passes :data:`MAX_UPDATE_AMPLIFICATION`."""
+    L, info = dpotrf(A, lower=1, clean=1)
+    if info != 0 or _condition(L) * cond_ref > MAX_UPDATE_AMPLIFICATION:
+        raise _IllConditioned("ill-conditioned via-point update")
     return L
 
 
@@ -146,6 +175,7 @@ class KMP:
         S = _blockdiag(sigma_ref)
         self._chol = _chol(K + self.lam * S)
         self._chol_c = _chol(K + self.lam_c * S)
+        self._cond_A = max(_condition(self._chol), _condition(self._chol_c))
         # explicit inverses: a via-point update then needs products and gathers instead of triangular solves
         eye = np.eye(N * O)
         self._Ainv = _solve(self._chol, eye)
@@ -161,6 +191,7 @@ class KMP:
         self._mean_base = (Kq @ self._alpha).reshape(Q, O)
         self._quad_base = np.einsum("gqa,gqb->qab", Kq.T.reshape(-1, Q, O), self._Zc.reshape(-1, Q, O))
         self._quad_base_diag = np.diagonal(self._quad_base, axis1=1, axis2=2).copy()
+        self.fallbacks_ = 0
         self.cov_scale_ = 1.0
         if self.cov_scale == "huang":
             self.cov_scale_ = N / self.lam_c
@@ -172,8 +203,11 @@ class KMP:
         return self
 
     def __setstate__(self, state: dict) -> None:
-        """Unpickle; a KMP saved before ``_kq`` existed kept the dense Kq = kq ⊗ I instead: recompute kq."""
+        """Unpickle, completing what older saves lack (the dense Kq = kq ⊗ I instead of kq; the condition)."""
         self.__dict__.update(state)
+        if "_cond_A" not in state:       # saved before the ill-conditioning fallback
+            self._cond_A = max(_condition(self._chol), _condition(self._chol_c))
+            self.fallbacks_ = 0
         if "_Kq" in state:
             del self.__dict__["_Kq"]
             self._kq = periodic_kernel(self.s_query_, self.s_ref_, self.length_scale)
@@ -227,7 +261,7 @@ class KMP:
         products they need (A⁻¹ restricted to the kept rows is P_r = A⁻¹E − W T_e).
         """
         C, Kvv, W, Ecols = border
-        Ls = _chol(Kvv + lam * _blockdiag(cov_v) - C.T @ W)
+        Ls = _update_chol(Kvv + lam * _blockdiag(cov_v) - C.T @ W, self._cond_A)
         if not rows.size:
             T = _solve(Ls, B_v - CtY)
             return (None if y0 is None else y0 - W @ T[:, :1]), T, T, None, None
@@ -236,7 +270,7 @@ class KMP:
         T, T_e = TT[:, :k], TT[:, k:]
         # inverse-Schur identity: drop the replaced reference rows from the solution
         P_r = Ecols - W @ T_e
-        corr = _solve(_chol(P_r[rows]), Y_rows - W[rows] @ T)
+        corr = _solve(_update_chol(P_r[rows], self._cond_A), Y_rows - W[rows] @ T)
         X_r = None if y0 is None else y0 - W @ T[:, :1] - P_r @ corr[:, :1]   # only the first column is needed
         return X_r, T - T_e @ corr, T, T_e, corr
 
@@ -259,14 +293,23 @@ class KMP:
             mu: optional new reference means (N, O) on the fitted grid (e.g. a task-dependent reference);
                 the covariances Σ, hence the cached factorisations, stay those given to ``fit``.
         """
-        mean, quad = self._predict(vias, mu, _blocks)
+        try:
+            mean, quad = self._predict(vias, mu, _blocks)
+        except _IllConditioned:
+            self.fallbacks_ = getattr(self, "fallbacks_", 0) + 1
+            return self.predict_uncached(vias, mu)
         return mean, self.cov_scale_ * (np.eye(self.n_outputs_)[None] - quad)
 
     def predict_std(self, vias: list[ViaPoint] | None = None,
                     mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Mean (Q, O) and standard deviation (Q, O) per output: :meth:`predict` without the off-diagonal
         covariance terms, which a per-channel display does not need."""
-        mean, quad = self._predict(vias, mu, _block_diagonals)
+        try:
+            mean, quad = self._predict(vias, mu, _block_diagonals)
+        except _IllConditioned:
+            self.fallbacks_ = getattr(self, "fallbacks_", 0) + 1
+            mean, cov = self.predict_uncached(vias, mu)
+            return mean, np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
         return mean, np.sqrt(np.clip(self.cov_scale_ * (1.0 - quad), 0.0, None))
 
     def _predict(self, vias: list[ViaPoint] | None, mu: np.ndarray | None,

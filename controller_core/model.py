@@ -26,27 +26,34 @@ parameter table.
 
 from __future__ import annotations
 
+import bisect
+import hashlib
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from controller_core.features import CURVE_FEATURES, FEATURES, feature_sd, record_features
+from controller_core.features import (
+    FEATURES,
+    PHASED_FEATURES,
+    FeatureNotFoundError,
+    curve_feature,
+    feature_sd,
+    record_features,
+)
 from controller_core.gmr import GaussianMixtureRegression
 from controller_core.gpr import FeatureGPR, FeatureGPRBank
+from controller_core.incline import InclineChange
 from controller_core.kmp import KMP, ViaPoint
 from controller_core.proposal import FeaturePrediction, Proposal
 from controller_core.published_features import PublishedPoint
-from controller_core.quasi_stiffness import fit_quasi_stiffness_joints
-from controller_core.reference import JOINTS, ReferenceSet
+from controller_core.quasi_stiffness import SubphaseFit, fit_quasi_stiffness_joints
+from controller_core.reference import CHANNELS, JOINTS, ReferenceRecord, ReferenceSet, level_curves_at
 from controller_core.registration import TaskTrend, UniformUnwarp, ordered_landmarks, register
 from controller_core.table import ParameterRow, ParameterTable, Provenance, Thresholds, check_table
+from controller_core.task import validate_task
+from controller_core.units import body_weight_N
 
-G = 9.81  # m/s²
-
-SPEED_RANGE_MPS = (0.0, 3.0)       # exclusive low, inclusive high
-INCLINE_LIMIT_DEG = 20.0
-MASS_RANGE_KG = (20.0, 200.0)
 JOINT_RANGE_RAD = {"knee": (0.0, math.radians(120.0)), "ankle": (math.radians(-30.0), math.radians(30.0))}
 # Damping is not learned (the fit is τ = kθ + c): editable defaults per kg body mass, of the order of
 # published finite-state impedance values for adults. The knee's swing values brake the swinging shank
@@ -59,21 +66,51 @@ DEFAULT_DAMPING_NMS_PER_RAD_PER_KG = {
 SWING_RULES: tuple[str, ...] = ("target", "least_squares")
 
 
-class InvalidTaskError(ValueError):
-    """A requested task or patient value is out of range or not a number."""
+def training_data_sha256(reference: ReferenceSet, published: list[PublishedPoint],
+                         ramps: ReferenceSet | None = None) -> str:
+    """SHA-256 of everything a model learns from: the source hashes of the reference and ramp sets and the
+    published points."""
+    h = hashlib.sha256(reference.data_sha256.encode())
+    for p in published:
+        h.update(repr((p.feature, p.speed_mps, p.incline_deg, p.value, p.se, p.source)).encode())
+    if ramps is not None:
+        h.update(ramps.data_sha256.encode())
+    return h.hexdigest()
 
 
-def validate_task(speed_mps: float, incline_deg: float, mass_kg: float) -> None:
-    """Refuse NaN and out-of-range requests with a one-line reason."""
-    for name, v in (("speed_mps", speed_mps), ("incline_deg", incline_deg), ("mass_kg", mass_kg)):
-        if not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise InvalidTaskError(f"{name} must be a finite number, got {v!r}")
-    if not SPEED_RANGE_MPS[0] < speed_mps <= SPEED_RANGE_MPS[1]:
-        raise InvalidTaskError(f"speed_mps = {speed_mps:g} m/s is outside (0, 3] m/s")
-    if abs(incline_deg) > INCLINE_LIMIT_DEG:
-        raise InvalidTaskError(f"incline_deg = {incline_deg:g} deg is outside [-20, 20] deg")
-    if not MASS_RANGE_KG[0] <= mass_kg <= MASS_RANGE_KG[1]:
-        raise InvalidTaskError(f"mass_kg = {mass_kg:g} kg is outside [20, 200] kg")
+# Standard error of a feature's phase taken from one person's change on a slope (fraction of the cycle): about the
+# between-subject SD of peak timing in level walking.
+INCLINE_PHASE_SE = 0.02
+
+
+@dataclass(frozen=True)
+class InclinePoint:
+    """A feature of one measured ramp's change carried onto the population's level curves at the speed it was
+    walked at (SI units): a training point of the feature's GPRs, value (standard error ``se``) and phase
+    (``INCLINE_PHASE_SE``)."""
+
+    feature: str
+    speed_mps: float
+    incline_deg: float
+    value: float
+    se: float
+    phase: float
+    value_change: float = 0.0     # from the same level curves, without the ramp's change
+    phase_change: float = 0.0
+
+
+# Feature GPRs over (speed, incline), additive: a level value over speed plus a change over incline. A slope's
+# effect on gait varies smoothly over several degrees, about the spacing at which studies sample slopes: the
+# incline length scale is at least 8°.
+FEATURE_GPR = {"length_scale_bounds": ((0.3, 3.0), (15.0, 60.0)), "input_scale": (1.0, 10.0), "additive": True}
+
+
+def published_se(point: PublishedPoint) -> float:
+    """How far a published group mean from another lab may lie from what this model's data would show for the same
+    task: its standard error and the study's between-subject SD (labs differ in markers, neutral angles and
+    normalisation by about that much: Bovi's and Winter's ankle neutrals differ by 19°), or its SE alone where no SD
+    was published."""
+    return float(np.hypot(point.se, point.sd)) if np.isfinite(point.sd) else point.se
 
 
 @dataclass
@@ -85,18 +122,15 @@ class _JointModel:
 
 # Gait events whose predicted phases re-time the registered reference (push-off moment peak, toe-off).
 LANDMARKS: tuple[str, ...] = ("ankle_plantarflexor_moment_peak", "ankle_plantarflexion_peak")
-_PHASE_GPR_INDEX = {f.name: i for i, f in enumerate(CURVE_FEATURES)}  # row of each feature in the phase bank
+_PHASE_GPR_INDEX = {f.name: i for i, f in enumerate(PHASED_FEATURES)}  # row of each feature in the phase bank
 
 
 class QuasiStiffnessModel:
     """Learning quasi-stiffness model (scikit-learn style: hyperparameters here, fitted state with ``_``).
 
-    Defaults were chosen by the leave-one-condition-out evaluation (``quasitune evaluate``; see
-    docs/results.md), which makes that evaluation optimistic for them: 20 components, λ = 10, ℓ = 0.08
-    (tuned for the pooled reference and kept for the registered one). via_mean_scale = 1 (the plain KMP of
-    Huang et al.): the pooled reference needed a harder pull through the via-points (0.1), the registered
-    one does not (within 0.002 N·m/kg and 0.02° either way), and with 1 the mean and the covariance share
-    one bordered solve.
+    The defaults were chosen by the leave-one-condition-out evaluation (``quasitune evaluate``), which makes that
+    evaluation optimistic for them (docs/results.md). via_mean_scale = 1 is the plain KMP of Huang et al., whose
+    mean and covariance share one bordered solve.
 
     Args:
         n_components: GMM components per joint.
@@ -107,9 +141,7 @@ class QuasiStiffnessModel:
         load_fractions: (toe-off, heel-strike) vertical-load thresholds as fractions of body weight. The
             default, 15 % and 40 %, is the Open Source Leg walking example's published pair, which the FSMIC
             benchmark uses too (``controller_core/fsmic.py``): the two controllers then differ only in their
-            impedance rows, which is what the comparison is about. Until 2026-11-21 it was 5 % and 15 %; with
-            the published pair the simulated bench showed no toe catches and a smaller knee moment error
-            (docs/results.md).
+            impedance rows, which is what the comparison is about.
         swing_threshold_fraction: WF→WE knee threshold as a fraction of the predicted swing peak.
         state_time_s: (min, max) time in a state.
         reference_mode: ``"registered"`` (default): GMR reference on registered phase, moved with the task
@@ -121,19 +153,17 @@ class QuasiStiffnessModel:
             0.25 N·m/rad/kg (about 19 N·m/rad at 75 kg), lies within the swing stiffnesses of the Open Source
             Leg's published walking example (0.13–0.66 N·m/rad/kg); 0 disables the guard.
         knee_extension_window: False (default): the knee's stance-extension row is fitted over the whole
-            sub-phase, stance-flexion peak to toe-off (the literal framework; R² 0.06 at 1.2 m/s, θe clamped to
-            0°). True: over the knee's extension only, up to its late-stance minimum on the predicted curve
-            (``extension_window``, R² 0.8–0.99; see :mod:`controller_core.quasi_stiffness`). Not the default
-            because the four-state machine runs this row through pre-swing too: on the simulated bench the
-            stiff line (about −180 N·m/rad, θe 8.6° at 1.2 m/s, 75 kg) tracked the knee angle better at 7 of 8
-            tasks but pushed up to −1.4 N·m/kg of extensor moment against the pre-swing knee flexion, where
-            people have −0.2 (docs/results.md). It is the stance-extension row a machine with a separate
-            pre-swing state would use.
+            sub-phase, stance-flexion peak to toe-off (the literal framework, a poor line). True: over the knee's
+            extension only, up to its late-stance minimum on the predicted curve (``extension_window``, see
+            :mod:`controller_core.quasi_stiffness`). Not the default because the four-state machine runs this
+            row through pre-swing too, where the stiff line pushes far more extensor moment against the knee's
+            pre-swing flexion than people have (docs/results.md). It is the stance-extension row a machine with
+            a separate pre-swing state would use.
         swing_rule: ``"target"`` (default): the swing rows aim at the predicted swing targets (knee swing
             flexion at the GPR's swing-flexion peak, knee swing extension at the predicted heel-strike angle,
             the ankle through swing at its predicted swing dorsiflexion plus ``swing_ankle_clearance_deg``)
             with the restoring stiffnesses below; ``"least_squares"``: the swing rows are fitted like the
-            stance rows (the literal framework; on the simulated bench that table falls, see docs/results.md).
+            stance rows (the literal framework; on the simulated bench that table falls, docs/results.md).
         swing_knee_stiffness_Nm_per_rad_per_kg: (swing flexion, swing extension) knee stiffness magnitudes per
             kg of patient mass under the target rule: 0.66 and 0.25, about the Open Source Leg example's
             39.7 and 15.9 N·m/rad for 60 kg.
@@ -142,6 +172,8 @@ class QuasiStiffnessModel:
             foot the able-bodied swing angles leave −8 to +2 mm of toe clearance where people keep about
             13 mm (Winter 1992); each degree lifts the toe about 3.4 mm, so 5° restores that margin.
         random_state: seed for EM and optimizer restarts.
+        model_version: a label stored in every proposal's provenance (``quasitune train`` sets the package
+            version and a hash of this code).
     """
 
     def __init__(self, n_components: int = 20, n_ref_points: int = 50, kmp_length_scale: float = 0.08,
@@ -152,7 +184,7 @@ class QuasiStiffnessModel:
                  knee_extension_window: bool = False, swing_rule: str = "target",
                  swing_knee_stiffness_Nm_per_rad_per_kg: tuple[float, float] = (0.66, 0.25),
                  swing_ankle_stiffness_Nm_per_rad_per_kg: float = 0.25, swing_ankle_clearance_deg: float = 5.0,
-                 random_state: int = 0) -> None:
+                 random_state: int = 0, model_version: str = "unversioned") -> None:
         self.n_components = n_components
         self.n_ref_points = n_ref_points
         self.kmp_length_scale = kmp_length_scale
@@ -170,21 +202,19 @@ class QuasiStiffnessModel:
         self.swing_ankle_stiffness_Nm_per_rad_per_kg = swing_ankle_stiffness_Nm_per_rad_per_kg
         self.swing_ankle_clearance_deg = swing_ankle_clearance_deg
         self.random_state = random_state
+        self.model_version = model_version
 
     # ------------------------------------------------------------------ fit
     def fit(self, reference: ReferenceSet, published: list[PublishedPoint] | None = None,
-            model_version: str = "unversioned", data_sha256: str | None = None,
-            progress=None) -> QuasiStiffnessModel:
+            ramps: ReferenceSet | None = None) -> QuasiStiffnessModel:
         """Fit every part of the model.
 
         Args:
             reference: training curves; their tasks must be finite in every task dimension.
             published: extra feature-value points (e.g. published incline features).
-            model_version: stored in every proposal's provenance.
-            data_sha256: hash of all training data (defaults to the reference's hash).
-            progress: optional callable ``progress(step_name)`` called after each part.
+            ramps: one person's level and ramp walking, from which the change a slope makes is learned
+                (:mod:`controller_core.incline`); None: incline is known from ``published`` alone.
         """
-        tick = progress or (lambda _name: None)
         self._check_table_rules()
         if "speed_mps" not in reference.task_names:
             raise ValueError("the reference set needs a 'speed_mps' task column")
@@ -196,40 +226,107 @@ class QuasiStiffnessModel:
             raise ValueError("every training record needs a finite speed (m/s) and incline (deg)")
         self.reference_ = reference
         self.train_tasks_ = tasks
-        self.model_version_ = model_version
-        self.data_sha256_ = data_sha256 or reference.data_sha256
         self.published_ = list(published or [])
-        self._fit_features(reference, tasks, tick)
-        self._fit_joints(reference, tasks, tick)
+        self.ramps_ = ramps
+        self.data_sha256_ = training_data_sha256(reference, self.published_, ramps)
+        self._fit_incline(reference, ramps)
+        self._fit_features(reference, tasks)
+        self._fit_joints(reference, tasks)
         return self
 
-    def _fit_features(self, reference: ReferenceSet, tasks: np.ndarray, tick) -> None:
+    def _fit_incline(self, reference: ReferenceSet, ramps: ReferenceSet | None) -> None:
+        """The change a slope makes (None without ramps), and the feature points it gives: each measured ramp's
+        change added to the population's level curves at the speed it was walked at. Such a point is one
+        person's change, so its standard error is the population's between-subject SD (value), or
+        :data:`INCLINE_PHASE_SE` (phase)."""
+        self.incline_points_: list[InclinePoint] = []
+        level = sorted((r for r in reference.records if r.task.get("incline_deg", 0.0) == 0.0),
+                       key=lambda r: r.task["speed_mps"])
+        self.level_speeds_ = np.array([r.task["speed_mps"] for r in level])
+        self.level_sd_ = {c: np.array([np.nan_to_num(r.sd[c]) for r in level]) for c in CHANNELS}
+        if ramps is None:
+            self.incline_ = None
+            return
+        self.incline_ = InclineChange().fit(ramps, lambda v: level_curves_at(reference, v)[0])
+        for incline, speed, _ in self.incline_.changes_:
+            mean, sd = level_curves_at(reference, speed)
+            change = self.incline_.predict(incline)
+            curves = ReferenceRecord(name=f"{incline:+g} deg change on the level curves at {speed:.2f} m/s",
+                                     dataset="derived", task={"speed_mps": speed, "incline_deg": incline},
+                                     phase=reference.phase, mean={c: mean[c] + change[c] for c in CHANNELS}, sd=sd)
+            level = ReferenceRecord(name=f"level curves at {speed:.2f} m/s", dataset="derived",
+                                    task={"speed_mps": speed, "incline_deg": 0.0}, phase=reference.phase, mean=mean,
+                                    sd=sd)
+            for spec in FEATURES:
+                if spec.quantity == "timing":   # stance timing on slopes comes from the published points
+                    continue
+                try:
+                    (phase, value), (phase0, value0) = curve_feature(curves, spec), curve_feature(level, spec)
+                except FeatureNotFoundError:
+                    continue
+                self.incline_points_.append(InclinePoint(spec.name, speed, incline, value,
+                                                         feature_sd(curves, spec, phase), phase,
+                                                         value - value0, phase - phase0))
+
+    def _fit_features(self, reference: ReferenceSet, tasks: np.ndarray) -> None:
+        """Per feature, a GPR of its value and (for features with a phase) one of its phase over (speed,
+        incline), additive (:data:`FEATURE_GPR`): from the records, the published points and the measured ramps'
+        changes carried onto the level curves (:meth:`_fit_incline`)."""
         per_record = [record_features(r) for r in reference.records]
         self.train_features_ = per_record
         self.value_gprs_: dict[str, FeatureGPR] = {}
         self.phase_gprs_: dict[str, FeatureGPR] = {}
+        self._fit_feature_trends()
+        gpr = {**FEATURE_GPR, "n_restarts": self.gpr_restarts, "random_state": self.random_state}
         for spec in FEATURES:
             vals = np.array([f[spec.name][1] for f in per_record])
             phases = np.array([f[spec.name][0] for f in per_record])
             se = np.array([feature_sd(r, spec, p) / math.sqrt(r.n) if r.n > 0 else np.nan
                            for r, p in zip(reference.records, phases, strict=True)])
-            X, y, y_se = tasks, vals, se
-            extra = [p for p in self.published_ if p.feature == spec.name]
-            if extra:
-                X = np.vstack([X, [[p.speed_mps, p.incline_deg] for p in extra]])
-                y = np.concatenate([y, [p.value for p in extra]])
-                y_se = np.concatenate([y_se, [p.se for p in extra]])
-            self.value_gprs_[spec.name] = FeatureGPR(n_restarts=self.gpr_restarts,
-                                                     random_state=self.random_state).fit(X, y, y_se)
-            if spec.quantity != "timing":
-                self.phase_gprs_[spec.name] = FeatureGPR(n_restarts=self.gpr_restarts,
-                                                         random_state=self.random_state).fit(tasks, phases)
-            tick(f"GPR {spec.name}")
+            ramp = [p for p in self.incline_points_ if p.feature == spec.name]
+            published = [p for p in self.published_ if p.feature == spec.name]
+            extra = published + ramp
+            X = np.vstack([tasks, *[[[p.speed_mps, p.incline_deg]] for p in extra]])
+            y = np.concatenate([vals, [p.value for p in extra]]) - self._trend(spec.name, X[:, 1], "value")
+            y_se = np.concatenate([se, [published_se(p) for p in published], [p.se for p in ramp]])
+            self.value_gprs_[spec.name] = FeatureGPR(**gpr).fit(X, y, y_se)
+            if spec in PHASED_FEATURES:
+                Xp = np.vstack([tasks, *[[[p.speed_mps, p.incline_deg]] for p in ramp]])
+                yp = np.concatenate([phases, [p.phase for p in ramp]]) - self._trend(spec.name, Xp[:, 1], "phase")
+                se_p = np.concatenate([np.full(len(phases), np.nan), np.full(len(ramp), INCLINE_PHASE_SE)])
+                self.phase_gprs_[spec.name] = FeatureGPR(**gpr).fit(Xp, yp, se_p)
         # one bank for values then phases: one batched evaluation and shared hull tests per task
-        self._bank = FeatureGPRBank([self.value_gprs_[f.name] for f in FEATURES]
-                                    + [self.phase_gprs_[f.name] for f in CURVE_FEATURES])
+        self.feature_bank_ = FeatureGPRBank([self.value_gprs_[f.name] for f in FEATURES]
+                                            + [self.phase_gprs_[f.name] for f in PHASED_FEATURES])
+        names = [f.name for f in FEATURES] + [f.name for f in PHASED_FEATURES]
+        kinds = ["value"] * len(FEATURES) + ["phase"] * len(PHASED_FEATURES)
+        self.trend_per_degree_ = {side: np.array([self.feature_trends_[n][side][k] for n, k in zip(names, kinds,
+                                                                                                   strict=True)])
+                                  for side in ("uphill", "downhill")}
 
-    def _fit_joints(self, reference: ReferenceSet, tasks: np.ndarray, tick) -> None:
+    def _fit_feature_trends(self) -> None:
+        """Per feature and side of level, the change per degree of its value and phase that the measured ramps
+        show (zero without them): the prior mean of the feature GPRs on a slope. The GPRs then learn only how the
+        population departs from that trend (published points on slopes), so a feature between level and a
+        measured ramp follows the measured trend unless data say otherwise, and one side's data do not bend the
+        other side's prediction."""
+        self.feature_trends_: dict[str, dict[str, dict[str, float]]] = {
+            f.name: {side: {"value": 0.0, "phase": 0.0} for side in ("uphill", "downhill")} for f in FEATURES}
+        for side, sign in (("uphill", 1.0), ("downhill", -1.0)):
+            for spec in FEATURES:
+                mine = [p for p in self.incline_points_ if p.feature == spec.name and sign * p.incline_deg > 0]
+                if mine:
+                    g = np.array([p.incline_deg for p in mine])
+                    for kind, attr in (("value", "value_change"), ("phase", "phase_change")):
+                        d = np.array([getattr(p, attr) for p in mine])
+                        self.feature_trends_[spec.name][side][kind] = float(g @ d / (g @ g))
+
+    def _trend(self, feature: str, inclines: np.ndarray, kind: str) -> np.ndarray:
+        """The measured-ramp trend of a feature's value or phase at each incline (:meth:`_fit_feature_trends`)."""
+        t = self.feature_trends_[feature]
+        return np.where(inclines > 0, t["uphill"][kind], t["downhill"][kind]) * inclines
+
+    def _fit_joints(self, reference: ReferenceSet, tasks: np.ndarray) -> None:
         if self.reference_mode not in ("registered", "pooled"):
             raise ValueError("reference_mode must be 'registered' or 'pooled'")
         registered = self.reference_mode == "registered"
@@ -240,10 +337,17 @@ class QuasiStiffnessModel:
         self.trend_hi_ = tasks[:, self.trend_task_dims_].max(axis=0)
         self.landmark_trend_ = (TaskTrend().fit(tasks[:, self.trend_task_dims_], landmarks)
                                 if self.trend_task_dims_ else None)
-        self._unwarp = UniformUnwarp(self.n_ref_points, self.canonical_landmarks_)
+        self.unwarp_ = UniformUnwarp(self.n_ref_points, self.canonical_landmarks_)
         phase = reference.phase
         self.s_ref_ = np.arange(self.n_ref_points) / self.n_ref_points
         self.s_query_ = np.linspace(0.0, 1.0, 101)
+        self.incline_grid_: dict[str, dict[str, np.ndarray]] = {}    # side → joint → change per degree (N, 2)
+        if self.incline_ is not None:
+            for side, per_degree in self.incline_.per_degree_.items():
+                if per_degree is not None:
+                    self.incline_grid_[side] = {j: np.column_stack([
+                        np.interp(self.s_ref_, self.incline_.phase_, per_degree[f"{j}_{q}"]) for q in ("angle", "moment")])
+                        for j in JOINTS}
         self.joints_: dict[str, _JointModel] = {}
         for joint in JOINTS:
             curves = [np.column_stack([r.mean[f"{joint}_angle"], r.mean[f"{joint}_moment"]])
@@ -273,29 +377,36 @@ class QuasiStiffnessModel:
                       via_tolerance=0.5 / self.n_ref_points,
                       via_mean_scale=self.via_mean_scale).fit(self.s_ref_, mu0, sigma, self.s_query_)
             self.joints_[joint] = _JointModel(gmm=gmm, kmp=kmp, trend=trend)
-            tick(f"GMM/KMP {joint}")
 
     def reference_means(self, task: np.ndarray) -> dict[str, np.ndarray]:
         """Reference mean (n_ref_points, 2) of (angle, moment) per joint for a task, before the via-points.
 
         Registered mode: the GMR mean plus the task trend (task clipped to the training range), in canonical
         phase, re-timed to the landmark phases of the landmark trend (not clipped). Pooled mode: the GMR
-        mean, the same array (``kmp.mu_ref_``) for every task.
+        mean, the same array (``kmp.mu_ref_``) for every task. On a slope, plus the change the slope makes
+        (:mod:`controller_core.incline`), when the model learned one.
         """
         if self.landmark_trend_ is None:
-            return {joint: self.joints_[joint].kmp.mu_ref_ for joint in JOINTS}
-        t = np.asarray(task, dtype=float)[self.trend_task_dims_]
-        landmarks = self.canonical_landmarks_ + self.landmark_trend_.predict(t)
-        weights = self._unwarp.at(landmarks)
-        t_in = np.clip(t, self.trend_lo_, self.trend_hi_)
-        return {joint: self._unwarp.apply(weights, jm.kmp.mu_ref_ + jm.trend.predict(t_in))
-                for joint, jm in self.joints_.items()}
+            means = {joint: self.joints_[joint].kmp.mu_ref_ for joint in JOINTS}
+        else:
+            t = np.asarray(task, dtype=float)[self.trend_task_dims_]
+            landmarks = self.canonical_landmarks_ + self.landmark_trend_.predict(t)
+            weights = self.unwarp_.at(landmarks)
+            t_in = np.clip(t, self.trend_lo_, self.trend_hi_)
+            means = {joint: self.unwarp_.apply(weights, jm.kmp.mu_ref_ + jm.trend.predict(t_in))
+                     for joint, jm in self.joints_.items()}
+        incline = float(task[1])
+        change = self.incline_grid_.get("uphill" if incline > 0 else "downhill") if incline != 0.0 else None
+        if change is not None:
+            means = {joint: mu + incline * change[joint] for joint, mu in means.items()}
+        return means
 
     # -------------------------------------------------------------- predict
     def predict_features(self, speed_mps: float, incline_deg: float) -> list[FeaturePrediction]:
         """GPR predictions of every feature at a task (SI values; timing value = its phase)."""
-        x = np.array([speed_mps, incline_deg], dtype=float)
-        mean, sd, outside = self._bank.predict_one(x)
+        mean, sd, outside = self.feature_bank_.predict(np.array([speed_mps, incline_deg], dtype=float))
+        if incline_deg != 0.0:
+            mean = mean + incline_deg * self.trend_per_degree_["uphill" if incline_deg > 0 else "downhill"]
         nv = len(FEATURES)
         vals, val_sd, val_out = mean[:nv], sd[:nv], outside[:nv]
         phs, ph_sd, ph_out = mean[nv:], sd[nv:], outside[nv:]
@@ -303,6 +414,8 @@ class QuasiStiffnessModel:
         for i, spec in enumerate(FEATURES):
             if spec.quantity == "timing":
                 phase, phase_std, extrap = vals[i], val_sd[i], bool(val_out[i])
+            elif spec.fixed_phase:
+                phase, phase_std, extrap = spec.window[0], 0.0, bool(val_out[i])
             else:
                 j = _PHASE_GPR_INDEX[spec.name]
                 phase, phase_std, extrap = phs[j], ph_sd[j], bool(val_out[i] or ph_out[j])
@@ -332,7 +445,9 @@ class QuasiStiffnessModel:
         k = np.arange(len(mine))
         means[k, channel] = [f.value for f in mine]
         var[k, channel] = np.maximum([f.std for f in mine], 1e-6) ** 2
-        return [ViaPoint(phase=float(p), mean=m, cov=np.diag(v)) for p, m, v in zip(phases, means, var, strict=True)]
+        covs = np.zeros((len(mine), 2, 2))
+        covs[:, 0, 0], covs[:, 1, 1] = var[:, 0], var[:, 1]
+        return [ViaPoint(phase=p, mean=m, cov=c) for p, m, c in zip(phases.tolist(), means, covs, strict=True)]
 
     def _check_table_rules(self) -> None:
         if not isinstance(self.knee_extension_window, bool):
@@ -386,7 +501,7 @@ class QuasiStiffnessModel:
         """Predict curves and the parameter table for a task and patient.
 
         Args:
-            speed_mps: walking speed (m/s), in (0, 3].
+            speed_mps: walking speed (m/s), in [0.1, 3].
             incline_deg: incline (deg, + uphill), within ±20.
             mass_kg: patient body mass (kg), 20-200.
             with_vias: False gives the GMR reference through KMP without via-points (a baseline).
@@ -395,9 +510,28 @@ class QuasiStiffnessModel:
             InvalidTaskError: NaN or out-of-range input.
         """
         validate_task(speed_mps, incline_deg, mass_kg)
-        task = np.array([speed_mps, incline_deg], dtype=float)
         features = self.predict_features(speed_mps, incline_deg)
         fmap = {f.spec.name: f for f in features}
+        means, stds, vias = self.predict_curves(np.array([speed_mps, incline_deg], dtype=float), features, with_vias)
+        boundaries = (fmap["knee_stance_flexion_peak"].phase, fmap["toe_off"].value,
+                      fmap["knee_swing_flexion_peak"].phase)
+        fits = self.fit_subphases(means, fmap, boundaries, mass_kg)
+        extrapolation = any(f.extrapolation for f in features)
+        table = ParameterTable(
+            rows=self._rows(fits, mass_kg), thresholds=self._thresholds(means, fmap, boundaries, mass_kg),
+            provenance=Provenance(model_version=self.model_version, data_sha256=self.data_sha256_,
+                                  speed_mps=speed_mps, incline_deg=incline_deg, patient_mass_kg=mass_kg,
+                                  extrapolation=extrapolation))
+        return Proposal(
+            speed_mps=speed_mps, incline_deg=incline_deg, mass_kg=mass_kg,
+            model_version=self.model_version, data_sha256=self.data_sha256_,
+            extrapolation=extrapolation, features=features, phase=self.s_query_, means=means, stds=stds,
+            boundaries=boundaries, fits=fits, table=table, violations=check_table(table), vias=vias)
+
+    def predict_curves(self, task: np.ndarray, features: list[FeaturePrediction], with_vias: bool = True
+                       ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, list[ViaPoint]]]:
+        """Mean and std of every channel on the query grid (SI; per kg), and the via-points per joint: the task's
+        reference reshaped by KMP through the predicted features."""
         means: dict[str, np.ndarray] = {}
         stds: dict[str, np.ndarray] = {}
         vias_by_joint: dict[str, list[ViaPoint]] = {}
@@ -411,46 +545,57 @@ class QuasiStiffnessModel:
             mean, sd = jm.kmp.predict_std(vias, mu=mu_arg)
             means[f"{joint}_angle"], means[f"{joint}_moment"] = mean[:, 0], mean[:, 1]
             stds[f"{joint}_angle"], stds[f"{joint}_moment"] = sd[:, 0], sd[:, 1]
-        b1 = fmap["knee_stance_flexion_peak"].phase
-        b2 = fmap["toe_off"].value
-        b3 = fmap["knee_swing_flexion_peak"].phase
-        boundaries = (b1, b2, b3)
-        s = self.s_query_
-        rows: list[ParameterRow] = []
-        fits = {}
+        if self.incline_ is not None and task[1] != 0.0:
+            extra = self.incline_.std(float(task[1]), self.between_subject_sd(float(task[0])))
+            for channel in CHANNELS:   # the incline change's phase grid is the query grid (both 101 points over [0, 1])
+                stds[channel] = np.sqrt(stds[channel] ** 2 + extra[channel] ** 2)
+        return means, stds, vias_by_joint
+
+    def between_subject_sd(self, speed_mps: float) -> dict[str, np.ndarray]:
+        """The population's between-subject SD curves of level walking at a speed (linear between the training
+        records, the nearest beyond them; zeros without level records)."""
+        speeds = self.level_speeds_.tolist()
+        if not speeds:
+            return {c: np.zeros_like(self.s_query_) for c in CHANNELS}
+        hi = min(max(bisect.bisect_left(speeds, speed_mps), 1), max(len(speeds) - 1, 1))
+        lo = hi - 1 if len(speeds) > 1 else 0
+        gap = speeds[hi] - speeds[lo]
+        w = 0.0 if gap == 0.0 else min(max((speed_mps - speeds[lo]) / gap, 0.0), 1.0)
+        return {c: (1.0 - w) * sd[lo] + w * sd[hi] for c, sd in self.level_sd_.items()}
+
+    def fit_subphases(self, means: dict[str, np.ndarray], fmap: dict[str, FeaturePrediction],
+                      boundaries: tuple[float, float, float], mass_kg: float) -> dict[str, list[SubphaseFit]]:
+        """Quasi-stiffness lines per joint and sub-phase through the predicted curves (moments scaled to the
+        patient's mass): least squares in stance, the swing targets in swing under the default swing rule."""
         floor = self.min_restoring_stiffness_Nm_per_rad_per_kg * mass_kg
         max_k = -floor if floor > 0 else None
-        fixed = self._swing_lines(means, fmap, b2, mass_kg) if self.swing_rule == "target" else None
-        windows = ([self._knee_extension_window(means["knee_angle"], b1, b2) if j == "knee" else {} for j in JOINTS]
-                   if self.knee_extension_window else None)
+        fixed = (self._swing_lines(means, fmap, boundaries[1], mass_kg) if self.swing_rule == "target" else None)
+        windows = ([self._knee_extension_window(means["knee_angle"], boundaries[0], boundaries[1]) if j == "knee"
+                    else {} for j in JOINTS] if self.knee_extension_window else None)
         joint_fits = fit_quasi_stiffness_joints(
-            s, np.array([means[f"{j}_angle"] for j in JOINTS]), np.array([means[f"{j}_moment"] for j in JOINTS]) * mass_kg,
+            self.s_query_, np.array([means[f"{j}_angle"] for j in JOINTS]),
+            np.array([means[f"{j}_moment"] for j in JOINTS]) * mass_kg,
             boundaries, [JOINT_RANGE_RAD[j] for j in JOINTS], max_k, fixed, windows)
-        for joint, jf in zip(JOINTS, joint_fits, strict=True):
-            fits[joint] = jf
-            for f in jf:
-                # values computed here are finite floats by construction; check_table() below is the
-                # limit check at build time, and edited tables go through full validation
-                rows.append(ParameterRow.model_construct(
-                    joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad,
-                    theta_e_deg=math.degrees(f.theta_e_rad),
-                    b_Nm_s_per_rad=DEFAULT_DAMPING_NMS_PER_RAD_PER_KG[joint][f.subphase] * mass_kg,
-                    r2=f.r2, guarded=f.guarded, fit_method=f.method))
-        extrapolation = any(f.extrapolation for f in features)
-        weight_N = mass_kg * G
-        thresholds = Thresholds(
-            sf_to_se_ankle_moment_Nm=float(np.interp(b1, s, means["ankle_moment"])) * mass_kg,
+        return dict(zip(JOINTS, joint_fits, strict=True))
+
+    @staticmethod
+    def _rows(fits: dict[str, list[SubphaseFit]], mass_kg: float) -> list[ParameterRow]:
+        """Table rows from the fits, with the default damping for the patient's mass. The values are finite floats
+        by construction and the table is limit-checked as a whole; edited tables go through full validation."""
+        return [ParameterRow.model_construct(
+            joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad, theta_e_deg=math.degrees(f.theta_e_rad),
+            b_Nm_s_per_rad=DEFAULT_DAMPING_NMS_PER_RAD_PER_KG[joint][f.subphase] * mass_kg,
+            r2=f.r2, guarded=f.guarded, fit_method=f.method) for joint, jf in fits.items() for f in jf]
+
+    def _thresholds(self, means: dict[str, np.ndarray], fmap: dict[str, FeaturePrediction],
+                    boundaries: tuple[float, float, float], mass_kg: float) -> Thresholds:
+        """The state machine's transitions: the predicted ankle moment at the end of stance flexion, the load
+        fractions of body weight, and a fraction of the predicted knee swing peak."""
+        weight_N = body_weight_N(mass_kg)
+        return Thresholds(
+            sf_to_se_ankle_moment_Nm=float(np.interp(boundaries[0], self.s_query_, means["ankle_moment"])) * mass_kg,
             se_to_wf_load_N=self.load_fractions[0] * weight_N,
             wf_to_we_knee_angle_deg=self.swing_threshold_fraction * math.degrees(
                 fmap["knee_swing_flexion_peak"].value),
             we_to_sf_load_N=self.load_fractions[1] * weight_N,
             min_state_time_s=self.state_time_s[0], max_state_time_s=self.state_time_s[1])
-        table = ParameterTable(rows=rows, thresholds=thresholds, provenance=Provenance(
-            model_version=self.model_version_, data_sha256=self.data_sha256_, speed_mps=speed_mps,
-            incline_deg=incline_deg, patient_mass_kg=mass_kg, extrapolation=extrapolation))
-        return Proposal(
-            speed_mps=speed_mps, incline_deg=incline_deg, mass_kg=mass_kg,
-            model_version=self.model_version_, data_sha256=self.data_sha256_,
-            extrapolation=extrapolation, features=features, phase=s, means=means, stds=stds,
-            boundaries=boundaries, fits=fits, table=table, violations=check_table(table),
-            vias=vias_by_joint)

@@ -21,9 +21,9 @@ from pathlib import Path
 import joblib
 
 from controller_core.model import QuasiStiffnessModel
-from controller_core.phase_table import load_phase_table
+from controller_core.phase_table import SHIPPED_RAMPS_CSV, load_phase_table, load_shipped_ramps
 from controller_core.published_features import incline_table_sha256, published_points
-from controller_core.reference import ReferenceSet, load_shipped_reference
+from controller_core.reference import ReferenceSet, data_dir, load_shipped_reference, sha256_of
 
 PACKAGE_VERSION = "0.1.0"
 MODEL_FILE = "model.joblib"
@@ -50,24 +50,27 @@ def self_selected_knee_extensor(reference: ReferenceSet) -> tuple[float, float] 
     return None
 
 
-def train(reference: ReferenceSet, use_published: bool, progress=None, **params) -> QuasiStiffnessModel:
-    """Fit a model on a reference set (plus the shipped published incline features if asked)."""
+def train(reference: ReferenceSet, use_published: bool, ramps: ReferenceSet | None = None,
+          **params) -> QuasiStiffnessModel:
+    """Fit a model on a reference set, plus the shipped published incline features if asked, plus one person's
+    ramp walking (the change a slope makes) if given."""
     published = published_points(self_selected_knee_extensor(reference)) if use_published else None
-    data_hash = hashlib.sha256(
-        (reference.data_sha256 + (incline_table_sha256() if use_published else "")).encode()).hexdigest()
     version = f"quasitune-{PACKAGE_VERSION}+{code_sha256()[:8]}"
-    return QuasiStiffnessModel(**params).fit(reference, published, model_version=version,
-                                             data_sha256=data_hash, progress=progress)
+    return QuasiStiffnessModel(**({"model_version": version} | params)).fit(reference, published, ramps)
 
 
-def train_default(progress=None) -> QuasiStiffnessModel:
-    """The default model: Bovi 2011 adult level walking + published incline features."""
-    return train(load_shipped_reference(), use_published=True, progress=progress)
+def train_default() -> QuasiStiffnessModel:
+    """The default model: Bovi 2011 adult level walking, the published incline features and the Vielemeyer 2025
+    ramp curves."""
+    return train(load_shipped_reference(), use_published=True, ramps=load_shipped_ramps())
 
 
-def train_from_file(path: str | Path, use_published: bool = False, progress=None) -> QuasiStiffnessModel:
-    """Fit a model from a standard-format table (CSV/Parquet)."""
-    return train(load_phase_table(path), use_published=use_published, progress=progress)
+def train_from_file(path: str | Path, use_published: bool = False, ramps: str | Path | None = None
+                    ) -> QuasiStiffnessModel:
+    """Fit a model from a standard-format table (CSV/Parquet), and optionally one person's ramp walking in the
+    same format (level and sloped conditions)."""
+    return train(load_phase_table(path), use_published=use_published,
+                 ramps=None if ramps is None else load_phase_table(ramps))
 
 
 def save_model(model: QuasiStiffnessModel, directory: str | Path) -> Path:
@@ -78,7 +81,7 @@ def save_model(model: QuasiStiffnessModel, directory: str | Path) -> Path:
     try:
         joblib.dump(model, tmp / MODEL_FILE)
         meta = {
-            "model_version": model.model_version_, "data_sha256": model.data_sha256_,
+            "model_version": model.model_version, "data_sha256": model.data_sha256_,
             "records": [r.name for r in model.reference_.records],
             "tasks": model.train_tasks_.tolist(),
             "published_points": [{"feature": p.feature, "source": p.source, "speed_mps": p.speed_mps,
@@ -124,7 +127,8 @@ def cache_dir() -> Path:
 def load_default_model(refit: bool = False) -> QuasiStiffnessModel:
     """The default model, from the per-user cache or fitted now (and cached) from the shipped data."""
     ref_hash = load_shipped_reference().data_sha256
-    key = hashlib.sha256((ref_hash + incline_table_sha256() + code_sha256()).encode()).hexdigest()[:16]
+    ramps_hash = sha256_of(data_dir() / SHIPPED_RAMPS_CSV)
+    key = hashlib.sha256((ref_hash + incline_table_sha256() + ramps_hash + code_sha256()).encode()).hexdigest()[:16]
     directory = cache_dir() / "models" / key
     if not refit and (directory / MODEL_FILE).exists():
         try:

@@ -9,16 +9,22 @@ Columns
 * phase: ``phase`` in [0, 1] or ``phase_pct`` in [0, 100]; 0 = ipsilateral heel strike.
 * stride identity (optional): ``subject`` and/or ``stride``; rows with the same task, subject and stride
   form one stride. Without them each task is a single curve.
+* ``condition`` (optional): the walking condition a stride belongs to. With it, the strides of one condition (and
+  subject) form one record whose task values are their mean: for overground walking at a self-selected speed,
+  where every stride has a speed of its own. Without it, each unique combination of task values is a record.
 * task columns with units in the name: ``speed_m_s`` (or ``speed_mps``), ``incline_deg``; any other
   ``*_deg`` / ``*_m_s`` task column can be named in ``task_columns``.
 * joint columns with units in the name: ``knee_angle_deg`` | ``knee_angle_rad``,
-  ``ankle_angle_deg`` | ``ankle_angle_rad``, ``knee_moment_Nm_per_kg``, ``ankle_moment_Nm_per_kg``.
+  ``ankle_angle_deg`` | ``ankle_angle_rad``, ``knee_moment_Nm_per_kg``, ``ankle_moment_Nm_per_kg``; optionally
+  ``hip_angle_deg`` | ``hip_angle_rad`` (kept as channel ``hip_angle``; the simulated bench drives its socket with it).
   Signs as everywhere in QuasiTune: knee flexion +, ankle dorsiflexion +, internal moment positive in
   the direction of the positive angle (``moment_sign=-1`` converts extensor/plantarflexor-positive data).
 
-Each task (unique combination of task values) becomes one :class:`ReferenceRecord` whose curves are the
-mean and SD over its strides resampled to a 101-point grid. Malformed input raises ``ValueError`` with
-the column and the reason.
+Each record's curves are the mean and SD over its strides resampled to a 101-point grid, each phase point
+averaged over the strides that have a value there: force-plate data often miss the first samples after heel
+strike. A stride missing more than :data:`MAX_MISSING_FRACTION` of a channel is left out, and a phase point
+that fewer than half the strides cover is an error. Malformed input raises ``ValueError`` with the column and the
+reason.
 """
 
 from __future__ import annotations
@@ -28,9 +34,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from controller_core.reference import JOINTS, ReferenceRecord, ReferenceSet, sha256_of
+from controller_core.reference import JOINTS, ReferenceRecord, ReferenceSet, data_dir, sha256_of
 
 PHASE_POINTS = 101
+MAX_MISSING_FRACTION = 0.1   # of a stride's samples in any one channel
 _SPEED_ALIASES = ("speed_m_s", "speed_mps")
 _ANGLE_UNITS = {"deg": np.pi / 180.0, "rad": 1.0}
 _MOMENT_UNITS = {"Nm_per_kg": 1.0}
@@ -127,45 +134,41 @@ def phase_table_to_reference(
             col, factor = _find_channel(df, joint, quantity)
             sign = moment_sign if quantity == "moment" else 1.0
             channels[f"{joint}_{quantity}"] = df[col].to_numpy(dtype=float) * factor * sign
+    if any(c.startswith("hip_angle_") for c in df.columns):
+        col, factor = _find_channel(df, "hip", "angle")
+        channels["hip_angle"] = df[col].to_numpy(dtype=float) * factor
     stride_keys = [c for c in ("subject", "stride") if c in df.columns]
+    by_condition = "condition" in df.columns
     work = pd.DataFrame({"_phase": phase})
     for i in range(len(tcols)):
         work[f"_t{i}"] = np.round(task_vals[:, i], 9)
-    for c in stride_keys:
+    for c in stride_keys + (["condition"] if by_condition else []):
         work[c] = df[c].to_numpy()
     for name, values in channels.items():
         work[name] = values
-    grid = np.linspace(0.0, 1.0, PHASE_POINTS)
     tkeys = [f"_t{i}" for i in range(len(tcols))]
+    keys = ([c for c in ("subject", "condition") if c in df.columns]) if by_condition else tkeys
+    if by_condition and not stride_keys[-1:] == ["stride"]:
+        raise ValueError("a table with a 'condition' column needs a 'stride' column: a condition's strides each "
+                         "carry their own task values")
     records: list[ReferenceRecord] = []
     skipped = 0
-    for tvals, group in work.groupby(tkeys, sort=True):
-        tvals = tvals if isinstance(tvals, tuple) else (tvals,)
+    for key, group in work.groupby(keys, sort=True):
+        key = key if isinstance(key, tuple) else (key,)
         strides = group.groupby(stride_keys, sort=True) if stride_keys else [(None, group)]
-        curves: dict[str, list[np.ndarray]] = {k: [] for k in channels}
-        for _, stride in strides:
-            stride = stride.sort_values("_phase")
-            values = stride[list(channels)].to_numpy(dtype=float)
-            if len(stride) < 10 or not np.all(np.isfinite(values)):
-                skipped += 1
-                continue
-            sp = stride["_phase"].to_numpy()
-            if np.any(np.diff(sp) <= 0):
-                raise ValueError(f"task {dict(zip(tcols, tvals, strict=True))}: repeated phase values "
-                                 "within one stride (add 'subject'/'stride' columns)")
-            for j, name in enumerate(channels):
-                curves[name].append(np.interp(grid, sp, values[:, j]))
-        n = len(curves["knee_angle"])
-        if n == 0:
+        where = dict(zip(keys if by_condition else tcols, key, strict=True))
+        curves, tasks = _resampled_strides(strides, list(channels), tkeys, where)
+        skipped += len(strides) - len(tasks) if stride_keys else 1 - len(tasks)
+        if not tasks:
             continue
-        mean = {k: np.mean(v, axis=0) for k, v in curves.items()}
-        sd = {k: (np.std(v, axis=0, ddof=1) if n > 1 else np.full(PHASE_POINTS, np.nan))
-              for k, v in curves.items()}
-        task = {_canonical_task_name(c): float(v) for c, v in zip(tcols, tvals, strict=True)}
-        records.append(ReferenceRecord(
-            name=f"{label}/" + ",".join(f"{k}={v:g}" for k, v in task.items()),
-            dataset=label, task=task, phase=grid, mean=mean, sd=sd, n=n,
-        ))
+        mean, sd = _stride_statistics(curves, where)
+        task = {_canonical_task_name(c): float(v) for c, v in zip(tcols, np.mean(tasks, axis=0), strict=True)}
+        name = ",".join(f"{k}={v:g}" for k, v in task.items())
+        if by_condition:
+            name = "/".join(str(where[k]) for k in keys) + f" ({name})"
+        records.append(ReferenceRecord(name=f"{label}/{name}", dataset=label, task=task,
+                                       phase=np.linspace(0.0, 1.0, PHASE_POINTS), mean=mean, sd=sd,
+                                       n=len(tasks)))
     if not records:
         raise ValueError("no complete stride in the table (every stride had missing values or < 10 points)")
     task_names = tuple(_canonical_task_name(c) for c in tcols)
@@ -173,6 +176,47 @@ def phase_table_to_reference(
         records=tuple(records), task_names=task_names, data_sha256=data_sha256,
         provenance={"source": label, "skipped_incomplete_strides": skipped, "task_columns": tcols},
     )
+
+
+def _resampled_strides(strides, names: list[str], tkeys: list[str], where: dict
+                       ) -> tuple[dict[str, list[np.ndarray]], list[np.ndarray]]:
+    """Each usable stride's channels on the 101-point grid (NaN where the stride has no sample) and its task."""
+    grid = np.linspace(0.0, 1.0, PHASE_POINTS)
+    curves: dict[str, list[np.ndarray]] = {k: [] for k in names}
+    tasks: list[np.ndarray] = []
+    for _, stride in strides:
+        stride = stride.sort_values("_phase")
+        values = stride[names].to_numpy(dtype=float)
+        finite = np.isfinite(values)
+        if len(stride) < 10 or (1.0 - finite.mean(axis=0)).max() > MAX_MISSING_FRACTION:
+            continue
+        sp = stride["_phase"].to_numpy()
+        if np.any(np.diff(sp) <= 0):
+            raise ValueError(f"{where}: repeated phase values within one stride (add 'subject'/'stride' columns)")
+        for j, name in enumerate(names):
+            ok = finite[:, j]
+            curve = np.interp(grid, sp[ok], values[ok, j])
+            # a grid point whose neighbouring samples include a missing one stays missing
+            nearest = np.clip(np.searchsorted(sp, grid), 1, sp.size - 1)
+            curve[~(ok[nearest] & ok[nearest - 1])] = np.nan
+            curves[name].append(curve)
+        tasks.append(stride[tkeys].to_numpy(dtype=float).mean(axis=0))
+    return curves, tasks
+
+
+def _stride_statistics(curves: dict[str, list[np.ndarray]], where: dict
+                       ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Mean and SD (ddof 1) over strides per phase point, each over the strides that have it."""
+    mean, sd = {}, {}
+    for name, rows in curves.items():
+        stack = np.array(rows)
+        count = np.isfinite(stack).sum(axis=0)
+        if count.min() < max(1, stack.shape[0] / 2):
+            raise ValueError(f"{where}: {name} is missing at phase {np.argmin(count)} % in more than half the strides")
+        with np.errstate(invalid="ignore"):
+            mean[name] = np.nanmean(stack, axis=0)
+            sd[name] = np.nanstd(stack, axis=0, ddof=1) if stack.shape[0] > 1 else np.full(stack.shape[1], np.nan)
+    return mean, sd
 
 
 def load_phase_table(path: str | Path, task_columns: tuple[str, ...] | None = None,
@@ -197,3 +241,12 @@ def reference_to_phase_table(ref: ReferenceSet) -> pd.DataFrame:
             frame[f"{joint}_moment_Nm_per_kg"] = rec.mean[f"{joint}_moment"]
         rows.append(frame)
     return pd.concat(rows, ignore_index=True)
+
+
+SHIPPED_RAMPS_CSV = "vielemeyer2025_ref01_ramps.csv"
+
+
+def load_shipped_ramps() -> ReferenceSet:
+    """The shipped ramp curves (Vielemeyer 2025, one participant: level walking and ±10° ramps), one record per
+    condition with its strides' mean speed (see ``controller_core/data/README.md``)."""
+    return load_phase_table(data_dir() / SHIPPED_RAMPS_CSV)

@@ -6,6 +6,7 @@ feature's value (never its phase: no source gives peak timing). The mapping:
 
 | our feature | source feature | source | task |
 |---|---|---|---|
+| knee_heel_strike_angle | knee_angle_at_initial_contact_deg | Rábago 2016 | +5°, 1.185 m/s |
 | knee_stance_flexion_peak | knee_angle_flexion_peak_loading_response_deg | Rábago 2016 | +5°, 1.185 m/s |
 | knee_swing_flexion_peak | knee_angle_flexion_peak_swing_deg | Rábago 2016 | +5°, 1.185 m/s |
 | ankle_dorsiflexion_peak | ankle_angle_dorsiflexion_peak_terminal_stance_deg | Rábago 2016 | +5°, 1.185 m/s |
@@ -46,6 +47,7 @@ from controller_core.reference import SHIPPED_INCLINE_CSV, data_dir, sha256_of
 
 RABAGO_MAP: dict[str, tuple[str, str]] = {
     # our feature: (source feature, quantity)
+    "knee_heel_strike_angle": ("knee_angle_at_initial_contact_deg", "angle"),
     "knee_stance_flexion_peak": ("knee_angle_flexion_peak_loading_response_deg", "angle"),
     "knee_swing_flexion_peak": ("knee_angle_flexion_peak_swing_deg", "angle"),
     "ankle_dorsiflexion_peak": ("ankle_angle_dorsiflexion_peak_terminal_stance_deg", "angle"),
@@ -68,6 +70,7 @@ class PublishedPoint:
         se: standard error of ``value`` in the same unit.
         source: citation key (``rabago2016`` ...).
         detail: which source columns and what assumption produced it.
+        sd: between-subject SD of the feature in that study (same unit); NaN where not published.
     """
 
     feature: str
@@ -77,6 +80,7 @@ class PublishedPoint:
     se: float
     source: str
     detail: str
+    sd: float = float("nan")
 
 
 def load_incline_table(path: Path | None = None) -> pd.DataFrame:
@@ -101,7 +105,7 @@ def _rabago_points(df: pd.DataFrame) -> list[PublishedPoint]:
         elif quantity == "timing":
             mean, sd = mean / 100.0, sd / 100.0
         out.append(PublishedPoint(ours, float(row["speed_mps"]), float(row["incline_deg"]), mean,
-                                  sd / np.sqrt(n), "rabago2016", f"{theirs} (mean ± SD/sqrt({n:.0f}))"))
+                                  sd / np.sqrt(n), "rabago2016", f"{theirs} (mean ± SD/sqrt({n:.0f}))", sd))
     return out
 
 
@@ -114,8 +118,9 @@ def _franz_points(df: pd.DataFrame) -> list[PublishedPoint]:
         st, st_se = float(rows.loc["stance_time_s", "mean"]), float(rows.loc["stance_time_s", "se"])
         frac = st * sf
         se = float(np.hypot(st_se * sf, st * sf_se))
+        n = float(rows.loc["stance_time_s", "n"])
         out.append(PublishedPoint("toe_off", float(speed), float(incline), frac, se, "franz2012",
-                                  "stance_time_s × stride_frequency_Hz (SE propagated)"))
+                                  "stance_time_s × stride_frequency_Hz (SE propagated)", se * np.sqrt(n)))
     return out
 
 
@@ -128,6 +133,7 @@ def _kuster_points(df: pd.DataFrame, self_selected: tuple[float, float] | None) 
     down = ku[ku["incline_deg"] < 0.0].iloc[0]
     ratio = float(down["mean"]) / float(level["mean"])
     rel_se = np.hypot(float(down["sd"]) / float(down["mean"]), float(level["sd"]) / float(level["mean"]))
+    rel_sd = rel_se
     rel_se /= np.sqrt(float(down["n"]))
     value = level_value * ratio
     return [PublishedPoint(
@@ -135,6 +141,7 @@ def _kuster_points(df: pd.DataFrame, self_selected: tuple[float, float] | None) 
         "kuster1993",
         f"downhill/level ratio {ratio:.3f} applied to the level value {level_value:.3f} N·m/kg at the "
         f"self-selected speed {speed:.2f} m/s (assumption: Kuster's subjects walked at self-selected speed)",
+        abs(value) * rel_sd,
     )]
 
 

@@ -14,7 +14,10 @@ Passivity: a least-squares slope can come out energy-injecting (k > 0), typicall
 moments are small and the joint is carried by the thigh's motion. That is harmless while θe lies beyond the
 angles the joint sweeps in the sub-phase (the line then only brakes, as the knee's extensor moment does in
 early swing), but with θe inside that span τ = k(θ − θe) pushes the joint away from θe on both sides, into
-an end stop. When a ceiling ``max_k_Nm_per_rad`` (< 0) is given, such a sub-phase is re-fitted with k fixed
+an end stop. In stance any k > 0 is refused, wherever θe lies: the patient's weight is on the joint (the table's
+safety check refuses it too); such a stance line is first re-fitted through an end of the joint range, where a
+push-off is a restoring spring that still carries the load. When a ceiling ``max_k_Nm_per_rad`` (< 0) is given, such
+a sub-phase is re-fitted with k fixed
 at the ceiling and θe = mean(θ − τ/k) (the least-squares θe for that k), clamped to the range; the row is
 marked ``guarded`` (``passivity_guard``) and its R² says how much of the moment the constrained line still
 explains.
@@ -38,6 +41,7 @@ swing moment the line explains.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +103,40 @@ def fit_line(theta: np.ndarray, tau: np.ndarray, theta_range: tuple[float, float
     resid = tau - k * (theta - theta_e)
     r2 = 1.0 - float(resid @ resid) / syy if syy > 0 else 0.0
     return k, float(theta_e), r2, guarded
+
+
+def _range_guard(n: float, tm: float, ym: float, sxx: float, sxy: float, syy: float, theta_e: float,
+                 lo: float, hi: float) -> tuple[float, float, float]:
+    """:func:`fit_line`'s guard from a sub-phase's centred sums (count, means, Sθθ, Sθτ, Sττ): θe clamped to
+    [lo, hi] (the farther bound when k ≈ 0), k re-fitted through it; returns (k, θe, R²)."""
+    if math.isfinite(theta_e):
+        te = min(max(theta_e, lo), hi)
+    else:
+        te = lo if abs(tm - lo) > abs(tm - hi) else hi
+    dm = tm - te                                    # Σ(θ−θe)² = Sθθ + n·dm², Σ(θ−θe)τ = Sθτ + n·dm·ym
+    dd, dt = sxx + n * dm * dm, sxy + n * dm * ym
+    k = dt / dd if dd > 0 else 0.0
+    # Σ(τ − k(θ−θe))² around τ's mean: Sττ − 2k·Sθτ + k²·Sθθ + n·(ym − k·dm)²
+    ss_res = syy - 2.0 * k * sxy + k * k * sxx + n * (ym - k * dm) ** 2
+    return k, te, (1.0 - ss_res / syy if syy > 0 else 0.0)
+
+
+def _restoring_line_through_range_end(theta: np.ndarray, tau: np.ndarray, lo: float, hi: float,
+                                      max_k: float) -> tuple[float, float, float] | None:
+    """The best line τ = k(θ − θe) with θe at an end of the joint range and k at or below the restoring floor
+    ``max_k``: (k, θe, R²), or None when neither end gives one. A stance line that came out energy-injecting is
+    replaced by this before the floor itself: a push-off that the least-squares line puts about the far end of
+    the range is, about the near end, a restoring spring that still carries the load."""
+    best = None
+    for end in (lo, hi):
+        d = theta - end
+        dd = float(d @ d)
+        k = float(d @ tau) / dd if dd > 0 else 0.0
+        if k <= max_k:
+            r2 = _r2(theta, tau, k, end)
+            if best is None or r2 > best[2]:
+                best = (k, float(end), r2)
+    return best
 
 
 def _r2(theta: np.ndarray, tau: np.ndarray, k: float, theta_e: float) -> float:
@@ -202,15 +240,25 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
                 th, ta = theta[masks[i], j], tau[masks[i], j]
                 if lo <= theta_e[i, j] <= hi:
                     ki, tei, r2i, guarded = float(k[i, j]), float(theta_e[i, j]), float(r2[i, j]), False
-                else:
-                    ki, tei, r2i, guarded = fit_line(th, ta, (lo, hi))
+                else:    # fit_line's range guard, from the masked sums
+                    ki, tei, r2i = _range_guard(float(n[i, 0]), float(tm[i, j]), float(ym[i, j]), float(sxx[i, j]),
+                                                float(sxy[i, j]), float(syy[i, j]), float(theta_e[i, j]), lo, hi)
+                    guarded = True
                 span = (float(phase[first[i]]), float(phase[last[i]]), int(n[i, 0]))
                 method = "range_guard" if guarded else "least_squares"
             # an energy-injecting line whose θe lies inside the angles the joint sweeps in this sub-phase
-            # would push the joint away from θe in both directions: the unstable case the ceiling removes
-            if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad and th.min() <= tei <= th.max():
-                ki, method = float(max_k_Nm_per_rad), "passivity_guard"
-                tei, r2i = fit_fixed_k(th, ta, ki, (lo, hi))
+            # would push the joint away from θe in both directions: the unstable case the ceiling removes;
+            # in stance the patient's weight is on the joint, so any energy-injecting line is replaced
+            stance = name.startswith("stance")
+            unstable = th.min() <= tei <= th.max() or (stance and ki > 0.0)
+            if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad and unstable:
+                end = _restoring_line_through_range_end(th, ta, lo, hi, max_k_Nm_per_rad) if stance else None
+                if end is not None:     # in stance: the joint still carries the load, about an end of its range
+                    ki, tei, r2i = end
+                else:
+                    ki = float(max_k_Nm_per_rad)
+                    tei, r2i = fit_fixed_k(th, ta, ki, (lo, hi))
+                method = "passivity_guard"
             fits.append(SubphaseFit(name, ki, tei, r2i, method not in ("least_squares", "extension_window"),
                                     *span, method))
         out.append(fits)

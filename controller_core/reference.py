@@ -39,6 +39,8 @@ CITATIONS: dict[str, str] = {
     "University of Waterloo Press, 1987.",
     "schwartz2008": "Schwartz MH, Rozumalski A, Trost JP. The effect of walking speed on the gait of "
     "typically developing children. Journal of Biomechanics 41(8):1639-1650, 2008.",
+    "vielemeyer2025": "Vielemeyer J, et al. A full-body motion capture gait dataset of healthy young adults walking "
+    "ramps up and down. Scientific Data, 2025 (participant Ref01).",
 }
 
 
@@ -235,3 +237,22 @@ def load_shipped_reference(
         data_sha256=sha256_of(path),
         provenance=provenance,
     )
+
+
+def level_curves_at(reference: ReferenceSet, speed_mps: float,
+                    channels: tuple[str, ...] = CHANNELS) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Mean and between-subject SD curves of the level records, linear in speed between them (the nearest record
+    beyond their speeds): the population's level walking at a speed."""
+    level = [r for r in reference.records if r.task.get("incline_deg", 0.0) == 0.0
+             and np.isfinite(r.task.get("speed_mps", np.nan))]
+    if not level:
+        raise ValueError("the reference set has no level records with a speed")
+    order = np.argsort([r.task["speed_mps"] for r in level])
+    speeds = np.array([level[i].task["speed_mps"] for i in order])
+
+    def at(curves: list[np.ndarray]) -> np.ndarray:
+        stack = np.array([curves[i] for i in order])
+        return np.array([np.interp(speed_mps, speeds, stack[:, p]) for p in range(stack.shape[1])])
+
+    return ({c: at([r.mean[c] for r in level]) for c in channels},
+            {c: at([r.sd[c] for r in level]) for c in channels})

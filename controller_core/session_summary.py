@@ -20,7 +20,7 @@ from controller_core.gait_metrics import (
     reference_curves,
     stride_errors,
 )
-from controller_core.model import G
+from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 
 
@@ -38,7 +38,7 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
     t = np.asarray(t_s, dtype=float)
     n = t.shape[0]
     dt = float(np.median(np.diff(t))) if n > 1 else 0.01
-    strikes = heel_strikes(np.asarray(load_N, dtype=float), 0.1 * mass_kg * G, max(1, round(0.15 / dt)))
+    strikes = heel_strikes(np.asarray(load_N, dtype=float), 0.1 * mass_kg * G_MPS2, max(1, round(0.15 / dt)))
     strides = max(int(strikes.shape[0]) - 1, 0)
     measured = gait_channels(knee_angle_rad, ankle_angle_rad, knee_torque_Nm, ankle_torque_Nm, mass_kg)
     ref = reference_curves(reference)
@@ -59,7 +59,8 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
         "reference_curves": {k: [round(float(v), 3) for v in ref[k]] for k in GAIT_CHANNELS},
         "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
         "reference_source": reference.source,
+        "reference_kind": reference.kind,
         "reference_extrapolation": bool(reference.extrapolation),
-        "heel_strike_load_threshold_N": round(0.1 * mass_kg * G, 1),
+        "heel_strike_load_threshold_N": round(0.1 * mass_kg * G_MPS2, 1),
         "sample_period_s": round(dt, 5) if math.isfinite(dt) else None,
     }

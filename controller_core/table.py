@@ -136,12 +136,16 @@ class SafetyLimits(_Strict):
     """Limits enforced on every table.
 
     Defaults: joint ranges of the simulated/Open Source Leg-class device (knee 0–120°, ankle ±30°);
-    |k| up to 1200 N·m/rad restoring and 200 N·m/rad energy-injecting (above the quasi-stiffness of a
-    200 kg patient's able-bodied reference, about 3 N·m/kg/rad); damping 0–30 N·m·s/rad; loads 0–3000 N;
-    state times 0.01–3 s.
+    |k| up to 1200 N·m/rad restoring (above the quasi-stiffness of a 200 kg patient's able-bodied reference,
+    about 3 N·m/kg/rad) and, in swing only, up to 200 N·m/rad energy-injecting (a small positive swing k only
+    brakes the swinging shank while θe lies beyond the angles it sweeps). Stance rows must be passive, k ≤ 0 with
+    no tolerance: with k > 0 the row is a negative spring, which under the patient's weight drives the joint
+    away from θe (a knee that gives way into flexion); b ≥ 0 keeps the damping passive too. Damping 0–30
+    N·m·s/rad; loads 0–3000 N; state times 0.01–3 s.
     """
 
     k_Nm_per_rad: Range = Range(low=-1200.0, high=200.0)
+    stance_k_Nm_per_rad: Range = Range(low=-1200.0, high=0.0)
     knee_theta_e_deg: Range = Range(low=0.0, high=120.0)
     ankle_theta_e_deg: Range = Range(low=-30.0, high=30.0)
     b_Nm_s_per_rad: Range = Range(low=0.0, high=30.0)
@@ -174,6 +178,22 @@ def _check(field: str, value: float, rng: Range, unit: str, out: list[LimitViola
                                   message=f"{field} = {value:.4g} {unit} is outside [{rng.low:g}, {rng.high:g}] {unit}"))
 
 
+def _check_stance_k(row: ImpedanceRow, rng: Range, out: list[LimitViolation]) -> None:
+    """Stance rows carry the patient's weight: a positive k would push the joint away from θe under load."""
+    field = f"{row.joint}.{row.subphase}.k_Nm_per_rad"
+    k = row.k_Nm_per_rad
+    if not math.isfinite(k) or k < rng.low:
+        _check(field, k, rng, "N·m/rad", out)
+    elif k > rng.high:
+        where = row.subphase.replace("_", " ")
+        effect = "the knee gives way into flexion under load" if row.joint == "knee" else \
+            "the ankle is pushed away from its equilibrium under load"
+        out.append(LimitViolation(
+            field=field, value=k, low=rng.low, high=rng.high,
+            message=f"{row.joint} {where}: k = {k:+.4g} N·m/rad pushes the joint instead of resisting it "
+                    f"({effect}); a stance row must resist or be neutral, k ≤ {rng.high:g} N·m/rad"))
+
+
 DEFAULT_LIMITS = SafetyLimits()   # frozen: the defaults, built once
 
 
@@ -183,7 +203,10 @@ def check_table(table: ImpedanceTable, limits: SafetyLimits | None = None) -> li
     out: list[LimitViolation] = []
     for r in table.rows:
         key = f"{r.joint}.{r.subphase}"
-        _check(f"{key}.k_Nm_per_rad", r.k_Nm_per_rad, lim.k_Nm_per_rad, "N·m/rad", out)
+        if r.subphase.startswith("stance"):
+            _check_stance_k(r, lim.stance_k_Nm_per_rad, out)
+        else:
+            _check(f"{key}.k_Nm_per_rad", r.k_Nm_per_rad, lim.k_Nm_per_rad, "N·m/rad", out)
         theta_rng = lim.knee_theta_e_deg if r.joint == "knee" else lim.ankle_theta_e_deg
         _check(f"{key}.theta_e_deg", r.theta_e_deg, theta_rng, "deg", out)
         _check(f"{key}.b_Nm_s_per_rad", r.b_Nm_s_per_rad, lim.b_Nm_s_per_rad, "N·m·s/rad", out)

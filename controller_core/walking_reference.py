@@ -1,4 +1,4 @@
-"""The able-bodied walking pattern at a requested speed: what the simulated bench replays and is scored against.
+"""The able-bodied walking pattern at a task: what the simulated bench replays and is scored against.
 
 The learning pipeline needs knee and ankle only; the simulated hip-driven bench also needs the hip angle
 (to drive the socket), the vertical ground reaction force (to load the leg) and the stride time. This module
@@ -7,6 +7,12 @@ interpolates all of them linearly in speed between the shipped Bovi 2011 adult l
 between conditions" baseline of the evaluation, which is the most literal reading of the data between
 its conditions. Outside the covered speeds the nearest record is used and ``extrapolation`` is set.
 
+On a slope (:func:`sloped_walking_reference`), where the shipped ramp curves reach (±10°): the level pattern at the
+speed plus the change one person's ramp walking shows (:mod:`controller_core.incline`, hip included), scaled
+to the incline. The vertical load and the timing stay those of level walking (the ramp data have no ground
+reaction forces). ``kind`` says what a reference is: ``measured`` (level data), ``measured_ramp_trend`` or, built
+elsewhere from the model, ``model_prediction``.
+
 Units: phase in [0, 1]; angles in rad (hip and knee flexion +, ankle dorsiflexion +, Bovi ankle aligned to the
 anatomical neutral exactly as in :func:`controller_core.reference.load_shipped_reference`); moments in N·m/kg
 (internal, + in the + angle direction); vertical GRF in body weights; stride time in s.
@@ -14,10 +20,13 @@ anatomical neutral exactly as in :func:`controller_core.reference.load_shipped_r
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import cache
 
 import numpy as np
 
+from controller_core.incline import InclineChange
+from controller_core.phase_table import load_shipped_ramps
 from controller_core.reference import SHIPPED_NPZ, _load_npz, bovi_ankle_offset_deg, data_dir, sha256_of
 
 
@@ -37,6 +46,7 @@ class WalkingReference:
         source: the records the curves were interpolated from, for provenance.
         extrapolation: the speed lies outside the records' range (nearest record used).
         data_sha256: hash of the data file.
+        kind: ``measured``, ``measured_ramp_trend`` or ``model_prediction`` (see the module docstring).
     """
 
     speed_mps: float
@@ -53,6 +63,7 @@ class WalkingReference:
     source: str
     extrapolation: bool
     data_sha256: str
+    kind: str = "measured"
 
     def curve(self, channel: str) -> np.ndarray:
         """A curve by the channel names of :data:`controller_core.reference.CHANNELS` (SI)."""
@@ -103,3 +114,37 @@ def level_walking_reference(speed_mps: float) -> WalkingReference:
         extrapolation=bool(speed_mps < speeds[0] or speed_mps > speeds[-1]),
         data_sha256=sha256_of(path),
     )
+
+
+RAMP_CHANNELS: tuple[str, ...] = ("hip_angle", "knee_angle", "knee_moment", "ankle_angle", "ankle_moment")
+
+
+@cache
+def shipped_incline_change() -> InclineChange:
+    """The change a slope makes, learned from the shipped ramp curves against the Bovi speed curves (hip too)."""
+    def population(speed_mps: float) -> dict[str, np.ndarray]:
+        ref = level_walking_reference(speed_mps)
+        return {"hip_angle": ref.hip_angle_rad, **{c: ref.curve(c) for c in RAMP_CHANNELS[1:]}}
+
+    return InclineChange(channels=RAMP_CHANNELS).fit(load_shipped_ramps(), population)
+
+
+def sloped_walking_reference(speed_mps: float, incline_deg: float) -> WalkingReference | None:
+    """The level pattern at ``speed_mps`` plus the measured ramp trend at ``incline_deg``, or None where the
+    shipped ramps do not reach (steeper than the steepest ramp on that side)."""
+    change = shipped_incline_change()
+    level = level_walking_reference(speed_mps)
+    if incline_deg == 0.0:
+        return level
+    if not change.covers(incline_deg):
+        return None
+    d = change.predict(incline_deg)
+    steepest = change.steepest_deg_["uphill" if incline_deg > 0 else "downhill"]
+    return replace(
+        level, incline_deg=float(incline_deg), kind="measured_ramp_trend",
+        hip_angle_rad=level.hip_angle_rad + d["hip_angle"], knee_angle_rad=level.knee_angle_rad + d["knee_angle"],
+        ankle_angle_rad=level.ankle_angle_rad + d["ankle_angle"],
+        knee_moment_Nm_per_kg=level.knee_moment_Nm_per_kg + d["knee_moment"],
+        ankle_moment_Nm_per_kg=level.ankle_moment_Nm_per_kg + d["ankle_moment"],
+        source=f"{level.source} + the change measured on a {steepest:+g}° ramp (Vielemeyer 2025, one participant), "
+               f"scaled to {incline_deg:+g}°; load and timing of level walking")

@@ -1,0 +1,124 @@
+"""The four-state impedance machine on scripted samples: transitions, guards, holds, the torque law."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from controller_core.fsm import ActuatorLimits, GaitState, ImpedanceSchedule, SensorSample, StateMachineController
+from controller_core.table import SafetyLimitError
+
+SF, SE, WF, WE = (GaitState.STANCE_FLEXION, GaitState.STANCE_EXTENSION, GaitState.SWING_FLEXION,
+                  GaitState.SWING_EXTENSION)
+
+
+def schedule(**over) -> ImpedanceSchedule:
+    base = dict(knee_k=(-100.0, -50.0, -20.0, -10.0), knee_theta_e=(0.1, 0.05, 1.0, 0.1), knee_b=(2.0, 2.0, 1.0, 1.0),
+                ankle_k=(-80.0, -120.0, -10.0, -10.0), ankle_theta_e=(0.0, -0.3, 0.0, 0.0), ankle_b=(1.0, 1.0, 0.5, 0.5),
+                sf_to_se_ankle_moment_Nm=-5.0, se_to_wf_load_N=40.0, wf_to_we_knee_angle_rad=math.radians(50.0),
+                we_to_sf_load_N=110.0, min_state_time_s=0.05, max_state_time_s=1.5, event_hold_s=0.0)
+    base.update(over)
+    return ImpedanceSchedule(**base)
+
+
+def sample(t: float, load: float = 0.0, moment: float = 0.0, knee: float = 0.1, knee_v: float = 0.0,
+           ankle: float = 0.0, ankle_v: float = 0.0) -> SensorSample:
+    return SensorSample(time_s=t, knee_angle_rad=knee, knee_velocity_rad_s=knee_v, ankle_angle_rad=ankle,
+                        ankle_velocity_rad_s=ankle_v, load_N=load, ankle_moment_Nm=moment)
+
+
+def test_walks_through_the_four_states_in_order_on_a_scripted_stride():
+    c = StateMachineController(schedule())
+    assert c.step(sample(0.0)).state == WE
+    assert c.step(sample(0.10, load=500.0)).state == SF                     # heel strike
+    assert c.step(sample(0.20, load=600.0, moment=-2.0)).state == SF        # moment not yet past −5 N·m
+    assert c.step(sample(0.30, load=600.0, moment=-6.0)).state == SE        # sagittal moment threshold
+    assert c.step(sample(0.50, load=300.0, moment=-60.0)).state == SE
+    assert c.step(sample(0.60, load=20.0)).state == WF                      # toe-off: load below 40 N
+    assert c.step(sample(0.70, knee=math.radians(55.0), knee_v=3.0)).state == WF   # past 50° but still flexing
+    assert c.step(sample(0.75, knee=math.radians(60.0), knee_v=0.0)).state == WE   # past 50° and slowing
+    assert c.step(sample(0.95, load=150.0)).state == SF
+    assert c.transitions_ == 5 and c.guard_transitions_ == 0
+
+
+def test_missed_heel_strike_is_caught_by_the_max_time_guard():
+    c = StateMachineController(schedule(max_state_time_s=1.0))
+    c.step(sample(0.0))                                   # swing extension, the load never rises
+    assert c.step(sample(0.99)).state == WE
+    assert c.step(sample(1.00)).state == SF               # guard: 1.0 s in swing extension
+    assert c.guard_transitions_ == 1
+
+
+def test_no_transition_before_the_minimum_state_time():
+    c = StateMachineController(schedule(min_state_time_s=0.2))
+    c.step(sample(0.0))
+    assert c.step(sample(0.1, load=800.0)).state == WE    # heel-strike load, but only 0.1 s in state
+    assert c.step(sample(0.2, load=800.0)).state == SF
+
+
+def test_a_swinging_foot_moment_without_load_does_not_end_stance_flexion():
+    c = StateMachineController(schedule(), initial_state=SF)
+    c.step(sample(0.0, load=500.0))
+    assert c.step(sample(0.2, load=10.0, moment=-30.0)).state == SF
+    assert c.step(sample(0.3, load=500.0, moment=-30.0)).state == SE
+
+
+def test_an_event_fires_only_after_its_condition_has_held_uninterrupted():
+    c = StateMachineController(schedule(event_hold_s=0.02), initial_state=SE)
+    c.step(sample(0.0, load=600.0))
+    assert c.step(sample(0.100, load=20.0)).state == SE     # one low load sample (a ringing load cell) ...
+    assert c.step(sample(0.101, load=400.0)).state == SE    # ... then loaded again: the hold restarts
+    assert c.step(sample(0.200, load=20.0)).state == SE
+    assert c.step(sample(0.210, load=20.0)).state == SE     # 10 ms below the toe-off load: not yet
+    assert c.step(sample(0.220, load=20.0)).state == WF     # 20 ms: toe-off
+    assert c.transitions_ == 1 and c.event_since_s_ is None  # the hold is forgotten with the state
+
+
+def test_the_max_time_guard_does_not_wait_for_the_event_hold():
+    c = StateMachineController(schedule(event_hold_s=0.02, max_state_time_s=1.0))
+    c.step(sample(0.0))
+    assert c.step(sample(0.995, load=800.0)).state == WE   # heel strike seen, 5 ms held
+    assert c.step(sample(1.000, load=800.0)).state == SF   # the guard moves on at 1.0 s regardless
+    assert c.guard_transitions_ == 1
+
+
+def test_torque_law_and_clipping():
+    sch = schedule()
+    c = StateMachineController(sch, limits=ActuatorLimits(knee_torque_Nm=30.0, ankle_torque_Nm=200.0), initial_state=SF)
+    x = sample(0.0, load=500.0, knee=0.3, knee_v=0.5, ankle=0.05, ankle_v=-0.2)
+    cmd = c.step(x)
+    knee_expected = -100.0 * (0.3 - 0.1) - 2.0 * 0.5        # −21 N·m, inside the 30 N·m limit
+    ankle_expected = -80.0 * (0.05 - 0.0) - 1.0 * (-0.2)    # −3.8 N·m
+    assert cmd.knee_torque_Nm == pytest.approx(knee_expected)
+    assert cmd.ankle_torque_Nm == pytest.approx(ankle_expected)
+    assert not cmd.saturated
+    cmd = c.step(sample(0.01, load=500.0, knee=0.8))         # −70 N·m asked, 30 N·m allowed
+    assert cmd.knee_torque_Nm == pytest.approx(-30.0) and cmd.saturated
+
+
+def test_torque_that_drives_a_joint_past_its_range_end_is_refused():
+    lim = ActuatorLimits()
+    c = StateMachineController(schedule(knee_theta_e=(2.5, 0.05, 1.0, 0.1)), limits=lim, initial_state=SF)
+    cmd = c.step(sample(0.0, load=500.0, knee=lim.knee_range_rad[1] + 0.01))   # θe beyond 120°: pushes flexion
+    assert cmd.knee_torque_Nm == 0.0 and cmd.saturated
+    cmd = c.step(sample(0.01, load=500.0, knee=1.0))                            # inside the range: applied
+    assert cmd.knee_torque_Nm > 0.0
+
+
+def test_actuator_limits_refuse_nonsense():
+    with pytest.raises(ValueError, match="knee_torque_Nm"):
+        ActuatorLimits(knee_torque_Nm=float("nan"))
+    with pytest.raises(ValueError, match="ankle_range_rad"):
+        ActuatorLimits(ankle_range_rad=(0.5, -0.5))
+
+
+def test_schedule_from_table_rechecks_safety_limits(model):
+    table = model.propose(1.2, 0.0, 75.0).table
+    sch = ImpedanceSchedule.from_table(table)
+    assert sch.knee_k[0] == pytest.approx(table.row("knee", "stance_flexion").k_Nm_per_rad)
+    assert sch.wf_to_we_knee_angle_rad == pytest.approx(math.radians(table.thresholds.wf_to_we_knee_angle_deg))
+    rows = [r.model_copy(update={"k_Nm_per_rad": 900.0}) if r.subphase == "swing_flexion" else r for r in table.rows]
+    bad = table.model_copy(update={"rows": rows})
+    with pytest.raises(SafetyLimitError, match=r"swing_flexion\.k_Nm_per_rad"):
+        ImpedanceSchedule.from_table(bad)
