@@ -13,8 +13,9 @@ corruption, reordering, a bad CRC, a refused limit or a timeout only ever discar
 the active table runs on untouched, so a mixed table cannot exist.
 
 The host's heartbeat is watched on every tick: when none arrived for ``heartbeat_timeout_s``, the device drops
-into safe mode (passive: τ = −b_safe·θ̇, clipped) on that tick. It leaves safe mode only on a new valid table or
-an explicit LEAVE_SAFE_MODE command while the host is alive and a table is held.
+into safe mode (passive: τ = −b_safe·θ̇, clipped) on that tick. It leaves safe mode only on a new valid table
+(committed after safe mode was entered) or an explicit LEAVE_SAFE_MODE command while the host is alive and a table
+is held.
 
 Times are seconds on the device's monotonic clock; torques N·m; angles rad inside, deg on the wire.
 """
@@ -213,6 +214,8 @@ class DeviceFirmware:
     def _command(self, command: int, now_s: float) -> list[can.Message]:
         if command == Command.ENTER_SAFE_MODE:
             self._enter_safe(now_s)
+            if self.staged_ is not None:   # verified before the command: held for LEAVE_SAFE_MODE, not a way out
+                self.active_, self.staged_ = self.staged_, None
         elif command == Command.LEAVE_SAFE_MODE:
             host_alive = now_s - self.last_heartbeat_s_ <= self.config.heartbeat_timeout_s
             if self.mode_ == Mode.SAFE and self.active_ is not None and host_alive:

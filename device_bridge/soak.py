@@ -1,6 +1,7 @@
 """Soak and drill the device link: many pushes through a faulty bus, and a heartbeat-loss drill.
 
-:func:`soak` pushes real tables (the default model's proposals over a range of speeds, in turn) to a
+:func:`soak` pushes the tables it is given, in turn (``quasitune device soak``: the model's proposals over a range of
+speeds), to a
 :class:`~device_bridge.device_node.DeviceNode` through :class:`~device_bridge.faults.FaultInjectingBus` in both
 directions, and after every push inspects the device's buffers (an oracle the host never has) to classify it:
 
@@ -24,8 +25,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import can
-import numpy as np
 
+from controller_core.fsmic import fsmic_table
 from controller_core.table import ParameterTable
 from device_bridge.device_node import DeviceNode
 from device_bridge.faults import FaultInjectingBus
@@ -38,14 +39,6 @@ _channel_counter = itertools.count()
 
 def _channel(prefix: str) -> str:
     return f"quasitune-{prefix}-{time.monotonic_ns()}-{next(_channel_counter)}"
-
-
-def soak_tables(n: int = 12) -> list[ParameterTable]:
-    """Tables the soak pushes in turn: the default model's proposals from 0.8 to 1.9 m/s (75 kg, level)."""
-    from controller_core import load_default_model
-
-    model = load_default_model()
-    return [model.propose(float(s), 0.0, 75.0).table for s in np.linspace(0.8, 1.9, n)]
 
 
 @dataclass(frozen=True)
@@ -65,12 +58,15 @@ class _Known:
         return held.table == self.values
 
 
-def soak(trials: int, drop: float, corrupt: float, reorder: float, seed: int = 0,
-         tables: Sequence[ParameterTable] | None = None, push_timeout_s: float = 2.0) -> dict:
-    """Push ``trials`` tables through a fault-injecting virtual bus and classify each outcome (module docstring)."""
+def soak(tables: Sequence[ParameterTable], trials: int, drop: float, corrupt: float, reorder: float, seed: int = 0,
+         push_timeout_s: float = 2.0) -> dict:
+    """Push ``trials`` of ``tables`` (two at least, in turn) through a fault-injecting virtual bus and classify each
+    outcome (module docstring)."""
     if not 1 <= trials <= 100_000:
         raise ValueError(f"trials must be in [1, 100000], got {trials!r}")
-    known = [_Known.of(t) for t in (tables if tables is not None else soak_tables())]
+    if len(tables) < 2:
+        raise ValueError("the soak needs at least two different tables to tell the old from the new")
+    known = [_Known.of(t) for t in tables]
     channel = _channel("soak")
     node = DeviceNode(FaultInjectingBus(can.Bus(interface="virtual", channel=channel), drop, corrupt, reorder,
                                         seed=seed)).start()
@@ -141,7 +137,7 @@ def heartbeat_drill(repeats: int = 5, timeout_s: float = 0.2) -> dict:
     """Stop the host heartbeat ``repeats`` times; report how long after the device's timeout the host hears of
     safe mode (ms), from the last heartbeat the host sent."""
     channel = _channel("drill")
-    table = soak_tables(1)[0]
+    table = fsmic_table(75.0)
     node = DeviceNode(can.Bus(interface="virtual", channel=channel),
                       config=FirmwareConfig(heartbeat_timeout_s=timeout_s)).start()
     link = DeviceLink(can.Bus(interface="virtual", channel=channel)).start()

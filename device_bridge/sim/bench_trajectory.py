@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controller_core.model import G
+from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.leg_model import LegGeometry
 
@@ -174,6 +174,6 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
     hdot = dh / T
     xd = v * math.cos(alpha) - hdot * math.sin(alpha)
     zd = v * math.sin(alpha) + hdot * math.cos(alpha)
-    load = np.interp(s, s_grid, ref.vgrf_bw) * mass_kg * G
+    load = np.interp(s, s_grid, ref.vgrf_bw) * mass_kg * G_MPS2
     return BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=th, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=dth / T,
                            load_N=load, height_m=h, stride_time_s=T)

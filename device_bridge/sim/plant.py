@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from controller_core.fsm import SensorSample
-from controller_core.model import G
+from controller_core.units import G_MPS2
 from device_bridge.sim.bench_trajectory import BenchTrajectory
 from device_bridge.sim.leg_model import LegGeometry, build_mjcf
 
@@ -51,7 +51,7 @@ class SimulatedLeg:
         self._s_force, self._s_torque = adr["load_cell_force"], adr["load_cell_torque"]
         self._floor = m.geom("floor").id
         self._feet = {m.geom("heel").id, m.geom("toe").id}
-        self._gravity_comp_N = self.geometry.moving_mass_kg * G
+        self._gravity_comp_N = self.geometry.moving_mass_kg * G_MPS2
         self.vertical_stiffness_N_per_m = float(m.actuator("hip_z_pos").gainprm[0])
         self._tick = 0
         self._traj: BenchTrajectory | None = None

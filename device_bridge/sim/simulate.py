@@ -46,7 +46,7 @@ from controller_core.gait_metrics import (
     state_entry_delays,
     strided_errors,
 )
-from controller_core.model import G
+from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import hip_height_mismatch_mm, plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
@@ -137,7 +137,7 @@ def run_walk(controller: StateMachineController, reference: WalkingReference, ma
                    saturated_ticks=saturated, guard_transitions=controller.guard_transitions_,
                    transitions=controller.transitions_,
                    extras={"stride_time_s": traj.stride_time_s,
-                           "fall_sink_m": 0.5 * mass_kg * G / leg.vertical_stiffness_N_per_m,
+                           "fall_sink_m": 0.5 * mass_kg * G_MPS2 / leg.vertical_stiffness_N_per_m,
                            "hip_height_mismatch_mm": hip_height_mismatch_mm(reference, leg.geometry)})
 
 
@@ -178,7 +178,7 @@ class WalkScore:
 def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0) -> WalkScore:
     """Turn a walk log into metrics against ``reference`` (strides starting before ``settle_s`` are skipped)."""
     c, dt, mass = log.channels, log.timestep_s, log.mass_kg
-    weight = mass * G
+    weight = mass * G_MPS2
     strikes = heel_strikes(c["contact_N"], 0.02 * weight, round(0.15 / dt))
     strikes = strikes[c["time_s"][strikes] >= settle_s] if strikes.size else strikes
     per_channel = gait_channels(c["knee_angle_rad"], c["ankle_angle_rad"], c["knee_torque_Nm"], c["ankle_torque_Nm"],
@@ -219,6 +219,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
         "bench_hip_height_mismatch_mm": log.extras.get("hip_height_mismatch_mm"),
         "real_time_factor": seconds / log.wall_time_s if log.wall_time_s > 0 else None,
         "reference_source": reference.source,
+        "reference_kind": reference.kind,
         "reference_extrapolation": reference.extrapolation,
         "settle_s": settle_s,
     }

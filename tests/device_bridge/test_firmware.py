@@ -1,0 +1,302 @@
+"""The leg's firmware, fed frames and ticks: transfers, refusals, safe mode, the switch at heel strike."""
+
+from __future__ import annotations
+
+import math
+import random
+
+import can
+import pytest
+
+from controller_core.fsm import GaitState, SensorSample
+from controller_core.table import ParameterTable
+from device_bridge.firmware import DeviceFirmware, FirmwareConfig
+from device_bridge.protocol import (
+    ROW_COUNT,
+    AckResult,
+    Command,
+    Fault,
+    Mode,
+    WireTable,
+    begin_frame,
+    commit_frame,
+    decode,
+    encode,
+    physical,
+)
+
+
+def transfer(table: ParameterTable, tid: int, version: int) -> tuple[can.Message, list[can.Message], can.Message, int]:
+    wire = WireTable.from_table(table)
+    crc = wire.crc32()
+    return begin_frame(tid, version, crc), wire.frames(tid), commit_frame(tid, version, crc), crc
+
+
+def feed(fw: DeviceFirmware, frames: list[can.Message], now: float) -> list[dict]:
+    """Frames in; the decoded TABLE_ACKs out."""
+    out = []
+    for f in frames:
+        out += fw.receive(f, now)
+    return [decode(m)[1] for m in out if decode(m)[0] == "TABLE_ACK"]
+
+
+def heartbeat(fw: DeviceFirmware, now: float) -> None:
+    fw.receive(encode("HOST_HEARTBEAT", {"counter": 1}), now)
+
+
+def install(fw: DeviceFirmware, table: ParameterTable, version: int, now: float = 0.0) -> int:
+    begin, rows, commit, crc = transfer(table, version % 16, version)
+    [ack] = feed(fw, [begin, *rows, commit], now)
+    assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
+    fw.tick(None, now + 0.001)
+    assert fw.active_ is not None and fw.active_.crc32 == crc
+    return crc
+
+
+def status(frames: list[can.Message]) -> dict:
+    return next(decode(m)[1] for m in reversed(frames) if decode(m)[0] == "DEVICE_STATUS")
+
+
+def standing(t: float, knee_velocity: float = 0.5) -> SensorSample:
+    return SensorSample(time_s=t, knee_angle_rad=0.3, knee_velocity_rad_s=knee_velocity, ankle_angle_rad=0.05,
+                        ankle_velocity_rad_s=-0.2, load_N=700.0, ankle_moment_Nm=-20.0)
+
+
+def test_a_clean_transfer_is_acknowledged_with_its_crc_and_becomes_active(tables):
+    fw = DeviceFirmware()
+    begin, rows, commit, crc = transfer(tables[0], 3, 17)
+    [ack] = feed(fw, [begin, *rows, commit], 0.0)
+    assert ack == {"transfer_id": 3, "result": AckResult.STAGED, "missing_rows": 0, "crc32": crc, "version_low": 17}
+    assert fw.staged_.crc32 == crc and fw.active_ is None
+    _, _, out = fw.tick(None, 0.001)   # no sensors: not walking, so it switches at once
+    st = status(out)
+    assert (st["mode"], st["active_version"], st["active_crc32"]) == (Mode.ACTIVE, 17, crc)
+    assert fw.staged_ is None
+
+
+def test_reordered_rows_still_make_the_table(tables):
+    fw = DeviceFirmware()
+    begin, rows, commit, crc = transfer(tables[0], 1, 2)
+    shuffled = rows[:]
+    random.Random(4).shuffle(shuffled)
+    [ack] = feed(fw, [begin, *shuffled, commit], 0.0)
+    assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
+
+
+def test_a_lost_row_is_named_resent_and_then_accepted(tables):
+    fw = DeviceFirmware()
+    old = install(fw, tables[0], 1)
+    begin, rows, commit, crc = transfer(tables[1], 2, 2)
+    [nack] = feed(fw, [begin, *rows[:4], *rows[5:], commit], 0.1)
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << 4 and nack["crc32"] == 0
+    assert fw.active_.crc32 == old and fw.staged_ is None
+    [ack] = feed(fw, [rows[4], commit], 0.11)
+    assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
+
+
+def test_a_corrupted_row_fails_the_crc_and_the_old_table_stays(tables):
+    fw = DeviceFirmware()
+    old = install(fw, tables[0], 1)
+    begin, rows, commit, _ = transfer(tables[1], 2, 2)
+    bad = bytearray(rows[6].data)
+    bad[3] ^= 0x10   # one bit of the ankle swing-flexion stiffness
+    rows[6] = can.Message(arbitration_id=rows[6].arbitration_id, data=bytes(bad), is_extended_id=False)
+    [nack] = feed(fw, [begin, *rows, commit], 0.1)
+    assert nack["result"] == AckResult.CRC_MISMATCH
+    fw.tick(None, 0.2)
+    assert fw.active_.crc32 == old and fw.staged_ is None and Fault.TABLE_REFUSED in fw.faults_
+
+
+def test_rows_of_another_transfer_are_not_mixed_in(tables):
+    fw = DeviceFirmware()
+    begin, rows, commit, _ = transfer(tables[0], 5, 1)
+    _, other_rows, _, _ = transfer(tables[1], 6, 2)
+    [nack] = feed(fw, [begin, *rows[:9], other_rows[9], commit], 0.0)
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << 9
+
+
+def test_begin_and_commit_must_agree(tables):
+    fw = DeviceFirmware()
+    begin, rows, _, crc = transfer(tables[0], 5, 1)
+    [nack] = feed(fw, [begin, *rows, commit_frame(5, 1, crc ^ 1)], 0.0)
+    assert nack["result"] == AckResult.MALFORMED and fw.staged_ is None
+
+
+def test_a_transfer_that_stalls_times_out_and_keeps_the_old_table(tables):
+    fw = DeviceFirmware(FirmwareConfig(transfer_timeout_s=0.5))
+    old = install(fw, tables[0], 1)
+    heartbeat(fw, 0.1)
+    begin, rows, commit, _ = transfer(tables[1], 2, 2)
+    feed(fw, [begin, *rows[:3]], 0.1)
+    _, _, out = fw.tick(None, 0.59)
+    assert not [m for m in out if decode(m)[0] == "TABLE_ACK"]
+    heartbeat(fw, 0.59)
+    _, _, out = fw.tick(None, 0.61)
+    [ack] = [decode(m)[1] for m in out if decode(m)[0] == "TABLE_ACK"]
+    assert ack["result"] == AckResult.TIMEOUT
+    [late] = feed(fw, [*rows[3:], commit], 0.62)   # the rest arrives too late: that transfer is gone
+    assert late["result"] == AckResult.UNKNOWN_TRANSFER and fw.active_.crc32 == old
+
+
+def test_the_device_refuses_an_unsafe_table_itself(tables):
+    fw = DeviceFirmware()
+    old = install(fw, tables[0], 1)
+    row = tables[1].rows[0]
+    unsafe = tables[1].model_copy(update={"rows": [row.model_copy(update={"k_Nm_per_rad": 900.0}), *tables[1].rows[1:]]})
+    begin, rows, commit, _ = transfer(unsafe, 2, 2)   # fits the wire, but +900 N·m/rad injects energy
+    [nack] = feed(fw, [begin, *rows, commit], 0.1)
+    assert nack["result"] == AckResult.SAFETY_LIMIT and nack["crc32"] == 0
+    assert fw.active_.crc32 == old and fw.staged_ is None
+
+
+def test_a_lost_acknowledgement_is_answered_again(tables):
+    fw = DeviceFirmware()
+    begin, rows, commit, crc = transfer(tables[0], 7, 9)
+    feed(fw, [begin, *rows, commit], 0.0)
+    [again] = feed(fw, [commit], 0.01)
+    assert again["result"] == AckResult.STAGED and again["crc32"] == crc
+    [stranger] = feed(fw, [commit_frame(8, 9, crc)], 0.02)
+    assert stranger["result"] == AckResult.UNKNOWN_TRANSFER
+
+
+def test_a_truncated_frame_is_counted_and_harms_nothing(tables):
+    fw = DeviceFirmware()
+    begin, rows, commit, crc = transfer(tables[0], 1, 1)
+    short = can.Message(arbitration_id=rows[2].arbitration_id, data=rows[2].data[:3], is_extended_id=False)
+    [ack] = feed(fw, [begin, short, *rows, commit], 0.0)
+    assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
+    assert fw.rx_errors_ == 1 and Fault.MALFORMED_FRAME in fw.faults_
+
+
+def test_row_count_must_be_the_protocols():
+    fw = DeviceFirmware()
+    bad_begin = encode("TABLE_BEGIN", {"transfer_id": 1, "version": 1, "row_count": ROW_COUNT - 1, "crc32": 5})
+    [nack] = feed(fw, [bad_begin], 0.0)
+    assert nack["result"] == AckResult.MALFORMED
+
+
+def test_heartbeat_loss_enters_safe_mode_on_the_first_tick_past_the_timeout(tables):
+    cfg = FirmwareConfig(heartbeat_timeout_s=0.2)
+    fw = DeviceFirmware(cfg)
+    install(fw, tables[0], 1)
+    heartbeat(fw, 1.0)
+    t = 1.0
+    while t < 1.2:
+        fw.tick(standing(t), t)
+        assert fw.mode_ == Mode.ACTIVE
+        t = round(t + 0.001, 6)
+    _, _, out = fw.tick(standing(1.201), 1.201)
+    assert fw.mode_ == Mode.SAFE and fw.safe_mode_entered_s_ == pytest.approx(1.201)
+    assert status(out)["mode"] == Mode.SAFE and Fault.HEARTBEAT_LOST in fw.faults_
+    knee, ankle, _ = fw.tick(standing(1.202), 1.202)   # passive and damped: only -b·θ̇
+    assert knee == pytest.approx(-cfg.safe_damping_knee * 0.5) and ankle == pytest.approx(cfg.safe_damping_ankle * 0.2)
+
+
+def test_safe_mode_is_left_only_by_command_or_a_new_table(tables):
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    install(fw, tables[0], 1)
+    fw.tick(None, 0.5)
+    assert fw.mode_ == Mode.SAFE
+    for t in (0.6, 0.7, 0.8):   # the host comes back: that alone does not leave safe mode
+        heartbeat(fw, t)
+        fw.tick(None, t + 0.001)
+    assert fw.mode_ == Mode.SAFE
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.LEAVE_SAFE_MODE)}), 0.81)
+    assert fw.mode_ == Mode.ACTIVE
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.ENTER_SAFE_MODE)}), 0.82)
+    assert fw.mode_ == Mode.SAFE
+    heartbeat(fw, 0.83)
+    new = install(fw, tables[1], 2, now=0.83)
+    assert fw.mode_ == Mode.ACTIVE and fw.active_.crc32 == new
+
+
+def test_a_table_staged_before_a_commanded_safe_mode_does_not_end_it(tables):
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    heartbeat(fw, 0.0)
+    install(fw, tables[0], 1)
+    begin, rows, commit, crc = transfer(tables[1], 2, 2)
+    [ack] = feed(fw, [begin, *rows, commit], 0.01)                   # verified and staged …
+    assert ack["result"] == AckResult.STAGED and fw.staged_ is not None
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.ENTER_SAFE_MODE)}), 0.011)   # … then safe mode
+    fw.tick(standing(0.012), 0.012)
+    assert fw.mode_ == Mode.SAFE and fw.active_.crc32 == crc and fw.staged_ is None   # held, not run
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.LEAVE_SAFE_MODE)}), 0.02)
+    assert fw.mode_ == Mode.ACTIVE and fw.active_.crc32 == crc
+
+
+def test_leaving_safe_mode_needs_a_live_host():
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    fw.tick(None, 0.5)
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.LEAVE_SAFE_MODE)}), 0.6)
+    assert fw.mode_ == Mode.SAFE   # no table and no heartbeat
+
+
+def test_a_staged_table_waits_for_the_next_heel_strike_while_walking(tables):
+    fw = DeviceFirmware()
+    old = install(fw, tables[0], 1)
+    th = fw.active_.table.thresholds
+    t = 0.0
+
+    def step(load: float, moment: float = 0.0, knee: float = 0.3, knee_velocity: float = 0.0) -> None:
+        nonlocal t
+        t = round(t + 0.001, 6)
+        heartbeat(fw, t)
+        fw.tick(SensorSample(t, knee, knee_velocity, 0.0, 0.0, load, moment), t)
+
+    loaded = th.we_to_sf_load_N + 50
+    for _ in range(100):      # loaded in the first state: a heel strike on load
+        step(loaded)
+    assert fw.controller_.state_ == GaitState.STANCE_FLEXION
+    begin, rows, commit, new = transfer(tables[1], 2, 2)
+    [ack] = feed(fw, [begin, *rows, commit], t)
+    assert ack["result"] == AckResult.STAGED
+    ctrl = fw.controller_
+    stride = [  # one stride by events, well inside the idle time: SE on moment, WF on unloading, WE past the knee threshold
+        *[(loaded, th.sf_to_se_ankle_moment_Nm - 1, 0.3, 0.0)] * 100,
+        *[(0.0, 0.0, 0.3, 1.0)] * 100,
+        *[(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -0.5)] * 100,
+    ]
+    for load, moment, knee, velocity in stride:
+        step(load, moment, knee, velocity)
+        assert fw.active_.crc32 == old and fw.staged_.crc32 == new
+    assert ctrl.state_ == GaitState.SWING_EXTENSION and ctrl.guard_transitions_ == 0
+    step(0.0)
+    assert fw.active_.crc32 == old
+    for _ in range(round(ctrl.schedule.event_hold_s / 0.001)):   # the load must hold before it counts as a heel strike
+        step(loaded)
+        assert ctrl.state_ == GaitState.SWING_EXTENSION and fw.active_.crc32 == old
+    step(loaded)                                      # heel strike recognised: the switch happens on this tick
+    assert ctrl.state_ == GaitState.STANCE_FLEXION and fw.active_.crc32 == new and fw.staged_ is None
+    assert fw.controller_ is ctrl and ctrl.schedule is fw.active_.schedule
+
+
+def test_telemetry_carries_the_sample_in_display_units(tables):
+    fw = DeviceFirmware()
+    install(fw, tables[0], 1)
+    heartbeat(fw, 0.02)
+    x = SensorSample(0.02, math.radians(12.34), math.radians(100.0), math.radians(-5.0), 0.0, 650.0, -40.0)
+    _, _, out = fw.tick(x, 0.02)   # the next 10 ms telemetry slot
+    parts = {decode(m)[0]: physical(*decode(m)) for m in out if decode(m)[0].startswith("TELEMETRY")}
+    assert parts["TELEMETRY_KNEE"]["angle"] == pytest.approx(12.34, abs=0.005)
+    assert parts["TELEMETRY_KNEE"]["velocity"] == pytest.approx(100.0, abs=0.05)
+    assert parts["TELEMETRY_ANKLE"]["angle"] == pytest.approx(-5.0, abs=0.005)
+    assert parts["TELEMETRY_GAIT"]["load"] == pytest.approx(650.0) and parts["TELEMETRY_GAIT"]["ankle_moment"] == -40.0
+    assert len({decode(m)[1]["seq"] for m in out if decode(m)[0].startswith("TELEMETRY")}) == 1
+
+
+def test_a_host_lost_during_commanded_safe_mode_is_flagged_and_no_table_switches_in(tables):
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    old = install(fw, tables[0], 1)
+    heartbeat(fw, 0.1)
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.ENTER_SAFE_MODE)}), 0.1)
+    _, _, out = fw.tick(None, 0.35)                 # the host has gone quiet
+    assert Fault.HEARTBEAT_LOST in fw.faults_ and fw.mode_ == Mode.SAFE
+    assert status(out)["mode"] == Mode.SAFE
+    begin, rows, commit, new = transfer(tables[1], 2, 2)
+    [ack] = feed(fw, [begin, *rows, commit], 0.36)  # its heartbeats are lost, its table frames are not
+    assert ack["result"] == AckResult.STAGED
+    fw.tick(None, 0.37)
+    assert fw.mode_ == Mode.SAFE and fw.active_.crc32 == old   # no new table runs without a live host
+    heartbeat(fw, 0.38)
+    fw.tick(None, 0.39)
+    assert fw.mode_ == Mode.ACTIVE and fw.active_.crc32 == new

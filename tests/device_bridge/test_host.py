@@ -1,0 +1,86 @@
+"""The host's side of the link against the device node on a virtual bus."""
+
+from __future__ import annotations
+
+import time
+
+import can
+import pytest
+
+from device_bridge.firmware import FirmwareConfig
+from device_bridge.host import DeviceLink, PushError
+from device_bridge.protocol import Command, Mode, WireTable
+from tests.helpers.device import pair, until
+
+
+def test_a_push_returns_the_crc_the_device_then_reports_active(tables):
+    node, link = pair()
+    try:
+        result = link.push(tables[0], version=42)
+        assert result.crc32 == WireTable.from_table(tables[0]).crc32() and result.version == 42
+        until(lambda: link.status is not None and link.status.active_crc32 == result.crc32)
+        assert link.status.mode == Mode.ACTIVE and link.status.active_version == 42
+        assert node.snapshot().active.crc32 == result.crc32
+    finally:
+        link.close()
+        node.close()
+
+
+def test_a_table_the_device_finds_unsafe_is_refused_and_the_old_one_stays(tables):
+    node, link = pair()
+    try:
+        old = link.push(tables[0], version=1).crc32
+        until(lambda: node.snapshot().active is not None)     # a leg at rest switches at its next control tick
+        row = tables[1].rows[0]
+        unsafe = tables[1].model_copy(update={"rows": [row.model_copy(update={"b_Nm_s_per_rad": 60.0}),
+                                                       *tables[1].rows[1:]]})
+        with pytest.raises(PushError, match="outside its own safety limits") as err:
+            link.push(unsafe, version=2)
+        assert err.value.reason == "safety_limit"
+        assert node.snapshot().active.crc32 == old and node.snapshot().staged is None
+    finally:
+        link.close()
+        node.close()
+
+
+def test_a_push_to_a_silent_bus_times_out_with_a_reason(tables):
+    link = DeviceLink(can.Bus(interface="virtual", channel="test-link-silent")).start()
+    try:
+        t0 = time.monotonic()
+        with pytest.raises(PushError, match="keeps its previous table") as err:
+            link.push(tables[0], version=1, timeout_s=0.3)
+        assert err.value.reason == "timeout" and time.monotonic() - t0 < 1.0
+    finally:
+        link.close()
+
+
+def test_heartbeat_loss_is_reported_as_safe_mode_and_a_command_resumes(tables):
+    node, link = pair(FirmwareConfig(heartbeat_timeout_s=0.1))
+    try:
+        link.push(tables[0], version=1)
+        until(lambda: link.status is not None and link.status.mode == Mode.ACTIVE)
+        link.pause_heartbeat(True)
+        until(lambda: link.status.mode == Mode.SAFE)
+        entered = node.snapshot().safe_mode_entered_s
+        assert entered - node.snapshot().last_heartbeat_s == pytest.approx(0.1, abs=0.02)
+        link.pause_heartbeat(False)
+        time.sleep(0.05)
+        assert link.status.mode == Mode.SAFE
+        link.command(Command.LEAVE_SAFE_MODE)
+        until(lambda: link.status.mode == Mode.ACTIVE)
+    finally:
+        link.close()
+        node.close()
+
+
+def test_a_failing_callback_does_not_stop_the_link(tables):
+    def broken(_status) -> None:
+        raise RuntimeError("dashboard bug")
+
+    node, link = pair(on_status=broken)
+    try:
+        until(lambda: link.callback_errors > 0)
+        assert link.push(tables[0], version=5).crc32 == WireTable.from_table(tables[0]).crc32()
+    finally:
+        link.close()
+        node.close()
