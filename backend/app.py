@@ -18,15 +18,25 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
-from backend.compute import ComputeLane
+from backend.db import open_pool
 from backend.devices import DeviceManager, parse_device_spec
 from backend.errors import DomainError
 from backend.frontend import mount_frontend
-from backend.group_commit import GroupCommitter
 from backend.migrate import migrate
 from backend.model_service import ModelService
-from backend.pool import ConnectionPool
-from backend.routers import audit, auth, devices, health, patients, previews, proposals, pushes, sessions
+from backend.routers import (
+    audit,
+    auth,
+    devices,
+    health,
+    patients,
+    previews,
+    proposals,
+    pushes,
+    reference,
+    sessions,
+    users,
+)
 from backend.schemas.errors import FieldError
 from backend.settings import Settings
 from backend.viewer3d import ViewerRegistry
@@ -62,7 +72,7 @@ def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
 
 
 def prepare_storage(settings: Settings) -> None:
-    """Create the data directory and bring its database up to date (safe to call from several processes)."""
+    """Create the data directory and bring its database up to date."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     migrate(settings.db_path)
 
@@ -76,19 +86,17 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         yield
         app.state.viewers.close()
         app.state.devices.close()
-        app.state.pool.close()
+        app.state.db.dispose()
 
     app = FastAPI(title="QuasiTune", version=__version__, lifespan=lifespan,
                   description="Learning quasi-stiffness tuning for a powered knee-ankle prosthesis: patients, "
                               "proposals with uncertainty, approval, audit. Angles in deg, moments in N·m or "
                               "N·m/kg, stiffness in N·m/rad — the unit is in every field name.")
     app.state.settings = settings
-    app.state.pool = ConnectionPool(settings.db_path)
-    app.state.committer = GroupCommitter(app.state.pool)   # proposals: one transaction per loop round
-    app.state.preview_lane = ComputeLane()   # seconds of simulation must not queue behind (or block) proposals
+    app.state.db = open_pool(settings.db_path)
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
-    app.state.devices = DeviceManager(settings.db_path, [spec] if spec else []).start()
+    app.state.devices = DeviceManager(app.state.db, [spec] if spec else []).start()
     app.state.viewers = ViewerRegistry(app.state.devices)
 
     @app.exception_handler(RequestValidationError)
@@ -110,12 +118,26 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         headers = {"Retry-After": str(exc.extra["retry_after_s"])} if "retry_after_s" in exc.extra else None
         return JSONResponse({"detail": exc.message, **exc.extra}, status_code=exc.status, headers=headers)
 
-    for router in (health.router, auth.router, patients.router, proposals.router, previews.router, pushes.router,
-                   sessions.router, devices.router, audit.router):
+    for router in (health.router, auth.router, users.router, patients.router, proposals.router, previews.router,
+                   reference.router, pushes.router, sessions.router, devices.router, audit.router):
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
     app.openapi = lambda: _openapi(app)
     return app
+
+
+def app_from_environment() -> FastAPI:
+    """The app configured from the environment, for running under uvicorn directly (``--factory``), e.g. as
+    several workers behind a reverse proxy: ``QUASITUNE_DATA_DIR``, ``QUASITUNE_MODEL_DIR`` and
+    ``QUASITUNE_DEVICE`` (default ``none``: a device lives in exactly one process)."""
+    import os
+    from pathlib import Path
+
+    from backend.settings import default_data_dir
+
+    model_dir = os.environ.get("QUASITUNE_MODEL_DIR")
+    return create_app(Settings(data_dir=default_data_dir(), model_dir=Path(model_dir) if model_dir else None,
+                               device=os.environ.get("QUASITUNE_DEVICE", "none")))
 
 
 def _openapi(app: FastAPI) -> dict:

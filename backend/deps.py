@@ -1,9 +1,7 @@
 """FastAPI dependencies: the database connection, the signed-in user, role checks, the model.
 
-They are ``async`` on purpose: each is microseconds of work (a pool checkout, one indexed SQLite lookup), and a
-sync dependency costs a thread-pool hop apiece — seven per request before this, most of a proposal's overhead
-under load. Most endpoints are sync and run in the thread pool; the proposal request runs on the loop
-(``backend/routers/proposals.py`` says why).
+They are ``async``: each is microseconds of work (opening a connection, one indexed lookup), which a thread-pool
+hop per dependency would only add to.
 """
 
 from __future__ import annotations
@@ -16,7 +14,7 @@ import anyio.to_thread
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
 
-from backend.group_commit import GroupCommitter
+from backend.db import pooled
 from backend.model_service import ModelService
 from backend.settings import Settings
 from backend.store.users import User, user_for_token
@@ -30,18 +28,12 @@ async def get_settings(request: Request) -> Settings:
 
 
 async def get_conn(request: Request) -> AsyncIterator[sqlite3.Connection]:
-    with request.app.state.pool.connection() as conn:
+    """A connection for this request alone, back in the pool once the answer has been sent."""
+    with pooled(request.app.state.db) as conn:
         yield conn
 
 
 Conn = Annotated[sqlite3.Connection, Depends(get_conn)]
-
-
-async def get_committer(request: Request) -> GroupCommitter:
-    return request.app.state.committer
-
-
-Committer = Annotated[GroupCommitter, Depends(get_committer)]
 
 
 def _unauthorized(message: str) -> HTTPException:

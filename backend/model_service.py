@@ -18,12 +18,11 @@ log = logging.getLogger("quasitune.model")
 
 
 def freeze_long_lived_objects() -> None:
-    """Take every object alive now (the model, the imported modules: about 250 000 of them) out of the cyclic
-    garbage collector's reach; they live as long as the process.
+    """Take every object alive now (the model, the imported modules) out of the cyclic garbage collector's walks;
+    they live as long as the process.
 
-    A full collection walks every tracked object: 114 ms in a server process with the default model, and under
-    load one ran every few seconds, stalling every request in that process; it was the load benchmark's p99
-    (160–180 ms). ``gc.freeze()`` is the standard library's remedy for long-lived heaps; collecting first
+    A full collection walks every tracked object, and with the model loaded that stalls every request in flight
+    (docs/results.md). ``gc.freeze()`` is the standard library's remedy for long-lived heaps; collecting first
     keeps garbage from being frozen with them. Objects created later are collected as usual.
     """
     gc.collect()
@@ -45,7 +44,7 @@ class ModelService:
     def _load(self) -> None:
         try:
             self._model = self._loader()
-            log.info("model %s ready", self._model.model_version_)
+            log.info("model %s ready", self._model.model_version)
             freeze_long_lived_objects()
         except Exception as exc:  # reported by /api/health and by every request that needs the model
             log.exception("model failed to load")
@@ -61,7 +60,7 @@ class ModelService:
 
     @property
     def version(self) -> str | None:
-        return None if self._model is None else self._model.model_version_
+        return None if self._model is None else self._model.model_version
 
     def get(self, timeout_s: float) -> QuasiStiffnessModel:
         """The model, waiting up to ``timeout_s`` for it to load."""

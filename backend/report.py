@@ -1,6 +1,7 @@
 """The printable session report as a PDF (matplotlib's PDF backend): task, the table that ran, strides, cadence,
-stride-averaged joint trajectories against the able-bodied reference, and the errors — the same numbers as the
-dashboard's report page, from the stored summary."""
+stride-averaged joint trajectories against the reference (labelled with what it is: measured level walking, the
+measured ramp trend, or the model's prediction), and the errors — the same numbers as the dashboard's report page,
+from the stored summary."""
 
 from __future__ import annotations
 
@@ -17,6 +18,13 @@ from controller_core.gait_metrics import GAIT_CHANNELS, rmse_key
 _LABELS = {"knee_angle_deg": "knee angle (deg, flexion +)", "ankle_angle_deg": "ankle angle (deg, dorsiflexion +)",
            "knee_moment_Nm_per_kg": "knee moment (N·m/kg, flexor +)",
            "ankle_moment_Nm_per_kg": "ankle moment (N·m/kg, dorsiflexor +)"}
+REFERENCE_KIND = {
+    "measured": "measured able-bodied level walking",
+    "measured_ramp_trend": "measured level walking + one participant's measured ramp change, scaled to the incline",
+    "model_prediction": "the model's own prediction (no curves were measured this steep), not data",
+}
+REFERENCE_LEGEND = {"measured": "measured reference", "measured_ramp_trend": "measured ramp trend",
+                    "model_prediction": "model prediction (not data)"}
 
 
 def _fmt(value: object, unit: str = "", digits: int = 2) -> str:
@@ -47,7 +55,7 @@ def session_report_pdf(session: dict, patient: dict) -> bytes:
         f"stride time {_fmt(s.get('stride_time_s'), 's', 3)} (reference {_fmt(s.get('reference_stride_time_s'), 's', 3)})",
         "RMSE against the reference (stride-averaged, on the phase grid): "
         + ", ".join(f"{c.split('_')[0]} {c.split('_')[1]} {_fmt(s.get(rmse_key(c)), '', 3)}" for c in GAIT_CHANNELS),
-        f"Reference: {s.get('reference_source', '—')}"
+        f"Reference: {REFERENCE_KIND.get(s.get('reference_kind'), 'reference')} ({s.get('reference_source', '—')})"
         + (" [EXTRAPOLATION]" if s.get("reference_extrapolation") else ""),
     ]
     for i, line in enumerate(lines):
@@ -58,7 +66,7 @@ def session_report_pdf(session: dict, patient: dict) -> bytes:
         ref = (s.get("reference_curves") or {}).get(ch)
         mean = (s.get("mean_curves") or {}).get(ch)
         if ref:
-            ax.plot(phase, ref, color="k", lw=2, label="able-bodied reference")
+            ax.plot(phase, ref, color="k", lw=2, label=REFERENCE_LEGEND.get(s.get("reference_kind"), "reference"))
         if mean:
             ax.plot(phase, mean, color="tab:blue", lw=1.5, label="measured (stride mean)")
         else:

@@ -1,4 +1,4 @@
-"""Run the API with uvicorn on a socket we bind ourselves, so port 0 works and the real port is printed.
+"""Run the API with uvicorn on a socket bound here, so port 0 works and the real port is printed.
 
 The first line on stdout is ``QuasiTune listening on http://HOST:PORT`` (scripts and tests read it).
 """
@@ -9,13 +9,11 @@ import secrets
 import socket
 import sys
 
-from backend.app import create_app, prepare_storage
+from backend.app import create_app
 from backend.db import connect
 from backend.errors import ConflictError
 from backend.settings import Settings
 from backend.store.users import create_user
-from backend.workers import run_workers
-from backend.workers import supported as workers_supported
 
 BOOTSTRAP_USER = "prosthetist"
 
@@ -60,43 +58,29 @@ def one_blas_thread() -> None:
 
 
 def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstrap: bool = True,
-          log_level: str = "warning", workers: int = 1) -> int:
+          log_level: str = "warning") -> int:
     """Migrate, (maybe) create the first user, bind, print the URL, serve until interrupted; the exit status.
 
-    With ``workers`` > 1, :mod:`backend.workers` runs that many processes, each with its own copy of the
-    model, accepting from the one listening socket bound here (least connections first); SQLite's locking
-    (and :mod:`backend.db`'s write lock) keeps their writes serial.
+    One process. Several, if ever needed, are uvicorn's own workers behind a reverse proxy (README, deployment).
     """
     import uvicorn
 
-    if workers > 1 and not workers_supported():
-        raise ValueError("--workers above 1 needs Linux (worker processes die with the server: prctl); "
-                         "use --workers 1")
     one_blas_thread()
-    app = create_app(settings) if workers == 1 else None
-    if app is None:
-        prepare_storage(settings)   # once in the parent; each worker builds its own app
+    app = create_app(settings)
     password = bootstrap_user(settings) if bootstrap else None
     sock = bind(host, port)
     real_host, real_port = sock.getsockname()[:2]
-
-    def announce() -> None:
-        shown = f"[{real_host}]" if ":" in real_host else real_host
-        print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
-        print(f"  dashboard: http://{shown}:{real_port}/   API docs: http://{shown}:{real_port}/docs", flush=True)
-        print(f"  database: {settings.db_path}", flush=True)
-        if password:
-            print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
-                  "  (shown once; add users with 'quasitune users add NAME --role ROLE')", flush=True)
-        if host not in ("127.0.0.1", "::1", "localhost"):
-            print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
-
-    if workers == 1:
-        announce()
-        config = uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on")
-        uvicorn.Server(config).run(sockets=[sock])
-        return 0
+    shown = f"[{real_host}]" if ":" in real_host else real_host
+    print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
+    print(f"  dashboard: http://{shown}:{real_port}/   API docs: http://{shown}:{real_port}/docs", flush=True)
+    print(f"  database: {settings.db_path}", flush=True)
+    if password:
+        print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
+              "  (shown once; add users with 'quasitune users add NAME --role ROLE')", flush=True)
+    if host not in ("127.0.0.1", "::1", "localhost"):
+        print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
     try:
-        return run_workers(settings, sock, workers, log_level, announce)
+        uvicorn.Server(uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on")).run(sockets=[sock])
     finally:
         sock.close()
+    return 0

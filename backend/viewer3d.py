@@ -14,6 +14,7 @@ import math
 import threading
 
 from backend.devices import DeviceManager
+from controller_core.units import body_weight_N
 from device_bridge.sim.leg_model import LegGeometry
 
 log = logging.getLogger(__name__)
@@ -41,7 +42,7 @@ class LegViewer:
         self.devices = devices
         self.device_id = device_id
         self.geometry = geometry or LegGeometry()
-        self.weight_N = body_mass_kg * 9.81
+        self.weight_N = body_weight_N(body_mass_kg)
         self._server = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -87,7 +88,7 @@ class LegViewer:
         return self
 
     def _draw(self) -> None:
-        x = self.devices.latest_sample(self.device_id)
+        x = self.devices.get(self.device_id).last_sample
         if x is None:
             return
         self._knee.wxyz = _about_y(x.knee_angle_rad)            # flexion swings the shank back

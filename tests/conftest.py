@@ -25,10 +25,45 @@ def model():
 
 
 @pytest.fixture
+def sim_api(tmp_path, model):
+    """In-process API with the simulated leg on a virtual bus (device ``sim-leg-1``), one signed-in user per role."""
+    from tests.helpers.api import make_api
+
+    api, _client = make_api(tmp_path, lambda: model, device="sim")
+    yield api
+    api.client.app.state.viewers.close()
+    api.client.app.state.devices.close()
+
+
+@pytest.fixture
 def api(tmp_path, model):
-    """In-process API on a temporary database, one signed-in user per role (see tests/api_helpers.py)."""
-    from api_helpers import make_api
+    """In-process API on a temporary database, one signed-in user per role (see tests/helpers/api.py)."""
+    from tests.helpers.api import make_api
 
     api, client = make_api(tmp_path, lambda: model)
     with client:
         yield api
+
+
+def _walk_at_1_2_mps(table):
+    from controller_core.fsm import ImpedanceSchedule, StateMachineController
+    from controller_core.walking_reference import level_walking_reference
+    from device_bridge.sim.simulate import run_walk, score_walk
+
+    ref = level_walking_reference(1.2)
+    log = run_walk(StateMachineController(ImpedanceSchedule.from_table(table)), ref, 75.0, seconds=7.0)
+    return log, score_walk(log, ref)
+
+
+@pytest.fixture(scope="session")
+def fsmic_walk():
+    """(log, score) of the FSMIC table walked 7 s on the bench at 1.2 m/s, 75 kg."""
+    from controller_core.fsmic import fsmic_table
+
+    return _walk_at_1_2_mps(fsmic_table(75.0))
+
+
+@pytest.fixture(scope="session")
+def quasi_stiffness_walk(model):
+    """(log, score) of the default model's table walked 7 s on the bench at 1.2 m/s, 75 kg."""
+    return _walk_at_1_2_mps(model.propose(1.2, 0.0, 75.0).table)

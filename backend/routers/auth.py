@@ -1,4 +1,4 @@
-"""Sign-in (OAuth2 password form → bearer token), the signed-in user, and user management (admin)."""
+"""Sign-in (OAuth2 password form → bearer token) and the signed-in user."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, HTTPException, status
 from fastapi.security import OAuth2PasswordRequestForm
 
-from backend.deps import Admin, Conn, CurrentUser, get_settings
-from backend.schemas.auth import Me, TokenOut, UserCreate, UserOut
+from backend.deps import Conn, CurrentUser, get_settings
+from backend.schemas.auth import Me, TokenOut
 from backend.schemas.common import is_utf8_encodable
-from backend.schemas.errors import CONFLICT, FORBIDDEN, UNAUTHORIZED
+from backend.schemas.errors import UNAUTHORIZED
 from backend.security import burn_password_check, verify_password
 from backend.settings import Settings
 from backend.store import users
@@ -41,16 +41,3 @@ def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], conn: Conn,
 def me(user: CurrentUser) -> Me:
     """Who the token belongs to, and their role."""
     return Me(id=user.id, username=user.username, role=user.role)
-
-
-@router.get("/users", response_model=list[UserOut], responses={**UNAUTHORIZED, **FORBIDDEN})
-def list_users(conn: Conn, _admin: Admin) -> list[dict]:
-    """All users (admin only)."""
-    return users.list_users(conn)
-
-
-@router.post("/users", response_model=UserOut, status_code=status.HTTP_201_CREATED,
-             responses={**UNAUTHORIZED, **FORBIDDEN, **CONFLICT})
-def create_user(body: UserCreate, conn: Conn, admin: Admin) -> dict:
-    """Add a user with a role (admin only)."""
-    return users.create_user(conn, body.username, body.role, body.password, actor=admin)

@@ -7,6 +7,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, status
 
+from backend.db import pooled
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
 from backend.schemas.devices import CommandRequest, DeviceIdPath, DeviceOut, ViewerOut
@@ -64,7 +65,7 @@ async def telemetry(websocket: WebSocket, device_id: str,
     """Live telemetry: one JSON message per sample (``type: telemetry``, 100 Hz, ``seq`` without gaps) and one per
     device status (``type: status``, 10 Hz). Sign in with ``?token=<bearer token>``."""
     app = websocket.app
-    with app.state.pool.connection() as conn:
+    with pooled(app.state.db) as conn:
         user = user_for_token(conn, token) if token else None
     m: DeviceManager = app.state.devices
     if user is None or device_id not in m.ids():
@@ -72,7 +73,8 @@ async def telemetry(websocket: WebSocket, device_id: str,
         return
     await websocket.accept()
     queue: asyncio.Queue = asyncio.Queue(maxsize=1000)
-    m.subscribe(device_id, queue, asyncio.get_running_loop())
+    fanout = m.get(device_id).fanout
+    fanout.subscribe(queue, asyncio.get_running_loop())
     try:
         await websocket.send_json({"type": "status", **m.view(device_id)})
         while True:
@@ -80,4 +82,4 @@ async def telemetry(websocket: WebSocket, device_id: str,
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
-        m.unsubscribe(device_id, queue)
+        fanout.unsubscribe(queue)

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response, status
+from fastapi import APIRouter, status
 from pydantic import ValidationError
-from pydantic_core import to_json
 
-from backend.deps import Committer, Conn, CurrentUser, Model, Prosthetist
+from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
@@ -18,9 +17,9 @@ from backend.schemas.proposals import (
     ProposalRequest,
     ProposalSummary,
 )
-from backend.store import devices, patients, proposals
-from controller_core.table import check_table
+from backend.store import patients, proposals, pushes
 from controller_core.table_edit import EditError, edit_table
+from device_bridge.protocol import check_as_run
 
 router = APIRouter(prefix="/api", tags=["proposals"], responses=UNAUTHORIZED)
 
@@ -28,22 +27,14 @@ router = APIRouter(prefix="/api", tags=["proposals"], responses=UNAUTHORIZED)
 @router.post("/patients/{patient_id}/proposals", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
              responses={**FORBIDDEN, **NOT_FOUND, **UNAVAILABLE})
 async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn, user: Prosthetist,
-                          model: Model, committer: Committer) -> Response:
+                          model: Model) -> dict:
     """Predict features, curves and the parameter table for a task and this patient's body mass, and store it
     as the patient's next draft version (prosthetist). Its safety check and extrapolation flag are included."""
-    # All of it runs here, on the event loop (a process serves one proposal at a time; --workers gives more
-    # processes): 1-2 ms of CPU, then the write, which shares one transaction (one fsync) with the other
-    # proposals ready in the same loop round (backend/group_commit.py). In a worker thread the same work
-    # contended for the GIL with the loop, and each of the transaction's statements waited up to Python's 5 ms
-    # switch interval to get the GIL back: 13-27 % fewer proposals per second (docs/results.md).
+    # On the event loop: about a millisecond of NumPy, which in a worker thread only contends with the loop for
+    # the GIL; the write is one short transaction.
     patient = patients.get_patient(conn, patient_id)
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
-    out = await committer.run(lambda write_conn: proposals.insert_from_model(write_conn, patient_id, proposal, user))
-    # Encoded here rather than by FastAPI: validating the answer we just built against ProposalOut and encoding
-    # its 808 curve values with json.dumps was 5 % of a proposal's server CPU under load. The tests check that
-    # the answer is exactly ProposalOut (tests/test_api.py, and schemathesis against the OpenAPI schema).
-    return Response(to_json({**out, "deployment": None}), status_code=status.HTTP_201_CREATED,
-                    media_type="application/json")
+    return {**proposals.create_from_model(conn, patient_id, proposal, user), "deployment": None}
 
 
 @router.get("/patients/{patient_id}/proposals", response_model=list[ProposalSummary], responses=NOT_FOUND)
@@ -56,7 +47,7 @@ def list_proposals(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[d
 @router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)
 def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """A proposal with its curves, features, table and safety check, and its deployment state."""
-    return {**proposals.get_proposal(conn, proposal_id), "deployment": devices.deployment_state(conn, proposal_id)}
+    return {**proposals.get_proposal(conn, proposal_id), "deployment": pushes.deployment_state(conn, proposal_id)}
 
 
 @router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
@@ -71,7 +62,7 @@ def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Pros
                                     body.thresholds.model_dump(exclude_none=True) if body.thresholds else None)
     except (EditError, ValidationError) as exc:
         raise InvalidError(str(exc).splitlines()[0]) from exc
-    violations = check_table(table)
+    violations = check_as_run(table)
     if violations:
         raise InvalidError("edit refused, nothing stored: " + "; ".join(v.message for v in violations),
                            violations=[v.model_dump() for v in violations])

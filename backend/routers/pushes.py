@@ -10,13 +10,12 @@ from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
 from backend.errors import ConflictError, DeviceError, InvalidError
 from backend.schemas.common import IdPath
-from backend.schemas.devices import PushOut, PushRequest
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
-from backend.store import devices as store
+from backend.schemas.pushes import PushOut, PushRequest
 from backend.store import proposals
-from controller_core.table import check_table
+from backend.store import pushes as store
 from device_bridge.host import PushError
-from device_bridge.protocol import ProtocolError, WireTable
+from device_bridge.protocol import ProtocolError, WireTable, check_as_run
 
 router = APIRouter(prefix="/api/proposals", tags=["pushes"], responses=UNAUTHORIZED)
 
@@ -34,7 +33,7 @@ def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, u
         raise ConflictError(f"proposal {proposal_id} is {row['status']}; only approved proposals can be pushed")
     device = devices.get(body.device_id)
     table = proposals.stored_table(row)
-    violations = check_table(table)
+    violations = check_as_run(table)
     if violations:
         raise ConflictError(f"proposal {proposal_id} fails the safety limits; not pushed: "
                             + "; ".join(v.message for v in violations), violations=[v.model_dump() for v in violations])

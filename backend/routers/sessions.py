@@ -11,14 +11,14 @@ from fastapi import APIRouter, Query, Request, Response, status
 from backend.deps import Conn, CurrentUser, Model, Monitor
 from backend.devices import DeviceManager
 from backend.errors import ConflictError, InvalidError
+from backend.experiments.reference import task_reference
 from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
-from backend.schemas.devices import SamplesOut, SessionOut, SessionRequest
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
-from backend.store import devices as store
-from backend.store import patients, proposals
+from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest
+from backend.store import patients, proposals, pushes
+from backend.store import sessions as store
 from controller_core.session_summary import summarize_session
-from device_bridge.sim.experiments import task_reference
 
 router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
 
@@ -32,7 +32,7 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
     devices: DeviceManager = request.app.state.devices
     patient = patients.get_patient(conn, patient_id)
     devices.get(body.device_id)
-    active = store.active_push(conn, body.device_id)
+    active = pushes.current_push(conn, body.device_id)
     if body.speed_mps is not None:
         speed, incline = body.speed_mps, body.incline_deg or 0.0
     elif active is not None:

@@ -1,4 +1,4 @@
-"""Devices, pushes and walking sessions."""
+"""Devices: their status, commands and the 3D view."""
 
 from __future__ import annotations
 
@@ -43,65 +43,5 @@ class ViewerOut(BaseModel):
     frames_drawn: int = Field(description="leg poses drawn from telemetry so far (30 per second while it streams)")
 
 
-class PushRequest(StrictIn):
-    device_id: DeviceId
-
-
-class PushOut(BaseModel):
-    id: int
-    proposal_id: int
-    device_id: str
-    table_version: int
-    crc32: str = Field(description="CRC-32 (hex) of the table as sent, in the wire's fixed-point")
-    status: Literal["sending", "acknowledged", "active", "failed", "superseded"]
-    requested_by: str
-    requested_at: str
-    acknowledged_at: str | None
-    active_at: str | None
-    ended_at: str | None
-    attempts: int | None
-    elapsed_ms: float | None
-    error: str | None
-
-
 class CommandRequest(StrictIn):
     command: Literal["enter_safe_mode", "leave_safe_mode"]
-
-
-class SessionRequest(StrictIn):
-    device_id: DeviceId
-    speed_mps: float | None = Field(default=None, gt=0, le=3,
-                                    description="walking speed (m/s); default: the task of the table active on the device")
-    incline_deg: float | None = Field(default=None, ge=-20, le=20, description="incline (deg); default as speed")
-
-
-class SessionTask(BaseModel):
-    speed_mps: float
-    incline_deg: float
-    body_mass_kg: float
-
-
-class SessionOut(BaseModel):
-    id: int
-    patient_id: int
-    device_id: str
-    proposal_id: int | None
-    table_version: int | None
-    table_crc32: str | None
-    task: SessionTask
-    status: Literal["recording", "stopped"]
-    started_by: str
-    started_at: str
-    stopped_by: str | None
-    stopped_at: str | None
-    summary: dict | None = Field(description="strides, cadence_steps_per_min, *_rmse_deg, *_rmse_Nm_per_kg, "
-                                             "mean and reference curves on phase_grid (deg, N·m/kg)")
-
-
-class SamplesOut(BaseModel):
-    session_id: int
-    count: int
-    every: int
-    columns: dict[str, list[float | int | None]] = Field(
-        description="t_s, mode, fsm_state, knee/ankle angle (deg), velocity (deg/s), torque (N·m), load_N, "
-                    "ankle_moment_Nm")

@@ -1,4 +1,4 @@
-"""The simulated preview of a proposal and the measured reference conditions."""
+"""The simulated preview of a proposal."""
 
 from __future__ import annotations
 
@@ -32,25 +32,3 @@ class PreviewOut(BaseModel):
     reference_curves: dict[str, list[float]] = Field(description="able-bodied reference at the task (deg, N·m/kg)")
     controllers: dict[Literal["table", "fsmic"], ControllerPreview] = Field(
         description="table: this proposal's table; fsmic: the hand-tuned benchmark (never re-tuned per task)")
-
-
-class ReferenceCondition(BaseModel):
-    """One measured able-bodied walking condition the model was trained on (mean curves, display units)."""
-
-    name: str
-    dataset: str
-    citation: str
-    speed_mps: float | None
-    incline_deg: float | None
-    subjects_or_strides: int | None
-    phase: list[float]
-    knee_angle_deg: list[float]
-    knee_moment_Nm_per_kg: list[float]
-    ankle_angle_deg: list[float]
-    ankle_moment_Nm_per_kg: list[float]
-
-
-class ReferenceOut(BaseModel):
-    model_version: str
-    data_sha256: str
-    conditions: list[ReferenceCondition]

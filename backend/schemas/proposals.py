@@ -8,13 +8,14 @@ from pydantic import BaseModel, Field
 
 from backend.schemas.common import StrictIn, Text
 from controller_core.table import LimitViolation, SafetyLimits, Thresholds
+from controller_core.task import SPEED_RANGE_MPS
 
 Joint = Literal["knee", "ankle"]
 Subphase = Literal["stance_flexion", "stance_extension", "swing_flexion", "swing_extension"]
 
 
 class ProposalRequest(StrictIn):
-    speed_mps: float = Field(gt=0, le=3, description="walking speed (m/s), (0, 3]")
+    speed_mps: float = Field(ge=SPEED_RANGE_MPS[0], le=SPEED_RANGE_MPS[1], description="walking speed (m/s), [0.1, 3]")
     incline_deg: float = Field(default=0.0, ge=-20, le=20, description="incline (deg, + uphill), [-20, 20]")
 
 

@@ -19,7 +19,8 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.users import User
 from controller_core.proposal import Proposal
-from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, check_table, display_rows
+from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
+from device_bridge.protocol import check_as_run
 
 _LIMITS = SafetyLimits().model_dump()
 _ACTIONS = {"approved": "proposal.approve", "rejected": "proposal.reject"}
@@ -42,7 +43,7 @@ def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
               violations: list[LimitViolation] | None = None) -> dict:
     """The API view of a proposal from its metadata, its (validated) table and its stored model body
     (``violations``: the table's limit check when the caller has just made it)."""
-    violations = check_table(table) if violations is None else violations
+    violations = check_as_run(table) if violations is None else violations
     out = {
         **meta,
         "model": body["model"],
@@ -125,12 +126,12 @@ def _refuse_non_finite(proposal: Proposal) -> None:
 
 def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
     """Store a freshly computed proposal as the patient's next draft version, inside the caller's write
-    transaction (the API runs it in a group commit, ``backend/group_commit.py``); returns its API view."""
+    transaction; returns its API view."""
     body = proposal.model_body()
     _refuse_non_finite(proposal)
-    model_json = to_json(body).decode()   # pydantic-core's encoder: ~7x faster than json.dumps on 808 floats
+    model_json = to_json(body).decode()   # pydantic-core's encoder: far faster than json.dumps on 808 floats
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
-    violations = check_table(proposal.table)   # of the table stored, whatever the proposal says of it
+    violations = check_as_run(proposal.table)   # of the table stored, whatever the proposal says of it
     if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
         raise NotFoundError(f"patient {patient_id} not found")
     meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
@@ -155,7 +156,7 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable,
         parent = get_row(conn, parent_id)
         task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],
                 "body_mass_kg": parent["body_mass_kg"]}
-        violations = check_table(table)
+        violations = check_as_run(table)
         meta = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
                        parent["model_json"], table, comment, actor, violations)
         out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
@@ -179,7 +180,7 @@ def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str
             raise ConflictError(f"proposal {proposal_id} was already {row['status']} by {row['decided_by_name']} "
                                 f"at {row['decided_at']}; derive a new version to change it")
         if status == "approved":
-            violations = check_table(stored_table(row))
+            violations = check_as_run(stored_table(row))
             if violations:
                 raise ConflictError(f"proposal {proposal_id} cannot be approved: {len(violations)} value(s) outside "
                                     "the safety limits: " + "; ".join(v.message for v in violations),

@@ -58,3 +58,14 @@ export function table(headers, rows, attrs = {}) {
     h("thead", {}, h("tr", {}, headers.map((x) => h("th", { scope: "col" }, x)))),
     h("tbody", {}, rows));
 }
+
+// What a reference curve really is (summaries carry reference_kind; older ones only a source sentence)
+export const REFERENCE_KIND = {
+  measured: "measured able-bodied level walking",
+  measured_ramp_trend: "measured level walking + one participant's measured ramp change, scaled to the incline",
+  model_prediction: "the model's own prediction (no curves were measured this steep), not data",
+};
+
+export function referenceLabel(summary) {
+  return REFERENCE_KIND[summary.reference_kind] || "reference";
+}

@@ -3,15 +3,14 @@
 import { get, post } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { legend, loopChart, phaseChart } from "../charts.js";
-import { chip, fmt, h, notice, pm, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+import { chip, fmt, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
 const RAD = Math.PI / 180;
-let referenceCache = null;
 const state = { kUnit: "rad" };   // stiffness display unit, kept across versions
 
-async function reference() {
-  if (!referenceCache) referenceCache = await get("/api/reference");
-  return referenceCache;
+// the measured conditions behind the model, and the reference at this task with what it really is
+function reference(task) {
+  return get(`/api/reference?speed_mps=${task.speed_mps}&incline_deg=${task.incline_deg}`);
 }
 
 const FIT_METHOD_HELP = {
@@ -25,12 +24,11 @@ const FIT_METHOD_HELP = {
 };
 
 export async function proposalPage(view, id) {
-  const [p, ref] = await Promise.all([get(`/api/proposals/${id}`), reference()]);
-  const patient = await get(`/api/patients/${p.patient_id}`);
+  const p = await get(`/api/proposals/${id}`);
+  const [ref, patient] = await Promise.all([reference(p.task), get(`/api/patients/${p.patient_id}`)]);
   const mass = p.task.body_mass_kg;
   const canDecide = app.me.role === "prosthetist";
-  const nearest = ref.conditions.reduce((a, c) =>
-    Math.abs(c.speed_mps - p.task.speed_mps) < Math.abs(a.speed_mps - p.task.speed_mps) ? c : a);
+  const atTask = ref.at_task;   // null: nothing measured this steep
 
   const head = [
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ",
@@ -59,7 +57,8 @@ export async function proposalPage(view, id) {
   const loops = h("div", { class: "two" }, h("figure", { id: "loop-knee", class: "chart" }),
     h("figure", { id: "loop-ankle", class: "chart" }));
   const loopLegend = legend([["#1f4e99", "proposal (KMP mean) with ±1 SD band", "band"],
-    ["#999", `measured able-bodied reference (nearest: ${nearest.name})`],
+    ["#999", atTask ? `grey: measured level walking; bold: reference at this task — ${atTask.label}`
+      : "grey: measured level walking (no curves were measured this steep: the proposal is the model's prediction)"],
     ["#222", "via-points from the GPR feature predictions", "star"],
     ...SUBPHASES.map((sp) => [SUBPHASE_COLOUR[sp], `${SUBPHASE_LABEL[sp]} fit τ = k(θ − θe)`, "dash"])]);
   const curveBox = h("div", { class: "four", id: "curves" });
@@ -70,16 +69,18 @@ export async function proposalPage(view, id) {
 
   view.replaceChildren(...head,
     h("section", { class: "card" }, h("h2", {}, "Torque-angle loops"), loops, loopLegend,
-      h("p", { class: "muted small" }, "Moments are internal joint moments of this patient (N·m = N·m/kg × ",
-        fmt(mass, 1, "kg"), "), flexor / dorsiflexor positive. Reference: ", nearest.citation)),
+      h("p", { class: "muted small", id: "reference-note" }, "Moments are internal joint moments of this patient (N·m = N·m/kg × ",
+        fmt(mass, 1, "kg"), "), flexor / dorsiflexor positive. ", atTask
+          ? `Reference at this task: ${atTask.source}. Data: ${atTask.citations.join(" ")}`
+          : `No measured curves at ${fmt(p.task.incline_deg, 1, "°")}: the reference is the model's own prediction, not data.`)),
     h("section", { class: "card" }, h("h2", {}, "Over the gait cycle"), curveBox,
       h("p", { class: "muted small" }, "Dotted lines: sub-phase boundaries (stance flexion | stance extension | swing flexion | swing extension).")),
     h("section", { class: "card" }, h("h2", {}, "Predicted features (GPR, ±1 SD)"), featureTable(p)),
     h("section", { class: "card", id: "table-card" }, parameterTable(p, canDecide)),
     decisionBox, pushBox, h("section", { class: "card", id: "versions" }), previewBox);
 
-  drawLoops(p, ref, nearest);
-  drawCurves(p, nearest, curveBox);
+  drawLoops(p, ref, atTask);
+  drawCurves(p, atTask, curveBox);
   renderDecision(decisionBox, p, canDecide);
   renderPush(pushBox, p, canDecide);
   app.proposalInteractiveAt = performance.now();
@@ -101,7 +102,7 @@ function subphaseOf(phase, b) {
   return SUBPHASES.filter((_, i) => phase >= edges[i] - 1e-9 && phase <= edges[i + 1] + 1e-9);
 }
 
-function drawLoops(p, ref, nearest) {
+function drawLoops(p, ref, atTask) {
   const mass = p.task.body_mass_kg;
   for (const joint of ["knee", "ankle"]) {
     const ang = p.curves[`${joint}_angle_deg`];
@@ -119,8 +120,10 @@ function drawLoops(p, ref, nearest) {
       title: `${joint === "knee" ? "Knee" : "Ankle"} torque-angle loop`,
       xLabel: `${joint} angle (deg, ${joint === "knee" ? "flexion" : "dorsiflexion"} +)`,
       yLabel: `${joint} moment (N·m)`,
-      reference: ref.conditions.map((c) => ({ nearest: c === nearest, label: `${c.name} (${fmt(c.speed_mps, 2)} m/s)`,
+      reference: [...ref.conditions.map((c) => ({ nearest: false, label: `measured: ${c.name} (${fmt(c.speed_mps, 2)} m/s, level)`,
         points: c[`${joint}_angle_deg`].map((a, i) => [a, c[`${joint}_moment_Nm_per_kg`][i] * mass]) })),
+      ...(atTask ? [{ nearest: true, label: `reference at this task: ${atTask.label}`,
+        points: atTask[`${joint}_angle_deg`].map((a, i) => [a, atTask[`${joint}_moment_Nm_per_kg`][i] * mass]) }] : [])],
       mean: ang.map((a, i) => [a, mom[i]]),
       band: { upper: ang.map((a, i) => [a, mom[i] + sd[i]]), lower: ang.map((a, i) => [a, mom[i] - sd[i]]) },
       vias: p.via_points.filter((v) => v.joint === joint).map((v) => ({ point: [v.angle_deg, v.moment_Nm_per_kg * mass],
@@ -130,21 +133,24 @@ function drawLoops(p, ref, nearest) {
   }
 }
 
-function drawCurves(p, nearest, box) {
+function drawCurves(p, atTask, box) {
   const x = p.curves.phase.map((s) => s * 100);
   const b = p.subphase_boundaries_phase;
   const markers = [b.stance_flexion_to_stance_extension, b.stance_extension_to_swing_flexion,
     b.swing_flexion_to_swing_extension].map((v) => v * 100);
-  const refX = nearest.phase.map((s) => s * 100);
+  const refX = atTask ? atTask.phase.map((s) => s * 100) : null;
   for (const [key, label] of [["knee_angle_deg", "knee angle (deg)"], ["knee_moment_Nm_per_kg", "knee moment (N·m/kg)"],
     ["ankle_angle_deg", "ankle angle (deg)"], ["ankle_moment_Nm_per_kg", "ankle moment (N·m/kg)"]]) {
     const el = h("figure", { class: "chart", dataset: { channel: key } });
     box.append(el);
-    const refOnGrid = x.map((xx) => interp(xx, refX, nearest[key]));
+    const lines = [{ label: "proposal", values: p.curves[key], color: "#1f4e99" }];
+    if (atTask) {
+      lines.push({ label: atTask.kind === "measured" ? "measured level walking at this speed"
+        : "measured level walking + measured ramp change", values: x.map((xx) => interp(xx, refX, atTask[key])),
+      color: "#888888", dash: [6, 4], width: 1.5 });
+    }
     phaseChart(el, { title: label, yLabel: label.match(/\((.*)\)/)[1], x, markers,
-      bands: [{ label: "proposal", mean: p.curves[key], sd: p.curves[`${key}_std`], color: "#1f4e99" }],
-      lines: [{ label: "proposal", values: p.curves[key], color: "#1f4e99" },
-        { label: `reference ${nearest.name}`, values: refOnGrid, color: "#888888", dash: [6, 4], width: 1.5 }] });
+      bands: [{ label: "proposal", mean: p.curves[key], sd: p.curves[`${key}_std`], color: "#1f4e99" }], lines });
   }
 }
 
@@ -417,7 +423,7 @@ async function renderPreview(box, p) {
   const charts = h("div", { class: "two" });
   box.replaceChildren(h("h2", {}, "Simulated preview: this table vs the FSMIC"),
     h("p", { class: "muted small" }, `Both controllers walked ${fmt(pv.seconds, 0, "s")} each on the MuJoCo bench at this task `,
-      `(socket driven along the able-bodied hip trajectory; metrics as in quasitune simulate). Reference: ${t.reference_source}. `,
+      `(socket driven along the able-bodied hip trajectory; metrics as in quasitune simulate). Reference: ${referenceLabel(t)} (${t.reference_source}). `,
       `Simulated ${when(pv.created_at)}.`),
     table(["Metric", "This table", "FSMIC (hand-tuned, not re-tuned)", "This table − FSMIC, 95 % interval"], [
       metric("falls", "falls", 0), metric("toe catches", "toe_catches", 0), metric("strides", "strides", 0),
@@ -442,7 +448,7 @@ async function renderPreview(box, p) {
     const el = h("figure", { class: "chart" });
     charts.append(el);
     phaseChart(el, { title: `${key.split("_")[0]} angle (deg), stride mean`, yLabel: "deg", x, lines: [
-      { label: "reference", values: pv.reference_curves[key], color: "#222222" },
+      { label: `reference: ${referenceLabel(t)}`, values: pv.reference_curves[key], color: "#222222" },
       { label: "this table", values: t.mean_curves[key] || x.map(() => null), color: "#1f4e99" },
       { label: "FSMIC", values: f.mean_curves[key] || x.map(() => null), color: "#E69F00", dash: [6, 3] }] });
   }

@@ -1,7 +1,7 @@
 // The printable session report (Print → the browser's PDF, or the server's PDF export).
 import { get, token } from "../api.js";
 import { phaseChart } from "../charts.js";
-import { fmt, h, notice, table, when } from "../ui.js";
+import { fmt, h, notice, referenceLabel, table, when } from "../ui.js";
 
 const CHANNELS = [["knee_angle_deg", "knee angle (deg, flexion +)", "knee_angle_rmse_deg", "deg"],
   ["ankle_angle_deg", "ankle angle (deg, dorsiflexion +)", "ankle_angle_rmse_deg", "deg"],
@@ -51,7 +51,7 @@ export async function reportPage(view, id) {
     h("tr", {}, h("td", {}, label), h("td", { class: "num" }, fmt(m[key], unit === "deg" ? 1 : 3, unit)))), { id: "report-errors" });
   const charts = h("div", { class: "two", id: "report-charts" });
   view.replaceChildren(...head, h("h2", {}, "Strides and errors"), metrics, errors,
-    h("p", { class: "muted small" }, `Reference: ${m.reference_source}${m.reference_extrapolation ? " (extrapolated)" : ""}. `,
+    h("p", { class: "muted small", id: "report-reference" }, `Reference: ${referenceLabel(m)} (${m.reference_source})${m.reference_extrapolation ? " (extrapolated)" : ""}. `,
       "Strides between heel strikes (load above 10 % of body weight), averaged on the gait-cycle grid."),
     h("h2", {}, "Joint trajectories against the reference"), charts);
   const x = m.phase_grid.map((p) => p * 100);
@@ -59,7 +59,7 @@ export async function reportPage(view, id) {
     const el = h("figure", { class: "chart" });
     charts.append(el);
     phaseChart(el, { title: label, yLabel: unit, x, height: 200, lines: [
-      { label: "able-bodied reference", values: m.reference_curves[key], color: "#222222" },
+      { label: `reference: ${referenceLabel(m)}`, values: m.reference_curves[key], color: "#222222" },
       { label: "measured (stride mean)", values: m.mean_curves[key] || x.map(() => null), color: "#0072B2" }] });
   }
 }

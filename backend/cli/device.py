@@ -1,0 +1,66 @@
+"""Device-link commands: ``device soak`` (pushes through a faulty bus) and ``device drill`` (heartbeat loss)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from backend.cli.model import load
+from controller_core.table import ParameterTable
+
+
+def soak_tables(args: argparse.Namespace, n: int = 12) -> list[ParameterTable]:
+    """The tables the soak pushes in turn: the model's proposals from 0.8 to 1.9 m/s (75 kg, level)."""
+    model = load(args)
+    return [model.propose(float(s), 0.0, 75.0).table for s in np.linspace(0.8, 1.9, n)]
+
+
+def cmd_device_soak(args: argparse.Namespace) -> int:
+    from device_bridge.soak import soak
+
+    out = soak(soak_tables(args), args.trials, args.drop, args.corrupt, args.reorder, seed=args.seed)
+    if args.format == "json":
+        print(json.dumps(out))
+    else:
+        print(f"{out['trials']} pushes through a bus with drop {args.drop:g}, corrupt {args.corrupt:g}, "
+              f"reorder {args.reorder:g}")
+        for key in ("committed", "kept_old", "committed_unconfirmed", "mixed", "crc_mismatch"):
+            print(f"  {key:22s} {out[key]}")
+        print(f"  push median {out['median_push_ms']:.2f} ms, p99 {out['p99_push_ms']:.2f} ms")
+    return 0 if out["mixed"] == 0 and out["crc_mismatch"] == 0 else 1
+
+
+def cmd_device_drill(args: argparse.Namespace) -> int:
+    from device_bridge.soak import heartbeat_drill
+
+    print(json.dumps(heartbeat_drill(args.repeats, args.timeout_ms / 1000.0)))
+    return 0
+
+
+def _probability(text: str) -> float:
+    value = float(text)
+    if not 0.0 <= value < 1.0:
+        raise argparse.ArgumentTypeError(f"must be a probability in [0, 1), got {text}")
+    return value
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser("device", help="device-link tools: soak test, heartbeat drill")
+    device_sub = p.add_subparsers(dest="device_command", required=True)
+    p = device_sub.add_parser("soak", help="push tables through a fault-injecting virtual bus and count outcomes")
+    p.add_argument("--trials", type=int, default=500)
+    p.add_argument("--drop", type=_probability, default=0.1, help="probability a frame is lost")
+    p.add_argument("--corrupt", type=_probability, default=0.02, help="probability a frame gets one bit flipped")
+    p.add_argument("--reorder", type=_probability, default=0.05, help="probability a frame swaps with the next")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--model", type=Path, default=None, help="model directory whose proposals are pushed")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.set_defaults(func=cmd_device_soak)
+    p = device_sub.add_parser("drill", help="stop the host heartbeat and time the device's safe mode")
+    p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--timeout-ms", type=float, default=200.0, help="the device's heartbeat timeout (ms)")
+    p.set_defaults(func=cmd_device_drill)

@@ -1,0 +1,84 @@
+"""Model commands: ``predict``, ``plot``, ``train``, ``evaluate``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from backend.cli.formatting import print_proposal, write_json
+from controller_core import QuasiStiffnessModel, load_default_model, load_model
+
+
+def load(args: argparse.Namespace) -> QuasiStiffnessModel:
+    """The model named by ``--model``, or the default one."""
+    return load_model(args.model) if args.model else load_default_model()
+
+
+def task_args(p: argparse.ArgumentParser) -> None:
+    """The task and patient options shared by the commands that propose or simulate."""
+    p.add_argument("--speed", type=float, required=True, help="walking speed (m/s), [0.1, 3]")
+    p.add_argument("--incline", type=float, default=0.0, help="incline (deg, + uphill), within ±20")
+    p.add_argument("--mass", type=float, default=75.0, help="patient body mass (kg), 20-200")
+    p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")
+
+
+def cmd_predict(args: argparse.Namespace) -> int:
+    d = load(args).propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass).to_dict()
+    if args.format == "json":
+        print(json.dumps(d, allow_nan=False))
+    else:
+        print_proposal(d)
+    return 0
+
+
+def cmd_plot(args: argparse.Namespace) -> int:
+    from backend.experiments.plotting import plot_proposal
+
+    model = load(args)
+    proposal = model.propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass)
+    print(f"wrote {plot_proposal(model, proposal, args.out)}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from controller_core.model_io import save_model, train_default, train_from_file
+
+    print(f"training on {args.data or 'the shipped data'} …", file=sys.stderr, flush=True)
+    model = train_default() if args.data is None else train_from_file(args.data, use_published=args.with_published)
+    out = save_model(model, args.out)
+    print(f"model {model.model_version} ({len(model.reference_.records)} conditions) saved to {out}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from backend.experiments.evaluation import evaluate, format_incline_report, format_report
+
+    report = evaluate()
+    print(format_report(report))
+    print()
+    print(format_incline_report(report["incline"]))
+    if args.out:
+        write_json(args.out, report)
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("predict", help="propose curves and a parameter table for a task")
+    task_args(p)
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.set_defaults(func=cmd_predict)
+    p = sub.add_parser("plot", help="torque-angle loops with KMP bands, via-points and regression lines")
+    task_args(p)
+    p.add_argument("--out", type=Path, required=True, help="output image (.png, .pdf, .svg)")
+    p.set_defaults(func=cmd_plot)
+    p = sub.add_parser("train", help="fit a model from a standard-format dataset (CSV/Parquet)")
+    p.add_argument("--data", type=Path, default=None, help="dataset file; default: the shipped data")
+    p.add_argument("--out", type=Path, required=True, help="model directory to write")
+    p.add_argument("--with-published", action="store_true",
+                   help="also train on the shipped published incline features")
+    p.set_defaults(func=cmd_train)
+    p = sub.add_parser("evaluate", help="leave-one-condition-out evaluation against baselines")
+    p.add_argument("--out", type=Path, default=None, help="also write the report as JSON here")
+    p.set_defaults(func=cmd_evaluate)

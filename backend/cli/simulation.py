@@ -1,0 +1,54 @@
+"""Simulated-bench commands: ``simulate`` (one walk) and ``compare`` (learned table against the FSMIC)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from backend.cli.formatting import emit, format_compare, write_json
+from backend.cli.model import load, task_args
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from backend.experiments.walks import simulate
+
+    model = load(args) if args.controller == "quasi-stiffness" or args.incline != 0.0 else None
+    score = simulate(args.controller, args.speed, args.incline, args.seconds, args.mass, model,
+                     record=args.record, video=args.video)
+    emit(score.to_dict(), args.format)
+    return 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from backend.experiments.comparison import compare, plot_compare
+
+    results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass)
+    rows = [score.to_dict() for score, _ in results]
+    print(format_compare(rows))
+    if args.out:
+        write_json(args.out, rows)
+    if args.plot:
+        args.plot.parent.mkdir(parents=True, exist_ok=True)
+        plot_compare(results, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def add_commands(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
+    task_args(p)
+    p.add_argument("--controller", choices=["quasi-stiffness", "fsmic"], default="quasi-stiffness")
+    p.add_argument("--seconds", type=float, default=20.0, help="simulated time (s), (0, 600]")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.add_argument("--record", type=Path, default=None, help="save per-tick trajectories (.csv or .parquet)")
+    p.add_argument("--video", type=Path, default=None, help="render headless (MUJOCO_GL=egl): FILE.mp4 or a folder")
+    p.set_defaults(func=cmd_simulate)
+    p = sub.add_parser("compare", help="quasi-stiffness vs FSMIC over a task grid on the simulated bench")
+    p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])
+    p.add_argument("--inclines", type=float, nargs="+", default=[0.0])
+    p.add_argument("--seconds", type=float, default=20.0)
+    p.add_argument("--mass", type=float, default=75.0)
+    p.add_argument("--model", type=Path, default=None)
+    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
+    p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
+    p.set_defaults(func=cmd_compare)

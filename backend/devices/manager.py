@@ -1,0 +1,168 @@
+"""The configured devices of one server process: a CAN link each, its latest status, pushes and commands.
+
+``sim`` starts the simulated leg (the device firmware driving the MuJoCo bench) on a python-can ``virtual`` bus
+inside this process, so the whole loop works out of the box; a real leg is reached over the python-can bus of its
+spec. The link's receive thread calls back here: a status that reports a newly running table marks its push
+``active``; telemetry goes to the WebSocket fan-out and to the session recorder.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import can
+from sqlalchemy.pool import QueuePool
+
+from backend.db import pooled
+from backend.devices.fanout import TelemetryFanout
+from backend.devices.recorder import SessionRecorder
+from backend.devices.specs import DeviceSpec
+from backend.errors import ConflictError, NotFoundError
+from backend.store import devices as devices_store
+from backend.store import pushes as pushes_store
+from controller_core.table import ParameterTable
+from controller_core.walking_reference import WalkingReference
+from device_bridge.device_node import DeviceNode
+from device_bridge.host import DeviceLink, DeviceStatus, PushResult, TelemetrySample
+from device_bridge.protocol import Command, Fault
+from device_bridge.sim.walker import SimWalker
+
+ONLINE_WITHIN_S = 1.0        # a device whose status is older than this is offline
+
+
+@dataclass
+class ManagedDevice:
+    spec: DeviceSpec
+    link: DeviceLink | None = None
+    node: DeviceNode | None = None
+    walker: SimWalker | None = None
+    status: DeviceStatus | None = None
+    noted_active: tuple[int, int] | None = None
+    fanout: TelemetryFanout = field(default_factory=TelemetryFanout)
+    last_sample: TelemetrySample | None = None
+
+
+class DeviceManager:
+    """Opens a link per spec on :meth:`start`; :meth:`close` ends them and the recorder."""
+
+    def __init__(self, db: QueuePool, specs: list[DeviceSpec]) -> None:
+        self.db = db
+        self._specs = specs
+        self._devices: dict[str, ManagedDevice] = {}
+        self.recorder = SessionRecorder(db)
+
+    def start(self) -> DeviceManager:
+        with pooled(self.db) as conn:
+            for spec in self._specs:
+                devices_store.register_device(conn, spec.device_id, spec.kind, spec.interface, spec.channel)
+        for spec in self._specs:
+            dev = ManagedDevice(spec=spec)
+            if spec.kind == "simulated":
+                dev.walker = SimWalker()
+                dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker).start()
+            dev.link = DeviceLink(can.Bus(interface=spec.interface, channel=spec.channel),
+                                  on_status=lambda s, d=dev: self._on_status(d, s),
+                                  on_telemetry=lambda x, d=dev: self._on_telemetry(d, x))
+            self._devices[spec.device_id] = dev   # before the link starts: its callbacks look the device up
+            dev.link.start()
+        self.recorder.start()
+        return self
+
+    def close(self) -> None:
+        self.recorder.close()
+        for dev in self._devices.values():
+            if dev.link is not None:
+                dev.link.close()
+            if dev.node is not None:
+                dev.node.close()
+
+    # ------------------------------------------------------------------------------------------ queries
+
+    def get(self, device_id: str) -> ManagedDevice:
+        dev = self._devices.get(device_id)
+        if dev is None:
+            known = ", ".join(self._devices) or "none configured"
+            raise NotFoundError(f"device {device_id!r} not found (devices: {known})")
+        return dev
+
+    def ids(self) -> list[str]:
+        return list(self._devices)
+
+    def online(self, dev: ManagedDevice) -> bool:
+        return dev.status is not None and time.monotonic() - dev.status.received_monotonic_s <= ONLINE_WITHIN_S
+
+    def view(self, device_id: str) -> dict:
+        """The device as the API shows it: configuration, link state and the latest status (display units)."""
+        dev = self.get(device_id)
+        s = dev.status
+        age = None if s is None else round(time.monotonic() - s.received_monotonic_s, 3)
+        return {
+            "id": dev.spec.device_id, "kind": dev.spec.kind, "interface": dev.spec.interface,
+            "channel": dev.spec.channel, "online": self.online(dev),
+            "mode": None if s is None else s.mode.name.lower(),
+            "safe_mode": s is not None and s.mode.name == "SAFE",
+            "fsm_state": None if s is None else s.fsm_state,
+            "active_version": None if s is None else s.active_version,
+            "active_crc32": None if s is None or s.active_crc32 is None else f"{s.active_crc32:08x}",
+            "pending_version": None if s is None else s.pending_version,
+            "faults": [] if s is None else [f.name.lower() for f in Fault if f in s.fault_flags],
+            "temperature_degC": None if s is None else s.temperature_degC,
+            "rx_errors": None if s is None else s.rx_errors,
+            "last_heartbeat_unix_s": None if s is None else round(s.received_unix_s, 3),
+            "last_heartbeat_age_s": age,
+            "walking": None if dev.walker is None else dev.walker.walking,
+            "recording_session_id": self.recorder.session_of(device_id),
+        }
+
+    # ------------------------------------------------------------------------------------------ commands
+
+    def push(self, device_id: str, table: ParameterTable, version: int) -> PushResult:
+        """Push a table and wait for the CRC read-back (raises device_bridge's PushError on failure)."""
+        dev = self.get(device_id)
+        if not self.online(dev) or dev.link is None:
+            raise ConflictError(f"device {device_id} is offline (no status for over {ONLINE_WITHIN_S:g} s); "
+                                "nothing was sent")
+        return dev.link.push(table, version)
+
+    def command(self, device_id: str, command: Command) -> None:
+        dev = self.get(device_id)
+        if not self.online(dev) or dev.link is None:
+            raise ConflictError(f"device {device_id} is offline; the command was not sent")
+        dev.link.command(command)
+
+    def start_recording(self, device_id: str, session_id: int, reference: WalkingReference | None,
+                        mass_kg: float) -> None:
+        """Record the device's telemetry into ``session_id``; a simulated leg starts walking at the task."""
+        dev = self.get(device_id)
+        self.recorder.begin(device_id, session_id)
+        if dev.walker is not None and reference is not None:
+            dev.walker.start(reference, mass_kg)
+
+    def stop_recording(self, device_id: str) -> None:
+        """Stop recording (everything received so far is written before this returns)."""
+        dev = self.get(device_id)
+        self.recorder.end(device_id)
+        if dev.walker is not None:
+            dev.walker.stop()
+
+    # ------------------------------------------------------------------------------------------ callbacks (rx thread)
+
+    def _on_status(self, dev: ManagedDevice, status: DeviceStatus) -> None:
+        dev.status = status
+        active = None if status.active_version is None else (status.active_version, status.active_crc32)
+        if active is not None and active != dev.noted_active:
+            with pooled(self.db) as conn:
+                pushes_store.mark_active(conn, dev.spec.device_id, active[0], active[1])
+            dev.noted_active = active
+        if dev.fanout:
+            dev.fanout.publish({"type": "status", **self.view(dev.spec.device_id)})
+
+    def _on_telemetry(self, dev: ManagedDevice, x: TelemetrySample) -> None:
+        dev.last_sample = x
+        self.recorder.add(dev.spec.device_id, (
+            x.seq, x.received_unix_s, int(x.mode), x.fsm_state, x.knee_angle_rad, x.knee_velocity_rad_s,
+            x.knee_torque_Nm, x.ankle_angle_rad, x.ankle_velocity_rad_s, x.ankle_torque_Nm, x.load_N,
+            x.ankle_moment_Nm))
+        if dev.fanout:
+            dev.fanout.publish({"type": "telemetry", **x.to_json()})

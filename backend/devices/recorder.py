@@ -1,0 +1,75 @@
+"""Recording walking sessions: telemetry samples arrive at 100 Hz on the CAN receive thread and are written to
+SQLite in batches, one transaction every :data:`FLUSH_PERIOD_S`, by a thread of their own (a transaction per
+sample would cost the bus thread a commit every 10 ms). Stopping a session writes what is buffered first."""
+
+from __future__ import annotations
+
+import threading
+
+from sqlalchemy.pool import QueuePool
+
+from backend.db import pooled
+from backend.store import sessions as store
+
+FLUSH_PERIOD_S = 0.25
+
+
+class SessionRecorder:
+    """Buffers each device's samples for the session it records and writes them in batches."""
+
+    def __init__(self, db: QueuePool) -> None:
+        self._db = db
+        self._recording: dict[str, int] = {}        # device id → session id
+        self._buffers: dict[str, list[tuple]] = {}
+        self._lock = threading.Lock()
+        self._write_lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="session-recorder", daemon=True)
+
+    def start(self) -> SessionRecorder:
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+        self.flush()
+
+    def session_of(self, device_id: str) -> int | None:
+        return self._recording.get(device_id)
+
+    def begin(self, device_id: str, session_id: int) -> None:
+        with self._lock:
+            self._recording[device_id] = session_id
+            self._buffers[device_id] = []
+
+    def end(self, device_id: str) -> None:
+        """Stop recording ``device_id``; everything received so far is written before this returns."""
+        self.flush()
+        with self._lock:
+            self._recording.pop(device_id, None)
+            self._buffers.pop(device_id, None)
+
+    def add(self, device_id: str, row: tuple) -> None:
+        """One sample (in :data:`backend.store.sessions.SAMPLE_COLUMNS` order), if the device is recording."""
+        with self._lock:
+            buffer = self._buffers.get(device_id)
+            if buffer is not None:
+                buffer.append(row)
+
+    def flush(self) -> None:
+        """Write every buffered sample; a flush already writing is waited for, so nothing is read half-written."""
+        with self._write_lock:
+            with self._lock:
+                batches = [(self._recording[d], rows) for d, rows in self._buffers.items() if rows]
+                self._buffers = {d: [] for d in self._buffers}
+            if not batches:
+                return
+            with pooled(self._db) as conn:
+                for session_id, rows in batches:
+                    store.add_samples(conn, session_id, rows)
+
+    def _run(self) -> None:
+        while not self._stop.wait(FLUSH_PERIOD_S):
+            self.flush()

@@ -1,0 +1,40 @@
+"""Which device a server talks to: ``sim`` (the simulated leg on an in-process virtual bus), ``none``, or a
+python-can ``INTERFACE:CHANNEL`` for a real leg (``socketcan:can0``, ``pcan:PCAN_USBBUS1`` …)."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import re
+from dataclasses import dataclass
+
+from device_bridge.buses import parse_bus_spec
+
+SIM_DEVICE_ID = "sim-leg-1"
+_sim_counter = itertools.count()
+
+
+@dataclass(frozen=True)
+class DeviceSpec:
+    """One configured device: its id, kind (``simulated`` or ``can``) and python-can interface and channel."""
+
+    device_id: str
+    kind: str
+    interface: str
+    channel: str
+
+
+def parse_device_spec(text: str) -> DeviceSpec | None:
+    """``sim`` / ``none`` / ``INTERFACE:CHANNEL`` → a spec (None for ``none``); ValueError with the reason."""
+    text = text.strip()
+    if text == "none":
+        return None
+    if text == "sim":   # a virtual bus exists only inside one process: a channel of this process's own
+        channel = f"quasitune-sim-{os.getpid()}-{next(_sim_counter)}"
+        return DeviceSpec(SIM_DEVICE_ID, "simulated", "virtual", channel)
+    try:
+        interface, channel = parse_bus_spec(text)
+    except ValueError as exc:
+        raise ValueError(f"device must be 'sim', 'none' or {str(exc).removeprefix('expected ')}") from None
+    device_id = re.sub(r"[^A-Za-z0-9._-]", "-", f"{interface}-{channel}")[:64]
+    return DeviceSpec(device_id, "can", interface, channel)

@@ -1,0 +1,25 @@
+"""User accounts (admin only)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, status
+
+from backend.deps import Admin, Conn
+from backend.schemas.errors import CONFLICT, FORBIDDEN, UNAUTHORIZED
+from backend.schemas.users import UserCreate, UserOut
+from backend.store import users
+
+router = APIRouter(prefix="/api", tags=["users"])
+
+
+@router.get("/users", response_model=list[UserOut], responses={**UNAUTHORIZED, **FORBIDDEN})
+def list_users(conn: Conn, _admin: Admin) -> list[dict]:
+    """All users (admin only)."""
+    return users.list_users(conn)
+
+
+@router.post("/users", response_model=UserOut, status_code=status.HTTP_201_CREATED,
+             responses={**UNAUTHORIZED, **FORBIDDEN, **CONFLICT})
+def create_user(body: UserCreate, conn: Conn, admin: Admin) -> dict:
+    """Add a user with a role (admin only)."""
+    return users.create_user(conn, body.username, body.role, body.password, actor=admin)

@@ -1,0 +1,49 @@
+"""The measured able-bodied walking conditions behind the model."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+
+class ReferenceCondition(BaseModel):
+    """One measured able-bodied walking condition the model was trained on (mean curves, display units)."""
+
+    name: str
+    dataset: str
+    citation: str
+    speed_mps: float | None
+    incline_deg: float | None
+    subjects_or_strides: int | None
+    phase: list[float]
+    knee_angle_deg: list[float]
+    knee_moment_Nm_per_kg: list[float]
+    ankle_angle_deg: list[float]
+    ankle_moment_Nm_per_kg: list[float]
+
+
+class TaskReference(BaseModel):
+    """The reference at one task, and what it really is: measured level walking, or level walking plus the change
+    measured on a ramp (one participant), scaled to the incline. None where nothing was measured that steep."""
+
+    kind: Literal["measured", "measured_ramp_trend"]
+    label: str = Field(description="what the curve is, in a sentence for the chart's legend")
+    source: str
+    citations: list[str]
+    speed_mps: float
+    incline_deg: float
+    phase: list[float]
+    knee_angle_deg: list[float]
+    knee_moment_Nm_per_kg: list[float]
+    ankle_angle_deg: list[float]
+    ankle_moment_Nm_per_kg: list[float]
+
+
+class ReferenceOut(BaseModel):
+    model_version: str
+    data_sha256: str
+    conditions: list[ReferenceCondition]
+    at_task: TaskReference | None = Field(
+        default=None, description="with speed_mps and incline_deg: the reference at that task, or null where no "
+                                  "curves were measured that steep (the proposal is then the model's prediction)")

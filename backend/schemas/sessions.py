@@ -1,0 +1,50 @@
+"""Walking sessions: recording a device's telemetry for a patient, the summary and the samples."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field
+
+from backend.schemas.common import StrictIn
+from backend.schemas.devices import DeviceId
+from controller_core.task import SPEED_RANGE_MPS
+
+
+class SessionRequest(StrictIn):
+    device_id: DeviceId
+    speed_mps: float | None = Field(default=None, ge=SPEED_RANGE_MPS[0], le=SPEED_RANGE_MPS[1],
+                                    description="walking speed (m/s); default: the task of the table active on the device")
+    incline_deg: float | None = Field(default=None, ge=-20, le=20, description="incline (deg); default as speed")
+
+
+class SessionTask(BaseModel):
+    speed_mps: float
+    incline_deg: float
+    body_mass_kg: float
+
+
+class SessionOut(BaseModel):
+    id: int
+    patient_id: int
+    device_id: str
+    proposal_id: int | None
+    table_version: int | None
+    table_crc32: str | None
+    task: SessionTask
+    status: Literal["recording", "stopped"]
+    started_by: str
+    started_at: str
+    stopped_by: str | None
+    stopped_at: str | None
+    summary: dict | None = Field(description="strides, cadence_steps_per_min, *_rmse_deg, *_rmse_Nm_per_kg, "
+                                             "mean and reference curves on phase_grid (deg, N·m/kg)")
+
+
+class SamplesOut(BaseModel):
+    session_id: int
+    count: int
+    every: int
+    columns: dict[str, list[float | int | None]] = Field(
+        description="t_s, mode, fsm_state, knee/ankle angle (deg), velocity (deg/s), torque (N·m), load_N, "
+                    "ankle_moment_Nm")

@@ -1,0 +1,46 @@
+"""``python -m benchmarks {model,api,device,ui} [options]``: run one benchmark and print its figures as JSON."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__)
+    sub = parser.add_subparsers(dest="name", required=True)
+    p = sub.add_parser("model", help="fit time, propose() and KMP timings, one state-machine step")
+    p.add_argument("--repeats", type=int, default=2000)
+    p = sub.add_parser("api", help="proposals from concurrent clients against one server process, telemetry beside")
+    p.add_argument("--clients", type=int, default=20)
+    p.add_argument("--seconds", type=float, default=10.0, help="measured duration (s) after a warm-up")
+    p = sub.add_parser("device", help="push latency through the API and telemetry rate with the simulated leg")
+    p.add_argument("--seconds", type=float, default=10.0, help="telemetry measured for this long (s)")
+    p.add_argument("--pushes", type=int, default=50, help="approved proposals pushed through the API")
+    p = sub.add_parser("ui", help="dashboard in Chromium: proposal view time to interactive, live-monitor fps")
+    p.add_argument("--repeats", type=int, default=20, help="proposals requested through the page")
+    p.add_argument("--monitor-seconds", type=float, default=5.0, help="live monitor measured for this long (s)")
+    args = parser.parse_args(argv)
+    if args.name == "model":
+        from benchmarks.model import run
+
+        result = run(args.repeats)
+    elif args.name == "api":
+        from benchmarks.api import run
+
+        result = run(args.clients, args.seconds)
+    elif args.name == "device":
+        from benchmarks.device import run
+
+        result = run(args.seconds, args.pushes)
+    else:
+        from benchmarks.ui import run
+
+        result = run(args.repeats, args.monitor_seconds)
+    print(json.dumps(result, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

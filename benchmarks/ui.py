@@ -1,0 +1,98 @@
+"""Dashboard benchmark (``python -m benchmarks ui``): Debian's Chromium (Playwright) against a real
+``quasitune serve`` with the simulated leg.
+
+Figures, not assertions (the browser tests assert behaviour):
+
+* ``proposal_view_ms``: from the moment ``POST /api/patients/{id}/proposals`` returns in the page to the proposal
+  view being interactive — loops, curves, features, table, decision and push controls drawn and wired (the
+  simulated preview arrives later, on its own). The target is ≤ 1000 ms.
+* ``cold_proposal_page_ms``: a fresh page load of a proposal URL (navigation start → interactive), the case of a
+  prosthetist opening a link.
+* ``monitor_fps``: live-monitor chart redraws per second while telemetry streams (target ≥ 30), with the
+  telemetry rate the page received and any sequence gaps; ``monitor_fps_with_3d_view`` the same with the viser
+  scene open (WebGL; headless Chromium here renders it in software, SwiftShader, on the same CPU cores).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+from tests.helpers.browser import CHROMIUM_ARGS, chromium_path, sign_in
+from tests.helpers.server import PASSWORD, temporary_server
+
+
+def _pct(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+
+def _measure(base: str, repeats: int, monitor_s: float) -> dict:
+    import httpx
+    from playwright.sync_api import sync_playwright
+
+    with httpx.Client(base_url=base, timeout=30) as c:
+        while c.get("/api/health").json()["model"] != "ready":
+            time.sleep(0.1)
+        tok = c.post("/api/auth/token", data={"username": "bench", "password": PASSWORD}).json()["access_token"]
+        h = {"Authorization": f"Bearer {tok}"}
+        patient = c.post("/api/patients", headers=h, json={"code_name": "UI-1", "body_mass_kg": 75, "side": "left"}).json()
+    view_ms, cold_ms = [], []
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport={"width": 1366, "height": 900})
+        sign_in(page, base, "bench")
+        for i in range(repeats):
+            page.goto(f"{base}/#/patients/{patient['id']}")
+            page.wait_for_selector("#propose")
+            page.evaluate("window.quasitune.proposalViewMs = undefined")
+            page.fill("#propose input[name=speed_mps]", f"{0.9 + 0.05 * (i % 16):.2f}")
+            page.click("#propose button[type=submit]")
+            page.wait_for_function("window.quasitune.proposalViewMs !== undefined", timeout=30_000)
+            view_ms.append(page.evaluate("window.quasitune.proposalViewMs"))
+        url = page.url
+        for _ in range(max(3, repeats // 4)):
+            page.goto("about:blank")
+            page.goto(url)
+            page.wait_for_function("window.quasitune && window.quasitune.proposalInteractiveAt !== undefined",
+                                   timeout=30_000)
+            cold_ms.append(page.evaluate("window.quasitune.proposalInteractiveAt"))
+        page.goto(f"{base}/#/monitor/sim-leg-1?patient={patient['id']}")
+        page.fill("#session input[name=speed]", "1.2")
+        page.click("#start-session")
+        page.wait_for_selector("#stop-session")
+        page.wait_for_function("window.quasitune.monitor && window.quasitune.monitor.samples > 100", timeout=20_000)
+        before = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")
+        page.wait_for_timeout(monitor_s * 1000)
+        after = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")
+        page.click("#viewer3d-toggle summary")          # the same with the viser 3D scene open
+        page.frame_locator("#viewer3d iframe").locator("canvas").first.wait_for(timeout=20_000)
+        page.wait_for_timeout(1000)
+        before3d = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")
+        page.wait_for_timeout(monitor_s * 1000)
+        after3d = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")
+        page.click("#viewer3d-toggle summary")
+        page.click("#stop-session")
+        page.wait_for_selector("#session-summary")
+        webgl = page.evaluate("""() => { const g = document.createElement('canvas').getContext('webgl');
+            const i = g && g.getExtension('WEBGL_debug_renderer_info');
+            return g ? (i ? g.getParameter(i.UNMASKED_RENDERER_WEBGL) : 'webgl') : 'none'; }""")
+        browser.close()
+    span_s = (after["now"] - before["now"]) / 1000
+    span3d_s = (after3d["now"] - before3d["now"]) / 1000
+    return {
+        "proposal_view_ms_median": round(statistics.median(view_ms), 1),
+        "proposal_view_ms_p95": round(_pct(view_ms, 0.95), 1),
+        "proposal_view_ms_max": round(max(view_ms), 1), "proposal_views": len(view_ms),
+        "cold_proposal_page_ms_median": round(statistics.median(cold_ms), 1),
+        "monitor_fps": round((after["frames"] - before["frames"]) / span_s, 1),
+        "monitor_telemetry_hz": round((after["samples"] - before["samples"]) / span_s, 1),
+        "monitor_sequence_gaps": after3d["gaps"], "monitor_seconds": round(span_s, 2),
+        "monitor_fps_with_3d_view": round((after3d["frames"] - before3d["frames"]) / span3d_s, 1),
+        "webgl_renderer": webgl,
+    }
+
+
+def run(repeats: int = 20, monitor_s: float = 5.0) -> dict:
+    with temporary_server("quasitune-uibench-", device="sim") as base:
+        return _measure(base, repeats, monitor_s)

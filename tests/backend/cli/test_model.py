@@ -1,0 +1,77 @@
+"""quasitune predict, plot, train and evaluate, run in-process (one subprocess checks the installed entry point)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from backend.cli import main
+
+
+def test_the_entry_point_runs_as_a_module():
+    out = subprocess.run([sys.executable, "-m", "backend.cli", "predict", "--speed", "1.25", "--format", "json"],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["task"]["speed_mps"] == 1.25
+
+
+def test_cli_predict_json_is_one_object(capsys):
+    assert main(["predict", "--speed", "1.25", "--incline", "0", "--mass", "75", "--format", "json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    for key in ("task", "model", "extrapolation", "features", "curves", "table"):
+        assert key in d
+    f = d["features"][0]
+    assert set(f) >= {"joint", "quantity", "name", "phase", "value", "std", "unit"}
+    assert set(d["table"][0]) >= {"joint", "subphase", "k_Nm_per_rad", "theta_e_deg", "b_Nm_s_per_rad", "r2"}
+
+
+@pytest.mark.parametrize(("args", "names"), [(["--speed", "0"], "speed_mps"), (["--speed", "nan"], "speed_mps"),
+                                            (["--speed", "1", "--incline", "30"], "incline_deg"),
+                                            (["--speed", "1", "--mass", "500"], "mass_kg"),
+                                            (["--speed=-0.5"], "speed_mps")])
+def test_cli_bad_input_exits_2_with_one_line(capsys, args, names):
+    assert main(["predict", *args]) == 2
+    out = capsys.readouterr()
+    assert out.out == ""
+    assert len(out.err.strip().splitlines()) == 1 and out.err.startswith("quasitune: error:") and names in out.err
+
+
+def test_cli_readable_table_and_plot(capsys, tmp_path):
+    assert main(["predict", "--speed", "1.4", "--incline", "3"]) == 0
+    text = capsys.readouterr().out
+    assert "Parameter table" in text and "stance_flexion" in text
+    png = tmp_path / "fig.png"
+    assert main(["plot", "--speed", "1.4", "--out", str(png)]) == 0
+    assert png.stat().st_size > 50_000
+
+
+def test_cli_train_on_standard_format_then_predict_with_it(capsys, reference, tmp_path):
+    from controller_core.phase_table import reference_to_phase_table
+
+    data = tmp_path / "bovi_standard.parquet"
+    reference_to_phase_table(reference).to_parquet(data)  # real Bovi rows in the standard format
+    assert main(["train", "--data", str(data), "--out", str(tmp_path / "m")]) == 0
+    out = capsys.readouterr()
+    assert "training on" in out.err and "(5 conditions) saved to" in out.out
+    assert main(["predict", "--speed", "1.3", "--model", str(tmp_path / "m"), "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["task"]["speed_mps"] == 1.3
+    assert main(["predict", "--speed", "1.3", "--model", str(tmp_path / "nope")]) == 2
+    assert "no model" in capsys.readouterr().err
+
+
+def test_cli_evaluate_writes_json(capsys, monkeypatch, reference, tmp_path):
+    from backend.experiments import evaluation
+
+    # three real conditions keep the leave-one-out short; the shipped five are the same code path
+    monkeypatch.setattr(evaluation, "load_shipped_reference", lambda: reference.subset([0, 2, 4]))
+    assert main(["evaluate", "--out", str(tmp_path / "eval.json")]) == 0
+    text = capsys.readouterr().out
+    assert "Leave-one-condition-out curve RMSE" in text and "Leave-one-ramp-condition-out" in text
+    r = json.loads((tmp_path / "eval.json").read_text())
+    assert set(r["curve_rmse"]["knee_angle_deg"]) == {"proposal", "reference", "gmr", "linear", "nearest",
+                                                          "between_subject_sd"}
+    assert [f["held_out"] for f in r["folds"]] == [reference.records[i].name for i in (0, 2, 4)]
+    assert [f["incline_deg"] for f in r["incline"]["folds"]] == [-10.0, 10.0]

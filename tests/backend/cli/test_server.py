@@ -1,0 +1,41 @@
+"""quasitune users and serve's argument checks, run in-process."""
+
+from __future__ import annotations
+
+import io
+
+import pytest
+
+from backend.cli import main
+
+
+def test_users_add_reads_the_password_from_stdin_and_refuses_bad_input(capsys, monkeypatch, tmp_path):
+    def users_add(name: str, role: str, password: str) -> int:
+        monkeypatch.setattr("sys.stdin", io.StringIO(password + "\n"))
+        return main(["users", "add", name, "--role", role, "--data-dir", str(tmp_path)])
+
+    assert users_add("alex", "viewer", "long-enough-pw") == 0
+    assert "alex (viewer)" in capsys.readouterr().out
+    assert users_add("alex", "viewer", "long-enough-pw") == 2
+    assert "already exists" in capsys.readouterr().err
+    assert users_add("bo", "viewer", "short") == 2
+    assert "at least 8 characters" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        users_add("cy", "surgeon", "long-enough-pw")
+    assert exit_.value.code == 2 and "invalid choice" in capsys.readouterr().err
+    assert main(["users", "list", "--data-dir", str(tmp_path)]) == 0
+    listed = capsys.readouterr().out
+    assert "alex" in listed and "bo" not in listed
+
+
+@pytest.mark.parametrize("port", ["-1", "65536", "nope"])
+def test_serve_refuses_a_bad_port(capsys, tmp_path, port):
+    with pytest.raises(SystemExit) as exit_:
+        main(["serve", "--port", port, "--data-dir", str(tmp_path)])
+    assert exit_.value.code == 2 and "port" in capsys.readouterr().err
+
+
+def test_serve_refuses_a_bad_device_before_starting(capsys, tmp_path):
+    assert main(["serve", "--device", "carrier-pigeon:1", "--data-dir", str(tmp_path)]) == 2
+    assert "device must be 'sim', 'none' or INTERFACE:CHANNEL" in capsys.readouterr().err
+    assert not (tmp_path / "quasitune.sqlite").exists()          # nothing was started or created

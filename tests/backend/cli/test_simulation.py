@@ -1,0 +1,40 @@
+"""quasitune simulate and compare."""
+
+from __future__ import annotations
+
+import json
+
+from backend.cli import main
+
+
+def test_cli_simulate_prints_json_and_refuses_bad_input(capsys, tmp_path):
+    rec = tmp_path / "walk.csv"
+    assert main(["simulate", "--speed", "1.2", "--controller", "quasi-stiffness", "--seconds", "3",
+                 "--format", "json", "--record", str(rec)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in ("strides", "falls", "toe_catches", "knee_angle_rmse_deg", "ankle_angle_rmse_deg",
+                "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg", "time_in_state_s", "real_time_factor"):
+        assert key in out
+    assert out["controller"] == "quasi-stiffness" and out["real_time_factor"] > 1.0
+    header = rec.read_text().splitlines()[0].split(",")
+    assert "knee_angle_deg" in header and "ankle_torque_Nm" in header and len(rec.read_text().splitlines()) == 3001
+    assert main(["simulate", "--speed", "0", "--controller", "fsmic"]) == 2
+    assert "speed" in capsys.readouterr().err
+    assert main(["simulate", "--speed", "1.2", "--controller", "fsmic", "--seconds", "nan"]) == 2
+    assert "seconds" in capsys.readouterr().err
+
+
+def test_cli_compare_prints_the_table_and_the_verdicts_and_writes_them(capsys, tmp_path):
+    out = tmp_path / "compare.json"
+    assert main(["compare", "--speeds", "1.2", "--seconds", "5", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "| 1.20 | 0.00 | quasi-stiffness |" in text and "| 1.20 | 0.00 | fsmic |" in text
+    assert "95 % interval over strides" in text
+    rows = json.loads(out.read_text())
+    learned = next(r for r in rows if r["controller"] == "quasi-stiffness")
+    vs = learned["vs_fsmic"]
+    lo, hi = vs["knee_angle_rmse_difference_ci95_deg"]
+    expected = "learned lower" if hi < 0 else "FSMIC lower" if lo > 0 else "not resolved"
+    assert lo <= vs["knee_angle_rmse_difference_deg"] <= hi and vs["knee_angle_verdict"] == expected
+    assert f"{vs['knee_angle_rmse_difference_deg']:+.2f} [{lo:+.2f}, {hi:+.2f}] {expected}" in text
+    assert "vs_fsmic" not in next(r for r in rows if r["controller"] == "fsmic")

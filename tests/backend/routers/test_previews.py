@@ -1,0 +1,45 @@
+"""The simulated preview of a proposal."""
+
+from __future__ import annotations
+
+import pytest
+
+
+def test_preview_walks_the_table_and_the_fsmic_once_and_keeps_it(api):
+    prop = api.propose(api.new_patient()["id"], speed=1.2)
+    c, viewer = api.client, api.as_("viewer")
+    r = c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer)
+    assert r.status_code == 200, r.text
+    first = r.json()
+    assert first["table_sha256"] == prop["table_sha256"]
+    assert set(first["controllers"]) == {"table", "fsmic"}
+    for run in first["controllers"].values():
+        assert run["seconds"] == pytest.approx(10.0, abs=0.01)
+        assert set(run["mean_curves"]) <= set(first["reference_curves"])
+    assert first["controllers"]["fsmic"]["strides"] >= 3   # the benchmark walks at its nominal task
+    # how sure: each RMSE has its interval over strides, and the table's difference from the FSMIC its verdict
+    table = first["controllers"]["table"]
+    lo, hi = table["knee_angle_rmse_ci95_deg"]
+    assert lo <= table["knee_angle_rmse_deg"] <= hi
+    vs = table["vs_fsmic"]
+    assert vs["knee_angle_rmse_difference_deg"] == pytest.approx(
+        table["knee_angle_rmse_deg"] - first["controllers"]["fsmic"]["knee_angle_rmse_deg"])
+    assert vs["knee_angle_verdict"] in {"learned lower", "FSMIC lower", "not resolved"}
+    assert table["heel_strikes_without_stance"] == 0 and table["heel_strike_to_stance_ms_median"] >= 20.0
+    assert len(first["phase_grid"]) == 101
+    again = c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer).json()
+    assert again == first   # stored, not re-simulated (same created_at)
+    with api.db() as conn:
+        assert conn.execute("SELECT count(*) FROM proposal_previews").fetchone()[0] == 1
+    assert c.get("/api/proposals/999/preview", headers=viewer).status_code == 404
+
+
+def test_preview_made_from_another_table_is_refused(api):
+    prop = api.propose(api.new_patient()["id"], speed=1.2)
+    c, viewer = api.client, api.as_("viewer")
+    assert c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer).status_code == 200
+    with api.db() as conn:
+        conn.execute("UPDATE proposal_previews SET table_sha256 = ?", ("0" * 64,))
+        conn.commit()
+    r = c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer)
+    assert r.status_code == 409 and "another table" in r.json()["detail"]

@@ -1,0 +1,19 @@
+"""User accounts (admin)."""
+
+from __future__ import annotations
+
+
+def test_admin_adds_users_and_passwords_are_scrypt_hashes(api):
+    r = api.client.post("/api/users", headers=api.as_("admin"),
+                        json={"username": "dana", "role": "prosthetist", "password": "a-long-password"})
+    assert r.status_code == 201 and r.json()["role"] == "prosthetist" and "password" not in r.text
+    assert api.client.post("/api/users", headers=api.as_("admin"), json={
+        "username": "dana", "role": "viewer", "password": "a-long-password"}).status_code == 409
+    short = api.client.post("/api/users", headers=api.as_("admin"),
+                            json={"username": "eve", "role": "viewer", "password": "short"})
+    assert short.status_code == 422 and "password" in short.json()["detail"]
+    conn = api.db()
+    stored = conn.execute("SELECT password_hash FROM users WHERE username = 'dana'").fetchone()[0]
+    conn.close()
+    assert stored.startswith("scrypt$16384$8$1$") and "a-long-password" not in stored
+    assert api.client.post("/api/auth/token", data={"username": "dana", "password": "a-long-password"}).status_code == 200

@@ -1,0 +1,128 @@
+"""A real quasitune serve subprocess on a loopback port with a temporary database."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import threading
+import time
+
+import httpx
+
+from tests.helpers.server import PASSWORD, add_user, start_server
+
+
+def _wait_ready(base: str, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if httpx.get(f"{base}/api/health").json()["model"] == "ready":
+            return
+        time.sleep(0.1)
+    raise AssertionError("model not ready")
+
+
+def _login(base: str, name: str, password: str = PASSWORD) -> dict[str, str]:
+    r = httpx.post(f"{base}/api/auth/token", data={"username": name, "password": password})
+    assert r.status_code == 200, r.text
+    return {"Authorization": f"Bearer {r.json()['access_token']}"}
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def test_first_start_prints_a_password_once_and_a_restart_keeps_everything(tmp_path):
+    proc, base = start_server(tmp_path, bootstrap=True)
+    try:
+        assert base.startswith("http://127.0.0.1:")
+        assert "dashboard: http://127.0.0.1:" in proc.stdout.readline()
+        assert "database:" in proc.stdout.readline()
+        line = proc.stdout.readline()
+        assert "created user 'prosthetist'" in line
+        password = line.split("password ", 1)[1].strip()
+        _wait_ready(base)
+        h = _login(base, "prosthetist", password)
+        patient = httpx.post(f"{base}/api/patients", headers=h,
+                             json={"code_name": "SRV-1", "body_mass_kg": 71.0, "side": "right"}).json()
+        proposal = httpx.post(f"{base}/api/patients/{patient['id']}/proposals", headers=h,
+                              json={"speed_mps": 1.1, "incline_deg": 0.0}).json()
+        approved = httpx.post(f"{base}/api/proposals/{proposal['id']}/approve", headers=h,
+                              json={"comment": "looks right"}).json()
+        assert approved["status"] == "approved"
+    finally:
+        _stop(proc)
+    assert proc.returncode in (0, -signal.SIGINT)    # shut down on the interrupt, not killed (-9) or crashed
+    proc, base2 = start_server(tmp_path, bootstrap=True)   # users exist now: nothing created, nothing printed
+    try:
+        h = _login(base2, "prosthetist", password)
+        again = httpx.get(f"{base2}/api/proposals/{proposal['id']}", headers=h).json()
+        assert again["status"] == "approved" and again["decision"]["comment"] == "looks right"
+        assert again["table"] == approved["table"] and again["table_sha256"] == approved["table_sha256"]
+        assert httpx.get(f"{base2}/api/patients/{patient['id']}", headers=h).json()["code_name"] == "SRV-1"
+        actions = [e["action"] for e in httpx.get(f"{base2}/api/audit", headers=h).json()["items"]]
+        assert {"patient.create", "proposal.create", "proposal.approve"} <= set(actions)
+    finally:
+        _stop(proc)
+    assert "created user" not in proc.stdout.read()
+
+
+def test_sigkill_mid_load_loses_no_acknowledged_write(tmp_path):
+    add_user(tmp_path, "pat", "prosthetist")
+    proc, base = start_server(tmp_path)
+    _wait_ready(base)
+    h = _login(base, "pat")
+    patient = httpx.post(f"{base}/api/patients", headers=h,
+                         json={"code_name": "KILL-1", "body_mass_kg": 75.0, "side": "left"}).json()
+    acknowledged: list[int] = []
+    patients_acked: list[str] = []
+    stop = threading.Event()
+
+    def writer(i: int) -> None:
+        with httpx.Client(base_url=base, headers=h, timeout=10) as c:
+            n = 0
+            while not stop.is_set():
+                n += 1
+                try:
+                    if n % 3:
+                        r = c.post(f"/api/patients/{patient['id']}/proposals", json={"speed_mps": 0.8 + (n % 10) / 10})
+                        if r.status_code == 201:
+                            acknowledged.append(r.json()["id"])
+                    else:
+                        code = f"K-{i}-{n}"
+                        r = c.post("/api/patients", json={"code_name": code, "body_mass_kg": 70.0, "side": "left"})
+                        if r.status_code == 201:
+                            patients_acked.append(code)
+                except httpx.HTTPError:
+                    return   # the server is gone
+
+    threads = [threading.Thread(target=writer, args=(i,)) for i in range(6)]
+    for t in threads:
+        t.start()
+    time.sleep(2.0)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    stop.set()
+    for t in threads:
+        t.join(15)
+    assert len(acknowledged) > 20, "the load did not get going before the kill"
+    proc, base = start_server(tmp_path)
+    try:
+        h = _login(base, "pat")
+        stored = {p["id"] for p in httpx.get(f"{base}/api/patients/{patient['id']}/proposals", headers=h).json()}
+        assert set(acknowledged) <= stored
+        codes = {p["code_name"] for p in httpx.get(f"{base}/api/patients", headers=h).json()}
+        assert set(patients_acked) <= codes
+        # every stored proposal is whole: its table re-validates against its sha256 and has its audit entry
+        audited = {e["entity_id"] for e in httpx.get(f"{base}/api/audit", headers=h,
+                                                      params={"entity": "proposal", "limit": 1000}).json()["items"]}
+        assert stored <= audited
+        for pid in list(stored)[:: max(1, len(stored) // 10)]:
+            assert httpx.get(f"{base}/api/proposals/{pid}", headers=h).status_code == 200
+    finally:
+        _stop(proc)

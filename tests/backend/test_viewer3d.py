@@ -1,0 +1,23 @@
+"""The viser 3D view of the leg."""
+
+from __future__ import annotations
+
+import urllib.request
+
+from tests.helpers.api import DEVICE, wait_for
+
+
+def test_viewer_binds_loopback_on_a_port_it_reads_back_and_follows_telemetry(sim_api):
+    c, viewer = sim_api.client, sim_api.as_("viewer")
+    r = c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer)
+    assert r.status_code == 200, r.text
+    info = r.json()
+    assert info["host"] == "127.0.0.1" and info["port"] > 0 and info["url"] == f"http://127.0.0.1:{info['port']}/"
+    with urllib.request.urlopen(info["url"], timeout=5) as page:   # viser's own client page, on that port
+        assert page.status == 200 and b"<html" in page.read().lower()
+    assert c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json()["port"] == info["port"]   # one per device
+    patient = sim_api.new_patient()
+    r = c.post(f"/api/patients/{patient['id']}/sessions", headers=viewer, json={"device_id": DEVICE, "speed_mps": 1.2})
+    assert r.status_code == 201, r.text   # the simulated leg walks (and streams telemetry) during a session
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json(), lambda v: v["frames_drawn"] > 5)
+    assert c.get("/api/devices/nope/viewer", headers=viewer).status_code == 404

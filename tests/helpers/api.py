@@ -1,0 +1,89 @@
+"""Helpers shared by the API tests: an in-process app with one user per role on a temporary database."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fastapi.testclient import TestClient
+
+from backend.app import create_app
+from backend.db import connect
+from backend.settings import Settings
+from backend.store.users import ROLES, create_user
+from tests.helpers.server import PASSWORD
+
+DEVICE = "sim-leg-1"   # the simulated leg of an app made with device="sim"
+
+
+@dataclass
+class Api:
+    client: TestClient
+    data_dir: Path
+    headers: dict[str, dict[str, str]] = field(default_factory=dict)
+
+    def as_(self, role: str) -> dict[str, str]:
+        return self.headers[role]
+
+    def db(self):
+        return connect(self.data_dir / "quasitune.sqlite")
+
+    def count(self, table: str) -> int:
+        """Rows in a table of the app's database (to check that a refused request stored nothing)."""
+        conn = self.db()
+        try:
+            return conn.execute(f"SELECT count(*) FROM {table}").fetchone()[0]
+        finally:
+            conn.close()
+
+    def new_patient(self, code: str = "P-001", mass: float = 80.0) -> dict:
+        r = self.client.post("/api/patients", headers=self.as_("prosthetist"),
+                             json={"code_name": code, "body_mass_kg": mass, "side": "left", "height_m": 1.78,
+                                   "k_level": 3})
+        assert r.status_code == 201, r.text
+        return r.json()
+
+    def propose(self, patient_id: int, speed: float = 1.2, incline: float = 0.0) -> dict:
+        r = self.client.post(f"/api/patients/{patient_id}/proposals", headers=self.as_("prosthetist"),
+                             json={"speed_mps": speed, "incline_deg": incline})
+        assert r.status_code == 201, r.text
+        return r.json()
+
+
+def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]:
+    """App on ``data_dir`` loading its model with ``model_loader``, with users prosthetist/viewer/admin
+    (password :data:`PASSWORD`), signed in."""
+    app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader)
+    conn = connect(data_dir / "quasitune.sqlite")
+    for role in ROLES:
+        create_user(conn, role, role, PASSWORD)
+    conn.close()
+    client = TestClient(app)
+    api = Api(client=client, data_dir=data_dir)
+    for role in ROLES:
+        r = client.post("/api/auth/token", data={"username": role, "password": PASSWORD})
+        assert r.status_code == 200, r.text
+        api.headers[role] = {"Authorization": f"Bearer {r.json()['access_token']}"}
+    return api, client
+
+
+def wait_for(fetch: Callable[[], object], predicate: Callable[[object], bool], timeout_s: float = 10.0):
+    """Call ``fetch`` until ``predicate`` holds for its value (returned); fail with the last value after the timeout."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = fetch()
+        if predicate(value):
+            return value
+        assert time.monotonic() < deadline, f"condition not reached; last value {value}"
+        time.sleep(0.02)
+
+
+def approved_proposal(api: Api, speed: float = 1.2) -> dict:
+    """A new patient's proposal at ``speed``, approved by the prosthetist."""
+    patient = api.new_patient()
+    prop = api.propose(patient["id"], speed=speed)
+    r = api.client.post(f"/api/proposals/{prop['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
+    assert r.status_code == 200, r.text
+    return prop

@@ -1,0 +1,50 @@
+"""Helpers for the browser tests and the dashboard benchmark: Debian's Chromium, signing in, screenshots (under
+``artifacts/browser/``, or ``$QUASITUNE_ARTIFACTS/browser``) and a check that a canvas has something drawn on it."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+from tests.helpers.server import PASSWORD
+
+# SwiftShader gives headless Chromium WebGL for the viser view; no sandbox: CI runs as root in a container
+CHROMIUM_ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader"]
+
+
+def chromium_path() -> str:
+    """Debian's Chromium (``$QUASITUNE_CHROMIUM`` or /usr/bin/chromium), installed by scripts/test.sh; a clear
+    error if it is missing (``playwright install`` is never used)."""
+    wanted = os.environ.get("QUASITUNE_CHROMIUM", "/usr/bin/chromium")
+    path = shutil.which(wanted) or (wanted if Path(wanted).exists() else None)
+    if path is None:
+        raise RuntimeError(f"Chromium not found at {wanted}: run 'bash scripts/test.sh', which installs Debian's "
+                           "chromium package")
+    return path
+
+
+def sign_in(page, base: str, username: str, password: str = PASSWORD) -> None:
+    """Sign in through the dashboard's login form and wait for the patient list."""
+    page.goto(base + "/")
+    page.fill("input[name=username]", username)
+    page.fill("input[name=password]", password)
+    page.click("#login-form button[type=submit]")
+    page.wait_for_selector("h1:has-text('Patients')")
+
+
+ARTIFACTS = Path(os.environ.get("QUASITUNE_ARTIFACTS", Path(__file__).resolve().parents[2] / "artifacts")) / "browser"
+
+
+def shot(page, name: str) -> Path:
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    path = ARTIFACTS / f"{name}.png"
+    page.screenshot(path=str(path), full_page=True)
+    return path
+
+
+def canvas_ink(page, selector: str) -> list[int]:
+    """Number of non-transparent pixels in each canvas matching ``selector`` (0 = nothing drawn)."""
+    return page.evaluate("""(sel) => [...document.querySelectorAll(sel)].map((c) => {
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let n = 0; for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++; return n; })""", selector)

@@ -1,0 +1,64 @@
+"""A real ``quasitune serve`` in a subprocess on a free loopback port, and users added to its database.
+
+Used by the tests that need the real server process (restart, SIGKILL, the browser) and by the benchmarks.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from backend.db import connect
+from backend.migrate import migrate
+from backend.settings import DB_FILE
+from backend.store.users import create_user
+
+PASSWORD = "correct-horse-battery"
+
+
+def add_user(data_dir: Path, name: str, role: str, password: str = PASSWORD) -> None:
+    """Create a user in the database under ``data_dir`` (migrated first), as ``quasitune users add`` does."""
+    data_dir.mkdir(parents=True, exist_ok=True)
+    migrate(data_dir / DB_FILE)
+    conn = connect(data_dir / DB_FILE)
+    try:
+        create_user(conn, name, role, password)
+    finally:
+        conn.close()
+
+
+def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none") -> tuple[subprocess.Popen, str]:
+    """``quasitune serve --port 0`` in a subprocess; returns (process, base URL) once it listens (its further
+    stdout lines are left unread in ``process.stdout``)."""
+    cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir), "--device", device]
+    if not bootstrap:
+        cmd.append("--no-bootstrap-user")
+    err_path = data_dir / "serve.stderr.log"    # a file, not a pipe nobody drains
+    with err_path.open("a") as err:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True,
+                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    line = proc.stdout.readline()
+    if "listening on" not in line:
+        proc.kill()
+        raise RuntimeError(f"server did not start: {line!r} {err_path.read_text()[-2000:]}")
+    return proc, line.rsplit(" ", 1)[-1].strip()
+
+
+@contextmanager
+def temporary_server(prefix: str, device: str = "none", user: str = "bench") -> Iterator[str]:
+    """A fresh server on a temporary database with the prosthetist ``user`` (password :data:`PASSWORD`); yields
+    its base URL and stops it afterwards."""
+    with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
+        data_dir = Path(tmp)
+        add_user(data_dir, user, "prosthetist")
+        proc, base = start_server(data_dir, device=device)
+        try:
+            yield base
+        finally:
+            proc.terminate()
+            proc.wait(timeout=10)
