@@ -1,7 +1,8 @@
 """The four-state impedance machine that runs on the leg: τ = k(θ − θe) − bθ̇ per joint and state.
 
 States follow the quasi-stiffness sub-phases: stance flexion (SF) → stance extension (SE) when the sagittal
-(ankle) moment falls below its threshold while the leg is loaded (load at or above the heel-strike threshold)
+(ankle) moment falls below its threshold, or (where the table sets a speed) the knee extends faster than it,
+while the leg is loaded (load at or above the heel-strike threshold)
 → swing flexion (WF) at toe-off, when the vertical load falls below
 its threshold → swing extension (WE) when the knee is flexed past its swing threshold and has stopped
 flexing → SF at heel strike, when the load rises above its threshold. Every state has a minimum time (no
@@ -115,6 +116,8 @@ class ImpedanceSchedule:
         knee_theta_e, ankle_theta_e: equilibrium angle per state (rad).
         knee_b, ankle_b: damping per state (N·m·s/rad).
         sf_to_se_ankle_moment_Nm, se_to_wf_load_N, wf_to_we_knee_angle_rad, we_to_sf_load_N: thresholds.
+        sf_to_se_knee_extension_rad_s: SF→SE also fires when the loaded knee extends faster than this (rad/s;
+            0 = off), i.e. at the stance-flexion peak that defines the sub-phase boundary.
         min_state_time_s, max_state_time_s: state-time guards (s).
         swing_slowing_rad_s: WF→WE also needs the knee flexion velocity at or below this (rad/s).
         event_hold_s: a transition's condition must hold this long, uninterrupted, before it fires (s).
@@ -132,6 +135,7 @@ class ImpedanceSchedule:
     we_to_sf_load_N: float
     min_state_time_s: float
     max_state_time_s: float
+    sf_to_se_knee_extension_rad_s: float = 0.0
     swing_slowing_rad_s: float = 0.05
     event_hold_s: float = 0.02
 
@@ -157,7 +161,8 @@ class ImpedanceSchedule:
             ankle_b=per_state("ankle", "b_Nm_s_per_rad"),
             sf_to_se_ankle_moment_Nm=t.sf_to_se_ankle_moment_Nm, se_to_wf_load_N=t.se_to_wf_load_N,
             wf_to_we_knee_angle_rad=t.wf_to_we_knee_angle_deg * deg, we_to_sf_load_N=t.we_to_sf_load_N,
-            min_state_time_s=t.min_state_time_s, max_state_time_s=t.max_state_time_s)
+            min_state_time_s=t.min_state_time_s, max_state_time_s=t.max_state_time_s,
+            sf_to_se_knee_extension_rad_s=t.sf_to_se_knee_extension_deg_per_s * deg)
 
 
 def clip_torque(tau: float, theta: float, limit: float, lo: float, hi: float) -> tuple[float, bool]:
@@ -216,7 +221,9 @@ class StateMachineController:
     def _event(self, x: SensorSample) -> bool:
         sch, st = self.schedule, self.state_
         if st == GaitState.STANCE_FLEXION:  # gated on load: a swinging foot's inertia also makes a moment
-            return x.ankle_moment_Nm <= sch.sf_to_se_ankle_moment_Nm and x.load_N >= sch.we_to_sf_load_N
+            ext = sch.sf_to_se_knee_extension_rad_s
+            return x.load_N >= sch.we_to_sf_load_N and (
+                x.ankle_moment_Nm <= sch.sf_to_se_ankle_moment_Nm or (ext > 0.0 and x.knee_velocity_rad_s <= -ext))
         if st == GaitState.STANCE_EXTENSION:
             return x.load_N < sch.se_to_wf_load_N
         if st == GaitState.SWING_FLEXION:

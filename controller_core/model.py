@@ -171,6 +171,10 @@ class QuasiStiffnessModel:
         swing_ankle_clearance_deg: dorsiflexion added to the ankle's predicted swing angle (deg). On the bench's
             foot the able-bodied swing angles leave −8 to +2 mm of toe clearance where people keep about
             13 mm (Winter 1992); each degree lifts the toe about 3.4 mm, so 5° restores that margin.
+        stance_extension_knee_speed_deg_per_s: SF→SE also fires when the loaded knee extends faster than this
+            (deg/s; 0 turns it off): the stance-flexion peak, which is the sub-phase boundary. The ankle-moment
+            threshold alone is late in a fast, flexed landing (1.95 m/s +5°: the knee held flexed under load, 12
+            falls on the bench); 11 deg/s (0.19 rad/s, held 20 ms) is above the knee's speed noise at the peak.
         random_state: seed for EM and optimizer restarts.
         model_version: a label stored in every proposal's provenance (``quasitune train`` sets the package
             version and a hash of this code).
@@ -179,7 +183,8 @@ class QuasiStiffnessModel:
     def __init__(self, n_components: int = 20, n_ref_points: int = 50, kmp_length_scale: float = 0.08,
                  kmp_lambda: float = 10.0, gpr_restarts: int = 2,
                  load_fractions: tuple[float, float] = (0.15, 0.40), swing_threshold_fraction: float = 0.85,
-                 state_time_s: tuple[float, float] = (0.05, 1.5), reference_mode: str = "registered",
+                 state_time_s: tuple[float, float] = (0.05, 1.5), stance_extension_knee_speed_deg_per_s: float = 11.0,
+                 reference_mode: str = "registered",
                  via_mean_scale: float = 1.0, min_restoring_stiffness_Nm_per_rad_per_kg: float = 0.25,
                  knee_extension_window: bool = False, swing_rule: str = "target",
                  swing_knee_stiffness_Nm_per_rad_per_kg: tuple[float, float] = (0.66, 0.25),
@@ -193,6 +198,7 @@ class QuasiStiffnessModel:
         self.load_fractions = load_fractions
         self.swing_threshold_fraction = swing_threshold_fraction
         self.state_time_s = state_time_s
+        self.stance_extension_knee_speed_deg_per_s = stance_extension_knee_speed_deg_per_s
         self.reference_mode = reference_mode
         self.via_mean_scale = via_mean_scale
         self.min_restoring_stiffness_Nm_per_rad_per_kg = min_restoring_stiffness_Nm_per_rad_per_kg
@@ -589,8 +595,8 @@ class QuasiStiffnessModel:
 
     def _thresholds(self, means: dict[str, np.ndarray], fmap: dict[str, FeaturePrediction],
                     boundaries: tuple[float, float, float], mass_kg: float) -> Thresholds:
-        """The state machine's transitions: the predicted ankle moment at the end of stance flexion, the load
-        fractions of body weight, and a fraction of the predicted knee swing peak."""
+        """The state machine's transitions: the predicted ankle moment at the end of stance flexion (or the knee
+        extending), the load fractions of body weight, and a fraction of the predicted knee swing peak."""
         weight_N = body_weight_N(mass_kg)
         return Thresholds(
             sf_to_se_ankle_moment_Nm=float(np.interp(boundaries[0], self.s_query_, means["ankle_moment"])) * mass_kg,
@@ -598,4 +604,5 @@ class QuasiStiffnessModel:
             wf_to_we_knee_angle_deg=self.swing_threshold_fraction * math.degrees(
                 fmap["knee_swing_flexion_peak"].value),
             we_to_sf_load_N=self.load_fractions[1] * weight_N,
-            min_state_time_s=self.state_time_s[0], max_state_time_s=self.state_time_s[1])
+            min_state_time_s=self.state_time_s[0], max_state_time_s=self.state_time_s[1],
+            sf_to_se_knee_extension_deg_per_s=self.stance_extension_knee_speed_deg_per_s)

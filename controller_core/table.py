@@ -61,6 +61,9 @@ class Thresholds(_Strict):
     we_to_sf_load_N: float = Field(description="WE→SF (heel strike) when the vertical load rises above this (N)")
     min_state_time_s: float = Field(description="minimum time in any state (s)")
     max_state_time_s: float = Field(description="maximum time in any state before the guard moves on (s)")
+    sf_to_se_knee_extension_deg_per_s: float = Field(
+        default=0.0, description="SF→SE also when the loaded knee extends faster than this (deg/s; 0 = off): the "
+                                 "stance-flexion peak itself, for gaits whose ankle moment is late to cross")
 
 
 class Provenance(_Strict):
@@ -141,7 +144,7 @@ class SafetyLimits(_Strict):
     brakes the swinging shank while θe lies beyond the angles it sweeps). Stance rows must be passive, k ≤ 0 with
     no tolerance: with k > 0 the row is a negative spring, which under the patient's weight drives the joint
     away from θe (a knee that gives way into flexion); b ≥ 0 keeps the damping passive too. Damping 0–30
-    N·m·s/rad; loads 0–3000 N; state times 0.01–3 s.
+    N·m·s/rad; loads 0–3000 N; state times 0.01–3 s; the SF→SE knee-extension speed 0–200 deg/s (0 = off).
     """
 
     k_Nm_per_rad: Range = Range(low=-1200.0, high=200.0)
@@ -152,6 +155,7 @@ class SafetyLimits(_Strict):
     load_N: Range = Range(low=0.0, high=3000.0)
     ankle_moment_Nm: Range = Range(low=-300.0, high=0.0)
     state_time_s: Range = Range(low=0.01, high=3.0)
+    knee_extension_deg_per_s: Range = Range(low=0.0, high=200.0)
 
 
 class LimitViolation(_Strict):
@@ -217,6 +221,8 @@ def check_table(table: ImpedanceTable, limits: SafetyLimits | None = None) -> li
     _check("thresholds.wf_to_we_knee_angle_deg", t.wf_to_we_knee_angle_deg, lim.knee_theta_e_deg, "deg", out)
     _check("thresholds.min_state_time_s", t.min_state_time_s, lim.state_time_s, "s", out)
     _check("thresholds.max_state_time_s", t.max_state_time_s, lim.state_time_s, "s", out)
+    _check("thresholds.sf_to_se_knee_extension_deg_per_s", t.sf_to_se_knee_extension_deg_per_s,
+           lim.knee_extension_deg_per_s, "deg/s", out)
     if t.min_state_time_s >= t.max_state_time_s:
         out.append(LimitViolation(field="thresholds.min_state_time_s", value=t.min_state_time_s,
                                   low=lim.state_time_s.low, high=t.max_state_time_s,

@@ -176,12 +176,13 @@ def physical(name: str, raw: dict[str, int]) -> dict[str, float]:
 # --------------------------------------------------------------------------------------------- tables
 
 _ROW_FIELDS = ("k", "theta_e", "b")
-_THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load")
+_THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load", "sf_to_se_knee_extension")
 _THRESH_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time")
 _THRESH_TABLE_FIELDS = {   # wire signal -> Thresholds field
     "sf_to_se_ankle_moment": "sf_to_se_ankle_moment_Nm", "se_to_wf_load": "se_to_wf_load_N",
     "we_to_sf_load": "we_to_sf_load_N", "wf_to_we_knee_angle": "wf_to_we_knee_angle_deg",
     "min_state_time": "min_state_time_s", "max_state_time": "max_state_time_s",
+    "sf_to_se_knee_extension": "sf_to_se_knee_extension_deg_per_s",
 }
 _ROW_TABLE_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s_per_rad"}
 
@@ -229,12 +230,12 @@ class WireTable:
 
     Attributes:
         rows: eight (k, θe, b) raw triples in :data:`ROW_ORDER`.
-        thresholds: six raw threshold values (A: moment, toe-off load, heel-strike load; B: knee angle,
-            minimum and maximum state time).
+        thresholds: seven raw threshold values (A: moment, toe-off load, heel-strike load, SF→SE knee
+            extension speed; B: knee angle, minimum and maximum state time).
     """
 
     rows: tuple[tuple[int, int, int], ...]
-    thresholds: tuple[int, int, int, int, int, int]
+    thresholds: tuple[int, int, int, int, int, int, int]
 
     @classmethod
     def from_table(cls, table: ParameterTable) -> WireTable:
@@ -268,7 +269,7 @@ class WireTable:
         """The ten data frames (row_index 0–9) of a transfer."""
         out = [encode("TABLE_ROW", {"transfer_id": transfer_id, "row_index": i, "k": k, "theta_e": th, "b": b})
                for i, (k, th, b) in enumerate(self.rows)]
-        a, b = self.thresholds[:3], self.thresholds[3:]
+        a, b = self.thresholds[:len(_THRESH_A)], self.thresholds[len(_THRESH_A):]
         out.append(encode("TABLE_THRESHOLDS_A", {"transfer_id": transfer_id, "row_index": THRESHOLDS_A_INDEX,
                                                  **dict(zip(_THRESH_A, a, strict=True))}))
         out.append(encode("TABLE_THRESHOLDS_B", {"transfer_id": transfer_id, "row_index": THRESHOLDS_B_INDEX,

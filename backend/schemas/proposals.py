@@ -36,6 +36,7 @@ class ThresholdEdit(StrictIn):
     we_to_sf_load_N: float | None = None
     min_state_time_s: float | None = None
     max_state_time_s: float | None = None
+    sf_to_se_knee_extension_deg_per_s: float | None = None
 
 
 class EditRequest(StrictIn):

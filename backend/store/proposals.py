@@ -212,7 +212,8 @@ def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
         for name, unit in units.items():
             add(f"{ra.joint}.{ra.subphase}.{name}", getattr(ra, name), getattr(rb, name), unit)
     th_units = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
-                "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s"}
+                "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
+                "sf_to_se_knee_extension_deg_per_s": "deg/s"}
     for name, unit in th_units.items():
         add(f"thresholds.{name}", getattr(ta.thresholds, name), getattr(tb.thresholds, name), unit)
     return {"from_id": a_id, "to_id": b_id, "from_version": a["version"], "to_version": b["version"],

@@ -113,11 +113,25 @@ def test_actuator_limits_refuse_nonsense():
         ActuatorLimits(ankle_range_rad=(0.5, -0.5))
 
 
+def test_a_loaded_knee_that_extends_ends_stance_flexion_when_the_table_asks_for_it():
+    # the ankle moment never reaches its threshold (−5 N·m): a fast, flexed landing
+    for speed, expect in ((0.0, SF), (0.2, SE)):                   # 0 = off: the FSMIC's moment-only rule
+        c = StateMachineController(schedule(sf_to_se_knee_extension_rad_s=speed), initial_state=SF)
+        c.step(sample(0.0, load=500.0, moment=-1.0, knee_v=1.0))     # flexing into the landing
+        assert c.step(sample(0.1, load=500.0, moment=-1.0, knee_v=-0.1)).state == SF   # slower than 0.2 rad/s
+        assert c.step(sample(0.2, load=500.0, moment=-1.0, knee_v=-0.5)).state == expect
+    c = StateMachineController(schedule(sf_to_se_knee_extension_rad_s=0.2), initial_state=SF)
+    c.step(sample(0.0, load=500.0))
+    assert c.step(sample(0.2, load=10.0, knee_v=-2.0)).state == SF     # unloaded: a swinging shank, not stance
+
+
 def test_schedule_from_table_rechecks_safety_limits(model):
     table = model.propose(1.2, 0.0, 75.0).table
     sch = ImpedanceSchedule.from_table(table)
     assert sch.knee_k[0] == pytest.approx(table.row("knee", "stance_flexion").k_Nm_per_rad)
     assert sch.wf_to_we_knee_angle_rad == pytest.approx(math.radians(table.thresholds.wf_to_we_knee_angle_deg))
+    assert sch.sf_to_se_knee_extension_rad_s == pytest.approx(
+        math.radians(table.thresholds.sf_to_se_knee_extension_deg_per_s)) and sch.sf_to_se_knee_extension_rad_s > 0
     rows = [r.model_copy(update={"k_Nm_per_rad": 900.0}) if r.subphase == "swing_flexion" else r for r in table.rows]
     bad = table.model_copy(update={"rows": rows})
     with pytest.raises(SafetyLimitError, match=r"swing_flexion\.k_Nm_per_rad"):

@@ -16,6 +16,9 @@ def test_safety_check_names_the_offending_field(model):
     bad = ParameterTable(rows=rows, thresholds=table.thresholds, provenance=table.provenance)
     with pytest.raises(SafetyLimitError, match=r"ankle\.stance_extension\.k_Nm_per_rad = -5000"):
         assert_safe(bad)
+    backwards = table.thresholds.model_copy(update={"sf_to_se_knee_extension_deg_per_s": -5.0})
+    with pytest.raises(SafetyLimitError, match=r"sf_to_se_knee_extension_deg_per_s = -5"):
+        assert_safe(table.model_copy(update={"thresholds": backwards}))
     with pytest.raises(ValueError, match="finite"):
         ParameterRow.model_validate({**rows[0].model_dump(), "theta_e_deg": float("nan")})
     with pytest.raises(ValueError, match="one row per joint"):

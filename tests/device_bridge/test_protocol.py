@@ -30,6 +30,7 @@ def test_a_real_table_survives_the_wire_within_half_a_quantum(tables):
     assert abs(dth.sf_to_se_ankle_moment_Nm - th.sf_to_se_ankle_moment_Nm) <= 0.005 + 1e-9
     assert abs(dth.we_to_sf_load_N - th.we_to_sf_load_N) <= 0.05 + 1e-9
     assert abs(dth.max_state_time_s - th.max_state_time_s) <= 0.0005 + 1e-9
+    assert dth.sf_to_se_knee_extension_deg_per_s == th.sf_to_se_knee_extension_deg_per_s > 0   # whole deg/s
 
 
 def test_the_crc_covers_every_value(tables):
@@ -40,7 +41,7 @@ def test_the_crc_covers_every_value(tables):
             rows = [list(r) for r in wire.rows]
             rows[i][j] += 1
             assert WireTable(tuple(tuple(r) for r in rows), wire.thresholds).crc32() != base
-    for j in range(6):
+    for j in range(len(wire.thresholds)):
         th = list(wire.thresholds)
         th[j] += 1
         assert WireTable(wire.rows, tuple(th)).crc32() != base
@@ -51,6 +52,9 @@ def test_a_value_that_does_not_fit_its_field_is_refused_before_sending(tables):
     big = tables[0].model_copy(update={"rows": [row.model_copy(update={"k_Nm_per_rad": -2500.0}), *tables[0].rows[1:]]})
     with pytest.raises(ProtocolError, match=r"knee\.stance_flexion\.k_Nm_per_rad = -2500 does not fit"):
         WireTable.from_table(big)
+    fast = tables[0].thresholds.model_copy(update={"sf_to_se_knee_extension_deg_per_s": 300.0})
+    with pytest.raises(ProtocolError, match=r"sf_to_se_knee_extension_deg_per_s = 300 does not fit.*\[0, 255\] deg/s"):
+        WireTable.from_table(tables[0].model_copy(update={"thresholds": fast}))
 
 
 def test_a_truncated_frame_is_refused_and_unknown_ids_are_ignored():

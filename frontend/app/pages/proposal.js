@@ -212,7 +212,9 @@ function parameterTable(p, canEdit) {
     wf_to_we_knee_angle_deg: ["WF→WE: knee flexed beyond", "deg", L.knee_theta_e_deg],
     we_to_sf_load_N: ["WE→SF (heel strike): load above", "N", L.load_N],
     min_state_time_s: ["minimum time in a state", "s", L.state_time_s],
-    max_state_time_s: ["maximum time in a state", "s", L.state_time_s] };
+    max_state_time_s: ["maximum time in a state", "s", L.state_time_s],
+    sf_to_se_knee_extension_deg_per_s: ["SF→SE also: loaded knee extending faster than (0 = off)", "deg/s",
+      L.knee_extension_deg_per_s] };
   const thRows = Object.entries(thUnits).map(([k, [label, unit, lim]]) => {
     const out = violated.has(`thresholds.${k}`) || th[k] < lim.low || th[k] > lim.high;
     return h("tr", {}, h("td", {}, label), h("td", { class: `num${out ? " out" : ""}` },
