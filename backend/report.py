@@ -6,12 +6,15 @@ from the stored summary."""
 from __future__ import annotations
 
 import io
+import textwrap
+from datetime import datetime
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
 
 from controller_core.gait_metrics import GAIT_CHANNELS, rmse_key
 
@@ -27,56 +30,95 @@ REFERENCE_LEGEND = {"measured": "measured reference", "measured_ramp_trend": "me
                     "model_prediction": "model prediction (not data)"}
 
 
+_UNITS = {"knee_angle_deg": "deg", "ankle_angle_deg": "deg", "knee_moment_Nm_per_kg": "N·m/kg",
+          "ankle_moment_Nm_per_kg": "N·m/kg"}
+
+
 def _fmt(value: object, unit: str = "", digits: int = 2) -> str:
     if value is None:
-        return "— (fewer than two heel strikes)"
+        return "— (fewer than two scored strides)"
     if isinstance(value, float):
         return f"{value:.{digits}f} {unit}".strip()
     return f"{value} {unit}".strip()
 
 
-def session_report_pdf(session: dict, patient: dict) -> bytes:
-    """One A4 page for a stopped session (``session`` as ``GET /api/sessions/{id}`` returns it)."""
-    s = session["summary"] or {}
-    t = session["task"]
-    fig = plt.figure(figsize=(8.27, 11.69))
-    fig.text(0.06, 0.965, f"QuasiTune session report — session {session['id']}", fontsize=15, weight="bold")
-    crc = session["table_crc32"] or "—"
-    version = session["table_version"] if session["table_version"] is not None else "none (no table was active)"
-    lines = [
-        f"Patient {patient['code_name']} · body mass {patient['body_mass_kg']:.1f} kg · side {patient['side']}",
-        f"Task: {t['speed_mps']:.2f} m/s, incline {t['incline_deg']:+.1f}° · device {session['device_id']}",
-        f"Active table version {version} (CRC-32 {crc}), proposal {session['proposal_id'] or '—'}",
-        f"Recorded {session['started_at']} → {session['stopped_at'] or 'still recording'} "
-        f"by {session['started_by']}",
-        f"Samples {s.get('samples', 0)} over {_fmt(s.get('duration_s'), 's', 1)}; missing samples "
-        f"{s.get('missing_samples', '—')}",
-        f"Strides {s.get('strides', 0)} · cadence {_fmt(s.get('cadence_steps_per_min'), 'steps/min', 1)} · "
-        f"stride time {_fmt(s.get('stride_time_s'), 's', 3)} (reference {_fmt(s.get('reference_stride_time_s'), 's', 3)})",
-        "RMSE against the reference (stride-averaged, on the phase grid): "
-        + ", ".join(f"{c.split('_')[0]} {c.split('_')[1]} {_fmt(s.get(rmse_key(c)), '', 3)}" for c in GAIT_CHANNELS),
-        f"Reference: {REFERENCE_KIND.get(s.get('reference_kind'), 'reference')} ({s.get('reference_source', '—')})"
-        + (" [EXTRAPOLATION]" if s.get("reference_extrapolation") else ""),
+def local_time(iso: str | None) -> str:
+    """A stored UTC timestamp in the server's local time zone, as a clinic reads it (``2026-11-23 14:05 CET``)."""
+    if not iso:
+        return "—"
+    return datetime.fromisoformat(iso.replace("Z", "+00:00")).astimezone().strftime("%Y-%m-%d %H:%M %Z")
+
+
+def _facts(session: dict, patient: dict) -> list[tuple[str, str]]:
+    s, t = session["summary"] or {}, session["task"]
+    modes = s.get("mode_s") or {}
+    rmse = " · ".join(f"{_LABELS[c].split(' (')[0]} {_fmt(s.get(rmse_key(c)), _UNITS[c], 1 if _UNITS[c] == 'deg' else 3)}"
+                      for c in GAIT_CHANNELS)
+    return [
+        ("Patient", f"{patient['code_name']} · {patient['body_mass_kg']:.1f} kg · {patient['side']} side"),
+        ("Task", f"{t['speed_mps']:.2f} m/s, incline {t['incline_deg']:+.1f}° · device {session['device_id']}"),
+        ("Table that ran", f"{session['table_label'] or 'none from this server'} (CRC-32 {session['table_crc32'] or '—'})"),
+        ("Recorded", f"{local_time(session['started_at'])} to {local_time(session['stopped_at'])} "
+                     f"by {session['started_by']}"),
+        ("Samples", f"{s.get('samples', 0)} over {_fmt(s.get('duration_s'), 's', 1)}; "
+                    f"{s.get('missing_samples', '—')} missing"),
+        ("Leg off its table", "never" if not s.get("off_table_s") else
+         f"{s['off_table_s']:.1f} s (safe mode {modes.get('safe', 0):.1f} s, no table {modes.get('no_table', 0):.1f} s): "
+         f"{s.get('strides_off_table', 0)} strides left out of the errors"),
+        ("Strides scored / walked", f"{s.get('strides_scored', s.get('strides', 0))} / {s.get('strides', 0)} · cadence "
+                                    f"{_fmt(s.get('cadence_steps_per_min'), 'steps/min', 1)}"),
+        ("Stride time", f"{_fmt(s.get('stride_time_s'), 's', 3)} "
+                        f"(reference {_fmt(s.get('reference_stride_time_s'), 's', 3)})"),
+        ("RMSE vs reference", rmse),
+        ("Reference", f"{REFERENCE_KIND.get(s.get('reference_kind'), 'reference')}"
+                      + (" [EXTRAPOLATION]" if s.get("reference_extrapolation") else "")),
     ]
-    for i, line in enumerate(lines):
-        fig.text(0.06, 0.935 - i * 0.019, line, fontsize=7.5, wrap=True)
-    phase = [100 * p for p in s.get("phase_grid", [])]
-    for i, ch in enumerate(GAIT_CHANNELS):
-        ax = fig.add_axes((0.08 + (i % 2) * 0.47, 0.43 - (i // 2) * 0.36, 0.39, 0.27))
-        ref = (s.get("reference_curves") or {}).get(ch)
-        mean = (s.get("mean_curves") or {}).get(ch)
-        if ref:
-            ax.plot(phase, ref, color="k", lw=2, label=REFERENCE_LEGEND.get(s.get("reference_kind"), "reference"))
-        if mean:
-            ax.plot(phase, mean, color="tab:blue", lw=1.5, label="measured (stride mean)")
-        else:
-            ax.text(0.5, 0.5, "no complete stride", ha="center", transform=ax.transAxes)
-        ax.set_xlabel("gait cycle (%)")
-        ax.set_ylabel(_LABELS[ch], fontsize=8)
-        ax.set_title(f"RMSE {_fmt(s.get(rmse_key(ch)), '', 3)}", fontsize=8)
-        ax.legend(fontsize=6)
+
+
+def session_report_pdf(session: dict, patient: dict) -> bytes:
+    """One A4 page for a stopped session (``session`` as ``GET /api/sessions/{id}`` returns it): facts as label and
+    value, then the four joint trajectories; times in the server's local zone, every number with its unit."""
+    fig = report_figure(session, patient)
     buf = io.BytesIO()
     with PdfPages(buf, metadata={"Title": f"QuasiTune session {session['id']}", "Creator": "QuasiTune"}) as pdf:
         pdf.savefig(fig)
     plt.close(fig)
     return buf.getvalue()
+
+
+def report_figure(session: dict, patient: dict) -> Figure:
+    """The report page as a matplotlib figure (A4 portrait)."""
+    s = session["summary"] or {}
+    fig = plt.figure(figsize=(8.27, 11.69))
+    fig.text(0.06, 0.955, f"QuasiTune session report · session {session['id']}", fontsize=15, weight="bold")
+    y = 0.925
+    for label, value in _facts(session, patient):
+        warn = label == "Leg off its table" and value != "never"
+        fig.text(0.06, y, label, fontsize=8, color="0.35")
+        for k, line in enumerate(textwrap.wrap(value, 88) or [""]):
+            fig.text(0.27, y - k * 0.014, line, fontsize=8, color="#b3261e" if warn else "black",
+                     weight="bold" if warn else "normal")
+            last = y - k * 0.014
+        y = last - 0.019
+    phase = [100 * p for p in s.get("phase_grid", [])]
+    top = y - 0.05
+    height = (top - 0.06 - 0.07) / 2
+    for i, ch in enumerate(GAIT_CHANNELS):
+        ax = fig.add_axes((0.09 + (i % 2) * 0.47, top - height - (i // 2) * (height + 0.07), 0.38, height))
+        ref = (s.get("reference_curves") or {}).get(ch)
+        mean = (s.get("mean_curves") or {}).get(ch)
+        if ref:
+            ax.plot(phase, ref, color="k", lw=2, label=REFERENCE_LEGEND.get(s.get("reference_kind"), "reference"))
+        if mean:
+            ax.plot(phase, mean, color="tab:blue", lw=1.5, label="measured (mean of scored strides)")
+        else:
+            ax.text(0.5, 0.5, "no scored stride", ha="center", transform=ax.transAxes)
+        ax.set_xlabel("gait cycle (%)", fontsize=8)
+        ax.set_ylabel(_LABELS[ch], fontsize=8)
+        digits = 1 if _UNITS[ch] == "deg" else 3
+        ax.set_title(f"{_LABELS[ch].split(' (')[0]}: RMSE {_fmt(s.get(rmse_key(ch)), _UNITS[ch], digits)}", fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=6, loc="best")
+    fig.text(0.06, 0.02, f"Generated {datetime.now().astimezone().strftime('%Y-%m-%d %H:%M %Z')} · strides between heel "
+             "strikes (load above 10 % of body weight), averaged on the gait-cycle grid", fontsize=6.5, color="0.4")
+    return fig

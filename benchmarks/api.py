@@ -75,6 +75,7 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
                                     json={"code_name": "LOAD-1", "body_mass_kg": 75.0, "side": "left"})).json()
         while not (await setup.get(f"/api/devices/{DEVICE}", headers=headers)).json()["online"]:
             await asyncio.sleep(0.05)
+        await setup.put(f"/api/devices/{DEVICE}/assignment", headers=headers, json={"patient_id": patient["id"]})
         session = (await setup.post(f"/api/patients/{patient['id']}/sessions", headers=headers,
                                     json={"device_id": DEVICE, "speed_mps": 1.2})).json()
     url = f"/api/patients/{patient['id']}/proposals"

@@ -30,16 +30,20 @@ async def _run(base: str, seconds: float, pushes: int) -> dict:
                                 json={"code_name": "DEV-1", "body_mass_kg": 75.0, "side": "left"})).json()
         while not (await c.get("/api/devices/sim-leg-1", headers=h)).json()["online"]:
             await asyncio.sleep(0.05)
+        await c.put("/api/devices/sim-leg-1/assignment", headers=h, json={"patient_id": patient["id"]})
         push_ms = []
+        replaces = None
         for i in range(pushes):
             prop = (await c.post(f"/api/patients/{patient['id']}/proposals", headers=h,
                                  json={"speed_mps": 1.0 + 0.05 * (i % 10), "incline_deg": 0.0})).json()
             await c.post(f"/api/proposals/{prop['id']}/approve", headers=h, json={"comment": "bench"})
             t0 = time.perf_counter()
-            r = await c.post(f"/api/proposals/{prop['id']}/push", headers=h, json={"device_id": "sim-leg-1"})
+            r = await c.post(f"/api/proposals/{prop['id']}/push", headers=h,
+                             json={"device_id": "sim-leg-1", "replaces_proposal_id": replaces, "patient_ready": True})
             push_ms.append((time.perf_counter() - t0) * 1e3)
             if r.status_code != 201:
                 raise RuntimeError(f"push failed: {r.text}")
+            replaces = prop["id"]
         session = (await c.post(f"/api/patients/{patient['id']}/sessions", headers=h,
                                 json={"device_id": "sim-leg-1"})).json()
         ws_url = base.replace("http://", "ws://") + f"/api/devices/sim-leg-1/telemetry?token={token}"

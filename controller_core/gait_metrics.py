@@ -159,13 +159,6 @@ def strided_errors(strided: dict[str, np.ndarray], channels: tuple[str, ...] | l
     return means, errors
 
 
-def stride_errors(measured: dict[str, np.ndarray], strikes: np.ndarray, reference: dict[str, np.ndarray]
-                  ) -> tuple[dict[str, np.ndarray], dict[str, object]]:
-    """Stride-averaged curves of each measured channel and their RMSE (float) against the reference curves,
-    keyed by :func:`rmse_key`. With fewer than two strikes: no curves and every error None."""
-    return strided_errors(channel_strides(measured, strikes), list(measured), reference)
-
-
 def bootstrap_rmse(strides: np.ndarray, reference: np.ndarray, n_boot: int = 2000,
                    rng: np.random.Generator | None = None) -> np.ndarray:
     """RMSE against ``reference`` of the stride-averaged curve, for ``n_boot`` resamples of the strides.

@@ -4,10 +4,14 @@ Telemetry arrives at a fixed period (10 ms from the device). Heel strikes are th
 body weight after at least 150 ms below it; each stride between consecutive heel strikes is resampled on the
 101-point phase grid and averaged, and the averages are compared with the able-bodied reference at the
 session's task — the same metrics as ``quasitune simulate`` (angles in deg, moments in N·m/kg).
+
+A stride during which the leg did not run its table for even one sample (safe mode, no table) is counted
+but left out of the errors: it says nothing about the table, and a report must not blame the table for it.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -15,10 +19,11 @@ import numpy as np
 from controller_core.gait_metrics import (
     GAIT_CHANNELS,
     PHASE_GRID,
+    channel_strides,
     gait_channels,
     heel_strikes,
     reference_curves,
-    stride_errors,
+    strided_errors,
 )
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
@@ -26,7 +31,7 @@ from controller_core.walking_reference import WalkingReference
 
 def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray,
                       knee_torque_Nm: np.ndarray, ankle_torque_Nm: np.ndarray, load_N: np.ndarray,
-                      mass_kg: float, reference: WalkingReference) -> dict:
+                      mass_kg: float, reference: WalkingReference, running_table: np.ndarray | None = None) -> dict:
     """Metrics of one session (see the module docstring); ``None`` for what fewer than two heel strikes cannot give.
 
     Args:
@@ -34,6 +39,8 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
         knee_angle_rad, ankle_angle_rad, knee_torque_Nm, ankle_torque_Nm, load_N: telemetry (SI).
         mass_kg: the patient's body mass (kg): normalises torque and sets the load threshold.
         reference: the able-bodied reference at the session's task.
+        running_table: per sample, whether the leg ran its table (not safe mode, not without a table); None
+            means throughout. Strides with any sample not running it are excluded from the errors.
     """
     t = np.asarray(t_s, dtype=float)
     n = t.shape[0]
@@ -42,7 +49,12 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
     strides = max(int(strikes.shape[0]) - 1, 0)
     measured = gait_channels(knee_angle_rad, ankle_angle_rad, knee_torque_Nm, ankle_torque_Nm, mass_kg)
     ref = reference_curves(reference)
-    mean_curves, raw_errors = stride_errors(measured, strikes, ref)
+    running = np.ones(n, dtype=bool) if running_table is None else np.asarray(running_table, dtype=bool)
+    on_table = np.array([bool(running[a:b + 1].all()) for a, b in itertools.pairwise(strikes)], dtype=bool)
+    strided = {k: v[on_table] for k, v in channel_strides(measured, strikes).items()}
+    if int(on_table.sum()) == 0:
+        strided = {}
+    mean_curves, raw_errors = strided_errors(strided, list(measured), ref)
     errors = {k: None if v is None else round(v, 4) for k, v in raw_errors.items()}
     means = {name: [round(float(v), 3) for v in mean_curves[name]] if name in mean_curves else None
              for name in GAIT_CHANNELS}
@@ -51,6 +63,9 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
         "samples": n,
         "duration_s": round(float(t[-1] - t[0]), 3) if n > 1 else 0.0,
         "strides": strides,
+        "strides_scored": int(on_table.sum()),
+        "strides_off_table": int(strides - on_table.sum()),
+        "off_table_s": round(float(np.count_nonzero(~running) * dt), 3) if n > 1 else 0.0,
         "stride_time_s": None if stride_time is None else round(stride_time, 4),
         "cadence_steps_per_min": None if stride_time is None else round(120.0 / stride_time, 2),
         "reference_stride_time_s": round(reference.stride_time_s, 4),

@@ -8,6 +8,7 @@ spec. The link's receive thread calls back here: a status that reports a newly r
 
 from __future__ import annotations
 
+import sqlite3
 import time
 from dataclasses import dataclass, field
 
@@ -41,6 +42,7 @@ class ManagedDevice:
     noted_active: tuple[int, int] | None = None
     fanout: TelemetryFanout = field(default_factory=TelemetryFanout)
     last_sample: TelemetrySample | None = None
+    tables: dict[tuple[int, int | None], dict] = field(default_factory=dict)   # (version, crc) -> its push
 
 
 class DeviceManager:
@@ -92,12 +94,32 @@ class DeviceManager:
     def online(self, dev: ManagedDevice) -> bool:
         return dev.status is not None and time.monotonic() - dev.status.received_monotonic_s <= ONLINE_WITHIN_S
 
+    def _table(self, conn: sqlite3.Connection, dev: ManagedDevice, version: int | None,
+               crc32: int | None) -> dict | None:
+        """Which table (patient, proposal version, task) a version the device reports is; pushes never change."""
+        if version is None:
+            return None
+        key = (version, crc32)
+        if key not in dev.tables:
+            push = pushes_store.push_of_version(conn, dev.spec.device_id, version, crc32)
+            if push is None:
+                return None
+            dev.tables[key] = {k: push[k] for k in ("proposal_id", "proposal_version", "patient_id", "patient_code",
+                                                    "table_label", "task")}
+        return dev.tables[key]
+
     def view(self, device_id: str) -> dict:
-        """The device as the API shows it: configuration, link state and the latest status (display units)."""
+        """The device as the API shows it: configuration, link state, the latest status (display units), the
+        patient it is assigned to and which tables its status reports."""
         dev = self.get(device_id)
         s = dev.status
         age = None if s is None else round(time.monotonic() - s.received_monotonic_s, 3)
+        with pooled(self.db) as conn:
+            patient = devices_store.assignment(conn, device_id)
+            active = None if s is None else self._table(conn, dev, s.active_version, s.active_crc32)
+            pending = None if s is None else self._table(conn, dev, s.pending_version, None)
         return {
+            "patient": patient, "active_table": active, "pending_table": pending,
             "id": dev.spec.device_id, "kind": dev.spec.kind, "interface": dev.spec.interface,
             "channel": dev.spec.channel, "online": self.online(dev),
             "mode": None if s is None else s.mode.name.lower(),

@@ -10,7 +10,7 @@ from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, s
 from backend.db import pooled
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
-from backend.schemas.devices import CommandRequest, DeviceIdPath, DeviceOut, ViewerOut
+from backend.schemas.devices import AssignmentRequest, CommandRequest, DeviceIdPath, DeviceOut, ViewerOut
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.store import devices as devices_store
 from backend.store.users import user_for_token
@@ -36,6 +36,28 @@ def list_devices(request: Request, _user: CurrentUser) -> list[dict]:
 def get_device(device_id: DeviceIdPath, request: Request, _user: CurrentUser) -> dict:
     """State, active table version and CRC read back from the device, last heartbeat."""
     return manager(request).view(device_id)
+
+
+@router.put("/{device_id}/assignment", response_model=DeviceOut,
+            responses={**UNAUTHORIZED, **FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def assign(device_id: DeviceIdPath, body: AssignmentRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
+    """Assign the device to the patient who will wear it (prosthetist; audited). Pushes and walking sessions on
+    the device are then for this patient only. Refused while a session records. The table on the leg stays: if
+    it is another patient's, push this patient's table before a session."""
+    m = manager(request)
+    m.get(device_id)
+    devices_store.assign(conn, device_id, body.patient_id, user)
+    return m.view(device_id)
+
+
+@router.delete("/{device_id}/assignment", response_model=DeviceOut,
+               responses={**UNAUTHORIZED, **FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def unassign(device_id: DeviceIdPath, request: Request, conn: Conn, user: Prosthetist) -> dict:
+    """The device is worn by nobody (prosthetist; audited): nothing can be pushed to it or recorded on it."""
+    m = manager(request)
+    m.get(device_id)
+    devices_store.assign(conn, device_id, None, user)
+    return m.view(device_id)
 
 
 @router.get("/{device_id}/viewer", response_model=ViewerOut, responses={**UNAUTHORIZED, **NOT_FOUND})

@@ -16,9 +16,11 @@ from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest
+from backend.store import devices as devices_store
 from backend.store import patients, proposals, pushes
 from backend.store import sessions as store
 from controller_core.session_summary import summarize_session
+from device_bridge.protocol import Mode
 
 router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
 
@@ -27,12 +29,21 @@ router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def start_session(patient_id: IdPath, body: SessionRequest, request: Request, conn: Conn, user: Monitor,
                   model: Model) -> dict:
-    """Start recording the device's telemetry for this patient (prosthetist or viewer). The task defaults to that
-    of the proposal active on the device; the simulated leg starts walking at it."""
+    """Start recording the device's telemetry for this patient (prosthetist or viewer): the device must be
+    assigned to the patient, and the table on it (if any) be theirs. The task defaults to that of the table on
+    the device; the simulated leg starts walking at it."""
     devices: DeviceManager = request.app.state.devices
     patient = patients.get_patient(conn, patient_id)
     devices.get(body.device_id)
+    assigned = devices_store.assignment(conn, body.device_id)
+    if assigned is None or assigned["patient_id"] != patient_id:
+        on = "nobody" if assigned is None else f"{assigned['patient_code']} ({assigned['body_mass_kg']:g} kg)"
+        raise ConflictError(f"device {body.device_id} is assigned to {on}, not to {patient['code_name']}: a session "
+                            "records the patient wearing the device; change the assignment first")
     active = pushes.current_push(conn, body.device_id)
+    if active is not None and active["patient_id"] != patient_id:
+        raise ConflictError(f"the leg runs {active['table_label']}, another patient's table; push one of "
+                            f"{patient['code_name']}'s approved tables before recording")
     if body.speed_mps is not None:
         speed, incline = body.speed_mps, body.incline_deg or 0.0
     elif active is not None:
@@ -65,7 +76,10 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
     summary = summarize_session(np.asarray(cols["t_s"]), np.asarray(cols["knee_angle_rad"]),
                                 np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
                                 np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
-                                reference)
+                                reference, running_table=np.asarray(cols["mode"]) == Mode.ACTIVE)
+    modes = np.asarray(cols["mode"], dtype=int)
+    period = summary["sample_period_s"] or 0.0
+    summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
     seqs = cols["seq"]
     summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
     store.stop_session(conn, session_id, summary, user)
@@ -104,12 +118,16 @@ _DISPLAY = {"knee_angle_rad": ("knee_angle_deg", _DEG), "knee_velocity_rad_s": (
 @router.get("/sessions/{session_id}/samples", response_model=SamplesOut, responses=NOT_FOUND)
 def get_samples(session_id: IdPath, conn: Conn, _user: CurrentUser,
                 every: Annotated[int, Query(ge=1, le=1000, description="keep every n-th sample")] = 1) -> dict:
-    """The recorded telemetry in display units (deg, deg/s, N·m, N), columns of equal length."""
+    """The recorded telemetry in display units (deg, deg/s, N·m, N), columns of equal length; ``mode`` per sample
+    says whether the leg ran its table (``active``), was in ``safe`` mode or had ``no_table``."""
     store.get_session(conn, session_id)
     cols = store.samples(conn, session_id)
     out: dict[str, list] = {}
     for name, values in cols.items():
         new, scale = _DISPLAY.get(name, (name, None))
         kept = values[::every]
-        out[new] = [round(v * scale, 3) for v in kept] if scale else kept
+        if name == "mode":
+            out[new] = [Mode(v).name.lower() for v in kept]
+        else:
+            out[new] = [round(v * scale, 3) for v in kept] if scale else kept
     return {"session_id": session_id, "count": len(out["seq"]), "every": every, "columns": out}

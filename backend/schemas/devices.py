@@ -14,8 +14,29 @@ DeviceId = Annotated[str, Field(pattern=DEVICE_ID_PATTERN, description="device i
 DeviceIdPath = Annotated[str, Path(pattern=DEVICE_ID_PATTERN, description="device id")]
 
 
+class DeviceAssignment(BaseModel):
+    patient_id: int
+    patient_code: str
+    body_mass_kg: float
+    assigned_by: str | None
+    assigned_at: str | None
+
+
+class TableOnDevice(BaseModel):
+    proposal_id: int
+    proposal_version: int = Field(description="the proposal's version for its patient (the N of 'table vN')")
+    patient_id: int
+    patient_code: str
+    table_label: str = Field(description="the table's one name everywhere: 'patient code · table vN'")
+    task: dict[str, float] = Field(description="speed_mps and incline_deg the table was proposed for")
+
+
 class DeviceOut(BaseModel):
     id: str
+    patient: DeviceAssignment | None = Field(description="the patient the device is assigned to (pushes and "
+                                                         "sessions are for this patient only)")
+    active_table: TableOnDevice | None = Field(description="the table the device reports running")
+    pending_table: TableOnDevice | None = Field(description="a verified table waiting for the next heel strike")
     kind: Literal["simulated", "can"]
     interface: str
     channel: str
@@ -23,7 +44,8 @@ class DeviceOut(BaseModel):
     mode: Literal["no_table", "active", "safe"] | None
     safe_mode: bool
     fsm_state: int | None = Field(description="0 stance flexion, 1 stance extension, 2 swing flexion, 3 swing extension")
-    active_version: int | None = Field(description="version of the table running (the proposal id)")
+    active_version: int | None = Field(description="the device's own version number of the table running (a "
+                                                   "16-bit counter per device; see active_table for which it is)")
     active_crc32: str | None = Field(description="CRC-32 (hex) of the table running, read back from the device")
     pending_version: int | None = Field(description="a verified table waiting for the next heel strike")
     faults: list[str]
@@ -41,6 +63,10 @@ class ViewerOut(BaseModel):
     port: int = Field(description="the port viser bound, read back from it")
     url: str
     frames_drawn: int = Field(description="leg poses drawn from telemetry so far (30 per second while it streams)")
+
+
+class AssignmentRequest(StrictIn):
+    patient_id: int = Field(ge=1, le=2**53, description="the patient who will wear the device")
 
 
 class CommandRequest(StrictIn):

@@ -129,8 +129,10 @@ class ViaPointOut(BaseModel):
 class ProposalSummary(BaseModel):
     id: int
     patient_id: int
-    version: int
+    version: int = Field(description="the proposal's version for its patient (the N of 'table vN')")
+    table_label: str = Field(description="the table's one name everywhere: 'patient code · table vN'")
     parent_id: int | None
+    parent_version: int | None = Field(description="the version this one was edited from")
     source: Literal["model", "edit"]
     status: Literal["draft", "approved", "rejected"]
     created_by: str

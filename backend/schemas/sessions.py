@@ -27,9 +27,11 @@ class SessionTask(BaseModel):
 class SessionOut(BaseModel):
     id: int
     patient_id: int
+    patient_code: str
     device_id: str
     proposal_id: int | None
-    table_version: int | None
+    table_label: str | None = Field(description="the table the session ran: 'patient code · table vN'")
+    table_version: int | None = Field(description="the device's own version number of that table")
     table_crc32: str | None
     task: SessionTask
     status: Literal["recording", "stopped"]
@@ -45,6 +47,6 @@ class SamplesOut(BaseModel):
     session_id: int
     count: int
     every: int
-    columns: dict[str, list[float | int | None]] = Field(
-        description="t_s, mode, fsm_state, knee/ankle angle (deg), velocity (deg/s), torque (N·m), load_N, "
-                    "ankle_moment_Nm")
+    columns: dict[str, list[float | int | str | None]] = Field(
+        description="t_s, mode (active / safe / no_table), fsm_state, knee/ankle angle (deg), velocity (deg/s), "
+                    "torque (N·m), load_N, ankle_moment_Nm")

@@ -24,8 +24,10 @@ from device_bridge.protocol import check_as_run
 
 _LIMITS = SafetyLimits().model_dump()
 _ACTIONS = {"approved": "proposal.approve", "rejected": "proposal.reject"}
-_SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name FROM proposals p "
-           "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by")
+_SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name, "
+           "pp.version AS parent_version, pa.code_name AS patient_code FROM proposals p "
+           "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by "
+           "LEFT JOIN proposals pp ON pp.id = p.parent_id JOIN patients pa ON pa.id = p.patient_id")
 
 
 def _sha256(text: str) -> str:
@@ -58,9 +60,15 @@ def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
     return out
 
 
+def table_label(patient_code: str, proposal_version: int) -> str:
+    """The one name a table has everywhere: on its page, the device, the monitor and the report."""
+    return f"{patient_code} · table v{proposal_version}"
+
+
 def _meta(row: sqlite3.Row) -> dict:
     return {
         "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
+        "parent_version": row["parent_version"], "table_label": table_label(row["patient_code"], row["version"]),
         "source": row["source"], "status": row["status"],
         "created_by": row["created_by_name"], "created_at": row["created_at"], "edit_comment": row["edit_comment"],
         "decision": None if row["status"] == "draft" else {
@@ -110,10 +118,7 @@ def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, so
         (patient_id, version, parent_id, source, task["speed_mps"], task["incline_deg"], task["body_mass_kg"],
          int(extrapolation), int(not violations), model_json, table_json, table_sha256, comment,
          actor.id, created_at))
-    return {"id": int(cur.lastrowid), "patient_id": patient_id, "version": version, "parent_id": parent_id,
-            "source": source, "status": "draft", "created_by": actor.username, "created_at": created_at,
-            "edit_comment": comment, "decision": None, "task": task, "extrapolation": bool(extrapolation),
-            "table_sha256": table_sha256}
+    return _meta(conn.execute(_SELECT + " WHERE p.id = ?", (int(cur.lastrowid),)).fetchone())
 
 
 def _refuse_non_finite(proposal: Proposal) -> None:

@@ -1,8 +1,10 @@
-"""Table pushes in SQLite (migration 0002).
+"""Table pushes in SQLite (migrations 0002, 0004).
 
 A push row is written before anything goes on the bus (status ``sending``) and finished afterwards
 (``acknowledged`` with the CRC the device read back, or ``failed`` with the reason); ``active`` is set only when
-the device's own status reports that version and CRC running.
+the device's own status reports that version and CRC running. The version is the device's own counter
+(:func:`backend.store.devices.next_wire_version`); a table is named to people as "patient code · table vN",
+N being the proposal's version for that patient (:func:`backend.store.proposals.table_label`).
 """
 
 from __future__ import annotations
@@ -11,14 +13,22 @@ import sqlite3
 
 from backend.db import utc_now, write_transaction
 from backend.errors import NotFoundError
-from backend.store import audit
+from backend.store import audit, devices
+from backend.store.proposals import table_label
 from backend.store.users import User
 
-_PUSH_SELECT = ("SELECT pu.*, u.username AS requested_by_name FROM pushes pu JOIN users u ON u.id = pu.requested_by")
+_PUSH_SELECT = ("SELECT pu.*, u.username AS requested_by_name, pr.version AS proposal_version, pr.patient_id, "
+                "pa.code_name AS patient_code, pr.speed_mps, pr.incline_deg FROM pushes pu "
+                "JOIN users u ON u.id = pu.requested_by JOIN proposals pr ON pr.id = pu.proposal_id "
+                "JOIN patients pa ON pa.id = pr.patient_id")
 
 
 def _push(row: sqlite3.Row) -> dict:
     return {"id": row["id"], "proposal_id": row["proposal_id"], "device_id": row["device_id"],
+            "patient_id": row["patient_id"], "patient_code": row["patient_code"],
+            "proposal_version": row["proposal_version"],
+            "table_label": table_label(row["patient_code"], row["proposal_version"]),
+            "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"]},
             "table_version": row["table_version"], "crc32": f"{row['crc32']:08x}", "status": row["status"],
             "requested_by": row["requested_by_name"], "requested_at": row["requested_at"],
             "acknowledged_at": row["acknowledged_at"], "active_at": row["active_at"], "ended_at": row["ended_at"],
@@ -37,10 +47,12 @@ def pushes_of_proposal(conn: sqlite3.Connection, proposal_id: int) -> list[dict]
     return [_push(r) for r in rows]
 
 
-def begin_push(conn: sqlite3.Connection, proposal_id: int, device_id: str, version: int, crc32: int,
-               actor: User) -> int:
-    """Record a push about to be sent (``sending``) and audit it; returns the push id."""
+def begin_push(conn: sqlite3.Connection, proposal_id: int, device_id: str, crc32: int,
+               actor: User) -> tuple[int, int]:
+    """Record a push about to be sent (``sending``) under the device's next table version, and audit it;
+    returns (push id, version)."""
     with write_transaction(conn):
+        version = devices.next_wire_version(conn, device_id)
         cur = conn.execute(
             "INSERT INTO pushes (proposal_id, device_id, table_version, crc32, status, requested_by, requested_at) "
             "VALUES (?, ?, ?, ?, 'sending', ?, ?)", (proposal_id, device_id, version, crc32, actor.id, utc_now()))
@@ -48,7 +60,7 @@ def begin_push(conn: sqlite3.Connection, proposal_id: int, device_id: str, versi
         audit.record(conn, actor.id, actor.username, "proposal.push", "proposal", proposal_id,
                      after={"push_id": push_id, "device_id": device_id, "table_version": version,
                             "crc32": f"{crc32:08x}"})
-    return push_id
+    return push_id, version
 
 
 def finish_push(conn: sqlite3.Connection, push_id: int, ok: bool, attempts: int | None, elapsed_ms: float,
@@ -89,6 +101,19 @@ def mark_active(conn: sqlite3.Connection, device_id: str, version: int, crc32: i
                 conn.execute("UPDATE pushes SET status = 'superseded', ended_at = ? WHERE id = ?", (now, o["id"]))
                 changed.append(o["proposal_id"])
     return changed
+
+
+def push_of_version(conn: sqlite3.Connection, device_id: str, version: int | None,
+                    crc32: int | None = None) -> dict | None:
+    """The newest push of this table version (and CRC, when given) to the device: what its status reports
+    running or waiting for heel strike. None for no version, or a table this server never sent."""
+    if version is None:
+        return None
+    sql, args = " WHERE pu.device_id = ? AND pu.table_version = ?", [device_id, version]
+    if crc32 is not None:
+        sql, args = sql + " AND pu.crc32 = ?", [*args, crc32]
+    row = conn.execute(_PUSH_SELECT + sql + " ORDER BY pu.id DESC LIMIT 1", args).fetchone()
+    return None if row is None else _push(row)
 
 
 def current_push(conn: sqlite3.Connection, device_id: str) -> dict | None:

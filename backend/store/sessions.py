@@ -9,15 +9,22 @@ from collections.abc import Iterable
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
+from backend.store.proposals import table_label
 from backend.store.users import User
 
-_SESSION_SELECT = ("SELECT s.*, su.username AS started_by_name, pu.username AS stopped_by_name FROM walking_sessions s "
-                   "JOIN users su ON su.id = s.started_by LEFT JOIN users pu ON pu.id = s.stopped_by")
+_SESSION_SELECT = ("SELECT s.*, su.username AS started_by_name, pu.username AS stopped_by_name, "
+                   "pa.code_name AS patient_code, pr.version AS proposal_version, pp.code_name AS table_patient_code "
+                   "FROM walking_sessions s JOIN users su ON su.id = s.started_by "
+                   "LEFT JOIN users pu ON pu.id = s.stopped_by JOIN patients pa ON pa.id = s.patient_id "
+                   "LEFT JOIN proposals pr ON pr.id = s.proposal_id LEFT JOIN patients pp ON pp.id = pr.patient_id")
 
 
 def _session(row: sqlite3.Row) -> dict:
-    return {"id": row["id"], "patient_id": row["patient_id"], "device_id": row["device_id"],
-            "proposal_id": row["proposal_id"], "table_version": row["table_version"],
+    return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
+            "device_id": row["device_id"], "proposal_id": row["proposal_id"],
+            "table_label": None if row["proposal_id"] is None else table_label(row["table_patient_code"],
+                                                                                row["proposal_version"]),
+            "table_version": row["table_version"],
             "table_crc32": None if row["table_crc32"] is None else f"{row['table_crc32']:08x}",
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
                      "body_mass_kg": row["body_mass_kg"]},

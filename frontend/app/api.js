@@ -44,3 +44,5 @@ export async function api(path, { method = "GET", body } = {}) {
 
 export const get = (path) => api(path);
 export const post = (path, body = {}) => api(path, { method: "POST", body });
+export const put = (path, body = {}) => api(path, { method: "PUT", body });
+export const del = (path) => api(path, { method: "DELETE" });

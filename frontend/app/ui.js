@@ -69,3 +69,33 @@ export const REFERENCE_KIND = {
 export function referenceLabel(summary) {
   return REFERENCE_KIND[summary.reference_kind] || "reference";
 }
+
+// A modal question with the facts it is about; resolves true only when confirmed. With `requires`, the confirm
+// button stays disabled until that checkbox (a clinical precondition) is ticked.
+export function confirmDialog({ id, title, facts = [], requires = null, confirm = "Confirm", danger = false }) {
+  return new Promise((resolve) => {
+    const tick = requires ? h("input", { type: "checkbox", id: `${id}-ready` }) : null;
+    const yes = h("button", { id: `${id}-confirm`, class: danger ? "danger" : "", disabled: Boolean(requires) }, confirm);
+    const no = h("button", { id: `${id}-cancel`, class: "secondary", type: "button" }, "Cancel");
+    const dlg = h("dialog", { id, "aria-labelledby": `${id}-title` },
+      h("h2", { id: `${id}-title` }, title),
+      h("dl", { class: "facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, v)])),
+      tick ? h("p", {}, h("label", {}, tick, " ", requires)) : null,
+      h("div", { class: "inline" }, yes, no));
+    tick?.addEventListener("change", () => { yes.disabled = !tick.checked; });
+    const close = (answer) => { dlg.close(); dlg.remove(); resolve(answer); };
+    yes.addEventListener("click", () => close(true));
+    no.addEventListener("click", () => close(false));
+    dlg.addEventListener("cancel", (ev) => { ev.preventDefault(); close(false); });
+    document.body.append(dlg);
+    dlg.showModal();
+    (tick || no).focus();
+  });
+}
+
+// A table's one name everywhere ("P-001 · table v3"), with its task when asked
+export function tableName(t, withTask = false) {
+  if (!t) return "no table from this server";
+  return withTask ? `${t.table_label} (${fmt(t.task.speed_mps, 2, "m/s")}, incline ${fmt(t.task.incline_deg, 1, "°")})`
+    : t.table_label;
+}

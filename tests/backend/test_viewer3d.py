@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import urllib.request
 
-from tests.helpers.api import DEVICE, wait_for
+from tests.helpers.api import DEVICE, assign, wait_for
 
 
 def test_viewer_binds_loopback_on_a_port_it_reads_back_and_follows_telemetry(sim_api):
@@ -17,6 +17,7 @@ def test_viewer_binds_loopback_on_a_port_it_reads_back_and_follows_telemetry(sim
         assert page.status == 200 and b"<html" in page.read().lower()
     assert c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json()["port"] == info["port"]   # one per device
     patient = sim_api.new_patient()
+    assign(sim_api, patient["id"])
     r = c.post(f"/api/patients/{patient['id']}/sessions", headers=viewer, json={"device_id": DEVICE, "speed_mps": 1.2})
     assert r.status_code == 201, r.text   # the simulated leg walks (and streams telemetry) during a session
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json(), lambda v: v["frames_drawn"] > 5)

@@ -133,7 +133,8 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.fill("#param-table input[data-field='knee.stance_flexion.theta_e_deg']", "12")
     page.fill("#edit-form input[name=comment]", "more knee flexion in early stance")
     page.click("#edit-form button[type=submit]")
-    page.wait_for_selector("h1:has-text('Proposal v2')")
+    page.wait_for_selector("h1:has-text('P-100 · table v2')")
+    assert page.locator(".chips :text('edited from v1')").count() == 1        # one name: versions, never ids
     page.wait_for_selector("#diff td:has-text('knee.stance_flexion.theta_e_deg')")
     assert page.inner_text("#diff td.changed").strip().startswith("12")
     shot(page, "03-edited-diff")
@@ -142,14 +143,29 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.fill("#decision input[name=comment]", "reviewed loops and preview")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
+    # a table goes only to its patient's leg: the device is assigned first, deliberately
+    assert page.is_disabled("#push-button")
+    page.click("#assign-device")
+    assert "nobody" in page.inner_text("#assign-dialog")
+    page.click("#assign-dialog-confirm")
+    page.wait_for_selector("#push-assignment:has-text('sim-leg-1 is assigned to P-100')")
+    # the push names what it replaces and needs the clinical precondition ticked
     page.click("#push-button")
-    page.wait_for_selector("#push-steps li.done:has-text('active on sim-leg-1')", timeout=20_000)
+    dialog = page.inner_text("#push-dialog")
+    assert "no table from this server" in dialog and "P-100 · table v2" in dialog, dialog
+    assert page.is_disabled("#push-dialog-confirm")
+    page.click("#push-dialog-cancel")                                      # cancelled: nothing sent
+    assert page.locator("#push-steps li").count() == 0
+    page.click("#push-button")
+    page.check("#push-dialog-ready")
+    page.click("#push-dialog-confirm")
+    page.wait_for_selector("#push-steps li.done:has-text('active on sim-leg-1: P-100 · table v2')", timeout=20_000)
     assert re.search(r"CRC-32 [0-9a-f]{8}", page.inner_text("#push-steps"))
     shot(page, "04-pushed")
 
     # live monitoring: start a session, telemetry moves, the 3D view is embedded from a loopback port
     page.click("#nav-monitor")
-    page.wait_for_selector("#start-session")
+    page.wait_for_selector("#start-session:has-text('Start session for P-100')")   # the patient wearing the leg
     page.click("#start-session")
     page.wait_for_selector("#stop-session")
     page.wait_for_function("window.quasitune.monitor && window.quasitune.monitor.samples > 150", timeout=20_000)
@@ -163,7 +179,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     src = page.get_attribute("#viewer3d iframe", "src")
     assert re.fullmatch(r"http://127\.0\.0\.1:\d+/", src) and src != server + "/"
     page.frame_locator("#viewer3d iframe").locator("canvas").first.wait_for(timeout=20_000)   # viser's WebGL scene
-    assert "version" in page.inner_text("#active-version")
+    assert "P-100 · table v2" in page.inner_text("#active-version")
     shot(page, "05-monitor")
     page.wait_for_timeout(2500)                                            # a few strides
     page.click("#stop-session")
@@ -172,8 +188,9 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     # the report: task, version, strides, cadence, trajectories; PDF export
     page.click("#report-link")
     page.wait_for_selector("#report-charts canvas")
-    assert "version" in page.inner_text("#report-table")
-    assert int(page.inner_text("#report-strides")) >= 2
+    assert "P-100 · table v2" in page.inner_text("#report-table")
+    scored, walked = (int(x) for x in page.inner_text("#report-strides").split(" / "))
+    assert walked >= 2 and scored == walked and page.locator("#off-table").count() == 0   # the leg ran the table
     assert 60 < float(page.inner_text("#report-cadence")) < 160
     assert min(canvas_ink(page, "#report-charts canvas")) > 500
     shot(page, "06-report")

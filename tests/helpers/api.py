@@ -87,3 +87,27 @@ def approved_proposal(api: Api, speed: float = 1.2) -> dict:
     r = api.client.post(f"/api/proposals/{prop['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
     assert r.status_code == 200, r.text
     return prop
+
+
+def assign(api: Api, patient_id: int, device: str = DEVICE) -> dict:
+    """Assign the device to the patient (as the prosthetist would on the live monitor)."""
+    r = api.client.put(f"/api/devices/{device}/assignment", headers=api.as_("prosthetist"),
+                       json={"patient_id": patient_id})
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def push_body(api: Api, device: str = DEVICE) -> dict:
+    """A push request confirming what the leg runs now (read from the device) and that the patient is ready."""
+    d = wait_for(lambda: api.client.get(f"/api/devices/{device}", headers=api.as_("prosthetist")).json(),
+                 lambda d: d["online"])
+    current = d["pending_table"] or d["active_table"]
+    return {"device_id": device, "replaces_proposal_id": None if current is None else current["proposal_id"],
+            "patient_ready": True}
+
+
+def push_to_leg(api: Api, proposal: dict, device: str = DEVICE):
+    """Assign the device to the proposal's patient and push the proposal, confirmed; returns the response."""
+    assign(api, proposal["patient_id"], device)
+    return api.client.post(f"/api/proposals/{proposal['id']}/push", headers=api.as_("prosthetist"),
+                           json=push_body(api, device))

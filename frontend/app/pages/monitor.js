@@ -1,8 +1,8 @@
 // Live monitoring of a device: status, safe mode, walking session start/stop, telemetry charts, the 3D view.
-import { get, post, token } from "../api.js";
+import { del, get, post, put, token } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { liveChart } from "../charts.js";
-import { chip, fmt, FSM_STATES, h, notice, table, when } from "../ui.js";
+import { chip, confirmDialog, fmt, FSM_STATES, h, notice, table, tableName, when } from "../ui.js";
 
 export async function monitorPage(view, deviceId, params) {
   const [device, patients] = await Promise.all([get(`/api/devices/${deviceId}`), get("/api/patients")]);
@@ -39,6 +39,7 @@ export async function monitorPage(view, deviceId, params) {
 
   renderStatus(statusBox, device);
   await renderSession(sessionBox, deviceId, patients, params);
+  recordingChip(device);
 
   // telemetry over the WebSocket; charts redraw once per animation frame
   const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/api/devices/${deviceId}/telemetry?token=${token()}`);
@@ -50,6 +51,7 @@ export async function monitorPage(view, deviceId, params) {
     const m = JSON.parse(ev.data);
     if (m.type === "status") {
       renderStatus(statusBox, m);
+      recordingChip(m);
       return;
     }
     if (stats.lastSeq !== null && m.seq !== stats.lastSeq + 1) stats.gaps += 1;
@@ -111,12 +113,24 @@ function renderStatus(box, d) {
     chip(d.safe_mode ? "SAFE MODE" : `mode: ${d.mode || "—"}`, d.safe_mode ? "bad" : "ok"),
     d.faults.length ? chip(`faults: ${d.faults.join(", ")}`, "bad") : null),
   h("dl", { class: "facts" },
-    h("dt", {}, "Active table"), h("dd", { id: "active-version" }, d.active_version === null ? "none" : `version ${d.active_version}`),
+    h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
+    h("dt", {}, "Active table"), h("dd", { id: "active-version" }, d.active_version === null ? "none"
+      : d.active_table ? tableName(d.active_table, true) : `device version ${d.active_version} (not sent by this server)`),
     h("dt", {}, "CRC-32 read back"), h("dd", { class: "mono" }, d.active_crc32 || "—"),
-    h("dt", {}, "Waiting for heel strike"), h("dd", {}, d.pending_version === null ? "—" : `version ${d.pending_version}`),
+    h("dt", {}, "Waiting for heel strike"), h("dd", {}, d.pending_version === null ? "—"
+      : d.pending_table ? tableName(d.pending_table) : `device version ${d.pending_version}`),
     h("dt", {}, "FSM state"), h("dd", {}, d.fsm_state === null ? "—" : FSM_STATES[d.fsm_state]),
     h("dt", {}, "Last heartbeat"), h("dd", { id: "heartbeat" }, d.last_heartbeat_age_s === null ? "never" : `${fmt(d.last_heartbeat_age_s, 2)} s ago`),
     h("dt", {}, "Temperature"), h("dd", {}, d.temperature_degC === null ? "not measured" : fmt(d.temperature_degC, 1, "°C"))));
+}
+
+// While recording, the chip says whether the strides count: in safe mode (or without a table) the leg does not run
+// the table, and those strides are left out of the session's errors.
+function recordingChip(d) {
+  const el = document.getElementById("recording-chip");
+  if (!el) return;
+  el.replaceChildren(d.mode === "active" ? chip("recording", "ok")
+    : chip(`recording — leg ${d.safe_mode ? "in SAFE MODE" : "without a table"}: these strides are not scored`, "bad"));
 }
 
 function renderReadout(box, m, stats) {
@@ -127,6 +141,7 @@ function renderReadout(box, m, stats) {
     ...item("Ankle angle", fmt(m.ankle_angle_deg, 1, "deg"), "ankle-angle"),
     ...item("Ankle torque", fmt(m.ankle_torque_Nm, 1, "N·m"), "ankle-torque"),
     ...item("Load", fmt(m.load_N, 0, "N"), "load"),
+    ...item("Mode", m.mode === "active" ? "running the table" : m.mode === "safe" ? "SAFE MODE (passive, damped)" : "no table (passive)", "sample-mode"),
     ...item("FSM state", m.fsm_state === null ? "—" : FSM_STATES[m.fsm_state], "fsm-state"),
     ...item("Drawn", `${fmt(stats.fps, 0)} frames/s · ${stats.samples} samples · ${stats.gaps} gaps`, "fps"));
 }
@@ -148,37 +163,89 @@ async function renderSession(box, deviceId, patients, params) {
         error.textContent = err.message;
       }
     });
-    box.append(h("p", {}, chip("recording", "ok"), ` session #${s.id} since ${when(s.started_at)} at ${fmt(s.task.speed_mps, 2, "m/s")}, `,
-      `incline ${fmt(s.task.incline_deg, 1, "°")}, table ${s.table_version ?? "none"}`), stop, error);
+    box.append(h("p", {}, h("span", { id: "recording-chip" }, chip("recording", "ok")), ` session #${s.id} since ${when(s.started_at)} at ${fmt(s.task.speed_mps, 2, "m/s")}, `,
+      `incline ${fmt(s.task.incline_deg, 1, "°")}, patient ${s.patient_code}, ${s.table_label ?? "no table from this server"}`), stop, error);
     return;
   }
-  const wanted = params.get("patient");
-  const patient = h("select", { name: "patient", id: "session-patient", "aria-label": "Patient" },
-    patients.map((p) => h("option", { value: p.id, selected: String(p.id) === wanted }, p.code_name)));
+  box.append(assignment(box, device, patients, deviceId, params));
+  if (!device.patient) {
+    box.append(error);
+    return;
+  }
   const speed = h("input", { type: "number", name: "speed", min: 0.1, max: 3, step: 0.01, placeholder: "from the active table",
     "aria-label": "Speed (m/s), empty = the active table's task" });
-  const start = h("button", { id: "start-session" }, "Start session");
+  const start = h("button", { id: "start-session" }, `Start session for ${device.patient.patient_code}`);
   start.addEventListener("click", async () => {
     error.textContent = "";
     const body = { device_id: deviceId };
     if (speed.value) body.speed_mps = Number(speed.value);
     try {
-      await post(`/api/patients/${patient.value}/sessions`, body);
+      await post(`/api/patients/${device.patient.patient_id}/sessions`, body);
       await renderSession(box, deviceId, patients, params);
     } catch (err) {
       error.textContent = err.message;
     }
   });
-  box.append(patients.length ? h("div", { class: "inline" }, h("label", {}, "Patient ", patient),
-    h("label", {}, "Speed (m/s) ", speed), start) : h("p", { class: "muted" }, "Create a patient first."), error);
+  box.append(h("div", { class: "inline" }, h("label", {}, "Speed (m/s) ", speed), start), error);
+}
+
+// Who wears the device: sessions and pushes follow it, so it is changed deliberately (prosthetist, confirmed)
+function assignment(box, device, patients, deviceId, params) {
+  const who = device.patient ? `${device.patient.patient_code} (${fmt(device.patient.body_mass_kg, 0, "kg")})` : null;
+  const out = h("div", { id: "assignment" }, h("p", {}, who ? ["Worn by ", h("strong", {}, who),
+    `, assigned by ${device.patient.assigned_by} ${when(device.patient.assigned_at)}.`]
+    : chip("not assigned: no session can be recorded and no table pushed until a patient is assigned", "warn")));
+  if (app.me.role !== "prosthetist" || !patients.length) return out;
+  const wanted = params.get("patient");
+  const pick = h("select", { id: "assign-patient", "aria-label": "Patient wearing the device" },
+    patients.map((p) => h("option", { value: p.id, selected: String(p.id) === wanted || (!wanted && p.id === device.patient?.patient_id) },
+      `${p.code_name} (${fmt(p.body_mass_kg, 0, "kg")})`)));
+  const change = h("button", { id: "assign-button", class: "secondary" }, device.patient ? "Change patient…" : "Assign…");
+  change.addEventListener("click", async () => {
+    const p = patients.find((x) => String(x.id) === pick.value);
+    const ok = await confirmDialog({ id: "assign-dialog", title: `${deviceId} worn by ${p.code_name}?`,
+      facts: [["Worn now by", who || "nobody"], ["Will be worn by", `${p.code_name} (${fmt(p.body_mass_kg, 0, "kg")})`],
+        ["Table on the leg", tableName(device.active_table, true)],
+        ["Then", device.active_table && device.active_table.patient_id !== p.id
+          ? `push one of ${p.code_name}'s approved tables before recording` : "sessions record this patient"]],
+      confirm: "Assign" });
+    if (!ok) return;
+    try {
+      await put(`/api/devices/${deviceId}/assignment`, { patient_id: p.id });
+      await renderSession(box, deviceId, patients, params);
+      window.dispatchEvent(new CustomEvent("quasitune:device-changed"));
+    } catch (err) {
+      notice(err.message);
+    }
+  });
+  const clear = device.patient ? h("button", { id: "unassign-button", class: "secondary", onclick: async () => {
+    try {
+      await del(`/api/devices/${deviceId}/assignment`);
+      await renderSession(box, deviceId, patients, params);
+    } catch (err) {
+      notice(err.message);
+    }
+  } }, "Taken off") : null;
+  out.append(h("div", { class: "inline" }, h("label", {}, "Patient ", pick), change, clear));
+  return out;
 }
 
 function summaryTable(s) {
   const m = s.summary;
   return h("div", { id: "session-summary" },
-    table(["Strides", "Cadence (steps/min)", "Knee angle RMSE (deg)", "Ankle angle RMSE (deg)", "Missing samples"],
-      [h("tr", {}, h("td", { class: "num" }, m.strides), h("td", { class: "num" }, fmt(m.cadence_steps_per_min, 1)),
+    offTable(m),
+    table(["Strides scored / walked", "Cadence (steps/min)", "Knee angle RMSE (deg)", "Ankle angle RMSE (deg)", "Missing samples"],
+      [h("tr", {}, h("td", { class: "num" }, `${m.strides_scored ?? m.strides} / ${m.strides}`), h("td", { class: "num" }, fmt(m.cadence_steps_per_min, 1)),
         h("td", { class: "num" }, fmt(m.knee_angle_rmse_deg, 1)), h("td", { class: "num" }, fmt(m.ankle_angle_rmse_deg, 1)),
         h("td", { class: "num" }, m.missing_samples))]),
     h("p", {}, h("a", { href: `#/sessions/${s.id}/report`, id: "report-link" }, "Open the session report")));
+}
+
+// Time the leg did not run its table during a session, said before any error figure
+export function offTable(m) {
+  if (!m.strides_off_table && !m.off_table_s) return null;
+  const modes = m.mode_s || {};
+  return h("p", { class: "notice-inline bad", id: "off-table" }, `The leg did not run its table for ${fmt(m.off_table_s, 1, "s")}`,
+    modes.safe ? ` (safe mode ${fmt(modes.safe, 1, "s")})` : "", modes.no_table ? ` (no table ${fmt(modes.no_table, 1, "s")})` : "",
+    `: ${m.strides_off_table} of ${m.strides} strides are left out of the errors below, which describe the table only.`);
 }

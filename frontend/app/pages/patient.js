@@ -13,15 +13,16 @@ export async function patientPage(view, id) {
     h("dt", {}, "K-level"), h("dd", {}, patient.k_level === null ? "—" : `K${patient.k_level}`),
     h("dt", {}, "Notes"), h("dd", {}, patient.notes || "—"));
 
+  const versionOf = Object.fromEntries(proposals.map((p) => [p.id, p.version]));
   const propRows = proposals.map((p) => h("tr", {},
     h("td", {}, h("a", { href: `#/proposals/${p.id}` }, `v${p.version}`)),
     h("td", { class: "num" }, fmt(p.task.speed_mps, 2)), h("td", { class: "num" }, fmt(p.task.incline_deg, 1)),
-    h("td", {}, chip(p.status, p.status)), h("td", {}, p.source === "edit" ? `edit of #${p.parent_id}` : "model"),
+    h("td", {}, chip(p.status, p.status)), h("td", {}, p.source === "edit" ? `edited from v${versionOf[p.parent_id] ?? "?"}` : "model"),
     h("td", {}, p.extrapolation ? chip("extrapolation", "warn") : ""), h("td", {}, p.created_by),
     h("td", {}, when(p.created_at))));
 
   const sessRows = sessions.map((s) => h("tr", {},
-    h("td", {}, `#${s.id}`), h("td", {}, s.device_id), h("td", {}, s.table_version ? `v-id ${s.table_version}` : "—"),
+    h("td", {}, `#${s.id}`), h("td", {}, s.device_id), h("td", {}, s.table_label ?? "—"),
     h("td", { class: "num" }, fmt(s.task.speed_mps, 2)), h("td", {}, chip(s.status, s.status)),
     h("td", { class: "num" }, s.summary ? s.summary.strides : "—"), h("td", {}, when(s.started_at)),
     h("td", {}, s.status === "stopped" ? h("a", { href: `#/sessions/${s.id}/report` }, "report")
@@ -30,7 +31,9 @@ export async function patientPage(view, id) {
   const devRows = devices.map((d) => h("tr", {},
     h("td", {}, h("a", { href: `#/monitor/${d.id}?patient=${patient.id}` }, d.id)), h("td", {}, d.kind),
     h("td", {}, chip(d.online ? "online" : "offline", d.online ? "ok" : "bad")), h("td", {}, d.mode || "—"),
-    h("td", {}, d.active_version ?? "—"), h("td", { class: "mono" }, d.active_crc32 || "—")));
+    h("td", {}, d.patient ? d.patient.patient_code : "nobody"),
+    h("td", {}, d.active_table ? d.active_table.table_label : d.active_version === null ? "—" : `device version ${d.active_version}`),
+    h("td", { class: "mono" }, d.active_crc32 || "—")));
 
   view.replaceChildren(
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ", patient.code_name),
@@ -41,7 +44,7 @@ export async function patientPage(view, id) {
       proposals.length ? table(["Version", "Speed (m/s)", "Incline (deg)", "Status", "Source", "", "By", "Created"],
         propRows, { id: "proposals" }) : h("p", { class: "muted" }, "No proposals yet.")),
     h("section", { class: "card" }, h("h2", {}, "Devices"),
-      devices.length ? table(["Device", "Kind", "Link", "Mode", "Active version", "Active CRC-32"], devRows)
+      devices.length ? table(["Device", "Kind", "Link", "Mode", "Worn by", "Active table", "Active CRC-32"], devRows)
         : h("p", { class: "muted" }, "No device configured on this server (quasitune serve --device).")),
     h("section", { class: "card" }, h("h2", {}, "Walking sessions"),
       sessions.length ? table(["Session", "Device", "Table", "Speed (m/s)", "Status", "Strides", "Started", ""], sessRows,

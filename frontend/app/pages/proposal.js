@@ -1,9 +1,10 @@
 // Proposal review: loops, curves with bands, GPR features, the table (editable into a new version), diff,
 // approve/reject, push with live status, and the simulated preview against the FSMIC.
-import { get, post } from "../api.js";
+import { get, post, put } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { legend, loopChart, phaseChart } from "../charts.js";
-import { chip, fmt, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+import { chip, confirmDialog, fmt, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, tableName,
+  when } from "../ui.js";
 
 const RAD = Math.PI / 180;
 const state = { kUnit: "rad" };   // stiffness display unit, kept across versions
@@ -32,11 +33,11 @@ export async function proposalPage(view, id) {
 
   const head = [
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ",
-      h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `proposal v${p.version}`),
-    h("h1", {}, `Proposal v${p.version} · ${fmt(p.task.speed_mps, 2, "m/s")} · incline ${fmt(p.task.incline_deg, 1, "°")}`),
+      h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `table v${p.version}`),
+    h("h1", {}, `${p.table_label} · ${fmt(p.task.speed_mps, 2, "m/s")} · incline ${fmt(p.task.incline_deg, 1, "°")}`),
     h("p", { class: "chips" }, chip(p.status, p.status), p.deployment ? chip(p.deployment.replaceAll("_", " "), "ok") : null,
       chip(p.safety.ok ? "within safety limits" : "outside safety limits", p.safety.ok ? "ok" : "bad"),
-      p.source === "edit" ? chip(`edited from #${p.parent_id}`) : chip("model")),
+      p.source === "edit" ? chip(`edited from v${p.parent_version}`) : chip("model")),
     h("p", { class: "provenance" }, `Model ${p.model.version} · training data sha256 ${p.model.data_sha256.slice(0, 12)}… · `,
       `patient mass ${fmt(mass, 1, "kg")} · created by ${p.created_by} ${when(p.created_at)} · table sha256 `,
       h("span", { class: "mono" }, p.table_sha256.slice(0, 12) + "…"),
@@ -302,7 +303,7 @@ function renderDecision(box, p, canDecide) {
     error.textContent = "";
     try {
       await post(`/api/proposals/${p.id}/${what}`, { comment: comment.value });
-      notice(`Proposal v${p.version} ${what === "approve" ? "approved" : "rejected"}`, "ok");
+      notice(`${p.table_label} ${what === "approve" ? "approved" : "rejected"}`, "ok");
       await proposalPage(document.getElementById("view"), p.id);
     } catch (err) {
       error.textContent = err.message;
@@ -316,52 +317,91 @@ function renderDecision(box, p, canDecide) {
 
 async function renderPush(box, p, canPush) {
   box.replaceChildren(h("h2", {}, "Device"));
-  const pushes = await get(`/api/proposals/${p.id}/pushes`);
-  const devices = await get("/api/devices");
+  const [pushes, devices, patient] = await Promise.all([get(`/api/proposals/${p.id}/pushes`), get("/api/devices"),
+    get(`/api/patients/${p.patient_id}`)]);
+  const name = `${patient.code_name} · table v${p.version}`;
   const status = h("div", { id: "push-status", "aria-live": "polite" });
   if (pushes.length) {
     status.append(table(["Push", "Device", "CRC-32", "Status", "Requested", "Acknowledged", "Active"],
       pushes.map((x) => h("tr", {}, h("td", {}, `#${x.id}`), h("td", {}, x.device_id), h("td", { class: "mono" }, x.crc32),
-        h("td", {}, chip(x.status, x.status === "failed" ? "bad" : "ok")), h("td", {}, when(x.requested_at)),
-        h("td", {}, when(x.acknowledged_at)), h("td", {}, when(x.active_at))))));
+        h("td", {}, chip(x.status, x.status === "failed" ? "bad" : x.status === "superseded" ? "" : "ok")),
+        h("td", {}, when(x.requested_at)), h("td", {}, when(x.acknowledged_at)), h("td", {}, when(x.active_at))))));
   }
   if (p.status !== "approved" || !canPush || !devices.length) {
     box.append(h("p", { class: "muted" }, p.status !== "approved" ? "Only an approved version can be pushed to a device."
       : !devices.length ? "No device on this server." : "Only a prosthetist can push."), status);
     return;
   }
+  const wearer = (d) => (d.patient ? `worn by ${d.patient.patient_code}` : "assigned to nobody");
   const select = h("select", { id: "push-device", "aria-label": "Device" },
-    devices.map((d) => h("option", { value: d.id }, `${d.id} (${d.online ? "online" : "offline"}, ${d.mode || "—"})`)));
+    devices.map((d) => h("option", { value: d.id }, `${d.id} (${d.online ? "online" : "offline"}, ${wearer(d)})`)));
   const error = h("p", { class: "error", role: "alert" });
   const steps = h("ol", { class: "steps", id: "push-steps" });
-  const button = h("button", { id: "push-button" }, "Push to device");
+  const button = h("button", { id: "push-button" }, "Push to device…");
+  const assignBox = h("p", { id: "push-assignment" });
+  const showAssignment = () => {
+    const d = devices.find((x) => x.id === select.value);
+    const mine = d.patient && d.patient.patient_id === p.patient_id;
+    button.disabled = !mine;
+    assignBox.replaceChildren(mine ? chip(`${d.id} is assigned to ${patient.code_name}`, "ok")
+      : h("span", {}, chip(`${d.id} is ${wearer(d)}`, "warn"), " A table goes only to the leg of its patient. ",
+        h("button", { id: "assign-device", class: "secondary", onclick: assign }, `Assign ${d.id} to ${patient.code_name}…`)));
+  };
+  async function assign() {
+    const d = devices.find((x) => x.id === select.value);
+    const ok = await confirmDialog({ id: "assign-dialog", title: `Assign ${d.id} to ${patient.code_name}?`,
+      facts: [["Worn now by", d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody"],
+        ["Will be worn by", `${patient.code_name} (${fmt(patient.body_mass_kg, 0, "kg")})`],
+        ["Table on the leg", tableName(d.active_table, true)]],
+      confirm: "Assign" });
+    if (!ok) return;
+    try {
+      Object.assign(d, await put(`/api/devices/${d.id}/assignment`, { patient_id: p.patient_id }));
+      showAssignment();
+    } catch (err) {
+      error.textContent = err.message;
+    }
+  }
+  select.addEventListener("change", showAssignment);
+  showAssignment();
   button.addEventListener("click", async () => {
     error.textContent = "";
+    const d = await get(`/api/devices/${select.value}`);
+    const current = d.pending_table || d.active_table;
+    const ok = await confirmDialog({ id: "push-dialog", title: `Replace the table on ${d.id}?`,
+      facts: [["Patient", `${patient.code_name} (${fmt(patient.body_mass_kg, 0, "kg")})`],
+        ["On the leg now", tableName(current, true)],
+        ["Replaced by", `${name} (${fmt(p.task.speed_mps, 2, "m/s")}, incline ${fmt(p.task.incline_deg, 1, "°")})`],
+        ["When", "at the next heel strike after the device verifies it"]],
+      requires: "The patient is seated or standing in the parallel bars.", confirm: "Push now" });
+    if (!ok) return;
     button.disabled = true;
     steps.replaceChildren(h("li", { class: "doing" }, "sending the table over CAN…"));
     try {
-      const push = await post(`/api/proposals/${p.id}/push`, { device_id: select.value });
+      const push = await post(`/api/proposals/${p.id}/push`, { device_id: d.id,
+        replaces_proposal_id: current ? current.proposal_id : null, patient_ready: true });
       steps.replaceChildren(h("li", { class: "done" }, `device read back CRC-32 ${push.crc32} (matches) in ${fmt(push.elapsed_ms, 1, "ms")}`),
         h("li", { class: "doing", id: "push-active" }, "waiting for the device to switch at the next heel strike…"));
       const deadline = Date.now() + 15000;
       while (Date.now() < deadline) {
-        const d = await get(`/api/devices/${select.value}`);
-        if (d.active_crc32 === push.crc32 && d.active_version === p.id) {
+        const now = await get(`/api/devices/${d.id}`);
+        if (now.active_crc32 === push.crc32 && now.active_version === push.table_version) {
           steps.lastChild.className = "done";
-          steps.lastChild.textContent = `active on ${d.id}: version ${d.active_version}, CRC-32 ${d.active_crc32}, mode ${d.mode}`;
+          steps.lastChild.textContent = `active on ${now.id}: ${push.table_label}, CRC-32 ${now.active_crc32}, mode ${now.mode}`;
           break;
         }
         await new Promise((r) => setTimeout(r, 200));
       }
       if (steps.lastChild.className !== "done") steps.lastChild.textContent = "acknowledged, not yet active (the device switches at its next heel strike)";
+      window.dispatchEvent(new CustomEvent("quasitune:device-changed"));
     } catch (err) {
       steps.lastChild.className = "failed";
       error.textContent = err.message;
     } finally {
-      button.disabled = false;
+      showAssignment();
     }
   });
-  box.append(h("div", { class: "inline" }, select, button), steps, error, status);
+  box.append(h("div", { class: "inline" }, select, button), assignBox, steps, error, status);
 }
 
 // ---------------------------------------------------------------------------------------------- versions, preview

@@ -8,26 +8,29 @@ import pytest
 from starlette.websockets import WebSocketDisconnect
 
 from device_bridge.protocol import WireTable
-from tests.helpers.api import DEVICE, approved_proposal, wait_for
+from tests.helpers.api import DEVICE, approved_proposal, assign, push_body, push_to_leg, wait_for
 
 
 def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     api = sim_api
-    c, pro, viewer = api.client, api.as_("prosthetist"), api.as_("viewer")
+    c, viewer = api.client, api.as_("viewer")
     device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(), lambda d: d["online"])
     assert device["mode"] == "no_table" and device["active_crc32"] is None
 
     prop = approved_proposal(api)
-    r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json={"device_id": DEVICE})
+    r = push_to_leg(api, prop)
     assert r.status_code == 201, r.text
     push = r.json()
     table = model.propose(1.2, 0.0, 80.0).table
     assert push["crc32"] == f"{WireTable.from_table(table).crc32():08x}"
-    assert push["status"] in ("acknowledged", "active") and push["table_version"] == prop["id"]
+    assert push["status"] in ("acknowledged", "active") and push["table_version"] == 1   # the device's counter
+    assert push["table_label"] == f"P-001 · table v{prop['version']}"
 
     device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(),
                       lambda d: d["active_crc32"] == push["crc32"])
-    assert device["mode"] == "active" and device["active_version"] == prop["id"]
+    assert device["mode"] == "active" and device["active_version"] == 1
+    assert device["active_table"]["table_label"] == push["table_label"]
+    assert device["patient"]["patient_code"] == "P-001"
     got = wait_for(lambda: c.get(f"/api/proposals/{prop['id']}", headers=viewer).json(),
                    lambda p: p["deployment"] == "active_on_device")
     assert got["status"] == "approved"   # the approved proposal itself never changes
@@ -73,18 +76,92 @@ def test_push_refusals(sim_api):
     c, pro = api.client, api.as_("prosthetist")
     patient = api.new_patient()
     draft = api.propose(patient["id"])
-    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json={"device_id": DEVICE})
+    body = push_body(api)
+    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json=body)
     assert r.status_code == 409 and "only approved proposals" in r.json()["detail"]
-    c.post(f"/api/proposals/{draft['id']}/approve", headers=pro, json={"comment": ""})
-    r = c.post(f"/api/proposals/{draft['id']}/push", headers=api.as_("viewer"), json={"device_id": DEVICE})
+    c.post(f"/api/proposals/{draft['id']}/approve", headers=pro, json={"comment": "ok"})
+    r = c.post(f"/api/proposals/{draft['id']}/push", headers=api.as_("viewer"), json=body)
     assert r.status_code == 403
-    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json={"device_id": "no-such-leg"})
+    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json={**body, "device_id": "no-such-leg"})
     assert r.status_code == 404 and "no-such-leg" in r.json()["detail"]
-    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json={"device_id": "bad id!"})
+    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json={**body, "device_id": "bad id!"})
     assert r.status_code == 422
+    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json=body)
+    assert r.status_code == 409 and "not assigned to a patient" in r.json()["detail"]
+    assign(api, patient["id"])
+    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json={**body, "patient_ready": False})
+    assert r.status_code == 422 and "patient_ready" in r.text                      # the precondition is confirmed
+    r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json={k: v for k, v in body.items()
+                                                                         if k != "replaces_proposal_id"})
+    assert r.status_code == 422 and "replaces_proposal_id" in r.text               # what it replaces, too
     assert c.get(f"/api/proposals/{draft['id']}/pushes", headers=pro).json() == []   # nothing recorded
     r = c.post(f"/api/patients/{patient['id']}/sessions", headers=pro, json={"device_id": DEVICE})
     assert r.status_code == 422 and "push a table" in r.json()["detail"]
+
+
+def test_a_table_goes_only_to_the_leg_of_its_patient_and_a_session_records_that_patient(sim_api):
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    heavy, light = api.new_patient("P-190", 190.0), api.new_patient("P-045", 45.0)
+    heavy_table = api.propose(heavy["id"])
+    c.post(f"/api/proposals/{heavy_table['id']}/approve", headers=pro, json={"comment": "ok"})
+    assign(api, light["id"])
+    r = c.post(f"/api/proposals/{heavy_table['id']}/push", headers=pro, json=push_body(api))
+    assert r.status_code == 409
+    assert "assigned to P-045 (45 kg), not to P-190 (190 kg)" in r.json()["detail"]
+    assert c.get(f"/api/proposals/{heavy_table['id']}/pushes", headers=pro).json() == []    # nothing sent
+    r = c.post(f"/api/patients/{heavy['id']}/sessions", headers=pro, json={"device_id": DEVICE, "speed_mps": 1.0})
+    assert r.status_code == 409 and "assigned to P-045" in r.json()["detail"]
+    # the heavy patient's table on the leg, then the device handed to the light one: no session until theirs
+    assert push_to_leg(api, heavy_table).status_code == 201
+    assign(api, light["id"])
+    r = c.post(f"/api/patients/{light['id']}/sessions", headers=pro, json={"device_id": DEVICE, "speed_mps": 1.0})
+    assert r.status_code == 409 and "P-190 · table v1, another patient's table" in r.json()["detail"]
+    audit = c.get("/api/audit", headers=api.as_("admin")).json()["items"]
+    assert [e["after"]["patient_id"] for e in audit if e["action"] == "device.assign"][:2] == [light["id"], heavy["id"]]
+
+
+def test_assignment_cannot_change_under_a_recording_session(sim_api):
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    prop = approved_proposal(api)
+    assert push_to_leg(api, prop).status_code == 201
+    other = api.new_patient("P-002")
+    session = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
+    r = c.put(f"/api/devices/{DEVICE}/assignment", headers=pro, json={"patient_id": other["id"]})
+    assert r.status_code == 409 and f"recording session {session['id']}" in r.json()["detail"]
+    assert c.delete(f"/api/devices/{DEVICE}/assignment", headers=pro).status_code == 409
+    assert c.put(f"/api/devices/{DEVICE}/assignment", headers=api.as_("viewer"),
+                 json={"patient_id": other["id"]}).status_code == 403
+    c.post(f"/api/sessions/{session['id']}/stop", headers=pro)
+    assert c.delete(f"/api/devices/{DEVICE}/assignment", headers=pro).json()["patient"] is None
+    r = c.put(f"/api/devices/{DEVICE}/assignment", headers=pro, json={"patient_id": 999})
+    assert r.status_code == 404 and "patient 999" in r.json()["detail"]
+
+
+def test_a_push_names_what_it_replaces_and_is_refused_when_the_leg_changed_meanwhile(sim_api):
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    first = approved_proposal(api)
+    assert push_to_leg(api, first).status_code == 201
+    second = api.propose(first["patient_id"], speed=1.4)
+    c.post(f"/api/proposals/{second['id']}/approve", headers=pro, json={"comment": "faster"})
+    stale = {"device_id": DEVICE, "replaces_proposal_id": None, "patient_ready": True}   # looked before the first
+    r = c.post(f"/api/proposals/{second['id']}/push", headers=pro, json=stale)
+    assert r.status_code == 409 and "now runs P-001 · table v1 (1.2 m/s, 0°)" in r.json()["detail"]
+    r = c.post(f"/api/proposals/{second['id']}/push", headers=pro,
+               json={**stale, "replaces_proposal_id": first["id"]})
+    assert r.status_code == 201 and r.json()["table_label"] == "P-001 · table v2"
+
+
+def test_a_table_proposed_for_another_body_mass_is_not_pushed(sim_api):
+    api = sim_api
+    prop = approved_proposal(api)
+    conn = api.db()
+    conn.execute("UPDATE patients SET body_mass_kg = 95 WHERE id = ?", (prop["patient_id"],))
+    conn.commit()
+    r = push_to_leg(api, prop)
+    assert r.status_code == 409 and "proposed for 80 kg and P-001 now weighs 95 kg" in r.json()["detail"]
 
 
 def test_telemetry_websocket_needs_a_token(sim_api):
@@ -99,8 +176,7 @@ def test_safe_mode_command_round_trip(sim_api):
     api = sim_api
     c, pro = api.client, api.as_("prosthetist")
     prop = approved_proposal(api)
-    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["online"])
-    assert c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json={"device_id": DEVICE}).status_code == 201
+    assert push_to_leg(api, prop).status_code == 201
     r = c.post(f"/api/devices/{DEVICE}/commands", headers=api.as_("viewer"), json={"command": "enter_safe_mode"})
     assert r.status_code == 403
     r = c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "enter_safe_mode"})

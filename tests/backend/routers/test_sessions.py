@@ -5,14 +5,14 @@ from __future__ import annotations
 import json
 import time
 
-from tests.helpers.api import DEVICE, approved_proposal
+from tests.helpers.api import DEVICE, approved_proposal, push_to_leg
 
 
 def test_session_report_pdf(sim_api):
     api = sim_api
     c, pro = api.client, api.as_("prosthetist")
     prop = approved_proposal(api)
-    assert c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json={"device_id": DEVICE}).status_code == 201
+    assert push_to_leg(api, prop).status_code == 201
     started = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE})
     assert started.status_code == 201, started.text
     session = started.json()
@@ -25,3 +25,24 @@ def test_session_report_pdf(sim_api):
     assert r.content.startswith(b"%PDF") and len(r.content) > 5000
     assert f"session-{session['id']}.pdf" in r.headers["content-disposition"]
     json.dumps(c.get(f"/api/sessions/{session['id']}", headers=pro).json())
+
+
+def test_strides_in_safe_mode_are_marked_and_left_out_of_the_errors(sim_api):
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    prop = approved_proposal(api)
+    assert push_to_leg(api, prop).status_code == 201
+    session = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
+    time.sleep(2.5)
+    assert c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "enter_safe_mode"}).status_code == 202
+    time.sleep(1.5)
+    c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "leave_safe_mode"})
+    time.sleep(2.5)
+    summary = c.post(f"/api/sessions/{session['id']}/stop", headers=pro).json()["summary"]
+    assert 1.0 < summary["mode_s"]["safe"] < 2.5 and summary["off_table_s"] >= summary["mode_s"]["safe"]
+    assert summary["strides_off_table"] >= 1 and summary["strides_scored"] == summary["strides"] - summary[
+        "strides_off_table"] >= 1
+    cols = c.get(f"/api/sessions/{session['id']}/samples", headers=pro).json()["columns"]
+    assert "safe" in cols["mode"] and "active" in cols["mode"]                   # every sample says its mode
+    pdf = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=pro)
+    assert pdf.status_code == 200 and pdf.content.startswith(b"%PDF")

@@ -10,29 +10,30 @@ from backend.store import devices, pushes
 from backend.store.users import User
 
 
-def _pushes(api, n: int) -> tuple[object, list[int], list[int]]:
+def _pushes(api, n: int) -> tuple[object, list[int], list[int], list[int]]:
     patient = api.new_patient()
     proposal_ids = [api.propose(patient["id"], speed=1.0 + 0.1 * i)["id"] for i in range(n)]
     conn = api.db()
     devices.register_device(conn, "leg", "simulated", "virtual", "x")
     user_id = conn.execute("SELECT id FROM users WHERE username = 'prosthetist'").fetchone()[0]
     actor = User(id=user_id, username="prosthetist", role="prosthetist")
-    push_ids = [pushes.begin_push(conn, pid, "leg", pid, 0xABC0 + pid, actor) for pid in proposal_ids]
-    return conn, proposal_ids, push_ids
+    push_ids, versions = zip(*[pushes.begin_push(conn, pid, "leg", 0xABC0 + pid, actor) for pid in proposal_ids],
+                             strict=True)
+    return conn, proposal_ids, list(push_ids), list(versions)
 
 
 def test_acknowledged_push_is_current_before_the_device_reports_it(api):
-    conn, proposal_ids, (push_id,) = _pushes(api, 1)
+    conn, proposal_ids, (push_id,), _versions = _pushes(api, 1)
     assert pushes.current_push(conn, "leg") is None                    # still sending: nothing on the leg yet
     pushes.finish_push(conn, push_id, True, 1, 3.0, None)
     assert pushes.current_push(conn, "leg")["proposal_id"] == proposal_ids[0]
 
 
 def test_running_a_table_supersedes_older_acknowledged_pushes(api):
-    conn, proposal_ids, push_ids = _pushes(api, 3)
+    conn, proposal_ids, push_ids, versions = _pushes(api, 3)
     for push_id in push_ids:
         pushes.finish_push(conn, push_id, True, 1, 3.0, None)
-    changed = pushes.mark_active(conn, "leg", proposal_ids[1], 0xABC0 + proposal_ids[1])
+    changed = pushes.mark_active(conn, "leg", versions[1], 0xABC0 + proposal_ids[1])
     statuses = [pushes.get_push(conn, i)["status"] for i in push_ids]
     assert statuses == ["superseded", "active", "acknowledged"]        # the newest is still to be run
     assert set(changed) == {proposal_ids[0], proposal_ids[1]}
@@ -46,3 +47,17 @@ def test_a_device_kind_outside_the_schema_is_refused_not_ignored(api):
     devices.register_device(conn, "leg", "can", "socketcan", "can0")
     devices.register_device(conn, "leg", "can", "socketcan", "can1")             # a restart keeps the first
     assert conn.execute("SELECT channel FROM devices WHERE id = 'leg'").fetchone()[0] == "can0"
+
+
+def test_the_table_version_is_the_devices_own_counter_and_wraps_past_16_bits(api):
+    conn, proposal_ids, push_ids, versions = _pushes(api, 2)
+    assert versions == [1, 2]                                          # not the proposal ids
+    conn.execute("UPDATE devices SET last_wire_version = 65534 WHERE id = 'leg'")
+    conn.commit()
+    user = User(id=conn.execute("SELECT id FROM users WHERE username = 'prosthetist'").fetchone()[0],
+                username="prosthetist", role="prosthetist")
+    wrapped = [pushes.begin_push(conn, proposal_ids[0], "leg", 0x1234, user)[1] for _ in range(3)]
+    assert wrapped == [65535, 1, 2]
+    # a reused number still names the newest push of that version and CRC
+    assert pushes.push_of_version(conn, "leg", 2, 0x1234)["id"] > push_ids[1]
+    assert pushes.push_of_version(conn, "leg", 2, 0xABC0 + proposal_ids[1])["id"] == push_ids[1]

@@ -1,0 +1,32 @@
+"""A session's summary from its telemetry: strides the leg walked off its table are counted, not scored."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller_core.session_summary import summarize_session
+from controller_core.walking_reference import level_walking_reference
+
+
+def _summary(log, running=None) -> dict:
+    c = log.channels
+    return summarize_session(c["time_s"], c["knee_angle_rad"], c["ankle_angle_rad"], c["knee_torque_Nm"],
+                             c["ankle_torque_Nm"], c["load_N"], log.mass_kg, level_walking_reference(1.2),
+                             running_table=running)
+
+
+def test_strides_off_the_table_are_counted_and_left_out_of_the_errors(quasi_stiffness_walk):
+    log, _score = quasi_stiffness_walk
+    everything = _summary(log)
+    assert everything["strides_off_table"] == 0 and everything["strides_scored"] == everything["strides"] >= 4
+    t = log.channels["time_s"]
+    running = ~((t >= 3.0) & (t < 3.3))                       # 0.3 s in safe mode in the middle of the walk
+    marked = _summary(log, running)
+    assert marked["strides"] == everything["strides"]          # walked is walked
+    assert 1 <= marked["strides_off_table"] <= 2                # the stride(s) holding those samples
+    assert marked["strides_scored"] == marked["strides"] - marked["strides_off_table"]
+    assert abs(marked["off_table_s"] - 0.3) < 0.01
+    assert marked["knee_angle_rmse_deg"] != everything["knee_angle_rmse_deg"]   # scored over other strides
+    nothing = _summary(log, np.zeros_like(t, dtype=bool))
+    assert nothing["strides_scored"] == 0 and nothing["knee_angle_rmse_deg"] is None
+    assert nothing["mean_curves"]["knee_angle_deg"] is None
