@@ -22,6 +22,7 @@ from backend.db import open_pool
 from backend.devices import DeviceManager, parse_device_spec
 from backend.errors import DomainError
 from backend.frontend import mount_frontend
+from backend.headers import add_security_headers, mount_docs
 from backend.migrate import migrate
 from backend.model_service import ModelService
 from backend.routers import (
@@ -39,6 +40,7 @@ from backend.routers import (
 )
 from backend.schemas.errors import FieldError
 from backend.settings import Settings
+from backend.throttle import LoginThrottle
 from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
 
@@ -88,11 +90,12 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         app.state.devices.close()
         app.state.db.dispose()
 
-    app = FastAPI(title="QuasiTune", version=__version__, lifespan=lifespan,
+    app = FastAPI(title="QuasiTune", version=__version__, lifespan=lifespan, docs_url=None, redoc_url=None,
                   description="Learning quasi-stiffness tuning for a powered knee-ankle prosthesis: patients, "
                               "proposals with uncertainty, approval, audit. Angles in deg, moments in N·m or "
                               "N·m/kg, stiffness in N·m/rad — the unit is in every field name.")
     app.state.settings = settings
+    app.state.login_throttle = LoginThrottle()
     app.state.db = open_pool(settings.db_path)
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
@@ -122,6 +125,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
                    reference.router, pushes.router, sessions.router, devices.router, audit.router):
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
+    mount_docs(app)
+    add_security_headers(app)
     app.openapi = lambda: _openapi(app)
     return app
 

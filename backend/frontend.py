@@ -11,10 +11,10 @@ from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
 # npm package → the folder of it the browser may load
-VENDOR = {"uplot": "uplot/dist"}
+VENDOR = {"uplot": "uplot/dist", "swagger-ui": "swagger-ui-dist"}
 
 _MISSING = """<!doctype html><meta charset="utf-8"><title>QuasiTune</title>
-<p style="font:16px sans-serif;margin:2em">The dashboard cannot be shown: {missing}.
+<p>The dashboard cannot be shown: {missing}.
 Run <code>bash scripts/run.sh</code>, which installs the npm packages with <code>npm ci</code> in <code>frontend/</code>,
 or point <code>QUASITUNE_FRONTEND_DIR</code> at the repository's <code>frontend/</code>. The API works regardless.</p>"""
 

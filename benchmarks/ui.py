@@ -48,20 +48,20 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
             page.evaluate("window.quasitune.proposalViewMs = undefined")
             page.fill("#propose input[name=speed_mps]", f"{0.9 + 0.05 * (i % 16):.2f}")
             page.click("#propose button[type=submit]")
-            page.wait_for_function("window.quasitune.proposalViewMs !== undefined", timeout=30_000)
+            page.wait_for_function("() => window.quasitune.proposalViewMs !== undefined", timeout=30_000)
             view_ms.append(page.evaluate("window.quasitune.proposalViewMs"))
         url = page.url
         for _ in range(max(3, repeats // 4)):
             page.goto("about:blank")
             page.goto(url)
-            page.wait_for_function("window.quasitune && window.quasitune.proposalInteractiveAt !== undefined",
+            page.wait_for_function("() => window.quasitune && window.quasitune.proposalInteractiveAt !== undefined",
                                    timeout=30_000)
             cold_ms.append(page.evaluate("window.quasitune.proposalInteractiveAt"))
         page.goto(f"{base}/#/monitor/sim-leg-1?patient={patient['id']}")
         page.fill("#session input[name=speed]", "1.2")
         page.click("#start-session")
         page.wait_for_selector("#stop-session")
-        page.wait_for_function("window.quasitune.monitor && window.quasitune.monitor.samples > 100", timeout=20_000)
+        page.wait_for_function("() => window.quasitune.monitor && window.quasitune.monitor.samples > 100", timeout=20_000)
         before = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")
         page.wait_for_timeout(monitor_s * 1000)
         after = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")

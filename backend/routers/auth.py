@@ -4,24 +4,34 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, status
+from fastapi import APIRouter, Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordRequestForm
 
-from backend.deps import Conn, CurrentUser, get_settings
+from backend.deps import Conn, CurrentUser, get_settings, oauth2
 from backend.schemas.auth import Me, TokenOut
 from backend.schemas.common import is_utf8_encodable
-from backend.schemas.errors import UNAUTHORIZED
+from backend.schemas.errors import TOO_MANY, UNAUTHORIZED
 from backend.security import burn_password_check, verify_password
 from backend.settings import Settings
 from backend.store import users
+from backend.throttle import LoginThrottle
 
 router = APIRouter(prefix="/api", tags=["auth"])
 
 
-@router.post("/auth/token", response_model=TokenOut, responses=UNAUTHORIZED)
-def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], conn: Conn,
+@router.post("/auth/token", response_model=TokenOut, responses={**UNAUTHORIZED, **TOO_MANY})
+def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Request, conn: Conn,
           settings: Annotated[Settings, Depends(get_settings)]) -> TokenOut:
-    """Exchange a user name and password (form fields) for a bearer token that expires."""
+    """Exchange a user name and password (form fields) for a bearer token that expires. After too many failed
+    sign-ins for one name, or from one address, within a minute: 429 with Retry-After, and nothing is checked or
+    written until then (so failed sign-ins write a bounded number of audit rows)."""
+    throttle: LoginThrottle = request.app.state.login_throttle
+    address = request.client.host if request.client else "unknown"
+    name = form.username[:64] if is_utf8_encodable(form.username) else "<not UTF-8>"
+    wait = throttle.retry_after_s(name, address)
+    if wait:
+        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS, f"too many failed sign-ins; try again in {wait} s",
+                            headers={"Retry-After": str(wait)})
     found = users.credentials(conn, form.username) if is_utf8_encodable(form.username) and len(form.username) <= 64 else None
     if found is None:
         burn_password_check(form.password)
@@ -29,12 +39,18 @@ def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], conn: Conn,
     else:
         ok = verify_password(form.password, found[1])
     if not ok:
-        if is_utf8_encodable(form.username):
-            users.record_failed_login(conn, form.username)
+        throttle.failed(name, address)
+        users.record_failed_login(conn, name, address)
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "incorrect user name or password",
                             headers={"WWW-Authenticate": "Bearer"})
     token = users.issue_token(conn, found[0], settings.token_ttl_s)
     return TokenOut(access_token=token, expires_in=settings.token_ttl_s)
+
+
+@router.post("/auth/logout", status_code=status.HTTP_204_NO_CONTENT, responses=UNAUTHORIZED)
+def logout(user: CurrentUser, conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> None:
+    """Sign out: this token stops working at once."""
+    users.revoke_token(conn, token or "", user)
 
 
 @router.get("/auth/me", response_model=Me, responses=UNAUTHORIZED)

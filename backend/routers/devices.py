@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import time
 from typing import Annotated
 
 from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, status
@@ -17,6 +18,8 @@ from backend.store.users import user_for_token
 from device_bridge.protocol import Command
 
 router = APIRouter(prefix="/api/devices", tags=["devices"])
+
+RECHECK_TOKEN_S = 1.0   # an open telemetry stream re-checks its token this often
 
 _COMMANDS = {"enter_safe_mode": Command.ENTER_SAFE_MODE, "leave_safe_mode": Command.LEAVE_SAFE_MODE}
 
@@ -99,8 +102,16 @@ async def telemetry(websocket: WebSocket, device_id: str,
     fanout.subscribe(queue, asyncio.get_running_loop())
     try:
         await websocket.send_json({"type": "status", **m.view(device_id)})
+        checked = time.monotonic()
         while True:
             await websocket.send_json(await queue.get())
+            if time.monotonic() - checked >= RECHECK_TOKEN_S:   # signed out, expired or disabled: stop streaming
+                with pooled(app.state.db) as conn:
+                    still = user_for_token(conn, token)
+                if still is None:
+                    await websocket.close(code=1008, reason="signed out, token expired or account disabled")
+                    return
+                checked = time.monotonic()
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:

@@ -5,8 +5,9 @@ from __future__ import annotations
 from fastapi import APIRouter, status
 
 from backend.deps import Admin, Conn
-from backend.schemas.errors import CONFLICT, FORBIDDEN, UNAUTHORIZED
-from backend.schemas.users import UserCreate, UserOut
+from backend.schemas.common import IdPath
+from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
+from backend.schemas.users import UserCreate, UserOut, UserPatch
 from backend.store import users
 
 router = APIRouter(prefix="/api", tags=["users"])
@@ -23,3 +24,11 @@ def list_users(conn: Conn, _admin: Admin) -> list[dict]:
 def create_user(body: UserCreate, conn: Conn, admin: Admin) -> dict:
     """Add a user with a role (admin only)."""
     return users.create_user(conn, body.username, body.role, body.password, actor=admin)
+
+
+@router.patch("/users/{user_id}", response_model=UserOut,
+              responses={**UNAUTHORIZED, **FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def patch_user(user_id: IdPath, body: UserPatch, conn: Conn, admin: Admin) -> dict:
+    """Disable or re-enable an account (admin only). Disabling revokes its tokens at once: requests fail and an
+    open telemetry stream closes within a second."""
+    return users.set_disabled(conn, user_id, body.disabled, admin)

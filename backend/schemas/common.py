@@ -6,7 +6,7 @@ import re
 from typing import Annotated
 
 from fastapi import Path
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StringConstraints
 
 MAX_ID = 2**53  # ids beyond what JSON numbers carry exactly are refused before they reach SQLite
 
@@ -33,6 +33,12 @@ def _storable_text(value: str) -> str:
 # the pattern is documented in the schema (so clients and fuzzers know); the validator gives the readable message
 Text = Annotated[str, AfterValidator(_storable_text),
                  Field(json_schema_extra={"pattern": "^[^\\x00-\\x08\\x0b\\x0c\\x0e-\\x1f\\x7f]*$"})]
+
+
+# a password is taken exactly as typed: never stripped (the strict models strip other text)
+Password = Annotated[str, StringConstraints(strip_whitespace=False, min_length=8, max_length=1024),
+                     AfterValidator(_storable_text),
+                     Field(description="8-1024 characters, kept exactly as typed (spaces included)")]
 
 
 def json_integer(value: object) -> object:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Literal, get_args
 
 from backend.db import utc_now, write_transaction
-from backend.errors import ConflictError
+from backend.errors import ConflictError, NotFoundError
 from backend.security import hash_password, new_token, token_digest
 from backend.store import audit
 
@@ -67,9 +67,17 @@ def issue_token(conn: sqlite3.Connection, user: User, ttl_s: float) -> str:
     return token
 
 
-def record_failed_login(conn: sqlite3.Connection, username: str) -> None:
+def printable(text: str, limit: int = 64) -> str:
+    """``text`` safe to show and log: control and other non-printing characters escaped (``\\x1b``), at most
+    ``limit`` characters of the original."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text[:limit])
+
+
+def record_failed_login(conn: sqlite3.Connection, username: str, address: str) -> None:
+    """Audit a failed sign-in under the name as typed, made printable (a name is attacker-controlled text)."""
     with write_transaction(conn):
-        audit.record(conn, None, username[:64], "auth.login_failed", "user", None)
+        audit.record(conn, None, printable(username), "auth.login_failed", "user", None,
+                     after={"address": printable(address)})
 
 
 def user_for_token(conn: sqlite3.Connection, token: str) -> User | None:
@@ -79,3 +87,26 @@ def user_for_token(conn: sqlite3.Connection, token: str) -> User | None:
         "WHERE t.token_sha256 = ? AND t.expires_at_unix > ? AND u.disabled = 0",
         (token_digest(token), time.time())).fetchone()
     return None if row is None else User(row["id"], row["username"], row["role"])
+
+
+def revoke_token(conn: sqlite3.Connection, token: str, user: User) -> None:
+    """Sign out: the token stops working at once (audited)."""
+    with write_transaction(conn):
+        conn.execute("DELETE FROM tokens WHERE token_sha256 = ?", (token_digest(token),))
+        audit.record(conn, user.id, user.username, "auth.logout", "user", user.id)
+
+
+def set_disabled(conn: sqlite3.Connection, user_id: int, disabled: bool, actor: User) -> dict:
+    """Disable (or re-enable) an account; disabling also revokes every token it holds, so open sessions end."""
+    with write_transaction(conn):
+        row = conn.execute("SELECT * FROM users WHERE id = ?", (user_id,)).fetchone()
+        if row is None:
+            raise NotFoundError(f"user {user_id} not found")
+        if disabled and user_id == actor.id:
+            raise ConflictError("you cannot disable your own account; another admin must")
+        conn.execute("UPDATE users SET disabled = ? WHERE id = ?", (int(disabled), user_id))
+        if disabled:
+            conn.execute("DELETE FROM tokens WHERE user_id = ?", (user_id,))
+        audit.record(conn, actor.id, actor.username, "user.disable" if disabled else "user.enable", "user", user_id,
+                     before={"disabled": bool(row["disabled"])}, after={"disabled": disabled})
+        return _public(conn.execute("SELECT * FROM users WHERE id = ?", (user_id,)).fetchone())

@@ -1,5 +1,5 @@
 // Hash router: #/login, #/patients, #/patients/:id, #/proposals/:id, #/monitor/:deviceId, #/sessions/:id/report
-import { get, signOut, token } from "./api.js";
+import { get, post, signOut, token } from "./api.js";
 import { h, notice } from "./ui.js";
 import { loginPage } from "./pages/login.js";
 import { patientsPage } from "./pages/patients.js";
@@ -41,7 +41,12 @@ function renderChrome() {
   nav.replaceChildren(h("a", { href: "#/patients" }, "Patients"), h("a", { href: "#/monitor", id: "nav-monitor" },
     "Live monitor"));
   who.replaceChildren(h("span", {}, `${app.me.username} · ${app.me.role}`),
-    h("button", { class: "link", onclick: () => { signOut(); app.me = null; location.hash = "#/login"; } }, "Sign out"));
+    h("button", { class: "link", id: "sign-out", onclick: async () => {
+      await post("/api/auth/logout").catch(() => {});   // the server forgets the token, not just this tab
+      signOut();
+      app.me = null;
+      location.hash = "#/login";
+    } }, "Sign out"));
 }
 
 async function route() {

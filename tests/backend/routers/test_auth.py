@@ -24,6 +24,41 @@ def test_wrong_password_and_unknown_user_get_the_same_401(api):
     assert actions.count("auth.login_failed") == 2
 
 
+def test_repeated_failed_sign_ins_are_throttled_and_write_a_bounded_audit(api):
+    c = api.client
+    codes = [c.post("/api/auth/token", data={"username": "viewer", "password": f"guess-{i}"}).status_code
+             for i in range(12)]
+    assert codes[:5] == [401] * 5 and set(codes[5:]) == {429}
+    r = c.post("/api/auth/token", data={"username": "viewer", "password": PASSWORD})    # even the right one waits
+    assert r.status_code == 429 and 0 < int(r.headers["retry-after"]) <= 60 and "try again in" in r.json()["detail"]
+    assert c.post("/api/auth/token", data={"username": "admin", "password": PASSWORD}).status_code == 200
+    for i in range(30):                           # many names from one address: the address is throttled too
+        c.post("/api/auth/token", data={"username": f"spray{i}", "password": "whatever-1"})
+    assert c.post("/api/auth/token", data={"username": "prosthetist", "password": PASSWORD}).status_code == 429
+    failed = [e for e in c.get("/api/audit?limit=500", headers=api.as_("admin")).json()["items"]
+              if e["action"] == "auth.login_failed"]
+    assert len(failed) == 20                      # 5 for viewer, then the address's 20 in all: bounded
+    assert failed[0]["after"]["address"] == "testclient"
+
+
+def test_a_failed_sign_in_name_is_logged_printable(api):
+    c = api.client
+    c.post("/api/auth/token", data={"username": "evil\x1b[31m\r\nadmin logged in", "password": "whatever-1"})
+    [entry] = [e for e in c.get("/api/audit", headers=api.as_("admin")).json()["items"]
+               if e["action"] == "auth.login_failed"]
+    assert entry["actor"] == "evil\\x1b[31m\\r\\nadmin logged in"
+    assert not any(ch in entry["actor"] for ch in "\x1b\r\n")
+
+
+def test_a_password_is_kept_exactly_as_typed(api):
+    r = api.client.post("/api/users", headers=api.as_("admin"),
+                        json={"username": "spacey", "role": "viewer", "password": "  two words  "})
+    assert r.status_code == 201, r.text
+    ok = api.client.post("/api/auth/token", data={"username": "spacey", "password": "  two words  "})
+    assert ok.status_code == 200
+    assert api.client.post("/api/auth/token", data={"username": "spacey", "password": "two words"}).status_code == 401
+
+
 def test_expired_token_is_refused(api):
     conn = api.db()
     with write_transaction(conn):
@@ -66,3 +101,27 @@ def test_roles_are_enforced_on_the_server(api):
     for role in ("viewer", "prosthetist"):
         assert api.client.get("/api/users", headers=api.as_(role)).status_code == 403
     assert api.client.get("/api/proposals/1", headers=api.as_("viewer")).json()["status"] == "draft"
+
+
+def test_sign_out_revokes_the_token(api):
+    c = api.client
+    token = c.post("/api/auth/token", data={"username": "viewer", "password": PASSWORD}).json()["access_token"]
+    h = {"Authorization": f"Bearer {token}"}
+    assert c.post("/api/auth/logout", headers=h).status_code == 204
+    assert c.get("/api/patients", headers=h).status_code == 401
+    assert c.get("/api/patients", headers=api.as_("viewer")).status_code == 200     # other sessions stay
+
+
+def test_a_disabled_account_loses_its_tokens_and_cannot_sign_in(api):
+    c, admin = api.client, api.as_("admin")
+    users = {u["username"]: u for u in c.get("/api/users", headers=admin).json()}
+    assert c.patch(f"/api/users/{users['viewer']['id']}", headers=api.as_("prosthetist"),
+                   json={"disabled": True}).status_code == 403
+    r = c.patch(f"/api/users/{users['viewer']['id']}", headers=admin, json={"disabled": True})
+    assert r.status_code == 200 and r.json()["disabled"] is True
+    assert c.get("/api/patients", headers=api.as_("viewer")).status_code == 401
+    assert c.post("/api/auth/token", data={"username": "viewer", "password": PASSWORD}).status_code == 401
+    r = c.patch(f"/api/users/{users['admin']['id']}", headers=admin, json={"disabled": True})
+    assert r.status_code == 409 and "another admin" in r.json()["detail"]
+    c.patch(f"/api/users/{users['viewer']['id']}", headers=admin, json={"disabled": False})
+    assert c.post("/api/auth/token", data={"username": "viewer", "password": PASSWORD}).status_code == 200

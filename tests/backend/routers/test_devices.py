@@ -184,3 +184,17 @@ def test_safe_mode_command_round_trip(sim_api):
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["safe_mode"])
     c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "leave_safe_mode"})
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["mode"] == "active")
+
+
+def test_an_open_telemetry_stream_closes_when_its_user_is_disabled(sim_api):
+    api = sim_api
+    c, admin = api.client, api.as_("admin")
+    viewer_id = next(u["id"] for u in c.get("/api/users", headers=admin).json() if u["username"] == "viewer")
+    token = api.as_("viewer")["Authorization"].split()[1]
+    with c.websocket_connect(f"/api/devices/{DEVICE}/telemetry?token={token}") as ws:
+        assert ws.receive_json()["type"] == "status"
+        c.patch(f"/api/users/{viewer_id}", headers=admin, json={"disabled": True})
+        with pytest.raises(WebSocketDisconnect) as closed:
+            for _ in range(1000):                         # status at 10 Hz: the re-check comes within ~1 s
+                ws.receive_json()
+        assert closed.value.code == 1008 and "disabled" in closed.value.reason
