@@ -46,7 +46,8 @@ class EditRequest(StrictIn):
 
 
 class DecisionRequest(StrictIn):
-    comment: Text = Field(default="", max_length=2000, description="the prosthetist's comment (audited)")
+    comment: Text = Field(min_length=1, max_length=2000,
+                          description="why the table is approved or rejected (required, audited), e.g. what was reviewed")
 
 
 class Task(BaseModel):

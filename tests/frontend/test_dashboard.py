@@ -140,6 +140,9 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     shot(page, "03-edited-diff")
 
     # approve, then push to the simulated leg and see it become active with the CRC read back
+    assert page.is_disabled("#approve") and page.is_disabled("#reject")     # a decision needs its reason
+    page.fill("#decision input[name=comment]", "   ")
+    assert page.is_disabled("#approve")
     page.fill("#decision input[name=comment]", "reviewed loops and preview")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
@@ -168,7 +171,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.wait_for_selector("#start-session:has-text('Start session for P-100')")   # the patient wearing the leg
     page.click("#start-session")
     page.wait_for_selector("#stop-session")
-    page.wait_for_function("window.quasitune.monitor && window.quasitune.monitor.samples > 150", timeout=20_000)
+    page.wait_for_function("() => window.quasitune.monitor && window.quasitune.monitor.samples > 150", timeout=20_000)
     first = page.inner_text("#knee-angle")
     page.wait_for_timeout(700)
     assert page.inner_text("#knee-angle") != first                        # the numbers move
@@ -251,3 +254,33 @@ def test_keyboard_only_sign_in_and_navigation(server, page):
     bad = page.evaluate("""() => [...document.querySelectorAll('button, input, select, a[href]')]
         .filter((el) => el.tabIndex < 0).length""")
     assert bad == 0
+
+
+def test_security_headers_hold_and_the_api_docs_load_from_this_server_only(server, page):
+    requests: list[str] = []
+    page.on("request", lambda r: requests.append(r.url))
+    r = page.goto(server + "/docs")
+    headers = r.headers
+    assert headers["x-frame-options"] == "DENY" and headers["x-content-type-options"] == "nosniff"
+    assert headers["referrer-policy"] == "no-referrer" and "frame-ancestors 'none'" in headers["content-security-policy"]
+    page.wait_for_selector(".swagger-ui .opblock", timeout=20_000)       # the UI ran under its CSP (hashed script)
+    assert page.locator(".swagger-ui .opblock").count() > 20
+    assert all(u.startswith(server) or u.startswith("data:") for u in requests), [u for u in requests
+                                                                              if not u.startswith(server)]
+    dash = page.goto(server + "/")
+    assert "script-src 'self';" in dash.headers["content-security-policy"]   # no inline script on the dashboard
+
+
+def test_body_mass_is_editable_on_the_patient_page(server, page):
+    sign_in(page, server, "dana")
+    page.fill("#new-patient input[name=code_name]", "P-MASS")
+    page.fill("#new-patient input[name=body_mass_kg]", "78")
+    page.click("#new-patient button[type=submit]")
+    page.wait_for_selector("#edit-mass")
+    page.fill("#edit-mass input[name=body_mass_kg]", "250")
+    page.click("#edit-mass button[type=submit]")                                       # the form refuses it
+    assert page.evaluate("() => document.querySelector('#edit-mass input').validity.rangeOverflow")
+    assert "78.0 kg" in page.inner_text("#patient-mass")
+    page.fill("#edit-mass input[name=body_mass_kg]", "81.5")
+    page.click("#edit-mass button[type=submit]")
+    page.wait_for_selector("#patient-mass:has-text('81.5 kg')")

@@ -1,4 +1,4 @@
-import { get, post } from "../api.js";
+import { api, get, post } from "../api.js";
 import { app } from "../main.js";
 import { chip, fmt, h, table, when } from "../ui.js";
 
@@ -7,7 +7,7 @@ export async function patientPage(view, id) {
     get(`/api/patients/${id}`), get(`/api/patients/${id}/proposals`), get(`/api/patients/${id}/sessions`),
     get("/api/devices")]);
   const details = h("dl", { class: "facts" },
-    h("dt", {}, "Body mass"), h("dd", {}, fmt(patient.body_mass_kg, 1, "kg")),
+    h("dt", {}, "Body mass"), h("dd", { id: "patient-mass" }, fmt(patient.body_mass_kg, 1, "kg")),
     h("dt", {}, "Height"), h("dd", {}, fmt(patient.height_m, 2, "m")),
     h("dt", {}, "Side"), h("dd", {}, patient.side),
     h("dt", {}, "K-level"), h("dd", {}, patient.k_level === null ? "—" : `K${patient.k_level}`),
@@ -38,7 +38,7 @@ export async function patientPage(view, id) {
   view.replaceChildren(
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ", patient.code_name),
     h("h1", {}, `Patient ${patient.code_name}`),
-    h("section", { class: "card" }, details),
+    h("section", { class: "card" }, details, app.me.role === "prosthetist" ? massForm(patient) : null),
     h("section", { class: "card" }, h("h2", {}, "Proposals"),
       app.me.role === "prosthetist" ? proposalForm(patient) : null,
       proposals.length ? table(["Version", "Speed (m/s)", "Incline (deg)", "Status", "Source", "", "By", "Created"],
@@ -74,6 +74,29 @@ function proposalForm(patient) {
       error.textContent = err.message;
     } finally {
       button.disabled = false;
+    }
+  });
+  return form;
+}
+
+// Body mass sets every torque and load threshold of a proposal: editable here, and a table proposed for a mass
+// more than 2 % away is then refused at push (propose again).
+function massForm(patient) {
+  const error = h("p", { class: "error", role: "alert" });
+  const mass = h("input", { name: "body_mass_kg", type: "number", min: 20, max: 200, step: 0.1, required: true,
+    value: patient.body_mass_kg });
+  const form = h("form", { class: "inline", id: "edit-mass" }, h("label", {}, "Body mass (kg) ", mass),
+    h("button", { type: "submit", class: "secondary" }, "Save body mass"),
+    h("span", { class: "muted small" }, "Tables proposed for another mass (more than 2 % away) can no longer be pushed."),
+    error);
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    error.textContent = "";
+    try {
+      await api(`/api/patients/${patient.id}`, { method: "PATCH", body: { body_mass_kg: Number(mass.value) } });
+      await patientPage(document.getElementById("view"), patient.id);
+    } catch (err) {
+      error.textContent = err.message;
     }
   });
   return form;

@@ -309,10 +309,16 @@ function renderDecision(box, p, canDecide) {
       error.textContent = err.message;
     }
   };
-  box.append(h("div", { class: "inline" }, h("label", {}, "Comment ", comment),
-    h("button", { id: "approve", onclick: decide("approve"), disabled: !p.safety.ok,
-      title: p.safety.ok ? "" : "outside the safety limits: cannot be approved" }, "Approve"),
-    h("button", { id: "reject", class: "secondary", onclick: decide("reject") }, "Reject")), error);
+  const approve = h("button", { id: "approve", onclick: decide("approve"), disabled: true,
+    title: p.safety.ok ? "say why first (what you reviewed)" : "outside the safety limits: cannot be approved" }, "Approve");
+  const reject = h("button", { id: "reject", class: "secondary", onclick: decide("reject"), disabled: true,
+    title: "say why first" }, "Reject");
+  comment.addEventListener("input", () => {       // a decision needs its reason, like an edit
+    const said = comment.value.trim().length > 0;
+    approve.disabled = !said || !p.safety.ok;
+    reject.disabled = !said;
+  });
+  box.append(h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject), error);
 }
 
 async function renderPush(box, p, canPush) {

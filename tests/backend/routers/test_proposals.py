@@ -144,13 +144,18 @@ def test_unsafe_or_empty_edit_is_refused_and_nothing_stored(api, edit, words):
 def test_approve_once_then_immutable(api):
     patient = api.new_patient()
     p = api.propose(patient["id"])
+    for body in ({}, {"comment": ""}, {"comment": "   "}):                   # a decision needs its reason
+        r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"), json=body)
+        assert r.status_code == 422 and "comment" in r.text
+    assert api.client.get(f"/api/proposals/{p['id']}", headers=api.as_("viewer")).json()["status"] == "draft"
     r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"),
                         json={"comment": "matches the gait lab"})
     assert r.status_code == 200
     d = r.json()["decision"]
     assert d["status"] == "approved" and d["by"] == "prosthetist" and d["comment"] == "matches the gait lab"
     for action in ("approve", "reject"):
-        again = api.client.post(f"/api/proposals/{p['id']}/{action}", headers=api.as_("prosthetist"), json={})
+        again = api.client.post(f"/api/proposals/{p['id']}/{action}", headers=api.as_("prosthetist"),
+                                json={"comment": "again"})
         assert again.status_code == 409 and "already approved" in again.json()["detail"]
     conn = api.db()
     with pytest.raises(sqlite3.IntegrityError, match="immutable"):
@@ -193,7 +198,8 @@ def test_approval_rechecks_the_limits_of_the_stored_table(api, model):
     stored = proposal_store.create_from_model(conn, patient["id"], proposal, User(1, "prosthetist", "prosthetist"))
     conn.close()
     assert stored["safety"]["ok"] is False
-    r = api.client.post(f"/api/proposals/{stored['id']}/approve", headers=api.as_("prosthetist"), json={})
+    r = api.client.post(f"/api/proposals/{stored['id']}/approve", headers=api.as_("prosthetist"),
+                        json={"comment": "ok"})
     assert r.status_code == 409 and "outside the safety limits" in r.json()["detail"]
     assert r.json()["violations"][0]["field"] == "knee.stance_flexion.k_Nm_per_rad"
     assert api.client.get(f"/api/proposals/{stored['id']}", headers=api.as_("viewer")).json()["status"] == "draft"
@@ -207,7 +213,7 @@ def test_tampered_table_is_refused_at_approval(api):
         conn.execute("UPDATE proposals SET table_json = replace(table_json, '\"knee\"', '\"knee\" ') WHERE id = ?",
                      (p["id"],))
     conn.close()
-    r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"), json={})
+    r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
     assert r.status_code == 409 and "sha256" in r.json()["detail"]
 
 
