@@ -51,9 +51,7 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
     ref = reference_curves(reference)
     running = np.ones(n, dtype=bool) if running_table is None else np.asarray(running_table, dtype=bool)
     on_table = np.array([bool(running[a:b + 1].all()) for a, b in itertools.pairwise(strikes)], dtype=bool)
-    strided = {k: v[on_table] for k, v in channel_strides(measured, strikes).items()}
-    if int(on_table.sum()) == 0:
-        strided = {}
+    strided = {k: v[on_table] for k, v in channel_strides(measured, strikes).items()} if on_table.any() else {}
     mean_curves, raw_errors = strided_errors(strided, list(measured), ref)
     errors = {k: None if v is None else round(v, 4) for k, v in raw_errors.items()}
     means = {name: [round(float(v), 3) for v in mean_curves[name]] if name in mean_curves else None

@@ -145,6 +145,7 @@ class DeviceManager:
         if not self.online(dev) or dev.link is None:
             raise ConflictError(f"device {device_id} is offline (no status for over {ONLINE_WITHIN_S:g} s); "
                                 "nothing was sent")
+        dev.tables.clear()      # the device's 16-bit version numbers wrap: a number may now name another push
         return dev.link.push(table, version)
 
     def command(self, device_id: str, command: Command) -> None:

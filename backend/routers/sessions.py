@@ -17,7 +17,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest
 from backend.store import devices as devices_store
-from backend.store import patients, proposals, pushes
+from backend.store import patients, pushes
 from backend.store import sessions as store
 from controller_core.session_summary import summarize_session
 from device_bridge.protocol import Mode
@@ -47,8 +47,7 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
     if body.speed_mps is not None:
         speed, incline = body.speed_mps, body.incline_deg or 0.0
     elif active is not None:
-        row = proposals.get_row(conn, active["proposal_id"])
-        speed, incline = row["speed_mps"], row["incline_deg"]
+        speed, incline = active["task"]["speed_mps"], active["task"]["incline_deg"]
     else:
         raise InvalidError("give speed_mps (and incline_deg), or push a table to the device first: the session's "
                            "task sets the reference its errors are measured against")
