@@ -23,6 +23,17 @@ class ControllerPreview(BaseModel):
     mean_curves: dict[str, list[float]] = Field(description="stride-averaged curves on phase_grid (deg, N·m/kg)")
 
 
+class SafetyFlag(BaseModel):
+    """One safety figure of this table's walk outside its bound (backend/experiments/safety_figures.py)."""
+
+    figure: str = Field(description="the summary key, e.g. toe_catches, loaded_swing_ms_per_stride")
+    severity: Literal["bad", "warn"]
+    value: float
+    fsmic_value: float | None = Field(description="the FSMIC's figure on the same bench walk")
+    unit: str
+    message: str
+
+
 class PreviewOut(BaseModel):
     proposal_id: int
     table_sha256: str = Field(description="the table that was simulated")
@@ -32,3 +43,5 @@ class PreviewOut(BaseModel):
     reference_curves: dict[str, list[float]] = Field(description="able-bodied reference at the task (deg, N·m/kg)")
     controllers: dict[Literal["table", "fsmic"], ControllerPreview] = Field(
         description="table: this proposal's table; fsmic: the hand-tuned benchmark (never re-tuned per task)")
+    safety: list[SafetyFlag] = Field(description="this table's safety figures outside their bounds, bad first; "
+                                                 "empty when all hold")

@@ -150,8 +150,9 @@ class ProposalSummary(BaseModel):
 
 
 class ProposalOut(ProposalSummary):
-    deployment: Literal["pushed", "active_on_device", "push_failed"] | None = Field(
-        default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it")
+    deployment: Literal["pushed", "active_on_device", "replaced", "push_failed"] | None = Field(
+        default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it; "
+                                  "replaced once another table took its place")
     features: list[FeatureOut]
     subphase_boundaries_phase: Boundaries
     curves: Curves

@@ -125,10 +125,13 @@ def current_push(conn: sqlite3.Connection, device_id: str) -> dict | None:
 
 
 def deployment_state(conn: sqlite3.Connection, proposal_id: int) -> str | None:
-    """``active_on_device`` / ``pushed`` / ``push_failed`` / None (never pushed) from the proposal's pushes."""
+    """``active_on_device`` / ``pushed`` (on its way: sent or read back, not yet running) / ``replaced`` (ran or
+    was sent, then another table took its place) / ``push_failed`` / None (never pushed), from its pushes."""
     statuses = {r[0] for r in conn.execute("SELECT status FROM pushes WHERE proposal_id = ?", (proposal_id,))}
     if "active" in statuses:
         return "active_on_device"
-    if statuses & {"acknowledged", "sending", "superseded"}:
+    if statuses & {"acknowledged", "sending"}:
         return "pushed"
+    if "superseded" in statuses:
+        return "replaced"
     return "push_failed" if statuses else None

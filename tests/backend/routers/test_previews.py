@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from backend.experiments.safety_figures import safety_flags
+
 
 def test_preview_walks_the_table_and_the_fsmic_once_and_keeps_it(api):
     prop = api.propose(api.new_patient()["id"], speed=1.2)
@@ -27,6 +29,9 @@ def test_preview_walks_the_table_and_the_fsmic_once_and_keeps_it(api):
     assert vs["knee_angle_verdict"] in {"learned lower", "FSMIC lower", "not resolved"}
     assert table["heel_strikes_without_stance"] == 0 and table["heel_strike_to_stance_ms_median"] >= 20.0
     assert len(first["phase_grid"]) == 101
+    # the safety figures are flagged on their own bounds (rules in test_safety_figures), with words to read
+    assert first["safety"] == safety_flags(table, first["controllers"]["fsmic"])
+    assert all(f["message"] and f["severity"] in {"bad", "warn"} for f in first["safety"])
     again = c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer).json()
     assert again == first   # stored, not re-simulated (same created_at)
     with api.db() as conn:

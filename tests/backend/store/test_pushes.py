@@ -38,6 +38,8 @@ def test_running_a_table_supersedes_older_acknowledged_pushes(api):
     assert statuses == ["superseded", "active", "acknowledged"]        # the newest is still to be run
     assert set(changed) == {proposal_ids[0], proposal_ids[1]}
     assert pushes.current_push(conn, "leg")["id"] == push_ids[2]
+    # what each version's page says about where it runs
+    assert [pushes.deployment_state(conn, p) for p in proposal_ids] == ["replaced", "active_on_device", "pushed"]
 
 
 def test_a_device_kind_outside_the_schema_is_refused_not_ignored(api):

@@ -1,0 +1,75 @@
+"""The safety figures of a bench walk, flagged for the prosthetist before any tracking error is shown.
+
+A table can track the reference better than the FSMIC and still trip the patient or leave a loaded knee on the
+weak swing impedance. These figures are not scores: each one is flagged on its own bound, whatever the RMSEs say.
+
+Bounds (and why):
+
+* falls: any fall (the bench carried half the body weight, or the loaded knee buckled).
+* toe catches: any foot contact in mid-swing (a stumble the patient would feel).
+* heel strikes never reaching stance: the leg stayed on swing impedance through a whole loading response.
+* loaded swing: more than 20 ms per stride on a swing row with more than ½ body weight on the leg (the bound of
+  the heel-strike safety target); flagged as a warning, and as bad from 50 ms.
+* foot contact → stance, longest: more than 50 ms (about a third of the loading response at 1.2 m/s), or more than
+  20 ms later than the FSMIC's on the same walk.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Literal
+
+Severity = Literal["bad", "warn"]
+
+LOADED_SWING_WARN_MS = 20.0
+LOADED_SWING_BAD_MS = 50.0
+STANCE_ENTRY_MAX_MS = 50.0
+STANCE_ENTRY_BEHIND_FSMIC_MS = 20.0
+
+
+def _flag(figure: str, severity: Severity, value: float | int, fsmic: float | int | None, unit: str,
+          message: str) -> dict[str, object]:
+    return {"figure": figure, "severity": severity, "value": value, "fsmic_value": fsmic, "unit": unit,
+            "message": message}
+
+
+def safety_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) -> list[dict[str, object]]:
+    """Flags on the safety figures of ``table``'s bench walk (summary of ``score_walk``), next to the FSMIC's.
+
+    Returns one dict per figure out of bounds (``figure``, ``severity`` bad|warn, ``value``, ``fsmic_value``,
+    ``unit``, ``message`` in words a prosthetist reads), bad first; empty when every figure is within bounds.
+    Missing figures (a walk with no whole stride) are flagged: nothing measured is not safe.
+    """
+    flags: list[dict[str, object]] = []
+    falls, toe = int(table.get("falls") or 0), int(table.get("toe_catches") or 0)
+    if falls:
+        flags.append(_flag("falls", "bad", falls, fsmic.get("falls"), "falls",
+                           f"the leg gave way {falls} time(s) on the simulated bench"))
+    if toe:
+        flags.append(_flag("toe_catches", "bad", toe, fsmic.get("toe_catches"), "catches",
+                           f"the toe caught the floor in mid-swing {toe} time(s): a trip risk"))
+    missed = table.get("heel_strikes_without_stance")
+    if missed is None:
+        flags.append(_flag("strides", "bad", int(table.get("strides") or 0), fsmic.get("strides"), "strides",
+                           "no whole stride was walked: the safety figures could not be measured"))
+        return flags
+    if int(missed):
+        flags.append(_flag("heel_strikes_without_stance", "bad", int(missed), fsmic.get("heel_strikes_without_stance"),
+                           "strides", f"on {int(missed)} stride(s) the leg never switched to stance after the foot "
+                           "touched down"))
+    loaded = float(table.get("loaded_swing_ms_per_stride") or 0.0)
+    if loaded > LOADED_SWING_WARN_MS:
+        flags.append(_flag("loaded_swing_ms_per_stride", "bad" if loaded > LOADED_SWING_BAD_MS else "warn", loaded,
+                           fsmic.get("loaded_swing_ms_per_stride"), "ms",
+                           f"{loaded:.0f} ms per stride on the weak swing settings with more than half the body "
+                           f"weight on the leg (bound {LOADED_SWING_WARN_MS:.0f} ms)"))
+    entry = table.get("heel_strike_to_stance_ms_max")
+    fsmic_entry = fsmic.get("heel_strike_to_stance_ms_max")
+    if entry is not None:
+        late = float(entry) > STANCE_ENTRY_MAX_MS
+        behind = fsmic_entry is not None and float(entry) > float(fsmic_entry) + STANCE_ENTRY_BEHIND_FSMIC_MS
+        if late or behind:
+            versus = f" (FSMIC {float(fsmic_entry):.0f} ms)" if fsmic_entry is not None else ""
+            flags.append(_flag("heel_strike_to_stance_ms_max", "warn", float(entry), fsmic_entry, "ms",
+                               f"up to {float(entry):.0f} ms from foot contact to the stance settings{versus}"))
+    return sorted(flags, key=lambda f: f["severity"] != "bad")

@@ -1,0 +1,52 @@
+"""Safety figures are flagged on their own bounds, whatever the tracking errors say.
+
+The summaries here are hand-written (not walks): each test sets the one figure it is about.
+"""
+
+from __future__ import annotations
+
+from backend.experiments.safety_figures import safety_flags
+
+SAFE = {"strides": 8, "falls": 0, "toe_catches": 0, "heel_strikes_without_stance": 0,
+        "heel_strike_to_stance_ms_median": 24.0, "heel_strike_to_stance_ms_max": 30.0,
+        "loaded_swing_ms_per_stride": 4.0, "knee_angle_rmse_deg": 3.0}
+
+
+def figures(flags: list[dict]) -> dict[str, str]:
+    return {f["figure"]: f["severity"] for f in flags}
+
+
+def test_a_safe_walk_has_no_flags():
+    assert safety_flags(SAFE, SAFE) == []
+
+
+def test_toe_catches_are_bad_even_when_the_table_tracks_better():
+    table = {**SAFE, "toe_catches": 7, "knee_angle_rmse_deg": 1.0}
+    flags = safety_flags(table, SAFE)
+    assert figures(flags) == {"toe_catches": "bad"}
+    assert "7" in flags[0]["message"] and "trip" in flags[0]["message"] and flags[0]["fsmic_value"] == 0
+
+
+def test_a_late_stance_entry_is_flagged_against_its_bound_and_against_the_fsmic():
+    # the issue's example: 101 ms from foot contact to stance against the FSMIC's 28 ms
+    flags = safety_flags({**SAFE, "heel_strike_to_stance_ms_max": 101.0}, {**SAFE, "heel_strike_to_stance_ms_max": 28.0})
+    assert figures(flags) == {"heel_strike_to_stance_ms_max": "warn"}
+    assert "101 ms" in flags[0]["message"] and "FSMIC 28 ms" in flags[0]["message"]
+    # within 50 ms but 20 ms behind the benchmark: still flagged
+    late = {**SAFE, "heel_strike_to_stance_ms_max": 45.0}
+    assert figures(safety_flags(late, {**SAFE, "heel_strike_to_stance_ms_max": 20.0}))
+    assert not safety_flags(late, {**SAFE, "heel_strike_to_stance_ms_max": 40.0})
+
+
+def test_loaded_swing_time_is_a_warning_then_bad():
+    assert figures(safety_flags({**SAFE, "loaded_swing_ms_per_stride": 30.0}, SAFE)) == {
+        "loaded_swing_ms_per_stride": "warn"}
+    assert figures(safety_flags({**SAFE, "loaded_swing_ms_per_stride": 80.0}, SAFE)) == {
+        "loaded_swing_ms_per_stride": "bad"}
+
+
+def test_bad_flags_come_first_and_a_walk_without_strides_is_not_called_safe():
+    flags = safety_flags({**SAFE, "heel_strike_to_stance_ms_max": 90.0, "falls": 2}, SAFE)
+    assert [f["severity"] for f in flags] == ["bad", "warn"]
+    none = {**SAFE, "strides": 0, "heel_strikes_without_stance": None, "heel_strike_to_stance_ms_max": None}
+    assert figures(safety_flags(none, SAFE)) == {"strides": "bad"}
