@@ -44,10 +44,52 @@ export const SUBPHASE_LABEL = {
   stance_flexion: "stance flexion", stance_extension: "stance extension",
   swing_flexion: "swing flexion", swing_extension: "swing extension",
 };
+// Settings named as clinicians name them (the engineering view keeps the codes)
+export const ROW_WORDS = {
+  "knee.stance_flexion": "knee stance flexion resistance (loading response)",
+  "knee.stance_extension": "knee stance extension (mid and terminal stance)",
+  "knee.swing_flexion": "knee swing flexion",
+  "knee.swing_extension": "knee swing extension (terminal swing)",
+  "ankle.stance_flexion": "ankle loading response (heel rocker)",
+  "ankle.stance_extension": "ankle terminal stance and push-off",
+  "ankle.swing_flexion": "ankle swing (toe clearance)",
+  "ankle.swing_extension": "ankle late swing (ready for heel strike)",
+};
+const PARAMETER_WORDS = { k_Nm_per_rad: "stiffness", theta_e_deg: "equilibrium angle", b_Nm_s_per_rad: "damping",
+  fit_method: "where the value comes from", r2: "fit quality R²" };
+export const FIT_METHOD_WORDS = {
+  least_squares: "fitted to the predicted loop", extension_window: "fitted to stance extension",
+  range_guard: "fitted, angle held in range", passivity_guard: "fitted, held resistive",
+  swing_target: "set from the swing target", manual: "edited by hand", literature: "published value",
+};
+const THRESHOLD_WORDS = {
+  sf_to_se_ankle_moment_Nm: "stance extension begins: ankle moment below",
+  se_to_wf_load_N: "toe-off: load below",
+  wf_to_we_knee_angle_deg: "swing extension begins: knee flexed beyond",
+  we_to_sf_load_N: "heel strike: load above",
+  min_state_time_s: "shortest time in a phase",
+  max_state_time_s: "longest time in a phase",
+  sf_to_se_knee_extension_deg_per_s: "stance extension also begins: loaded knee extending faster than (0 = off)",
+};
+
+// "knee.stance_flexion.k_Nm_per_rad" -> "knee stance flexion resistance (loading response): stiffness"
+export function fieldWords(field) {
+  const [a, b, c] = field.split(".");
+  if (a === "thresholds") return THRESHOLD_WORDS[b] || field;
+  const row = ROW_WORDS[`${a}.${b}`];
+  return row && PARAMETER_WORDS[c] ? `${row}: ${PARAMETER_WORDS[c]}` : field;
+}
+
 // colour-blind safe (Okabe–Ito) per sub-phase
 export const SUBPHASE_COLOUR = {
   stance_flexion: "#009E73", stance_extension: "#D55E00", swing_flexion: "#0072B2", swing_extension: "#CC79A7",
 };
+// What the device's mode means, in words (the API's codes stay in the engineering view and the JSON)
+const MODE_WORDS = { active: "running its table", safe: "SAFE MODE (passive, damped)", no_table: "no table (passive)" };
+export function modeWords(mode) {
+  return MODE_WORDS[mode] || (mode ? `mode ${mode}` : "mode not reported");
+}
+
 export const FSM_STATES = ["stance flexion", "stance extension", "swing flexion", "swing extension"];
 
 export function chip(text, kind = "") {

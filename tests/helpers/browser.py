@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 from pathlib import Path
 
@@ -48,3 +49,18 @@ def canvas_ink(page, selector: str) -> list[int]:
     return page.evaluate("""(sel) => [...document.querySelectorAll(sel)].map((c) => {
         const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
         let n = 0; for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++; return n; })""", selector)
+
+
+def create_patient_and_propose(page, code: str, speed: str = "1.25", incline: str = "0") -> int:
+    """From the patient list: a new 78 kg patient and a proposal at the task; returns the proposal id."""
+    page.fill("#new-patient input[name=code_name]", code)
+    page.fill("#new-patient input[name=body_mass_kg]", "78")
+    page.click("#new-patient button[type=submit]")
+    page.wait_for_selector("#propose")
+    page.fill("#propose input[name=speed_mps]", speed)
+    page.fill("#propose input[name=incline_deg]", incline)
+    page.click("#propose button[type=submit]")
+    page.wait_for_selector("#param-table")
+    return int(re.search(r"#/proposals/(\d+)", page.url).group(1))
+
+

@@ -2,7 +2,7 @@
 import { del, get, post, put, token } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { liveChart } from "../charts.js";
-import { chip, confirmDialog, fmt, FSM_STATES, h, notice, table, tableName, when } from "../ui.js";
+import { chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
 
 export async function monitorPage(view, deviceId, params) {
   const [device, patients] = await Promise.all([get(`/api/devices/${deviceId}`), get("/api/patients")]);
@@ -24,7 +24,8 @@ export async function monitorPage(view, deviceId, params) {
         h("button", { class: "danger", id: "enter-safe", onclick: () => command("enter_safe_mode") }, "Enter safe mode"),
         h("button", { class: "secondary", id: "leave-safe", onclick: () => command("leave_safe_mode") }, "Leave safe mode")) : null),
     sessionBox,
-    h("section", { class: "card" }, h("h2", {}, "Telemetry (last 5 s, 100 Hz)"), readout, charts),
+    h("section", { class: "card" }, h("h2", {}, "Telemetry (last 5 s, 100 Hz)"),
+      h("p", { id: "telemetry-state", "aria-live": "polite" }, chip("waiting for data…", "warn")), readout, charts),
     h("section", { class: "card" }, viewerToggle));
 
   const figs = [0, 1, 2].map(() => h("figure", { class: "chart" }));
@@ -40,6 +41,7 @@ export async function monitorPage(view, deviceId, params) {
   renderStatus(statusBox, device);
   await renderSession(sessionBox, deviceId, patients, params);
   recordingChip(device);
+  let status = device;
 
   // telemetry over the WebSocket; charts redraw once per animation frame
   const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/api/devices/${deviceId}/telemetry?token=${token()}`);
@@ -50,6 +52,7 @@ export async function monitorPage(view, deviceId, params) {
   ws.onmessage = (ev) => {
     const m = JSON.parse(ev.data);
     if (m.type === "status") {
+      status = m;
       renderStatus(statusBox, m);
       recordingChip(m);
       return;
@@ -63,7 +66,25 @@ export async function monitorPage(view, deviceId, params) {
     torque.push(t, [m.knee_torque_Nm, m.ankle_torque_Nm]);
     fsm.push(t, [m.fsm_state, m.load_N / 1000]);
     latest = m;
+    lastSampleAt = performance.now();
   };
+  // Live whenever the leg sends samples, with or without a session; "no data" (and why) when it sends none
+  let lastSampleAt = null;
+  const stateLine = document.getElementById("telemetry-state");
+  const showDataState = () => {
+    const fresh = lastSampleAt !== null && performance.now() - lastSampleAt < NO_DATA_AFTER_MS;
+    const why = !status.online ? "the device is offline"
+      : status.walking === false ? "nobody is walking on the simulated leg (its simulated patient walks while a session records)"
+        : "the leg sends no sensor samples";
+    const text = fresh ? "live" : `no data: ${why}`;
+    if (stateLine.dataset.text !== text) {
+      stateLine.dataset.text = text;
+      stateLine.replaceChildren(chip(fresh ? "live" : "no data", fresh ? "ok" : "warn"),
+        fresh ? ` samples from ${deviceId}` : ` ${why}; the charts hold the last data received.`);
+    }
+  };
+  showDataState();
+  const dataTimer = setInterval(showDataState, 250);
   ws.onclose = (ev) => { if (ev.code === 1008) notice(`Telemetry refused: ${ev.reason}`); };
   let raf = 0;
   const frame = () => {
@@ -71,12 +92,12 @@ export async function monitorPage(view, deviceId, params) {
       stats.frames += 1;
       const dt = (performance.now() - stats.since) / 1000;
       stats.fps = stats.frames / dt;
-      if (latest) renderReadout(readout, latest, stats);
+      if (latest) renderReadout(readout, latest, stats, status.patient?.body_mass_kg);
     }
     raf = requestAnimationFrame(frame);
   };
   raf = requestAnimationFrame(frame);
-  onLeave(() => { cancelAnimationFrame(raf); ws.close(); });
+  onLeave(() => { cancelAnimationFrame(raf); clearInterval(dataTimer); ws.close(); });
 
   const show3d = async () => {
     localStorage.setItem("quasitune.show3d", viewerToggle.open ? "1" : "0");
@@ -99,18 +120,33 @@ export async function monitorPage(view, deviceId, params) {
 
   async function command(name) {
     try {
-      renderStatus(statusBox, await post(`/api/devices/${deviceId}/commands`, { command: name }));
-      notice(`${name.replaceAll("_", " ")} sent`, "ok");
+      status = await post(`/api/devices/${deviceId}/commands`, { command: name });
+      renderStatus(statusBox, status);
+      // a change of what the leg does is a caution, never a green "done"
+      notice(name === "enter_safe_mode" ? "Safe mode requested: the leg goes passive and damped; the table does not run."
+        : "Leaving safe mode: the leg runs its table again from the next heel strike.", "warn");
     } catch (err) {
       notice(err.message);
     }
   }
 }
 
+const NO_DATA_AFTER_MS = 1000;
+
 function renderStatus(box, d) {
+  // the safe-mode buttons only when they would change something
+  const enter = document.getElementById("enter-safe"), leave = document.getElementById("leave-safe");
+  if (enter) {
+    enter.disabled = !d.online || d.safe_mode;
+    enter.title = !d.online ? "the device is offline" : d.safe_mode ? "already in safe mode" : "";
+  }
+  if (leave) {
+    leave.disabled = !d.online || !d.safe_mode;
+    leave.title = !d.online ? "the device is offline" : d.safe_mode ? "" : "not in safe mode";
+  }
   box.replaceChildren(h("p", { class: "chips" },
     chip(d.online ? "online" : "offline", d.online ? "ok" : "bad"),
-    chip(d.safe_mode ? "SAFE MODE" : `mode: ${d.mode || "—"}`, d.safe_mode ? "bad" : "ok"),
+    chip(d.safe_mode ? "SAFE MODE" : modeWords(d.mode), d.safe_mode ? "bad" : d.mode === "active" ? "ok" : "warn"),
     d.faults.length ? chip(`faults: ${d.faults.join(", ")}`, "bad") : null),
   h("dl", { class: "facts" },
     h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
@@ -133,15 +169,16 @@ function recordingChip(d) {
     : chip(`recording — leg ${d.safe_mode ? "in SAFE MODE" : "without a table"}: these strides are not scored`, "bad"));
 }
 
-function renderReadout(box, m, stats) {
+function renderReadout(box, m, stats, massKg) {
   const item = (label, value, id) => [h("dt", {}, label), h("dd", { id }, value)];
   box.replaceChildren(
     ...item("Knee angle", fmt(m.knee_angle_deg, 1, "deg"), "knee-angle"),
     ...item("Knee torque", fmt(m.knee_torque_Nm, 1, "N·m"), "knee-torque"),
     ...item("Ankle angle", fmt(m.ankle_angle_deg, 1, "deg"), "ankle-angle"),
     ...item("Ankle torque", fmt(m.ankle_torque_Nm, 1, "N·m"), "ankle-torque"),
-    ...item("Load", fmt(m.load_N, 0, "N"), "load"),
-    ...item("Mode", m.mode === "active" ? "running the table" : m.mode === "safe" ? "SAFE MODE (passive, damped)" : "no table (passive)", "sample-mode"),
+    ...item("Load", massKg ? `${fmt(m.load_N, 0, "N")} (${fmt(100 * m.load_N / (massKg * 9.80665), 0)} % body weight)`
+      : fmt(m.load_N, 0, "N"), "load"),
+    ...item("Mode", modeWords(m.mode), "sample-mode"),
     ...item("FSM state", m.fsm_state === null ? "—" : FSM_STATES[m.fsm_state], "fsm-state"),
     ...item("Drawn", `${fmt(stats.fps, 0)} frames/s · ${stats.samples} samples · ${stats.gaps} gaps`, "fps"));
 }
@@ -164,7 +201,7 @@ async function renderSession(box, deviceId, patients, params) {
       }
     });
     box.append(h("p", {}, h("span", { id: "recording-chip" }, chip("recording", "ok")), ` session #${s.id} since ${when(s.started_at)} at ${fmt(s.task.speed_mps, 2, "m/s")}, `,
-      `incline ${fmt(s.task.incline_deg, 1, "°")}, patient ${s.patient_code}, ${s.table_label ?? "no table from this server"}`), stop, error);
+      `incline ${fmt(s.task.incline_deg, 1, "°")}, for ${s.patient_code}, running ${s.table_label ?? "no table from this server"}`), stop, error);
     return;
   }
   box.append(assignment(box, device, patients, deviceId, params));

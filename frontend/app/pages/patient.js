@@ -1,6 +1,6 @@
 import { api, get, post } from "../api.js";
 import { app } from "../main.js";
-import { chip, fmt, h, table, when } from "../ui.js";
+import { chip, fmt, h, modeWords, table, when } from "../ui.js";
 
 export async function patientPage(view, id) {
   const [patient, proposals, sessions, devices] = await Promise.all([
@@ -30,7 +30,7 @@ export async function patientPage(view, id) {
 
   const devRows = devices.map((d) => h("tr", {},
     h("td", {}, h("a", { href: `#/monitor/${d.id}?patient=${patient.id}` }, d.id)), h("td", {}, d.kind),
-    h("td", {}, chip(d.online ? "online" : "offline", d.online ? "ok" : "bad")), h("td", {}, d.mode || "—"),
+    h("td", {}, chip(d.online ? "online" : "offline", d.online ? "ok" : "bad")), h("td", {}, modeWords(d.mode)),
     h("td", {}, d.patient ? d.patient.patient_code : "nobody"),
     h("td", {}, d.active_table ? d.active_table.table_label : d.active_version === null ? "—" : `device version ${d.active_version}`),
     h("td", { class: "mono" }, d.active_crc32 || "—")));

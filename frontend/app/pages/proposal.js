@@ -3,26 +3,16 @@
 import { get, post, put } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { legend, loopChart, phaseChart } from "../charts.js";
-import { chip, confirmDialog, fmt, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, tableName,
+import { parameterTable, tableView } from "./parameter_table.js";
+import { chip, confirmDialog, fieldWords, FIT_METHOD_WORDS, fmt, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, tableName,
   when } from "../ui.js";
 
 const RAD = Math.PI / 180;
-const state = { kUnit: "rad" };   // stiffness display unit, kept across versions
 
 // the measured conditions behind the model, and the reference at this task with what it really is
 function reference(task) {
   return get(`/api/reference?speed_mps=${task.speed_mps}&incline_deg=${task.incline_deg}`);
 }
-
-const FIT_METHOD_HELP = {
-  least_squares: "least-squares line τ = kθ + c through the predicted loop",
-  extension_window: "least-squares line over the knee's stance extension only (stance-flexion peak to its late-stance minimum); pre-swing left out",
-  range_guard: "the fitted θe lay outside the joint range: θe clamped to the range and k re-fitted",
-  passivity_guard: "the fitted line would inject energy with θe inside the swept angles: k set to the restoring floor, θe re-fitted",
-  swing_target: "not a fit: θe is the predicted swing target, k the model's swing stiffness (restoring)",
-  manual: "edited by hand",
-  literature: "published table",
-};
 
 export async function proposalPage(view, id) {
   const p = await get(`/api/proposals/${id}`);
@@ -35,9 +25,7 @@ export async function proposalPage(view, id) {
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ",
       h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `table v${p.version}`),
     h("h1", {}, `${p.table_label} · ${fmt(p.task.speed_mps, 2, "m/s")} · incline ${fmt(p.task.incline_deg, 1, "°")}`),
-    h("p", { class: "chips" }, chip(p.status, p.status), p.deployment ? chip(p.deployment.replaceAll("_", " "), "ok") : null,
-      chip(p.safety.ok ? "within safety limits" : "outside safety limits", p.safety.ok ? "ok" : "bad"),
-      p.source === "edit" ? chip(`edited from v${p.parent_version}`) : chip("model")),
+    headChips(p),
     h("p", { class: "provenance" }, `Model ${p.model.version} · training data sha256 ${p.model.data_sha256.slice(0, 12)}… · `,
       `patient mass ${fmt(mass, 1, "kg")} · created by ${p.created_by} ${when(p.created_at)} · table sha256 `,
       h("span", { class: "mono" }, p.table_sha256.slice(0, 12) + "…"),
@@ -60,7 +48,7 @@ export async function proposalPage(view, id) {
   const loopLegend = legend([["#1f4e99", "proposal (KMP mean) with ±1 SD band", "band"],
     ["#999", atTask ? `grey: measured level walking; bold: reference at this task — ${atTask.label}`
       : "grey: measured level walking (no curves were measured this steep: the proposal is the model's prediction)"],
-    ["#222", "via-points from the GPR feature predictions", "star"],
+    ["#222", "via-points: the GPR's predicted peaks at this task; the loop passes close to a confident one, only near an uncertain one", "star"],
     ...SUBPHASES.map((sp) => [SUBPHASE_COLOUR[sp], `${SUBPHASE_LABEL[sp]} fit τ = k(θ − θe)`, "dash"])]);
   const curveBox = h("div", { class: "four", id: "curves" });
   const decisionBox = h("section", { class: "card", id: "decision" });
@@ -70,6 +58,7 @@ export async function proposalPage(view, id) {
 
   view.replaceChildren(...head,
     h("section", { class: "card" }, h("h2", {}, "Torque-angle loops"), loops, loopLegend,
+      h("p", { class: "small", id: "via-note" }),
       h("p", { class: "muted small", id: "reference-note" }, "Moments are internal joint moments of this patient (N·m = N·m/kg × ",
         fmt(mass, 1, "kg"), "), flexor / dorsiflexor positive. ", atTask
           ? `Reference at this task: ${atTask.source}. Data: ${atTask.citations.join(" ")}`
@@ -81,9 +70,10 @@ export async function proposalPage(view, id) {
     decisionBox, pushBox, h("section", { class: "card", id: "versions" }), previewBox);
 
   drawLoops(p, ref, atTask);
+  explainVias(p, document.getElementById("via-note"));
   drawCurves(p, atTask, curveBox);
   renderDecision(decisionBox, p, canDecide);
-  renderPush(pushBox, p, canDecide);
+  renderPush(pushBox, p, canDecide, patient);
   app.proposalInteractiveAt = performance.now();
   if (app.proposalReturnedAt !== undefined) {
     app.proposalViewMs = app.proposalInteractiveAt - app.proposalReturnedAt;
@@ -91,6 +81,25 @@ export async function proposalPage(view, id) {
   }
   renderVersions(document.getElementById("versions"), p);
   renderPreview(previewBox, p);
+  // a push (here or elsewhere in this tab) changes where this version runs: the header follows without a reload
+  const refresh = async () => {
+    const now = await get(`/api/proposals/${p.id}`).catch(() => null);
+    if (now) document.getElementById("proposal-chips")?.replaceWith(headChips(now));
+  };
+  window.addEventListener("quasitune:device-changed", refresh);
+  onLeave(() => window.removeEventListener("quasitune:device-changed", refresh));
+}
+
+const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
+  active_on_device: ["running on a leg", "ok"], replaced: ["was on a leg, since replaced", ""],
+  push_failed: ["last push failed", "bad"] };
+
+function headChips(p) {
+  const [words, kind] = DEPLOYMENT_WORDS[p.deployment] || [];
+  return h("p", { class: "chips", id: "proposal-chips" }, chip(p.status, p.status),
+    words ? chip(words, kind) : null,
+    chip(p.safety.ok ? "within safety limits" : "outside safety limits", p.safety.ok ? "ok" : "bad"),
+    p.source === "edit" ? chip(`edited from v${p.parent_version}`) : chip("model"));
 }
 
 function moments(p, joint) {
@@ -134,6 +143,33 @@ function drawLoops(p, ref, atTask) {
   }
 }
 
+// Where a via-point sits off the proposal loop, say why: the KMP weighs each via-point by how sure the GPR is, so it
+// passes an uncertain one (typically outside the training data) only approximately, by design.
+function explainVias(p, el) {
+  const mass = p.task.body_mass_kg;
+  const at = (key, phase) => interp(phase * 100, p.curves.phase.map((x) => x * 100), p.curves[key]);
+  const off = p.via_points.map((v) => {
+    const dAngle = v.angle_deg - at(`${v.joint}_angle_deg`, v.phase);
+    const dMoment = (v.moment_Nm_per_kg - at(`${v.joint}_moment_Nm_per_kg`, v.phase)) * mass;
+    const sdAngle = at(`${v.joint}_angle_deg_std`, v.phase), sdMoment = at(`${v.joint}_moment_Nm_per_kg_std`, v.phase) * mass;
+    const far = Math.abs(dAngle) > Math.max(2, sdAngle) || Math.abs(dMoment) > Math.max(0.05 * mass, sdMoment);
+    return { ...v, dAngle, dMoment, far };
+  }).filter((v) => v.far);
+  if (!off.length) {
+    el.className = "muted small";
+    el.textContent = "Every via-point lies on the proposal loop (within its ±1 SD band).";
+    return;
+  }
+  const worst = off.reduce((a, b) => (Math.abs(b.dAngle) > Math.abs(a.dAngle) ? b : a));
+  el.className = "notice-inline warn small";
+  el.textContent = `${off.length} via-point(s) lie off the proposal loop (largest: ${worst.joint} at ${fmt(worst.phase * 100, 0)} % `
+    + `of the cycle, ${fmt(worst.dAngle, 1)}° and ${fmt(worst.dMoment, 1)} N·m from the loop). `
+    + (p.extrapolation ? "This task is outside the walking data, so the GPR is unsure of these peaks (see the ± SD in the features). "
+      : "The GPR is less sure of these peaks (see the ± SD in the features). ")
+    + "By design the KMP passes an uncertain via-point only approximately: the loop keeps the measured shape where the "
+    + "prediction is unsure. Treat the stars as the model's guess, not a target the table meets.";
+}
+
 function drawCurves(p, atTask, box) {
   const x = p.curves.phase.map((s) => s * 100);
   const b = p.subphase_boundaries_phase;
@@ -169,119 +205,6 @@ function featureTable(p) {
     h("td", { class: "num" }, pm(f.phase * 100, f.phase_std * 100, 1, "% cycle")),
     h("td", {}, f.extrapolation ? chip("outside data", "warn") : "")));
   return table(["Feature", "Joint", "Value ± SD", "Phase ± SD", ""], rows, { id: "features" });
-}
-
-// ---------------------------------------------------------------------------------------------- parameter table
-
-function kShown(k) {
-  return state.kUnit === "rad" ? k : k * RAD;
-}
-
-function parameterTable(p, canEdit) {
-  const L = p.limits;
-  const violated = new Set(p.safety.violations.map((v) => v.field));
-  const kUnit = state.kUnit === "rad" ? "N·m/rad" : "N·m/deg";
-  const range = (r, scale = 1, d = 0) => `${fmt(r.low * scale, d)} … ${fmt(r.high * scale, d)}`;
-  const toggle = h("fieldset", { class: "toggle", id: "k-unit" }, h("legend", {}, "Stiffness unit"),
-    ...["rad", "deg"].map((u) => h("label", {}, h("input", { type: "radio", name: "k-unit", value: u,
-      checked: state.kUnit === u, onchange: () => { state.kUnit = u; rerender(); } }), `N·m/${u}`)));
-  const cell = (row, field, value, digits, limit) => {
-    const key = `${row.joint}.${row.subphase}.${field}`;
-    const out = violated.has(key) || value < limit.low || value > limit.high;
-    const shown = field === "k_Nm_per_rad" ? kShown(value) : value;
-    const content = canEdit
-      ? h("input", { type: "number", step: "any", value: shown.toFixed(digits), "aria-label": `${key} (${field === "k_Nm_per_rad" ? kUnit : field.endsWith("deg") ? "deg" : "N·m·s/rad"})`,
-        dataset: { field: key, original: shown.toFixed(digits) } })
-      : fmt(shown, digits);
-    return h("td", { class: `num${out ? " out" : ""}`, title: out ? `outside the safety limits` : "" }, content);
-  };
-  const fitChip = (r) => r.fit_method === "swing_target" ? chip("swing target")
-    : r.guarded ? chip("guarded fit", "warn") : r.fit_method;
-  const rows = p.table.map((r) => {
-    const thetaLim = r.joint === "knee" ? L.knee_theta_e_deg : L.ankle_theta_e_deg;
-    return h("tr", {},
-      h("td", {}, r.joint), h("td", {}, h("span", { class: "dot", style: `--c:${SUBPHASE_COLOUR[r.subphase]}` }), SUBPHASE_LABEL[r.subphase]),
-      cell(r, "k_Nm_per_rad", r.k_Nm_per_rad, state.kUnit === "rad" ? 1 : 3, L.k_Nm_per_rad),
-      cell(r, "theta_e_deg", r.theta_e_deg, 2, thetaLim),
-      cell(r, "b_Nm_s_per_rad", r.b_Nm_s_per_rad, 2, L.b_Nm_s_per_rad),
-      h("td", { class: "num" }, r.r2 === null ? "—" : fmt(r.r2, 2)),
-      h("td", { title: FIT_METHOD_HELP[r.fit_method] ?? "" }, fitChip(r)));
-  });
-  const th = p.thresholds;
-  const thUnits = { sf_to_se_ankle_moment_Nm: ["SF→SE: ankle moment below", "N·m", L.ankle_moment_Nm],
-    se_to_wf_load_N: ["SE→WF (toe-off): load below", "N", L.load_N],
-    wf_to_we_knee_angle_deg: ["WF→WE: knee flexed beyond", "deg", L.knee_theta_e_deg],
-    we_to_sf_load_N: ["WE→SF (heel strike): load above", "N", L.load_N],
-    min_state_time_s: ["minimum time in a state", "s", L.state_time_s],
-    max_state_time_s: ["maximum time in a state", "s", L.state_time_s],
-    sf_to_se_knee_extension_deg_per_s: ["SF→SE also: loaded knee extending faster than (0 = off)", "deg/s",
-      L.knee_extension_deg_per_s] };
-  const thRows = Object.entries(thUnits).map(([k, [label, unit, lim]]) => {
-    const out = violated.has(`thresholds.${k}`) || th[k] < lim.low || th[k] > lim.high;
-    return h("tr", {}, h("td", {}, label), h("td", { class: `num${out ? " out" : ""}` },
-      canEdit ? h("input", { type: "number", step: "any", value: th[k].toFixed(3), "aria-label": `${k} (${unit})`,
-        dataset: { field: `thresholds.${k}`, original: th[k].toFixed(3) } }) : fmt(th[k], 3)),
-    h("td", {}, unit), h("td", { class: "muted" }, range(lim, 1, 2)));
-  });
-  const box = h("div", {},
-    h("h2", {}, "Parameter table: τ = k(θ − θe) − b·θ̇ per sub-phase"), toggle,
-    table(["Joint", "Sub-phase", `k (${kUnit})`, "θe (deg)", "b (N·m·s/rad)", "R²", "Fit"], rows, { id: "param-table" }),
-    h("p", { class: "muted small" }, `Limits: k ${range(L.k_Nm_per_rad, state.kUnit === "rad" ? 1 : RAD, state.kUnit === "rad" ? 0 : 2)} ${kUnit} (negative = restoring); `,
-      `θe knee ${range(L.knee_theta_e_deg)}°, ankle ${range(L.ankle_theta_e_deg)}°; b ${range(L.b_Nm_s_per_rad)} N·m·s/rad. `,
-      "Cells outside the limits are marked red. R²: how well the row's straight line fits the predicted loop in that sub-phase. ",
-      "Swing-target rows are not fits: in swing the foot is unloaded, so θe is the predicted swing target (knee: swing-flexion peak, then heel-strike angle; ankle: swing dorsiflexion plus a toe-clearance margin) and k a set swing stiffness; their R² (often far below 0) says how little of the able-bodied swing moment such a line explains."),
-    h("h3", {}, "State-machine thresholds"),
-    table(["Transition", "Value", "Unit", "Limits"], thRows, { id: "thresholds" }));
-  if (canEdit) box.append(editForm(p));
-  function rerender() {
-    document.getElementById("table-card").replaceChildren(parameterTable(p, canEdit));
-  }
-  return box;
-}
-
-function editForm(p) {
-  const error = h("p", { class: "error", role: "alert", id: "edit-error" });
-  const form = h("form", { class: "inline", id: "edit-form" },
-    h("label", {}, "Why (audited)", h("input", { name: "comment", required: true, maxlength: 2000, size: 40 })),
-    h("button", { type: "submit" }, "Save edits as a new draft version"), error);
-  form.addEventListener("submit", async (ev) => {
-    ev.preventDefault();
-    error.textContent = "";
-    const rows = {};
-    const thresholds = {};
-    for (const input of document.querySelectorAll("#table-card input[data-field]")) {
-      if (input.value === input.dataset.original) continue;
-      const value = Number(input.value);
-      if (input.value.trim() === "" || !Number.isFinite(value)) {
-        error.textContent = `${input.dataset.field}: “${input.value}” is not a number`;
-        return;
-      }
-      const parts = input.dataset.field.split(".");
-      if (parts[0] === "thresholds") thresholds[parts[1]] = value;
-      else {
-        const key = `${parts[0]}.${parts[1]}`;
-        rows[key] ??= { joint: parts[0], subphase: parts[1] };
-        rows[key][parts[2]] = parts[2] === "k_Nm_per_rad" && state.kUnit === "deg" ? value / RAD : value;
-      }
-    }
-    if (!Object.keys(rows).length && !Object.keys(thresholds).length) {
-      error.textContent = "nothing changed: edit a cell first";
-      return;
-    }
-    const body = { rows: Object.values(rows), comment: new FormData(form).get("comment") };
-    if (Object.keys(thresholds).length) body.thresholds = thresholds;
-    try {
-      const created = await post(`/api/proposals/${p.id}/edits`, body);
-      notice(`Saved as draft v${created.version}`, "ok");
-      location.hash = `#/proposals/${created.id}`;
-    } catch (err) {
-      error.textContent = err.message;
-      for (const v of err.body?.violations || []) {
-        document.querySelector(`#table-card input[data-field="${v.field}"]`)?.parentElement.classList.add("out");
-      }
-    }
-  });
-  return form;
 }
 
 // ---------------------------------------------------------------------------------------------- decisions, push
@@ -321,10 +244,9 @@ function renderDecision(box, p, canDecide) {
   box.append(h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject), error);
 }
 
-async function renderPush(box, p, canPush) {
+async function renderPush(box, p, canPush, patient) {
   box.replaceChildren(h("h2", {}, "Device"));
-  const [pushes, devices, patient] = await Promise.all([get(`/api/proposals/${p.id}/pushes`), get("/api/devices"),
-    get(`/api/patients/${p.patient_id}`)]);
+  const [pushes, devices] = await Promise.all([get(`/api/proposals/${p.id}/pushes`), get("/api/devices")]);
   const name = `${patient.code_name} · table v${p.version}`;
   const status = h("div", { id: "push-status", "aria-live": "polite" });
   if (pushes.length) {
@@ -339,13 +261,15 @@ async function renderPush(box, p, canPush) {
     return;
   }
   const wearer = (d) => (d.patient ? `worn by ${d.patient.patient_code}` : "assigned to nobody");
+  const optionText = (d) => `${d.id} (${d.online ? "online" : "offline"}, ${wearer(d)})`;
   const select = h("select", { id: "push-device", "aria-label": "Device" },
-    devices.map((d) => h("option", { value: d.id }, `${d.id} (${d.online ? "online" : "offline"}, ${wearer(d)})`)));
+    devices.map((d) => h("option", { value: d.id }, optionText(d))));
   const error = h("p", { class: "error", role: "alert" });
   const steps = h("ol", { class: "steps", id: "push-steps" });
   const button = h("button", { id: "push-button" }, "Push to device…");
   const assignBox = h("p", { id: "push-assignment" });
   const showAssignment = () => {
+    for (const opt of select.options) opt.textContent = optionText(devices.find((x) => x.id === opt.value));
     const d = devices.find((x) => x.id === select.value);
     const mine = d.patient && d.patient.patient_id === p.patient_id;
     button.disabled = !mine;
@@ -422,14 +346,18 @@ async function renderVersions(box, p) {
     if (!other.value) return;
     const d = await get(`/api/proposals/${other.value}/diff/${p.id}`);
     out.replaceChildren(d.changes.length ? table([`Field`, `v${d.from_version}`, `v${d.to_version} (this)`, "Unit"],
-      d.changes.map((c) => h("tr", {}, h("td", {}, c.field), h("td", { class: "num" }, fmtAny(c.before)),
-        h("td", { class: "num changed" }, fmtAny(c.after)), h("td", {}, c.unit || "")))) : h("p", {}, "No differences."));
+      d.changes.map((c) => h("tr", {}, h("td", { title: c.field }, tableView.view === "clinical" ? fieldWords(c.field) : c.field), h("td", { class: "num" }, shownValue(c.field, c.before)),
+        h("td", { class: "num changed" }, shownValue(c.field, c.after)), h("td", {}, c.unit || "")))) : h("p", {}, "No differences."));
   };
   other.addEventListener("change", show);
   box.replaceChildren(h("h2", {}, "Versions and differences"),
     versions.length > 1 ? h("div", { class: "inline" }, h("label", {}, "Compare with ", other)) : h("p", { class: "muted" }, "Only one version so far."),
     out);
   await show();
+}
+
+function shownValue(field, v) {
+  return field.endsWith(".fit_method") && tableView.view === "clinical" ? FIT_METHOD_WORDS[v] ?? v : fmtAny(v);
 }
 
 function fmtAny(v) {
@@ -465,33 +393,28 @@ async function renderPreview(box, p) {
     return h("tr", {}, h("td", {}, label), h("td", { class: "num" }, withCi(t)), h("td", { class: "num" }, withCi(f)),
       h("td", { class: verdict === "not resolved" ? "num muted" : "num" }, diffCell));
   };
-  const medMax = (run) => run.heel_strike_to_stance_ms_median === undefined ? "—"
-    : `${fmt(run.heel_strike_to_stance_ms_median, 0)} / ${fmt(run.heel_strike_to_stance_ms_max, 0)} ms`;
   const x = pv.phase_grid.map((s) => s * 100);
   const charts = h("div", { class: "two" });
   box.replaceChildren(h("h2", {}, "Simulated preview: this table vs the FSMIC"),
     h("p", { class: "muted small" }, `Both controllers walked ${fmt(pv.seconds, 0, "s")} each on the MuJoCo bench at this task `,
       `(socket driven along the able-bodied hip trajectory; metrics as in quasitune simulate). Reference: ${referenceLabel(t)} (${t.reference_source}). `,
       `Simulated ${when(pv.created_at)}.`),
+    safetyFigures(pv.safety || [], t, f),
+    h("h3", {}, "Tracking the reference"),
     table(["Metric", "This table", "FSMIC (hand-tuned, not re-tuned)", "This table − FSMIC, 95 % interval"], [
-      metric("falls", "falls", 0), metric("toe catches", "toe_catches", 0), metric("strides", "strides", 0),
+      metric("strides", "strides", 0),
       rmseRow("knee angle RMSE", "knee_angle", "deg", "deg", 1), rmseRow("ankle angle RMSE", "ankle_angle", "deg", "deg", 1),
       rmseRow("knee moment RMSE", "knee_moment", "Nm_per_kg", "N·m/kg", 3),
       rmseRow("ankle moment RMSE", "ankle_moment", "Nm_per_kg", "N·m/kg", 3),
-      metric("cadence", "cadence_steps_per_min", 1, "steps/min"),
-      h("tr", {}, h("td", {}, "foot contact → stance state, median / max"), h("td", { class: "num" }, medMax(t)),
-        h("td", { class: "num" }, medMax(f)), h("td", {})),
-      metric("on a swing row with > ½ body weight, per stride", "loaded_swing_ms_per_stride", 0, "ms")],
+      metric("cadence", "cadence_steps_per_min", 1, "steps/min")],
     { id: "preview-metrics" }),
+    (pv.safety || []).length ? h("p", { class: "notice-inline warn small" },
+      "Lower tracking errors do not outweigh the safety flags above.") : null,
     h("p", { class: "muted small" }, "[a, b]: 95 % interval over the strides walked (strides resampled with replacement). ",
       "\"not resolved\": with these strides either controller could be the lower one. A preview walks only a few strides, ",
       "and the FSMIC's strides change over a longer walk, so a longer walk can change the verdict (quasitune simulate ",
-      "--seconds 20). The intervals say nothing about the bench's own assumptions (docs/results.md). ",
-      "The last two rows are safety figures, not scores: how long a loaded leg stays on the weak swing impedance ",
-      "after the foot touches down."),
+      "--seconds 20). The intervals say nothing about the bench's own assumptions (docs/results.md)."),
     charts);
-  if (t.falls > 0) box.insertBefore(h("div", { class: "banner bad" }, `This table fell ${t.falls} time(s) on the simulated bench. `,
-    "Do not push it without understanding why."), box.children[1]);
   for (const key of ["knee_angle_deg", "ankle_angle_deg"]) {
     const el = h("figure", { class: "chart" });
     charts.append(el);
@@ -500,4 +423,38 @@ async function renderPreview(box, p) {
       { label: "this table", values: t.mean_curves[key] || x.map(() => null), color: "#1f4e99" },
       { label: "FSMIC", values: f.mean_curves[key] || x.map(() => null), color: "#E69F00", dash: [6, 3] }] });
   }
+}
+
+// The bench's safety figures, before any tracking error: each flagged on its own bound by the server
+// (backend/experiments/safety_figures.py), whatever the RMSEs say.
+function safetyFigures(flags, t, f) {
+  const flagOf = Object.fromEntries(flags.map((x) => [x.figure, x]));
+  const row = (label, figure, shown, bound) => {
+    const flag = flagOf[figure];
+    return h("tr", { class: flag ? `flag-${flag.severity}` : "", dataset: { figure } }, h("td", {}, label),
+      h("td", { class: `num${flag ? ` ${flag.severity}` : ""}`, title: flag ? flag.message : "" }, shown(t)),
+      h("td", { class: "num" }, shown(f)), h("td", { class: "muted" }, bound));
+  };
+  const n = (key) => (run) => fmt(run[key], 0);
+  const ms = (key) => (run) => fmt(run[key], 0, "ms");
+  const entry = (run) => run.heel_strike_to_stance_ms_median === undefined || run.heel_strike_to_stance_ms_median === null ? "—"
+    : `${fmt(run.heel_strike_to_stance_ms_median, 0)} / ${fmt(run.heel_strike_to_stance_ms_max, 0)} ms`;
+  const bad = flags.filter((x) => x.severity === "bad");
+  return h("div", { id: "preview-safety" },
+    h("h3", {}, "Safety on the bench (read first)"),
+    flags.length ? h("div", { class: `banner ${bad.length ? "bad" : "warn"}`, role: "alert", id: "preview-safety-flags" },
+      h("strong", {}, bad.length ? "Safety: do not push this table without understanding why. " : "Safety: review before pushing. "),
+      h("ul", {}, flags.map((x) => h("li", { class: x.severity }, x.message))))
+      : h("p", { class: "notice-inline ok", id: "preview-safety-flags" }, "No safety figure outside its bound on this walk."),
+    table(["Safety figure", "This table", "FSMIC", "Bound"], [
+      row("falls", "falls", n("falls"), "none"),
+      row("toe catches in mid-swing", "toe_catches", n("toe_catches"), "none"),
+      row("heel strikes never reaching stance", "heel_strikes_without_stance", n("heel_strikes_without_stance"), "none"),
+      row("on swing settings with > ½ body weight, per stride", "loaded_swing_ms_per_stride", ms("loaded_swing_ms_per_stride"),
+        "≤ 20 ms"),
+      row("foot contact → stance settings, median / longest", "heel_strike_to_stance_ms_max", entry,
+        "longest ≤ 50 ms, not 20 ms behind the FSMIC")],
+    { id: "preview-safety-table" }),
+    h("p", { class: "muted small" }, "Safety figures are not scores: how often the foot caught or the leg gave way, and how ",
+      "long a loaded leg stayed on the weak swing settings after the foot touched down."));
 }

@@ -1,0 +1,226 @@
+// A proposal's parameter table: read in clinical words (default) or engineering codes, edited into a new draft
+// version with every value checked against the safety limits as it is typed (the server checks again on save).
+import { post } from "../api.js";
+import { chip, fieldWords, FIT_METHOD_WORDS, fmt, h, notice, ROW_WORDS, SUBPHASE_COLOUR, table } from "../ui.js";
+
+const RAD = Math.PI / 180;
+const G_MPS2 = 9.80665;
+// kept across versions and visits: the stiffness unit and the clinical / engineering view
+export const tableView = {
+  kUnit: localStorage.getItem("quasitune.kUnit") || "rad",
+  view: localStorage.getItem("quasitune.view") || "clinical",
+};
+
+const FIT_METHOD_HELP = {
+  least_squares: "least-squares line τ = kθ + c through the predicted loop",
+  extension_window: "least-squares line over the knee's stance extension only (stance-flexion peak to its late-stance minimum); pre-swing left out",
+  range_guard: "the fitted θe lay outside the joint range: θe clamped to the range and k re-fitted",
+  passivity_guard: "the fitted line would inject energy with θe inside the swept angles: k set to the restoring floor, θe re-fitted",
+  swing_target: "not a fit: θe is the predicted swing target, k the model's swing stiffness (restoring)",
+  manual: "edited by hand",
+  literature: "published table",
+};
+
+// How each field is shown: scale from SI to the shown unit, the unit, and digits. Loads are % body weight in the
+// clinical view (thresholds depend on the patient's weight), N in the engineering view.
+function units(field, mass) {
+  const deg = tableView.kUnit === "deg";
+  const clinical = tableView.view === "clinical";
+  if (field.endsWith("k_Nm_per_rad")) return deg ? { scale: RAD, unit: "N·m/deg", digits: 3 } : { scale: 1, unit: "N·m/rad", digits: 1 };
+  if (field.endsWith("b_Nm_s_per_rad")) return deg ? { scale: RAD, unit: "N·m·s/deg", digits: 4 } : { scale: 1, unit: "N·m·s/rad", digits: 2 };
+  if (field.endsWith("_deg")) return { scale: 1, unit: "deg", digits: 2 };
+  if (field.endsWith("_load_N")) return clinical ? { scale: 100 / (mass * G_MPS2), unit: "% body weight", digits: 1 }
+    : { scale: 1, unit: "N", digits: 0 };
+  if (field.endsWith("_Nm")) return { scale: 1, unit: "N·m", digits: 1 };
+  if (field.endsWith("_deg_per_s")) return { scale: 1, unit: "deg/s", digits: 0 };
+  return { scale: 1, unit: "s", digits: 3 };
+}
+
+// The SI range of a field (the server's SafetyLimits): stance stiffness has its own (resistive only) range
+function limitOf(field, L) {
+  const [a, b, c] = field.split(".");
+  if (a === "thresholds") {
+    return { sf_to_se_ankle_moment_Nm: L.ankle_moment_Nm, se_to_wf_load_N: L.load_N, we_to_sf_load_N: L.load_N,
+      wf_to_we_knee_angle_deg: L.knee_theta_e_deg, min_state_time_s: L.state_time_s, max_state_time_s: L.state_time_s,
+      sf_to_se_knee_extension_deg_per_s: L.knee_extension_deg_per_s }[b];
+  }
+  if (c === "k_Nm_per_rad") return b.startsWith("stance") ? L.stance_k_Nm_per_rad : L.k_Nm_per_rad;
+  if (c === "theta_e_deg") return a === "knee" ? L.knee_theta_e_deg : L.ankle_theta_e_deg;
+  return L.b_Nm_s_per_rad;
+}
+
+function label(field) {
+  return tableView.view === "clinical" ? fieldWords(field) : field;
+}
+
+// What is wrong with the values as typed (SI), in the words of the current view; mirrors the server's checks
+export function liveViolations(values, L, mass) {
+  const out = [];
+  const range = (lim, u) => `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)} ${u.unit}`;
+  for (const [field, v] of Object.entries(values)) {
+    const u = units(field, mass), lim = limitOf(field, L);
+    if (!Number.isFinite(v)) out.push({ field, message: `${label(field)}: not a number` });
+    else if (field.endsWith("k_Nm_per_rad") && field.includes(".stance_") && v > lim.high) {
+      const joint = field.split(".")[0];
+      out.push({ field, message: `${label(field)} = ${fmt(v * u.scale, u.digits)} ${u.unit} pushes the joint instead of `
+        + `resisting it (${joint === "knee" ? "the knee gives way into flexion under load" : "the ankle is pushed off its equilibrium under load"}): `
+        + `a stance setting must resist, at most ${fmt(lim.high, 0)}` });
+    } else if (v < lim.low || v > lim.high) {
+      out.push({ field, message: `${label(field)} = ${fmt(v * u.scale, u.digits)} ${u.unit} is outside ${range(lim, u)}` });
+    }
+  }
+  const t = (k) => values[`thresholds.${k}`];
+  if (t("min_state_time_s") >= t("max_state_time_s")) {
+    out.push({ field: "thresholds.min_state_time_s", message: `${label("thresholds.min_state_time_s")} must be below the maximum` });
+  }
+  if (t("se_to_wf_load_N") >= t("we_to_sf_load_N")) {
+    out.push({ field: "thresholds.se_to_wf_load_N", message: `${label("thresholds.se_to_wf_load_N")} must be below the heel-strike load, or the machine chatters` });
+  }
+  return out;
+}
+
+const THRESHOLD_KEYS = ["sf_to_se_ankle_moment_Nm", "se_to_wf_load_N", "wf_to_we_knee_angle_deg", "we_to_sf_load_N",
+  "min_state_time_s", "max_state_time_s", "sf_to_se_knee_extension_deg_per_s"];
+
+export function parameterTable(p, canEdit) {
+  const L = p.limits, mass = p.task.body_mass_kg;
+  const clinical = tableView.view === "clinical";
+  const violated = new Set(p.safety.violations.map((v) => v.field));
+  const radio = (name, value, text, current, set) => h("label", {}, h("input", { type: "radio", name, value,
+    checked: current === value, onchange: () => { set(value); rerender(); } }), text);
+  const toggles = h("div", { class: "inline" },
+    h("fieldset", { class: "toggle", id: "table-view" }, h("legend", {}, "View"),
+      radio("table-view", "clinical", "clinical", tableView.view, (v) => { tableView.view = v; localStorage.setItem("quasitune.view", v); }),
+      radio("table-view", "engineering", "engineering", tableView.view, (v) => { tableView.view = v; localStorage.setItem("quasitune.view", v); })),
+    h("fieldset", { class: "toggle", id: "k-unit" }, h("legend", {}, "Stiffness and damping per"),
+      ...["rad", "deg"].map((u) => radio("k-unit", u, u === "rad" ? "radian" : "degree", tableView.kUnit,
+        (v) => { tableView.kUnit = v; localStorage.setItem("quasitune.kUnit", v); }))));
+  const cell = (field, si) => {
+    const u = units(field, mass);
+    const shown = (si * u.scale).toFixed(u.digits);
+    const lim = limitOf(field, L);
+    const out = violated.has(field) || si < lim.low || si > lim.high;
+    return h("td", { class: `num${out ? " out" : ""}`, dataset: { cell: field } }, canEdit
+      ? h("input", { type: "number", step: "any", value: shown, "aria-label": `${label(field)} (${u.unit})`,
+        dataset: { field, original: shown, scale: u.scale } })
+      : `${shown}`);
+  };
+  const fit = (r) => {
+    const words = clinical ? FIT_METHOD_WORDS[r.fit_method] ?? r.fit_method : r.fit_method;
+    return r.fit_method === "swing_target" ? chip(words) : r.guarded ? chip(words, "warn") : words;
+  };
+  // R² says how well a fitted line explains the loop; a swing target or a hand edit is not a fit
+  const r2 = (r) => r.r2 === null || ["swing_target", "manual", "literature"].includes(r.fit_method)
+    ? h("span", { title: r.r2 === null ? "" : `not a fit (a line through the swing moment would explain R² = ${fmt(r.r2, 2)})` }, "—")
+    : fmt(r.r2, 2);
+  const rows = p.table.map((r) => {
+    const key = `${r.joint}.${r.subphase}`;
+    const name = clinical ? [h("td", {}, r.joint === "knee" ? "Knee" : "Ankle"),
+      h("td", {}, h("span", { class: "dot", style: `--c:${SUBPHASE_COLOUR[r.subphase]}` }), ROW_WORDS[key].replace(/^(knee|ankle) /, ""))]
+      : [h("td", {}, r.joint), h("td", {}, h("span", { class: "dot", style: `--c:${SUBPHASE_COLOUR[r.subphase]}` }), r.subphase)];
+    return h("tr", {}, ...name, cell(`${key}.k_Nm_per_rad`, r.k_Nm_per_rad), cell(`${key}.theta_e_deg`, r.theta_e_deg),
+      cell(`${key}.b_Nm_s_per_rad`, r.b_Nm_s_per_rad), h("td", { class: "num" }, r2(r)),
+      h("td", { title: FIT_METHOD_HELP[r.fit_method] ?? "" }, fit(r)));
+  });
+  const th = p.thresholds;
+  const thRows = THRESHOLD_KEYS.map((k) => {
+    const field = `thresholds.${k}`, u = units(field, mass), lim = limitOf(field, L);
+    return h("tr", {}, h("td", {}, label(field)), cell(field, th[k]), h("td", {}, u.unit),
+      h("td", { class: "muted" }, `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)}`));
+  });
+  const ku = units("k_Nm_per_rad", mass), bu = units("b_Nm_s_per_rad", mass);
+  const heads = clinical ? ["Joint", "Phase of gait", `Stiffness k (${ku.unit})`, "Equilibrium angle θe (deg)",
+    `Damping b (${bu.unit})`, "Fit quality R²", "Where the value comes from"]
+    : ["joint", "subphase", `k (${ku.unit})`, "theta_e (deg)", `b (${bu.unit})`, "R²", "fit_method"];
+  const range = (lim, u) => `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)}`;
+  const box = h("div", {},
+    h("h2", {}, "Parameter table: τ = k(θ − θe) − b·θ̇ per phase of gait"), toggles,
+    table(heads, rows, { id: "param-table" }),
+    h("p", { class: "muted small" }, `Limits: stiffness ${range(L.k_Nm_per_rad, ku)} ${ku.unit}, in stance at most `,
+      `${fmt(L.stance_k_Nm_per_rad.high, 0)} (a stance setting must resist: negative k resists, positive pushes); `,
+      `θe knee ${range(L.knee_theta_e_deg, { scale: 1, digits: 0 })}°, ankle ${range(L.ankle_theta_e_deg, { scale: 1, digits: 0 })}°; `,
+      `damping ${range(L.b_Nm_s_per_rad, bu)} ${bu.unit}. Values outside the limits are marked red as you type. `,
+      "R² (fit quality): how well the row's straight line explains the predicted torque-angle loop in that phase. ",
+      "Swing rows are not fits (R² —): in swing the foot is unloaded, so θe is the predicted swing target (knee: ",
+      "swing-flexion peak, then heel-strike angle; ankle: swing dorsiflexion plus a toe-clearance margin) and k a set ",
+      "swing stiffness."),
+    h("h3", {}, "When the leg changes phase (state-machine thresholds)"),
+    table(["Transition", "Value", "Unit", "Limits"], thRows, { id: "thresholds" }),
+    h("p", { class: "muted small" }, "Phases: stance flexion (loading response, knee bends under the weight) → stance ",
+      "extension (mid and terminal stance, ankle push-off) → swing flexion (toe-off, knee bends to clear the foot) → ",
+      "swing extension (knee straightens for heel strike). SF→SE: from stance flexion to stance extension; WF→WE: from ",
+      "swing flexion to swing extension."));
+  if (canEdit) box.append(editForm(p));
+  function rerender() {
+    document.getElementById("table-card").replaceChildren(parameterTable(p, canEdit));
+  }
+  return box;
+}
+
+// the values as typed, in SI, for every editable cell
+function typedValues() {
+  const values = {};
+  for (const input of document.querySelectorAll("#table-card input[data-field]")) {
+    values[input.dataset.field] = input.value.trim() === "" ? NaN : Number(input.value) / Number(input.dataset.scale);
+  }
+  return values;
+}
+
+function editForm(p) {
+  const error = h("p", { class: "error", role: "alert", id: "edit-error" });
+  const live = h("ul", { class: "error", id: "edit-live", "aria-live": "polite" });
+  const comment = h("input", { name: "comment", required: true, maxlength: 2000, size: 40 });
+  const save = h("button", { type: "submit" }, "Save edits as a new draft version");
+  const form = h("form", { id: "edit-form" }, h("div", { class: "inline" }, h("label", {}, "Why (audited)", comment), save),
+    live, error);
+  // checked as the prosthetist types: the touched cell is painted, the reasons listed, Save held back
+  const check = () => {
+    const found = liveViolations(typedValues(), p.limits, p.task.body_mass_kg);
+    const bad = new Set(found.map((v) => v.field));
+    for (const td of document.querySelectorAll("#table-card td[data-cell]")) {
+      const input = td.querySelector("input");
+      td.classList.toggle("out", bad.has(td.dataset.cell));
+      td.classList.toggle("changed", Boolean(input) && input.value !== input.dataset.original);
+      td.title = found.filter((v) => v.field === td.dataset.cell).map((v) => v.message).join("; ");
+    }
+    live.replaceChildren(...found.map((v) => h("li", { dataset: { field: v.field } }, v.message)));
+    save.disabled = found.length > 0;
+    save.title = found.length ? "fix the values marked red first" : "";
+    return found;
+  };
+  queueMicrotask(() => document.getElementById("table-card")?.addEventListener("input", check));
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    error.textContent = "";
+    if (check().length) return;
+    const rows = {};
+    const thresholds = {};
+    const values = typedValues();
+    for (const input of document.querySelectorAll("#table-card input[data-field]")) {
+      if (input.value === input.dataset.original) continue;
+      const [a, b, c] = input.dataset.field.split(".");
+      if (a === "thresholds") thresholds[b] = values[input.dataset.field];
+      else {
+        rows[`${a}.${b}`] ??= { joint: a, subphase: b };
+        rows[`${a}.${b}`][c] = values[input.dataset.field];
+      }
+    }
+    if (!Object.keys(rows).length && !Object.keys(thresholds).length) {
+      error.textContent = "nothing changed: edit a cell first";
+      return;
+    }
+    const body = { rows: Object.values(rows), comment: comment.value };
+    if (Object.keys(thresholds).length) body.thresholds = thresholds;
+    try {
+      const created = await post(`/api/proposals/${p.id}/edits`, body);
+      notice(`Saved as draft v${created.version}`, "ok");
+      location.hash = `#/proposals/${created.id}`;
+    } catch (err) {
+      error.textContent = err.message;
+      for (const v of err.body?.violations || []) {
+        document.querySelector(`#table-card td[data-cell="${v.field}"]`)?.classList.add("out");
+      }
+    }
+  });
+  return form;
+}

@@ -1,0 +1,56 @@
+"""Browser fixtures: one real server with the simulated leg per test module, Debian's Chromium, a page that fails
+its test on any console error the test did not provoke."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+
+import pytest
+
+from backend.app import prepare_storage
+from backend.settings import Settings
+from tests.helpers.browser import CHROMIUM_ARGS, chromium_path
+from tests.helpers.server import add_user, start_server
+
+playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright is a dev dependency")
+
+
+_EXPECTED = re.compile(r"Failed to load resource: the server responded with a status of (401|403|409|422)")
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    data = tmp_path_factory.mktemp("browser-server")
+    prepare_storage(Settings(data_dir=data))
+    add_user(data, "dana", "prosthetist")
+    add_user(data, "vic", "viewer")
+    proc, base = start_server(data, device="sim")
+    yield base
+    proc.terminate()
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with playwright_api.sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def page(browser):
+    context = browser.new_context(viewport={"width": 1366, "height": 900}, accept_downloads=True)
+    p = context.new_page()
+    errors: list[str] = []
+    p.on("pageerror", lambda e: errors.append(str(e)))
+    # refusals the tests provoke (401/403/409/422) are shown on the page; anything else the console reports fails
+    p.on("console", lambda m: errors.append(m.text) if m.type == "error" and not _EXPECTED.search(m.text) else None)
+    p.errors = errors
+    yield p
+    context.close()
+    assert not errors, f"the page logged errors: {errors}"

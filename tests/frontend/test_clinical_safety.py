@@ -1,0 +1,104 @@
+"""Clinical safety in the browser, as a prosthetist new to the app would meet it: a knee setting that would give way,
+limits checked while typing, clinical words with the engineering view one click away, and a monitor that says when
+there is no data and what safe mode means."""
+
+from __future__ import annotations
+
+from tests.helpers.browser import create_patient_and_propose, shot, sign_in
+
+_FETCH = """async ([method, path, body]) => {
+  const r = await fetch(path, {method, headers: {'Content-Type': 'application/json',
+    Authorization: 'Bearer ' + sessionStorage.getItem('quasitune.token')}, body: body ? JSON.stringify(body) : undefined});
+  return {status: r.status, body: await r.json().catch(() => null)}; }"""
+
+
+def call(page, method: str, path: str, body: dict | None = None) -> dict:
+    """The API as the signed-in page's user (what a script with the same token could do)."""
+    return page.evaluate(_FETCH, [method, path, body])
+
+
+def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server, page):
+    sign_in(page, server, "dana")
+    pid = create_patient_and_propose(page, "P-400")
+    k_cell = "#param-table input[data-field='knee.stance_flexion.k_Nm_per_rad']"
+    original = page.input_value(k_cell)
+    page.fill("#edit-form input[name=comment]", "try a springy knee")
+    page.fill(k_cell, "150")                        # energy-injecting: the knee collapses into flexion under load
+    live = page.inner_text("#edit-live")
+    assert "pushes the joint instead of resisting it" in live and "knee gives way into flexion" in live, live
+    assert page.locator("td[data-cell='knee.stance_flexion.k_Nm_per_rad'].out").count() == 1   # the cell touched
+    assert page.locator("#param-table td.out").count() == 1
+    assert page.is_disabled("#edit-form button[type=submit]")
+    shot(page, "09-live-limit")
+    page.fill(k_cell, original)                     # back within the limits: the mark and the message go
+    assert page.locator("#param-table td.out").count() == 0 and page.inner_text("#edit-live") == ""
+    assert not page.is_disabled("#edit-form button[type=submit]")
+
+    # a script skipping the page meets the same rule, and nothing is stored
+    before = len(call(page, "GET", "/api/patients/{}/proposals".format(
+        call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]))["body"])
+    refused = call(page, "POST", f"/api/proposals/{pid}/edits", {"comment": "springy", "rows": [
+        {"joint": "knee", "subphase": "stance_flexion", "k_Nm_per_rad": 150.0}]})
+    assert refused["status"] == 422, refused
+    assert "knee gives way" in refused["body"]["detail"]
+    patient_id = call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
+    assert len(call(page, "GET", f"/api/patients/{patient_id}/proposals")["body"]) == before
+
+
+def test_clinical_words_by_default_and_the_engineering_view_one_click_away(server, page):
+    sign_in(page, server, "dana")
+    create_patient_and_propose(page, "P-410")
+    table_text = page.inner_text("#table-card")
+    assert "stance flexion resistance" in table_text and "terminal swing" in table_text
+    for code in ("stance_flexion", "least_squares", "swing_target", "_load_N", "k_Nm_per_rad"):
+        assert code not in table_text, code
+    assert "% body weight" in page.inner_text("#thresholds")                 # loads as clinicians read them
+    swing_r2 = [page.inner_text(f"#param-table tbody tr:nth-child({i}) td:nth-child(6)") for i in (3, 4, 7, 8)]
+    assert swing_r2 == ["—"] * 4, swing_r2                                  # a swing target is not a fit
+    page.check("#k-unit input[value=deg]")                                  # b follows k's unit
+    heads = page.inner_text("#param-table thead")
+    assert "N·m/deg" in heads and "N·m·s/deg" in heads
+    page.check("#table-view input[value=engineering]")
+    table_text = page.inner_text("#table-card")
+    assert "stance_flexion" in table_text and "least_squares" in table_text
+    assert "\tN\t" in page.inner_text("#thresholds")                        # loads in newtons for the engineers
+    shot(page, "10-engineering-view")
+
+
+def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, page):
+    sign_in(page, server, "dana")
+    pid = create_patient_and_propose(page, "P-420", speed="1.2")
+    assert call(page, "POST", f"/api/proposals/{pid}/approve", {"comment": "reviewed"})["status"] == 200
+    patient_id = call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
+    assert call(page, "PUT", "/api/devices/sim-leg-1/assignment", {"patient_id": patient_id})["status"] == 200
+    device = call(page, "GET", "/api/devices/sim-leg-1")["body"]
+    current = (device["pending_table"] or device["active_table"] or {}).get("proposal_id")
+    pushed = call(page, "POST", f"/api/proposals/{pid}/push", {"device_id": "sim-leg-1",
+                                                               "replaces_proposal_id": current, "patient_ready": True})
+    assert pushed["status"] == 201, pushed
+    page.goto(f"{server}/#/monitor/sim-leg-1")
+
+    # nobody walks: the monitor says "no data" and why, instead of blank charts
+    page.wait_for_selector("#telemetry-state:has-text('no data')")
+    assert "nobody is walking" in page.inner_text("#telemetry-state")
+    # the safe-mode buttons only where they change something; entering it is a caution, not a green "done"
+    page.wait_for_function("() => !document.querySelector('#enter-safe').disabled")
+    assert page.is_disabled("#leave-safe")
+    page.click("#enter-safe")
+    page.wait_for_selector("#notice.warn:has-text('Safe mode requested')")
+    assert page.get_attribute("#notice", "class").split() == ["notice", "warn"]
+    page.wait_for_function("() => document.querySelector('#enter-safe').disabled && "
+                           "!document.querySelector('#leave-safe').disabled")
+
+    # a session in safe mode: live data, and the chip says the strides are not scored
+    page.click("#start-session")
+    page.wait_for_selector("#telemetry-state:has-text('live')", timeout=20_000)
+    page.wait_for_selector("#recording-chip .chip.bad:has-text('SAFE MODE')")
+    assert "not scored" in page.inner_text("#recording-chip")
+    assert "SAFE MODE" in page.inner_text("#sample-mode")
+    shot(page, "11-monitor-safe-mode")
+    page.click("#leave-safe")
+    page.wait_for_selector("#recording-chip .chip.ok:has-text('recording')", timeout=10_000)
+    page.click("#stop-session")
+    page.wait_for_selector("#session-summary")
+    assert page.locator("#off-table").count() == 1                          # the summary says it, before errors
