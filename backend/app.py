@@ -86,7 +86,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
-        app.state.viewers.close()
+        if app.state.viewers is not None:
+            app.state.viewers.close()
         app.state.devices.close()
         app.state.db.dispose()
 
@@ -100,7 +101,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
     app.state.devices = DeviceManager(app.state.db, [spec] if spec else []).start()
-    app.state.viewers = ViewerRegistry(app.state.devices)
+    app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)
     async def _on_validation(_request: Request, exc: RequestValidationError) -> JSONResponse:

@@ -40,13 +40,25 @@ def _unauthorized(message: str) -> HTTPException:
     return HTTPException(status.HTTP_401_UNAUTHORIZED, message, headers={"WWW-Authenticate": "Bearer"})
 
 
-async def current_user(conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> User:
-    """The user holding the request's bearer token (401 when missing, unknown or expired)."""
+async def signed_in(conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> User:
+    """The user holding the request's bearer token (401 when missing, unknown or expired), also one who must
+    still change a password someone else chose (only /api/auth/me, /password and /logout accept that)."""
     if not token:
         raise _unauthorized("not signed in: send 'Authorization: Bearer <token>' from POST /api/auth/token")
     user = user_for_token(conn, token)
     if user is None:
         raise _unauthorized("the bearer token is unknown or has expired; sign in again")
+    return user
+
+
+SignedIn = Annotated[User, Depends(signed_in)]
+
+
+async def current_user(user: SignedIn) -> User:
+    """The signed-in user, refused (403) until they have changed a password someone else chose for them."""
+    if user.must_change_password:
+        raise HTTPException(status.HTTP_403_FORBIDDEN, f"{user.username} must change the one-time password first "
+                            "(POST /api/auth/password)")
     return user
 
 

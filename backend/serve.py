@@ -19,15 +19,15 @@ BOOTSTRAP_USER = "prosthetist"
 
 
 def bootstrap_user(settings: Settings) -> str | None:
-    """On a database with no users, create ``prosthetist`` with a random password and return the password
-    (printed once, like an initial admin password); None when users exist."""
+    """On a database with no users, create ``prosthetist`` with a random one-time password (changed at the first
+    sign-in, like an initial admin password) and return it to print once; None when users exist."""
     conn = connect(settings.db_path)
     try:
         if conn.execute("SELECT 1 FROM users LIMIT 1").fetchone():
             return None
         password = secrets.token_urlsafe(12)
         try:
-            create_user(conn, BOOTSTRAP_USER, "prosthetist", password)
+            create_user(conn, BOOTSTRAP_USER, "prosthetist", password, must_change_password=True)
         except ConflictError:   # another process starting at the same moment created it first
             return None
         return password

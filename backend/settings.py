@@ -35,6 +35,9 @@ class Settings:
         device: ``sim`` (the simulated leg on an in-process virtual CAN bus), ``none``, or ``INTERFACE:CHANNEL``
             for a python-can bus to a real leg (``socketcan:can0``). ``quasitune serve`` defaults to ``sim``.
         frontend_dir: the dashboard (``index.html``, ``app/``) and its npm packages (``node_modules/``).
+        viewer3d: also serve viser's 3D view of each leg on a loopback port. Off by default: viser has no login,
+            so anyone on this machine could watch the live telemetry there; the dashboard's own leg view comes
+            through the signed-in telemetry stream instead.
     """
 
     data_dir: Path
@@ -43,6 +46,7 @@ class Settings:
     model_wait_s: float = 30.0
     device: str = "none"
     frontend_dir: Path = field(default_factory=default_frontend_dir)
+    viewer3d: bool = False
 
     @property
     def db_path(self) -> Path:

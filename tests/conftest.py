@@ -29,7 +29,7 @@ def sim_api(tmp_path, model):
     """In-process API with the simulated leg on a virtual bus (device ``sim-leg-1``), one signed-in user per role."""
     from tests.helpers.api import make_api
 
-    api, _client = make_api(tmp_path, lambda: model, device="sim")
+    api, _client = make_api(tmp_path, lambda: model, device="sim", viewer3d=True)
     yield api
     api.client.app.state.viewers.close()
     api.client.app.state.devices.close()

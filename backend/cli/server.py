@@ -1,4 +1,4 @@
-"""Server commands: ``serve``, ``users add|list``, ``bridge``."""
+"""Server commands: ``serve``, ``users add|list|disable|enable|passwd``, ``bridge``."""
 
 from __future__ import annotations
 
@@ -52,8 +52,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     device = args.device or os.environ.get("QUASITUNE_DEVICE") or "sim"
     parse_device_spec(device)   # refuse a bad spec before anything starts
-    return serve(dataclasses.replace(_settings(args), device=device), host=args.host, port=args.port,
-                 bootstrap=not args.no_bootstrap_user)
+    return serve(dataclasses.replace(_settings(args), device=device, viewer3d=args.viewer3d), host=args.host,
+                 port=args.port, bootstrap=not args.no_bootstrap_user)
 
 
 def _read_password() -> str:
@@ -81,10 +81,53 @@ def cmd_users_add(args: argparse.Namespace) -> int:
         raise ValueError(f"{'.'.join(map(str, err['loc']))}: {err['msg']}") from None
     with _database(args) as (settings, conn):
         try:
-            user = create_user(conn, body.username, body.role, body.password)
+            user = create_user(conn, body.username, body.role, body.password,
+                               must_change_password=args.one_time)
         except ConflictError as exc:
             raise ValueError(exc.message) from None
-    print(f"user {user['username']} ({user['role']}) added to {settings.db_path}")
+    print(f"user {user['username']} ({user['role']}) added to {settings.db_path}"
+          + (": the password must be changed at the first sign-in" if args.one_time else ""))
+    return 0
+
+
+def _user_id(conn: sqlite3.Connection, name: str) -> int:
+    from backend.errors import NotFoundError
+    from backend.store.users import id_of
+
+    try:
+        return id_of(conn, name)
+    except NotFoundError as exc:
+        raise ValueError(exc.message) from None
+
+
+def cmd_users_disable(args: argparse.Namespace) -> int:
+    from backend.errors import ConflictError
+    from backend.store.users import set_disabled
+
+    disabled = args.users_command == "disable"
+    with _database(args) as (_, conn):
+        try:
+            set_disabled(conn, _user_id(conn, args.name), disabled, actor=None)
+        except ConflictError as exc:
+            raise ValueError(exc.message) from None
+    print(f"user {args.name} {'disabled: its sessions ended' if disabled else 'enabled'}")
+    return 0
+
+
+def cmd_users_passwd(args: argparse.Namespace) -> int:
+    from pydantic import TypeAdapter, ValidationError
+
+    from backend.schemas.common import Password
+    from backend.store.users import set_password
+
+    try:
+        password = TypeAdapter(Password).validate_python(_read_password())
+    except ValidationError as exc:
+        raise ValueError(f"password: {exc.errors()[0]['msg']}") from None
+    with _database(args) as (_, conn):
+        set_password(conn, _user_id(conn, args.name), password, must_change_password=args.one_time)
+    print(f"password of {args.name} set; its sessions ended"
+          + (", and it must be changed at the next sign-in" if args.one_time else ""))
     return 0
 
 
@@ -93,7 +136,8 @@ def cmd_users_list(args: argparse.Namespace) -> int:
 
     with _database(args) as (_, conn):
         for u in list_users(conn):
-            print(f"{u['id']:4d}  {u['username']:24s} {u['role']:12s} {'disabled' if u['disabled'] else ''}")
+            notes = ["disabled"] * u["disabled"] + ["must change password"] * u["must_change_password"]
+            print(f"{u['id']:4d}  {u['username']:24s} {u['role']:12s} {', '.join(notes)}")
     return 0
 
 
@@ -126,6 +170,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="'sim' (default: the simulated leg on an in-process virtual CAN bus), 'none', or "
                         "INTERFACE:CHANNEL for a real leg on a python-can bus (e.g. socketcan:can0); "
                         "default $QUASITUNE_DEVICE or sim")
+    p.add_argument("--viewer3d", action="store_true",
+                   help="also serve viser's 3D view of the leg on a loopback port; viser has no login, so anyone on "
+                        "this machine can watch it: only for an engineer's single-user bench")
     p.set_defaults(func=cmd_serve)
     p = sub.add_parser("bridge", help="forward frames between the leg's CAN bus and the API server's bus")
     p.add_argument("--can", required=True, help="the leg's bus, INTERFACE:CHANNEL (e.g. socketcan:can0)")
@@ -137,8 +184,22 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p = users_sub.add_parser("add", help="add a user (password from a prompt, or one line of stdin)")
     p.add_argument("name")
     p.add_argument("--role", required=True, choices=ROLES)
+    p.add_argument("--one-time", action="store_true",
+                   help="a password chosen for someone else: they must change it at their first sign-in")
     p.add_argument("--data-dir", type=Path, default=None, help=DATA_DIR_HELP)
     p.set_defaults(func=cmd_users_add)
     p = users_sub.add_parser("list", help="list users")
     p.add_argument("--data-dir", type=Path, default=None, help=DATA_DIR_HELP)
     p.set_defaults(func=cmd_users_list)
+    for name, text in (("disable", "disable an account: it cannot sign in and its open sessions end at once"),
+                       ("enable", "enable a disabled account again")):
+        p = users_sub.add_parser(name, help=text)
+        p.add_argument("name")
+        p.add_argument("--data-dir", type=Path, default=None, help=DATA_DIR_HELP)
+        p.set_defaults(func=cmd_users_disable)
+    p = users_sub.add_parser("passwd", help="set a user's password (from a prompt, or one line of stdin); "
+                                            "their sessions end")
+    p.add_argument("name")
+    p.add_argument("--one-time", action="store_true", help="the user must change it at the next sign-in")
+    p.add_argument("--data-dir", type=Path, default=None, help=DATA_DIR_HELP)
+    p.set_defaults(func=cmd_users_passwd)

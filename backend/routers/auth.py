@@ -7,10 +7,11 @@ from typing import Annotated
 from fastapi import APIRouter, Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordRequestForm
 
-from backend.deps import Conn, CurrentUser, get_settings, oauth2
-from backend.schemas.auth import Me, TokenOut
+from backend.deps import Conn, SignedIn, get_settings, oauth2
+from backend.errors import InvalidError
+from backend.schemas.auth import Me, PasswordChange, TokenOut
 from backend.schemas.common import is_utf8_encodable
-from backend.schemas.errors import TOO_MANY, UNAUTHORIZED
+from backend.schemas.errors import FORBIDDEN, INVALID, TOO_MANY, UNAUTHORIZED
 from backend.security import burn_password_check, verify_password
 from backend.settings import Settings
 from backend.store import users
@@ -48,12 +49,33 @@ def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Reques
 
 
 @router.post("/auth/logout", status_code=status.HTTP_204_NO_CONTENT, responses=UNAUTHORIZED)
-def logout(user: CurrentUser, conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> None:
+def logout(user: SignedIn, conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> None:
     """Sign out: this token stops working at once."""
     users.revoke_token(conn, token or "", user)
 
 
 @router.get("/auth/me", response_model=Me, responses=UNAUTHORIZED)
-def me(user: CurrentUser) -> Me:
-    """Who the token belongs to, and their role."""
-    return Me(id=user.id, username=user.username, role=user.role)
+def me(user: SignedIn) -> Me:
+    """Who the token belongs to, their role, and whether they must change a one-time password first."""
+    return Me(id=user.id, username=user.username, role=user.role, must_change_password=user.must_change_password)
+
+
+@router.post("/auth/password", response_model=Me, responses={**UNAUTHORIZED, **FORBIDDEN, **INVALID, **TOO_MANY})
+def change_password(body: PasswordChange, request: Request, user: SignedIn, conn: Conn,
+                    token: Annotated[str | None, Depends(oauth2)]) -> Me:
+    """Change your own password (the current one is asked again). Every other session of the account ends; this
+    one goes on. A wrong current password counts as a failed sign-in (throttled the same way)."""
+    throttle: LoginThrottle = request.app.state.login_throttle
+    address = request.client.host if request.client else "unknown"
+    wait = throttle.retry_after_s(user.username, address)
+    if wait:
+        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS, f"too many failed attempts; try again in {wait} s",
+                            headers={"Retry-After": str(wait)})
+    if not verify_password(body.current_password, users.password_hash_of(conn, user)):
+        throttle.failed(user.username, address)
+        users.record_failed_login(conn, user.username, address)
+        raise HTTPException(status.HTTP_403_FORBIDDEN, "the current password is not correct; nothing was changed")
+    if body.new_password == body.current_password:
+        raise InvalidError("new_password: must differ from the current password")
+    users.set_password(conn, user.id, body.new_password, False, actor=user, keep_token=token)
+    return Me(id=user.id, username=user.username, role=user.role, must_change_password=False)

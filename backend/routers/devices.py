@@ -11,6 +11,7 @@ from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, s
 from backend.db import pooled
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
+from backend.errors import ConflictError
 from backend.schemas.devices import AssignmentRequest, CommandRequest, DeviceIdPath, DeviceOut, ViewerOut
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.store import devices as devices_store
@@ -63,10 +64,17 @@ def unassign(device_id: DeviceIdPath, request: Request, conn: Conn, user: Prosth
     return m.view(device_id)
 
 
-@router.get("/{device_id}/viewer", response_model=ViewerOut, responses={**UNAUTHORIZED, **NOT_FOUND})
+@router.get("/{device_id}/viewer", response_model=ViewerOut, responses={**UNAUTHORIZED, **NOT_FOUND, **CONFLICT})
 def get_viewer(device_id: DeviceIdPath, request: Request, _user: CurrentUser) -> dict:
-    """The live 3D view of the leg (viser): started on first request, bound to loopback on a port the OS assigns,
-    read back here. Embed ``url`` in a page served from the same machine. An unknown device is a 404."""
+    """The live 3D view of the leg (viser), only on a server started with ``--viewer3d`` (else 409): viser has no
+    login, so its loopback port would show the live telemetry to anyone on the machine. Started on first request
+    on a port the OS assigns, read back here; embed ``url`` in a page served from the same machine. An unknown
+    device is a 404."""
+    if request.app.state.viewers is None:
+        manager(request).get(device_id)
+        raise ConflictError("the 3D view is off on this server: viser has no login, so its port would show the "
+                            "live telemetry to anyone on this machine; the leg view on the monitor comes through "
+                            "your signed-in stream (an engineer on a single-user bench: quasitune serve --viewer3d)")
     viewer = request.app.state.viewers.get(device_id)
     return {"device_id": device_id, "host": viewer.host, "port": viewer.port,
             "url": f"http://{viewer.host}:{viewer.port}/", "frames_drawn": viewer.frames_drawn}
@@ -93,8 +101,9 @@ async def telemetry(websocket: WebSocket, device_id: str,
     with pooled(app.state.db) as conn:
         user = user_for_token(conn, token) if token else None
     m: DeviceManager = app.state.devices
-    if user is None or device_id not in m.ids():
-        await websocket.close(code=1008, reason="sign in with ?token=" if user is None else "unknown device")
+    if user is None or user.must_change_password or device_id not in m.ids():
+        await websocket.close(code=1008, reason="sign in with ?token=" if user is None else "change the one-time "
+                              "password first" if user.must_change_password else "unknown device")
         return
     await websocket.accept()
     queue: asyncio.Queue = asyncio.Queue(maxsize=1000)

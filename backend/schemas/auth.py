@@ -6,6 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
+from backend.schemas.common import Password, StrictIn
 from backend.store.users import Role
 
 
@@ -19,3 +20,10 @@ class Me(BaseModel):
     id: int
     username: str
     role: Role
+    must_change_password: bool = Field(description="true: a password someone else chose; every other request is "
+                                                   "refused (403) until POST /api/auth/password")
+
+
+class PasswordChange(StrictIn):
+    current_password: str = Field(max_length=1024)
+    new_password: Password

@@ -20,9 +20,15 @@ class UserPatch(StrictIn):
     disabled: bool = Field(description="true: the account can no longer sign in and its tokens stop working")
 
 
+class PasswordReset(StrictIn):
+    password: Password = Field(description="a one-time password the user must change at their next sign-in")
+
+
 class UserOut(BaseModel):
     id: int
     username: str
     role: Role
     created_at: str
     disabled: bool
+    must_change_password: bool = Field(description="the password was chosen by someone else and not yet changed")
+    password_changed_at: str | None

@@ -45,4 +45,5 @@ export async function api(path, { method = "GET", body } = {}) {
 export const get = (path) => api(path);
 export const post = (path, body = {}) => api(path, { method: "POST", body });
 export const put = (path, body = {}) => api(path, { method: "PUT", body });
+export const patch = (path, body = {}) => api(path, { method: "PATCH", body });
 export const del = (path) => api(path, { method: "DELETE" });

@@ -7,6 +7,8 @@ import { patientPage } from "./pages/patient.js";
 import { proposalPage } from "./pages/proposal.js";
 import { monitorPage } from "./pages/monitor.js";
 import { reportPage } from "./pages/report.js";
+import { passwordPage } from "./pages/account.js";
+import { usersPage } from "./pages/users.js";
 
 const routes = [
   [/^#\/login$/, loginPage],
@@ -16,6 +18,8 @@ const routes = [
   [/^#\/monitor$/, firstDevice],
   [/^#\/monitor\/([\w.-]+)$/, monitorPage],
   [/^#\/sessions\/(\d+)\/report$/, reportPage],
+  [/^#\/password$/, passwordPage],
+  [/^#\/users$/, usersPage],
 ];
 
 export const app = { me: null, cleanup: [] };
@@ -38,9 +42,11 @@ function renderChrome() {
     who.replaceChildren();
     return;
   }
-  nav.replaceChildren(h("a", { href: "#/patients" }, "Patients"), h("a", { href: "#/monitor", id: "nav-monitor" },
-    "Live monitor"));
+  nav.replaceChildren(...(app.me.must_change_password ? [] : [h("a", { href: "#/patients" }, "Patients"),
+    h("a", { href: "#/monitor", id: "nav-monitor" }, "Live monitor"),
+    app.me.role === "admin" ? h("a", { href: "#/users", id: "nav-users" }, "Accounts") : null].filter(Boolean)));
   who.replaceChildren(h("span", {}, `${app.me.username} · ${app.me.role}`),
+    h("a", { href: "#/password", id: "change-password" }, "Change password"),
     h("button", { class: "link", id: "sign-out", onclick: async () => {
       await post("/api/auth/logout").catch(() => {});   // the server forgets the token, not just this tab
       signOut();
@@ -56,6 +62,10 @@ async function route() {
   if (hash !== "#/login" && !app.me) app.me = await whoAmI();
   if (hash !== "#/login" && !app.me) {
     location.hash = "#/login";
+    return;
+  }
+  if (app.me?.must_change_password && hash !== "#/password" && hash !== "#/login") {   // the server refuses all else
+    location.hash = "#/password";
     return;
   }
   renderChrome();

@@ -48,6 +48,13 @@ def test_first_start_prints_a_password_once_and_a_restart_keeps_everything(tmp_p
         password = line.split("password ", 1)[1].strip()
         _wait_ready(base)
         h = _login(base, "prosthetist", password)
+        # the printed password is one-time: nothing but changing it works
+        assert httpx.get(f"{base}/api/patients", headers=h).status_code == 403
+        assert httpx.get(f"{base}/api/auth/me", headers=h).json()["must_change_password"]
+        changed = httpx.post(f"{base}/api/auth/password", headers=h,
+                             json={"current_password": password, "new_password": "my own long password"})
+        assert changed.status_code == 200 and not changed.json()["must_change_password"]
+        password = "my own long password"
         patient = httpx.post(f"{base}/api/patients", headers=h,
                              json={"code_name": "SRV-1", "body_mass_kg": 71.0, "side": "right"}).json()
         proposal = httpx.post(f"{base}/api/patients/{patient['id']}/proposals", headers=h,

@@ -25,6 +25,7 @@ def server(tmp_path_factory):
     prepare_storage(Settings(data_dir=data))
     add_user(data, "dana", "prosthetist")
     add_user(data, "vic", "viewer")
+    add_user(data, "ada", "admin")
     proc, base = start_server(data, device="sim")
     yield base
     proc.terminate()

@@ -2,6 +2,7 @@
 import { del, get, post, put, token } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { liveChart } from "../charts.js";
+import { legView } from "../leg_view.js";
 import { chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
 
 export async function monitorPage(view, deviceId, params) {
@@ -11,10 +12,11 @@ export async function monitorPage(view, deviceId, params) {
   const readout = h("dl", { class: "readout", id: "readout" });
   const sessionBox = h("section", { class: "card", id: "session" });
   const viewerBox = h("figure", { class: "viewer", id: "viewer3d" });
-  // The 3D scene is WebGL: on a machine without a GPU it is rendered in software and costs the charts their
-  // frame rate, so it opens on request (and the choice is remembered).
+  // viser's 3D scene: only where the server was started with --viewer3d (viser has no login); WebGL, so it opens
+  // on request (and the choice is remembered)
   const viewerToggle = h("details", { id: "viewer3d-toggle", open: localStorage.getItem("quasitune.show3d") === "1" },
-    h("summary", {}, "3D view of the leg (viser, WebGL)"), viewerBox);
+    h("summary", {}, "3D view of the leg (viser, engineering bench only)"), viewerBox);
+  const legFigure = h("figure", { class: "leg-view", id: "leg-view" });
   const charts = h("div", { class: "three" });
   view.replaceChildren(
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / live monitor"),
@@ -25,9 +27,11 @@ export async function monitorPage(view, deviceId, params) {
         h("button", { class: "secondary", id: "leave-safe", onclick: () => command("leave_safe_mode") }, "Leave safe mode")) : null),
     sessionBox,
     h("section", { class: "card" }, h("h2", {}, "Telemetry (last 5 s, 100 Hz)"),
-      h("p", { id: "telemetry-state", "aria-live": "polite" }, chip("waiting for data…", "warn")), readout, charts),
+      h("p", { id: "telemetry-state", "aria-live": "polite" }, chip("waiting for data…", "warn")),
+      h("div", { class: "readout-row" }, legFigure, readout), charts),
     h("section", { class: "card" }, viewerToggle));
 
+  const leg = legView(legFigure);
   const figs = [0, 1, 2].map(() => h("figure", { class: "chart" }));
   charts.append(...figs);
   const angle = liveChart(figs[0], { title: "joint angles (deg)", yLabel: "deg",
@@ -92,7 +96,11 @@ export async function monitorPage(view, deviceId, params) {
       stats.frames += 1;
       const dt = (performance.now() - stats.since) / 1000;
       stats.fps = stats.frames / dt;
-      if (latest) renderReadout(readout, latest, stats, status.patient?.body_mass_kg);
+      if (latest) {
+        const massKg = status.patient?.body_mass_kg;
+        renderReadout(readout, latest, stats, massKg);
+        leg.draw(latest, massKg ? massKg * 9.80665 : null);
+      }
     }
     raf = requestAnimationFrame(frame);
   };
@@ -109,10 +117,12 @@ export async function monitorPage(view, deviceId, params) {
     try {
       const v = await get(`/api/devices/${deviceId}/viewer`);
       viewerBox.replaceChildren(h("iframe", { src: v.url, title: `3D view of ${deviceId}` }),
-        h("figcaption", { class: "muted small" }, `viser on ${v.host}:${v.port} (loopback). Thigh drawn upright: the `,
-          "device measures knee and ankle only. Foot colour: pylon load (grey unloaded → orange at body weight)."));
+        h("figcaption", { class: "muted small" }, `viser on ${v.host}:${v.port} (loopback, no login: anyone on the `,
+          "server machine can watch it). Thigh drawn upright: the device measures knee and ankle only. Foot colour: ",
+          "pylon load (grey unloaded → orange at body weight)."));
     } catch (err) {
-      viewerBox.replaceChildren(h("p", { class: "error" }, `3D view unavailable: ${err.message}`));
+      viewerBox.replaceChildren(h("p", { class: err.status === 409 ? "muted" : "error", id: "viewer3d-off" },
+        err.status === 409 ? err.message : `3D view unavailable: ${err.message}`));
     }
   };
   viewerToggle.addEventListener("toggle", show3d);

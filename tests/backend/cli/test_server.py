@@ -28,6 +28,29 @@ def test_users_add_reads_the_password_from_stdin_and_refuses_bad_input(capsys, m
     assert "alex" in listed and "bo" not in listed
 
 
+def test_users_disable_enable_and_passwd_from_the_command_line(capsys, monkeypatch, tmp_path):
+    from backend.db import connect
+    from backend.security import verify_password
+
+    def run(*argv: str, stdin: str = "") -> int:
+        monkeypatch.setattr("sys.stdin", io.StringIO(stdin))
+        return main([*argv, "--data-dir", str(tmp_path)])
+
+    assert run("users", "add", "alex", "--role", "viewer", "--one-time", stdin="first-password\n") == 0
+    assert "changed at the first sign-in" in capsys.readouterr().out
+    assert run("users", "disable", "alex") == 0 and "disabled" in capsys.readouterr().out
+    assert run("users", "list") == 0 and "disabled, must change password" in capsys.readouterr().out
+    assert run("users", "disable", "nobody") == 2 and "no user named 'nobody'" in capsys.readouterr().err
+    assert run("users", "enable", "alex") == 0
+    assert run("users", "passwd", "alex", stdin="short\n") == 2 and "8 characters" in capsys.readouterr().err
+    assert run("users", "passwd", "alex", stdin=" second password \n") == 0
+    conn = connect(tmp_path / "quasitune.sqlite")
+    row = conn.execute("SELECT * FROM users WHERE username = 'alex'").fetchone()
+    conn.close()
+    assert verify_password(" second password ", row["password_hash"]) and not row["disabled"]
+    assert row["must_change_password"] == 0                              # set by its owner at the console
+
+
 @pytest.mark.parametrize("port", ["-1", "65536", "nope"])
 def test_serve_refuses_a_bad_port(capsys, tmp_path, port):
     with pytest.raises(SystemExit) as exit_:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import pytest
+from starlette.websockets import WebSocketDisconnect
+
 from backend.db import write_transaction
 from tests.helpers.api import PASSWORD
 
@@ -125,3 +128,51 @@ def test_a_disabled_account_loses_its_tokens_and_cannot_sign_in(api):
     assert r.status_code == 409 and "another admin" in r.json()["detail"]
     c.patch(f"/api/users/{users['viewer']['id']}", headers=admin, json={"disabled": False})
     assert c.post("/api/auth/token", data={"username": "viewer", "password": PASSWORD}).status_code == 200
+
+
+def _sign_in(api, name: str, password: str) -> dict[str, str]:
+    r = api.client.post("/api/auth/token", data={"username": name, "password": password})
+    assert r.status_code == 200, r.text
+    return {"Authorization": f"Bearer {r.json()['access_token']}"}
+
+
+def test_a_one_time_password_must_be_changed_before_anything_else_works(api):
+    c = api.client
+    assert c.post("/api/users", headers=api.as_("admin"), json={
+        "username": "newbie", "role": "viewer", "password": "chosen-by-admin"}).status_code == 201
+    h = _sign_in(api, "newbie", "chosen-by-admin")
+    assert c.get("/api/auth/me", headers=h).json()["must_change_password"] is True
+    refused = c.get("/api/patients", headers=h)
+    assert refused.status_code == 403 and "one-time password" in refused.json()["detail"]
+    with pytest.raises(WebSocketDisconnect) as closed, \
+            c.websocket_connect(f"/api/devices/none/telemetry?token={h['Authorization'].split()[1]}") as ws:
+        ws.receive_json()
+    assert closed.value.code == 1008 and "one-time" in closed.value.reason   # nor the live telemetry
+    # a wrong current password changes nothing and is a failed sign-in; the same password again is refused
+    wrong = c.post("/api/auth/password", headers=h, json={"current_password": "guess", "new_password": "x" * 12})
+    assert wrong.status_code == 403 and "nothing was changed" in wrong.json()["detail"]
+    same = c.post("/api/auth/password", headers=h,
+                  json={"current_password": "chosen-by-admin", "new_password": "chosen-by-admin"})
+    assert same.status_code == 422 and "differ" in same.json()["detail"]
+    other = _sign_in(api, "newbie", "chosen-by-admin")                    # a second session of the same account
+    ok = c.post("/api/auth/password", headers=h,
+                json={"current_password": "chosen-by-admin", "new_password": " my own, with spaces "})
+    assert ok.status_code == 200 and ok.json()["must_change_password"] is False
+    assert c.get("/api/patients", headers=h).status_code == 200           # this session goes on
+    assert c.get("/api/patients", headers=other).status_code == 401       # every other one ends
+    assert c.post("/api/auth/token", data={"username": "newbie", "password": "chosen-by-admin"}).status_code == 401
+    _sign_in(api, "newbie", " my own, with spaces ")
+    actions = [e["action"] for e in c.get("/api/audit", headers=api.as_("viewer")).json()["items"]]
+    assert "user.password" in actions and "auth.login_failed" in actions
+
+
+def test_an_admin_reset_ends_the_sessions_and_forces_a_change(api):
+    c, admin = api.client, api.as_("admin")
+    viewer_id = {u["username"]: u["id"] for u in c.get("/api/users", headers=admin).json()}["viewer"]
+    assert c.put(f"/api/users/{viewer_id}/password", headers=api.as_("prosthetist"),
+                 json={"password": "reset-by-admin"}).status_code == 403
+    r = c.put(f"/api/users/{viewer_id}/password", headers=admin, json={"password": "reset-by-admin"})
+    assert r.status_code == 200 and r.json()["must_change_password"] and r.json()["password_changed_at"]
+    assert c.get("/api/patients", headers=api.as_("viewer")).status_code == 401
+    h = _sign_in(api, "viewer", "reset-by-admin")
+    assert c.get("/api/patients", headers=h).status_code == 403

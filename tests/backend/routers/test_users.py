@@ -6,7 +6,8 @@ from __future__ import annotations
 def test_admin_adds_users_and_passwords_are_scrypt_hashes(api):
     r = api.client.post("/api/users", headers=api.as_("admin"),
                         json={"username": "dana", "role": "prosthetist", "password": "a-long-password"})
-    assert r.status_code == 201 and r.json()["role"] == "prosthetist" and "password" not in r.text
+    assert r.status_code == 201 and r.json()["role"] == "prosthetist" and "a-long-password" not in r.text
+    assert r.json()["must_change_password"]          # an admin chose it: the user must choose their own
     assert api.client.post("/api/users", headers=api.as_("admin"), json={
         "username": "dana", "role": "viewer", "password": "a-long-password"}).status_code == 409
     short = api.client.post("/api/users", headers=api.as_("admin"),
