@@ -80,6 +80,12 @@ export function fieldWords(field) {
   return row && PARAMETER_WORDS[c] ? `${row}: ${PARAMETER_WORDS[c]}` : field;
 }
 
+// A server message about a field, with the field named in words (the code stays in brackets for the engineers)
+export function inWords(message, field) {
+  const words = fieldWords(field);
+  return words === field ? message : message.replace(field, `${words} [${field}]`);
+}
+
 // colour-blind safe (Okabe–Ito) per sub-phase
 export const SUBPHASE_COLOUR = {
   stance_flexion: "#009E73", stance_extension: "#D55E00", swing_flexion: "#0072B2", swing_extension: "#CC79A7",

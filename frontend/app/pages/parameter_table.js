@@ -1,7 +1,7 @@
 // A proposal's parameter table: read in clinical words (default) or engineering codes, edited into a new draft
 // version with every value checked against the safety limits as it is typed (the server checks again on save).
 import { post } from "../api.js";
-import { chip, fieldWords, FIT_METHOD_WORDS, fmt, h, notice, ROW_WORDS, SUBPHASE_COLOUR, table } from "../ui.js";
+import { chip, fieldWords, FIT_METHOD_WORDS, fmt, h, inWords, notice, ROW_WORDS, SUBPHASE_COLOUR, table } from "../ui.js";
 
 const RAD = Math.PI / 180;
 const G_MPS2 = 9.80665;
@@ -216,8 +216,9 @@ function editForm(p) {
       notice(`Saved as draft v${created.version}`, "ok");
       location.hash = `#/proposals/${created.id}`;
     } catch (err) {
-      error.textContent = err.message;
-      for (const v of err.body?.violations || []) {
+      const violations = err.body?.violations || [];
+      error.textContent = violations.length ? violations.map((v) => inWords(v.message, v.field)).join("; ") : err.message;
+      for (const v of violations) {
         document.querySelector(`#table-card td[data-cell="${v.field}"]`)?.classList.add("out");
       }
     }

@@ -4,7 +4,7 @@ import { get, post, put } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { legend, loopChart, phaseChart } from "../charts.js";
 import { parameterTable, tableView } from "./parameter_table.js";
-import { chip, confirmDialog, fieldWords, FIT_METHOD_WORDS, fmt, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, tableName,
+import { chip, confirmDialog, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, tableName,
   when } from "../ui.js";
 
 const RAD = Math.PI / 180;
@@ -40,7 +40,7 @@ export async function proposalPage(view, id) {
   }
   if (!p.safety.ok) {
     head.push(h("div", { class: "banner bad", role: "alert" }, h("strong", {}, "Safety limits: "),
-      p.safety.violations.map((v) => v.message).join("; ")));
+      p.safety.violations.map((v) => inWords(v.message, v.field)).join("; ")));
   }
 
   const loops = h("div", { class: "two" }, h("figure", { id: "loop-knee", class: "chart" }),
