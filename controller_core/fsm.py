@@ -12,6 +12,14 @@ hold the leg in one state). An event counts only once its condition has held for
 simulated bench a single low sample in mid-stance was enough to fire a false toe-off and put a loaded leg
 into swing flexion (docs/results.md).
 
+Heel strike is recognised sooner, because a loaded leg on the weak swing impedance is the hazard (the 20 ms hold
+plus swing extension's minimum time kept a loaded leg in swing for 50–120 ms per stride): from either swing
+state, a load above the heel-strike threshold for ``heel_strike_hold_s`` (5 ms) goes straight to stance flexion,
+in swing extension at once and in swing flexion after its minimum time (which keeps a load rebound just after
+toe-off from re-entering stance). The short hold is safe in this direction only: a false heel strike puts the leg
+in its stiffer stance settings, where a false toe-off would put a loaded leg in swing; and the toe-off threshold
+lies below the heel-strike threshold (the safety limits require it), so the two cannot chatter.
+
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
 plain floats (no numpy in the loop) because it runs at 1 kHz or faster.
@@ -121,6 +129,8 @@ class ImpedanceSchedule:
         min_state_time_s, max_state_time_s: state-time guards (s).
         swing_slowing_rad_s: WF→WE also needs the knee flexion velocity at or below this (rad/s).
         event_hold_s: a transition's condition must hold this long, uninterrupted, before it fires (s).
+        heel_strike_hold_s: heel strike (load above its threshold in swing) needs only this long (s), and in
+            swing extension no minimum time: see the module docstring.
     """
 
     knee_k: tuple[float, float, float, float]
@@ -138,6 +148,7 @@ class ImpedanceSchedule:
     sf_to_se_knee_extension_rad_s: float = 0.0
     swing_slowing_rad_s: float = 0.05
     event_hold_s: float = 0.02
+    heel_strike_hold_s: float = 0.005
 
     @classmethod
     def from_table(cls, table: ImpedanceTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
@@ -190,6 +201,7 @@ class StateMachineController:
         state_: the current state.
         state_entry_time_s_: when the current state was entered (s); None before the first sample.
         event_since_s_: since when the current state's exit condition has held (s); None while it does not.
+        heel_load_since_s_: since when a swing state has seen heel-strike load (s); None while it has not.
         transitions_: number of transitions taken.
         guard_transitions_: how many of them the maximum-time guard forced.
     """
@@ -200,6 +212,7 @@ class StateMachineController:
     state_: GaitState = field(init=False)
     state_entry_time_s_: float | None = field(init=False, default=None)
     event_since_s_: float | None = field(init=False, default=None)
+    heel_load_since_s_: float | None = field(init=False, default=None)
     transitions_: int = field(init=False, default=0)
     guard_transitions_: int = field(init=False, default=0)
 
@@ -211,6 +224,7 @@ class StateMachineController:
         self.state_ = GaitState(self.initial_state if state is None else state)
         self.state_entry_time_s_ = None
         self.event_since_s_ = None
+        self.heel_load_since_s_ = None
         self.transitions_ = 0
         self.guard_transitions_ = 0
 
@@ -230,13 +244,34 @@ class StateMachineController:
             return x.knee_angle_rad >= sch.wf_to_we_knee_angle_rad and x.knee_velocity_rad_s <= sch.swing_slowing_rad_s
         return x.load_N > sch.we_to_sf_load_N
 
+    def _heel_strike(self, x: SensorSample, dwell: float) -> bool:
+        """The foot is loaded in a swing state (WE at once, WF after its minimum time) for ``heel_strike_hold_s``."""
+        sch, st = self.schedule, self.state_
+        swing = st == GaitState.SWING_EXTENSION or (st == GaitState.SWING_FLEXION and dwell >= sch.min_state_time_s)
+        if not swing or x.load_N <= sch.we_to_sf_load_N:
+            self.heel_load_since_s_ = None
+            return False
+        if self.heel_load_since_s_ is None:
+            self.heel_load_since_s_ = x.time_s
+        return x.time_s - self.heel_load_since_s_ >= sch.heel_strike_hold_s - 1e-9
+
+    def _enter(self, state: GaitState, now_s: float, guard: bool) -> None:
+        self.state_ = state
+        self.state_entry_time_s_ = now_s
+        self.event_since_s_ = None
+        self.heel_load_since_s_ = None
+        self.transitions_ += 1
+        self.guard_transitions_ += int(guard)
+
     def step(self, x: SensorSample) -> TorqueCommand:
         """Advance the machine with one sample and return the joint torques for it."""
         if self.state_entry_time_s_ is None:
             self.state_entry_time_s_ = x.time_s
         sch = self.schedule
         dwell = x.time_s - self.state_entry_time_s_
-        if dwell >= sch.min_state_time_s:
+        if self._heel_strike(x, dwell):
+            self._enter(GaitState.STANCE_FLEXION, x.time_s, guard=False)
+        elif dwell >= sch.min_state_time_s:
             guard = dwell >= sch.max_state_time_s
             if self._event(x):
                 if self.event_since_s_ is None:
@@ -246,11 +281,7 @@ class StateMachineController:
                 self.event_since_s_ = None
                 held = False
             if guard or held:
-                self.state_ = GaitState((int(self.state_) + 1) % 4)
-                self.state_entry_time_s_ = x.time_s
-                self.event_since_s_ = None
-                self.transitions_ += 1
-                self.guard_transitions_ += int(guard)
+                self._enter(GaitState((int(self.state_) + 1) % 4), x.time_s, guard)
         i = int(self.state_)
         lim = self.limits
         tk = sch.knee_k[i] * (x.knee_angle_rad - sch.knee_theta_e[i]) - sch.knee_b[i] * x.knee_velocity_rad_s

@@ -294,7 +294,8 @@ class DeviceFirmware:
         if self.mode_ == Mode.ACTIVE and ctrl is not None:
             before, guards = ctrl.state_, ctrl.guard_transitions_
             cmd = ctrl.step(x)
-            heel_strike = before == GaitState.SWING_EXTENSION and cmd.state == GaitState.STANCE_FLEXION
+            heel_strike = before in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) and \
+                cmd.state == GaitState.STANCE_FLEXION
             if heel_strike and ctrl.guard_transitions_ == guards:
                 self._last_heel_strike_s = now_s
                 if self.staged_ is not None:

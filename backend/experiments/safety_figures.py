@@ -8,8 +8,9 @@ Bounds (and why):
 * falls: any fall (the bench carried half the body weight, or the loaded knee buckled).
 * toe catches: any foot contact in mid-swing (a stumble the patient would feel).
 * heel strikes never reaching stance: the leg stayed on swing impedance through a whole loading response.
-* loaded swing: more than 20 ms per stride on a swing row with more than ½ body weight on the leg (the bound of
-  the heel-strike safety target); flagged as a warning, and as bad from 50 ms.
+* loaded swing: more than 20 ms in any one stride on a swing row with more than ½ body weight on the leg (the
+  bound of the heel-strike safety target); flagged as a warning, and as bad from 50 ms. Previews stored before
+  the longest stride was measured are judged on the mean per stride.
 * foot contact → stance, longest: more than 50 ms (about a third of the loading response at 1.2 m/s), or more than
   20 ms later than the FSMIC's on the same walk.
 """
@@ -57,11 +58,13 @@ def safety_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) -> li
         flags.append(_flag("heel_strikes_without_stance", "bad", int(missed), fsmic.get("heel_strikes_without_stance"),
                            "strides", f"on {int(missed)} stride(s) the leg never switched to stance after the foot "
                            "touched down"))
-    loaded = float(table.get("loaded_swing_ms_per_stride") or 0.0)
+    key = "loaded_swing_ms_max_stride" if table.get("loaded_swing_ms_max_stride") is not None \
+        else "loaded_swing_ms_per_stride"
+    loaded = float(table.get(key) or 0.0)
     if loaded > LOADED_SWING_WARN_MS:
-        flags.append(_flag("loaded_swing_ms_per_stride", "bad" if loaded > LOADED_SWING_BAD_MS else "warn", loaded,
-                           fsmic.get("loaded_swing_ms_per_stride"), "ms",
-                           f"{loaded:.0f} ms per stride on the weak swing settings with more than half the body "
+        which = "in one stride" if key == "loaded_swing_ms_max_stride" else "per stride on average"
+        flags.append(_flag(key, "bad" if loaded > LOADED_SWING_BAD_MS else "warn", loaded, fsmic.get(key), "ms",
+                           f"up to {loaded:.0f} ms {which} on the weak swing settings with more than half the body "
                            f"weight on the leg (bound {LOADED_SWING_WARN_MS:.0f} ms)"))
     entry = table.get("heel_strike_to_stance_ms_max")
     fsmic_entry = fsmic.get("heel_strike_to_stance_ms_max")

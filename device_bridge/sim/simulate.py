@@ -20,7 +20,8 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
   before contact, e.g. by the time guard), ``heel_strikes_without_stance`` counts strides on which it did not
   enter stance at all, and ``loaded_swing_ms_per_stride`` is the time per stride the leg spent on a swing row
   (swing flexion or extension) while the load cell read more than half the body weight — a loaded leg on the
-  weak swing impedance, which is a safety question, not a score;
+  weak swing impedance, which is a safety question, not a score — and ``loaded_swing_ms_max_stride`` the longest
+  such time in any one stride of the walk;
 * time in each state, guard-forced transitions, torque saturation, real-time factor (simulated seconds per
   wall-clock second of the loop);
 * ``bench_hip_height_mismatch_mm``: how far the bench's hip path is, at heel strike and in pre-swing, from
@@ -30,6 +31,7 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
@@ -145,20 +147,21 @@ def _stance_entry(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, w
                   dt: float) -> dict[str, object]:
     """How late the machine noticed each heel strike (see the module docstring): None without a whole stride."""
     keys = ("heel_strike_to_stance_ms_median", "heel_strike_to_stance_ms_max", "heel_strikes_without_stance",
-            "loaded_swing_ms_per_stride")
+            "loaded_swing_ms_per_stride", "loaded_swing_ms_max_stride")
     if strikes.shape[0] < 2:
         return dict.fromkeys(keys)
     delays_ms = 1000.0 * dt * state_entry_delays(states, int(GaitState.STANCE_FLEXION), strikes[:-1],
                                                  round(STANCE_ENTRY_LEAD_S / dt))
     found = delays_ms[np.isfinite(delays_ms)]
-    walked = slice(int(strikes[0]), int(strikes[-1]))
-    swing = np.isin(states[walked], (int(GaitState.SWING_FLEXION), int(GaitState.SWING_EXTENSION)))
-    loaded_swing = swing & (load_N[walked] > 0.5 * weight_N)
+    swing = np.isin(states, (int(GaitState.SWING_FLEXION), int(GaitState.SWING_EXTENSION)))
+    loaded_swing = swing & (load_N > 0.5 * weight_N)
+    per_stride = np.array([np.count_nonzero(loaded_swing[a:b]) for a, b in itertools.pairwise(strikes)])
     return dict(zip(keys, (
         float(np.median(found)) if found.size else None,
         float(np.max(found)) if found.size else None,
         int(delays_ms.shape[0] - found.shape[0]),
-        1000.0 * dt * float(np.count_nonzero(loaded_swing)) / (strikes.shape[0] - 1),
+        1000.0 * dt * float(per_stride.sum()) / per_stride.shape[0],
+        1000.0 * dt * float(per_stride.max()),
     ), strict=True))
 
 

@@ -51,10 +51,10 @@ def test_missed_heel_strike_is_caught_by_the_max_time_guard():
 
 
 def test_no_transition_before_the_minimum_state_time():
-    c = StateMachineController(schedule(min_state_time_s=0.2))
-    c.step(sample(0.0))
-    assert c.step(sample(0.1, load=800.0)).state == WE    # heel-strike load, but only 0.1 s in state
-    assert c.step(sample(0.2, load=800.0)).state == SF
+    c = StateMachineController(schedule(min_state_time_s=0.2), initial_state=SE)
+    c.step(sample(0.0, load=600.0))
+    assert c.step(sample(0.1, load=10.0)).state == SE     # toe-off load, but only 0.1 s in state
+    assert c.step(sample(0.2, load=10.0)).state == WF
 
 
 def test_a_swinging_foot_moment_without_load_does_not_end_stance_flexion():
@@ -76,11 +76,39 @@ def test_an_event_fires_only_after_its_condition_has_held_uninterrupted():
 
 
 def test_the_max_time_guard_does_not_wait_for_the_event_hold():
-    c = StateMachineController(schedule(event_hold_s=0.02, max_state_time_s=1.0))
-    c.step(sample(0.0))
-    assert c.step(sample(0.995, load=800.0)).state == WE   # heel strike seen, 5 ms held
-    assert c.step(sample(1.000, load=800.0)).state == SF   # the guard moves on at 1.0 s regardless
+    c = StateMachineController(schedule(event_hold_s=0.02, max_state_time_s=1.0), initial_state=SE)
+    c.step(sample(0.0, load=600.0))
+    assert c.step(sample(0.995, load=10.0)).state == SE    # toe-off seen, 5 ms held
+    assert c.step(sample(1.000, load=10.0)).state == WF    # the guard moves on at 1.0 s regardless
     assert c.guard_transitions_ == 1
+
+
+def _loaded(c: StateMachineController, t0: float, ms: int, load: float = 800.0) -> list[GaitState]:
+    return [c.step(sample(t0 + i / 1000.0, load=load)).state for i in range(ms)]
+
+
+def test_heel_strike_in_swing_extension_is_recognised_in_5_ms_without_waiting_for_the_minimum_time():
+    c = StateMachineController(schedule(event_hold_s=0.02, min_state_time_s=0.05))
+    c.step(sample(0.0))                                    # swing extension entered just now
+    states = _loaded(c, 0.010, 10)                         # foot contact 10 ms into swing extension
+    assert states[:5] == [WE] * 5 and states[5] == SF, states   # stance from the 6th loaded millisecond
+    assert c.transitions_ == 1 and c.guard_transitions_ == 0
+
+
+def test_a_single_loaded_sample_in_swing_is_not_a_heel_strike():
+    c = StateMachineController(schedule(event_hold_s=0.02))
+    c.step(sample(0.0))
+    assert _loaded(c, 0.100, 3) == [WE] * 3                # 3 ms of load (a knock) ...
+    assert c.step(sample(0.103, load=5.0)).state == WE     # ... then none: the hold restarts
+    assert _loaded(c, 0.104, 5) == [WE] * 5
+
+
+def test_heel_strike_in_swing_flexion_goes_straight_to_stance_after_its_minimum_time():
+    c = StateMachineController(schedule(event_hold_s=0.02, min_state_time_s=0.05), initial_state=WF)
+    c.step(sample(0.0, knee=0.5, knee_v=3.0))              # just after toe-off, still flexing
+    assert _loaded(c, 0.001, 20) == [WF] * 20              # a load rebound right after toe-off: not a heel strike
+    states = _loaded(c, 0.300, 10)                         # the foot lands before the knee reached swing extension
+    assert states[5] == SF and WE not in states, states
 
 
 def test_torque_law_and_clipping():

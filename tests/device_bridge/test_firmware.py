@@ -262,7 +262,7 @@ def test_a_staged_table_waits_for_the_next_heel_strike_while_walking(tables):
     assert ctrl.state_ == GaitState.SWING_EXTENSION and ctrl.guard_transitions_ == 0
     step(0.0)
     assert fw.active_.crc32 == old
-    for _ in range(round(ctrl.schedule.event_hold_s / 0.001)):   # the load must hold before it counts as a heel strike
+    for _ in range(round(ctrl.schedule.heel_strike_hold_s / 0.001)):   # the load must hold before it counts as a heel strike
         step(loaded)
         assert ctrl.state_ == GaitState.SWING_EXTENSION and fw.active_.crc32 == old
     step(loaded)                                      # heel strike recognised: the switch happens on this tick

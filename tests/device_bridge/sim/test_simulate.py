@@ -28,11 +28,11 @@ def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
     assert s["ankle_moment_rmse_ci95_Nm_per_kg"][0] <= s["ankle_moment_rmse_ci95_Nm_per_kg"][1]
     for channel in ("knee_angle", "ankle_angle"):   # an average curve is never further off than its strides
         assert s[f"{channel}_per_stride_rmse_deg"] >= s[f"{channel}_rmse_deg"]
-    # heel strike reaches stance on every stride, and never sooner than the 20 ms event hold allows
+    # heel strike reaches stance on every stride, never sooner than its 5 ms load hold allows, and no stride keeps
+    # a leg with more than half the body weight on it in swing for more than 20 ms
     assert s["heel_strikes_without_stance"] == 0
-    assert 20.0 <= s["heel_strike_to_stance_ms_median"] <= s["heel_strike_to_stance_ms_max"] < 500.0
-    # a loaded leg on swing impedance is the late heel strike seen from the load cell: never longer than that delay
-    assert s["loaded_swing_ms_per_stride"] <= s["heel_strike_to_stance_ms_max"]
+    assert 5.0 <= s["heel_strike_to_stance_ms_median"] <= s["heel_strike_to_stance_ms_max"] < 500.0
+    assert s["loaded_swing_ms_per_stride"] <= s["loaded_swing_ms_max_stride"] <= 20.0
 
 
 def test_learned_table_walks_strides_on_the_bench_without_falling(quasi_stiffness_walk):
