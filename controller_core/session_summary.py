@@ -63,7 +63,8 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
         "strides": strides,
         "strides_scored": int(on_table.sum()),
         "strides_off_table": int(strides - on_table.sum()),
-        "off_table_s": round(float(np.count_nonzero(~running) * dt), 3) if n > 1 else 0.0,
+        # samples × the reported sample period, as callers count time per mode: a part never exceeds the whole
+        "off_table_s": round(float(np.count_nonzero(~running)) * round(dt, 5), 3) if n > 1 else 0.0,
         "stride_time_s": None if stride_time is None else round(stride_time, 4),
         "cadence_steps_per_min": None if stride_time is None else round(120.0 / stride_time, 2),
         "reference_stride_time_s": round(reference.stride_time_s, 4),
