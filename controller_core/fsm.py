@@ -15,10 +15,11 @@ into swing flexion (docs/results.md).
 Heel strike is recognised sooner, because a loaded leg on the weak swing impedance is the hazard (the 20 ms hold
 plus swing extension's minimum time kept a loaded leg in swing for 50–120 ms per stride): from either swing
 state, a load above the heel-strike threshold for ``heel_strike_hold_s`` (5 ms) goes straight to stance flexion,
-in swing extension at once and in swing flexion after its minimum time (which keeps a load rebound just after
-toe-off from re-entering stance). The short hold is safe in this direction only: a false heel strike puts the leg
-in its stiffer stance settings, where a false toe-off would put a loaded leg in swing; and the toe-off threshold
-lies below the heel-strike threshold (the safety limits require it), so the two cannot chatter.
+without waiting for the state's minimum time. That includes a leg loaded again just after a toe-off (a false
+one, when the load dipped in mid-stance): it returns to stance in 5 ms. The short hold is safe in this direction
+only: a false heel strike puts the leg in its stiffer stance settings, where a false toe-off would put a loaded
+leg in swing; and the toe-off threshold lies below the heel-strike threshold (the safety limits require it), so
+the two cannot chatter.
 
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
@@ -129,8 +130,8 @@ class ImpedanceSchedule:
         min_state_time_s, max_state_time_s: state-time guards (s).
         swing_slowing_rad_s: WF→WE also needs the knee flexion velocity at or below this (rad/s).
         event_hold_s: a transition's condition must hold this long, uninterrupted, before it fires (s).
-        heel_strike_hold_s: heel strike (load above its threshold in swing) needs only this long (s), and in
-            swing extension no minimum time: see the module docstring.
+        heel_strike_hold_s: heel strike (load above its threshold in either swing state) needs only this long
+            (s) and no minimum time in the state: see the module docstring.
     """
 
     knee_k: tuple[float, float, float, float]
@@ -244,11 +245,10 @@ class StateMachineController:
             return x.knee_angle_rad >= sch.wf_to_we_knee_angle_rad and x.knee_velocity_rad_s <= sch.swing_slowing_rad_s
         return x.load_N > sch.we_to_sf_load_N
 
-    def _heel_strike(self, x: SensorSample, dwell: float) -> bool:
-        """The foot is loaded in a swing state (WE at once, WF after its minimum time) for ``heel_strike_hold_s``."""
+    def _heel_strike(self, x: SensorSample) -> bool:
+        """The foot has been loaded in a swing state for ``heel_strike_hold_s`` (no minimum time: see the module)."""
         sch, st = self.schedule, self.state_
-        swing = st == GaitState.SWING_EXTENSION or (st == GaitState.SWING_FLEXION and dwell >= sch.min_state_time_s)
-        if not swing or x.load_N <= sch.we_to_sf_load_N:
+        if st not in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) or x.load_N <= sch.we_to_sf_load_N:
             self.heel_load_since_s_ = None
             return False
         if self.heel_load_since_s_ is None:
@@ -269,7 +269,7 @@ class StateMachineController:
             self.state_entry_time_s_ = x.time_s
         sch = self.schedule
         dwell = x.time_s - self.state_entry_time_s_
-        if self._heel_strike(x, dwell):
+        if self._heel_strike(x):
             self._enter(GaitState.STANCE_FLEXION, x.time_s, guard=False)
         elif dwell >= sch.min_state_time_s:
             guard = dwell >= sch.max_state_time_s

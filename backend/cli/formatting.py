@@ -55,8 +55,9 @@ def _cell(v: object) -> str:
 
 def format_compare(rows: list[dict]) -> str:
     """Markdown table of a comparison (one row per task and controller)."""
-    cols = ["speed_mps", "incline_deg", "controller", "strides", "falls", "toe_catches", "knee_angle_rmse_deg",
-            "ankle_angle_rmse_deg", "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg", "real_time_factor"]
+    cols = ["speed_mps", "incline_deg", "controller", "strides", "falls", "toe_catches", "loaded_swing_ms_max_stride",
+            "knee_angle_rmse_deg", "ankle_angle_rmse_deg", "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg",
+            "real_time_factor"]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     lines += ["| " + " | ".join(_cell(r.get(c)) for c in cols) + " |" for r in rows]
     verdicts = [r for r in rows if r.get("vs_fsmic")]

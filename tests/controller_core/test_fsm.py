@@ -103,12 +103,21 @@ def test_a_single_loaded_sample_in_swing_is_not_a_heel_strike():
     assert _loaded(c, 0.104, 5) == [WE] * 5
 
 
-def test_heel_strike_in_swing_flexion_goes_straight_to_stance_after_its_minimum_time():
+def test_heel_strike_in_swing_flexion_goes_straight_to_stance():
     c = StateMachineController(schedule(event_hold_s=0.02, min_state_time_s=0.05), initial_state=WF)
-    c.step(sample(0.0, knee=0.5, knee_v=3.0))              # just after toe-off, still flexing
-    assert _loaded(c, 0.001, 20) == [WF] * 20              # a load rebound right after toe-off: not a heel strike
+    c.step(sample(0.0, knee=0.5, knee_v=3.0))              # swing flexion, the knee still flexing
     states = _loaded(c, 0.300, 10)                         # the foot lands before the knee reached swing extension
-    assert states[5] == SF and WE not in states, states
+    assert states[:5] == [WF] * 5 and states[5] == SF and WE not in states, states
+
+
+def test_a_leg_loaded_again_just_after_a_false_toe_off_returns_to_stance_in_5_ms():
+    c = StateMachineController(schedule(event_hold_s=0.02, min_state_time_s=0.05), initial_state=SE)
+    c.step(sample(0.0, load=600.0))
+    for i in range(21):                                    # the load dips in mid-stance for 20 ms: a false toe-off
+        state = c.step(sample(0.100 + i / 1000.0, load=10.0)).state
+    assert state == WF
+    states = _loaded(c, 0.121, 8, load=1500.0)             # loaded at once: no waiting for the minimum time
+    assert states[5] == SF, states
 
 
 def test_torque_law_and_clipping():
