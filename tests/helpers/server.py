@@ -32,12 +32,15 @@ def add_user(data_dir: Path, name: str, role: str, password: str = PASSWORD) -> 
         conn.close()
 
 
-def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none") -> tuple[subprocess.Popen, str]:
+def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none",
+                 viewer3d: bool = False) -> tuple[subprocess.Popen, str]:
     """``quasitune serve --port 0`` in a subprocess; returns (process, base URL) once it listens (its further
     stdout lines are left unread in ``process.stdout``)."""
     cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir), "--device", device]
     if not bootstrap:
         cmd.append("--no-bootstrap-user")
+    if viewer3d:
+        cmd.append("--viewer3d")
     err_path = data_dir / "serve.stderr.log"    # a file, not a pipe nobody drains
     with err_path.open("a") as err:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True,
@@ -50,13 +53,13 @@ def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none") 
 
 
 @contextmanager
-def temporary_server(prefix: str, device: str = "none", user: str = "bench") -> Iterator[str]:
+def temporary_server(prefix: str, device: str = "none", user: str = "bench", viewer3d: bool = False) -> Iterator[str]:
     """A fresh server on a temporary database with the prosthetist ``user`` (password :data:`PASSWORD`); yields
     its base URL and stops it afterwards."""
     with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
         data_dir = Path(tmp)
         add_user(data_dir, user, "prosthetist")
-        proc, base = start_server(data_dir, device=device)
+        proc, base = start_server(data_dir, device=device, viewer3d=viewer3d)
         try:
             yield base
         finally:
