@@ -20,19 +20,26 @@ from backend.throttle import LoginThrottle
 router = APIRouter(prefix="/api", tags=["auth"])
 
 
+def _throttled(request: Request, name: str) -> tuple[LoginThrottle, str]:
+    """The login throttle and the caller's address; 429 with Retry-After while ``name`` or the address has had
+    too many failed attempts (then nothing is checked or written)."""
+    throttle: LoginThrottle = request.app.state.login_throttle
+    address = request.client.host if request.client else "unknown"
+    wait = throttle.retry_after_s(name, address)
+    if wait:
+        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS, f"too many failed sign-ins; try again in {wait} s",
+                            headers={"Retry-After": str(wait)})
+    return throttle, address
+
+
 @router.post("/auth/token", response_model=TokenOut, responses={**UNAUTHORIZED, **TOO_MANY})
 def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Request, conn: Conn,
           settings: Annotated[Settings, Depends(get_settings)]) -> TokenOut:
     """Exchange a user name and password (form fields) for a bearer token that expires. After too many failed
     sign-ins for one name, or from one address, within a minute: 429 with Retry-After, and nothing is checked or
     written until then (so failed sign-ins write a bounded number of audit rows)."""
-    throttle: LoginThrottle = request.app.state.login_throttle
-    address = request.client.host if request.client else "unknown"
     name = form.username[:64] if is_utf8_encodable(form.username) else "<not UTF-8>"
-    wait = throttle.retry_after_s(name, address)
-    if wait:
-        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS, f"too many failed sign-ins; try again in {wait} s",
-                            headers={"Retry-After": str(wait)})
+    throttle, address = _throttled(request, name)
     found = users.credentials(conn, form.username) if is_utf8_encodable(form.username) and len(form.username) <= 64 else None
     if found is None:
         burn_password_check(form.password)
@@ -65,12 +72,7 @@ def change_password(body: PasswordChange, request: Request, user: SignedIn, conn
                     token: Annotated[str | None, Depends(oauth2)]) -> Me:
     """Change your own password (the current one is asked again). Every other session of the account ends; this
     one goes on. A wrong current password counts as a failed sign-in (throttled the same way)."""
-    throttle: LoginThrottle = request.app.state.login_throttle
-    address = request.client.host if request.client else "unknown"
-    wait = throttle.retry_after_s(user.username, address)
-    if wait:
-        raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS, f"too many failed attempts; try again in {wait} s",
-                            headers={"Retry-After": str(wait)})
+    throttle, address = _throttled(request, user.username)
     if not verify_password(body.current_password, users.password_hash_of(conn, user)):
         throttle.failed(user.username, address)
         users.record_failed_login(conn, user.username, address)

@@ -17,6 +17,13 @@ export function h(tag, attrs = {}, ...children) {
   return el;
 }
 
+const G_MPS2 = 9.80665;
+
+// Body weight (N) of a patient of ``massKg``; null when the mass is unknown
+export function bodyWeightN(massKg) {
+  return massKg ? massKg * G_MPS2 : null;
+}
+
 export function fmt(value, digits = 1, unit = "") {
   if (value === null || value === undefined || Number.isNaN(value)) return "—";
   const s = Number(value).toFixed(digits);

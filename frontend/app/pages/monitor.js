@@ -3,7 +3,7 @@ import { del, get, post, put, token } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { liveChart } from "../charts.js";
 import { legView } from "../leg_view.js";
-import { chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
+import { bodyWeightN, chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
 
 export async function monitorPage(view, deviceId, params) {
   const [device, patients] = await Promise.all([get(`/api/devices/${deviceId}`), get("/api/patients")]);
@@ -97,9 +97,9 @@ export async function monitorPage(view, deviceId, params) {
       const dt = (performance.now() - stats.since) / 1000;
       stats.fps = stats.frames / dt;
       if (latest) {
-        const massKg = status.patient?.body_mass_kg;
-        renderReadout(readout, latest, stats, massKg);
-        leg.draw(latest, massKg ? massKg * 9.80665 : null);
+        const weightN = bodyWeightN(status.patient?.body_mass_kg);
+        renderReadout(readout, latest, stats, weightN);
+        leg.draw(latest, weightN);
       }
     }
     raf = requestAnimationFrame(frame);
@@ -179,14 +179,14 @@ function recordingChip(d) {
     : chip(`recording — leg ${d.safe_mode ? "in SAFE MODE" : "without a table"}: these strides are not scored`, "bad"));
 }
 
-function renderReadout(box, m, stats, massKg) {
+function renderReadout(box, m, stats, weightN) {
   const item = (label, value, id) => [h("dt", {}, label), h("dd", { id }, value)];
   box.replaceChildren(
     ...item("Knee angle", fmt(m.knee_angle_deg, 1, "deg"), "knee-angle"),
     ...item("Knee torque", fmt(m.knee_torque_Nm, 1, "N·m"), "knee-torque"),
     ...item("Ankle angle", fmt(m.ankle_angle_deg, 1, "deg"), "ankle-angle"),
     ...item("Ankle torque", fmt(m.ankle_torque_Nm, 1, "N·m"), "ankle-torque"),
-    ...item("Load", massKg ? `${fmt(m.load_N, 0, "N")} (${fmt(100 * m.load_N / (massKg * 9.80665), 0)} % body weight)`
+    ...item("Load", weightN ? `${fmt(m.load_N, 0, "N")} (${fmt(100 * m.load_N / weightN, 0)} % body weight)`
       : fmt(m.load_N, 0, "N"), "load"),
     ...item("Mode", modeWords(m.mode), "sample-mode"),
     ...item("FSM state", m.fsm_state === null ? "—" : FSM_STATES[m.fsm_state], "fsm-state"),

@@ -1,10 +1,9 @@
 // A proposal's parameter table: read in clinical words (default) or engineering codes, edited into a new draft
 // version with every value checked against the safety limits as it is typed (the server checks again on save).
 import { post } from "../api.js";
-import { chip, fieldWords, FIT_METHOD_WORDS, fmt, h, inWords, notice, ROW_WORDS, SUBPHASE_COLOUR, table } from "../ui.js";
+import { bodyWeightN, chip, fieldWords, FIT_METHOD_WORDS, fmt, h, inWords, notice, ROW_WORDS, SUBPHASE_COLOUR, table } from "../ui.js";
 
 const RAD = Math.PI / 180;
-const G_MPS2 = 9.80665;
 // kept across versions and visits: the stiffness unit and the clinical / engineering view
 export const tableView = {
   kUnit: localStorage.getItem("quasitune.kUnit") || "rad",
@@ -29,7 +28,7 @@ function units(field, mass) {
   if (field.endsWith("k_Nm_per_rad")) return deg ? { scale: RAD, unit: "N·m/deg", digits: 3 } : { scale: 1, unit: "N·m/rad", digits: 1 };
   if (field.endsWith("b_Nm_s_per_rad")) return deg ? { scale: RAD, unit: "N·m·s/deg", digits: 4 } : { scale: 1, unit: "N·m·s/rad", digits: 2 };
   if (field.endsWith("_deg")) return { scale: 1, unit: "deg", digits: 2 };
-  if (field.endsWith("_load_N")) return clinical ? { scale: 100 / (mass * G_MPS2), unit: "% body weight", digits: 1 }
+  if (field.endsWith("_load_N")) return clinical ? { scale: 100 / bodyWeightN(mass), unit: "% body weight", digits: 1 }
     : { scale: 1, unit: "N", digits: 0 };
   if (field.endsWith("_Nm")) return { scale: 1, unit: "N·m", digits: 1 };
   if (field.endsWith("_deg_per_s")) return { scale: 1, unit: "deg/s", digits: 0 };
