@@ -76,7 +76,8 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
     print(f"  database: {settings.db_path}", flush=True)
     if password:
         print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
-              "  (shown once; add users with 'quasitune users add NAME --role ROLE')", flush=True)
+              "  (shown once, and one-time: sign in and choose your own password before anything else; add "
+              "users with 'quasitune users add NAME --role ROLE')", flush=True)
     if host not in ("127.0.0.1", "::1", "localhost"):
         print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
     try:
