@@ -250,6 +250,7 @@ def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(serv
     page.fill("#new-user input[name=password]", "given-in-person")
     page.click("#new-user button[type=submit]")
     page.wait_for_selector("#users tr[data-user=newbie] :text('must change password')")
+    shot(page, "12-accounts")
 
     other = browser.new_context(viewport={"width": 1366, "height": 900})
     newbie = other.new_page()
@@ -260,6 +261,7 @@ def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(serv
         newbie.click("#login-form button[type=submit]")
         newbie.wait_for_selector("h1:has-text('Choose your own password')")       # forced, before anything else
         assert newbie.locator("#nav a").count() == 0
+        shot(newbie, "13-forced-password-change")
         newbie.goto(server + "/#/patients")
         newbie.wait_for_selector("#password-form")                                 # no way round it
         newbie.fill("#password-form input[name=current_password]", "given-in-person")
