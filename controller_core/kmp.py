@@ -312,6 +312,30 @@ class KMP:
             return mean, np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
         return mean, np.sqrt(np.clip(self.cov_scale_ * (1.0 - quad), 0.0, None))
 
+    def predict_mean(self, vias: list[ViaPoint] | None = None, mu: np.ndarray | None = None) -> np.ndarray:
+        """Mean (Q, O) only: what a parameter table needs (an envelope builds 25 of them), without the
+        covariance's right-hand sides. The same mean as :meth:`predict`."""
+        vias = list(vias or [])
+        O = self.n_outputs_
+        Q = self.s_query_.size
+        alpha = self._alpha_for(mu)
+        if not vias:
+            return self._mean_base.copy() if mu is None else _kron_eye_times(self._kq, alpha, O).reshape(Q, O)
+        sv = np.mod(np.array([p.phase for p in vias], dtype=float), 1.0)
+        J = self._replaced(sv)
+        rows = (J[:, None] * O + np.arange(O)[None]).reshape(-1)
+        cov_v = np.array([p.cov for p in vias], dtype=float)
+        mu_v = np.concatenate([np.asarray(p.mean, float) for p in vias])[:, None]
+        Kqv, C, Kvv = self._via_kernels(sv)
+        border = self._border(self._Ainv, C, Kvv, rows)
+        try:
+            xr, xv, *_ = self._update(border, self.lam, cov_v * self.via_mean_scale, rows, alpha, alpha[rows],
+                                      border[0].T @ alpha, mu_v)
+        except _IllConditioned:
+            self.fallbacks_ = getattr(self, "fallbacks_", 0) + 1
+            return self.predict_uncached(vias, mu)[0]
+        return (_kron_eye_times(self._kq, xr, O) + Kqv @ xv).reshape(Q, O)
+
     def _predict(self, vias: list[ViaPoint] | None, mu: np.ndarray | None,
                  blocks) -> tuple[np.ndarray, np.ndarray]:
         """Mean (Q, O) and the quadratic form k*ᵀ P k* (blocks or their diagonals, as ``blocks`` gives)."""

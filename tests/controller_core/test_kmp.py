@@ -88,6 +88,8 @@ def test_kmp_split_mean_and_covariance_systems_match_uncached(knee_kmp, lam_c, v
     m2, sd = kmp.predict_std(vias, mu=mu2)
     np.testing.assert_allclose(m2, m0, atol=1e-12)
     np.testing.assert_allclose(sd, np.sqrt(np.diagonal(c0, axis1=1, axis2=2)), atol=1e-9)
+    np.testing.assert_allclose(kmp.predict_mean(vias, mu=mu2), m1, atol=1e-9)
+    np.testing.assert_allclose(kmp.predict_mean([], mu=mu2), kmp.predict_uncached([], mu=mu2)[0], atol=1e-9)
 
 
 def test_kmp_replaced_points_fast_path_matches_brute_force(model):
@@ -115,6 +117,8 @@ def test_an_ill_conditioned_update_falls_back_to_the_plain_solve(model, lam, gap
     assert np.allclose(mean_s, oracle_mean, atol=1e-12)
     assert np.allclose(sd, np.sqrt(np.diagonal(oracle_cov, axis1=1, axis2=2).clip(0)), atol=1e-12)
     assert kmp.fallbacks_ == 2
+    assert np.allclose(kmp.predict_mean(twins), oracle_mean, atol=1e-12)
+    assert kmp.fallbacks_ == 3
 
 
 def test_the_model_s_own_via_points_take_the_cached_path(model):
