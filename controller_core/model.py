@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controller_core.envelope import DEFAULT_STEPS, Envelope, NeighbourSteps, build_envelope
 from controller_core.features import (
     FEATURES,
     PHASED_FEATURES,
@@ -519,8 +520,7 @@ class QuasiStiffnessModel:
         features = self.predict_features(speed_mps, incline_deg)
         fmap = {f.spec.name: f for f in features}
         means, stds, vias = self.predict_curves(np.array([speed_mps, incline_deg], dtype=float), features, with_vias)
-        boundaries = (fmap["knee_stance_flexion_peak"].phase, fmap["toe_off"].value,
-                      fmap["knee_swing_flexion_peak"].phase)
+        boundaries = self._boundaries(fmap)
         fits = self.fit_subphases(means, fmap, boundaries, mass_kg)
         extrapolation = any(f.extrapolation for f in features)
         table = ParameterTable(
@@ -533,6 +533,56 @@ class QuasiStiffnessModel:
             model_version=self.model_version, data_sha256=self.data_sha256_,
             extrapolation=extrapolation, features=features, phase=self.s_query_, means=means, stds=stds,
             boundaries=boundaries, fits=fits, table=table, violations=check_table(table), vias=vias)
+
+    def propose_table(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0
+                      ) -> tuple[ParameterTable, list[FeaturePrediction]]:
+        """The parameter table of :meth:`propose` and the features it came from, without the curves' std (an
+        envelope needs 25 tables, not their display curves). The same table as ``propose(...).table``.
+
+        Raises:
+            InvalidTaskError: NaN or out-of-range input.
+        """
+        validate_task(speed_mps, incline_deg, mass_kg)
+        features = self.predict_features(speed_mps, incline_deg)
+        fmap = {f.spec.name: f for f in features}
+        task = np.array([speed_mps, incline_deg], dtype=float)
+        references = self.reference_means(task)
+        means: dict[str, np.ndarray] = {}
+        for joint in JOINTS:
+            jm = self.joints_[joint]
+            mu = references[joint]
+            mean = jm.kmp.predict_mean(self.via_points(joint, mu, features), None if mu is jm.kmp.mu_ref_ else mu)
+            means[f"{joint}_angle"], means[f"{joint}_moment"] = mean[:, 0], mean[:, 1]
+        return self._table(speed_mps, incline_deg, mass_kg, features, fmap, means), features
+
+    def _table(self, speed_mps: float, incline_deg: float, mass_kg: float, features: list[FeaturePrediction],
+               fmap: dict[str, FeaturePrediction], means: dict[str, np.ndarray]) -> ParameterTable:
+        boundaries = self._boundaries(fmap)
+        fits = self.fit_subphases(means, fmap, boundaries, mass_kg)
+        return ParameterTable(
+            rows=self._rows(fits, mass_kg), thresholds=self._thresholds(means, fmap, boundaries, mass_kg),
+            provenance=Provenance(model_version=self.model_version, data_sha256=self.data_sha256_,
+                                  speed_mps=speed_mps, incline_deg=incline_deg, patient_mass_kg=mass_kg,
+                                  extrapolation=any(f.extrapolation for f in features)))
+
+    @staticmethod
+    def _boundaries(fmap: dict[str, FeaturePrediction]) -> tuple[float, float, float]:
+        """Sub-phase boundaries (phase): stance-flexion peak, toe-off, swing-flexion peak."""
+        return (fmap["knee_stance_flexion_peak"].phase, fmap["toe_off"].value, fmap["knee_swing_flexion_peak"].phase)
+
+    def propose_envelope(self, speeds_mps: list[float] | np.ndarray, inclines_deg: list[float] | np.ndarray,
+                         mass_kg: float = 75.0, nominal: tuple[float, float] = (1.2, 0.0),
+                         steps: NeighbourSteps = DEFAULT_STEPS) -> Envelope:
+        """Tables over a speed × incline grid, each from :meth:`propose_table`, held to the neighbour rule
+        (:mod:`controller_core.envelope`). Check the result with :func:`controller_core.envelope.check_envelope`.
+
+        Raises:
+            InvalidTaskError: a bad axis (fewer than 2 or more than 15 values, not increasing, out of range) or mass.
+        """
+        validate_task(1.0, 0.0, mass_kg)
+        return build_envelope(self.propose_table, list(np.asarray(speeds_mps, dtype=float)),
+                              list(np.asarray(inclines_deg, dtype=float)), mass_kg, self.model_version,
+                              self.data_sha256_, nominal, steps)
 
     def predict_curves(self, task: np.ndarray, features: list[FeaturePrediction], with_vias: bool = True
                        ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, list[ViaPoint]]]:

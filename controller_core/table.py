@@ -39,7 +39,7 @@ class ParameterRow(_Strict):
     r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
     guarded: bool = Field(default=False, description="the plain least-squares line was not used (see fit_method)")
     fit_method: Literal["least_squares", "extension_window", "range_guard", "passivity_guard", "swing_target",
-                        "manual", "literature"] = Field(
+                        "manual", "literature", "neighbour_guard"] = Field(
         default="least_squares",
         description="least_squares: τ = kθ + c; extension_window: the same line fitted over the knee's stance "
                     "extension only (stance-flexion peak to the knee's late-stance minimum), leaving out the "
@@ -47,7 +47,8 @@ class ParameterRow(_Strict):
                     "passivity_guard: an energy-injecting line with θe inside the swept angles, replaced by the "
                     "restoring floor and a re-fitted θe; swing_target: a swing sub-phase whose θe is the model's "
                     "predicted swing target and whose k is the model's swing stiffness; manual: edited; "
-                    "literature: a published table")
+                    "literature: a published table; neighbour_guard: moved into the envelope's step from its neighbours "
+                    "(see controller_core.envelope)")
 
 
 class Thresholds(_Strict):

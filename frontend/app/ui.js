@@ -68,6 +68,7 @@ export const FIT_METHOD_WORDS = {
   least_squares: "fitted to the predicted loop", extension_window: "fitted to stance extension",
   range_guard: "fitted, angle held in range", passivity_guard: "fitted, held resistive",
   swing_target: "set from the swing target", manual: "edited by hand", literature: "published value",
+  neighbour_guard: "held within a step of its envelope neighbours",
 };
 const THRESHOLD_WORDS = {
   sf_to_se_ankle_moment_Nm: "stance extension begins: ankle moment below",

@@ -18,6 +18,7 @@ const FIT_METHOD_HELP = {
   swing_target: "not a fit: θe is the predicted swing target, k the model's swing stiffness (restoring)",
   manual: "edited by hand",
   literature: "published table",
+  neighbour_guard: "an envelope node: the fitted value differed from a neighbouring node's by more than the envelope's step per cell, so it was moved the least into that step",
 };
 
 // How each field is shown: scale from SI to the shown unit, the unit, and digits. Loads are % body weight in the
