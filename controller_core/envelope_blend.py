@@ -1,0 +1,124 @@
+"""Bilinear blending of an envelope's schedules at a task: what the adaptive leg runs at each heel strike.
+
+:class:`EnvelopeBlender` is built from the grid axes and one table per node. Building it is the device's own
+check: every node passes the safety limits (:meth:`ImpedanceSchedule.from_table`) and every pair of neighbours
+the neighbour rule (:func:`controller_core.envelope.neighbour_violations`); anything else raises
+:class:`controller_core.table.SafetyLimitError` and nothing is built. :meth:`EnvelopeBlender.at` then blends the
+four nodes around a task; a task outside the grid is clamped to its edge and the result says so.
+
+It runs on the leg once per stride, so it is written with plain floats (no numpy): see ``quasitune bench``.
+Units: SI schedules (rad, N·m/rad, N·m·s/rad, N, N·m, s); speed m/s, incline deg.
+"""
+
+from __future__ import annotations
+
+import bisect
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from controller_core.envelope import DEFAULT_STEPS, NeighbourSteps, neighbour_violations
+from controller_core.fsm import ImpedanceSchedule
+from controller_core.table import ImpedanceTable, SafetyLimitError, SafetyLimits
+
+_PER_STATE = ("knee_k", "knee_theta_e", "knee_b", "ankle_k", "ankle_theta_e", "ankle_b")
+_SCALARS = ("sf_to_se_ankle_moment_Nm", "se_to_wf_load_N", "wf_to_we_knee_angle_rad", "we_to_sf_load_N",
+            "min_state_time_s", "max_state_time_s", "sf_to_se_knee_extension_rad_s")
+
+
+def schedule_vector(schedule: ImpedanceSchedule) -> tuple[float, ...]:
+    """The blended values of a schedule as one flat tuple (24 per-state values, then 7 thresholds)."""
+    out: list[float] = []
+    for name in _PER_STATE:
+        out.extend(getattr(schedule, name))
+    return tuple(out) + tuple(float(getattr(schedule, name)) for name in _SCALARS)
+
+
+@dataclass(frozen=True, slots=True)
+class Blend:
+    """A blended schedule and where it was taken.
+
+    Attributes:
+        schedule: the blended schedule (SI).
+        speed_mps, incline_deg: the task it was blended at, after clamping to the grid.
+        clamped: the requested task lay outside the grid (clamped to its edge).
+        cell: (speed index, incline index) of the cell's lower corner.
+        weights: (speed, incline) position inside the cell, each in [0, 1].
+    """
+
+    schedule: ImpedanceSchedule
+    speed_mps: float
+    incline_deg: float
+    clamped: bool
+    cell: tuple[int, int]
+    weights: tuple[float, float]
+
+
+def _locate(axis: tuple[float, ...], x: float) -> tuple[int, float, float, bool]:
+    """(lower index, weight, clamped value, clamped?) of x on an increasing axis."""
+    lo, hi = axis[0], axis[-1]
+    clamped = x < lo or x > hi
+    x = lo if x < lo else hi if x > hi else x
+    i = min(max(bisect.bisect_right(axis, x) - 1, 0), len(axis) - 2)
+    return i, (x - axis[i]) / (axis[i + 1] - axis[i]), x, clamped
+
+
+class EnvelopeBlender:
+    """Blends per-node schedules bilinearly over speed × incline (nodes speed-major).
+
+    Args:
+        speeds_mps, inclines_deg: the grid axes, strictly increasing, at least two values each.
+        tables: one table per node, ``tables[i * len(inclines_deg) + j]``.
+        limits: the safety limits every node must pass.
+        steps: the neighbour rule's steps.
+
+    Raises:
+        SafetyLimitError: a node violates a limit, or two neighbours break the neighbour rule; nothing is built.
+        ValueError: the axes or the number of tables do not make a grid.
+    """
+
+    def __init__(self, speeds_mps: Sequence[float], inclines_deg: Sequence[float], tables: Sequence[ImpedanceTable],
+                 limits: SafetyLimits | None = None, steps: NeighbourSteps = DEFAULT_STEPS) -> None:
+        speeds, inclines = tuple(float(v) for v in speeds_mps), tuple(float(v) for v in inclines_deg)
+        for name, axis in (("speeds_mps", speeds), ("inclines_deg", inclines)):
+            if len(axis) < 2 or any(not math.isfinite(v) for v in axis) or any(
+                    b <= a for a, b in itertools.pairwise(axis)):
+                raise ValueError(f"{name} must be at least two finite, strictly increasing values, got {list(axis)}")
+        if len(tables) != len(speeds) * len(inclines):
+            raise ValueError(f"a {len(speeds)} × {len(inclines)} grid needs {len(speeds) * len(inclines)} tables, "
+                             f"got {len(tables)}")
+        schedules = [ImpedanceSchedule.from_table(t, limits) for t in tables]   # each node's limits
+        broken = neighbour_violations(speeds, inclines, tables, steps)
+        if broken:
+            raise SafetyLimitError(broken)
+        self.speeds_mps, self.inclines_deg = speeds, inclines
+        self.schedules = tuple(schedules)
+        self._vectors = tuple(schedule_vector(s) for s in schedules)
+        first = schedules[0]
+        self._fixed = (first.swing_slowing_rad_s, first.event_hold_s, first.heel_strike_hold_s)
+
+    def contains(self, speed_mps: float, incline_deg: float) -> bool:
+        """The task lies inside the grid (edges included)."""
+        return (self.speeds_mps[0] <= speed_mps <= self.speeds_mps[-1]
+                and self.inclines_deg[0] <= incline_deg <= self.inclines_deg[-1])
+
+    def at(self, speed_mps: float, incline_deg: float) -> Blend:
+        """The schedule blended at a task (clamped to the grid's edge outside it).
+
+        Raises:
+            ValueError: a non-finite task.
+        """
+        if not (math.isfinite(speed_mps) and math.isfinite(incline_deg)):
+            raise ValueError(f"a task to blend at must be finite, got {speed_mps!r} m/s, {incline_deg!r} deg")
+        i, wx, sp, cs = _locate(self.speeds_mps, speed_mps)
+        j, wy, inc, ci = _locate(self.inclines_deg, incline_deg)
+        n = len(self.inclines_deg)
+        v = self._vectors
+        a, b, c, d = v[i * n + j], v[i * n + j + 1], v[(i + 1) * n + j], v[(i + 1) * n + j + 1]
+        w00, w01, w10, w11 = (1.0 - wx) * (1.0 - wy), (1.0 - wx) * wy, wx * (1.0 - wy), wx * wy
+        x = [w00 * p + w01 * q + w10 * r + w11 * s for p, q, r, s in zip(a, b, c, d, strict=True)]
+        schedule = ImpedanceSchedule(
+            tuple(x[0:4]), tuple(x[4:8]), tuple(x[8:12]), tuple(x[12:16]), tuple(x[16:20]), tuple(x[20:24]),
+            x[24], x[25], x[26], x[27], x[28], x[29], x[30], *self._fixed)
+        return Blend(schedule, sp, inc, cs or ci, (i, j), (wx, wy))
