@@ -63,6 +63,9 @@ class SensorSample:
         knee_velocity_rad_s, ankle_velocity_rad_s: joint velocities (rad/s).
         load_N: vertical (axial) load through the pylon load cell (N, compression +).
         ankle_moment_Nm: sagittal moment at the load cell (N·m, + in the dorsiflexion direction).
+        thigh_angle_rad, thigh_velocity_rad_s: the socket's (thigh's) sagittal angle from the vertical and its rate
+            (rad, rad/s; flexion +), from an IMU on the socket; NaN on a leg without one. The state machine does not
+            read them; the task estimator does (:mod:`controller_core.task_estimator`).
     """
 
     time_s: float
@@ -72,6 +75,8 @@ class SensorSample:
     ankle_velocity_rad_s: float
     load_N: float
     ankle_moment_Nm: float
+    thigh_angle_rad: float = math.nan
+    thigh_velocity_rad_s: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)

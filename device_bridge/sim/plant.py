@@ -3,7 +3,8 @@
 :class:`SimulatedLeg` owns one MuJoCo model and data. Each :meth:`SimulatedLeg.step` applies the bench's
 socket targets for the tick, the commanded knee and ankle torques (N·m), advances the physics by one
 timestep and returns the sensor sample the controller reads next. Everything the firmware would see comes
-from the model's sensors (joint encoders, the six-axis load cell above the ankle), converted to the
+from the model's sensors (joint encoders, the six-axis load cell above the ankle; the socket's angle from the
+vertical and its rate, which an IMU on the socket gives, read from the socket's hinge), converted to the
 controller's conventions: load positive in compression, sagittal moment positive in the dorsiflexion
 direction.
 """
@@ -18,6 +19,7 @@ import numpy as np
 from controller_core.fsm import SensorSample
 from controller_core.units import G_MPS2
 from device_bridge.sim.bench_trajectory import BenchTrajectory
+from device_bridge.sim.course import Terrain
 from device_bridge.sim.leg_model import LegGeometry, build_mjcf
 
 
@@ -26,19 +28,31 @@ class SimulatedLeg:
 
     Args:
         geometry: segment lengths and masses.
-        incline_deg: floor incline (deg, + uphill).
+        incline_deg: floor incline (deg, + uphill); ignored with ``terrain``.
+        terrain: a course's floor profile (a height field) instead of the tilted plane.
         timestep_s: physics and control period (s); 0.001 for the 1 kHz controller.
 
     Attributes:
         model, data: the MuJoCo model and data (read-only use outside this class).
     """
 
-    def __init__(self, geometry: LegGeometry | None = None, incline_deg: float = 0.0, timestep_s: float = 0.001) -> None:
+    def __init__(self, geometry: LegGeometry | None = None, incline_deg: float = 0.0, timestep_s: float = 0.001,
+                 terrain: Terrain | None = None) -> None:
         if not (math.isfinite(incline_deg) and abs(incline_deg) <= 20.0):
             raise ValueError(f"incline_deg must be within ±20 deg, got {incline_deg!r}")
         self.geometry = geometry or LegGeometry()
         self.incline_deg = float(incline_deg)
-        self.model = mujoco.MjModel.from_xml_string(build_mjcf(self.geometry, incline_deg, timestep_s))
+        if terrain is None:
+            xml = build_mjcf(self.geometry, incline_deg, timestep_s)
+        else:
+            z = terrain.z_m
+            xml = build_mjcf(self.geometry, 0.0, timestep_s, terrain_columns=z.size,
+                             terrain_x_m=(terrain.x0_m, terrain.x0_m + terrain.step_m * (z.size - 1)),
+                             terrain_z_m=(float(z.min()), float(z.max())))
+        self.model = mujoco.MjModel.from_xml_string(xml)
+        if terrain is not None:   # heights as fractions of the field's range, both rows alike
+            span = max(float(terrain.z_m.max() - terrain.z_m.min()), 1e-3)
+            self.model.hfield_data[:] = np.tile((terrain.z_m - terrain.z_m.min()) / span, 2)
         self.data = mujoco.MjData(self.model)
         self.timestep_s = float(self.model.opt.timestep)
         m = self.model
@@ -98,7 +112,9 @@ class SimulatedLeg:
             time_s=float(self.data.time),
             knee_angle_rad=float(sd[self._s_knee]), knee_velocity_rad_s=float(sd[self._s_kneev]),
             ankle_angle_rad=float(sd[self._s_ankle]), ankle_velocity_rad_s=float(sd[self._s_anklev]),
-            load_N=-float(sd[self._s_force + 2]), ankle_moment_Nm=-float(sd[self._s_torque + 1]))
+            load_N=-float(sd[self._s_force + 2]), ankle_moment_Nm=-float(sd[self._s_torque + 1]),
+            thigh_angle_rad=float(self.data.qpos[self._q["hip"]]),
+            thigh_velocity_rad_s=float(self.data.qvel[self._v["hip"]]))
 
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> SensorSample:
         """Apply the joint torques (N·m) for one timestep and return the next sensor sample."""
@@ -125,6 +141,11 @@ class SimulatedLeg:
                 mujoco.mj_contactForce(self.model, d, j, f6)
                 total += abs(f6[0])
         return total
+
+    def hip_position_m(self) -> tuple[float, float]:
+        """The socket's (x, z) position in the world (m)."""
+        q = self.data.qpos
+        return float(q[self._q["hip_x"]]), float(q[self._q["hip_z"]])
 
     def hip_height_m(self) -> float:
         """Socket height above the floor along its normal (m)."""

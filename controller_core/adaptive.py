@@ -1,0 +1,151 @@
+"""The adaptive leg: the four-state machine with rows blended from an envelope at the task the leg estimates.
+
+Once per stride, at heel strike (the machine's entry into stance flexion), :class:`AdaptiveController` takes the
+task estimator's new estimate (:mod:`controller_core.task_estimator`), moves the task it runs at towards it by at
+most ``max_speed_step_mps`` and ``max_incline_step_deg`` (the per-stride rate limit), blends the envelope there
+(:mod:`controller_core.envelope_blend`) and loads the result. Parameters never change in mid-stride. Speed and
+incline are followed separately: where the estimate of one is not confident (or there is none yet) its target is
+the envelope's nominal value, approached at the same rate, so the leg stays on, or returns to, the nominal node
+without a jump. (The incline comes from the foot's orientation, which stays readable when a leg on the wrong table
+for a ramp lets its foot slide and spoils the speed reading.) A target outside the envelope is clamped to its edge,
+and the status says so.
+
+Pure, like the machine it wraps: :meth:`AdaptiveController.step` takes one sensor sample and returns one torque
+command; the per-stride history is kept for telemetry and scoring.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+from controller_core.envelope_blend import Blend, EnvelopeBlender
+from controller_core.fsm import ActuatorLimits, GaitState, SensorSample, StateMachineController, TorqueCommand
+from controller_core.task_estimator import TaskEstimate, TaskEstimator
+
+AdaptiveMode = Literal["nominal", "partial", "adaptive", "clamped"]
+
+
+@dataclass(frozen=True, slots=True)
+class StrideDecision:
+    """What the leg decided at one heel strike.
+
+    Attributes:
+        time_s: the heel strike (s).
+        estimate: the estimator's estimate then (None before the first stride closed).
+        target_speed_mps, target_incline_deg: where it wanted to go (the estimate, or the nominal task).
+        speed_mps, incline_deg: the task it runs at for the next stride (after the rate limit and clamping).
+        mode: ``adaptive`` (following a confident estimate of both), ``partial`` (one of them not confident: that
+            one towards its nominal value), ``nominal`` (neither confident: towards the nominal task) or
+            ``clamped`` (following, but the target lies outside the envelope: held at its edge).
+    """
+
+    time_s: float
+    estimate: TaskEstimate | None
+    target_speed_mps: float
+    target_incline_deg: float
+    speed_mps: float
+    incline_deg: float
+    mode: AdaptiveMode
+
+
+def _towards(current: float, target: float, step: float) -> float:
+    return current + max(-step, min(step, target - current))
+
+
+@dataclass
+class AdaptiveController:
+    """State machine + task estimator + envelope blender (see the module docstring).
+
+    Args:
+        blender: the envelope, already checked (building a blender is the check).
+        estimator: the task estimator (segment lengths of this patient and leg).
+        nominal: (speed m/s, incline deg) to run when the estimate is not confident.
+        limits: actuator limits.
+        max_speed_step_mps, max_incline_step_deg: the most the task may move per stride.
+
+    Attributes:
+        machine_: the wrapped state machine.
+        speed_mps_, incline_deg_: the task the current rows were blended at.
+        blend_: the current blend.
+        mode_: the current mode.
+        decisions_: one :class:`StrideDecision` per heel strike.
+    """
+
+    blender: EnvelopeBlender
+    estimator: TaskEstimator
+    nominal: tuple[float, float]
+    limits: ActuatorLimits = field(default_factory=ActuatorLimits)
+    max_speed_step_mps: float = 0.15
+    max_incline_step_deg: float = 3.0
+    machine_: StateMachineController = field(init=False)
+    speed_mps_: float = field(init=False)
+    incline_deg_: float = field(init=False)
+    blend_: Blend = field(init=False)
+    mode_: AdaptiveMode = field(init=False, default="nominal")
+    decisions_: list[StrideDecision] = field(init=False, default_factory=list)
+
+    def __post_init__(self) -> None:
+        for name in ("max_speed_step_mps", "max_incline_step_deg"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        self.blend_ = self.blender.at(*self.nominal)
+        self.nominal = (self.blend_.speed_mps, self.blend_.incline_deg)
+        self.machine_ = StateMachineController(self.blend_.schedule, self.limits)
+        self.speed_mps_, self.incline_deg_ = self.nominal
+
+    # the state machine's counters, so a walk can log either controller alike
+    @property
+    def transitions_(self) -> int:
+        return self.machine_.transitions_
+
+    @property
+    def guard_transitions_(self) -> int:
+        return self.machine_.guard_transitions_
+
+    @property
+    def state_(self) -> GaitState:
+        return self.machine_.state_
+
+    def reset(self) -> None:
+        """A new walk: back to the nominal task, the estimator and history cleared."""
+        self.estimator.reset()
+        self.blend_ = self.blender.at(*self.nominal)
+        self.speed_mps_, self.incline_deg_ = self.nominal
+        self.mode_ = "nominal"
+        self.decisions_ = []
+        self.machine_.load(self.blend_.schedule)
+        self.machine_.reset()
+
+    def step(self, x: SensorSample) -> TorqueCommand:
+        """Advance one sample; at a heel strike, pick the next stride's rows (used from the next sample on)."""
+        before = self.machine_.state_
+        cmd = self.machine_.step(x)
+        stance = cmd.state in (GaitState.STANCE_FLEXION, GaitState.STANCE_EXTENSION)
+        estimate = self.estimator.update(x, stance)
+        if cmd.state == GaitState.STANCE_FLEXION and before in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION):
+            self._at_heel_strike(x.time_s, estimate if estimate is not None else self.estimator.last_)
+        return cmd
+
+    def _at_heel_strike(self, now_s: float, estimate: TaskEstimate | None) -> None:
+        follow_speed = estimate is not None and estimate.speed_confident
+        follow_incline = estimate is not None and estimate.incline_confident
+        target = (estimate.speed_mps if follow_speed and estimate is not None else self.nominal[0],
+                  estimate.incline_deg if follow_incline and estimate is not None else self.nominal[1])
+        speed = _towards(self.speed_mps_, target[0], self.max_speed_step_mps)
+        incline = _towards(self.incline_deg_, target[1], self.max_incline_step_deg)
+        blend = self.blender.at(speed, incline)
+        mode: AdaptiveMode
+        if not (follow_speed or follow_incline):
+            mode = "nominal"
+        elif not self.blender.contains(*target):
+            mode = "clamped"
+        else:
+            mode = "adaptive" if follow_speed and follow_incline else "partial"
+        self.blend_, self.mode_ = blend, mode
+        self.speed_mps_, self.incline_deg_ = blend.speed_mps, blend.incline_deg
+        self.machine_.load(blend.schedule)
+        self.decisions_.append(StrideDecision(now_s, estimate, target[0], target[1], blend.speed_mps,
+                                              blend.incline_deg, mode))

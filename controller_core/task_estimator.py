@@ -1,0 +1,226 @@
+"""Walking speed and incline, once per stride, from the leg's own sensors.
+
+Signals: the thigh's angle from the vertical and its rate (an IMU on the socket), the knee and ankle encoders, and
+whether the state machine is in stance. No camera, no treadmill, nothing off the leg.
+
+Method. While the prosthetic foot is flat on the ground it is stationary (the zero-velocity interval that
+foot-mounted inertial tracking relies on: Foxlin, "Pedestrian tracking with shoe-mounted inertial sensors", IEEE
+Computer Graphics and Applications 25(6), 2005). The foot's pitch from the horizontal is thigh − knee + ankle (the
+thigh angle is measured from gravity's vertical; knee flexion +, ankle dorsiflexion +), so:
+
+* **incline** = the foot's pitch while it is flat, which is the slope under it (ground slope from the foot's
+  orientation at foot-flat: Stolyarov, Burnett & Herr, "Translational motion tracking of leg joints for enhanced
+  prediction of walking tasks", IEEE Trans Biomed Eng 65(4), 2018);
+* **speed** = how fast the hip moves along that slope over the stationary ankle, from the leg's forward kinematics
+  (thigh and shank lengths, thigh and knee angles): the slope of a straight line fitted to the hip's position
+  against time over the flat-foot samples.
+
+Foot-flat: in stance, the foot's pitch rate |thigh rate − knee rate + ankle rate| below ``flat_rate_rad_s``.
+A stride whose flat-foot window is shorter than ``min_flat_s``, or whose estimate is not a walking task, gives no
+estimate. The estimate is the mean of the last ``smoothing_strides`` strides' estimates. Speed and incline each
+have their own confidence, the mean quality of those strides (0 for a stride without an estimate): for speed, the
+window's length and how straight the hip's progress along the slope is (a foot that slides, e.g. a straight knee
+slapping down on a ramp, bends it); for incline, the window's length and how steady the foot's pitch is. They are
+separate because the foot's orientation gives the slope even when the foot slides, and the slope is the thing a
+leg on the wrong table for a ramp most needs to know.
+
+Caveat: people's hips move a little slower than their average speed in mid-stance (the inverted pendulum's
+highest point), so on a person this reads a few percent low; on the simulated bench the socket moves at constant
+speed along the floor. Units: SI in (rad, rad/s, s, m), m/s and deg out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+from controller_core.fsm import SensorSample
+
+RAD_TO_DEG = 180.0 / math.pi
+
+
+@dataclass(frozen=True, slots=True)
+class StrideTask:
+    """One stride's own estimate (before smoothing); ``valid`` False when the stride gave none."""
+
+    time_s: float
+    speed_mps: float
+    incline_deg: float
+    flat_s: float
+    fit_rms_m: float
+    pitch_sd_deg: float
+    speed_quality: float
+    incline_quality: float
+    valid: bool
+
+
+@dataclass(frozen=True, slots=True)
+class TaskEstimate:
+    """The smoothed task after a stride.
+
+    Attributes:
+        time_s: the heel strike at which it was made (s).
+        speed_mps, incline_deg: the smoothed estimate (NaN before any stride gave one).
+        speed_confidence, incline_confidence: 0–1 each (see the module docstring).
+        speed_confident, incline_confident: that confidence at or above the estimator's threshold.
+        stride: the last stride's own estimate.
+    """
+
+    time_s: float
+    speed_mps: float
+    incline_deg: float
+    speed_confidence: float
+    incline_confidence: float
+    speed_confident: bool
+    incline_confident: bool
+    stride: StrideTask
+
+    @property
+    def confidence(self) -> float:
+        """The lower of the two confidences."""
+        return min(self.speed_confidence, self.incline_confidence)
+
+
+@dataclass
+class TaskEstimator:
+    """Per-stride speed and incline from on-leg signals (see the module docstring).
+
+    Args:
+        thigh_length_m: hip to knee axis (m) of the patient's residual limb and socket.
+        shank_length_m: knee to ankle axis (m) of the prosthesis.
+        flat_rate_rad_s: foot-flat when the foot's pitch rate is below this (rad/s; 0.35 ≈ 20°/s).
+        min_flat_s: shortest flat-foot window that gives an estimate (s).
+        smoothing_strides: strides averaged.
+        confidence_threshold: the estimate is ``confident`` at or above this.
+        full_quality_flat_s: a flat-foot window this long (s) or longer counts fully.
+        fit_scale_m: the straight-line fit's rms residual (m) at which a stride's speed quality halves.
+        pitch_scale_deg: the foot pitch's SD over the window (deg) at which a stride's incline quality halves.
+    """
+
+    thigh_length_m: float
+    shank_length_m: float
+    flat_rate_rad_s: float = 0.35
+    min_flat_s: float = 0.08
+    smoothing_strides: int = 2
+    confidence_threshold: float = 0.5
+    full_quality_flat_s: float = 0.15
+    fit_scale_m: float = 0.005
+    pitch_scale_deg: float = 1.0
+    strides_: deque = field(init=False)
+    last_: TaskEstimate | None = field(init=False, default=None)
+    _in_stance: bool = field(init=False, default=False)
+    _sums: list[float] = field(init=False)
+    _t0: float | None = field(init=False, default=None)
+
+    def __post_init__(self) -> None:
+        for name in ("thigh_length_m", "shank_length_m", "flat_rate_rad_s", "min_flat_s", "full_quality_flat_s",
+                     "fit_scale_m", "pitch_scale_deg"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        if not (isinstance(self.smoothing_strides, int) and 1 <= self.smoothing_strides <= 10):
+            raise ValueError(f"smoothing_strides must be an integer in [1, 10], got {self.smoothing_strides!r}")
+        if not 0.0 < self.confidence_threshold <= 1.0:
+            raise ValueError(f"confidence_threshold must be in (0, 1], got {self.confidence_threshold!r}")
+        self.strides_ = deque(maxlen=self.smoothing_strides)
+        self._clear()
+
+    def _clear(self) -> None:
+        # n, Σt, Σt², Σx, Σtx, Σx², Σz, Σtz, Σz², Σpitch, first t, last t, Σxz, Σpitch² (t from the window's start)
+        self._sums = [0.0] * 14
+        self._t0 = None
+
+    def reset(self) -> None:
+        """Forget every stride (a new walk)."""
+        self.strides_.clear()
+        self.last_ = None
+        self._in_stance = False
+        self._clear()
+
+    def update(self, x: SensorSample, stance: bool) -> TaskEstimate | None:
+        """Take one sample; at each heel strike (stance begins) return the new estimate, else None.
+
+        Args:
+            x: the sensor sample (needs the thigh angle and rate; NaN samples are ignored).
+            stance: the state machine is in a stance state.
+        """
+        out = None
+        if stance and not self._in_stance:
+            if self._t0 is not None or self.last_ is not None or self.strides_:
+                out = self._close_stride(x.time_s)
+            self._clear()
+        self._in_stance = stance
+        if stance:
+            self._accumulate(x)
+        return out
+
+    def _accumulate(self, x: SensorSample) -> None:
+        th, thd = x.thigh_angle_rad, x.thigh_velocity_rad_s
+        if not (math.isfinite(th) and math.isfinite(thd)):
+            return
+        pitch_rate = thd - x.knee_velocity_rad_s + x.ankle_velocity_rad_s
+        if abs(pitch_rate) > self.flat_rate_rad_s:
+            return
+        shank = th - x.knee_angle_rad
+        # the hip relative to the (stationary) ankle: minus the ankle's position from the hip
+        hx = -(self.thigh_length_m * math.sin(th) + self.shank_length_m * math.sin(shank))
+        hz = self.thigh_length_m * math.cos(th) + self.shank_length_m * math.cos(shank)
+        if self._t0 is None:
+            self._t0 = x.time_s
+        t = x.time_s - self._t0
+        s = self._sums
+        s[0] += 1.0
+        s[1] += t
+        s[2] += t * t
+        s[3] += hx
+        s[4] += t * hx
+        s[5] += hx * hx
+        s[6] += hz
+        s[7] += t * hz
+        s[8] += hz * hz
+        pitch = shank + x.ankle_angle_rad
+        s[9] += pitch
+        s[12] += hx * hz
+        s[13] += pitch * pitch
+        if s[0] == 1.0:
+            s[10] = t
+        s[11] = t
+
+    def _close_stride(self, now_s: float) -> TaskEstimate:
+        s = self._sums
+        n = s[0]
+        flat_s = s[11] - s[10] if n else 0.0
+        stride = StrideTask(now_s, math.nan, math.nan, flat_s, math.nan, math.nan, 0.0, 0.0, False)
+        if n >= 3 and flat_s >= self.min_flat_s:
+            stt = s[2] - s[1] * s[1] / n
+            if stt > 0.0:
+                slope_x = (s[4] - s[1] * s[3] / n) / stt
+                slope_z = (s[7] - s[1] * s[6] / n) / stt
+                pitch = s[9] / n
+                pitch_sd_deg = math.sqrt(max(s[13] / n - pitch * pitch, 0.0)) * RAD_TO_DEG
+                speed = slope_x * math.cos(pitch) + slope_z * math.sin(pitch)
+                # rms residual of the hip's progress along the slope about its straight line, from the sums
+                c, si = math.cos(pitch), math.sin(pitch)
+                rxx = s[5] - s[3] * s[3] / n - slope_x * (s[4] - s[1] * s[3] / n)
+                rzz = s[8] - s[6] * s[6] / n - slope_z * (s[7] - s[1] * s[6] / n)
+                rxz = s[12] - s[3] * s[6] / n - slope_x * (s[7] - s[1] * s[6] / n)
+                rms = math.sqrt(max(c * c * rxx + si * si * rzz + 2.0 * c * si * rxz, 0.0) / n)
+                incline = pitch * RAD_TO_DEG
+                if 0.1 <= speed <= 3.0 and abs(incline) <= 20.0:
+                    length = min(1.0, flat_s / self.full_quality_flat_s)
+                    stride = StrideTask(now_s, speed, incline, flat_s, rms, pitch_sd_deg,
+                                        length / (1.0 + (rms / self.fit_scale_m) ** 2),
+                                        length / (1.0 + (pitch_sd_deg / self.pitch_scale_deg) ** 2), True)
+        self.strides_.append(stride)
+        valid = [st for st in self.strides_ if st.valid]
+        span = self.strides_.maxlen or 1
+        speed_conf = sum(st.speed_quality for st in self.strides_) / span
+        incline_conf = sum(st.incline_quality for st in self.strides_) / span
+        speed = sum(st.speed_mps for st in valid) / len(valid) if valid else math.nan
+        incline = sum(st.incline_deg for st in valid) / len(valid) if valid else math.nan
+        threshold = self.confidence_threshold
+        self.last_ = TaskEstimate(now_s, speed, incline, speed_conf, incline_conf,
+                                  bool(valid) and speed_conf >= threshold, bool(valid) and incline_conf >= threshold,
+                                  stride)
+        return self.last_
