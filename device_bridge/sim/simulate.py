@@ -35,10 +35,11 @@ import itertools
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
-from controller_core.fsm import GaitState, SensorSample, StateMachineController
+from controller_core.fsm import GaitState, SensorSample, TorqueCommand
 from controller_core.gait_metrics import (
     channel_strides,
     episodes,
@@ -50,7 +51,7 @@ from controller_core.gait_metrics import (
 )
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
-from device_bridge.sim.bench_trajectory import hip_height_mismatch_mm, plan_bench_trajectory
+from device_bridge.sim.bench_trajectory import BenchTrajectory, hip_height_mismatch_mm, plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.plant import SimulatedLeg
 
@@ -91,7 +92,17 @@ class WalkLog:
         })
 
 
-def run_walk(controller: StateMachineController, reference: WalkingReference, mass_kg: float, seconds: float,
+class StepController(Protocol):
+    """What the bench walks: a state machine, or the adaptive controller that wraps one."""
+
+    transitions_: int
+    guard_transitions_: int
+
+    def reset(self) -> None: ...
+    def step(self, x: SensorSample) -> TorqueCommand: ...
+
+
+def run_walk(controller: StepController, reference: WalkingReference, mass_kg: float, seconds: float,
              geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0) -> WalkLog:
     """Walk ``controller`` on the bench for ``seconds`` at the reference's task.
 
@@ -110,7 +121,23 @@ def run_walk(controller: StateMachineController, reference: WalkingReference, ma
     s0 = traj.phase[0]
     knee0 = float(np.interp(s0, reference.phase, reference.knee_angle_rad))
     ankle0 = float(np.interp(s0, reference.phase, reference.ankle_angle_rad))
-    x: SensorSample = leg.reset(traj, knee0, ankle0)
+    alpha = math.radians(reference.incline_deg)
+    n = traj.time_s.shape[0]
+    log = walk_loop(controller, leg, traj, (knee0, ankle0), (np.full(n, -math.sin(alpha)), np.full(n, math.cos(alpha))),
+                    mass_kg, frame_callback, frame_every)
+    log.extras["hip_height_mismatch_mm"] = hip_height_mismatch_mm(reference, leg.geometry)
+    return log
+
+
+def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajectory, start_angles_rad: tuple[float, float],
+              normals: tuple[np.ndarray, np.ndarray], mass_kg: float, frame_callback=None, frame_every: int = 0
+              ) -> WalkLog:
+    """The 1 kHz loop: bench targets → physics → sensors → controller → torques, logged every tick.
+
+    ``normals`` (x, z per tick) is the floor's normal under the socket: the socket's error along it is the
+    ``hip_height_error_m`` the fall criterion reads.
+    """
+    x: SensorSample = leg.reset(traj, *start_angles_rad)
     controller.reset()
     n = traj.time_s.shape[0]
     log = {name: np.empty(n) for name in LOG_CHANNELS}
@@ -119,7 +146,8 @@ def run_walk(controller: StateMachineController, reference: WalkingReference, ma
     kq, kv, aq, av = log["knee_angle_rad"], log["knee_velocity_rad_s"], log["ankle_angle_rad"], log["ankle_velocity_rad_s"]
     kt, at, ld, am = log["knee_torque_Nm"], log["ankle_torque_Nm"], log["load_N"], log["ankle_moment_Nm"]
     cn, he = log["contact_N"], log["hip_height_error_m"]
-    height = traj.height_m
+    tx, tz = traj.x_m, traj.z_m
+    nx, nz = normals
     saturated = 0
     t0 = time.perf_counter()
     for i in range(n):
@@ -129,7 +157,8 @@ def run_walk(controller: StateMachineController, reference: WalkingReference, ma
         ld[i], am[i] = x.load_N, x.ankle_moment_Nm
         kt[i], at[i] = cmd.knee_torque_Nm, cmd.ankle_torque_Nm
         cn[i] = leg.foot_contact_force() if leg.data.ncon else 0.0
-        he[i] = leg.hip_height_m() - height[i]
+        hx, hz = leg.hip_position_m()
+        he[i] = nx[i] * (hx - tx[i]) + nz[i] * (hz - tz[i])
         saturated += cmd.saturated
         if frame_callback is not None and frame_every and i % frame_every == 0:
             frame_callback(leg)
@@ -139,8 +168,7 @@ def run_walk(controller: StateMachineController, reference: WalkingReference, ma
                    saturated_ticks=saturated, guard_transitions=controller.guard_transitions_,
                    transitions=controller.transitions_,
                    extras={"stride_time_s": traj.stride_time_s,
-                           "fall_sink_m": 0.5 * mass_kg * G_MPS2 / leg.vertical_stiffness_N_per_m,
-                           "hip_height_mismatch_mm": hip_height_mismatch_mm(reference, leg.geometry)})
+                           "fall_sink_m": 0.5 * mass_kg * G_MPS2 / leg.vertical_stiffness_N_per_m})
 
 
 def _stance_entry(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, weight_N: float,

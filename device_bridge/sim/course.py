@@ -1,0 +1,243 @@
+"""A varying-task course for the simulated bench: speed changes and terrain (level, ramps) in one walk.
+
+A :class:`Course` is a list of segments (duration, speed, incline) joined by smooth transitions: each change
+starts at a segment's start and blends from the previous task to the new one over ``transition_s`` with a
+raised-cosine (no jump in speed or slope). The terrain is built from the same schedule: the walker covers
+arc length u(t) = ∫ v dt, and the floor's slope at arc length u(t) is the course's incline at time t, so the socket
+meets each ramp when the schedule says. The floor is a MuJoCo height field sampled every ``TERRAIN_STEP_M``.
+
+:func:`plan_course_trajectory` gives the socket the able-bodied pattern of the current task at every tick
+(:mod:`device_bridge.sim.bench_trajectory`'s thigh angle, hip height and load, per task, blended in time), with the
+phase advancing at the current task's cadence, placed on the terrain: hip = floor point at u(t) + h(s) × the floor's
+normal there. Each tick also carries the true task, which scoring uses (each stride against the reference at its
+own task).
+
+Named courses (``COURSES``): ``speed`` (level: 1.0 → 0.85 → 1.6 → 1.0 m/s), ``terrain`` (1.0 m/s: level →
+ramp up +8° → level → ramp down −8° → level) and ``mixed`` (both). A course file is JSON:
+``{"name": ..., "transition_s": 2.0, "segments": [{"duration_s": 10, "speed_mps": 1.0, "incline_deg": 0}, ...]}``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from controller_core.task import validate_task
+from controller_core.units import G_MPS2
+from controller_core.walking_reference import WalkingReference, sloped_walking_reference
+from device_bridge.sim.bench_trajectory import HARMONICS, BenchTrajectory, _fourier, _grid_hip_heights_m, thigh_angle_rad
+from device_bridge.sim.leg_model import LegGeometry
+
+TERRAIN_STEP_M = 0.02
+TASK_SAMPLE_S = 0.02        # the task's pattern is recomputed this often and blended in between
+MAX_COURSE_S = 600.0
+LOAD_GRID = np.linspace(0.0, 1.0, 201)
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A stretch of the course at one task (after the transition into it)."""
+
+    duration_s: float
+    speed_mps: float
+    incline_deg: float
+
+
+@dataclass(frozen=True)
+class Course:
+    """Segments in walking order, joined by raised-cosine transitions of ``transition_s``."""
+
+    name: str
+    segments: tuple[Segment, ...]
+    transition_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        if not self.segments:
+            raise ValueError("a course needs at least one segment")
+        for k, seg in enumerate(self.segments):
+            if not (math.isfinite(seg.duration_s) and seg.duration_s > 0):
+                raise ValueError(f"segment {k}: duration_s must be positive, got {seg.duration_s!r}")
+            validate_task(seg.speed_mps, seg.incline_deg, 75.0)
+            if abs(seg.incline_deg) > 10.0:
+                raise ValueError(f"segment {k}: incline {seg.incline_deg:g} deg is steeper than the measured ramps "
+                                 "(±10 deg) the bench's reference reaches")
+            if k and seg.duration_s < self.transition_s:
+                raise ValueError(f"segment {k}: shorter ({seg.duration_s:g} s) than the transition into it "
+                                 f"({self.transition_s:g} s)")
+        if not (math.isfinite(self.transition_s) and 0.0 < self.transition_s <= 10.0):
+            raise ValueError(f"transition_s must be in (0, 10] s, got {self.transition_s!r}")
+        if self.duration_s > MAX_COURSE_S:
+            raise ValueError(f"a course may last at most {MAX_COURSE_S:g} s, this one {self.duration_s:g} s")
+
+    @property
+    def duration_s(self) -> float:
+        return float(sum(s.duration_s for s in self.segments))
+
+    @property
+    def change_times_s(self) -> tuple[float, ...]:
+        """When each change (transition) starts (s): every segment start but the first."""
+        starts = np.cumsum([0.0] + [s.duration_s for s in self.segments])
+        return tuple(float(t) for t in starts[1:-1])
+
+    def task_at(self, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(speed m/s, incline deg) at times ``t_s`` (s)."""
+        t = np.asarray(t_s, dtype=float)
+        speed = np.full(t.shape, self.segments[0].speed_mps)
+        incline = np.full(t.shape, self.segments[0].incline_deg)
+        for start, prev, seg in zip(self.change_times_s, self.segments, self.segments[1:], strict=False):
+            w = np.clip((t - start) / self.transition_s, 0.0, 1.0)
+            w = 0.5 - 0.5 * np.cos(np.pi * w)
+            speed = np.where(t >= start, prev.speed_mps + w * (seg.speed_mps - prev.speed_mps), speed)
+            incline = np.where(t >= start, prev.incline_deg + w * (seg.incline_deg - prev.incline_deg), incline)
+        return speed, incline
+
+    def segment_index(self, t_s: float) -> int:
+        """The segment walked at time ``t_s`` (s) (a transition belongs to the segment it leads into)."""
+        return int(np.searchsorted(np.asarray(self.change_times_s), t_s, side="right"))
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "transition_s": self.transition_s,
+                "segments": [{"duration_s": s.duration_s, "speed_mps": s.speed_mps, "incline_deg": s.incline_deg}
+                             for s in self.segments]}
+
+
+def _course(name: str, parts: list[tuple[float, float, float]]) -> Course:
+    return Course(name, tuple(Segment(*p) for p in parts))
+
+
+COURSES: dict[str, Course] = {
+    "speed": _course("speed", [(10, 1.0, 0), (12, 0.85, 0), (12, 1.6, 0), (12, 1.0, 0)]),
+    "terrain": _course("terrain", [(10, 1.0, 0), (14, 1.0, 8), (10, 1.0, 0), (14, 1.0, -8), (10, 1.0, 0)]),
+    "mixed": _course("mixed", [(10, 1.0, 0), (12, 0.85, 0), (12, 1.6, 0), (10, 1.0, 0), (14, 1.0, 8),
+                               (10, 1.0, 0), (14, 1.0, -8), (10, 1.0, 0)]),
+}
+
+
+def load_course(name_or_file: str | Path) -> Course:
+    """A named course, or one read from a JSON file (see the module docstring).
+
+    Raises:
+        ValueError: neither a known name nor a readable, valid course file.
+    """
+    key = str(name_or_file)
+    if key in COURSES:
+        return COURSES[key]
+    path = Path(key)
+    if not path.is_file():
+        raise ValueError(f"unknown course {key!r}: not one of {', '.join(COURSES)} and not a file")
+    try:
+        body = json.loads(path.read_text())
+        segments = tuple(Segment(float(s["duration_s"]), float(s["speed_mps"]), float(s["incline_deg"]))
+                         for s in body["segments"])
+        return Course(str(body.get("name", path.stem)), segments, float(body.get("transition_s", 2.0)))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"course file {path}: {exc}") from exc
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """The floor's profile: heights ``z_m`` at horizontal positions ``x0_m + k × step_m`` (m)."""
+
+    x0_m: float
+    step_m: float
+    z_m: np.ndarray
+
+    def height_at(self, x_m: np.ndarray) -> np.ndarray:
+        return np.interp(x_m, self.x0_m + self.step_m * np.arange(self.z_m.size), self.z_m)
+
+
+@dataclass(frozen=True)
+class CourseTrajectory:
+    """The socket's targets and load over the course, the true task per tick, and the terrain."""
+
+    bench: BenchTrajectory
+    speed_mps: np.ndarray
+    incline_deg: np.ndarray
+    normal_x: np.ndarray
+    normal_z: np.ndarray
+    terrain: Terrain
+
+
+@lru_cache(maxsize=4096)
+def _pattern(speed_mps: float, incline_deg: float, body_height_m: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """At a task: Fourier coefficients of thigh angle and hip height, the vertical load on the reference's phase
+    grid (body weights) and the stride time (s)."""
+    ref = task_pattern(speed_mps, incline_deg)
+    geometry = LegGeometry(body_height_m=body_height_m)
+    thigh = thigh_angle_rad(ref, incline_deg)
+    height, _ = _grid_hip_heights_m(ref, thigh, geometry)
+    a_t, b_t = _fourier(thigh, HARMONICS)
+    a_h, b_h = _fourier(height, HARMONICS)
+    return np.concatenate([a_t, b_t, a_h, b_h]), np.interp(LOAD_GRID, ref.phase, ref.vgrf_bw), ref.stride_time_s
+
+
+@lru_cache(maxsize=2048)
+def task_pattern(speed_mps: float, incline_deg: float) -> WalkingReference:
+    """The able-bodied pattern the bench replays, and strides are scored against, at a task."""
+    ref = sloped_walking_reference(speed_mps, incline_deg)
+    if ref is None:
+        raise ValueError(f"no measured pattern at {incline_deg:+g} deg")
+    return ref
+
+
+def _series(coef: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Value and d/ds of per-tick Fourier series: ``coef`` (n, 2K) as (a, b), phases ``s`` (n,)."""
+    h = coef.shape[1] // 2
+    k = np.arange(h)
+    ang = 2.0 * np.pi * s[:, None] * k[None]
+    c, sn = np.cos(ang), np.sin(ang)
+    a, b = coef[:, :h], coef[:, h:]
+    val = np.einsum("nk,nk->n", c, a) + np.einsum("nk,nk->n", sn, b)
+    der = np.einsum("nk,nk->n", -sn * (2.0 * np.pi * k), a) + np.einsum("nk,nk->n", c * (2.0 * np.pi * k), b)
+    return val, der
+
+
+def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float, timestep_s: float = 0.001,
+                           start_phase: float = 0.85) -> CourseTrajectory:
+    """Sample the socket targets, load and true task for the whole course (see the module docstring)."""
+    n = round(course.duration_s / timestep_s)
+    t = np.arange(n) * timestep_s
+    # the pattern at the task every TASK_SAMPLE_S, blended linearly in between
+    t_knots = np.arange(0.0, course.duration_s + TASK_SAMPLE_S, TASK_SAMPLE_S)
+    v_knots, g_knots = course.task_at(t_knots)
+    pats = [_pattern(round(float(v), 4), round(float(g), 3), geometry.body_height_m)
+            for v, g in zip(v_knots, g_knots, strict=True)]
+    coef_knots = np.array([p[0] for p in pats])
+    load_knots = np.array([p[1] for p in pats])
+    period_knots = np.array([p[2] for p in pats])
+    pos = t / TASK_SAMPLE_S
+    i0 = np.minimum(pos.astype(int), len(t_knots) - 2)
+    w = pos - i0
+    coef = coef_knots[i0] * (1.0 - w[:, None]) + coef_knots[i0 + 1] * w[:, None]
+    period = period_knots[i0] * (1.0 - w) + period_knots[i0 + 1] * w
+    speed, incline = course.task_at(t)
+    s = (start_phase + np.concatenate([[0.0], np.cumsum(timestep_s / period[:-1])])) % 1.0
+    half = coef.shape[1] // 2
+    thigh, dthigh = _series(coef[:, :half], s)
+    height, _ = _series(coef[:, half:], s)
+    # the load as the fixed-task bench applies it: linear on the phase grid (no ringing at heel strike)
+    g = s * (LOAD_GRID.size - 1)
+    j = np.minimum(g.astype(int), LOAD_GRID.size - 2)
+    f = g - j
+    at_knot = [load_knots[i, j] * (1.0 - f) + load_knots[i, j + 1] * f for i in (i0, i0 + 1)]
+    vgrf = at_knot[0] * (1.0 - w) + at_knot[1] * w
+    # the floor: its slope at the arc length walked by time t is the incline at t
+    gamma = np.radians(incline)
+    floor_x = np.concatenate([[0.0], np.cumsum(np.cos(gamma[:-1]) * speed[:-1] * timestep_s)])
+    floor_z = np.concatenate([[0.0], np.cumsum(np.sin(gamma[:-1]) * speed[:-1] * timestep_s)])
+    nx, nz = -np.sin(gamma), np.cos(gamma)
+    x = floor_x + height * nx
+    z = floor_z + height * nz
+    bench = BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=thigh, xd_m_s=np.gradient(x, timestep_s),
+                            zd_m_s=np.gradient(z, timestep_s), hipd_rad_s=dthigh / period,
+                            load_N=vgrf * mass_kg * G_MPS2, height_m=height, stride_time_s=float(np.mean(period)))
+    # terrain: the floor line, extended flat 2 m behind the start and 3 m beyond the end
+    grid = np.arange(-2.0, floor_x[-1] + 3.0, TERRAIN_STEP_M)
+    zs = np.interp(grid, floor_x, floor_z)   # np.interp holds the end heights outside: flat run-in and run-out
+    return CourseTrajectory(bench=bench, speed_mps=speed, incline_deg=incline, normal_x=nx, normal_z=nz,
+                            terrain=Terrain(x0_m=float(grid[0]), step_m=TERRAIN_STEP_M, z_m=zs))
