@@ -110,6 +110,7 @@ class TaskEstimator:
     strides_: deque = field(init=False)
     last_: TaskEstimate | None = field(init=False, default=None)
     _in_stance: bool = field(init=False, default=False)
+    _seen_stance: bool = field(init=False, default=False)
     _sums: list[float] = field(init=False)
     _t0: float | None = field(init=False, default=None)
 
@@ -136,6 +137,7 @@ class TaskEstimator:
         self.strides_.clear()
         self.last_ = None
         self._in_stance = False
+        self._seen_stance = False
         self._clear()
 
     def update(self, x: SensorSample, stance: bool) -> TaskEstimate | None:
@@ -147,8 +149,9 @@ class TaskEstimator:
         """
         out = None
         if stance and not self._in_stance:
-            if self._t0 is not None or self.last_ is not None or self.strides_:
+            if self._seen_stance:   # every heel strike after the first closes a stride, with or without data
                 out = self._close_stride(x.time_s)
+            self._seen_stance = True
             self._clear()
         self._in_stance = stance
         if stance:

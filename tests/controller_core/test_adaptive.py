@@ -1,0 +1,123 @@
+"""The adaptive machine: rows change only at heel strike, at a limited rate, back to nominal without confidence."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import pytest
+
+from controller_core.adaptive import AdaptiveController
+from controller_core.envelope_blend import EnvelopeBlender
+from controller_core.fsm import GaitState, SensorSample
+from controller_core.task_estimator import StrideTask, TaskEstimate
+
+
+@pytest.fixture(scope="module")
+def blender(model):
+    env = model.propose_envelope([0.8, 1.2, 1.6], [-8.0, 0.0, 8.0], 75.0)
+    return EnvelopeBlender(env.speeds_mps, env.inclines_deg, env.tables())
+
+
+@dataclass
+class ScriptedEstimator:
+    """Stands in for the task estimator: at each heel strike, the next of ``script`` (speed, incline, confident)."""
+
+    script: list[tuple[float, float, bool]]
+    last_: TaskEstimate | None = None
+    _was_stance: bool = False
+    _i: int = field(default=0)
+
+    def reset(self) -> None:
+        self.last_, self._was_stance, self._i = None, False, 0
+
+    def update(self, x: SensorSample, stance: bool) -> TaskEstimate | None:
+        out = None
+        if stance and not self._was_stance and self._i < len(self.script):
+            v, g, ok = self.script[self._i]
+            self._i += 1
+            stride = StrideTask(x.time_s, v, g, 0.3, 0.001, 0.1, 1.0 if ok else 0.0, 1.0 if ok else 0.0, ok)
+            out = self.last_ = TaskEstimate(x.time_s, v, g, float(ok), float(ok), ok, ok, stride)
+        self._was_stance = stance
+        return out
+
+
+def strides(n: int, dt: float = 0.001):
+    """Scripted sensor samples: swing (unloaded, knee flexing then extending) then stance (loaded), n times."""
+    t = 0.0
+    for _ in range(n):
+        for k in range(450):                                   # swing: flex to 60° and back
+            knee = math.radians(60.0) * math.sin(math.pi * k / 450)
+            vel = math.radians(60.0) * math.pi / 0.45 * math.cos(math.pi * k / 450)
+            yield SensorSample(t, knee, vel, 0.0, 0.0, 0.0, 0.0)
+            t += dt
+        for k in range(650):                                   # stance: loaded, the ankle moment falls late
+            yield SensorSample(t, math.radians(5.0), 0.0, 0.0, 0.0, 700.0, -80.0 if k > 200 else 10.0)
+            t += dt
+
+
+def test_rows_change_only_at_heel_strike_and_at_most_by_the_rate_limit(blender):
+    est = ScriptedEstimator([(1.6, 8.0, True)] * 10)
+    ctrl = AdaptiveController(blender, est, (1.2, 0.0), max_speed_step_mps=0.15, max_incline_step_deg=3.0)
+    ctrl.reset()
+    schedule, state = ctrl.machine_.schedule, ctrl.machine_.state_
+    changes = 0
+    for x in strides(8):
+        before = state
+        cmd = ctrl.step(x)
+        state = cmd.state
+        if ctrl.machine_.schedule is not schedule:
+            changes += 1
+            assert state == GaitState.STANCE_FLEXION and before in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION)
+            schedule = ctrl.machine_.schedule
+    assert changes >= 6
+    tasks = [(d.speed_mps, d.incline_deg) for d in ctrl.decisions_]
+    prev = (1.2, 0.0)
+    for speed, incline in tasks:
+        assert abs(speed - prev[0]) <= 0.15 + 1e-9 and abs(incline - prev[1]) <= 3.0 + 1e-9
+        prev = (speed, incline)
+    assert tasks[-1] == pytest.approx((1.6, 8.0))          # reached in steps, not in one jump
+    assert ctrl.decisions_[-1].mode == "adaptive"
+
+
+def test_without_confidence_the_leg_returns_to_nominal_at_the_same_rate(blender):
+    est = ScriptedEstimator([(1.6, 8.0, True)] * 4 + [(math.nan, math.nan, False)] * 6)
+    ctrl = AdaptiveController(blender, est, (1.2, 0.0))
+    ctrl.reset()
+    for x in strides(11):
+        ctrl.step(x)
+    modes = [d.mode for d in ctrl.decisions_]
+    assert modes[:4] == ["adaptive"] * 4 and set(modes[4:]) == {"nominal"}
+    away = ctrl.decisions_[3]
+    assert (away.speed_mps, away.incline_deg) != (1.2, 0.0)
+    back = ctrl.decisions_[-1]
+    assert (back.speed_mps, back.incline_deg) == pytest.approx((1.2, 0.0))
+    steps = [abs(b.incline_deg - a.incline_deg) for a, b in zip(ctrl.decisions_, ctrl.decisions_[1:], strict=False)]
+    assert max(steps) <= 3.0 + 1e-9
+
+
+def test_a_task_beyond_the_envelope_is_followed_to_its_edge_and_called_clamped(blender):
+    est = ScriptedEstimator([(2.2, 0.0, True)] * 8)
+    ctrl = AdaptiveController(blender, est, (1.2, 0.0))
+    ctrl.reset()
+    for x in strides(9):
+        ctrl.step(x)
+    last = ctrl.decisions_[-1]
+    assert last.mode == "clamped" and last.speed_mps == pytest.approx(1.6)
+
+
+def test_a_speed_estimate_without_confidence_leaves_speed_nominal_while_incline_is_followed(blender):
+    @dataclass
+    class HalfSure(ScriptedEstimator):
+        def update(self, x, stance):
+            out = super().update(x, stance)
+            if out is not None:
+                out = self.last_ = TaskEstimate(out.time_s, 1.6, 8.0, 0.1, 0.9, False, True, out.stride)
+            return out
+
+    ctrl = AdaptiveController(blender, HalfSure([(1.6, 8.0, True)] * 6), (1.2, 0.0))
+    ctrl.reset()
+    for x in strides(7):
+        ctrl.step(x)
+    last = ctrl.decisions_[-1]
+    assert last.mode == "partial" and last.speed_mps == pytest.approx(1.2) and last.incline_deg == pytest.approx(8.0)
