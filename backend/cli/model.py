@@ -16,9 +16,9 @@ def load(args: argparse.Namespace) -> QuasiStiffnessModel:
     return load_model(args.model) if args.model else load_default_model()
 
 
-def task_args(p: argparse.ArgumentParser) -> None:
+def task_args(p: argparse.ArgumentParser, speed_required: bool = True) -> None:
     """The task and patient options shared by the commands that propose or simulate."""
-    p.add_argument("--speed", type=float, required=True, help="walking speed (m/s), [0.1, 3]")
+    p.add_argument("--speed", type=float, required=speed_required, default=None, help="walking speed (m/s), [0.1, 3]")
     p.add_argument("--incline", type=float, default=0.0, help="incline (deg, + uphill), within ±20")
     p.add_argument("--mass", type=float, default=75.0, help="patient body mass (kg), 20-200")
     p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")

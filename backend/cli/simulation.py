@@ -9,7 +9,27 @@ from backend.cli.formatting import emit, format_compare, write_json
 from backend.cli.model import load, task_args
 
 
+def _course(args: argparse.Namespace):
+    from device_bridge.sim.course import load_course
+
+    return load_course(args.course)   # ValueError (unknown name, bad file) is reported by main()
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    if args.course is not None:
+        from backend.experiments.course import NOMINAL_TASK, walk_course
+
+        course = _course(args)
+        task = (args.speed if args.speed is not None else NOMINAL_TASK[0],
+                args.incline if args.speed is not None else NOMINAL_TASK[1])
+        model = load(args) if args.controller != "fsmic" else None
+        score = walk_course(args.controller, course, model, args.mass, task=task, video=args.video)
+        emit(score.to_dict(), args.format)
+        return 0
+    if args.speed is None:
+        raise ValueError("simulate needs --speed (a fixed task) or --course NAME|FILE")
+    if args.controller == "adaptive":
+        raise ValueError("the adaptive controller walks a course: add --course NAME|FILE")
     from backend.experiments.walks import simulate
 
     model = load(args) if args.controller == "quasi-stiffness" or args.incline != 0.0 else None
@@ -20,6 +40,15 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    if args.course is not None:
+        from backend.cli.formatting import format_course_compare
+        from backend.experiments.course import compare_course
+
+        result = compare_course(load(args), _course(args), args.mass)
+        print(format_course_compare(result))
+        if args.out:
+            write_json(args.out, result)
+        return 0
     from backend.experiments.comparison import compare, plot_compare
 
     results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass)
@@ -36,14 +65,20 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
-    task_args(p)
-    p.add_argument("--controller", choices=["quasi-stiffness", "fsmic"], default="quasi-stiffness")
+    task_args(p, speed_required=False)
+    p.add_argument("--course", default=None, help="walk a varying-task course instead of one task: "
+                                                  "speed, terrain, mixed, or a course JSON file")
+    p.add_argument("--controller", choices=["quasi-stiffness", "fsmic", "adaptive"], default="quasi-stiffness",
+                   help="adaptive (courses only): the envelope blended at the leg's own task estimate; "
+                        "quasi-stiffness on a course: the table at --speed/--incline (default 1.2 m/s level)")
     p.add_argument("--seconds", type=float, default=20.0, help="simulated time (s), (0, 600]")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.add_argument("--record", type=Path, default=None, help="save per-tick trajectories (.csv or .parquet)")
     p.add_argument("--video", type=Path, default=None, help="render headless (MUJOCO_GL=egl): FILE.mp4 or a folder")
     p.set_defaults(func=cmd_simulate)
     p = sub.add_parser("compare", help="quasi-stiffness vs FSMIC over a task grid on the simulated bench")
+    p.add_argument("--course", default=None, help="compare the adaptive envelope, the nominal table and the FSMIC "
+                                                  "over a course (speed, terrain, mixed or a JSON file)")
     p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])
     p.add_argument("--inclines", type=float, nargs="+", default=[0.0])
     p.add_argument("--seconds", type=float, default=20.0)

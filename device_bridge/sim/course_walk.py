@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -38,7 +39,7 @@ from controller_core.units import G_MPS2
 from device_bridge.sim.course import Course, CourseTrajectory, plan_course_trajectory, task_pattern
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.plant import SimulatedLeg
-from device_bridge.sim.simulate import StepController, WalkLog, _stance_entry, walk_loop
+from device_bridge.sim.simulate import StepController, WalkLog, stance_entry_metrics, walk_loop
 
 SPEED_TOLERANCE_MPS = 0.1
 INCLINE_TOLERANCE_DEG = 1.5
@@ -131,7 +132,8 @@ def estimation_accuracy(decisions: Sequence[StrideDecision], traj: CourseTraject
         speed_ok += abs(ev) <= SPEED_TOLERANCE_MPS
         incline_ok += abs(eg) <= INCLINE_TOLERANCE_DEG
         both_ok += abs(ev) <= SPEED_TOLERANCE_MPS and abs(eg) <= INCLINE_TOLERANCE_DEG
-    frac = (lambda k: k / counted if counted else None)
+    def frac(k):
+        return (k / counted if counted else None)
     return {
         "strides_counted": counted,
         "skipped_after_each_change": skip_after_change,
@@ -156,9 +158,9 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
     strided = channel_strides(measured, strikes)
     n = max(int(strikes.shape[0]) - 1, 0)
     tasks = np.array([[traj.speed_mps[a:b].mean(), traj.incline_deg[a:b].mean()]
-                      for a, b in zip(strikes[:-1], strikes[1:], strict=True)]) if n else np.zeros((0, 2))
+                      for a, b in itertools.pairwise(strikes)]) if n else np.zeros((0, 2))
     segments = np.array([course.segment_index(float(c["time_s"][(a + b) // 2]))
-                         for a, b in zip(strikes[:-1], strikes[1:], strict=True)], dtype=int)
+                         for a, b in itertools.pairwise(strikes)], dtype=int)
     per_stride = {name: np.zeros(n) for name in GAIT_CHANNELS}
     for k in range(n):
         ref = _reference_at(*tasks[k])
@@ -187,7 +189,7 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
         **_channel_summary(per_stride, everything, rng),
         "falls": episodes((sank | buckled) & after, gap),
         "toe_catches": episodes(mid_swing & (c["contact_N"] > 0.02 * weight) & after, gap),
-        **_stance_entry(states, c["load_N"], strikes, weight, dt),
+        **stance_entry_metrics(states, c["load_N"], strikes, weight, dt),
         "time_in_state_s": {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)},
         "guard_transitions": log.guard_transitions,
         "torque_saturation_fraction": log.saturated_ticks / max(c["time_s"].shape[0], 1),

@@ -171,7 +171,7 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
                            "fall_sink_m": 0.5 * mass_kg * G_MPS2 / leg.vertical_stiffness_N_per_m})
 
 
-def _stance_entry(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, weight_N: float,
+def stance_entry_metrics(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, weight_N: float,
                   dt: float) -> dict[str, object]:
     """How late the machine noticed each heel strike (see the module docstring): None without a whole stride."""
     keys = ("heel_strike_to_stance_ms_median", "heel_strike_to_stance_ms_max", "heel_strikes_without_stance",
@@ -229,7 +229,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     gap = round(0.2 / dt)
     states = c["state"].astype(int)
     time_in_state = {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)}
-    stance_entry = _stance_entry(states, c["load_N"], strikes, weight, dt)
+    stance_entry = stance_entry_metrics(states, c["load_N"], strikes, weight, dt)
     seconds = float(c["time_s"].shape[0] * dt)
     summary: dict[str, object] = {
         "speed_mps": reference.speed_mps, "incline_deg": reference.incline_deg, "mass_kg": mass,

@@ -38,3 +38,17 @@ def test_cli_compare_prints_the_table_and_the_verdicts_and_writes_them(capsys, t
     assert lo <= vs["knee_angle_rmse_difference_deg"] <= hi and vs["knee_angle_verdict"] == expected
     assert f"{vs['knee_angle_rmse_difference_deg']:+.2f} [{lo:+.2f}, {hi:+.2f}] {expected}" in text
     assert "vs_fsmic" not in next(r for r in rows if r["controller"] == "fsmic")
+
+
+def test_cli_walks_a_course_file_with_the_adaptive_leg_and_refuses_a_bad_course(capsys, tmp_path):
+    course = tmp_path / "course.json"
+    course.write_text(json.dumps({"name": "tiny", "transition_s": 1.0, "segments": [
+        {"duration_s": 4, "speed_mps": 1.0, "incline_deg": 0}, {"duration_s": 4, "speed_mps": 1.2, "incline_deg": 4}]}))
+    assert main(["simulate", "--course", str(course), "--controller", "adaptive", "--format", "json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["course"] == "tiny" and out["controller"] == "adaptive" and "estimation" in out
+    assert [b["incline_deg"] for b in out["by_segment"]] == [0, 4] and out["falls"] == 0
+    assert main(["simulate", "--course", "moon", "--controller", "adaptive"]) == 2
+    assert "unknown course" in capsys.readouterr().err
+    assert main(["simulate", "--speed", "1.2", "--controller", "adaptive"]) == 2
+    assert "course" in capsys.readouterr().err

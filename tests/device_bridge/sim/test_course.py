@@ -1,0 +1,104 @@
+"""The varying-task course: its schedule and terrain, and the adaptive leg walking it, scored stride by stride."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from device_bridge.sim.course import COURSES, Course, Segment, load_course, plan_course_trajectory
+from device_bridge.sim.leg_model import LegGeometry
+
+SHORT = Course("short-ramp", (Segment(6.0, 1.0, 0.0), Segment(12.0, 1.1, 6.0)), transition_s=2.0)
+
+
+def test_the_task_changes_smoothly_from_segment_to_segment():
+    t = np.arange(0.0, SHORT.duration_s, 0.01)
+    speed, incline = SHORT.task_at(t)
+    assert SHORT.change_times_s == (6.0,)
+    assert speed[0] == 1.0 and incline[0] == 0.0 and speed[-1] == pytest.approx(1.1) and incline[-1] == 6.0
+    assert np.max(np.abs(np.diff(incline))) < 6.0 * 0.01 * math.pi / 2 / 2.0 + 1e-9   # raised cosine: no jump
+    assert incline[round(7.0 / 0.01)] == pytest.approx(3.0, abs=0.05)                 # half-way through the change
+    assert SHORT.segment_index(5.9) == 0 and SHORT.segment_index(6.5) == 1
+
+
+def test_the_terrain_has_the_course_s_slope_under_the_socket():
+    traj = plan_course_trajectory(SHORT, LegGeometry(), 75.0)
+    x = traj.terrain.x0_m + traj.terrain.step_m * np.arange(traj.terrain.z_m.size)
+    ramp = (x > traj.bench.x_m[round(10.0 / 0.001)]) & (x < traj.bench.x_m[-1] - 1.0)
+    slope = np.degrees(np.arctan(np.gradient(traj.terrain.z_m[ramp], traj.terrain.step_m)))
+    assert np.allclose(slope, 6.0, atol=0.05)
+    assert abs(traj.incline_deg[round(3.0 / 0.001)]) < 1e-12 and traj.speed_mps[-1] == pytest.approx(1.1)
+
+
+@pytest.mark.parametrize(("segments", "why"), [
+    ((Segment(5.0, 1.0, 0.0), Segment(1.0, 1.0, 5.0)), "shorter"),
+    ((Segment(5.0, 1.0, 0.0), Segment(5.0, 1.0, 14.0)), "steeper"),
+    ((Segment(5.0, -1.0, 0.0),), "speed"),
+    ((Segment(float("nan"), 1.0, 0.0),), "duration"),
+])
+def test_a_course_that_cannot_be_walked_is_refused(segments, why):
+    with pytest.raises(ValueError, match=why):
+        Course("bad", segments)
+
+
+def test_courses_come_by_name_or_from_a_file(tmp_path):
+    assert load_course("mixed") is COURSES["mixed"]
+    path = tmp_path / "c.json"
+    path.write_text(json.dumps(SHORT.to_json()))
+    assert load_course(path) == SHORT
+    with pytest.raises(ValueError, match="unknown course"):
+        load_course("moon")
+    path.write_text('{"segments": [{"duration_s": 5}]}')
+    with pytest.raises(ValueError, match="course file"):
+        load_course(path)
+
+
+@pytest.fixture(scope="module")
+def adaptive_walk(model):
+    from backend.experiments.course import make_course_controller
+    from device_bridge.sim.course_walk import run_course, score_course
+
+    env = model.propose_envelope([0.8, 1.1, 1.4], [-8.0, 0.0, 8.0], 75.0, nominal=(1.1, 0.0))
+    ctrl = make_course_controller("adaptive", model, 75.0, LegGeometry(), env)
+    changes: list[tuple[int, int]] = []
+    step = ctrl.step
+
+    def recording_step(x):   # which state the machine was in, and entered, whenever its rows changed
+        before, schedule = ctrl.machine_.state_, ctrl.machine_.schedule
+        cmd = step(x)
+        if ctrl.machine_.schedule is not schedule:
+            changes.append((int(before), int(cmd.state)))
+        return cmd
+
+    ctrl.step = recording_step
+    log, traj = run_course(ctrl, SHORT, 75.0)
+    return ctrl, changes, score_course(log, traj, SHORT, ctrl.decisions_)
+
+
+def test_the_adaptive_leg_follows_the_ramp_and_changes_rows_only_at_heel_strike(adaptive_walk):
+    ctrl, changes, score = adaptive_walk
+    s = score.summary
+    assert s["falls"] == 0 and s["toe_catches"] == 0 and s["loaded_swing_ms_max_stride"] <= 20.0
+    assert changes and all(after == 0 and before in (2, 3) for before, after in changes)   # swing → stance flexion
+    last = ctrl.decisions_[-1]
+    assert last.mode == "adaptive" and last.incline_deg == pytest.approx(6.0, abs=1.5)
+    assert last.speed_mps == pytest.approx(1.1, abs=0.1)
+    e = s["estimation"]
+    assert e["strides_counted"] >= 8 and e["incline_within_1_5_deg_fraction"] >= 0.9
+    assert e["speed_within_0_1_mps_fraction"] >= 0.8
+
+
+def test_each_stride_is_scored_against_its_own_task(adaptive_walk):
+    _, _, score = adaptive_walk
+    tasks, segments = score.stride_tasks, score.stride_segments
+    assert tasks.shape[0] == score.summary["strides"] == score.stride_rmse["knee_angle_deg"].shape[0]
+    assert np.allclose(tasks[0], [1.0, 0.0]) and np.all(tasks[-3:, 1] == pytest.approx(6.0))
+    assert np.all(np.diff(tasks[:, 1]) >= -1e-9)     # a stride across the change gets the mean of what it walked
+    assert np.any((tasks[:, 1] > 0.05) & (tasks[:, 1] < 5.95))
+    by_segment = score.summary["by_segment"]
+    assert [b["strides"] for b in by_segment] == [int(np.sum(segments == k)) for k in range(2)]
+    lo, hi = score.summary["knee_angle_rmse_ci95_deg"]
+    assert lo <= score.summary["knee_angle_rmse_deg"] <= hi
