@@ -109,15 +109,16 @@ class AdaptiveController:
     def state_(self) -> GaitState:
         return self.machine_.state_
 
-    def reset(self) -> None:
-        """A new walk: back to the nominal task, the estimator and history cleared."""
+    def reset(self, state: GaitState | None = None) -> None:
+        """A new walk (or a new envelope): back to the nominal task, the estimator and history cleared, the machine
+        in ``state`` (its initial state by default)."""
         self.estimator.reset()
         self.blend_ = self.blender.at(*self.nominal)
         self.speed_mps_, self.incline_deg_ = self.nominal
         self.mode_ = "nominal"
         self.decisions_ = []
         self.machine_.load(self.blend_.schedule)
-        self.machine_.reset()
+        self.machine_.reset(state)
 
     def step(self, x: SensorSample) -> TorqueCommand:
         """Advance one sample; at a heel strike, pick the next stride's rows (used from the next sample on)."""

@@ -6,7 +6,11 @@ safe mode, status and telemetry.
 It does no I/O, so every fault path is tested deterministically; :mod:`device_bridge.device_node` runs it on a bus.
 
 Three table buffers: the one being received, the staged one (complete, CRC-verified, safety-checked,
-acknowledged) and the active one the state machine runs. A staged table becomes active at the next heel strike
+acknowledged) and the active one the state machine runs. A buffer holds a single table or a whole envelope
+(:mod:`device_bridge.envelope_wire`): for an envelope the device re-checks every node's limits and the neighbour
+rule with its own settings (building :class:`controller_core.envelope_blend.EnvelopeBlender` is that check) and
+runs the adaptive controller (:mod:`controller_core.adaptive`), whose rows change only at heel strike. A staged
+table becomes active at the next heel strike
 (the state machine's swing-extension → stance-flexion transition on load), or at once when the leg is not
 walking (no table yet, safe mode, no sensors, or no load-triggered heel strike for ``idle_switch_s``). Loss,
 corruption, reordering, a bad CRC, a refused limit or a timeout only ever discard the buffer being received:
@@ -27,6 +31,9 @@ from dataclasses import dataclass, field
 
 import can
 
+from controller_core.adaptive import AdaptiveController
+from controller_core.envelope import DEFAULT_STEPS, NeighbourSteps
+from controller_core.envelope_blend import EnvelopeBlender
 from controller_core.fsm import (
     ActuatorLimits,
     GaitState,
@@ -35,7 +42,9 @@ from controller_core.fsm import (
     StateMachineController,
     clip_torque,
 )
-from controller_core.table import DEFAULT_LIMITS, SafetyLimits, check_table
+from controller_core.table import DEFAULT_LIMITS, SafetyLimitError, SafetyLimits, check_table
+from controller_core.task_estimator import TaskEstimator
+from device_bridge.envelope_wire import DeviceEnvelope, EnvelopeReceiver
 from device_bridge.protocol import (
     ROW_COUNT,
     TEMPERATURE_UNKNOWN_RAW,
@@ -51,6 +60,8 @@ from device_bridge.protocol import (
     encode_scaled,
 )
 
+ADAPTIVE_MODES = {"nominal": 1, "partial": 2, "adaptive": 3, "clamped": 4}   # TELEMETRY_TASK.adaptive_mode
+
 
 @dataclass(frozen=True)
 class FirmwareConfig:
@@ -58,34 +69,48 @@ class FirmwareConfig:
 
     Attributes:
         heartbeat_timeout_s: safe mode when no host heartbeat arrived for this long.
-        transfer_timeout_s: a transfer not committed this long after its begin is dropped.
+        transfer_timeout_s: a table transfer not committed this long after its begin is dropped.
+        envelope_transfer_timeout_s: the same for an envelope (ten times the frames, and resends on a noisy bus).
         idle_switch_s: without a load-triggered heel strike for this long the leg is not walking, and a staged
             table becomes active at once.
         status_period_s, telemetry_period_s: DEVICE_STATUS/HEALTH and TELEMETRY periods.
         safe_damping_knee, safe_damping_ankle: damping in safe mode and without a table.
         limits: the safety limits the device enforces itself (the same defaults as the host's).
+        neighbour_steps: the envelope neighbour rule the device enforces itself.
         actuator: torque and range limits.
+        thigh_length_m, shank_length_m: the patient's hip-to-knee and the leg's knee-to-ankle lengths (m), for the
+            task estimator (defaults: a 1.75 m patient by Winter's proportions, the simulated bench's).
+        max_speed_step_mps, max_incline_step_deg: the adaptive controller's per-stride rate limit.
     """
 
     heartbeat_timeout_s: float = 0.2
     transfer_timeout_s: float = 0.5
+    envelope_transfer_timeout_s: float = 3.0
     idle_switch_s: float = 2.0
     status_period_s: float = 0.1
     telemetry_period_s: float = 0.01
     safe_damping_knee: float = 8.0
     safe_damping_ankle: float = 4.0
     limits: SafetyLimits = DEFAULT_LIMITS
+    neighbour_steps: NeighbourSteps = DEFAULT_STEPS
     actuator: ActuatorLimits = field(default_factory=ActuatorLimits)
+    thigh_length_m: float = 0.42875
+    shank_length_m: float = 0.4305
+    max_speed_step_mps: float = 0.15
+    max_incline_step_deg: float = 3.0
 
 
 @dataclass(frozen=True)
 class HeldTable:
-    """A verified table: its version, CRC-32, decoded values and controller schedule."""
+    """A verified table or envelope: its version, CRC-32, decoded values and controller schedule (an envelope's
+    is its nominal blend)."""
 
     version: int
     crc32: int
-    table: DeviceTable
+    table: DeviceTable | None
     schedule: ImpedanceSchedule
+    envelope: DeviceEnvelope | None = None
+    blender: EnvelopeBlender | None = None
 
 
 @dataclass
@@ -126,8 +151,8 @@ class DeviceFirmware:
         self.rx_errors_ = 0
         self.safe_mode_entered_s_: float | None = None
         self.last_heartbeat_s_ = now_s   # the host gets one timeout from boot to appear
-        self.controller_: StateMachineController | None = None
-        self._rx: _Transfer | None = None
+        self.controller_: StateMachineController | AdaptiveController | None = None
+        self._rx: _Transfer | EnvelopeReceiver | None = None
         self._last_commit: _LastCommit | None = None
         self._last_heel_strike_s = -math.inf
         self._next_status_s = now_s
@@ -160,11 +185,25 @@ class DeviceFirmware:
         if name in ("TABLE_ROW", "TABLE_THRESHOLDS_A", "TABLE_THRESHOLDS_B"):
             rx = self._rx
             row = WireTable.row_from_frame(name, raw)
-            if rx is not None and raw["transfer_id"] == rx.transfer_id and row is not None:
+            if isinstance(rx, _Transfer) and raw["transfer_id"] == rx.transfer_id and row is not None:
                 rx.rows.setdefault(row[0], row[1])   # the first copy wins; a corrupt one fails the CRC
             return []
         if name == "TABLE_COMMIT":
             return [self._commit(raw)]
+        if name == "ENVELOPE_BEGIN":
+            n_s, n_i = raw["n_speeds"], raw["n_inclines"]
+            if n_s < 2 or n_i < 2 or n_s * n_i > 64:
+                self._rx = None
+                return [self._ack(raw["transfer_id"], AckResult.MALFORMED, version=raw["version"])]
+            self._rx = EnvelopeReceiver(raw["transfer_id"], raw["version"], raw["crc32"], n_s, n_i, now_s)
+            return []
+        if name in ("ENVELOPE_AXIS", "ENVELOPE_ROW", "ENVELOPE_THRESHOLDS_A", "ENVELOPE_THRESHOLDS_B", "ENVELOPE_CHECK"):
+            rx = self._rx
+            if isinstance(rx, EnvelopeReceiver) and raw["transfer_id"] == rx.transfer_id:
+                rx.add(name, raw)
+            return []
+        if name == "ENVELOPE_COMMIT":
+            return [self._commit_envelope(raw)]
         if name == "DEVICE_COMMAND":
             return self._command(raw["command"], now_s)
         return []
@@ -178,12 +217,8 @@ class DeviceFirmware:
 
     def _commit(self, raw: dict[str, int]) -> can.Message:
         tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
-        last = self._last_commit
-        if self._rx is None or self._rx.transfer_id != tid:
-            if last is not None and (last.transfer_id, last.version, last.crc32) == (tid, version, crc) and any(
-                    h is not None and h.crc32 == crc and h.version == version for h in (self.staged_, self.active_)):
-                return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)   # our acknowledgement was lost
-            return self._ack(tid, AckResult.UNKNOWN_TRANSFER, version=version)
+        if not isinstance(self._rx, _Transfer) or self._rx.transfer_id != tid:
+            return self._unknown_or_repeat(tid, version, crc)
         rx = self._rx
         if (rx.version, rx.crc32) != (version, crc) or raw["row_count"] != ROW_COUNT:
             self._rx = None
@@ -203,6 +238,44 @@ class DeviceFirmware:
             return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
         schedule = ImpedanceSchedule.from_table(table, self.config.limits)
         self.staged_ = HeldTable(version=version, crc32=crc, table=table, schedule=schedule)
+        self._last_commit = _LastCommit(tid, version, crc)
+        self.faults_ &= ~Fault.TABLE_REFUSED
+        return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)
+
+    def _unknown_or_repeat(self, tid: int, version: int, crc: int) -> can.Message:
+        last = self._last_commit
+        if last is not None and (last.transfer_id, last.version, last.crc32) == (tid, version, crc) and any(
+                h is not None and h.crc32 == crc and h.version == version for h in (self.staged_, self.active_)):
+            return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)   # our acknowledgement was lost
+        return self._ack(tid, AckResult.UNKNOWN_TRANSFER, version=version)
+
+    def _commit_envelope(self, raw: dict[str, int]) -> can.Message:
+        """All or nothing: every frame, the CRC over all of them, every node's limits and the neighbour rule."""
+        tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
+        rx = self._rx
+        if not isinstance(rx, EnvelopeReceiver) or rx.transfer_id != tid:
+            return self._unknown_or_repeat(tid, version, crc)
+        if (rx.version, rx.crc32, rx.n_speeds, rx.n_inclines) != (version, crc, raw["n_speeds"], raw["n_inclines"]):
+            self._rx = None
+            return self._refuse(tid, AckResult.MALFORMED, version)
+        missing = rx.missing()
+        if missing:   # the count of missing frames: the host sends the transfer's data again
+            return self._ack(tid, AckResult.MISSING_ROWS, missing=min(missing, 0xFFFF), version=version)
+        self._rx = None
+        wire = rx.wire()
+        if wire.crc32() != crc:
+            return self._refuse(tid, AckResult.CRC_MISMATCH, version)
+        try:
+            device = wire.to_device()
+            blender = EnvelopeBlender(device.speeds_mps, device.inclines_deg, device.tables, self.config.limits,
+                                      self.config.neighbour_steps)
+            nominal = blender.at(*device.nominal)
+        except (SafetyLimitError, ValueError):
+            return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
+        if nominal.clamped:   # the nominal task lies outside the grid: not an envelope the host can have built
+            return self._refuse(tid, AckResult.MALFORMED, version)
+        self.staged_ = HeldTable(version=version, crc32=crc, table=None, schedule=nominal.schedule, envelope=device,
+                                 blender=blender)
         self._last_commit = _LastCommit(tid, version, crc)
         self.faults_ &= ~Fault.TABLE_REFUSED
         return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)
@@ -232,10 +305,17 @@ class DeviceFirmware:
             self.mode_ = Mode.SAFE
             self.safe_mode_entered_s_ = now_s
 
+    def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
+        cfg = self.config
+        if held.blender is None or held.envelope is None:
+            return StateMachineController(held.schedule, cfg.actuator)
+        return AdaptiveController(held.blender, TaskEstimator(cfg.thigh_length_m, cfg.shank_length_m),
+                                  held.envelope.nominal, cfg.actuator, cfg.max_speed_step_mps, cfg.max_incline_step_deg)
+
     def _run(self) -> None:
-        """Start (or restart) the state machine on the active table."""
+        """Start (or restart) the state machine on the active table or envelope."""
         assert self.active_ is not None
-        self.controller_ = StateMachineController(self.active_.schedule, self.config.actuator)
+        self.controller_ = self._controller_for(self.active_)
         self.mode_ = Mode.ACTIVE
         self.faults_ &= ~(Fault.HEARTBEAT_LOST | Fault.NO_TABLE)
 
@@ -244,8 +324,14 @@ class DeviceFirmware:
         assert staged is not None
         self.staged_ = None
         self.active_ = staged
-        if self.mode_ == Mode.ACTIVE and self.controller_ is not None:
-            self.controller_.load(staged.schedule)   # at heel strike: the state machine carries on
+        ctrl = self.controller_
+        if self.mode_ == Mode.ACTIVE and ctrl is not None:   # at heel strike: the leg carries on in stance flexion
+            if isinstance(ctrl, StateMachineController) and staged.blender is None:
+                ctrl.load(staged.schedule)
+            else:
+                state = ctrl.state_
+                self.controller_ = self._controller_for(staged)
+                self.controller_.reset(state)   # a new envelope starts from its nominal task
         else:
             self._run()
 
@@ -263,7 +349,8 @@ class DeviceFirmware:
         """
         out: list[can.Message] = []
         cfg = self.config
-        if self._rx is not None and now_s - self._rx.started_s > cfg.transfer_timeout_s:
+        rx_timeout = cfg.envelope_transfer_timeout_s if isinstance(self._rx, EnvelopeReceiver) else cfg.transfer_timeout_s
+        if self._rx is not None and now_s - self._rx.started_s > rx_timeout:
             out.append(self._refuse(self._rx.transfer_id, AckResult.TIMEOUT, self._rx.version))
             self._rx = None
         host_alive = now_s - self.last_heartbeat_s_ <= cfg.heartbeat_timeout_s
@@ -329,12 +416,25 @@ class DeviceFirmware:
                                      "rx_errors": min(self.rx_errors_, 0xFFFF)}),
         ]
 
+    def _task_telemetry(self, seq: int) -> list[can.Message]:
+        """The task frame (sent first, so the host has it when the sample's other frames complete it)."""
+        ctrl = self.controller_
+        if self.mode_ != Mode.ACTIVE or not isinstance(ctrl, AdaptiveController):
+            return []
+        est = ctrl.estimator.last_
+        seen = est is not None and math.isfinite(est.speed_mps)
+        return [encode_scaled("TELEMETRY_TASK", {
+            "seq": seq, "estimated_speed": est.speed_mps if seen and est else 4.095,
+            "estimated_incline": est.incline_deg if seen and est else -20.48,
+            "running_speed": ctrl.speed_mps_, "running_incline": ctrl.incline_deg_,
+            "adaptive_mode": ADAPTIVE_MODES[ctrl.mode_]})]
+
     def _telemetry(self, x: SensorSample, state: GaitState, knee_Nm: float, ankle_Nm: float) -> list[can.Message]:
         seq = self._telemetry_seq
         self._telemetry_seq = (seq + 1) & 0xFFFF
         deg = 180.0 / math.pi
         fsm = int(state) if self.mode_ == Mode.ACTIVE else 15
-        return [
+        return [*self._task_telemetry(seq),
             encode_scaled("TELEMETRY_GAIT", {"seq": seq, "fsm_state": fsm, "mode": int(self.mode_),
                                              "load": x.load_N, "ankle_moment": x.ankle_moment_Nm}),
             encode_scaled("TELEMETRY_KNEE", {"seq": seq, "angle": x.knee_angle_rad * deg,

@@ -9,7 +9,9 @@ joined on their sequence number) to ``on_telemetry``.
 :meth:`DeviceLink.push` returns only when the device acknowledged the exact CRC-32 of the table sent; on a
 refusal or silence it resends (only the missing rows when the device says which, the whole transfer under a
 new transfer id otherwise) until ``timeout_s``, then raises :class:`PushError`. A refusal for the safety
-limits is final (the same table would be refused again).
+limits is final (the same table would be refused again). :meth:`DeviceLink.push_envelope` does the same for a
+whole envelope (:mod:`device_bridge.envelope_wire`; the device names no missing frames then, only how many, and
+the data frames are sent again).
 """
 
 from __future__ import annotations
@@ -25,7 +27,9 @@ from dataclasses import dataclass
 
 import can
 
+from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
+from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.protocol import (
     ROW_COUNT,
     TEMPERATURE_UNKNOWN_RAW,
@@ -81,9 +85,31 @@ class DeviceStatus:
     received_unix_s: float
 
 
+ADAPTIVE_MODE_NAMES = {1: "nominal", 2: "partial", 3: "adaptive", 4: "clamped"}
+
+
+@dataclass(frozen=True)
+class TaskTelemetry:
+    """What an adaptive leg reports of its task: its estimate (None before one) and where its rows are blended."""
+
+    estimated_speed_mps: float | None
+    estimated_incline_deg: float | None
+    running_speed_mps: float
+    running_incline_deg: float
+    adaptive_mode: str
+
+    @classmethod
+    def from_physical(cls, v: dict[str, float]) -> TaskTelemetry:
+        seen = v["estimated_speed"] < 4.09   # all ones: no estimate yet
+        return cls(round(v["estimated_speed"], 3) if seen else None, round(v["estimated_incline"], 2) if seen else None,
+                   round(v["running_speed"], 3), round(v["running_incline"], 2),
+                   ADAPTIVE_MODE_NAMES.get(int(v["adaptive_mode"]), "unknown"))
+
+
 @dataclass(frozen=True)
 class TelemetrySample:
-    """One telemetry sample (SI). ``seq`` counts up without wrapping; ``fsm_state`` is None outside ACTIVE."""
+    """One telemetry sample (SI). ``seq`` counts up without wrapping; ``fsm_state`` is None outside ACTIVE;
+    ``task`` only while an envelope runs."""
 
     seq: int
     fsm_state: int | None
@@ -97,11 +123,16 @@ class TelemetrySample:
     load_N: float
     ankle_moment_Nm: float
     received_unix_s: float
+    task: TaskTelemetry | None = None
 
     def to_json(self) -> dict:
-        """Display units with the unit in each name (deg, deg/s, N·m, N)."""
+        """Display units with the unit in each name (deg, deg/s, N·m, N, m/s)."""
         d = 1.0 / _DEG
-        return {
+        task = {} if self.task is None else {
+            "estimated_speed_mps": self.task.estimated_speed_mps, "estimated_incline_deg": self.task.estimated_incline_deg,
+            "running_speed_mps": self.task.running_speed_mps, "running_incline_deg": self.task.running_incline_deg,
+            "adaptive_mode": self.task.adaptive_mode}
+        return {**task,
             "seq": self.seq, "fsm_state": self.fsm_state, "mode": self.mode.name.lower(),
             "knee_angle_deg": round(self.knee_angle_rad * d, 2),
             "knee_velocity_deg_s": round(self.knee_velocity_rad_s * d, 1),
@@ -120,8 +151,14 @@ class _TelemetryJoiner:
     PARTS = ("TELEMETRY_GAIT", "TELEMETRY_KNEE", "TELEMETRY_ANKLE")
 
     def __init__(self) -> None:
+        self._tasks: dict[int, TaskTelemetry] = {}   # TELEMETRY_TASK, sent before the three parts of its sample
         self._partial: dict[int, dict[str, dict[str, float]]] = {}
         self._last_full: int | None = None   # unwrapped seq of the last complete sample
+
+    def add_task(self, raw: dict[str, int]) -> None:
+        if len(self._tasks) > 64:
+            self._tasks.clear()
+        self._tasks[raw["seq"]] = TaskTelemetry.from_physical(physical("TELEMETRY_TASK", raw))
 
     def add(self, name: str, raw: dict[str, int]) -> TelemetrySample | None:
         seq16 = raw["seq"]
@@ -144,7 +181,20 @@ class _TelemetryJoiner:
             seq=seq, fsm_state=None if state > 3 else state, mode=Mode(int(g["mode"])),
             knee_angle_rad=k["angle"] * _DEG, knee_velocity_rad_s=k["velocity"] * _DEG, knee_torque_Nm=k["torque"],
             ankle_angle_rad=a["angle"] * _DEG, ankle_velocity_rad_s=a["velocity"] * _DEG, ankle_torque_Nm=a["torque"],
-            load_N=g["load"], ankle_moment_Nm=g["ankle_moment"], received_unix_s=time.time())
+            load_N=g["load"], ankle_moment_Nm=g["ankle_moment"], received_unix_s=time.time(),
+            task=self._tasks.pop(seq16, None))
+
+
+@dataclass(frozen=True)
+class _Outgoing:
+    """One push's frames and how to resend what the device says is missing."""
+
+    crc: int
+    frames: Callable[[int], list[can.Message]]
+    begin: Callable[[int], can.Message]
+    commit: Callable[[int], can.Message]
+    resend: Callable[[list[can.Message], dict[str, int]], tuple[list[can.Message], str]]
+    kind: str
 
 
 class DeviceLink:
@@ -257,6 +307,8 @@ class DeviceLink:
     def _dispatch(self, name: str, raw: dict[str, int]) -> None:
         if name == "TABLE_ACK":
             self._acks.put(raw)
+        elif name == "TELEMETRY_TASK":
+            self._joiner.add_task(raw)
         elif name in _TelemetryJoiner.PARTS:
             sample = self._joiner.add(name, raw)
             if sample is not None and self.on_telemetry is not None:
@@ -310,8 +362,37 @@ class DeviceLink:
             raise ProtocolError(f"table version must be an integer in [1, 65535], got {version!r}")
         wire = WireTable.from_table(table)
         crc = wire.crc32()
+
+        def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
+            missing = [i for i in range(ROW_COUNT) if ack["missing_rows"] >> i & 1]
+            return [frames[i] for i in missing], f"rows {missing} were lost"
+
+        transfer = _Outgoing(crc, wire.frames, lambda tid: begin_frame(tid, version, crc),
+                             lambda tid: commit_frame(tid, version, crc), resend, "table")
         with self._push_lock:
-            return self._push(wire, crc, version, timeout_s, ack_timeout_s)
+            return self._push(transfer, version, timeout_s, ack_timeout_s)
+
+    def push_envelope(self, envelope: Envelope, version: int, timeout_s: float = 3.0,
+                      ack_timeout_s: float = 0.02) -> PushResult:
+        """Send a whole envelope as ``version`` and wait until the device acknowledges its exact CRC-32 (all or
+        nothing: until then the device runs what it ran before).
+
+        Raises:
+            ProtocolError: the envelope does not fit the link (more than 64 nodes, a value beyond its field).
+            PushError: refused for the safety limits or the neighbour rule, or no matching acknowledgement in time.
+        """
+        if not (isinstance(version, int) and 1 <= version <= 0xFFFF):
+            raise ProtocolError(f"envelope version must be an integer in [1, 65535], got {version!r}")
+        wire = WireEnvelope.from_envelope(envelope)
+        crc, shape = wire.crc32(), wire.shape
+
+        def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
+            return frames, f"{ack['missing_rows']} frame(s) were lost"
+
+        transfer = _Outgoing(crc, wire.frames, lambda tid: envelope_begin_frame(tid, version, crc, shape),
+                             lambda tid: envelope_commit_frame(tid, version, crc, shape), resend, "envelope")
+        with self._push_lock:
+            return self._push(transfer, version, timeout_s, ack_timeout_s)
 
     def _next_transfer_id(self) -> int:
         self._transfer_id = (self._transfer_id + 1) % TRANSFER_IDS
@@ -329,7 +410,8 @@ class DeviceLink:
             if ack["transfer_id"] == tid and ack["version_low"] == version & 0xFF:
                 return ack   # anything else is a late answer to an earlier attempt
 
-    def _push(self, wire: WireTable, crc: int, version: int, timeout_s: float, ack_timeout_s: float) -> PushResult:
+    def _push(self, transfer: _Outgoing, version: int, timeout_s: float, ack_timeout_s: float) -> PushResult:
+        crc = transfer.crc
         t0 = time.monotonic()
         deadline = t0 + timeout_s
         while not self._acks.empty():
@@ -339,11 +421,11 @@ class DeviceLink:
         while time.monotonic() < deadline:
             attempts += 1
             tid = self._next_transfer_id()
-            frames = wire.frames(tid)
-            self._send(begin_frame(tid, version, crc))
+            frames = transfer.frames(tid)
+            self._send(transfer.begin(tid))
             for f in frames:
                 self._send(f)
-            commit = commit_frame(tid, version, crc)
+            commit = transfer.commit(tid)
             self._send(commit)
             silent = 0
             while time.monotonic() < deadline:
@@ -363,16 +445,16 @@ class DeviceLink:
                     self._send(commit)
                     continue
                 if result == AckResult.MISSING_ROWS:
-                    missing = [i for i in range(ROW_COUNT) if ack["missing_rows"] >> i & 1]
-                    for i in missing:
-                        self._send(frames[i])
+                    again, last_reason = transfer.resend(frames, ack)
+                    for f in again:
+                        self._send(f)
                     self._send(commit)
-                    last_reason = f"rows {missing} were lost"
                     continue
                 if result == AckResult.SAFETY_LIMIT:
-                    raise PushError("the device refused the table: a value is outside its own safety limits",
-                                    "safety_limit")
+                    rule = " or two neighbouring nodes break the neighbour rule" if transfer.kind == "envelope" else ""
+                    raise PushError(f"the device refused the {transfer.kind}: a value is outside its own safety "
+                                    f"limits{rule}", "safety_limit")
                 last_reason = f"the device refused the transfer ({result.name.lower() if result else ack['result']})"
                 break
         raise PushError(f"no acknowledgement of CRC {crc:08x} within {timeout_s:g} s after {attempts} attempt(s): "
-                        f"{last_reason}; the device keeps its previous table", "timeout")
+                        f"{last_reason}; the device keeps its previous {transfer.kind}", "timeout")

@@ -1,14 +1,14 @@
 """Soak and drill the device link: many pushes through a faulty bus, and a heartbeat-loss drill.
 
-:func:`soak` pushes the tables it is given, in turn (``quasitune device soak``: the model's proposals over a range of
-speeds), to a
+:func:`soak` pushes the tables or envelopes it is given, in turn (``quasitune device soak``: the model's proposals over
+a range of speeds; ``--envelopes``: envelopes for patients of different masses), to a
 :class:`~device_bridge.device_node.DeviceNode` through :class:`~device_bridge.faults.FaultInjectingBus` in both
 directions, and after every push inspects the device's buffers (an oracle the host never has) to classify it:
 
 * ``committed``: the host was told the exact CRC, and the device runs that table, intact;
 * ``kept_old``: the host gave up, and the device still runs the previous table, intact;
 * ``committed_unconfirmed``: the host gave up, but the device did take the new table intact (its status will say so);
-* ``mixed``: the device holds a table that is neither the old nor the new one — must be 0;
+* ``mixed``: the device holds a table (or envelope) that is neither the old nor the new one — must be 0;
 * ``crc_mismatch``: the host was told a CRC the device does not hold, or a held table's values do not give
   its CRC — must be 0.
 
@@ -26,12 +26,14 @@ from dataclasses import dataclass
 
 import can
 
+from controller_core.envelope import Envelope
 from controller_core.fsmic import fsmic_table
 from controller_core.table import ParameterTable
 from device_bridge.device_node import DeviceNode
+from device_bridge.envelope_wire import DeviceEnvelope, WireEnvelope
 from device_bridge.faults import FaultInjectingBus
 from device_bridge.firmware import FirmwareConfig, HeldTable
-from device_bridge.host import DeviceLink, PushError
+from device_bridge.host import DeviceLink, PushError, PushResult
 from device_bridge.protocol import DeviceTable, Mode, WireTable
 
 _channel_counter = itertools.count()
@@ -43,30 +45,38 @@ def _channel(prefix: str) -> str:
 
 @dataclass(frozen=True)
 class _Known:
-    """A table the soak pushes, with the values and CRC-32 the device holds when it arrives intact."""
+    """A table or envelope the soak pushes, with the values and CRC-32 the device holds when it arrives intact."""
 
-    table: ParameterTable
-    values: DeviceTable
+    item: ParameterTable | Envelope
+    values: DeviceTable | DeviceEnvelope
     crc32: int
 
     @classmethod
-    def of(cls, table: ParameterTable) -> _Known:
-        wire = WireTable.from_table(table)
-        return cls(table, wire.to_device_table(), wire.crc32())
+    def of(cls, item: ParameterTable | Envelope) -> _Known:
+        if isinstance(item, Envelope):
+            env = WireEnvelope.from_envelope(item)
+            return cls(item, env.to_device(), env.crc32())
+        wire = WireTable.from_table(item)
+        return cls(item, wire.to_device_table(), wire.crc32())
 
     def held_as(self, held: HeldTable) -> bool:
-        return held.table == self.values
+        return (held.envelope if isinstance(self.values, DeviceEnvelope) else held.table) == self.values
+
+    def push(self, link: DeviceLink, version: int, timeout_s: float) -> PushResult:
+        if isinstance(self.item, Envelope):
+            return link.push_envelope(self.item, version, timeout_s=timeout_s)
+        return link.push(self.item, version, timeout_s=timeout_s)
 
 
-def soak(tables: Sequence[ParameterTable], trials: int, drop: float, corrupt: float, reorder: float, seed: int = 0,
-         push_timeout_s: float = 2.0) -> dict:
-    """Push ``trials`` of ``tables`` (two at least, in turn) through a fault-injecting virtual bus and classify each
-    outcome (module docstring)."""
+def soak(items: Sequence[ParameterTable | Envelope], trials: int, drop: float, corrupt: float, reorder: float,
+         seed: int = 0, push_timeout_s: float = 2.0) -> dict:
+    """Push ``trials`` of ``items`` (two at least, in turn: tables, envelopes or both) through a fault-injecting
+    virtual bus and classify each outcome (module docstring)."""
     if not 1 <= trials <= 100_000:
         raise ValueError(f"trials must be in [1, 100000], got {trials!r}")
-    if len(tables) < 2:
-        raise ValueError("the soak needs at least two different tables to tell the old from the new")
-    known = [_Known.of(t) for t in tables]
+    if len(items) < 2:
+        raise ValueError("the soak needs at least two different tables or envelopes to tell the old from the new")
+    known = [_Known.of(t) for t in items]
     channel = _channel("soak")
     node = DeviceNode(FaultInjectingBus(can.Bus(interface="virtual", channel=channel), drop, corrupt, reorder,
                                         seed=seed)).start()
@@ -83,7 +93,7 @@ def soak(tables: Sequence[ParameterTable], trials: int, drop: float, corrupt: fl
             version = i % 0xFFFF + 1
             t0 = time.monotonic()
             try:
-                result = link.push(new.table, version, timeout_s=push_timeout_s)
+                result = new.push(link, version, push_timeout_s)
                 ok_crc: int | None = result.crc32
                 push_ms.append(result.elapsed_ms)
             except PushError:

@@ -1,0 +1,269 @@
+"""An envelope on the wire: axes, nominal task and every node's table as raw fixed-point integers.
+
+A transfer is ENVELOPE_BEGIN, the axis frames (speeds, inclines, the nominal task) and their check, ten frames per
+node (eight rows and two threshold frames, each carrying its node index) and the node's check, ENVELOPE_COMMIT;
+TABLE_ACK answers, as for a table. The CRC-32 (zlib) covers every raw value in transfer order (axes, nominal, then
+node by node, row by row), packed as little-endian int32, so host and device compute it from exactly what the device
+will run; the device stages the whole envelope or nothing.
+
+A check frame (ENVELOPE_CHECK) carries the CRC-32 of one node's values (node 63: the axes). With ten frames per node
+and 25 nodes, a corrupted frame would otherwise spoil nearly every transfer on a noisy bus (the first copy of a
+frame is kept, so the whole transfer would have to start over): the device keeps a node once its frames give its
+check and drops the node's frames for fresh copies when they do not, and answers a commit with the number of frames
+it still lacks; the host sends the data again until none are missing. The envelope CRC still decides at commit.
+
+Node quanta (fit in one classic-CAN frame with a node index): k 0.001 N·m/rad, θe 0.01°, b 0.01 N·m·s/rad, moment
+0.01 N·m, loads 0.1 N, knee angle 0.01°, state times 1 ms (to 4.095 s), knee extension speed 1 deg/s; axes 0.001 m/s
+or deg. At most 64 nodes. :func:`check_envelope_as_run` checks what the device will run.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass
+
+import can
+
+from controller_core.envelope import Envelope, NeighbourSteps, check_envelope, neighbour_violations
+from controller_core.table import LimitViolation, SafetyLimits, Thresholds, check_table
+from device_bridge.protocol import (
+    ROW_ORDER,
+    DeviceRow,
+    DeviceTable,
+    ProtocolError,
+    ValueDoesNotFitError,
+    _quantize,
+    _scale,
+    encode,
+)
+
+MAX_NODES = 64
+FRAMES_PER_NODE = 10
+AXES_NODE = 63   # the check frame of the axes and nominal task
+_ROW = ("k", "theta_e", "b")
+_ROW_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s_per_rad"}
+_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load")
+_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time", "sf_to_se_knee_extension")
+_THRESHOLD_FIELDS = {"sf_to_se_ankle_moment": "sf_to_se_ankle_moment_Nm", "se_to_wf_load": "se_to_wf_load_N",
+                     "we_to_sf_load": "we_to_sf_load_N", "wf_to_we_knee_angle": "wf_to_we_knee_angle_deg",
+                     "min_state_time": "min_state_time_s", "max_state_time": "max_state_time_s",
+                     "sf_to_se_knee_extension": "sf_to_se_knee_extension_deg_per_s"}
+AXIS_SPEED, AXIS_INCLINE, AXIS_NOMINAL = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class DeviceEnvelope:
+    """The envelope as the device holds it: axes (m/s, deg), the nominal task and one table per node."""
+
+    speeds_mps: tuple[float, ...]
+    inclines_deg: tuple[float, ...]
+    nominal: tuple[float, float]
+    tables: tuple[DeviceTable, ...]
+
+
+@dataclass(frozen=True)
+class WireEnvelope:
+    """Raw integers of an envelope transfer (see the module docstring)."""
+
+    speeds: tuple[int, ...]
+    inclines: tuple[int, ...]
+    nominal: tuple[int, int]
+    nodes: tuple[tuple[tuple[int, ...], ...], ...]   # per node: 8 row triples, then thresholds A (3) and B (4)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return len(self.speeds), len(self.inclines)
+
+    @classmethod
+    def from_envelope(cls, envelope: Envelope) -> WireEnvelope:
+        """Round an envelope to the wire quanta.
+
+        Raises:
+            ProtocolError: more than 64 nodes or 15 values per axis, or a value that does not fit its field.
+        """
+        n_s, n_i = envelope.shape
+        if n_s > 15 or n_i > 15 or n_s * n_i > MAX_NODES:
+            raise ProtocolError(f"an envelope of {n_s} × {n_i} nodes does not fit the link: at most 15 values per "
+                                f"axis and {MAX_NODES} nodes")
+
+        def axis(value: float, name: str) -> int:
+            return _quantize("ENVELOPE_AXIS", "value", value, name)
+
+        nodes = []
+        for k, node in enumerate(envelope.nodes):
+            t = node.table
+            rows = [tuple(_quantize("ENVELOPE_ROW", f, getattr(t.row(j, s), _ROW_FIELDS[f]),
+                                    f"node {k}: {j}.{s}.{_ROW_FIELDS[f]}") for f in _ROW) for j, s in ROW_ORDER]
+            a = tuple(_quantize("ENVELOPE_THRESHOLDS_A", f, getattr(t.thresholds, _THRESHOLD_FIELDS[f]),
+                                f"node {k}: thresholds.{_THRESHOLD_FIELDS[f]}") for f in _A)
+            b = tuple(_quantize("ENVELOPE_THRESHOLDS_B", f, getattr(t.thresholds, _THRESHOLD_FIELDS[f]),
+                                f"node {k}: thresholds.{_THRESHOLD_FIELDS[f]}") for f in _B)
+            nodes.append((*rows, a, b))
+        return cls(speeds=tuple(axis(v, "speeds_mps") for v in envelope.speeds_mps),
+                   inclines=tuple(axis(v, "inclines_deg") for v in envelope.inclines_deg),
+                   nominal=(axis(envelope.nominal_speed_mps, "nominal_speed_mps"),
+                            axis(envelope.nominal_incline_deg, "nominal_incline_deg")),
+                   nodes=tuple(nodes))
+
+    def crc32(self) -> int:
+        """CRC-32 of every raw value in transfer order (little-endian int32 each)."""
+        return _crc([*self.speeds, *self.inclines, *self.nominal, *(v for node in self.nodes for part in node
+                                                                    for v in part)])
+
+    def frames(self, transfer_id: int) -> list[can.Message]:
+        """The data frames of a transfer: axes, nominal and their check, then ten per node and its check."""
+        out = [encode("ENVELOPE_AXIS", {"transfer_id": transfer_id, "axis": a, "index": i, "value": v})
+               for a, values in ((AXIS_SPEED, self.speeds), (AXIS_INCLINE, self.inclines), (AXIS_NOMINAL, self.nominal))
+               for i, v in enumerate(values)]
+        out.append(encode("ENVELOPE_CHECK", {"transfer_id": transfer_id, "node": AXES_NODE,
+                                             "crc32": _crc([*self.speeds, *self.inclines, *self.nominal])}))
+        for n, node in enumerate(self.nodes):
+            head = {"transfer_id": transfer_id, "node": n}
+            out += [encode("ENVELOPE_ROW", {**head, "row_index": i, **dict(zip(_ROW, node[i], strict=True))})
+                    for i in range(len(ROW_ORDER))]
+            out.append(encode("ENVELOPE_THRESHOLDS_A", {**head, "row_index": 8, **dict(zip(_A, node[8], strict=True))}))
+            out.append(encode("ENVELOPE_THRESHOLDS_B", {**head, "row_index": 9, **dict(zip(_B, node[9], strict=True))}))
+            out.append(encode("ENVELOPE_CHECK", {**head, "crc32": _node_crc(node)}))
+        return out
+
+    def to_device(self) -> DeviceEnvelope:
+        """The physical values the device runs (ValueError on a non-physical threshold)."""
+        unit = _scale("ENVELOPE_AXIS", "value")
+        tables = []
+        for node in self.nodes:
+            rows = tuple(DeviceRow(j, s, *(raw * _scale("ENVELOPE_ROW", f) for raw, f in zip(node[i], _ROW, strict=True)))
+                         for i, (j, s) in enumerate(ROW_ORDER))
+            values = {_THRESHOLD_FIELDS[f]: raw * _scale("ENVELOPE_THRESHOLDS_A", f)
+                      for raw, f in zip(node[8], _A, strict=True)}
+            values |= {_THRESHOLD_FIELDS[f]: raw * _scale("ENVELOPE_THRESHOLDS_B", f)
+                       for raw, f in zip(node[9], _B, strict=True)}
+            tables.append(DeviceTable(rows=rows, thresholds=Thresholds(**values)))
+        return DeviceEnvelope(speeds_mps=tuple(v * unit for v in self.speeds),
+                              inclines_deg=tuple(v * unit for v in self.inclines),
+                              nominal=(self.nominal[0] * unit, self.nominal[1] * unit), tables=tuple(tables))
+
+
+def _crc(values: list[int]) -> int:
+    return zlib.crc32(struct.pack(f"<{len(values)}i", *values))
+
+
+def _node_crc(node: tuple[tuple[int, ...], ...]) -> int:
+    return _crc([v for part in node for v in part])
+
+
+class EnvelopeReceiver:
+    """Collects one envelope transfer's frames on the device, node by node (see the module docstring)."""
+
+    def __init__(self, transfer_id: int, version: int, crc32: int, n_speeds: int, n_inclines: int,
+                 started_s: float) -> None:
+        self.transfer_id, self.version, self.crc32 = transfer_id, version, crc32
+        self.n_speeds, self.n_inclines, self.started_s = n_speeds, n_inclines, started_s
+        self.axes: dict[tuple[int, int], int] = {}
+        self.rows: dict[tuple[int, int], tuple[int, ...]] = {}
+        self.checks: dict[int, int] = {}
+        self.kept: set[int] = set()   # nodes (and AXES_NODE) whose frames gave their check
+
+    @property
+    def n_nodes(self) -> int:
+        return self.n_speeds * self.n_inclines
+
+    def _axis_values(self) -> list[int] | None:
+        keys = [(AXIS_SPEED, i) for i in range(self.n_speeds)] + [(AXIS_INCLINE, i) for i in range(self.n_inclines)] + \
+            [(AXIS_NOMINAL, 0), (AXIS_NOMINAL, 1)]
+        return [self.axes[k] for k in keys] if all(k in self.axes for k in keys) else None
+
+    def _verify(self, node: int) -> None:
+        """Keep a complete node whose values give its check; drop it for fresh copies when they do not."""
+        if node in self.kept or node not in self.checks:
+            return
+        if node == AXES_NODE:
+            values = self._axis_values()
+            if values is None:
+                return
+            if _crc(values) == self.checks[node]:
+                self.kept.add(node)
+            else:
+                self.axes.clear()
+                del self.checks[node]
+            return
+        if any((node, i) not in self.rows for i in range(FRAMES_PER_NODE)):
+            return
+        if _node_crc(tuple(self.rows[(node, i)] for i in range(FRAMES_PER_NODE))) == self.checks[node]:
+            self.kept.add(node)
+        else:
+            for i in range(FRAMES_PER_NODE):
+                del self.rows[(node, i)]
+            del self.checks[node]
+
+    def add(self, name: str, raw: dict[str, int]) -> None:
+        if name == "ENVELOPE_AXIS":
+            limit = {AXIS_SPEED: self.n_speeds, AXIS_INCLINE: self.n_inclines, AXIS_NOMINAL: 2}.get(raw["axis"], 0)
+            if raw["index"] < limit and AXES_NODE not in self.kept:
+                self.axes.setdefault((raw["axis"], raw["index"]), raw["value"])
+                self._verify(AXES_NODE)
+            return
+        node = raw["node"]
+        if node in self.kept or (node >= self.n_nodes and node != AXES_NODE):
+            return
+        if name == "ENVELOPE_CHECK":
+            self.checks.setdefault(node, raw["crc32"])
+            self._verify(node)
+            return
+        i = raw["row_index"]
+        if name == "ENVELOPE_ROW" and i < len(ROW_ORDER):
+            self.rows.setdefault((node, i), tuple(raw[f] for f in _ROW))
+        elif name == "ENVELOPE_THRESHOLDS_A" and i == 8:
+            self.rows.setdefault((node, i), tuple(raw[f] for f in _A))
+        elif name == "ENVELOPE_THRESHOLDS_B" and i == 9:
+            self.rows.setdefault((node, i), tuple(raw[f] for f in _B))
+        else:
+            return
+        self._verify(node)
+
+    def missing(self) -> int:
+        """How many frames (data and check) the device still lacks: those of every node not yet kept."""
+        axes = 0 if AXES_NODE in self.kept else self.n_speeds + self.n_inclines + 3 - len(self.axes) - (
+            AXES_NODE in self.checks)
+        nodes = sum(FRAMES_PER_NODE + 1 - sum((n, i) in self.rows for i in range(FRAMES_PER_NODE)) - (n in self.checks)
+                    for n in range(self.n_nodes) if n not in self.kept)
+        return axes + nodes
+
+    def wire(self) -> WireEnvelope:
+        """The complete transfer (call only when nothing is missing)."""
+        return WireEnvelope(
+            speeds=tuple(self.axes[(AXIS_SPEED, i)] for i in range(self.n_speeds)),
+            inclines=tuple(self.axes[(AXIS_INCLINE, i)] for i in range(self.n_inclines)),
+            nominal=(self.axes[(AXIS_NOMINAL, 0)], self.axes[(AXIS_NOMINAL, 1)]),
+            nodes=tuple(tuple(self.rows[(n, i)] for i in range(FRAMES_PER_NODE)) for n in range(self.n_nodes)))
+
+
+def envelope_begin_frame(transfer_id: int, version: int, crc32: int, shape: tuple[int, int]) -> can.Message:
+    return encode("ENVELOPE_BEGIN", {"transfer_id": transfer_id, "n_speeds": shape[0], "n_inclines": shape[1],
+                                     "version": version, "crc32": crc32})
+
+
+def envelope_commit_frame(transfer_id: int, version: int, crc32: int, shape: tuple[int, int]) -> can.Message:
+    return encode("ENVELOPE_COMMIT", {"transfer_id": transfer_id, "n_speeds": shape[0], "n_inclines": shape[1],
+                                      "version": version, "crc32": crc32})
+
+
+def check_envelope_as_run(envelope: Envelope, limits: SafetyLimits | None = None,
+                          steps: NeighbourSteps | None = None) -> list[LimitViolation]:
+    """Every violation of what the device will run: the envelope rounded to the node quanta, each node's limits and
+    the neighbour rule (the server's one check of an envelope, so it never approves what the device refuses)."""
+    try:
+        device = WireEnvelope.from_envelope(envelope).to_device()
+    except ValueDoesNotFitError as exc:
+        return check_envelope(envelope, limits, steps) or [
+            LimitViolation(field=exc.field, value=exc.value, low=exc.low, high=exc.high, message=str(exc))]
+    except ProtocolError as exc:
+        return [LimitViolation(field="envelope", value=float(len(envelope.nodes)), low=0.0, high=float(MAX_NODES),
+                               message=str(exc))]
+    found: list[LimitViolation] = []
+    for node, table in zip(envelope.nodes, device.tables, strict=True):
+        label = f"{node.speed_mps:.2f} m/s, {node.incline_deg:+.1f} deg"
+        found += [v.model_copy(update={"field": f"node[{label}].{v.field}", "message": f"at {label}: {v.message}"})
+                  for v in check_table(table, limits)]
+    return found + neighbour_violations(device.speeds_mps, device.inclines_deg, device.tables,
+                                        steps or envelope.neighbour_steps)
