@@ -15,10 +15,13 @@ thigh angle is measured from gravity's vertical; knee flexion +, ankle dorsiflex
   (thigh and shank lengths, thigh and knee angles): the slope of a straight line fitted to the hip's position
   against time over the flat-foot samples.
 
-Foot-flat: in stance, the foot's pitch rate |thigh rate − knee rate + ankle rate| below ``flat_rate_rad_s``.
-A stride whose flat-foot window is shorter than ``min_flat_s``, or whose estimate is not a walking task, gives no
-estimate. The estimate is the mean of the last ``smoothing_strides`` strides' estimates. Speed and incline each
-have their own confidence, the mean quality of those strides (0 for a stride without an estimate): for speed, the
+Foot-flat: in stance, the foot's pitch rate |thigh rate − knee rate + ankle rate| below ``flat_rate_rad_s``; the
+window is the longest such run of the stance (gaps up to ``gap_tolerance_s`` bridged), because a foot can also rest
+briefly on its heel at heel strike, where the pitch is steady but is not the slope. A stride whose flat-foot window
+is shorter than ``min_flat_s``, or whose estimate is not a walking task, gives no estimate.
+
+The estimate is the mean of the last ``smoothing_strides`` strides' estimates. Speed and incline each have their own
+confidence, the mean quality of those strides (0 for a stride without an estimate): for speed, the
 window's length and how straight the hip's progress along the slope is (a foot that slides, e.g. a straight knee
 slapping down on a ramp, bends it); for incline, the window's length and how steady the foot's pitch is. They are
 separate because the foot's orientation gives the slope even when the foot slides, and the slope is the thing a
@@ -96,6 +99,7 @@ class TaskEstimator:
         full_quality_flat_s: a flat-foot window this long (s) or longer counts fully.
         fit_scale_m: the straight-line fit's rms residual (m) at which a stride's speed quality halves.
         pitch_scale_deg: the foot pitch's SD over the window (deg) at which a stride's incline quality halves.
+        gap_tolerance_s: non-flat samples for up to this long (s) do not end a flat-foot run.
     """
 
     thigh_length_m: float
@@ -107,16 +111,19 @@ class TaskEstimator:
     full_quality_flat_s: float = 0.15
     fit_scale_m: float = 0.005
     pitch_scale_deg: float = 1.0
+    gap_tolerance_s: float = 0.01
     strides_: deque = field(init=False)
     last_: TaskEstimate | None = field(init=False, default=None)
     _in_stance: bool = field(init=False, default=False)
     _seen_stance: bool = field(init=False, default=False)
     _sums: list[float] = field(init=False)
+    _best: list[float] = field(init=False)
     _t0: float | None = field(init=False, default=None)
+    _last_flat_s: float = field(init=False, default=-math.inf)
 
     def __post_init__(self) -> None:
         for name in ("thigh_length_m", "shank_length_m", "flat_rate_rad_s", "min_flat_s", "full_quality_flat_s",
-                     "fit_scale_m", "pitch_scale_deg"):
+                     "fit_scale_m", "pitch_scale_deg", "gap_tolerance_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
@@ -128,9 +135,18 @@ class TaskEstimator:
         self._clear()
 
     def _clear(self) -> None:
-        # n, Σt, Σt², Σx, Σtx, Σx², Σz, Σtz, Σz², Σpitch, first t, last t, Σxz, Σpitch² (t from the window's start)
+        # the current run's n, Σt, Σt², Σx, Σtx, Σx², Σz, Σtz, Σz², Σpitch, first t, last t, Σxz, Σpitch² (t from the
+        # stance's first flat sample); _best: the longest run closed so far in this stance
         self._sums = [0.0] * 14
+        self._best = [0.0] * 14
         self._t0 = None
+        self._last_flat_s = -math.inf
+
+    def _end_run(self) -> None:
+        s, b = self._sums, self._best
+        if s[0] and (not b[0] or s[11] - s[10] > b[11] - b[10]):
+            self._best = s
+        self._sums = [0.0] * 14
 
     def reset(self) -> None:
         """Forget every stride (a new walk)."""
@@ -163,8 +179,11 @@ class TaskEstimator:
         if not (math.isfinite(th) and math.isfinite(thd)):
             return
         pitch_rate = thd - x.knee_velocity_rad_s + x.ankle_velocity_rad_s
+        if x.time_s - self._last_flat_s > self.gap_tolerance_s + 1e-9 and self._sums[0]:
+            self._end_run()
         if abs(pitch_rate) > self.flat_rate_rad_s:
             return
+        self._last_flat_s = x.time_s
         shank = th - x.knee_angle_rad
         # the hip relative to the (stationary) ankle: minus the ankle's position from the hip
         hx = -(self.thigh_length_m * math.sin(th) + self.shank_length_m * math.sin(shank))
@@ -191,7 +210,8 @@ class TaskEstimator:
         s[11] = t
 
     def _close_stride(self, now_s: float) -> TaskEstimate:
-        s = self._sums
+        self._end_run()
+        s = self._best
         n = s[0]
         flat_s = s[11] - s[10] if n else 0.0
         stride = StrideTask(now_s, math.nan, math.nan, flat_s, math.nan, math.nan, 0.0, 0.0, False)

@@ -8,6 +8,7 @@ import json
 import numpy as np
 
 from backend.cli.model import load
+from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 
 
@@ -17,14 +18,24 @@ def soak_tables(args: argparse.Namespace, n: int = 12) -> list[ParameterTable]:
     return [model.propose(float(s), 0.0, 75.0).table for s in np.linspace(0.8, 1.9, n)]
 
 
+def soak_envelopes(args: argparse.Namespace, n: int = 4) -> list[Envelope]:
+    """The envelopes the soak pushes in turn: 5 × 5 over 0.6–1.6 m/s × ±10° for patients of 60 to 90 kg."""
+    model = load(args)
+    return [model.propose_envelope(np.linspace(0.6, 1.6, 5), np.linspace(-10, 10, 5), float(m))
+            for m in np.linspace(60.0, 90.0, n)]
+
+
 def cmd_device_soak(args: argparse.Namespace) -> int:
     from device_bridge.soak import soak
 
-    out = soak(soak_tables(args), args.trials, args.drop, args.corrupt, args.reorder, seed=args.seed)
+    items = soak_envelopes(args) if args.envelopes else soak_tables(args)
+    out = soak(items, args.trials, args.drop, args.corrupt, args.reorder, seed=args.seed,
+               push_timeout_s=4.0 if args.envelopes else 2.0)
     if args.format == "json":
         print(json.dumps(out))
     else:
-        print(f"{out['trials']} pushes through a bus with drop {args.drop:g}, corrupt {args.corrupt:g}, "
+        what = "envelope" if args.envelopes else "table"
+        print(f"{out['trials']} {what} pushes through a bus with drop {args.drop:g}, corrupt {args.corrupt:g}, "
               f"reorder {args.reorder:g}")
         for key in ("committed", "kept_old", "committed_unconfirmed", "mixed", "crc_mismatch"):
             print(f"  {key:22s} {out[key]}")
@@ -57,6 +68,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--corrupt", type=_probability, default=0.02, help="probability a frame gets one bit flipped")
     p.add_argument("--reorder", type=_probability, default=0.05, help="probability a frame swaps with the next")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--envelopes", action="store_true", help="push whole 5 × 5 envelopes instead of single tables")
     p.add_argument("--model", type=Path, default=None, help="model directory whose proposals are pushed")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_device_soak)

@@ -112,7 +112,7 @@ def test_strides_walked_on_the_bench_are_estimated_within_the_target(model, spee
 
     ref = sloped_walking_reference(speed, incline)
     leg = SimulatedLeg(incline_deg=incline)
-    traj = plan_bench_trajectory(ref, leg.geometry, 75.0, 8.0, leg.timestep_s)
+    traj = plan_bench_trajectory(ref, leg.geometry, 75.0, 10.0, leg.timestep_s)
     s0 = traj.phase[0]
     x = leg.reset(traj, float(np.interp(s0, ref.phase, ref.knee_angle_rad)),
                   float(np.interp(s0, ref.phase, ref.ankle_angle_rad)))
@@ -124,7 +124,7 @@ def test_strides_walked_on_the_bench_are_estimated_within_the_target(model, spee
         if (e := est.update(x, cmd.state in (GaitState.STANCE_FLEXION, GaitState.STANCE_EXTENSION))) is not None:
             estimates.append(e)
         x = leg.step(cmd.knee_torque_Nm, cmd.ankle_torque_Nm)
-    settled = estimates[2:]
+    settled = estimates[3:]   # the first strides are the bench settling from its start
     assert len(settled) >= 4
     assert all(abs(e.speed_mps - speed) <= 0.1 and abs(e.incline_deg - incline) <= 1.5 for e in settled)
     assert all(e.speed_confident and e.incline_confident for e in settled)
