@@ -1,4 +1,4 @@
-"""``python -m benchmarks {model,api,device,ui} [options]``: run one benchmark and print its figures as JSON."""
+"""``python -m benchmarks {model,api,device,envelope,ui} [options]``: run one benchmark and print its figures as JSON."""
 
 from __future__ import annotations
 
@@ -18,6 +18,10 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("device", help="push latency through the API and telemetry rate with the simulated leg")
     p.add_argument("--seconds", type=float, default=10.0, help="telemetry measured for this long (s)")
     p.add_argument("--pushes", type=int, default=50, help="approved proposals pushed through the API")
+    p = sub.add_parser("envelope", help="envelope proposal, per-stride blend, adaptive tick, envelope pushes (clean, faulty)")
+    p.add_argument("--repeats", type=int, default=50, help="envelopes proposed")
+    p.add_argument("--pushes", type=int, default=100, help="envelope pushes over a clean virtual bus")
+    p.add_argument("--trials", type=int, default=500, help="envelope pushes through a faulty bus")
     p = sub.add_parser("ui", help="dashboard in Chromium: proposal view time to interactive, live-monitor fps")
     p.add_argument("--repeats", type=int, default=20, help="proposals requested through the page")
     p.add_argument("--monitor-seconds", type=float, default=5.0, help="live monitor measured for this long (s)")
@@ -30,6 +34,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.api import run
 
         result = run(args.clients, args.seconds)
+    elif args.name == "envelope":
+        from benchmarks.envelope import run
+
+        result = run(args.repeats, args.pushes, args.trials)
     elif args.name == "device":
         from benchmarks.device import run
 
