@@ -18,7 +18,7 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("device", help="push latency through the API and telemetry rate with the simulated leg")
     p.add_argument("--seconds", type=float, default=10.0, help="telemetry measured for this long (s)")
     p.add_argument("--pushes", type=int, default=50, help="approved proposals pushed through the API")
-    p = sub.add_parser("envelope", help="envelope proposal, per-stride blend, adaptive tick, envelope pushes (clean, faulty)")
+    p = sub.add_parser("envelope", help="envelope proposal, per-stride blend, adaptive tick, envelope pushes")
     p.add_argument("--repeats", type=int, default=50, help="envelopes proposed")
     p.add_argument("--pushes", type=int, default=100, help="envelope pushes over a clean virtual bus")
     p.add_argument("--trials", type=int, default=500, help="envelope pushes through a faulty bus")
