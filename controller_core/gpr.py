@@ -250,3 +250,25 @@ class FeatureGPRBank:
         for j in self.flat_hulls:
             outside[j] = not self.hulls[j].contains(x)
         return mean, np.sqrt(var) * self.y_std, outside[self.hull_of]
+
+    def predict_many(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`predict` at T tasks at once (X (T, d)): means, stds and extrapolation flags, each (T, m)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        xs = X / self.scale                                                  # (T, d)
+        diff = self.Xs[None] - xs[:, None, None, :]                          # (T, m, n, d)
+        z = np.einsum("tmnd,mkd->tmkn", diff * diff, self.inv_ls * self.inv_ls)
+        k = np.einsum("mk,tmkn->tmn", self.amp_rbf, np.exp(-0.5 * z))
+        k += self.amp_lin[None, :, None] * (self.sigma0_sq[None, :, None] + np.einsum("mnd,td->tmn", self.Xs, xs))
+        k *= self.mask[None]
+        mean = np.einsum("tmn,mn->tm", k, self.alpha) * self.y_std + self.y_mean
+        v = np.einsum("mij,tmj->tmi", self.Linv, k)
+        prior = self.amp_rbf.sum(axis=1)[None] + self.amp_lin[None] * (
+            self.sigma0_sq[None] + np.einsum("td,td->t", xs, xs)[:, None]) + self.noise[None]
+        var = np.maximum(prior - np.einsum("tmi,tmi->tm", v, v), 1e-12)
+        outside = np.zeros((X.shape[0], len(self.hulls)), dtype=bool)
+        if self.full_hulls.size:
+            faces = X @ self.faces_M.T + self.faces_q                        # (T, faces)
+            outside[:, self.full_hulls] = np.maximum.reduceat(faces, self.faces_start, axis=1) > 1.0
+        for j in self.flat_hulls:
+            outside[:, j] = [not self.hulls[j].contains(x) for x in X]
+        return mean, np.sqrt(var) * self.y_std[None], outside[:, self.hull_of]

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controller_core.envelope import DEFAULT_STEPS, Envelope, NeighbourSteps, build_envelope
+from controller_core.envelope import DEFAULT_STEPS, Envelope, NeighbourSteps, build_envelope, validate_axes
 from controller_core.features import (
     FEATURES,
     PHASED_FEATURES,
@@ -412,6 +412,16 @@ class QuasiStiffnessModel:
     def predict_features(self, speed_mps: float, incline_deg: float) -> list[FeaturePrediction]:
         """GPR predictions of every feature at a task (SI values; timing value = its phase)."""
         mean, sd, outside = self.feature_bank_.predict(np.array([speed_mps, incline_deg], dtype=float))
+        return self._features(incline_deg, mean, sd, outside)
+
+    def predict_features_many(self, tasks: np.ndarray) -> list[list[FeaturePrediction]]:
+        """:meth:`predict_features` at many (speed, incline) tasks in one evaluation of the GPRs."""
+        tasks = np.atleast_2d(np.asarray(tasks, dtype=float))
+        mean, sd, outside = self.feature_bank_.predict_many(tasks)
+        return [self._features(float(t[1]), m, s, o) for t, m, s, o in zip(tasks, mean, sd, outside, strict=True)]
+
+    def _features(self, incline_deg: float, mean: np.ndarray, sd: np.ndarray, outside: np.ndarray
+                  ) -> list[FeaturePrediction]:
         if incline_deg != 0.0:
             mean = mean + incline_deg * self.trend_per_degree_["uphill" if incline_deg > 0 else "downhill"]
         nv = len(FEATURES)
@@ -534,16 +544,20 @@ class QuasiStiffnessModel:
             extrapolation=extrapolation, features=features, phase=self.s_query_, means=means, stds=stds,
             boundaries=boundaries, fits=fits, table=table, violations=check_table(table), vias=vias)
 
-    def propose_table(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0
-                      ) -> tuple[ParameterTable, list[FeaturePrediction]]:
+    def propose_table(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
+                      features: list[FeaturePrediction] | None = None) -> tuple[ParameterTable, list[FeaturePrediction]]:
         """The parameter table of :meth:`propose` and the features it came from, without the curves' std (an
         envelope needs 25 tables, not their display curves). The same table as ``propose(...).table``.
+
+        Args:
+            features: the task's features when already predicted (:meth:`predict_features_many`).
 
         Raises:
             InvalidTaskError: NaN or out-of-range input.
         """
         validate_task(speed_mps, incline_deg, mass_kg)
-        features = self.predict_features(speed_mps, incline_deg)
+        if features is None:
+            features = self.predict_features(speed_mps, incline_deg)
         fmap = {f.spec.name: f for f in features}
         task = np.array([speed_mps, incline_deg], dtype=float)
         references = self.reference_means(task)
@@ -580,9 +594,16 @@ class QuasiStiffnessModel:
             InvalidTaskError: a bad axis (fewer than 2 or more than 15 values, not increasing, out of range) or mass.
         """
         validate_task(1.0, 0.0, mass_kg)
-        return build_envelope(self.propose_table, list(np.asarray(speeds_mps, dtype=float)),
-                              list(np.asarray(inclines_deg, dtype=float)), mass_kg, self.model_version,
-                              self.data_sha256_, nominal, steps)
+        speeds, inclines = list(np.asarray(speeds_mps, dtype=float)), list(np.asarray(inclines_deg, dtype=float))
+        validate_axes(speeds, inclines)
+        grid = [(s, g) for s in speeds for g in inclines]
+        predicted = dict(zip(grid, self.predict_features_many(np.array(grid)), strict=True))   # one GPR evaluation
+
+        def node_table(speed: float, incline: float, mass: float) -> tuple[ParameterTable, list[FeaturePrediction]]:
+            return self.propose_table(speed, incline, mass, predicted[(speed, incline)])
+
+        return build_envelope(node_table, speeds, inclines, mass_kg, self.model_version, self.data_sha256_, nominal,
+                              steps)
 
     def predict_curves(self, task: np.ndarray, features: list[FeaturePrediction], with_vias: bool = True
                        ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, list[ViaPoint]]]:

@@ -111,3 +111,12 @@ def test_the_nominal_task_is_clamped_into_the_grid(model):
     env = model.propose_envelope([0.8, 1.0], [0.0, 4.0], 70.0, nominal=(1.2, 0.0))
     assert (env.nominal_speed_mps, env.nominal_incline_deg) == (1.0, 0.0)
     assert env.mass_kg == 70.0 and all(n.table.provenance.patient_mass_kg == 70.0 for n in env.nodes)
+
+
+def test_features_predicted_for_many_tasks_at_once_are_those_of_each_task(model):
+    tasks = np.array([[s, g] for s in (0.5, 1.1, 2.4) for g in (-12.0, 0.0, 7.5)])
+    for task, many in zip(tasks, model.predict_features_many(tasks), strict=True):
+        for a, b in zip(many, model.predict_features(*task), strict=True):
+            assert a.spec == b.spec and a.extrapolation == b.extrapolation
+            assert (a.value, a.std, a.phase, a.phase_std) == pytest.approx((b.value, b.std, b.phase, b.phase_std),
+                                                                           rel=1e-9, abs=1e-12)
