@@ -4,7 +4,8 @@ A :class:`Course` is a list of segments (duration, speed, incline) joined by smo
 starts at a segment's start and blends from the previous task to the new one over ``transition_s`` with a
 raised-cosine (no jump in speed or slope). The terrain is built from the same schedule: the walker covers
 arc length u(t) = ∫ v dt, and the floor's slope at arc length u(t) is the course's incline at time t, so the socket
-meets each ramp when the schedule says. The floor is a MuJoCo height field sampled every ``TERRAIN_STEP_M``.
+meets each ramp when the schedule says. The floor's profile is sampled every ``TERRAIN_STEP_M`` and built as a chain
+of straight pieces (:meth:`Terrain.polyline`).
 
 :func:`plan_course_trajectory` gives the socket the able-bodied pattern of the current task at every tick
 (:mod:`device_bridge.sim.bench_trajectory`'s thigh angle, hip height and load, per task, blended in time), with the
@@ -150,6 +151,17 @@ class Terrain:
     def height_at(self, x_m: np.ndarray) -> np.ndarray:
         return np.interp(x_m, self.x0_m + self.step_m * np.arange(self.z_m.size), self.z_m)
 
+    def polyline(self, tolerance_deg: float = 0.25) -> tuple[tuple[float, float], ...]:
+        """The profile as few straight pieces: samples where the slope changes by more than ``tolerance_deg``."""
+        x = self.x0_m + self.step_m * np.arange(self.z_m.size)
+        slope = np.degrees(np.arctan2(np.diff(self.z_m), np.diff(x)))
+        keep = [0]
+        for k in range(1, slope.size):
+            if abs(slope[k] - slope[keep[-1] if keep[-1] < slope.size else -1]) > tolerance_deg:
+                keep.append(k)
+        keep.append(self.z_m.size - 1)
+        return tuple((float(x[k]), float(self.z_m[k])) for k in keep)
+
 
 @dataclass(frozen=True)
 class CourseTrajectory:
@@ -219,7 +231,11 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
     s = (start_phase + np.concatenate([[0.0], np.cumsum(timestep_s / period[:-1])])) % 1.0
     half = coef.shape[1] // 2
     thigh, dthigh = _series(coef[:, :half], s)
-    height, _ = _series(coef[:, half:], s)
+    height, dheight = _series(coef[:, half:], s)
+    # d/dt at a fixed phase, from the pattern's change with the task (the coefficients are linear between knots)
+    coef_rate = (coef_knots[i0 + 1] - coef_knots[i0]) / TASK_SAMPLE_S
+    thigh_t, _ = _series(coef_rate[:, :half], s)
+    height_t, _ = _series(coef_rate[:, half:], s)
     # the load as the fixed-task bench applies it: linear on the phase grid (no ringing at heel strike)
     g = s * (LOAD_GRID.size - 1)
     j = np.minimum(g.astype(int), LOAD_GRID.size - 2)
@@ -233,11 +249,18 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
     nx, nz = -np.sin(gamma), np.cos(gamma)
     x = floor_x + height * nx
     z = floor_z + height * nz
-    bench = BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=thigh, xd_m_s=np.gradient(x, timestep_s),
-                            zd_m_s=np.gradient(z, timestep_s), hipd_rad_s=dthigh / period,
-                            load_N=vgrf * mass_kg * G_MPS2, height_m=height, stride_time_s=float(np.mean(period)))
-    # terrain: the floor line, extended flat 2 m behind the start and 3 m beyond the end
+    # velocities analytically, as the fixed-task bench has them: along the floor, along its normal, its turning
+    hdot = dheight / period + height_t
+    gamma_rate = np.gradient(gamma, timestep_s)
+    xd = speed * np.cos(gamma) + hdot * nx - height * np.cos(gamma) * gamma_rate
+    zd = speed * np.sin(gamma) + hdot * nz - height * np.sin(gamma) * gamma_rate
+    bench = BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=thigh, xd_m_s=xd, zd_m_s=zd,
+                            hipd_rad_s=dthigh / period + thigh_t, load_N=vgrf * mass_kg * G_MPS2, height_m=height,
+                            stride_time_s=float(np.mean(period)))
+    # terrain: the floor line, continued at its first and last slopes 2 m behind the start and 3 m beyond the end
     grid = np.arange(-2.0, floor_x[-1] + 3.0, TERRAIN_STEP_M)
-    zs = np.interp(grid, floor_x, floor_z)   # np.interp holds the end heights outside: flat run-in and run-out
+    zs = np.interp(grid, floor_x, floor_z)
+    zs = np.where(grid < 0.0, grid * math.tan(gamma[0]), zs)
+    zs = np.where(grid > floor_x[-1], floor_z[-1] + (grid - floor_x[-1]) * math.tan(gamma[-1]), zs)
     return CourseTrajectory(bench=bench, speed_mps=speed, incline_deg=incline, normal_x=nx, normal_z=nz,
                             terrain=Terrain(x0_m=float(grid[0]), step_m=TERRAIN_STEP_M, z_m=zs))

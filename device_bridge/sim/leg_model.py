@@ -3,7 +3,7 @@
 Frame: x forward (walking direction), z up, rotations about y. The floor is a plane tilted by the incline
 (uphill rises towards +x). A treadmill belt at constant speed is an inertial frame, so the bench walks the
 socket forward over a fixed floor at the belt speed: the same physics with nothing moving under the foot. On a
-varying-task course (:mod:`device_bridge.sim.course`) the floor is a height field with the course's ramps instead.
+varying-task course (:mod:`device_bridge.sim.course`) the floor is a chain of boxes following the course's ramps.
 Friction uses elliptic cones with ``impratio`` 10: with MuJoCo's default pyramidal cones the loaded foot crept
 down an 8° ramp at about 0.13 m/s (soft-contact slip), which a shoe on a ramp does not do.
 
@@ -27,6 +27,7 @@ Each joint has an armature standing for the reflected inertia of a geared actuat
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -98,25 +99,30 @@ def _rod_inertia(mass: float, length: float) -> float:
     return mass * length * length / 12.0
 
 
-def _floor(incline_deg: float, terrain_columns: int, terrain_x_m: tuple[float, float], terrain_z_m: tuple[float, float]
-           ) -> tuple[str, str]:
-    """(asset, geom) of the floor: a plane tilted by the incline, or a height field over ``terrain_x_m`` (a course's
-    ramps; its heights are written into the compiled model by :class:`device_bridge.sim.plant.SimulatedLeg`)."""
-    contact = 'contype="1" conaffinity="1" friction="1.0 0.005 0.0001"'
-    if terrain_columns <= 0:
-        return "", (f'<geom name="floor" type="plane" size="200 1 0.1" euler="0 {-math.radians(incline_deg):.9f} 0" '
-                    f'material="grid" {contact}/>')
-    (x0, x1), (z0, z1) = terrain_x_m, terrain_z_m
-    rx, rz = 0.5 * (x1 - x0), max(z1 - z0, 1e-3)
-    asset = f'<hfield name="terrain" nrow="2" ncol="{terrain_columns}" size="{rx:.6f} 0.5 {rz:.6f} 0.1"/>'
-    return asset, (f'<geom name="floor" type="hfield" hfield="terrain" pos="{x0 + rx:.6f} 0 {z0:.6f}" '
-                   f'material="grid" {contact}/>')
+def _floor(incline_deg: float, terrain: tuple[tuple[float, float], ...] = ()) -> str:
+    """The floor's geoms: a plane tilted by the incline, or, for a course, a chain of thin boxes whose top faces follow
+    the polyline ``terrain`` ((x, z) vertices, m): box–sphere contact is as exact as plane–sphere contact (a height
+    field's prism contacts made the same walk fall where the plane did not)."""
+    contact = 'material="grid" contype="1" conaffinity="1" friction="1.0 0.005 0.0001"'
+    if not terrain:
+        return (f'<geom name="floor" type="plane" size="200 1 0.1" euler="0 {-math.radians(incline_deg):.9f} 0" '
+                f'{contact}/>')
+    out = []
+    half_thick = 0.1
+    for k, ((x0, z0), (x1, z1)) in enumerate(itertools.pairwise(terrain)):
+        length = math.hypot(x1 - x0, z1 - z0)
+        slope = math.atan2(z1 - z0, x1 - x0)
+        cx = 0.5 * (x0 + x1) + half_thick * math.sin(slope)   # the box's centre: half its thickness below the top face
+        cz = 0.5 * (z0 + z1) - half_thick * math.cos(slope)
+        out.append(f'<geom name="floor{k}" type="box" size="{0.5 * length:.6f} 1 {half_thick}" pos="{cx:.6f} 0 {cz:.6f}" '
+                   f'euler="0 {-slope:.9f} 0" {contact}/>')
+    return "\n    ".join(out)
 
 
-def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: float = 0.001, terrain_columns: int = 0,
-               terrain_x_m: tuple[float, float] = (0.0, 0.0), terrain_z_m: tuple[float, float] = (0.0, 0.0)) -> str:
-    """The bench as an MJCF string (see the module docstring for bodies, joints and sensors); with
-    ``terrain_columns`` the floor is a height field instead of a plane (see :func:`_floor`)."""
+def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: float = 0.001,
+               terrain: tuple[tuple[float, float], ...] = ()) -> str:
+    """The bench as an MJCF string (see the module docstring for bodies, joints and sensors); with ``terrain`` (a
+    course's floor polyline) the floor follows it instead of the tilted plane (see :func:`_floor`)."""
     g = geometry
     lt, ls, ha = g.thigh_m, g.shank_m, g.ankle_height_m
     r, heel, toe = g.contact_radius_m, g.heel_back_m, g.toe_forward_m
@@ -126,7 +132,7 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
     foot_len = heel + toe
     i_long = _rod_inertia(g.foot_mass_kg, foot_len)
     foot_inertia = f"{_rod_inertia(g.foot_mass_kg, 0.05):.6g} {i_long:.6g} {i_long:.6g}"
-    hfield, floor = _floor(incline_deg, terrain_columns, terrain_x_m, terrain_z_m)
+    floor = _floor(incline_deg, terrain)
     return f"""
 <mujoco model="quasitune_hip_driven_bench">
   <compiler angle="radian" autolimits="true"/>
@@ -136,7 +142,6 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
     <texture name="grid" type="2d" builtin="checker" width="256" height="256" rgb1="0.82 0.84 0.86"
              rgb2="0.72 0.74 0.76"/>
     <material name="grid" texture="grid" texrepeat="20 2"/>
-    {hfield}
   </asset>
   <default>
     <geom contype="0" conaffinity="0" rgba="0.35 0.45 0.6 1"/>

@@ -29,7 +29,7 @@ class SimulatedLeg:
     Args:
         geometry: segment lengths and masses.
         incline_deg: floor incline (deg, + uphill); ignored with ``terrain``.
-        terrain: a course's floor profile (a height field) instead of the tilted plane.
+        terrain: a course's floor profile instead of the tilted plane.
         timestep_s: physics and control period (s); 0.001 for the 1 kHz controller.
 
     Attributes:
@@ -42,17 +42,8 @@ class SimulatedLeg:
             raise ValueError(f"incline_deg must be within ±20 deg, got {incline_deg!r}")
         self.geometry = geometry or LegGeometry()
         self.incline_deg = float(incline_deg)
-        if terrain is None:
-            xml = build_mjcf(self.geometry, incline_deg, timestep_s)
-        else:
-            z = terrain.z_m
-            xml = build_mjcf(self.geometry, 0.0, timestep_s, terrain_columns=z.size,
-                             terrain_x_m=(terrain.x0_m, terrain.x0_m + terrain.step_m * (z.size - 1)),
-                             terrain_z_m=(float(z.min()), float(z.max())))
+        xml = build_mjcf(self.geometry, incline_deg, timestep_s, () if terrain is None else terrain.polyline())
         self.model = mujoco.MjModel.from_xml_string(xml)
-        if terrain is not None:   # heights as fractions of the field's range, both rows alike
-            span = max(float(terrain.z_m.max() - terrain.z_m.min()), 1e-3)
-            self.model.hfield_data[:] = np.tile((terrain.z_m - terrain.z_m.min()) / span, 2)
         self.data = mujoco.MjData(self.model)
         self.timestep_s = float(self.model.opt.timestep)
         m = self.model
@@ -63,7 +54,7 @@ class SimulatedLeg:
         self._s_knee, self._s_kneev = adr["knee_angle"], adr["knee_velocity"]
         self._s_ankle, self._s_anklev = adr["ankle_angle"], adr["ankle_velocity"]
         self._s_force, self._s_torque = adr["load_cell_force"], adr["load_cell_torque"]
-        self._floor = m.geom("floor").id
+        self._floor = {i for i in range(m.ngeom) if m.geom(i).name.startswith("floor")}
         self._feet = {m.geom("heel").id, m.geom("toe").id}
         self._gravity_comp_N = self.geometry.moving_mass_kg * G_MPS2
         self.vertical_stiffness_N_per_m = float(m.actuator("hip_z_pos").gainprm[0])
@@ -137,7 +128,7 @@ class SimulatedLeg:
         for j in range(d.ncon):
             con = d.contact[j]
             pair = {int(con.geom1), int(con.geom2)}
-            if self._floor in pair and pair & self._feet:
+            if pair & self._floor and pair & self._feet:
                 mujoco.mj_contactForce(self.model, d, j, f6)
                 total += abs(f6[0])
         return total

@@ -102,3 +102,20 @@ def test_each_stride_is_scored_against_its_own_task(adaptive_walk):
     assert [b["strides"] for b in by_segment] == [int(np.sum(segments == k)) for k in range(2)]
     lo, hi = score.summary["knee_angle_rmse_ci95_deg"]
     assert lo <= score.summary["knee_angle_rmse_deg"] <= hi
+
+
+def test_a_one_task_course_walks_exactly_as_the_fixed_task_bench(model):
+    """The course's floor and socket path change nothing where the task does not change (a height field once did)."""
+    from controller_core.fsm import ImpedanceSchedule, StateMachineController
+    from device_bridge.sim.course import task_pattern
+    from device_bridge.sim.course_walk import run_course
+    from device_bridge.sim.simulate import run_walk
+
+    table = model.propose(1.2, 5.0, 75.0).table
+    course = Course("one-task", (Segment(6.0, 1.2, 5.0),))
+    log_course, _ = run_course(StateMachineController(ImpedanceSchedule.from_table(table)), course, 75.0)
+    log_fixed = run_walk(StateMachineController(ImpedanceSchedule.from_table(table)), task_pattern(1.2, 5.0), 75.0, 6.0)
+    for channel in ("knee_angle_rad", "ankle_angle_rad"):
+        np.testing.assert_allclose(log_course.channels[channel], log_fixed.channels[channel], atol=1e-5)
+    np.testing.assert_allclose(log_course.channels["contact_N"], log_fixed.channels["contact_N"], rtol=1e-3, atol=0.5)
+    np.testing.assert_array_equal(log_course.channels["state"], log_fixed.channels["state"])
