@@ -17,6 +17,7 @@ command; the per-stride history is kept for telemetry and scoring.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -64,13 +65,14 @@ class AdaptiveController:
         nominal: (speed m/s, incline deg) to run when the estimate is not confident.
         limits: actuator limits.
         max_speed_step_mps, max_incline_step_deg: the most the task may move per stride.
+        history_strides: how many stride decisions are kept (the oldest are dropped: a leg walks for hours).
 
     Attributes:
         machine_: the wrapped state machine.
         speed_mps_, incline_deg_: the task the current rows were blended at.
         blend_: the current blend.
         mode_: the current mode.
-        decisions_: one :class:`StrideDecision` per heel strike.
+        decisions_: one :class:`StrideDecision` per heel strike, the last ``history_strides``.
     """
 
     blender: EnvelopeBlender
@@ -79,18 +81,22 @@ class AdaptiveController:
     limits: ActuatorLimits = field(default_factory=ActuatorLimits)
     max_speed_step_mps: float = 0.15
     max_incline_step_deg: float = 3.0
+    history_strides: int = 2000
     machine_: StateMachineController = field(init=False)
     speed_mps_: float = field(init=False)
     incline_deg_: float = field(init=False)
     blend_: Blend = field(init=False)
     mode_: AdaptiveMode = field(init=False, default="nominal")
-    decisions_: list[StrideDecision] = field(init=False, default_factory=list)
+    decisions_: deque[StrideDecision] = field(init=False)
 
     def __post_init__(self) -> None:
         for name in ("max_speed_step_mps", "max_incline_step_deg"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        if not (isinstance(self.history_strides, int) and self.history_strides >= 1):
+            raise ValueError(f"history_strides must be a positive integer, got {self.history_strides!r}")
+        self.decisions_ = deque(maxlen=self.history_strides)
         self.blend_ = self.blender.at(*self.nominal)
         self.nominal = (self.blend_.speed_mps, self.blend_.incline_deg)
         self.machine_ = StateMachineController(self.blend_.schedule, self.limits)
@@ -116,7 +122,7 @@ class AdaptiveController:
         self.blend_ = self.blender.at(*self.nominal)
         self.speed_mps_, self.incline_deg_ = self.nominal
         self.mode_ = "nominal"
-        self.decisions_ = []
+        self.decisions_.clear()
         self.machine_.load(self.blend_.schedule)
         self.machine_.reset(state)
 

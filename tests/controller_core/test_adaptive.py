@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -77,6 +78,11 @@ def test_rows_change_only_at_heel_strike_and_at_most_by_the_rate_limit(blender):
         assert abs(speed - prev[0]) <= 0.15 + 1e-9 and abs(incline - prev[1]) <= 3.0 + 1e-9
         prev = (speed, incline)
     assert tasks[-1] == pytest.approx((1.6, 8.0))          # reached in steps, not in one jump
+    short = AdaptiveController(blender, ScriptedEstimator([(1.6, 8.0, True)] * 10), (1.2, 0.0), history_strides=3)
+    short.reset()
+    for x in strides(8):
+        short.step(x)
+    assert len(short.decisions_) == 3 and short.decisions_[-1].time_s == ctrl.decisions_[-1].time_s
     assert ctrl.decisions_[-1].mode == "adaptive"
 
 
@@ -92,7 +98,8 @@ def test_without_confidence_the_leg_returns_to_nominal_at_the_same_rate(blender)
     assert (away.speed_mps, away.incline_deg) != (1.2, 0.0)
     back = ctrl.decisions_[-1]
     assert (back.speed_mps, back.incline_deg) == pytest.approx((1.2, 0.0))
-    steps = [abs(b.incline_deg - a.incline_deg) for a, b in zip(ctrl.decisions_, ctrl.decisions_[1:], strict=False)]
+    decisions = list(ctrl.decisions_)
+    steps = [abs(b.incline_deg - a.incline_deg) for a, b in itertools.pairwise(decisions)]
     assert max(steps) <= 3.0 + 1e-9
 
 
