@@ -1,7 +1,7 @@
 """The ``quasitune`` command line.
 
 Commands by area: the server (``serve``, ``users``, ``bridge``: :mod:`backend.cli.server`), the model (``predict``,
-``plot``, ``train``, ``evaluate``: :mod:`backend.cli.model`), the simulated bench (``simulate``, ``compare``:
+``plot``, ``train``, ``evaluate``, ``envelope``: :mod:`backend.cli.model`), the simulated bench (``simulate``, ``compare``:
 :mod:`backend.cli.simulation`) and the device link (``device soak|drill``: :mod:`backend.cli.device`). Bad input
 exits with code 2 and a one-line reason on stderr. Benchmarks are not commands of the app: ``python -m benchmarks``.
 """

@@ -64,7 +64,58 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_envelope(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
+
+    (s0, s1), (g0, g1) = args.speeds, args.inclines
+    env = load(args).propose_envelope(np.linspace(s0, s1, args.grid[0]), np.linspace(g0, g1, args.grid[1]), args.mass,
+                                      nominal=(args.nominal[0], args.nominal[1]))
+    violations = check_envelope_as_run(env)
+    wire_crc = WireEnvelope.from_envelope(env).crc32() if not violations else None
+    if args.format == "json":
+        print(json.dumps({**env.to_json(), "wire_crc32": wire_crc, "safety": {
+            "ok": not violations, "violations": [v.model_dump() for v in violations]}}, allow_nan=False))
+        return 0 if not violations else 1
+    print(f"Envelope {len(env.speeds_mps)} × {len(env.inclines_deg)}: speeds "
+          f"{', '.join(f'{v:g}' for v in env.speeds_mps)} m/s × inclines {', '.join(f'{v:+g}' for v in env.inclines_deg)}"
+          f" deg, patient {env.mass_kg:g} kg, nominal {env.nominal_speed_mps:g} m/s {env.nominal_incline_deg:+g} deg")
+    print(f"Model {env.model_version}; CRC-32 {env.crc32():08x} (JSON)" + (f", {wire_crc:08x} (on the wire)" if wire_crc
+                                                                         is not None else ""))
+    print("\nNodes (x: outside the training data; g: values held to the neighbour rule)")
+    print("  " + "speed \\ incline".ljust(16) + "".join(f"{v:+8g}" for v in env.inclines_deg))
+    for i, speed in enumerate(env.speeds_mps):
+        cells = []
+        for j in range(len(env.inclines_deg)):
+            node = env.node(i, j)
+            cells.append(("x" if node.extrapolation else "·") + ("g" if node.neighbour_guarded else " "))
+        print(f"  {speed:<16g}" + "".join(f"{c:>8s}" for c in cells))
+    for node in env.nodes:
+        for name, fitted in node.neighbour_guarded.items():
+            print(f"  guard at {node.speed_mps:g} m/s {node.incline_deg:+g} deg: {name} fitted {fitted:.4g}, held to "
+                  "its neighbours' step")
+    print("\nSafety (every node's limits, the neighbour rule, as the device will run it): "
+          + ("all within limits" if not violations else "VIOLATIONS:"))
+    for v in violations:
+        print(f"  - {v.message}")
+    return 0 if not violations else 1
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("envelope", help="propose an envelope: tables over a speed × incline grid, checked")
+    p.add_argument("--speeds", type=float, nargs=2, default=[0.6, 1.6], metavar=("LOW", "HIGH"),
+                   help="speed range (m/s)")
+    p.add_argument("--inclines", type=float, nargs=2, default=[-10.0, 10.0], metavar=("LOW", "HIGH"),
+                   help="incline range (deg)")
+    p.add_argument("--grid", type=int, nargs=2, default=[5, 5], metavar=("SPEEDS", "INCLINES"),
+                   help="nodes per axis (2-15 each)")
+    p.add_argument("--nominal", type=float, nargs=2, default=[1.2, 0.0], metavar=("SPEED", "INCLINE"),
+                   help="the task the leg returns to when unsure (clamped into the grid)")
+    p.add_argument("--mass", type=float, default=75.0, help="patient body mass (kg), 20-200")
+    p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")
+    p.add_argument("--format", choices=["text", "json"], default="text")
+    p.set_defaults(func=cmd_envelope)
     p = sub.add_parser("predict", help="propose curves and a parameter table for a task")
     task_args(p)
     p.add_argument("--format", choices=["text", "json"], default="text")
