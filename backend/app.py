@@ -29,6 +29,7 @@ from backend.routers import (
     audit,
     auth,
     devices,
+    envelopes,
     health,
     patients,
     previews,
@@ -122,8 +123,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         headers = {"Retry-After": str(exc.extra["retry_after_s"])} if "retry_after_s" in exc.extra else None
         return JSONResponse({"detail": exc.message, **exc.extra}, status_code=exc.status, headers=headers)
 
-    for router in (health.router, auth.router, users.router, patients.router, proposals.router, previews.router,
-                   reference.router, pushes.router, sessions.router, devices.router, audit.router):
+    for router in (health.router, auth.router, users.router, patients.router, proposals.router, envelopes.router,
+                   previews.router, reference.router, pushes.router, sessions.router, devices.router, audit.router):
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)

@@ -17,7 +17,7 @@ router = APIRouter(prefix="/api", tags=["audit"])
 
 @router.get("/audit", response_model=AuditPage, responses=UNAUTHORIZED)
 def list_audit(conn: Conn, _user: CurrentUser,
-               entity: Literal["user", "patient", "proposal", "device", "session"] | None = None,
+               entity: Literal["user", "patient", "proposal", "envelope", "device", "session"] | None = None,
                entity_id: Annotated[int | None, Query(ge=1, le=MAX_ID)] = None,
                actor: Annotated[str | None, Query(max_length=64, pattern=r"^[^\x00-\x1f]*$")] = None,
                before_id: Annotated[int | None, Query(ge=1, le=MAX_ID, description="older than this id")] = None,

@@ -1,0 +1,56 @@
+"""Envelopes: request one for a patient over speed and incline ranges, read it, approve or reject it once."""
+
+from __future__ import annotations
+
+import numpy as np
+from fastapi import APIRouter, status
+
+from backend.deps import Conn, CurrentUser, Model, Prosthetist
+from backend.schemas.common import IdPath
+from backend.schemas.envelopes import EnvelopeOut, EnvelopeRequest, EnvelopeSummary
+from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
+from backend.schemas.proposals import DecisionRequest
+from backend.store import envelopes, patients
+
+router = APIRouter(prefix="/api", tags=["envelopes"], responses=UNAUTHORIZED)
+
+
+@router.post("/patients/{patient_id}/envelopes", response_model=EnvelopeOut, status_code=status.HTTP_201_CREATED,
+             responses={**FORBIDDEN, **NOT_FOUND, **UNAVAILABLE})
+def create_envelope(patient_id: IdPath, body: EnvelopeRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
+    """Build the patient's next draft envelope (prosthetist): one table per node of the speed × incline grid, for the
+    patient's body mass, each from the model and within the limits, neighbours held to the neighbour rule; with the
+    device-side check of every node and both CRCs."""
+    patient = patients.get_patient(conn, patient_id)
+    env = model.propose_envelope(np.linspace(*body.speed_range_mps, body.grid[0]),
+                                 np.linspace(*body.incline_range_deg, body.grid[1]), patient["body_mass_kg"],
+                                 nominal=(body.nominal_speed_mps, body.nominal_incline_deg))
+    return envelopes.create_from_model(conn, patient_id, env, user)
+
+
+@router.get("/patients/{patient_id}/envelopes", response_model=list[EnvelopeSummary], responses=NOT_FOUND)
+def list_envelopes(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
+    """The patient's envelope versions, newest first (without nodes)."""
+    patients.get_patient(conn, patient_id)
+    return envelopes.list_envelopes(conn, patient_id)
+
+
+@router.get("/envelopes/{envelope_id}", response_model=EnvelopeOut, responses=NOT_FOUND)
+def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    """An envelope with every node's table, extrapolation flag, feature SDs and guarded values, and its check."""
+    return envelopes.get_envelope(conn, envelope_id)
+
+
+@router.post("/envelopes/{envelope_id}/approve", response_model=EnvelopeOut,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def approve_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
+    """Approve a draft envelope (prosthetist). The stored envelope is re-validated and every node and the neighbour
+    rule re-checked as the device will run them; an approved envelope never changes."""
+    return envelopes.decide(conn, envelope_id, "approved", body.comment, user)
+
+
+@router.post("/envelopes/{envelope_id}/reject", response_model=EnvelopeOut,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def reject_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
+    """Reject a draft envelope (prosthetist)."""
+    return envelopes.decide(conn, envelope_id, "rejected", body.comment, user)

@@ -1,0 +1,90 @@
+"""Envelopes: request one for a patient over speed and incline ranges, read it, decide it once."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, Field, model_validator
+
+from backend.schemas.common import StrictIn
+from backend.schemas.proposals import Decision, ModelInfo, Safety, TableRowOut
+from controller_core.envelope import NeighbourSteps
+from controller_core.table import Thresholds
+from controller_core.task import INCLINE_LIMIT_DEG, SPEED_RANGE_MPS
+
+MAX_NODES = 64   # what one transfer to the leg carries (device_bridge.envelope_wire)
+
+
+class EnvelopeRequest(StrictIn):
+    speed_range_mps: list[float] = Field(default=[0.6, 1.6], min_length=2, max_length=2,
+                                         description="lowest and highest walking speed (m/s), within [0.1, 3]")
+    incline_range_deg: list[float] = Field(default=[-10.0, 10.0], min_length=2, max_length=2,
+                                           description="lowest and highest incline (deg, + uphill), within [-20, 20]")
+    grid: list[int] = Field(default=[5, 5], min_length=2, max_length=2,
+                            description="nodes along speed and along incline (2-15 each, at most 64 in all: what one "
+                                        "transfer to the leg carries)")
+    nominal_speed_mps: float = Field(default=1.2, description="the task the leg returns to when unsure (m/s)")
+    nominal_incline_deg: float = Field(default=0.0, description="(deg); clamped into the envelope")
+
+    @model_validator(mode="after")
+    def _ranges(self) -> EnvelopeRequest:
+        (s0, s1), (g0, g1), (ns, ni) = self.speed_range_mps, self.incline_range_deg, self.grid
+        if not (SPEED_RANGE_MPS[0] <= s0 < s1 <= SPEED_RANGE_MPS[1]):
+            raise ValueError(f"speed_range_mps must be increasing within [{SPEED_RANGE_MPS[0]:g}, "
+                             f"{SPEED_RANGE_MPS[1]:g}] m/s, got {list(self.speed_range_mps)}")
+        if not (-INCLINE_LIMIT_DEG <= g0 < g1 <= INCLINE_LIMIT_DEG):
+            raise ValueError("incline_range_deg must be increasing within [-20, 20] deg, "
+                             f"got {list(self.incline_range_deg)}")
+        if not (2 <= ns <= 15 and 2 <= ni <= 15 and ns * ni <= MAX_NODES):
+            raise ValueError(f"grid must have 2-15 nodes per axis and at most {MAX_NODES} in all, got {list(self.grid)}")
+        if not (SPEED_RANGE_MPS[0] <= self.nominal_speed_mps <= SPEED_RANGE_MPS[1]
+                and abs(self.nominal_incline_deg) <= INCLINE_LIMIT_DEG):
+            raise ValueError("the nominal task must be a walking task: speed within [0.1, 3] m/s, incline within ±20 deg")
+        return self
+
+
+class Nominal(BaseModel):
+    speed_mps: float
+    incline_deg: float
+
+
+class NodeOut(BaseModel):
+    speed_mps: float
+    incline_deg: float
+    extrapolation: bool = Field(description="this node's task lies outside the training data for some feature")
+    feature_std: dict[str, float] = Field(description="the GPR's SD of each feature here (unit in the key)")
+    neighbour_guarded: dict[str, float] = Field(
+        description="values held to the neighbour rule → the value the pipeline fitted")
+    table: list[TableRowOut]
+    thresholds: Thresholds
+
+
+class EnvelopeSummary(BaseModel):
+    id: int
+    patient_id: int
+    version: int = Field(description="the envelope's version for its patient (the N of 'envelope vN')")
+    envelope_label: str = Field(description="its one name everywhere: 'patient code · envelope vN'")
+    parent_id: int | None
+    parent_version: int | None
+    source: Literal["model", "edit"]
+    status: Literal["draft", "approved", "rejected"]
+    created_by: str
+    created_at: str
+    edit_comment: str | None
+    decision: Decision | None
+    body_mass_kg: float
+    grid: list[int]
+    speeds_mps: list[float]
+    inclines_deg: list[float]
+    nominal: Nominal
+    extrapolation: bool = Field(description="some node lies outside the training data")
+    crc32: int = Field(description="CRC-32 of the envelope's JSON")
+    wire_crc32: int | None = Field(description="the CRC-32 the device reports once it holds this envelope")
+    envelope_sha256: str
+    model: ModelInfo
+    neighbour_steps: NeighbourSteps
+    safety: Safety
+
+
+class EnvelopeOut(EnvelopeSummary):
+    nodes: list[NodeOut] = Field(description="speed-major: node i × len(inclines_deg) + j")

@@ -1,0 +1,147 @@
+"""Envelope versions: created from the model for a patient, then approved or rejected once.
+
+Like a proposal, an envelope's content is immutable (SQLite triggers refuse any change, migration 0006), its
+decision is taken at most once, and versions are numbered per patient. What is stored is the Envelope JSON with its
+CRC-32; every read re-validates it, checks its sha256 and CRC, and re-runs the device-side check (every node's
+limits and the neighbour rule, as the device will run it), so what is shown and approved is what the device would
+accept.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+
+from backend.db import utc_now, write_transaction
+from backend.errors import ConflictError, NotFoundError
+from backend.store import audit
+from backend.store.users import User
+from controller_core.envelope import Envelope
+from controller_core.table import LimitViolation, display_rows
+from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
+from device_bridge.protocol import ProtocolError
+
+_ACTIONS = {"approved": "envelope.approve", "rejected": "envelope.reject"}
+_SELECT = ("SELECT e.*, cu.username AS created_by_name, du.username AS decided_by_name, "
+           "pe.version AS parent_version, pa.code_name AS patient_code FROM envelopes e "
+           "JOIN users cu ON cu.id = e.created_by LEFT JOIN users du ON du.id = e.decided_by "
+           "LEFT JOIN envelopes pe ON pe.id = e.parent_id JOIN patients pa ON pa.id = e.patient_id")
+
+
+def envelope_label(patient_code: str, version: int) -> str:
+    """The one name an envelope has everywhere (page, device, monitor, report)."""
+    return f"{patient_code} · envelope v{version}"
+
+
+def stored_envelope(row: sqlite3.Row) -> Envelope:
+    """The envelope, re-validated from storage and checked against its recorded sha256 and CRC-32."""
+    if hashlib.sha256(row["envelope_json"].encode()).hexdigest() != row["envelope_sha256"]:
+        raise ConflictError(f"envelope {row['id']}: stored content does not match its sha256; refusing to use it")
+    try:
+        return Envelope.from_json(json.loads(row["envelope_json"]))
+    except ValueError as exc:
+        raise ConflictError(f"envelope {row['id']}: {str(exc).splitlines()[0]}; refusing to use it") from exc
+
+
+def _wire_crc(envelope: Envelope) -> int | None:
+    try:
+        return WireEnvelope.from_envelope(envelope).crc32()
+    except ProtocolError:
+        return None
+
+
+def _meta(row: sqlite3.Row) -> dict:
+    return {
+        "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
+        "parent_version": row["parent_version"], "envelope_label": envelope_label(row["patient_code"], row["version"]),
+        "source": row["source"], "status": row["status"], "created_by": row["created_by_name"],
+        "created_at": row["created_at"], "edit_comment": row["edit_comment"],
+        "decision": None if row["status"] == "draft" else {
+            "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
+            "comment": row["decision_comment"]},
+        "body_mass_kg": row["body_mass_kg"], "grid": [row["n_speeds"], row["n_inclines"]],
+        "extrapolation": bool(row["extrapolation"]), "crc32": row["crc32"], "wire_crc32": row["wire_crc32"],
+        "envelope_sha256": row["envelope_sha256"],
+    }
+
+
+def _public(meta: dict, envelope: Envelope, full: bool, violations: list[LimitViolation] | None = None) -> dict:
+    violations = check_envelope_as_run(envelope) if violations is None else violations
+    out = {**meta, "speeds_mps": envelope.speeds_mps, "inclines_deg": envelope.inclines_deg,
+           "nominal": {"speed_mps": envelope.nominal_speed_mps, "incline_deg": envelope.nominal_incline_deg},
+           "model": {"version": envelope.model_version, "data_sha256": envelope.data_sha256},
+           "neighbour_steps": envelope.neighbour_steps.model_dump(),
+           "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]}}
+    if full:
+        out["nodes"] = [{"speed_mps": n.speed_mps, "incline_deg": n.incline_deg, "extrapolation": n.extrapolation,
+                         "feature_std": n.feature_std, "neighbour_guarded": n.neighbour_guarded,
+                         "table": display_rows(n.table), "thresholds": n.table.thresholds.model_dump()}
+                        for n in envelope.nodes]
+    return out
+
+
+def get_row(conn: sqlite3.Connection, envelope_id: int) -> sqlite3.Row:
+    row = conn.execute(_SELECT + " WHERE e.id = ?", (envelope_id,)).fetchone()
+    if row is None:
+        raise NotFoundError(f"envelope {envelope_id} not found")
+    return row
+
+
+def get_envelope(conn: sqlite3.Connection, envelope_id: int, full: bool = True) -> dict:
+    row = get_row(conn, envelope_id)
+    return _public(_meta(row), stored_envelope(row), full)
+
+
+def list_envelopes(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
+    """Summaries (no nodes), newest version first."""
+    rows = conn.execute(_SELECT + " WHERE e.patient_id = ? ORDER BY e.version DESC", (patient_id,)).fetchall()
+    return [_public(_meta(r), stored_envelope(r), full=False) for r in rows]
+
+
+def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envelope, actor: User) -> dict:
+    """Store a freshly built envelope as the patient's next draft version; returns its API view."""
+    violations = check_envelope_as_run(envelope)
+    body = json.dumps(envelope.to_json(), sort_keys=True, allow_nan=False)
+    sha = hashlib.sha256(body.encode()).hexdigest()
+    n_s, n_i = envelope.shape
+    extrapolation = any(n.extrapolation for n in envelope.nodes)
+    with write_transaction(conn):
+        if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
+            raise NotFoundError(f"patient {patient_id} not found")
+        version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM envelopes WHERE patient_id = ?",
+                               (patient_id,)).fetchone()[0]
+        cur = conn.execute(
+            "INSERT INTO envelopes (patient_id, version, parent_id, source, body_mass_kg, n_speeds, n_inclines, "
+            "extrapolation, safety_ok, envelope_json, envelope_sha256, crc32, wire_crc32, edit_comment, created_by, "
+            "created_at) VALUES (?, ?, NULL, 'model', ?, ?, ?, ?, ?, ?, ?, ?, ?, NULL, ?, ?)",
+            (patient_id, version, envelope.mass_kg, n_s, n_i, int(extrapolation), int(not violations), body, sha,
+             envelope.crc32(), _wire_crc(envelope), actor.id, utc_now()))
+        meta = _meta(get_row(conn, int(cur.lastrowid)))
+        audit.record(conn, actor.id, actor.username, "envelope.create", "envelope", meta["id"],
+                     after={"patient_id": patient_id, "version": version, "speeds_mps": envelope.speeds_mps,
+                            "inclines_deg": envelope.inclines_deg, "crc32": meta["crc32"], "safety_ok": not violations,
+                            "extrapolation": extrapolation})
+    return _public(meta, envelope, full=True, violations=violations)
+
+
+def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str, actor: User) -> dict:
+    """Approve or reject a draft once. Approval re-validates the stored envelope and re-runs the device-side check."""
+    if status not in ("approved", "rejected"):
+        raise ValueError(f"status must be 'approved' or 'rejected', got {status!r}")
+    with write_transaction(conn):
+        row = get_row(conn, envelope_id)
+        if row["status"] != "draft":
+            raise ConflictError(f"envelope {envelope_id} was already {row['status']} by {row['decided_by_name']} at "
+                                f"{row['decided_at']}; derive a new version to change it")
+        if status == "approved":
+            violations = check_envelope_as_run(stored_envelope(row))
+            if violations:
+                raise ConflictError(f"envelope {envelope_id} cannot be approved: {len(violations)} value(s) outside the "
+                                    "safety limits or the neighbour rule: " + "; ".join(v.message for v in violations),
+                                    violations=[v.model_dump() for v in violations])
+        conn.execute("UPDATE envelopes SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ? "
+                     "WHERE id = ? AND status = 'draft'", (status, actor.id, utc_now(), comment, envelope_id))
+        audit.record(conn, actor.id, actor.username, _ACTIONS[status], "envelope", envelope_id,
+                     before={"status": "draft"}, after={"status": status, "comment": comment, "crc32": row["crc32"]})
+        return get_envelope(conn, envelope_id)

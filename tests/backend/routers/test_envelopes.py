@@ -1,0 +1,87 @@
+"""Envelopes through the API: request for a patient, read, approve or reject once, audited, immutable in storage."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+
+import pytest
+
+from backend.db import write_transaction
+from device_bridge.envelope_wire import WireEnvelope
+
+
+def request_envelope(api, patient_id: int, **body) -> dict:
+    r = api.client.post(f"/api/patients/{patient_id}/envelopes", headers=api.as_("prosthetist"),
+                        json={"speed_range_mps": [0.8, 1.4], "incline_range_deg": [-6, 6], "grid": [3, 3], **body})
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def test_an_envelope_is_built_for_the_patient_with_every_node_checked_and_its_crcs(api, model):
+    patient = api.new_patient(mass=82.0)
+    e = request_envelope(api, patient["id"])
+    assert e["status"] == "draft" and e["version"] == 1 and e["envelope_label"] == "P-001 · envelope v1"
+    assert e["grid"] == [3, 3] and e["speeds_mps"] == [0.8, 1.1, 1.4] and e["inclines_deg"] == [-6.0, 0.0, 6.0]
+    assert e["body_mass_kg"] == 82.0 and e["nominal"] == {"speed_mps": 1.2, "incline_deg": 0.0}
+    assert e["safety"] == {"ok": True, "violations": []} and len(e["nodes"]) == 9
+    direct = model.propose_envelope([0.8, 1.1, 1.4], [-6.0, 0.0, 6.0], 82.0)
+    assert e["crc32"] == direct.crc32() and e["wire_crc32"] == WireEnvelope.from_envelope(direct).crc32()
+    node = e["nodes"][5]      # 1.1 m/s, +6°
+    assert (node["speed_mps"], node["incline_deg"]) == (1.1, 6.0) and len(node["table"]) == 8
+    assert node["table"][0]["k_Nm_per_rad"] == pytest.approx(direct.nodes[5].table.rows[0].k_Nm_per_rad, abs=1e-3)
+    assert any(k.endswith("_deg") for k in node["feature_std"])
+    listed = api.client.get(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("viewer")).json()
+    assert [x["id"] for x in listed] == [e["id"]] and "nodes" not in listed[0]
+    assert api.client.get(f"/api/envelopes/{e['id']}", headers=api.as_("viewer")).json() == e
+
+
+@pytest.mark.parametrize(("body", "why"), [
+    ({"speed_range_mps": [1.4, 0.8]}, "speed_range_mps"),
+    ({"incline_range_deg": [-30, 6]}, "incline_range_deg"),
+    ({"grid": [9, 9]}, "grid"),
+    ({"grid": [1, 3]}, "grid"),
+    ({"speed_range_mps": [0.8, float("nan")]}, ""),   # not JSON at all
+    ({"nominal_speed_mps": -1}, "nominal"),
+    ({"grid": [3, 3], "extra": 1}, "extra"),
+])
+def test_a_request_that_is_not_an_envelope_is_refused_and_nothing_is_stored(api, body, why):
+    patient = api.new_patient()
+    r = api.client.post(f"/api/patients/{patient['id']}/envelopes", content=json.dumps({"grid": [3, 3], **body}),
+                        headers={**api.as_("prosthetist"), "content-type": "application/json"})
+    assert r.status_code == 422 and why in r.text
+    assert api.client.get(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("viewer")).json() == []
+
+
+def test_only_a_prosthetist_builds_or_decides_and_a_decision_is_taken_once(api):
+    patient = api.new_patient()
+    r = api.client.post(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("viewer"), json={"grid": [2, 2]})
+    assert r.status_code == 403
+    e = request_envelope(api, patient["id"], grid=[2, 2])
+    r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("viewer"), json={"comment": "ok"})
+    assert r.status_code == 403
+    r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"),
+                        json={"comment": "reviewed every node"})
+    assert r.status_code == 200 and r.json()["status"] == "approved" and r.json()["decision"]["by"] == "prosthetist"
+    r = api.client.post(f"/api/envelopes/{e['id']}/reject", headers=api.as_("prosthetist"), json={"comment": "no"})
+    assert r.status_code == 409 and "already approved" in r.json()["detail"]
+    actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]]
+    assert actions[:2] == ["envelope.approve", "envelope.create"]
+    assert api.client.get("/api/envelopes/999999", headers=api.as_("viewer")).status_code == 404
+
+
+def test_a_stored_envelope_cannot_be_changed_and_a_tampered_one_is_refused_at_approval(api):
+    patient = api.new_patient()
+    e = request_envelope(api, patient["id"], grid=[2, 2])
+    conn = api.db()
+    with pytest.raises(sqlite3.IntegrityError, match="immutable"):
+        conn.execute("UPDATE envelopes SET envelope_json = '{}' WHERE id = ?", (e["id"],))
+    with pytest.raises(sqlite3.IntegrityError, match="never deleted"):
+        conn.execute("DELETE FROM envelopes WHERE id = ?", (e["id"],))
+    with write_transaction(conn):   # simulate on-disk corruption: drop the trigger, change one value
+        conn.execute("DROP TRIGGER envelopes_content_immutable")
+        conn.execute("UPDATE envelopes SET envelope_json = replace(envelope_json, '\"knee\"', '\"knee\" ') "
+                     "WHERE id = ?", (e["id"],))
+    conn.close()
+    r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
+    assert r.status_code == 409 and "sha256" in r.json()["detail"]
