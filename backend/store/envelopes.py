@@ -16,13 +16,13 @@ import sqlite3
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
+from backend.store.decisions import decide_once
 from backend.store.users import User
 from controller_core.envelope import Envelope
 from controller_core.table import LimitViolation, display_rows
 from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
 from device_bridge.protocol import ProtocolError
 
-_ACTIONS = {"approved": "envelope.approve", "rejected": "envelope.reject"}
 _SELECT = ("SELECT e.*, cu.username AS created_by_name, du.username AS decided_by_name, "
            "pe.version AS parent_version, pa.code_name AS patient_code FROM envelopes e "
            "JOIN users cu ON cu.id = e.created_by LEFT JOIN users du ON du.id = e.decided_by "
@@ -127,21 +127,8 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
 
 def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str, actor: User) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored envelope and re-runs the device-side check."""
-    if status not in ("approved", "rejected"):
-        raise ValueError(f"status must be 'approved' or 'rejected', got {status!r}")
     with write_transaction(conn):
         row = get_row(conn, envelope_id)
-        if row["status"] != "draft":
-            raise ConflictError(f"envelope {envelope_id} was already {row['status']} by {row['decided_by_name']} at "
-                                f"{row['decided_at']}; derive a new version to change it")
-        if status == "approved":
-            violations = check_envelope_as_run(stored_envelope(row))
-            if violations:
-                raise ConflictError(f"envelope {envelope_id} cannot be approved: {len(violations)} value(s) outside the "
-                                    "safety limits or the neighbour rule: " + "; ".join(v.message for v in violations),
-                                    violations=[v.model_dump() for v in violations])
-        conn.execute("UPDATE envelopes SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ? "
-                     "WHERE id = ? AND status = 'draft'", (status, actor.id, utc_now(), comment, envelope_id))
-        audit.record(conn, actor.id, actor.username, _ACTIONS[status], "envelope", envelope_id,
-                     before={"status": "draft"}, after={"status": status, "comment": comment, "crc32": row["crc32"]})
+        decide_once(conn, "envelope", row, status, comment, actor, lambda: check_envelope_as_run(stored_envelope(row)),
+                    "the safety limits or the neighbour rule", {"crc32": row["crc32"]})
         return get_envelope(conn, envelope_id)

@@ -17,13 +17,13 @@ from pydantic_core import to_json
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
+from backend.store.decisions import decide_once
 from backend.store.users import User
 from controller_core.proposal import Proposal
 from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
 from device_bridge.protocol import check_as_run
 
 _LIMITS = SafetyLimits().model_dump()
-_ACTIONS = {"approved": "proposal.approve", "rejected": "proposal.reject"}
 _SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name, "
            "pp.version AS parent_version, pa.code_name AS patient_code FROM proposals p "
            "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by "
@@ -177,24 +177,10 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable,
 
 def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str, actor: User) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored table and re-checks every limit."""
-    if status not in ("approved", "rejected"):
-        raise ValueError(f"status must be 'approved' or 'rejected', got {status!r}")
     with write_transaction(conn):
         row = get_row(conn, proposal_id)
-        if row["status"] != "draft":
-            raise ConflictError(f"proposal {proposal_id} was already {row['status']} by {row['decided_by_name']} "
-                                f"at {row['decided_at']}; derive a new version to change it")
-        if status == "approved":
-            violations = check_as_run(stored_table(row))
-            if violations:
-                raise ConflictError(f"proposal {proposal_id} cannot be approved: {len(violations)} value(s) outside "
-                                    "the safety limits: " + "; ".join(v.message for v in violations),
-                                    violations=[v.model_dump() for v in violations])
-        conn.execute("UPDATE proposals SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ? "
-                     "WHERE id = ? AND status = 'draft'", (status, actor.id, utc_now(), comment, proposal_id))
-        audit.record(conn, actor.id, actor.username, _ACTIONS[status],
-                     "proposal", proposal_id, before={"status": "draft"},
-                     after={"status": status, "comment": comment, "table_sha256": row["table_sha256"]})
+        decide_once(conn, "proposal", row, status, comment, actor, lambda: check_as_run(stored_table(row)),
+                    "the safety limits", {"table_sha256": row["table_sha256"]})
         return get_proposal(conn, proposal_id)
 
 
