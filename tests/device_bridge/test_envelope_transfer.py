@@ -168,3 +168,36 @@ def test_a_walking_leg_adapts_to_a_ramp_and_streams_its_estimate_to_the_host(env
         walker.stop()
         link.close()
         node.close()
+
+
+def test_a_table_pushed_after_an_envelope_replaces_it_at_heel_strike(envelopes, tables):
+    from device_bridge.protocol import WireTable, begin_frame, commit_frame
+
+    fw = DeviceFirmware()
+    begin, data, commit, env_crc = frames_of(envelopes[0], 1, 40)
+    feed(fw, [begin, *data, commit], 0.0)
+    fw.tick(None, 0.001)
+    assert isinstance(fw.controller_, AdaptiveController) and fw.active_.crc32 == env_crc
+    th = fw.active_.envelope.tables[4].thresholds
+    loaded = th.we_to_sf_load_N + 50
+    t = 0.001
+
+    def step(load: float, moment: float = 0.0, knee: float = 0.3, knee_velocity: float = 0.0) -> None:
+        nonlocal t
+        t = round(t + 0.001, 6)
+        heartbeat(fw, t)
+        fw.tick(SensorSample(t, knee, knee_velocity, 0.0, 0.0, load, moment, 0.2, 0.0), t)
+
+    for _ in range(100):
+        step(loaded)
+    wire = WireTable.from_table(tables[1])
+    [ack] = feed(fw, [begin_frame(2, 41, wire.crc32()), *wire.frames(2), commit_frame(2, 41, wire.crc32())], t)
+    assert ack["result"] == AckResult.STAGED and fw.active_.crc32 == env_crc
+    for load, moment, knee, velocity in [(loaded, th.sf_to_se_ankle_moment_Nm - 1, 0.3, 0.0)] * 100 + \
+            [(0.0, 0.0, 0.3, 1.0)] * 100 + [(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -0.5)] * 100:
+        step(load, moment, knee, velocity)
+        assert fw.active_.crc32 == env_crc              # the envelope runs to the end of its stride
+    for _ in range(20):
+        step(loaded)
+    assert fw.active_.crc32 == wire.crc32() and isinstance(fw.controller_, StateMachineController)
+    assert fw.controller_.state_ == GaitState.STANCE_FLEXION and fw.active_.envelope is None
