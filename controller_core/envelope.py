@@ -27,6 +27,7 @@ import zlib
 from collections.abc import Callable, Sequence
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from controller_core.proposal import FeaturePrediction
@@ -264,21 +265,18 @@ def neighbour_guard(shape: tuple[int, int], values: list[list[float]], start: tu
     before the other; a node's swept neighbours differ by at most two steps, so the allowed interval is never empty.
     """
     n_s, n_i = shape
-    limits = steps.for_fields()
+    limits = np.array(steps.for_fields())
     order = sorted(((i, j) for i in range(n_s) for j in range(n_i)),
                    key=lambda ij: abs(ij[0] - start[0]) + abs(ij[1] - start[1]))
-    out = [list(v) for v in values]
+    out = np.array(values, dtype=float)
     done: set[tuple[int, int]] = set()
     for i, j in order:
-        swept = [out[a * n_i + b] for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1)) if (a, b) in done]
-        mine = out[i * n_i + j]
-        for f, step in enumerate(limits):
-            if swept:
-                lo = max(v[f] for v in swept) - step
-                hi = min(v[f] for v in swept) + step
-                mine[f] = min(max(mine[f], lo), hi)
+        swept = [a * n_i + b for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1)) if (a, b) in done]
+        if swept:
+            near = out[swept]
+            out[i * n_i + j] = np.clip(out[i * n_i + j], near.max(axis=0) - limits, near.min(axis=0) + limits)
         done.add((i, j))
-    return out
+    return out.tolist()
 
 
 def _feature_std(features: list[FeaturePrediction]) -> dict[str, float]:

@@ -10,11 +10,10 @@ acknowledged) and the active one the state machine runs. A buffer holds a single
 (:mod:`device_bridge.envelope_wire`): for an envelope the device re-checks every node's limits and the neighbour
 rule with its own settings (building :class:`controller_core.envelope_blend.EnvelopeBlender` is that check) and
 runs the adaptive controller (:mod:`controller_core.adaptive`), whose rows change only at heel strike. A staged
-table becomes active at the next heel strike
-(the state machine's swing-extension → stance-flexion transition on load), or at once when the leg is not
-walking (no table yet, safe mode, no sensors, or no load-triggered heel strike for ``idle_switch_s``). Loss,
-corruption, reordering, a bad CRC, a refused limit or a timeout only ever discard the buffer being received:
-the active table runs on untouched, so a mixed table cannot exist.
+table becomes active at the next heel strike (the state machine's swing → stance-flexion transition on load), or
+at once when the leg is not walking (no table yet, safe mode, no sensors, or no load-triggered heel strike for
+``idle_switch_s``). Loss, corruption, reordering, a bad CRC, a refused limit or a timeout only ever discard the
+buffer being received: the active table runs on untouched, so a mixed table cannot exist.
 
 The host's heartbeat is watched on every tick: when none arrived for ``heartbeat_timeout_s``, the device drops
 into safe mode (passive: τ = −b_safe·θ̇, clipped) on that tick. It leaves safe mode only on a new valid table
