@@ -6,11 +6,21 @@ import numpy as np
 from fastapi import APIRouter, status
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
+from backend.errors import InvalidError
 from backend.schemas.common import IdPath
-from backend.schemas.envelopes import EnvelopeOut, EnvelopeRequest, EnvelopeSummary
+from backend.schemas.envelopes import (
+    EnvelopeDiffOut,
+    EnvelopeEditRequest,
+    EnvelopeOut,
+    EnvelopeRequest,
+    EnvelopeSummary,
+)
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
 from backend.store import envelopes, patients
+from controller_core.envelope_edit import edit_envelope
+from controller_core.table_edit import EditError
+from device_bridge.envelope_wire import check_envelope_as_run
 
 router = APIRouter(prefix="/api", tags=["envelopes"], responses=UNAUTHORIZED)
 
@@ -39,6 +49,31 @@ def list_envelopes(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[d
 def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """An envelope with every node's table, extrapolation flag, feature SDs and guarded values, and its check."""
     return envelopes.get_envelope(conn, envelope_id)
+
+
+@router.post("/envelopes/{envelope_id}/edits", response_model=EnvelopeOut, status_code=status.HTTP_201_CREATED,
+             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prosthetist) -> dict:
+    """Derive a new draft with one or more settings changed across the envelope or at one node (prosthetist), e.g.
+    knee stance flexion 10 % firmer everywhere. Every node's limits and the neighbour rule are re-checked as the
+    device runs them; a refused edit stores nothing."""
+    parent = envelopes.stored_envelope(envelopes.get_row(conn, envelope_id))
+    try:
+        edited, changes = edit_envelope(parent, [e.model_dump() for e in body.edits])
+    except (EditError, ValueError) as exc:
+        raise InvalidError(str(exc).splitlines()[0]) from exc
+    violations = check_envelope_as_run(edited)
+    if violations:
+        raise InvalidError(f"edit refused, nothing stored: {len(violations)} value(s) outside the safety limits or "
+                           "the neighbour rule: " + "; ".join(v.message for v in violations[:5]),
+                           violations=[v.model_dump() for v in violations])
+    return envelopes.create_edit(conn, envelope_id, edited, changes, body.comment, user)
+
+
+@router.get("/envelopes/{envelope_id}/diff/{other_id}", response_model=EnvelopeDiffOut, responses=NOT_FOUND)
+def diff(envelope_id: IdPath, other_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    """What changed from ``envelope_id`` to ``other_id``, node by node, with units."""
+    return envelopes.diff(conn, envelope_id, other_id)
 
 
 @router.post("/envelopes/{envelope_id}/approve", response_model=EnvelopeOut,

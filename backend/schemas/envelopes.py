@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, model_validator
 
-from backend.schemas.common import StrictIn
+from backend.schemas.common import StrictIn, Text
 from backend.schemas.proposals import Decision, ModelInfo, Safety, TableRowOut
 from controller_core.envelope import NeighbourSteps
 from controller_core.table import Thresholds
@@ -88,3 +88,41 @@ class EnvelopeSummary(BaseModel):
 
 class EnvelopeOut(EnvelopeSummary):
     nodes: list[NodeOut] = Field(description="speed-major: node i × len(inclines_deg) + j")
+
+
+class EnvelopeCellEdit(StrictIn):
+    """One setting changed across the envelope, or at one node: by an offset (in the field's unit) or a percentage."""
+
+    field: str = Field(min_length=3, max_length=80, description="joint.subphase.(k_Nm_per_rad|theta_e_deg|"
+                                                                "b_Nm_s_per_rad) or thresholds.<name>")
+    offset: float | None = Field(default=None, description="added to the value, in the field's unit")
+    percent: float | None = Field(default=None, gt=-100, le=1000,
+                                  description="the value scaled by (1 + percent/100); k < 0 is restoring, so +10 % "
+                                              "is 10 % firmer")
+    node: list[int] | None = Field(default=None, min_length=2, max_length=2,
+                                   description="[speed index, incline index]; omitted: every node")
+
+
+class EnvelopeEditRequest(StrictIn):
+    edits: list[EnvelopeCellEdit] = Field(min_length=1, max_length=40)
+    comment: Text = Field(min_length=1, max_length=2000, description="why (audited)")
+
+
+class EnvelopeChange(BaseModel):
+    node: list[int]
+    speed_mps: float
+    incline_deg: float
+    field: str
+    before: float
+    after: float
+    unit: str
+
+
+class EnvelopeDiffOut(BaseModel):
+    from_id: int
+    to_id: int
+    from_version: int
+    to_version: int
+    same_patient: bool
+    same_grid: bool = Field(description="false: the grids differ and no node-by-node comparison is made")
+    changes: list[EnvelopeChange]

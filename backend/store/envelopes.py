@@ -18,7 +18,7 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.decisions import decide_once
 from backend.store.users import User
-from controller_core.envelope import Envelope
+from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
 from controller_core.table import LimitViolation, display_rows
 from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
 from device_bridge.protocol import ProtocolError
@@ -99,30 +99,74 @@ def list_envelopes(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
     return [_public(_meta(r), stored_envelope(r), full=False) for r in rows]
 
 
+def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, envelope: Envelope, comment: str | None,
+            actor: User, violations: list[LimitViolation]) -> dict:
+    """Insert a draft inside the caller's write transaction; returns its metadata."""
+    body = json.dumps(envelope.to_json(), sort_keys=True, allow_nan=False)
+    n_s, n_i = envelope.shape
+    version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM envelopes WHERE patient_id = ?",
+                           (patient_id,)).fetchone()[0]
+    cur = conn.execute(
+        "INSERT INTO envelopes (patient_id, version, parent_id, source, body_mass_kg, n_speeds, n_inclines, "
+        "extrapolation, safety_ok, envelope_json, envelope_sha256, crc32, wire_crc32, edit_comment, created_by, "
+        "created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        (patient_id, version, parent_id, "model" if parent_id is None else "edit", envelope.mass_kg, n_s, n_i,
+         int(any(n.extrapolation for n in envelope.nodes)), int(not violations), body,
+         hashlib.sha256(body.encode()).hexdigest(), envelope.crc32(), _wire_crc(envelope), comment, actor.id,
+         utc_now()))
+    return _meta(get_row(conn, int(cur.lastrowid)))
+
+
 def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envelope, actor: User) -> dict:
     """Store a freshly built envelope as the patient's next draft version; returns its API view."""
     violations = check_envelope_as_run(envelope)
-    body = json.dumps(envelope.to_json(), sort_keys=True, allow_nan=False)
-    sha = hashlib.sha256(body.encode()).hexdigest()
-    n_s, n_i = envelope.shape
-    extrapolation = any(n.extrapolation for n in envelope.nodes)
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
             raise NotFoundError(f"patient {patient_id} not found")
-        version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM envelopes WHERE patient_id = ?",
-                               (patient_id,)).fetchone()[0]
-        cur = conn.execute(
-            "INSERT INTO envelopes (patient_id, version, parent_id, source, body_mass_kg, n_speeds, n_inclines, "
-            "extrapolation, safety_ok, envelope_json, envelope_sha256, crc32, wire_crc32, edit_comment, created_by, "
-            "created_at) VALUES (?, ?, NULL, 'model', ?, ?, ?, ?, ?, ?, ?, ?, ?, NULL, ?, ?)",
-            (patient_id, version, envelope.mass_kg, n_s, n_i, int(extrapolation), int(not violations), body, sha,
-             envelope.crc32(), _wire_crc(envelope), actor.id, utc_now()))
-        meta = _meta(get_row(conn, int(cur.lastrowid)))
+        meta = _insert(conn, patient_id, None, envelope, None, actor, violations)
         audit.record(conn, actor.id, actor.username, "envelope.create", "envelope", meta["id"],
-                     after={"patient_id": patient_id, "version": version, "speeds_mps": envelope.speeds_mps,
+                     after={"patient_id": patient_id, "version": meta["version"], "speeds_mps": envelope.speeds_mps,
                             "inclines_deg": envelope.inclines_deg, "crc32": meta["crc32"], "safety_ok": not violations,
-                            "extrapolation": extrapolation})
+                            "extrapolation": meta["extrapolation"]})
     return _public(meta, envelope, full=True, violations=violations)
+
+
+def create_edit(conn: sqlite3.Connection, parent_id: int, envelope: Envelope, changes: list[dict], comment: str,
+                actor: User) -> dict:
+    """Store an edited envelope (already checked and found within every limit) as a new draft of the parent's
+    patient."""
+    with write_transaction(conn):
+        parent = get_row(conn, parent_id)
+        meta = _insert(conn, parent["patient_id"], parent_id, envelope, comment, actor, [])
+        audit.record(conn, actor.id, actor.username, "envelope.edit", "envelope", meta["id"],
+                     before={"envelope_id": parent_id, "version": parent["version"], "crc32": parent["crc32"]},
+                     after={"version": meta["version"], "crc32": meta["crc32"], "comment": comment,
+                            "changes": changes})
+    return _public(meta, envelope, full=True, violations=[])
+
+
+def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
+    """What changed from envelope ``a_id`` to ``b_id``: the grid, or node by node every value (with units)."""
+    a, b = stored_envelope(get_row(conn, a_id)), stored_envelope(get_row(conn, b_id))
+    ra, rb = get_row(conn, a_id), get_row(conn, b_id)
+    changes: list[dict] = []
+    same_grid = (a.speeds_mps, a.inclines_deg) == (b.speeds_mps, b.inclines_deg)
+    if same_grid:
+        n_i = len(a.inclines_deg)
+        for idx, (na, nb) in enumerate(zip(a.nodes, b.nodes, strict=True)):
+            for field, x, y in zip(VALUE_FIELDS, table_values(na.table), table_values(nb.table), strict=True):
+                if x != y:
+                    changes.append({"node": list(divmod(idx, n_i)), "speed_mps": na.speed_mps,
+                                    "incline_deg": na.incline_deg, "field": field, "before": x, "after": y,
+                                    "unit": _UNITS[field.rsplit(".", 1)[1]]})
+    return {"from_id": a_id, "to_id": b_id, "from_version": ra["version"], "to_version": rb["version"],
+            "same_patient": ra["patient_id"] == rb["patient_id"], "same_grid": same_grid, "changes": changes}
+
+
+_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad",
+          "sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
+          "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
+          "sf_to_se_knee_extension_deg_per_s": "deg/s"}
 
 
 def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str, actor: User) -> dict:

@@ -85,3 +85,52 @@ def test_a_stored_envelope_cannot_be_changed_and_a_tampered_one_is_refused_at_ap
     conn.close()
     r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
     assert r.status_code == 409 and "sha256" in r.json()["detail"]
+
+
+def test_ankle_loading_ten_percent_firmer_everywhere_is_a_new_version_and_its_diff(api):
+    patient = api.new_patient()
+    e = request_envelope(api, patient["id"])
+    # the knee's stance flexion at +6° was held to its neighbours' step by the guard: 10 % more breaks the rule
+    r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"), json={
+        "edits": [{"field": "knee.stance_flexion.k_Nm_per_rad", "percent": 10}], "comment": "firmer landing"})
+    assert r.status_code == 422 and "neighbouring nodes" in r.json()["detail"]
+    r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"), json={
+        "edits": [{"field": "ankle.stance_flexion.k_Nm_per_rad", "percent": 10}], "comment": "firmer landing"})
+    assert r.status_code == 201, r.text
+    v2 = r.json()
+    assert (v2["version"], v2["parent_version"], v2["source"], v2["edit_comment"]) == (2, 1, "edit", "firmer landing")
+    assert v2["safety"]["ok"] and v2["crc32"] != e["crc32"]
+    for old, new in zip(e["nodes"], v2["nodes"], strict=True):
+        ko = next(r for r in old["table"] if (r["joint"], r["subphase"]) == ("ankle", "stance_flexion"))
+        kn = next(r for r in new["table"] if (r["joint"], r["subphase"]) == ("ankle", "stance_flexion"))
+        assert kn["k_Nm_per_rad"] == pytest.approx(1.1 * ko["k_Nm_per_rad"], abs=2e-3) and kn["fit_method"] == "manual"
+        assert [r for r in new["table"] if r is not kn] == [r for r in old["table"] if r is not ko]
+    d = api.client.get(f"/api/envelopes/{e['id']}/diff/{v2['id']}", headers=api.as_("viewer")).json()
+    assert d["same_grid"] and len(d["changes"]) == 9
+    assert {c["field"] for c in d["changes"]} == {"ankle.stance_flexion.k_Nm_per_rad"}
+    assert all(c["unit"] == "N·m/rad" for c in d["changes"])
+    r = api.client.post(f"/api/envelopes/{v2['id']}/edits", headers=api.as_("prosthetist"), json={
+        "edits": [{"field": "ankle.stance_extension.theta_e_deg", "offset": -2, "node": [1, 1]}], "comment": "one"})
+    d = api.client.get(f"/api/envelopes/{v2['id']}/diff/{r.json()['id']}", headers=api.as_("viewer")).json()
+    assert [(c["node"], c["speed_mps"], c["incline_deg"]) for c in d["changes"]] == [([1, 1], 1.1, 0.0)]
+    assert d["changes"][0]["after"] == pytest.approx(d["changes"][0]["before"] - 2)
+    actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]]
+    assert actions[:2] == ["envelope.edit", "envelope.edit"]
+
+
+@pytest.mark.parametrize(("edit", "why"), [
+    ({"field": "knee.stance_flexion.k_Nm_per_rad", "offset": -500, "node": [0, 0]}, "neighbouring nodes"),
+    ({"field": "knee.swing_flexion.b_Nm_s_per_rad", "offset": 100}, "outside"),
+    ({"field": "knee.stance_flexion.k_Nm_per_rad", "percent": -150}, "percent"),
+    ({"field": "knee.stance_flexion.k_Nm_per_rad", "offset": 1, "percent": 1}, "exactly one"),
+    ({"field": "knee.stance.k_Nm_per_rad", "offset": 1}, "unknown field"),
+    ({"field": "knee.stance_flexion.k_Nm_per_rad", "offset": 1, "node": [5, 0]}, "node"),
+    ({"field": "knee.stance_flexion.k_Nm_per_rad", "offset": 0}, "changes nothing"),
+])
+def test_an_edit_outside_the_limits_or_the_neighbour_rule_is_refused_and_stores_nothing(api, edit, why):
+    e = request_envelope(api, api.new_patient()["id"])
+    before = api.count("envelopes")
+    r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"),
+                        json={"edits": [edit], "comment": "try"})
+    assert r.status_code == 422 and why in r.text
+    assert api.count("envelopes") == before
