@@ -112,9 +112,8 @@ class EnvelopeBlender:
             raise SafetyLimitError(broken)
         self.speeds_mps, self.inclines_deg = speeds, inclines
         self.schedules = tuple(schedules)
-        self._vectors = tuple(schedule_vector(s) for s in schedules)
         n_i = len(inclines)
-        v = np.array(self._vectors)
+        v = np.array([schedule_vector(s) for s in schedules])
         self._cells = [[np.stack([v[i * n_i + j], v[i * n_i + j + 1], v[(i + 1) * n_i + j], v[(i + 1) * n_i + j + 1]])
                         for j in range(n_i - 1)] for i in range(len(speeds) - 1)]
         first = schedules[0]

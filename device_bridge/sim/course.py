@@ -148,9 +148,6 @@ class Terrain:
     step_m: float
     z_m: np.ndarray
 
-    def height_at(self, x_m: np.ndarray) -> np.ndarray:
-        return np.interp(x_m, self.x0_m + self.step_m * np.arange(self.z_m.size), self.z_m)
-
     def polyline(self, tolerance_deg: float = 0.25) -> tuple[tuple[float, float], ...]:
         """The profile as few straight pieces: samples where the slope changes by more than ``tolerance_deg``."""
         x = self.x0_m + self.step_m * np.arange(self.z_m.size)

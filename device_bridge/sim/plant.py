@@ -61,8 +61,6 @@ class SimulatedLeg:
         self._tick = 0
         self._traj: BenchTrajectory | None = None
         self._force6 = np.zeros(6)   # scratch for mj_contactForce (called every tick in contact)
-        alpha = math.radians(self.incline_deg)
-        self._floor_normal = (-math.sin(alpha), math.cos(alpha))
 
     def reset(self, trajectory: BenchTrajectory, knee_rad: float, ankle_rad: float) -> SensorSample:
         """Place the socket at the trajectory's first sample and the joints at the given angles (rad)."""
@@ -137,8 +135,3 @@ class SimulatedLeg:
         """The socket's (x, z) position in the world (m)."""
         q = self.data.qpos
         return float(q[self._q["hip_x"]]), float(q[self._q["hip_z"]])
-
-    def hip_height_m(self) -> float:
-        """Socket height above the floor along its normal (m)."""
-        nx, nz = self._floor_normal
-        return float(nx * self.data.qpos[self._q["hip_x"]] + nz * self.data.qpos[self._q["hip_z"]])
