@@ -236,16 +236,24 @@ def neighbour_violations(speeds_mps: Sequence[float], inclines_deg: Sequence[flo
     return out
 
 
+def check_grid(speeds_mps: Sequence[float], inclines_deg: Sequence[float], tables: Sequence[ImpedanceTable],
+               steps: NeighbourSteps, limits: SafetyLimits | None = None) -> list[LimitViolation]:
+    """Every node's limit violations (field prefixed with the node's task) and the neighbour rule's, for tables in
+    speed-major order: an envelope's, or the ones the device decoded from the wire."""
+    out: list[LimitViolation] = []
+    for idx, table in enumerate(tables):
+        i, j = divmod(idx, len(inclines_deg))
+        label = _node_label(speeds_mps[i], inclines_deg[j])
+        out += [v.model_copy(update={"field": f"node[{label}].{v.field}", "message": f"at {label}: {v.message}"})
+                for v in check_table(table, limits)]
+    return out + neighbour_violations(speeds_mps, inclines_deg, tables, steps)
+
+
 def check_envelope(envelope: Envelope, limits: SafetyLimits | None = None,
                    steps: NeighbourSteps | None = None) -> list[LimitViolation]:
-    """Every node's limit violations (field prefixed with the node's task) and the neighbour rule's."""
-    out: list[LimitViolation] = []
-    for node in envelope.nodes:
-        label = _node_label(node.speed_mps, node.incline_deg)
-        out += [v.model_copy(update={"field": f"node[{label}].{v.field}", "message": f"at {label}: {v.message}"})
-                for v in check_table(node.table, limits)]
-    return out + neighbour_violations(envelope.speeds_mps, envelope.inclines_deg, envelope.tables(),
-                                      steps or envelope.neighbour_steps)
+    """:func:`check_grid` of an envelope (with its own steps unless others are given)."""
+    return check_grid(envelope.speeds_mps, envelope.inclines_deg, envelope.tables(),
+                      steps or envelope.neighbour_steps, limits)
 
 
 # ---------------------------------------------------------------- building

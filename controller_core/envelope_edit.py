@@ -13,23 +13,20 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
-from controller_core.envelope import Envelope, EnvelopeNode
+from controller_core.envelope import THRESHOLD_VALUES, Envelope, EnvelopeNode
 from controller_core.table_edit import ROW_FIELDS, EditError, edit_table
-
-THRESHOLD_FIELDS = ("sf_to_se_ankle_moment_Nm", "se_to_wf_load_N", "wf_to_we_knee_angle_deg", "we_to_sf_load_N",
-                    "min_state_time_s", "max_state_time_s", "sf_to_se_knee_extension_deg_per_s")
 
 
 def _target(field: str) -> tuple[str, str | None, str | None]:
     """(kind, joint.subphase or None, value name) of ``joint.subphase.value`` or ``thresholds.name``."""
     parts = field.split(".")
-    if len(parts) == 2 and parts[0] == "thresholds" and parts[1] in THRESHOLD_FIELDS:
+    if len(parts) == 2 and parts[0] == "thresholds" and parts[1] in THRESHOLD_VALUES:
         return "threshold", None, parts[1]
     if len(parts) == 3 and parts[0] in ("knee", "ankle") and parts[2] in ROW_FIELDS and parts[1] in (
             "stance_flexion", "stance_extension", "swing_flexion", "swing_extension"):
         return "row", f"{parts[0]}.{parts[1]}", parts[2]
     raise EditError(f"unknown field {field!r}: use joint.subphase.({', '.join(ROW_FIELDS)}) or "
-                    f"thresholds.({', '.join(THRESHOLD_FIELDS)})")
+                    f"thresholds.({', '.join(THRESHOLD_VALUES)})")
 
 
 def _new_value(old: float, edit: Mapping[str, object]) -> float:

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import can
 
-from controller_core.envelope import Envelope, NeighbourSteps, check_envelope, neighbour_violations
-from controller_core.table import LimitViolation, SafetyLimits, Thresholds, check_table
+from controller_core.envelope import Envelope, NeighbourSteps, check_envelope, check_grid
+from controller_core.table import LimitViolation, SafetyLimits, Thresholds
 from device_bridge.protocol import (
     ROW_ORDER,
     DeviceRow,
@@ -260,10 +260,4 @@ def check_envelope_as_run(envelope: Envelope, limits: SafetyLimits | None = None
     except ProtocolError as exc:
         return [LimitViolation(field="envelope", value=float(len(envelope.nodes)), low=0.0, high=float(MAX_NODES),
                                message=str(exc))]
-    found: list[LimitViolation] = []
-    for node, table in zip(envelope.nodes, device.tables, strict=True):
-        label = f"{node.speed_mps:.2f} m/s, {node.incline_deg:+.1f} deg"
-        found += [v.model_copy(update={"field": f"node[{label}].{v.field}", "message": f"at {label}: {v.message}"})
-                  for v in check_table(table, limits)]
-    return found + neighbour_violations(device.speeds_mps, device.inclines_deg, device.tables,
-                                        steps or envelope.neighbour_steps)
+    return check_grid(device.speeds_mps, device.inclines_deg, device.tables, steps or envelope.neighbour_steps, limits)

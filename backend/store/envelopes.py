@@ -17,12 +17,14 @@ from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.decisions import decide_once
+from backend.store.proposals import ROW_UNITS, THRESHOLD_UNITS
 from backend.store.users import User
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
 from controller_core.table import LimitViolation, display_rows
 from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
 from device_bridge.protocol import ProtocolError
 
+_UNITS = ROW_UNITS | THRESHOLD_UNITS
 _SELECT = ("SELECT e.*, cu.username AS created_by_name, du.username AS decided_by_name, "
            "pe.version AS parent_version, pa.code_name AS patient_code FROM envelopes e "
            "JOIN users cu ON cu.id = e.created_by LEFT JOIN users du ON du.id = e.decided_by "
@@ -147,8 +149,8 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, envelope: Envelope, ch
 
 def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
     """What changed from envelope ``a_id`` to ``b_id``: the grid, or node by node every value (with units)."""
-    a, b = stored_envelope(get_row(conn, a_id)), stored_envelope(get_row(conn, b_id))
     ra, rb = get_row(conn, a_id), get_row(conn, b_id)
+    a, b = stored_envelope(ra), stored_envelope(rb)
     changes: list[dict] = []
     same_grid = (a.speeds_mps, a.inclines_deg) == (b.speeds_mps, b.inclines_deg)
     if same_grid:
@@ -162,11 +164,6 @@ def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
     return {"from_id": a_id, "to_id": b_id, "from_version": ra["version"], "to_version": rb["version"],
             "same_patient": ra["patient_id"] == rb["patient_id"], "same_grid": same_grid, "changes": changes}
 
-
-_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad",
-          "sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
-          "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
-          "sf_to_se_knee_extension_deg_per_s": "deg/s"}
 
 
 def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str, actor: User) -> dict:

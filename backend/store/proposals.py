@@ -24,6 +24,11 @@ from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, 
 from device_bridge.protocol import check_as_run
 
 _LIMITS = SafetyLimits().model_dump()
+# display units of the table's values, for diffs
+ROW_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad"}
+THRESHOLD_UNITS = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
+                   "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
+                   "sf_to_se_knee_extension_deg_per_s": "deg/s"}
 _SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name, "
            "pp.version AS parent_version, pa.code_name AS patient_code FROM proposals p "
            "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by "
@@ -197,15 +202,11 @@ def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
     add("task.speed_mps", a["speed_mps"], b["speed_mps"], "m/s")
     add("task.incline_deg", a["incline_deg"], b["incline_deg"], "deg")
     add("task.body_mass_kg", a["body_mass_kg"], b["body_mass_kg"], "kg")
-    units = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad", "fit_method": None}
     for ra in ta.rows:
         rb = tb.row(ra.joint, ra.subphase)
-        for name, unit in units.items():
-            add(f"{ra.joint}.{ra.subphase}.{name}", getattr(ra, name), getattr(rb, name), unit)
-    th_units = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
-                "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
-                "sf_to_se_knee_extension_deg_per_s": "deg/s"}
-    for name, unit in th_units.items():
+        for name in (*ROW_UNITS, "fit_method"):
+            add(f"{ra.joint}.{ra.subphase}.{name}", getattr(ra, name), getattr(rb, name), ROW_UNITS.get(name))
+    for name, unit in THRESHOLD_UNITS.items():
         add(f"thresholds.{name}", getattr(ta.thresholds, name), getattr(tb.thresholds, name), unit)
     return {"from_id": a_id, "to_id": b_id, "from_version": a["version"], "to_version": b["version"],
             "same_patient": a["patient_id"] == b["patient_id"], "changes": changes}
