@@ -185,6 +185,20 @@ def bootstrap_rmse(strides: np.ndarray, reference: np.ndarray, n_boot: int = 200
     return np.sqrt(np.mean(d * d, axis=1))
 
 
+def bootstrap_means(values: np.ndarray, n_boot: int = 2000, rng: np.random.Generator | None = None) -> np.ndarray:
+    """The mean of ``values`` (one per stride) for ``n_boot`` resamples of them with replacement."""
+    values = np.asarray(values, dtype=float)
+    rng = np.random.default_rng(0) if rng is None else rng
+    counts = rng.multinomial(values.size, np.full(values.size, 1.0 / values.size), size=n_boot)
+    return counts @ values / values.size
+
+
+def verdict(interval: tuple[float, float]) -> str:
+    """``A lower`` / ``B lower`` when an interval of A − B excludes zero, else ``not resolved``."""
+    lo, hi = interval
+    return "A lower" if hi < 0.0 else "B lower" if lo > 0.0 else "not resolved"
+
+
 def percentile_interval(samples: np.ndarray, level: float = 0.95) -> tuple[float, float]:
     """Central ``level`` interval of bootstrap samples (percentile method)."""
     if not 0.0 < level < 1.0:
@@ -209,6 +223,5 @@ def rmse_difference(strides_a: np.ndarray, strides_b: np.ndarray, reference: np.
     b = bootstrap_rmse(strides_b, reference, n_boot, rng)
     diff = rmse(np.asarray(strides_a, dtype=float).mean(axis=0), reference) - \
         rmse(np.asarray(strides_b, dtype=float).mean(axis=0), reference)
-    lo, hi = percentile_interval(a - b, level)
-    verdict = "A lower" if hi < 0.0 else "B lower" if lo > 0.0 else "not resolved"
-    return {"difference": diff, "interval": (lo, hi), "verdict": verdict}
+    interval = percentile_interval(a - b, level)
+    return {"difference": diff, "interval": interval, "verdict": verdict(interval)}

@@ -532,16 +532,11 @@ class QuasiStiffnessModel:
         means, stds, vias = self.predict_curves(np.array([speed_mps, incline_deg], dtype=float), features, with_vias)
         boundaries = self._boundaries(fmap)
         fits = self.fit_subphases(means, fmap, boundaries, mass_kg)
-        extrapolation = any(f.extrapolation for f in features)
-        table = ParameterTable(
-            rows=self._rows(fits, mass_kg), thresholds=self._thresholds(means, fmap, boundaries, mass_kg),
-            provenance=Provenance(model_version=self.model_version, data_sha256=self.data_sha256_,
-                                  speed_mps=speed_mps, incline_deg=incline_deg, patient_mass_kg=mass_kg,
-                                  extrapolation=extrapolation))
+        table = self._table(speed_mps, incline_deg, mass_kg, features, fmap, means, boundaries, fits)
         return Proposal(
             speed_mps=speed_mps, incline_deg=incline_deg, mass_kg=mass_kg,
             model_version=self.model_version, data_sha256=self.data_sha256_,
-            extrapolation=extrapolation, features=features, phase=self.s_query_, means=means, stds=stds,
+            extrapolation=table.provenance.extrapolation, features=features, phase=self.s_query_, means=means, stds=stds,
             boundaries=boundaries, fits=fits, table=table, violations=check_table(table), vias=vias)
 
     def propose_table(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
@@ -567,12 +562,14 @@ class QuasiStiffnessModel:
             mu = references[joint]
             mean = jm.kmp.predict_mean(self.via_points(joint, mu, features), None if mu is jm.kmp.mu_ref_ else mu)
             means[f"{joint}_angle"], means[f"{joint}_moment"] = mean[:, 0], mean[:, 1]
-        return self._table(speed_mps, incline_deg, mass_kg, features, fmap, means), features
-
-    def _table(self, speed_mps: float, incline_deg: float, mass_kg: float, features: list[FeaturePrediction],
-               fmap: dict[str, FeaturePrediction], means: dict[str, np.ndarray]) -> ParameterTable:
         boundaries = self._boundaries(fmap)
         fits = self.fit_subphases(means, fmap, boundaries, mass_kg)
+        return self._table(speed_mps, incline_deg, mass_kg, features, fmap, means, boundaries, fits), features
+
+    def _table(self, speed_mps: float, incline_deg: float, mass_kg: float, features: list[FeaturePrediction],
+               fmap: dict[str, FeaturePrediction], means: dict[str, np.ndarray],
+               boundaries: tuple[float, float, float], fits: dict[str, list[SubphaseFit]]) -> ParameterTable:
+        """The parameter table from the fitted lines, the thresholds from the curves, and its provenance."""
         return ParameterTable(
             rows=self._rows(fits, mass_kg), thresholds=self._thresholds(means, fmap, boundaries, mass_kg),
             provenance=Provenance(model_version=self.model_version, data_sha256=self.data_sha256_,

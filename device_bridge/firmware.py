@@ -236,10 +236,14 @@ class DeviceFirmware:
         if check_table(table, self.config.limits):
             return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
         schedule = ImpedanceSchedule.from_table(table, self.config.limits)
-        self.staged_ = HeldTable(version=version, crc32=crc, table=table, schedule=schedule)
-        self._last_commit = _LastCommit(tid, version, crc)
+        return self._stage(tid, HeldTable(version=version, crc32=crc, table=table, schedule=schedule))
+
+    def _stage(self, tid: int, held: HeldTable) -> can.Message:
+        """Keep a verified table or envelope for the next heel strike and acknowledge it with its CRC."""
+        self.staged_ = held
+        self._last_commit = _LastCommit(tid, held.version, held.crc32)
         self.faults_ &= ~Fault.TABLE_REFUSED
-        return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)
+        return self._ack(tid, AckResult.STAGED, crc32=held.crc32, version=held.version)
 
     def _unknown_or_repeat(self, tid: int, version: int, crc: int) -> can.Message:
         last = self._last_commit
@@ -273,11 +277,8 @@ class DeviceFirmware:
             return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
         if nominal.clamped:   # the nominal task lies outside the grid: not an envelope the host can have built
             return self._refuse(tid, AckResult.MALFORMED, version)
-        self.staged_ = HeldTable(version=version, crc32=crc, table=None, schedule=nominal.schedule, envelope=device,
-                                 blender=blender)
-        self._last_commit = _LastCommit(tid, version, crc)
-        self.faults_ &= ~Fault.TABLE_REFUSED
-        return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)
+        return self._stage(tid, HeldTable(version=version, crc32=crc, table=None, schedule=nominal.schedule,
+                                          envelope=device, blender=blender))
 
     def _refuse(self, tid: int, result: AckResult, version: int) -> can.Message:
         self.faults_ |= Fault.TABLE_REFUSED

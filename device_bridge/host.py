@@ -185,6 +185,11 @@ class _TelemetryJoiner:
             task=self._tasks.pop(seq16, None))
 
 
+def _check_version(version: int, what: str) -> None:
+    if not (isinstance(version, int) and 1 <= version <= 0xFFFF):
+        raise ProtocolError(f"{what} version must be an integer in [1, 65535], got {version!r}")
+
+
 @dataclass(frozen=True)
 class _Outgoing:
     """One push's frames and how to resend what the device says is missing."""
@@ -358,8 +363,7 @@ class DeviceLink:
             ProtocolError: a value does not fit the wire format (nothing sent).
             PushError: refused for the safety limits, or no matching acknowledgement before ``timeout_s``.
         """
-        if not (isinstance(version, int) and 1 <= version <= 0xFFFF):
-            raise ProtocolError(f"table version must be an integer in [1, 65535], got {version!r}")
+        _check_version(version, "table")
         wire = WireTable.from_table(table)
         crc = wire.crc32()
 
@@ -381,8 +385,7 @@ class DeviceLink:
             ProtocolError: the envelope does not fit the link (more than 64 nodes, a value beyond its field).
             PushError: refused for the safety limits or the neighbour rule, or no matching acknowledgement in time.
         """
-        if not (isinstance(version, int) and 1 <= version <= 0xFFFF):
-            raise ProtocolError(f"envelope version must be an integer in [1, 65535], got {version!r}")
+        _check_version(version, "envelope")
         wire = WireEnvelope.from_envelope(envelope)
         crc, shape = wire.crc32(), wire.shape
 

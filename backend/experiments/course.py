@@ -17,7 +17,7 @@ from controller_core.envelope import Envelope
 from controller_core.envelope_blend import EnvelopeBlender
 from controller_core.fsm import ImpedanceSchedule, StateMachineController
 from controller_core.fsmic import fsmic_table
-from controller_core.gait_metrics import GAIT_CHANNELS, percentile_interval
+from controller_core.gait_metrics import GAIT_CHANNELS, bootstrap_means, percentile_interval, verdict
 from controller_core.model import QuasiStiffnessModel
 from controller_core.task_estimator import TaskEstimator
 from device_bridge.sim.course import Course
@@ -85,11 +85,8 @@ def mean_difference(a: np.ndarray, b: np.ndarray, n_boot: int = 2000, seed: int 
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if a.size < 2 or b.size < 2:
         return {"difference": None, "interval": None, "verdict": None}
-    ra = rng.multinomial(a.size, np.full(a.size, 1.0 / a.size), size=n_boot) @ a / a.size
-    rb = rng.multinomial(b.size, np.full(b.size, 1.0 / b.size), size=n_boot) @ b / b.size
-    lo, hi = percentile_interval(ra - rb)
-    return {"difference": float(a.mean() - b.mean()), "interval": [lo, hi],
-            "verdict": "A lower" if hi < 0 else "B lower" if lo > 0 else "not resolved"}
+    interval = percentile_interval(bootstrap_means(a, n_boot, rng) - bootstrap_means(b, n_boot, rng))
+    return {"difference": float(a.mean() - b.mean()), "interval": list(interval), "verdict": verdict(interval)}
 
 
 def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 75.0,
@@ -102,8 +99,8 @@ def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 
         rows: dict[str, object] = {}
         for channel in GAIT_CHANNELS:
             d = mean_difference(scores["adaptive"].stride_rmse[channel], scores[other].stride_rmse[channel])
-            verdict = {"A lower": "adaptive lower", "B lower": f"{other} lower"}.get(str(d["verdict"]), d["verdict"])
-            rows[channel] = {"rmse_difference": d["difference"], "ci95": d["interval"], "verdict": verdict}
+            words = {"A lower": "adaptive lower", "B lower": f"{other} lower"}.get(str(d["verdict"]), d["verdict"])
+            rows[channel] = {"rmse_difference": d["difference"], "ci95": d["interval"], "verdict": words}
         versus[other] = rows
     return {"course": course.to_json(),
             "envelope": {"speeds_mps": env.speeds_mps, "inclines_deg": env.inclines_deg, "crc32": env.crc32(),

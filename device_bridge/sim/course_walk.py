@@ -27,6 +27,7 @@ from controller_core.adaptive import StrideDecision
 from controller_core.fsm import GaitState
 from controller_core.gait_metrics import (
     GAIT_CHANNELS,
+    bootstrap_means,
     channel_strides,
     episodes,
     gait_channels,
@@ -67,10 +68,7 @@ def _reference_at(speed_mps: float, incline_deg: float) -> dict[str, np.ndarray]
 def mean_interval(values: np.ndarray, rng: np.random.Generator, n_boot: int = 2000) -> tuple[float, float] | None:
     """95 % interval of a mean over strides (resampled with replacement); None with fewer than two."""
     values = np.asarray(values, dtype=float)
-    if values.size < 2:
-        return None
-    counts = rng.multinomial(values.size, np.full(values.size, 1.0 / values.size), size=n_boot)
-    return percentile_interval(counts @ values / values.size)
+    return None if values.size < 2 else percentile_interval(bootstrap_means(values, n_boot, rng))
 
 
 def _channel_summary(per_stride: dict[str, np.ndarray], rows: np.ndarray, rng: np.random.Generator) -> dict:
