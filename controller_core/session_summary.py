@@ -29,6 +29,13 @@ from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 
 
+def session_strikes(t_s: np.ndarray, load_N: np.ndarray, mass_kg: float) -> np.ndarray:
+    """Sample indices of heel strikes: load above 10 % of body weight after at least 150 ms below it."""
+    t = np.asarray(t_s, dtype=float)
+    dt = float(np.median(np.diff(t))) if t.shape[0] > 1 else 0.01
+    return heel_strikes(np.asarray(load_N, dtype=float), 0.1 * mass_kg * G_MPS2, max(1, round(0.15 / dt)))
+
+
 def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray,
                       knee_torque_Nm: np.ndarray, ankle_torque_Nm: np.ndarray, load_N: np.ndarray,
                       mass_kg: float, reference: WalkingReference, running_table: np.ndarray | None = None) -> dict:
@@ -45,7 +52,7 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
     t = np.asarray(t_s, dtype=float)
     n = t.shape[0]
     dt = float(np.median(np.diff(t))) if n > 1 else 0.01
-    strikes = heel_strikes(np.asarray(load_N, dtype=float), 0.1 * mass_kg * G_MPS2, max(1, round(0.15 / dt)))
+    strikes = session_strikes(t, load_N, mass_kg)
     strides = max(int(strikes.shape[0]) - 1, 0)
     measured = gait_channels(knee_angle_rad, ankle_angle_rad, knee_torque_Nm, ankle_torque_Nm, mass_kg)
     ref = reference_curves(reference)

@@ -22,11 +22,13 @@ from backend.devices.specs import DeviceSpec
 from backend.errors import ConflictError, NotFoundError
 from backend.store import devices as devices_store
 from backend.store import pushes as pushes_store
+from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 from controller_core.walking_reference import WalkingReference
 from device_bridge.device_node import DeviceNode
 from device_bridge.host import DeviceLink, DeviceStatus, PushResult, TelemetrySample
 from device_bridge.protocol import Command, Fault
+from device_bridge.sim.course import Course
 from device_bridge.sim.walker import SimWalker
 
 ONLINE_WITHIN_S = 1.0        # a device whose status is older than this is offline
@@ -96,7 +98,7 @@ class DeviceManager:
 
     def _table(self, conn: sqlite3.Connection, dev: ManagedDevice, version: int | None,
                crc32: int | None) -> dict | None:
-        """Which table (patient, proposal version, task) a version the device reports is; pushes never change."""
+        """Which table or envelope (patient, version, task) a version the device reports is; pushes never change."""
         if version is None:
             return None
         key = (version, crc32)
@@ -104,7 +106,8 @@ class DeviceManager:
             push = pushes_store.push_of_version(conn, dev.spec.device_id, version, crc32)
             if push is None:
                 return None
-            dev.tables[key] = {k: push[k] for k in ("proposal_id", "proposal_version", "patient_id", "patient_code",
+            dev.tables[key] = {k: push[k] for k in ("kind", "proposal_id", "proposal_version", "envelope_id",
+                                                    "envelope_version", "patient_id", "patient_code", "label",
                                                     "table_label", "task")}
         return dev.tables[key]
 
@@ -134,6 +137,7 @@ class DeviceManager:
             "last_heartbeat_unix_s": None if s is None else round(s.received_unix_s, 3),
             "last_heartbeat_age_s": age,
             "walking": None if dev.walker is None else dev.walker.walking,
+            "bench_task": _bench_task(dev.walker),
             "recording_session_id": self.recorder.session_of(device_id),
         }
 
@@ -141,12 +145,19 @@ class DeviceManager:
 
     def push(self, device_id: str, table: ParameterTable, version: int) -> PushResult:
         """Push a table and wait for the CRC read-back (raises device_bridge's PushError on failure)."""
+        return self._link_for_push(device_id).push(table, version)
+
+    def push_envelope(self, device_id: str, envelope: Envelope, version: int) -> PushResult:
+        """Push a whole envelope and wait for the CRC read-back (raises device_bridge's PushError on failure)."""
+        return self._link_for_push(device_id).push_envelope(envelope, version)
+
+    def _link_for_push(self, device_id: str) -> DeviceLink:
         dev = self.get(device_id)
         if not self.online(dev) or dev.link is None:
             raise ConflictError(f"device {device_id} is offline (no status for over {ONLINE_WITHIN_S:g} s); "
                                 "nothing was sent")
         dev.tables.clear()      # the device's 16-bit version numbers wrap: a number may now name another push
-        return dev.link.push(table, version)
+        return dev.link
 
     def command(self, device_id: str, command: Command) -> None:
         dev = self.get(device_id)
@@ -155,11 +166,14 @@ class DeviceManager:
         dev.link.command(command)
 
     def start_recording(self, device_id: str, session_id: int, reference: WalkingReference | None,
-                        mass_kg: float) -> None:
-        """Record the device's telemetry into ``session_id``; a simulated leg starts walking at the task."""
+                        mass_kg: float, course: Course | None = None) -> None:
+        """Record the device's telemetry into ``session_id``; a simulated leg starts walking at the task, or walks
+        the course."""
         dev = self.get(device_id)
         self.recorder.begin(device_id, session_id)
-        if dev.walker is not None and reference is not None:
+        if dev.walker is not None and course is not None:
+            dev.walker.start_course(course, mass_kg)
+        elif dev.walker is not None and reference is not None:
             dev.walker.start(reference, mass_kg)
 
     def stop_recording(self, device_id: str) -> None:
@@ -186,6 +200,22 @@ class DeviceManager:
         self.recorder.add(dev.spec.device_id, (
             x.seq, x.received_unix_s, int(x.mode), x.fsm_state, x.knee_angle_rad, x.knee_velocity_rad_s,
             x.knee_torque_Nm, x.ankle_angle_rad, x.ankle_velocity_rad_s, x.ankle_torque_Nm, x.load_N,
-            x.ankle_moment_Nm))
+            x.ankle_moment_Nm, *_task_columns(x)))
         if dev.fanout:
             dev.fanout.publish({"type": "telemetry", **x.to_json()})
+
+
+def _task_columns(x: TelemetrySample) -> tuple:
+    """The adaptive leg's task telemetry as stored (NULLs while a single table runs)."""
+    t = x.task
+    if t is None:
+        return (None, None, None, None, None)
+    return (t.estimated_speed_mps, t.estimated_incline_deg, t.running_speed_mps, t.running_incline_deg,
+            t.adaptive_mode)
+
+
+def _bench_task(walker: SimWalker | None) -> dict | None:
+    task = None if walker is None else walker.task
+    if task is None:
+        return None
+    return {"speed_mps": round(task[0], 3), "incline_deg": round(task[1], 2), "course": walker.course}

@@ -17,7 +17,7 @@ from backend.schemas.envelopes import (
 )
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
-from backend.store import envelopes, patients
+from backend.store import envelopes, patients, pushes
 from controller_core.envelope_edit import edit_envelope
 from controller_core.table_edit import EditError
 from device_bridge.envelope_wire import check_envelope_as_run
@@ -48,7 +48,8 @@ def list_envelopes(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[d
 @router.get("/envelopes/{envelope_id}", response_model=EnvelopeOut, responses=NOT_FOUND)
 def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """An envelope with every node's table, extrapolation flag, feature SDs and guarded values, and its check."""
-    return envelopes.get_envelope(conn, envelope_id)
+    return {**envelopes.get_envelope(conn, envelope_id),
+            "deployment": pushes.deployment_state(conn, ("envelope", envelope_id))}
 
 
 @router.post("/envelopes/{envelope_id}/edits", response_model=EnvelopeOut, status_code=status.HTTP_201_CREATED,

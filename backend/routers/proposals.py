@@ -47,7 +47,8 @@ def list_proposals(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[d
 @router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)
 def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """A proposal with its curves, features, table and safety check, and its deployment state."""
-    return {**proposals.get_proposal(conn, proposal_id), "deployment": pushes.deployment_state(conn, proposal_id)}
+    return {**proposals.get_proposal(conn, proposal_id),
+            "deployment": pushes.deployment_state(conn, ("proposal", proposal_id))}
 
 
 @router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,

@@ -1,9 +1,10 @@
-"""Pushing an approved proposal's table to a device, and the record of every push."""
+"""Pushing an approved proposal's table, or an approved envelope, to a device; and the record of every push."""
 
 from __future__ import annotations
 
 import sqlite3
 import time
+from collections.abc import Callable
 
 from fastapi import APIRouter, Request, status
 
@@ -14,48 +15,79 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.pushes import PushOut, PushRequest
 from backend.store import devices as devices_store
-from backend.store import patients, proposals
+from backend.store import envelopes, patients, proposals
 from backend.store import pushes as store
-from device_bridge.host import PushError
+from backend.store.users import User
+from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
+from device_bridge.host import PushError, PushResult
 from device_bridge.protocol import ProtocolError, WireTable, check_as_run
 
-router = APIRouter(prefix="/api/proposals", tags=["pushes"], responses=UNAUTHORIZED)
+router = APIRouter(prefix="/api", tags=["pushes"], responses=UNAUTHORIZED)
 
 MASS_TOLERANCE = 0.02   # a table proposed for a body mass more than 2 % off the patient's current one is refused
+_PUSH_RESPONSES = {**FORBIDDEN, **NOT_FOUND, **CONFLICT, **DEVICE_FAILED}
 
 
-@router.post("/{proposal_id}/push", response_model=PushOut, status_code=status.HTTP_201_CREATED,
-             responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT, **DEVICE_FAILED})
+@router.post("/proposals/{proposal_id}/push", response_model=PushOut, status_code=status.HTTP_201_CREATED,
+             responses=_PUSH_RESPONSES)
 def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
     """Send an approved proposal's table to a device (prosthetist) and wait for the device to read back its exact
     CRC-32. The device must be assigned to the proposal's patient, whose body mass must still be the one the table
-    was proposed for. The caller confirms what it replaces (``replaces_proposal_id``: the table they saw on the
-    leg, null for none of ours; refused if the leg runs another now) and that the patient is seated or in the
-    parallel bars. The push is recorded first; it is ``acknowledged`` when the CRC comes back, and ``active``
-    when the device's status reports that table running — at the next heel strike. The version on the wire is
-    the device's own counter. A failed push leaves the device on its previous table."""
+    was proposed for. The caller confirms what it replaces (``replaces_proposal_id`` / ``replaces_envelope_id``:
+    what they saw on the leg, both null for none of ours; refused if the leg runs another now) and that the patient
+    is seated or in the parallel bars. The push is recorded first; it is ``acknowledged`` when the CRC comes back,
+    and ``active`` when the device's status reports that table running — at the next heel strike. The version on
+    the wire is the device's own counter. A failed push leaves the device on what it ran before."""
     devices: DeviceManager = request.app.state.devices
     row = proposals.get_row(conn, proposal_id)
-    if row["status"] != "approved":
-        raise ConflictError(f"proposal {proposal_id} is {row['status']}; only approved proposals can be pushed")
-    device = devices.get(body.device_id)
-    _check_patient(conn, row, body.device_id)
-    _check_replaces(conn, body)
     table = proposals.stored_table(row)
     violations = check_as_run(table)
-    if violations:
-        raise ConflictError(f"proposal {proposal_id} fails the safety limits; not pushed: "
-                            + "; ".join(v.message for v in violations), violations=[v.model_dump() for v in violations])
     try:
-        crc = WireTable.from_table(table).crc32()
+        crc = WireTable.from_table(table).crc32() if not violations else 0
     except ProtocolError as exc:
         raise InvalidError(f"the table cannot be sent: {exc}") from exc
-    if not devices.online(device):
+    return _push(conn, devices, user, body, ("proposal", proposal_id), row, violations, crc,
+                 lambda version: devices.push(body.device_id, table, version))
+
+
+@router.post("/envelopes/{envelope_id}/push", response_model=PushOut, status_code=status.HTTP_201_CREATED,
+             responses=_PUSH_RESPONSES)
+def push_envelope(envelope_id: IdPath, body: PushRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
+    """Send an approved envelope to a device (prosthetist), all or nothing, and wait for the device to read back its
+    exact CRC-32 after re-checking every node and the neighbour rule itself. The same checks and confirmations as a
+    table push (device assigned to the envelope's patient, same body mass, what it replaces, patient ready); from
+    the next heel strike the leg takes its rows from the envelope at the task it estimates."""
+    devices: DeviceManager = request.app.state.devices
+    row = envelopes.get_row(conn, envelope_id)
+    envelope = envelopes.stored_envelope(row)
+    violations = check_envelope_as_run(envelope)
+    try:
+        crc = WireEnvelope.from_envelope(envelope).crc32() if not violations else 0
+    except ProtocolError as exc:
+        raise InvalidError(f"the envelope cannot be sent: {exc}") from exc
+    return _push(conn, devices, user, body, ("envelope", envelope_id), row, violations, crc,
+                 lambda version: devices.push_envelope(body.device_id, envelope, version))
+
+
+def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed,
+          row: sqlite3.Row, violations: list, crc: int, send: Callable[[int], PushResult]) -> dict:
+    """The checks every push passes, in order, then record → send → finish. Nothing is sent when one fails."""
+    kind, item_id = item
+    if row["status"] != "approved":
+        raise ConflictError(f"{kind} {item_id} is {row['status']}; only approved {kind}s can be pushed")
+    devices.get(body.device_id)
+    _check_patient(conn, row, body.device_id, "table" if kind == "proposal" else "envelope")
+    _check_replaces(conn, body)
+    if violations:
+        raise ConflictError(f"{kind} {item_id} fails the safety limits; not pushed: "
+                            + "; ".join(v.message for v in violations[:5]),
+                            violations=[v.model_dump() for v in violations])
+    if not devices.online(devices.get(body.device_id)):
         raise ConflictError(f"device {body.device_id} is offline (no status in the last second); nothing was sent")
-    push_id, version = store.begin_push(conn, proposal_id, body.device_id, crc, user)
+    push_id, version = store.begin_push(conn, item, body.device_id, crc, user)
     t0 = time.monotonic()
     try:
-        result = devices.push(body.device_id, table, version)
+        result = send(version)
     except (PushError, ConflictError) as exc:
         store.finish_push(conn, push_id, False, None, (time.monotonic() - t0) * 1e3, str(exc))
         raise DeviceError(f"push {push_id} failed: {exc}", push=store.get_push(conn, push_id)) from exc
@@ -63,8 +95,8 @@ def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, u
     return store.get_push(conn, push_id)
 
 
-def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str) -> None:
-    """The device is assigned to the proposal's patient, who still weighs what the table was proposed for."""
+def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, what: str) -> None:
+    """The device is assigned to the row's patient, who still weighs what the table or envelope was made for."""
     patient = patients.get_patient(conn, row["patient_id"])
     assigned = devices_store.assignment(conn, device_id)
     who = f"{patient['code_name']} ({patient['body_mass_kg']:g} kg)"
@@ -73,9 +105,9 @@ def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str) -
                             "monitor, Device) — nothing was sent")
     if assigned["patient_id"] != row["patient_id"]:
         raise ConflictError(f"device {device_id} is assigned to {assigned['patient_code']} "
-                            f"({assigned['body_mass_kg']:g} kg), not to {who} whose table this is; nothing was sent")
+                            f"({assigned['body_mass_kg']:g} kg), not to {who} whose {what} this is; nothing was sent")
     if abs(patient["body_mass_kg"] - row["body_mass_kg"]) > MASS_TOLERANCE * row["body_mass_kg"]:
-        raise ConflictError(f"this table was proposed for {row['body_mass_kg']:g} kg and {patient['code_name']} now "
+        raise ConflictError(f"this {what} was proposed for {row['body_mass_kg']:g} kg and {patient['code_name']} now "
                             f"weighs {patient['body_mass_kg']:g} kg: its torques and load thresholds scale with body "
                             "mass; propose again for the new mass. Nothing was sent")
 
@@ -83,16 +115,24 @@ def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str) -
 def _check_replaces(conn: sqlite3.Connection, body: PushRequest) -> None:
     """What the caller confirmed replacing is what the leg runs (or is about to run) now."""
     current = store.current_push(conn, body.device_id)
-    now_id = None if current is None else current["proposal_id"]
-    if now_id != body.replaces_proposal_id:
-        now = "no table from this server" if current is None else (
-            f"{current['table_label']} ({current['task']['speed_mps']:g} m/s, {current['task']['incline_deg']:g}°)")
-        raise ConflictError(f"device {body.device_id} now runs {now}, not what you confirmed replacing; review and "
-                            "confirm again. Nothing was sent")
+    now = (None, None) if current is None else (current["proposal_id"], current["envelope_id"])
+    if now != (body.replaces_proposal_id, body.replaces_envelope_id):
+        running = "nothing from this server" if current is None else (
+            f"{current['label']} ({current['task']['speed_mps']:g} m/s, {current['task']['incline_deg']:g}°"
+            f"{' nominal' if current['kind'] == 'envelope' else ''})")
+        raise ConflictError(f"device {body.device_id} now runs {running}, not what you confirmed replacing; review "
+                            "and confirm again. Nothing was sent")
 
 
-@router.get("/{proposal_id}/pushes", response_model=list[PushOut], responses=NOT_FOUND)
+@router.get("/proposals/{proposal_id}/pushes", response_model=list[PushOut], responses=NOT_FOUND)
 def list_pushes(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     """Every push of this proposal, newest first."""
     proposals.get_row(conn, proposal_id)
-    return store.pushes_of_proposal(conn, proposal_id)
+    return store.pushes_of(conn, ("proposal", proposal_id))
+
+
+@router.get("/envelopes/{envelope_id}/pushes", response_model=list[PushOut], responses=NOT_FOUND)
+def list_envelope_pushes(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
+    """Every push of this envelope, newest first."""
+    envelopes.get_row(conn, envelope_id)
+    return store.pushes_of(conn, ("envelope", envelope_id))

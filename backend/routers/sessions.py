@@ -17,10 +17,12 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest
 from backend.store import devices as devices_store
-from backend.store import patients, pushes
+from backend.store import envelopes, patients, pushes
 from backend.store import sessions as store
-from controller_core.session_summary import summarize_session
+from controller_core.session_regions import adaptive_summary
+from controller_core.session_summary import session_strikes, summarize_session
 from device_bridge.protocol import Mode
+from device_bridge.sim.course import COURSES
 
 router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
 
@@ -30,8 +32,9 @@ router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
 def start_session(patient_id: IdPath, body: SessionRequest, request: Request, conn: Conn, user: Monitor,
                   model: Model) -> dict:
     """Start recording the device's telemetry for this patient (prosthetist or viewer): the device must be
-    assigned to the patient, and the table on it (if any) be theirs. The task defaults to that of the table on
-    the device; the simulated leg starts walking at it."""
+    assigned to the patient, and the table or envelope on it (if any) be theirs. The task defaults to that of the
+    table on the device (an envelope's nominal task); the simulated leg starts walking at it, or walks ``course``
+    (its first task is then the session's task)."""
     devices: DeviceManager = request.app.state.devices
     patient = patients.get_patient(conn, patient_id)
     devices.get(body.device_id)
@@ -42,9 +45,16 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
                             "records the patient wearing the device; change the assignment first")
     active = pushes.current_push(conn, body.device_id)
     if active is not None and active["patient_id"] != patient_id:
-        raise ConflictError(f"the leg runs {active['table_label']}, another patient's table; push one of "
-                            f"{patient['code_name']}'s approved tables before recording")
-    if body.speed_mps is not None:
+        raise ConflictError(f"the leg runs {active['label']}, another patient's {active['kind']}; push one of "
+                            f"{patient['code_name']}'s approved tables or envelopes before recording")
+    course = None
+    if body.course is not None:
+        if devices.get(body.device_id).walker is None:
+            raise InvalidError(f"course {body.course!r} is walked by the simulated leg only; device {body.device_id} "
+                               "is a real leg: record the session at its task instead")
+        course = COURSES[body.course]
+        speed, incline = course.segments[0].speed_mps, course.segments[0].incline_deg
+    elif body.speed_mps is not None:
         speed, incline = body.speed_mps, body.incline_deg or 0.0
     elif active is not None:
         speed, incline = active["task"]["speed_mps"], active["task"]["incline_deg"]
@@ -54,8 +64,8 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
     mass = patient["body_mass_kg"]
     reference = task_reference(speed, incline, model, mass)
     task = {"speed_mps": speed, "incline_deg": incline, "body_mass_kg": mass}
-    session_id = store.start_session(conn, patient_id, body.device_id, task, active, user)
-    devices.start_recording(body.device_id, session_id, reference, mass)
+    session_id = store.start_session(conn, patient_id, body.device_id, task, active, user, body.course)
+    devices.start_recording(body.device_id, session_id, reference, mass, course)
     return store.get_session(conn, session_id)
 
 
@@ -76,6 +86,14 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
                                 np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
                                 np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
                                 reference, running_table=np.asarray(cols["mode"]) == Mode.ACTIVE)
+    if session["envelope_id"] is not None:
+        envelope = envelopes.stored_envelope(envelopes.get_row(conn, session["envelope_id"]))
+        summary["adaptive"] = adaptive_summary(
+            np.asarray(cols["t_s"]), np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]),
+            session_strikes(np.asarray(cols["t_s"]), np.asarray(cols["load_N"]), t["body_mass_kg"]),
+            _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]), cols["adaptive_mode"],
+            envelope.speeds_mps, envelope.inclines_deg,
+            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]))
     modes = np.asarray(cols["mode"], dtype=int)
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
@@ -83,6 +101,11 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
     summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
     store.stop_session(conn, session_id, summary, user)
     return store.get_session(conn, session_id)
+
+
+def _floats(values: list) -> np.ndarray:
+    """A stored column with NULLs as NaN."""
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
 
 
 @router.get("/patients/{patient_id}/sessions", response_model=list[SessionOut], responses=NOT_FOUND)

@@ -23,12 +23,23 @@ class DeviceAssignment(BaseModel):
 
 
 class TableOnDevice(BaseModel):
-    proposal_id: int
-    proposal_version: int = Field(description="the proposal's version for its patient (the N of 'table vN')")
+    kind: Literal["table", "envelope"] = Field(description="a proposal's table, or an envelope the leg adapts in")
+    proposal_id: int | None
+    proposal_version: int | None = Field(description="the proposal's version for its patient (the N of 'table vN')")
+    envelope_id: int | None
+    envelope_version: int | None = Field(description="the envelope's version for its patient")
     patient_id: int
     patient_code: str
-    table_label: str = Field(description="the table's one name everywhere: 'patient code · table vN'")
-    task: dict[str, float] = Field(description="speed_mps and incline_deg the table was proposed for")
+    label: str = Field(description="its one name everywhere: 'patient code · table vN' or '… · envelope vN'")
+    table_label: str | None = Field(description="the same, for a table (null for an envelope)")
+    task: dict[str, float] = Field(description="speed_mps and incline_deg the table was proposed for (an "
+                                               "envelope: its nominal task)")
+
+
+class BenchTask(BaseModel):
+    speed_mps: float
+    incline_deg: float
+    course: str | None = Field(description="the course being walked, if any")
 
 
 class DeviceOut(BaseModel):
@@ -54,6 +65,8 @@ class DeviceOut(BaseModel):
     last_heartbeat_unix_s: float | None = Field(description="when the device's last status arrived (Unix s)")
     last_heartbeat_age_s: float | None
     walking: bool | None = Field(description="simulated leg only: the bench is walking")
+    bench_task: BenchTask | None = Field(description="simulated leg only: the true task the bench walks now "
+                                                     "(ground truth for the leg's own estimate)")
     recording_session_id: int | None
 
 

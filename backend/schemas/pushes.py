@@ -1,4 +1,4 @@
-"""Pushes of an approved table to a device."""
+"""Pushes of an approved table or envelope to a device."""
 
 from __future__ import annotations
 
@@ -13,23 +13,29 @@ from backend.schemas.devices import DeviceId
 class PushRequest(StrictIn):
     device_id: DeviceId
     replaces_proposal_id: int | None = Field(
-        description="the proposal whose table you saw on the leg and are replacing (null: none from this server); "
-                    "the push is refused if the leg runs another table now")
+        description="the proposal whose table you saw on the leg and are replacing (null: none from this server, or "
+                    "an envelope); the push is refused if the leg runs anything else now")
+    replaces_envelope_id: int | None = Field(
+        default=None, description="the envelope you saw on the leg and are replacing (null: not an envelope)")
     patient_ready: Literal[True] = Field(description="you confirm the patient is seated or in the parallel bars: "
                                                      "the leg changes its behaviour at the next heel strike")
 
 
 class PushOut(BaseModel):
     id: int
-    proposal_id: int
+    kind: Literal["table", "envelope"] = Field(description="a proposal's table, or a whole envelope")
+    proposal_id: int | None
+    envelope_id: int | None
     device_id: str
     patient_id: int
     patient_code: str
-    proposal_version: int
-    table_label: str = Field(description="the table's one name everywhere: 'patient code · table vN'")
-    task: dict[str, float]
+    proposal_version: int | None
+    envelope_version: int | None
+    label: str = Field(description="its one name everywhere: 'patient code · table vN' or '… · envelope vN'")
+    table_label: str | None = Field(description="the same name, for a table push (null for an envelope)")
+    task: dict[str, float] = Field(description="the table's task, or the envelope's nominal task")
     table_version: int = Field(description="the device's own version number for this push (16-bit, per device)")
-    crc32: str = Field(description="CRC-32 (hex) of the table as sent, in the wire's fixed-point")
+    crc32: str = Field(description="CRC-32 (hex) of the table or envelope as sent, in the wire's fixed-point")
     status: Literal["sending", "acknowledged", "active", "failed", "superseded"]
     requested_by: str
     requested_at: str

@@ -16,6 +16,9 @@ class SessionRequest(StrictIn):
     speed_mps: float | None = Field(default=None, ge=SPEED_RANGE_MPS[0], le=SPEED_RANGE_MPS[1],
                                     description="walking speed (m/s); default: the task of the table active on the device")
     incline_deg: float | None = Field(default=None, ge=-20, le=20, description="incline (deg); default as speed")
+    course: Literal["speed", "terrain", "mixed"] | None = Field(
+        default=None, description="walk one of the bench's varying-task courses instead of one task (a simulated "
+                                  "leg only): speed changes, ramps up and down (±8°), or both; it stops at the end")
 
 
 class SessionTask(BaseModel):
@@ -30,10 +33,13 @@ class SessionOut(BaseModel):
     patient_code: str
     device_id: str
     proposal_id: int | None
-    table_label: str | None = Field(description="the table the session ran: 'patient code · table vN'")
-    table_version: int | None = Field(description="the device's own version number of that table")
-    table_crc32: str | None
-    task: SessionTask
+    envelope_id: int | None
+    table_label: str | None = Field(description="what the leg ran: 'patient code · table vN' or '… · envelope vN'")
+    table_version: int | None = Field(description="the device's own version number of that table or envelope")
+    table_crc32: str | None = Field(description="CRC-32 (hex) of the table or envelope as the device runs it")
+    course: str | None = Field(description="the bench course walked, if any")
+    task: SessionTask = Field(description="the task the session's headline errors are scored at: the table's, the "
+                                          "envelope's nominal, or the course's first")
     status: Literal["recording", "stopped"]
     started_by: str
     started_at: str
@@ -49,4 +55,6 @@ class SamplesOut(BaseModel):
     every: int
     columns: dict[str, list[float | int | str | None]] = Field(
         description="t_s, mode (active / safe / no_table), fsm_state, knee/ankle angle (deg), velocity (deg/s), "
-                    "torque (N·m), load_N, ankle_moment_Nm")
+                    "torque (N·m), load_N, ankle_moment_Nm; with an envelope: estimated_speed_mps, "
+                    "estimated_incline_deg (null before an estimate), running_speed_mps, running_incline_deg, "
+                    "adaptive_mode (nominal / partial / adaptive / clamped)")

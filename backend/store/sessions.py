@@ -9,21 +9,31 @@ from collections.abc import Iterable
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
+from backend.store.envelopes import envelope_label
 from backend.store.proposals import table_label
 from backend.store.users import User
 
 _SESSION_SELECT = ("SELECT s.*, su.username AS started_by_name, pu.username AS stopped_by_name, "
-                   "pa.code_name AS patient_code, pr.version AS proposal_version, pp.code_name AS table_patient_code "
+                   "pa.code_name AS patient_code, pr.version AS proposal_version, en.version AS envelope_version, "
+                   "pp.code_name AS table_patient_code "
                    "FROM walking_sessions s JOIN users su ON su.id = s.started_by "
                    "LEFT JOIN users pu ON pu.id = s.stopped_by JOIN patients pa ON pa.id = s.patient_id "
-                   "LEFT JOIN proposals pr ON pr.id = s.proposal_id LEFT JOIN patients pp ON pp.id = pr.patient_id")
+                   "LEFT JOIN proposals pr ON pr.id = s.proposal_id LEFT JOIN envelopes en ON en.id = s.envelope_id "
+                   "LEFT JOIN patients pp ON pp.id = coalesce(pr.patient_id, en.patient_id)")
+
+
+def _label(row: sqlite3.Row) -> str | None:
+    if row["proposal_id"] is not None:
+        return table_label(row["table_patient_code"], row["proposal_version"])
+    if row["envelope_id"] is not None:
+        return envelope_label(row["table_patient_code"], row["envelope_version"])
+    return None
 
 
 def _session(row: sqlite3.Row) -> dict:
     return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
-            "device_id": row["device_id"], "proposal_id": row["proposal_id"],
-            "table_label": None if row["proposal_id"] is None else table_label(row["table_patient_code"],
-                                                                                row["proposal_version"]),
+            "device_id": row["device_id"], "proposal_id": row["proposal_id"], "envelope_id": row["envelope_id"],
+            "table_label": _label(row), "course": row["course"],
             "table_version": row["table_version"],
             "table_crc32": None if row["table_crc32"] is None else f"{row['table_crc32']:08x}",
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
@@ -46,27 +56,33 @@ def sessions_of_patient(conn: sqlite3.Connection, patient_id: int) -> list[dict]
 
 
 def start_session(conn: sqlite3.Connection, patient_id: int, device_id: str, task: dict, active: dict | None,
-                  actor: User) -> int:
+                  actor: User, course: str | None = None) -> int:
     """Open a recording session (409 when the device already records one)."""
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM walking_sessions WHERE device_id = ? AND status = 'recording'",
                         (device_id,)).fetchone():
             raise ConflictError(f"device {device_id} is already recording a session; stop it first")
         cur = conn.execute(
-            "INSERT INTO walking_sessions (patient_id, device_id, proposal_id, table_version, table_crc32, speed_mps, "
-            "incline_deg, body_mass_kg, status, started_by, started_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, 'recording', ?, ?)",
+            "INSERT INTO walking_sessions (patient_id, device_id, proposal_id, envelope_id, table_version, table_crc32, "
+            "speed_mps, incline_deg, body_mass_kg, course, status, started_by, started_at) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'recording', ?, ?)",
             (patient_id, device_id, active["proposal_id"] if active else None,
+             active["envelope_id"] if active else None,
              active["table_version"] if active else None, int(active["crc32"], 16) if active else None,
-             task["speed_mps"], task["incline_deg"], task["body_mass_kg"], actor.id, utc_now()))
+             task["speed_mps"], task["incline_deg"], task["body_mass_kg"], course, actor.id, utc_now()))
         session_id = int(cur.lastrowid)
         audit.record(conn, actor.id, actor.username, "session.start", "session", session_id,
-                     after={"patient_id": patient_id, "device_id": device_id, "task": task,
-                            "proposal_id": active["proposal_id"] if active else None})
+                     after={"patient_id": patient_id, "device_id": device_id, "task": task, "course": course,
+                            "proposal_id": active["proposal_id"] if active else None,
+                            "envelope_id": active["envelope_id"] if active else None})
     return session_id
 
 
 SAMPLE_COLUMNS = ("seq", "t_s", "mode", "fsm_state", "knee_angle_rad", "knee_velocity_rad_s", "knee_torque_Nm",
-                  "ankle_angle_rad", "ankle_velocity_rad_s", "ankle_torque_Nm", "load_N", "ankle_moment_Nm")
+                  "ankle_angle_rad", "ankle_velocity_rad_s", "ankle_torque_Nm", "load_N", "ankle_moment_Nm",
+                  # the adaptive leg's task (migration 0007; NULL while a single table runs)
+                  "estimated_speed_mps", "estimated_incline_deg", "running_speed_mps", "running_incline_deg",
+                  "adaptive_mode")
 
 
 def add_samples(conn: sqlite3.Connection, session_id: int, rows: Iterable[tuple]) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import multiprocessing
 import shutil
+import sqlite3
 
 import pytest
 
@@ -84,3 +85,42 @@ def test_two_processes_starting_at_once(tmp_path):
     versions = [r[0] for r in conn.execute("SELECT version FROM schema_version ORDER BY version")]
     conn.close()
     assert versions == [m.version for m in discover()]
+
+
+def test_envelope_pushes_migration_keeps_every_table_push(tmp_path):
+    """0007 rebuilds ``pushes`` (proposal_id may now be NULL for an envelope): old rows, the trigger and the
+    one-of rule survive."""
+    mig = tmp_path / "migrations"
+    mig.mkdir()
+    for m in discover()[:6]:
+        (mig / m.name).write_text(m.sql)
+    db = tmp_path / "q.sqlite"
+    migrate(db, mig)
+    conn = connect(db)
+    now = "2026-11-24T00:00:00Z"
+    conn.execute("INSERT INTO users (id, username, role, password_hash, created_at) VALUES (1, 'p', 'prosthetist', "
+                 "'x', ?)", (now,))
+    conn.execute("INSERT INTO patients (id, code_name, body_mass_kg, side, created_by, created_at, updated_at) "
+                 "VALUES (1, 'P-1', 80, 'left', 1, ?, ?)", (now, now))
+    conn.execute("INSERT INTO proposals (id, patient_id, version, source, speed_mps, incline_deg, body_mass_kg, "
+                 "extrapolation, safety_ok, model_json, table_json, table_sha256, created_by, created_at) "
+                 "VALUES (1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 'x', 1, ?)", (now,))
+    conn.execute("INSERT INTO devices (id, kind, interface, channel, registered_at) VALUES ('leg', 'simulated', "
+                 "'virtual', 'x', ?)", (now,))
+    conn.execute("INSERT INTO pushes (id, proposal_id, device_id, table_version, crc32, status, requested_by, "
+                 "requested_at, attempts) VALUES (7, 1, 'leg', 3, 4660, 'active', 1, ?, 2)", (now,))
+    conn.commit()
+    conn.close()
+    shutil.copy(MIGRATIONS_DIR / discover()[6].name, mig)
+    assert migrate(db, mig) == [7]
+    conn = connect(db)
+    row = conn.execute("SELECT * FROM pushes").fetchone()
+    assert (row["id"], row["proposal_id"], row["envelope_id"], row["crc32"], row["status"], row["attempts"]) == (
+        7, 1, None, 4660, "active", 2)
+    with pytest.raises(sqlite3.IntegrityError, match="CHECK"):      # neither a table nor an envelope
+        conn.execute("INSERT INTO pushes (device_id, table_version, crc32, status, requested_by, requested_at) "
+                     "VALUES ('leg', 4, 1, 'sending', 1, ?)", (now,))
+    with pytest.raises(sqlite3.IntegrityError, match="never deleted"):
+        conn.execute("DELETE FROM pushes")
+    assert conn.execute("PRAGMA foreign_key_check").fetchall() == []
+    conn.close()

@@ -103,7 +103,7 @@ def push_body(api: Api, device: str = DEVICE) -> dict:
                  lambda d: d["online"])
     current = d["pending_table"] or d["active_table"]
     return {"device_id": device, "replaces_proposal_id": None if current is None else current["proposal_id"],
-            "patient_ready": True}
+            "replaces_envelope_id": None if current is None else current["envelope_id"], "patient_ready": True}
 
 
 def push_to_leg(api: Api, proposal: dict, device: str = DEVICE):

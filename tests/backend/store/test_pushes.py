@@ -17,8 +17,8 @@ def _pushes(api, n: int) -> tuple[object, list[int], list[int], list[int]]:
     devices.register_device(conn, "leg", "simulated", "virtual", "x")
     user_id = conn.execute("SELECT id FROM users WHERE username = 'prosthetist'").fetchone()[0]
     actor = User(id=user_id, username="prosthetist", role="prosthetist")
-    push_ids, versions = zip(*[pushes.begin_push(conn, pid, "leg", 0xABC0 + pid, actor) for pid in proposal_ids],
-                             strict=True)
+    push_ids, versions = zip(*[pushes.begin_push(conn, ("proposal", pid), "leg", 0xABC0 + pid, actor)
+                               for pid in proposal_ids], strict=True)
     return conn, proposal_ids, list(push_ids), list(versions)
 
 
@@ -36,10 +36,11 @@ def test_running_a_table_supersedes_older_acknowledged_pushes(api):
     changed = pushes.mark_active(conn, "leg", versions[1], 0xABC0 + proposal_ids[1])
     statuses = [pushes.get_push(conn, i)["status"] for i in push_ids]
     assert statuses == ["superseded", "active", "acknowledged"]        # the newest is still to be run
-    assert set(changed) == {proposal_ids[0], proposal_ids[1]}
+    assert set(changed) == {("proposal", proposal_ids[0]), ("proposal", proposal_ids[1])}
     assert pushes.current_push(conn, "leg")["id"] == push_ids[2]
     # what each version's page says about where it runs
-    assert [pushes.deployment_state(conn, p) for p in proposal_ids] == ["replaced", "active_on_device", "pushed"]
+    states = [pushes.deployment_state(conn, ("proposal", p)) for p in proposal_ids]
+    assert states == ["replaced", "active_on_device", "pushed"]
 
 
 def test_a_device_kind_outside_the_schema_is_refused_not_ignored(api):
@@ -58,7 +59,7 @@ def test_the_table_version_is_the_devices_own_counter_and_wraps_past_16_bits(api
     conn.commit()
     user = User(id=conn.execute("SELECT id FROM users WHERE username = 'prosthetist'").fetchone()[0],
                 username="prosthetist", role="prosthetist")
-    wrapped = [pushes.begin_push(conn, proposal_ids[0], "leg", 0x1234, user)[1] for _ in range(3)]
+    wrapped = [pushes.begin_push(conn, ("proposal", proposal_ids[0]), "leg", 0x1234, user)[1] for _ in range(3)]
     assert wrapped == [65535, 1, 2]
     # a reused number still names the newest push of that version and CRC
     assert pushes.push_of_version(conn, "leg", 2, 0x1234)["id"] > push_ids[1]

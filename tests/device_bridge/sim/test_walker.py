@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
+import pytest
+
 from controller_core.walking_reference import level_walking_reference
 from device_bridge.host import TelemetrySample
 from device_bridge.protocol import Mode
+from device_bridge.sim.course import Course, Segment
 from device_bridge.sim.walker import SimWalker
 from tests.helpers.device import pair, until
 
@@ -33,3 +37,19 @@ def test_the_walking_simulated_leg_streams_telemetry_without_gaps(tables):
     knee = [s.knee_angle_rad for s in got]
     assert max(knee) - min(knee) > 0.2   # the knee moves (about 11° or more of swing in 1.5 s of walking)
     assert {s.mode for s in got} == {Mode.ACTIVE} and {s.fsm_state for s in got} >= {0, 1}
+
+
+def test_a_course_is_walked_once_at_its_true_task_and_the_bench_stops_at_its_end():
+    course = Course("short", (Segment(1.5, 1.0, 0.0), Segment(1.5, 1.0, 6.0)), transition_s=1.0)
+    walker = SimWalker()
+    walker.start_course(course, 75.0)
+    assert walker.walking and walker.course == "short" and walker.task == (1.0, 0.0)
+    steps = 0
+    while walker.walking:
+        sample = walker.sample()
+        assert sample is not None and np.isfinite(sample.thigh_angle_rad)   # the socket IMU the estimator reads
+        walker.step(0.0, 0.0)
+        steps += 1
+        if steps == 2900:
+            assert walker.task == pytest.approx((1.0, 6.0))        # the ramp, after the transition
+    assert steps == round(course.duration_s / 0.001) and walker.sample() is None and walker.task is None

@@ -1,0 +1,113 @@
+"""Envelope pushes through the API: the same lifecycle and checks as a table push, and sessions on an adaptive leg."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from tests.backend.routers.test_envelopes import request_envelope
+from tests.helpers.api import DEVICE, assign, push_body, wait_for
+
+
+def approved_envelope(api, patient_id: int) -> dict:
+    e = request_envelope(api, patient_id)
+    r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def push_envelope(api, envelope_id: int, **overrides):
+    return api.client.post(f"/api/envelopes/{envelope_id}/push", headers=api.as_("prosthetist"),
+                           json={**push_body(api), **overrides})
+
+
+def test_an_approved_envelope_runs_on_its_patients_leg_and_a_table_can_replace_it(sim_api):
+    api = sim_api
+    c, pro, viewer = api.client, api.as_("prosthetist"), api.as_("viewer")
+    patient = api.new_patient()
+    draft = request_envelope(api, patient["id"])
+    assign(api, patient["id"])
+    r = push_envelope(api, draft["id"])
+    assert r.status_code == 409 and "only approved envelopes" in r.json()["detail"]
+    env = approved_envelope(api, patient["id"])
+
+    r = push_envelope(api, env["id"])
+    assert r.status_code == 201, r.text
+    push = r.json()
+    assert push["kind"] == "envelope" and push["envelope_id"] == env["id"] and push["proposal_id"] is None
+    assert push["crc32"] == f"{env['wire_crc32']:08x}" and push["label"] == "P-001 · envelope v2"
+    assert push["table_label"] is None and push["task"] == {"speed_mps": 1.2, "incline_deg": 0.0}   # nominal
+    device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(),
+                      lambda d: d["active_crc32"] == push["crc32"])
+    assert device["active_table"]["kind"] == "envelope" and device["active_table"]["label"] == push["label"]
+    got = wait_for(lambda: c.get(f"/api/envelopes/{env['id']}", headers=viewer).json(),
+                   lambda e: e["deployment"] == "active_on_device")
+    assert got["status"] == "approved"
+    [record] = c.get(f"/api/envelopes/{env['id']}/pushes", headers=viewer).json()
+    assert record["status"] == "active"
+    [entry] = [a for a in c.get("/api/audit?entity=envelope", headers=viewer).json()["items"]
+               if a["action"] == "envelope.push"]
+    assert entry["entity_id"] == env["id"] and entry["after"]["crc32"] == push["crc32"]
+
+    # what the caller confirms replacing must be the envelope now on the leg
+    prop = api.propose(patient["id"])
+    c.post(f"/api/proposals/{prop['id']}/approve", headers=pro, json={"comment": "ok"})
+    stale = {**push_body(api), "replaces_envelope_id": None}
+    r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json=stale)
+    assert r.status_code == 409 and "now runs P-001 · envelope v2" in r.json()["detail"]
+    assert c.get(f"/api/proposals/{prop['id']}/pushes", headers=viewer).json() == []      # nothing sent
+    r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json=push_body(api))
+    assert r.status_code == 201, r.text
+    wait_for(lambda: c.get(f"/api/envelopes/{env['id']}", headers=viewer).json(),
+             lambda e: e["deployment"] == "replaced")
+
+
+def test_an_envelope_goes_only_to_the_leg_of_its_patient_at_its_body_mass(sim_api):
+    api = sim_api
+    c = api.client
+    owner, other = api.new_patient("P-070", 70.0), api.new_patient("P-090", 90.0)
+    env = approved_envelope(api, owner["id"])
+    assign(api, other["id"])
+    r = push_envelope(api, env["id"])
+    assert r.status_code == 409 and "assigned to P-090 (90 kg), not to P-070 (70 kg) whose envelope" in r.json()["detail"]
+    assign(api, owner["id"])
+    conn = api.db()
+    conn.execute("UPDATE patients SET body_mass_kg = 80 WHERE id = ?", (owner["id"],))
+    conn.commit()
+    r = push_envelope(api, env["id"])
+    assert r.status_code == 409 and "proposed for 70 kg and P-070 now weighs 80 kg" in r.json()["detail"]
+    assert c.get(f"/api/envelopes/{env['id']}/pushes", headers=api.as_("viewer")).json() == []
+
+
+def test_a_course_session_records_the_legs_own_task_estimate_and_summarises_it_by_region(sim_api):
+    api = sim_api
+    c, viewer = api.client, api.as_("viewer")
+    patient = api.new_patient()
+    env = approved_envelope(api, patient["id"])
+    assign(api, patient["id"])
+    push = push_envelope(api, env["id"]).json()
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(),
+             lambda d: d["active_crc32"] == push["crc32"])
+    r = c.post(f"/api/patients/{patient['id']}/sessions", headers=viewer, json={"device_id": DEVICE, "course": "mixed"})
+    assert r.status_code == 201, r.text
+    session = r.json()
+    assert session["course"] == "mixed" and session["envelope_id"] == env["id"]
+    assert session["table_label"] == "P-001 · envelope v1" and session["task"]["speed_mps"] == 1.0   # first segment
+    device = c.get(f"/api/devices/{DEVICE}", headers=viewer).json()
+    assert device["bench_task"]["course"] == "mixed"
+    time.sleep(7.0)
+    summary = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer).json()["summary"]
+    cols = c.get(f"/api/sessions/{session['id']}/samples", headers=viewer).json()["columns"]
+    estimates = [v for v in cols["estimated_speed_mps"] if v is not None]
+    assert estimates and all(0.6 < v < 1.4 for v in estimates)          # the first segment is 1.0 m/s, level
+    assert set(cols["adaptive_mode"]) <= {"nominal", "partial", "adaptive", "clamped"}
+    adaptive = summary["adaptive"]
+    assert adaptive["speeds_mps"] == env["speeds_mps"] and adaptive["inclines_deg"] == env["inclines_deg"]
+    seen_s = sum(map(sum, adaptive["time_s"]))
+    assert seen_s + adaptive["unestimated_s"] == pytest.approx(summary["duration_s"], abs=0.05)
+    assert sum(map(sum, adaptive["strides"])) + adaptive["unestimated_strides"] == summary["strides"]
+    level = adaptive["inclines_deg"].index(0.0)
+    assert sum(row[level] for row in adaptive["strides"]) >= 1           # strides counted on level ground
+    scored = adaptive["errors_by_region"]["strides_scored"]
+    assert sum(map(sum, scored)) >= 1 and sum(adaptive["adaptive_mode_s"].values()) > 0
