@@ -2,7 +2,8 @@
 -- exactly one of proposal_id and envelope_id is set. SQLite cannot relax a NOT NULL column in place, so the pushes
 -- table is rebuilt with every row kept (nothing references pushes; its indexes and trigger are recreated).
 -- A walking session records the envelope on the leg and the course the simulated leg walked, and each sample the
--- leg's task telemetry: its estimate (NULL before one), where its rows are blended, and the adaptive mode.
+-- leg's task telemetry: its estimate (NULL before one), where its rows are blended, and the adaptive mode. The
+-- preview of an envelope on the bench course is kept like a proposal's.
 
 CREATE TABLE pushes_rebuilt (
     id              INTEGER PRIMARY KEY,
@@ -47,3 +48,13 @@ ALTER TABLE session_samples ADD COLUMN running_speed_mps REAL;
 ALTER TABLE session_samples ADD COLUMN running_incline_deg REAL;
 ALTER TABLE session_samples ADD COLUMN adaptive_mode TEXT
     CHECK (adaptive_mode IS NULL OR adaptive_mode IN ('nominal', 'partial', 'adaptive', 'clamped', 'unknown'));
+
+-- The simulated preview of an envelope: the bench's varying-task course walked with the envelope (the leg adapting)
+-- and with the FSMIC, computed once (an envelope never changes); envelope_sha256 records which envelope was walked.
+CREATE TABLE envelope_previews (
+    envelope_id     INTEGER PRIMARY KEY REFERENCES envelopes (id),
+    envelope_sha256 TEXT    NOT NULL CHECK (length(envelope_sha256) = 64),
+    course          TEXT    NOT NULL,
+    created_at      TEXT    NOT NULL,
+    result_json     TEXT    NOT NULL CHECK (json_valid(result_json))
+);

@@ -107,3 +107,22 @@ def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 
                          "nominal": [env.nominal_speed_mps, env.nominal_incline_deg]},
             "rows": [scores[name].to_dict() for name in COURSE_CONTROLLERS],
             "adaptive_minus": versus}
+
+
+PREVIEW_COURSE = "mixed"
+
+
+def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course) -> dict[str, object]:
+    """The envelope's preview for its page: the course walked with the envelope (the leg estimating its task and
+    adapting) and with the FSMIC, at the envelope's body mass. Per controller its summary (safety figures, errors by
+    segment, estimation accuracy for the envelope); ``envelope_minus_fsmic``: per channel the mean per-stride RMSE
+    difference with its 95 % interval and verdict."""
+    scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope),
+              "fsmic": walk_course("fsmic", course, model, envelope.mass_kg)}
+    versus: dict[str, object] = {}
+    for channel in GAIT_CHANNELS:
+        d = mean_difference(scores["envelope"].stride_rmse[channel], scores["fsmic"].stride_rmse[channel])
+        words = {"A lower": "envelope lower", "B lower": "FSMIC lower"}.get(str(d["verdict"]), d["verdict"])
+        versus[channel] = {"rmse_difference": d["difference"], "ci95": d["interval"], "verdict": words}
+    return {"course": course.to_json(), "mass_kg": envelope.mass_kg,
+            "controllers": {name: s.to_dict() for name, s in scores.items()}, "envelope_minus_fsmic": versus}

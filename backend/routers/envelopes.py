@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 import numpy as np
-from fastapi import APIRouter, status
+from fastapi import APIRouter, Path, status
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
@@ -11,6 +13,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.envelopes import (
     EnvelopeDiffOut,
     EnvelopeEditRequest,
+    EnvelopeNodeOut,
     EnvelopeOut,
     EnvelopeRequest,
     EnvelopeSummary,
@@ -50,6 +53,18 @@ def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """An envelope with every node's table, extrapolation flag, feature SDs and guarded values, and its check."""
     return {**envelopes.get_envelope(conn, envelope_id),
             "deployment": pushes.deployment_state(conn, ("envelope", envelope_id))}
+
+
+@router.get("/envelopes/{envelope_id}/nodes/{i}/{j}", response_model=EnvelopeNodeOut, responses=NOT_FOUND)
+def get_node(envelope_id: IdPath, i: Annotated[int, Path(ge=0, le=14, description="speed index")],
+             j: Annotated[int, Path(ge=0, le=14, description="incline index")], conn: Conn, _user: CurrentUser,
+             model: Model) -> dict:
+    """One node as a proposal is shown: its table as stored in the envelope (held to the neighbour rule, edited as
+    approved) with its check, and the model's curves, features and via-points at the node's task."""
+    row = envelopes.get_row(conn, envelope_id)
+    env = envelopes.stored_envelope(row)
+    view = envelopes.node_view(row, env, i, j)
+    return {**view, **model.propose(view["task"]["speed_mps"], view["task"]["incline_deg"], env.mass_kg).model_body()}
 
 
 @router.post("/envelopes/{envelope_id}/edits", response_model=EnvelopeOut, status_code=status.HTTP_201_CREATED,

@@ -1,16 +1,18 @@
-"""The simulated preview of a proposal's table against the FSMIC benchmark."""
+"""The simulated preview of a proposal's table, or of an envelope on the varying-task course, against the FSMIC."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter
 
 from backend.deps import Conn, CurrentUser, Model
+from backend.experiments.course import PREVIEW_COURSE, preview_envelope
 from backend.experiments.preview import preview_table
 from backend.experiments.safety_figures import safety_flags
 from backend.schemas.common import IdPath
 from backend.schemas.errors import NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
-from backend.schemas.previews import PreviewOut
-from backend.store import previews, proposals
+from backend.schemas.previews import EnvelopePreviewOut, PreviewOut
+from backend.store import envelopes, previews, proposals
+from device_bridge.sim.course import COURSES
 
 router = APIRouter(prefix="/api", tags=["previews"], responses=UNAUTHORIZED)
 
@@ -32,3 +34,19 @@ def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Mode
         stored = previews.store_preview(conn, proposal_id, row["table_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["table"], runs["fsmic"])}
+
+
+@router.get("/envelopes/{envelope_id}/preview", response_model=EnvelopePreviewOut,
+            responses={**NOT_FOUND, **UNAVAILABLE})
+def get_envelope_preview(envelope_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
+    """Walk the bench's ``mixed`` course (speed changes, ramps up and down ±8°) with this envelope, the leg estimating
+    its task and adapting, and with the FSMIC (computed on first request, about ten seconds, then stored). Safety
+    figures (``safety``: flags on their own bounds), errors per segment against the reference at each stride's true
+    task, the leg's estimation accuracy, and the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
+    row = envelopes.get_row(conn, envelope_id)
+    stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
+    if stored is None:
+        result = preview_envelope(envelopes.stored_envelope(row), model, COURSES[PREVIEW_COURSE])
+        stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
+    runs = stored["controllers"]
+    return {**stored, "safety": safety_flags(runs["envelope"], runs["fsmic"])}

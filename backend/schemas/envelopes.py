@@ -7,9 +7,19 @@ from typing import Literal
 from pydantic import BaseModel, Field, model_validator
 
 from backend.schemas.common import StrictIn, Text
-from backend.schemas.proposals import Decision, ModelInfo, Safety, TableRowOut
+from backend.schemas.proposals import (
+    Boundaries,
+    Curves,
+    Decision,
+    FeatureOut,
+    ModelInfo,
+    Safety,
+    TableRowOut,
+    Task,
+    ViaPointOut,
+)
 from controller_core.envelope import NeighbourSteps
-from controller_core.table import Thresholds
+from controller_core.table import SafetyLimits, Thresholds
 from controller_core.task import INCLINE_LIMIT_DEG, SPEED_RANGE_MPS
 
 MAX_NODES = 64   # what one transfer to the leg carries (device_bridge.envelope_wire)
@@ -128,3 +138,27 @@ class EnvelopeDiffOut(BaseModel):
     same_patient: bool
     same_grid: bool = Field(description="false: the grids differ and no node-by-node comparison is made")
     changes: list[EnvelopeChange]
+
+
+class EnvelopeNodeOut(BaseModel):
+    """One node shown like a proposal: its table as approved, and the model's prediction at its task."""
+
+    envelope_id: int
+    envelope_label: str
+    envelope_status: Literal["draft", "approved", "rejected"]
+    patient_id: int
+    node: list[int] = Field(description="[speed index, incline index]")
+    task: Task
+    extrapolation: bool
+    feature_std: dict[str, float]
+    neighbour_guarded: dict[str, float]
+    envelope_model: ModelInfo = Field(description="the model that built the envelope's tables")
+    model: ModelInfo = Field(description="the model whose curves and features are shown (serving now)")
+    table: list[TableRowOut]
+    thresholds: Thresholds
+    limits: SafetyLimits
+    safety: Safety
+    features: list[FeatureOut]
+    subphase_boundaries_phase: Boundaries
+    curves: Curves
+    via_points: list[ViaPointOut]

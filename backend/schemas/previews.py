@@ -45,3 +45,33 @@ class PreviewOut(BaseModel):
         description="table: this proposal's table; fsmic: the hand-tuned benchmark (never re-tuned per task)")
     safety: list[SafetyFlag] = Field(description="this table's safety figures outside their bounds, bad first; "
                                                  "empty when all hold")
+
+
+class CourseControllerPreview(BaseModel):
+    """One controller over the course (``quasitune simulate --course``), each stride scored at its true task."""
+
+    model_config = {"extra": "allow"}
+
+    strides: int
+    falls: int
+    toe_catches: int
+    knee_angle_rmse_deg: float | None
+    ankle_angle_rmse_deg: float | None
+    by_segment: list[dict] = Field(description="per course segment: its task, strides and RMSEs with 95 % intervals")
+
+
+class CourseDifference(BaseModel):
+    rmse_difference: float | None = Field(description="envelope minus FSMIC, mean per-stride RMSE (channel's unit)")
+    ci95: list[float] | None
+    verdict: str | None
+
+
+class EnvelopePreviewOut(BaseModel):
+    envelope_id: int
+    created_at: str
+    course: dict = Field(description="the course walked: segments of duration_s, speed_mps, incline_deg")
+    mass_kg: float
+    controllers: dict[Literal["envelope", "fsmic"], CourseControllerPreview] = Field(
+        description="envelope: the leg estimating its task and adapting inside this envelope; fsmic: the benchmark")
+    envelope_minus_fsmic: dict[str, CourseDifference]
+    safety: list[SafetyFlag] = Field(description="the envelope walk's safety figures outside their bounds, bad first")

@@ -17,12 +17,12 @@ from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.decisions import decide_once
-from backend.store.proposals import ROW_UNITS, THRESHOLD_UNITS
+from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
 from backend.store.users import User
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
 from controller_core.table import LimitViolation, display_rows
 from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
-from device_bridge.protocol import ProtocolError
+from device_bridge.protocol import ProtocolError, check_as_run
 
 _UNITS = ROW_UNITS | THRESHOLD_UNITS
 _SELECT = ("SELECT e.*, cu.username AS created_by_name, du.username AS decided_by_name, "
@@ -81,6 +81,24 @@ def _public(meta: dict, envelope: Envelope, full: bool, violations: list[LimitVi
                          "table": display_rows(n.table), "thresholds": n.table.thresholds.model_dump()}
                         for n in envelope.nodes]
     return out
+
+
+def node_view(row: sqlite3.Row, envelope: Envelope, i: int, j: int) -> dict:
+    """One node as the proposal page shows a table: its stored table (guarded and edited as approved) and its check;
+    the caller adds the model's curves, features and via-points at its task."""
+    n_s, n_i = envelope.shape
+    if not (0 <= i < n_s and 0 <= j < n_i):
+        raise NotFoundError(f"envelope {row['id']} has nodes [0..{n_s - 1}] × [0..{n_i - 1}], not [{i}, {j}]")
+    node = envelope.node(i, j)
+    violations = check_as_run(node.table)
+    return {"envelope_id": row["id"], "envelope_label": envelope_label(row["patient_code"], row["version"]),
+            "envelope_status": row["status"], "patient_id": row["patient_id"], "node": [i, j],
+            "task": {"speed_mps": node.speed_mps, "incline_deg": node.incline_deg, "body_mass_kg": envelope.mass_kg},
+            "extrapolation": node.extrapolation, "feature_std": node.feature_std,
+            "neighbour_guarded": node.neighbour_guarded, "envelope_model": {"version": envelope.model_version,
+                                                                            "data_sha256": envelope.data_sha256},
+            "table": display_rows(node.table), "thresholds": node.table.thresholds.model_dump(), "limits": LIMITS,
+            "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]}}
 
 
 def get_row(conn: sqlite3.Connection, envelope_id: int) -> sqlite3.Row:

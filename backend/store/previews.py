@@ -1,4 +1,4 @@
-"""Stored simulated previews of proposals (computed once: a proposal's table never changes)."""
+"""Stored simulated previews of proposals and envelopes (computed once: neither ever changes)."""
 
 from __future__ import annotations
 
@@ -28,5 +28,27 @@ def store_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str,
                      "result_json) VALUES (?, ?, ?, ?, ?)",
                      (proposal_id, table_sha256, float(result["seconds"]), utc_now(), json.dumps(result)))
     stored = get_preview(conn, proposal_id, table_sha256)
+    assert stored is not None
+    return stored
+
+
+def get_envelope_preview(conn: sqlite3.Connection, envelope_id: int, envelope_sha256: str) -> dict | None:
+    """The stored preview of an envelope, or ``None``; refuses one made from a different envelope."""
+    row = conn.execute("SELECT * FROM envelope_previews WHERE envelope_id = ?", (envelope_id,)).fetchone()
+    if row is None:
+        return None
+    if row["envelope_sha256"] != envelope_sha256:
+        raise ConflictError(f"the stored preview of envelope {envelope_id} was simulated from another envelope; "
+                            "refusing to show it")
+    return {"envelope_id": envelope_id, "created_at": row["created_at"], **json.loads(row["result_json"])}
+
+
+def store_envelope_preview(conn: sqlite3.Connection, envelope_id: int, envelope_sha256: str, result: dict) -> dict:
+    """Keep a freshly simulated envelope preview (the first one wins a race) and return the stored one."""
+    with write_transaction(conn):
+        conn.execute("INSERT OR IGNORE INTO envelope_previews (envelope_id, envelope_sha256, course, created_at, "
+                     "result_json) VALUES (?, ?, ?, ?, ?)", (envelope_id, envelope_sha256, result["course"]["name"],
+                                                              utc_now(), json.dumps(result, allow_nan=False)))
+    stored = get_envelope_preview(conn, envelope_id, envelope_sha256)
     assert stored is not None
     return stored

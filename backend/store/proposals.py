@@ -23,7 +23,7 @@ from controller_core.proposal import Proposal
 from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
 from device_bridge.protocol import check_as_run
 
-_LIMITS = SafetyLimits().model_dump()
+LIMITS = SafetyLimits().model_dump()
 # display units of the table's values, for diffs
 ROW_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad"}
 THRESHOLD_UNITS = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
@@ -61,7 +61,7 @@ def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
     }
     if full:
         out |= {"features": body["features"], "subphase_boundaries_phase": body["subphase_boundaries_phase"],
-                "curves": body["curves"], "via_points": body.get("via_points", []), "limits": _LIMITS}
+                "curves": body["curves"], "via_points": body.get("via_points", []), "limits": LIMITS}
     return out
 
 

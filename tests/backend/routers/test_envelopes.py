@@ -134,3 +134,37 @@ def test_an_edit_outside_the_limits_or_the_neighbour_rule_is_refused_and_stores_
                         json={"edits": [edit], "comment": "try"})
     assert r.status_code == 422 and why in r.text
     assert api.count("envelopes") == before
+
+
+def test_a_node_opens_like_a_proposal_with_its_own_table_and_the_models_curves_there(api, model):
+    patient = api.new_patient(mass=82.0)
+    e = request_envelope(api, patient["id"])
+    r = api.client.get(f"/api/envelopes/{e['id']}/nodes/2/0", headers=api.as_("viewer"))
+    assert r.status_code == 200, r.text
+    node = r.json()
+    assert node["task"] == {"speed_mps": 1.4, "incline_deg": -6.0, "body_mass_kg": 82.0} and node["node"] == [2, 0]
+    assert node["table"] == e["nodes"][6]["table"] and node["envelope_label"] == e["envelope_label"]
+    direct = model.propose(1.4, -6.0, 82.0)
+    assert node["curves"]["knee_angle_deg"] == direct.model_body()["curves"]["knee_angle_deg"]
+    assert node["model"]["version"] == node["envelope_model"]["version"] == model.model_version
+    assert node["safety"]["ok"] and node["limits"]["stance_k_Nm_per_rad"]["high"] == 0.0
+    r = api.client.get(f"/api/envelopes/{e['id']}/nodes/3/0", headers=api.as_("viewer"))
+    assert r.status_code == 404 and "[0..2] × [0..2]" in r.json()["detail"]
+
+
+def test_the_preview_walks_the_course_with_the_envelope_and_the_fsmic_once(api):
+    patient = api.new_patient()
+    e = request_envelope(api, patient["id"])
+    r = api.client.get(f"/api/envelopes/{e['id']}/preview", headers=api.as_("viewer"))
+    assert r.status_code == 200, r.text
+    p = r.json()
+    assert p["course"]["name"] == "mixed" and p["mass_kg"] == patient["body_mass_kg"]
+    env, fsmic = p["controllers"]["envelope"], p["controllers"]["fsmic"]
+    assert env["falls"] == 0 and env["strides"] > 40 and fsmic["strides"] > 40
+    assert [s["incline_deg"] for s in env["by_segment"]] == [s["incline_deg"] for s in p["course"]["segments"]]
+    assert env["estimation"]["strides_counted"] > 10 and "estimation" not in fsmic
+    d = p["envelope_minus_fsmic"]["knee_angle_deg"]
+    assert d["ci95"][0] <= d["rmse_difference"] <= d["ci95"][1]
+    assert isinstance(p["safety"], list)
+    again = api.client.get(f"/api/envelopes/{e['id']}/preview", headers=api.as_("viewer")).json()
+    assert again["created_at"] == p["created_at"]                  # stored, not walked again
