@@ -21,6 +21,10 @@ from controller_core.gait_metrics import reference_curves, rmse, stride_curves
 from controller_core.walking_reference import WalkingReference
 
 SCORED_CHANNELS = ("knee_angle_deg", "ankle_angle_deg")
+# fixed task classes for trends across sessions whose envelopes differ: slow / moderate / fast (edges 0.9 and
+# 1.3 m/s) × downhill / level / uphill (edges ±4°)
+TASK_CLASS_SPEEDS_MPS = (0.7, 1.1, 1.5)
+TASK_CLASS_INCLINES_DEG = (-8.0, 0.0, 8.0)
 
 
 def region_index(values: np.ndarray, axis: Sequence[float]) -> np.ndarray:
@@ -108,7 +112,10 @@ def adaptive_summary(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_ra
     errors = errors_by_region(curves, regions["per_stride"], (len(speeds_mps), len(inclines_deg)), reference_at)
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     modes = [m for m in adaptive_mode if m is not None]
+    classes = task_regions(t, estimated_speed_mps, estimated_incline_deg, strikes, TASK_CLASS_SPEEDS_MPS,
+                           TASK_CLASS_INCLINES_DEG)
     return {"speeds_mps": list(speeds_mps), "inclines_deg": list(inclines_deg),
+            "task_class_time_s": classes["time_s"], "task_class_strides": classes["strides"],
             **{k: v for k, v in regions.items() if k != "per_stride"},
             "stride_tasks": [None if s is None else [round(s["speed_mps"], 3), round(s["incline_deg"], 2)]
                              for s in regions["per_stride"]],

@@ -15,12 +15,13 @@ from backend.experiments.reference import task_reference
 from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
-from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest
+from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest, TrendDay
 from backend.store import devices as devices_store
 from backend.store import envelopes, patients, pushes
 from backend.store import sessions as store
 from controller_core.session_regions import adaptive_summary
 from controller_core.session_summary import session_strikes, summarize_session
+from controller_core.session_trend import session_trend
 from device_bridge.protocol import Mode
 from device_bridge.sim.course import COURSES
 
@@ -112,6 +113,15 @@ def _floats(values: list) -> np.ndarray:
 def list_sessions(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     patients.get_patient(conn, patient_id)
     return store.sessions_of_patient(conn, patient_id)
+
+
+@router.get("/patients/{patient_id}/trend", response_model=list[TrendDay], responses=NOT_FOUND)
+def get_trend(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
+    """The patient's stopped sessions per day (UTC), oldest first: sessions, strides, walking time, stride-weighted
+    cadence and joint-angle errors, and time per task class (slow / moderate / fast × downhill / level / uphill: edges
+    0.9 and 1.3 m/s, ±4°; an adaptive session by the leg's own estimate, a single-table session at its task)."""
+    patients.get_patient(conn, patient_id)
+    return session_trend(store.sessions_of_patient(conn, patient_id))
 
 
 @router.get("/sessions/{session_id}/report.pdf", response_class=Response,

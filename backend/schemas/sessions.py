@@ -58,3 +58,16 @@ class SamplesOut(BaseModel):
                     "torque (N·m), load_N, ankle_moment_Nm; with an envelope: estimated_speed_mps, "
                     "estimated_incline_deg (null before an estimate), running_speed_mps, running_incline_deg, "
                     "adaptive_mode (nominal / partial / adaptive / clamped)")
+
+
+class TrendDay(BaseModel):
+    day: str = Field(description="calendar day (UTC), YYYY-MM-DD")
+    sessions: int
+    strides: int
+    walking_s: float
+    cadence_steps_per_min: float | None = Field(description="stride-weighted mean of the day's sessions")
+    knee_angle_rmse_deg: float | None = Field(description="weighted by the strides scored")
+    ankle_angle_rmse_deg: float | None
+    time_by_task_class_s: dict[str, float] = Field(
+        description="seconds per speed class (slow < 0.9 m/s ≤ moderate < 1.3 m/s ≤ fast) × incline class (downhill "
+                    "< −4° ≤ level ≤ +4° < uphill), keyed speed_incline")

@@ -1,10 +1,12 @@
-// Hash router: #/login, #/patients, #/patients/:id, #/proposals/:id, #/monitor/:deviceId, #/sessions/:id/report
+// Hash router: #/login, #/patients, #/patients/:id, #/proposals/:id, #/envelopes/:id(/nodes/:i/:j), #/monitor/:deviceId, #/sessions/:id/report
 import { get, post, signOut, token } from "./api.js";
 import { h, notice } from "./ui.js";
 import { loginPage } from "./pages/login.js";
 import { patientsPage } from "./pages/patients.js";
 import { patientPage } from "./pages/patient.js";
 import { proposalPage } from "./pages/proposal.js";
+import { envelopePage } from "./pages/envelope.js";
+import { envelopeNodePage } from "./pages/envelope_node.js";
 import { monitorPage } from "./pages/monitor.js";
 import { reportPage } from "./pages/report.js";
 import { passwordPage } from "./pages/account.js";
@@ -15,6 +17,8 @@ const routes = [
   [/^#\/patients$/, patientsPage],
   [/^#\/patients\/(\d+)$/, patientPage],
   [/^#\/proposals\/(\d+)$/, proposalPage],
+  [/^#\/envelopes\/(\d+)$/, envelopePage],
+  [/^#\/envelopes\/(\d+)\/nodes\/(\d+)\/(\d+)$/, envelopeNodePage],
   [/^#\/monitor$/, firstDevice],
   [/^#\/monitor\/([\w.-]+)$/, monitorPage],
   [/^#\/sessions\/(\d+)\/report$/, reportPage],

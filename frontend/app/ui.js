@@ -150,9 +150,11 @@ export function confirmDialog({ id, title, facts = [], requires = null, confirm 
   });
 }
 
-// A table's one name everywhere ("P-001 · table v3"), with its task when asked
+// What a leg runs, by its one name everywhere ("P-001 · table v3", "P-001 · envelope v2"), with its task when asked
 export function tableName(t, withTask = false) {
   if (!t) return "no table from this server";
-  return withTask ? `${t.table_label} (${fmt(t.task.speed_mps, 2, "m/s")}, incline ${fmt(t.task.incline_deg, 1, "°")})`
-    : t.table_label;
+  const name = t.label ?? t.table_label;
+  if (!withTask) return name;
+  const task = `${fmt(t.task.speed_mps, 2, "m/s")}, incline ${fmt(t.task.incline_deg, 1, "°")}`;
+  return t.kind === "envelope" ? `${name} (adapts to the task; nominal ${task})` : `${name} (${task})`;
 }

@@ -3,6 +3,7 @@ import { del, get, post, put, token } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { liveChart } from "../charts.js";
 import { legView } from "../leg_view.js";
+import { adaptivePanel } from "../adaptive_panel.js";
 import { bodyWeightN, chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
 
 export async function monitorPage(view, deviceId, params) {
@@ -11,6 +12,7 @@ export async function monitorPage(view, deviceId, params) {
   const statusBox = h("div", { id: "device-status", "aria-live": "polite" });
   const readout = h("dl", { class: "readout", id: "readout" });
   const sessionBox = h("section", { class: "card", id: "session" });
+  const adaptiveBox = h("section", { class: "card", id: "adaptive", hidden: true });
   const viewerBox = h("figure", { class: "viewer", id: "viewer3d" });
   // viser's 3D scene: only where the server was started with --viewer3d (viser has no login); WebGL, so it opens
   // on request (and the choice is remembered)
@@ -25,7 +27,7 @@ export async function monitorPage(view, deviceId, params) {
       canCommand ? h("div", { class: "inline" },
         h("button", { class: "danger", id: "enter-safe", onclick: () => command("enter_safe_mode") }, "Enter safe mode"),
         h("button", { class: "secondary", id: "leave-safe", onclick: () => command("leave_safe_mode") }, "Leave safe mode")) : null),
-    sessionBox,
+    adaptiveBox, sessionBox,
     h("section", { class: "card" }, h("h2", {}, "Telemetry (last 5 s, 100 Hz)"),
       h("p", { id: "telemetry-state", "aria-live": "polite" }, chip("waiting for data…", "warn")),
       h("div", { class: "readout-row" }, legFigure, readout), charts),
@@ -46,6 +48,19 @@ export async function monitorPage(view, deviceId, params) {
   await renderSession(sessionBox, deviceId, patients, params);
   recordingChip(device);
   let status = device;
+  // an envelope on the leg: its map with the leg's estimated task, the values it runs, its state
+  let panel = null, panelFor = null;
+  const showAdaptive = async (d) => {
+    const envelopeId = d.active_table?.kind === "envelope" ? d.active_table.envelope_id : null;
+    if (envelopeId === panelFor) return;
+    panelFor = envelopeId;
+    panel = null;
+    adaptiveBox.hidden = envelopeId === null;
+    if (envelopeId === null) return;
+    const e = await get(`/api/envelopes/${envelopeId}`);
+    if (panelFor === envelopeId) panel = adaptivePanel(adaptiveBox, e);
+  };
+  await showAdaptive(device);
 
   // telemetry over the WebSocket; charts redraw once per animation frame
   const ws = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/api/devices/${deviceId}/telemetry?token=${token()}`);
@@ -59,6 +74,7 @@ export async function monitorPage(view, deviceId, params) {
       status = m;
       renderStatus(statusBox, m);
       recordingChip(m);
+      showAdaptive(m);
       return;
     }
     if (stats.lastSeq !== null && m.seq !== stats.lastSeq + 1) stats.gaps += 1;
@@ -100,6 +116,7 @@ export async function monitorPage(view, deviceId, params) {
         const weightN = bodyWeightN(status.patient?.body_mass_kg);
         renderReadout(readout, latest, stats, weightN);
         leg.draw(latest, weightN);
+        panel?.update(latest, status);
       }
     }
     raf = requestAnimationFrame(frame);
@@ -210,8 +227,9 @@ async function renderSession(box, deviceId, patients, params) {
         error.textContent = err.message;
       }
     });
-    box.append(h("p", {}, h("span", { id: "recording-chip" }, chip("recording", "ok")), ` session #${s.id} since ${when(s.started_at)} at ${fmt(s.task.speed_mps, 2, "m/s")}, `,
-      `incline ${fmt(s.task.incline_deg, 1, "°")}, for ${s.patient_code}, running ${s.table_label ?? "no table from this server"}`), stop, error);
+    box.append(h("p", {}, h("span", { id: "recording-chip" }, chip("recording", "ok")), ` session #${s.id} since ${when(s.started_at)} `,
+      s.course ? `walking the “${s.course}” course, ` : `at ${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}, `,
+      `for ${s.patient_code}, running ${s.table_label ?? "no table from this server"}`), stop, error);
     return;
   }
   box.append(assignment(box, device, patients, deviceId, params));
@@ -221,11 +239,19 @@ async function renderSession(box, deviceId, patients, params) {
   }
   const speed = h("input", { type: "number", name: "speed", min: 0.1, max: 3, step: 0.01, placeholder: "from the active table",
     "aria-label": "Speed (m/s), empty = the active table's task" });
+  // the simulated patient can walk one task, or a course whose speed and incline change (to watch a leg adapt)
+  const walk = device.kind === "simulated" ? h("select", { id: "session-walk", "aria-label": "What the simulated patient walks" },
+    h("option", { value: "" }, "one task"),
+    h("option", { value: "mixed" }, "course: speed changes, ramps up and down (92 s)"),
+    h("option", { value: "terrain" }, "course: level, ramp up +8°, level, ramp down −8° (58 s)"),
+    h("option", { value: "speed" }, "course: speed 1.0 → 0.85 → 1.6 → 1.0 m/s (46 s)")) : null;
+  walk?.addEventListener("change", () => { speed.disabled = Boolean(walk.value); });
   const start = h("button", { id: "start-session" }, `Start session for ${device.patient.patient_code}`);
   start.addEventListener("click", async () => {
     error.textContent = "";
     const body = { device_id: deviceId };
-    if (speed.value) body.speed_mps = Number(speed.value);
+    if (walk?.value) body.course = walk.value;
+    else if (speed.value) body.speed_mps = Number(speed.value);
     try {
       await post(`/api/patients/${device.patient.patient_id}/sessions`, body);
       await renderSession(box, deviceId, patients, params);
@@ -233,7 +259,7 @@ async function renderSession(box, deviceId, patients, params) {
       error.textContent = err.message;
     }
   });
-  box.append(h("div", { class: "inline" }, h("label", {}, "Speed (m/s) ", speed), start), error);
+  box.append(h("div", { class: "inline" }, walk ? h("label", {}, "Walk ", walk) : null, h("label", {}, "Speed (m/s) ", speed), start), error);
 }
 
 // Who wears the device: sessions and pushes follow it, so it is changed deliberately (prosthetist, confirmed)

@@ -1,11 +1,12 @@
 import { api, get, post } from "../api.js";
 import { app } from "../main.js";
-import { chip, fmt, h, modeWords, table, when } from "../ui.js";
+import { chip, fmt, h, modeWords, table, tableName, when } from "../ui.js";
+import { rangeText } from "./envelope.js";
 
 export async function patientPage(view, id) {
-  const [patient, proposals, sessions, devices] = await Promise.all([
-    get(`/api/patients/${id}`), get(`/api/patients/${id}/proposals`), get(`/api/patients/${id}/sessions`),
-    get("/api/devices")]);
+  const [patient, proposals, envelopes, sessions, devices] = await Promise.all([
+    get(`/api/patients/${id}`), get(`/api/patients/${id}/proposals`), get(`/api/patients/${id}/envelopes`),
+    get(`/api/patients/${id}/sessions`), get("/api/devices")]);
   const details = h("dl", { class: "facts" },
     h("dt", {}, "Body mass"), h("dd", { id: "patient-mass" }, fmt(patient.body_mass_kg, 1, "kg")),
     h("dt", {}, "Height"), h("dd", {}, fmt(patient.height_m, 2, "m")),
@@ -21,6 +22,14 @@ export async function patientPage(view, id) {
     h("td", {}, p.extrapolation ? chip("extrapolation", "warn") : ""), h("td", {}, p.created_by),
     h("td", {}, when(p.created_at))));
 
+  const envVersion = Object.fromEntries(envelopes.map((e) => [e.id, e.version]));
+  const envRows = envelopes.map((e) => h("tr", {},
+    h("td", {}, h("a", { href: `#/envelopes/${e.id}` }, `v${e.version}`)), h("td", {}, rangeText(e)),
+    h("td", { class: "num" }, `${e.grid[0]} × ${e.grid[1]}`), h("td", {}, chip(e.status, e.status)),
+    h("td", {}, e.source === "edit" ? `edited from v${envVersion[e.parent_id] ?? "?"}` : "model"),
+    h("td", {}, e.extrapolation ? chip("some nodes outside data", "warn") : ""), h("td", {}, e.created_by),
+    h("td", {}, when(e.created_at))));
+
   const sessRows = sessions.map((s) => h("tr", {},
     h("td", {}, `#${s.id}`), h("td", {}, s.device_id), h("td", {}, s.table_label ?? "—"),
     h("td", { class: "num" }, fmt(s.task.speed_mps, 2)), h("td", {}, chip(s.status, s.status)),
@@ -32,7 +41,7 @@ export async function patientPage(view, id) {
     h("td", {}, h("a", { href: `#/monitor/${d.id}?patient=${patient.id}` }, d.id)), h("td", {}, d.kind),
     h("td", {}, chip(d.online ? "online" : "offline", d.online ? "ok" : "bad")), h("td", {}, modeWords(d.mode)),
     h("td", {}, d.patient ? d.patient.patient_code : "nobody"),
-    h("td", {}, d.active_table ? d.active_table.table_label : d.active_version === null ? "—" : `device version ${d.active_version}`),
+    h("td", {}, d.active_table ? tableName(d.active_table) : d.active_version === null ? "—" : `device version ${d.active_version}`),
     h("td", { class: "mono" }, d.active_crc32 || "—")));
 
   view.replaceChildren(
@@ -43,12 +52,48 @@ export async function patientPage(view, id) {
       app.me.role === "prosthetist" ? proposalForm(patient) : null,
       proposals.length ? table(["Version", "Speed (m/s)", "Incline (deg)", "Status", "Source", "", "By", "Created"],
         propRows, { id: "proposals" }) : h("p", { class: "muted" }, "No proposals yet.")),
+    h("section", { class: "card" }, h("h2", {}, "Envelopes (the leg adapts to speed and incline inside one)"),
+      app.me.role === "prosthetist" ? envelopeForm(patient) : null,
+      envelopes.length ? table(["Version", "Range", "Grid (speeds × inclines)", "Status", "Source", "", "By", "Created"],
+        envRows, { id: "envelopes" }) : h("p", { class: "muted" }, "No envelopes yet.")),
     h("section", { class: "card" }, h("h2", {}, "Devices"),
       devices.length ? table(["Device", "Kind", "Link", "Mode", "Worn by", "Active table", "Active CRC-32"], devRows)
         : h("p", { class: "muted" }, "No device configured on this server (quasitune serve --device).")),
     h("section", { class: "card" }, h("h2", {}, "Walking sessions"),
       sessions.length ? table(["Session", "Device", "Table", "Speed (m/s)", "Status", "Strides", "Started", ""], sessRows,
         { id: "sessions" }) : h("p", { class: "muted" }, "No sessions recorded.")));
+}
+
+function envelopeForm(patient) {
+  const error = h("p", { class: "error", role: "alert" });
+  const num = (name, label, value, min, max, step) => h("label", {}, label,
+    h("input", { name, type: "number", min, max, step, value, required: true, size: 5 }));
+  const form = h("form", { class: "inline", id: "request-envelope" },
+    num("speed_lo", "Speed from (m/s)", "0.6", 0.1, 3, 0.05), num("speed_hi", "to", "1.6", 0.1, 3, 0.05),
+    num("incline_lo", "Incline from (deg)", "-10", -20, 20, 0.5), num("incline_hi", "to", "10", -20, 20, 0.5),
+    num("n_speeds", "Grid: speeds", "5", 2, 15, 1), num("n_inclines", "× inclines", "5", 2, 15, 1),
+    h("button", { type: "submit" }, "Request envelope"), error);
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    error.textContent = "";
+    const d = new FormData(form);
+    const n = (k) => Number(d.get(k));
+    const button = form.querySelector("button");
+    button.disabled = true;
+    button.textContent = "Building every node…";
+    try {
+      const e = await post(`/api/patients/${patient.id}/envelopes`, { speed_range_mps: [n("speed_lo"), n("speed_hi")],
+        incline_range_deg: [n("incline_lo"), n("incline_hi")], grid: [n("n_speeds"), n("n_inclines")] });
+      app.envelopeReturnedAt = performance.now();   // start of "interactive within 1 s" (bench-ui reads it)
+      location.hash = `#/envelopes/${e.id}`;
+    } catch (err) {
+      error.textContent = err.message;
+    } finally {
+      button.disabled = false;
+      button.textContent = "Request envelope";
+    }
+  });
+  return form;
 }
 
 function proposalForm(patient) {

@@ -1,16 +1,18 @@
 // Proposal review: loops, curves with bands, GPR features, the table (editable into a new version), diff,
 // approve/reject, push with live status, and the simulated preview against the FSMIC.
-import { get, post, put } from "../api.js";
+import { get } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { legend, loopChart, phaseChart } from "../charts.js";
 import { parameterTable, tableView } from "./parameter_table.js";
-import { chip, confirmDialog, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, notice, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, tableName,
+import { renderDecision } from "../decision_panel.js";
+import { renderPush } from "../push_panel.js";
+import { chip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table,
   when } from "../ui.js";
 
 const RAD = Math.PI / 180;
 
 // the measured conditions behind the model, and the reference at this task with what it really is
-function reference(task) {
+export function reference(task) {
   return get(`/api/reference?speed_mps=${task.speed_mps}&incline_deg=${task.incline_deg}`);
 }
 
@@ -72,8 +74,11 @@ export async function proposalPage(view, id) {
   drawLoops(p, ref, atTask);
   explainVias(p, document.getElementById("via-note"));
   drawCurves(p, atTask, curveBox);
-  renderDecision(decisionBox, p, canDecide);
-  renderPush(pushBox, p, canDecide, patient);
+  renderDecision(decisionBox, { item: p, name: p.table_label, path: `/api/proposals/${p.id}`, canDecide,
+    reload: () => proposalPage(document.getElementById("view"), p.id) });
+  renderPush(pushBox, { item: p, kind: "table", name: p.table_label, canPush: canDecide, patient,
+    what: `${p.table_label} (${fmt(p.task.speed_mps, 2, "m/s")}, incline ${fmt(p.task.incline_deg, 1, "°")})`,
+    path: `/api/proposals/${p.id}` });
   app.proposalInteractiveAt = performance.now();
   if (app.proposalReturnedAt !== undefined) {
     app.proposalViewMs = app.proposalInteractiveAt - app.proposalReturnedAt;
@@ -112,7 +117,7 @@ function subphaseOf(phase, b) {
   return SUBPHASES.filter((_, i) => phase >= edges[i] - 1e-9 && phase <= edges[i + 1] + 1e-9);
 }
 
-function drawLoops(p, ref, atTask) {
+export function drawLoops(p, ref, atTask) {
   const mass = p.task.body_mass_kg;
   for (const joint of ["knee", "ankle"]) {
     const ang = p.curves[`${joint}_angle_deg`];
@@ -145,7 +150,7 @@ function drawLoops(p, ref, atTask) {
 
 // Where a via-point sits off the proposal loop, say why: the KMP weighs each via-point by how sure the GPR is, so it
 // passes an uncertain one (typically outside the training data) only approximately, by design.
-function explainVias(p, el) {
+export function explainVias(p, el) {
   const mass = p.task.body_mass_kg;
   const at = (key, phase) => interp(phase * 100, p.curves.phase.map((x) => x * 100), p.curves[key]);
   const off = p.via_points.map((v) => {
@@ -170,7 +175,7 @@ function explainVias(p, el) {
     + "prediction is unsure. Treat the stars as the model's guess, not a target the table meets.";
 }
 
-function drawCurves(p, atTask, box) {
+export function drawCurves(p, atTask, box) {
   const x = p.curves.phase.map((s) => s * 100);
   const b = p.subphase_boundaries_phase;
   const markers = [b.stance_flexion_to_stance_extension, b.stance_extension_to_swing_flexion,
@@ -199,139 +204,12 @@ function interp(x, xs, ys) {
   return ys[ys.length - 1];
 }
 
-function featureTable(p) {
+export function featureTable(p) {
   const rows = p.features.map((f) => h("tr", { class: f.extrapolation ? "warn-row" : "" },
     h("td", {}, f.label), h("td", {}, f.joint), h("td", { class: "num" }, pm(f.value, f.std, f.unit === "deg" ? 1 : 3, f.unit)),
     h("td", { class: "num" }, pm(f.phase * 100, f.phase_std * 100, 1, "% cycle")),
     h("td", {}, f.extrapolation ? chip("outside data", "warn") : "")));
   return table(["Feature", "Joint", "Value ± SD", "Phase ± SD", ""], rows, { id: "features" });
-}
-
-// ---------------------------------------------------------------------------------------------- decisions, push
-
-function renderDecision(box, p, canDecide) {
-  box.replaceChildren(h("h2", {}, "Decision"));
-  if (p.status !== "draft") {
-    box.append(h("p", {}, `${p.decision.status} by ${p.decision.by} ${when(p.decision.at)}`,
-      p.decision.comment ? ` — “${p.decision.comment}”` : "", ". An approved or rejected version never changes; edit it into a new draft instead."));
-    return;
-  }
-  if (!canDecide) {
-    box.append(h("p", { class: "muted" }, "Draft. Only a prosthetist can approve or reject it."));
-    return;
-  }
-  const error = h("p", { class: "error", role: "alert" });
-  const comment = h("input", { name: "comment", maxlength: 2000, size: 50, "aria-label": "Decision comment" });
-  const decide = (what) => async () => {
-    error.textContent = "";
-    try {
-      await post(`/api/proposals/${p.id}/${what}`, { comment: comment.value });
-      notice(`${p.table_label} ${what === "approve" ? "approved" : "rejected"}`, "ok");
-      await proposalPage(document.getElementById("view"), p.id);
-    } catch (err) {
-      error.textContent = err.message;
-    }
-  };
-  const approve = h("button", { id: "approve", onclick: decide("approve"), disabled: true,
-    title: p.safety.ok ? "say why first (what you reviewed)" : "outside the safety limits: cannot be approved" }, "Approve");
-  const reject = h("button", { id: "reject", class: "secondary", onclick: decide("reject"), disabled: true,
-    title: "say why first" }, "Reject");
-  comment.addEventListener("input", () => {       // a decision needs its reason, like an edit
-    const said = comment.value.trim().length > 0;
-    approve.disabled = !said || !p.safety.ok;
-    reject.disabled = !said;
-  });
-  box.append(h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject), error);
-}
-
-async function renderPush(box, p, canPush, patient) {
-  box.replaceChildren(h("h2", {}, "Device"));
-  const [pushes, devices] = await Promise.all([get(`/api/proposals/${p.id}/pushes`), get("/api/devices")]);
-  const name = `${patient.code_name} · table v${p.version}`;
-  const status = h("div", { id: "push-status", "aria-live": "polite" });
-  if (pushes.length) {
-    status.append(table(["Push", "Device", "CRC-32", "Status", "Requested", "Acknowledged", "Active"],
-      pushes.map((x) => h("tr", {}, h("td", {}, `#${x.id}`), h("td", {}, x.device_id), h("td", { class: "mono" }, x.crc32),
-        h("td", {}, chip(x.status, x.status === "failed" ? "bad" : x.status === "superseded" ? "" : "ok")),
-        h("td", {}, when(x.requested_at)), h("td", {}, when(x.acknowledged_at)), h("td", {}, when(x.active_at))))));
-  }
-  if (p.status !== "approved" || !canPush || !devices.length) {
-    box.append(h("p", { class: "muted" }, p.status !== "approved" ? "Only an approved version can be pushed to a device."
-      : !devices.length ? "No device on this server." : "Only a prosthetist can push."), status);
-    return;
-  }
-  const wearer = (d) => (d.patient ? `worn by ${d.patient.patient_code}` : "assigned to nobody");
-  const optionText = (d) => `${d.id} (${d.online ? "online" : "offline"}, ${wearer(d)})`;
-  const select = h("select", { id: "push-device", "aria-label": "Device" },
-    devices.map((d) => h("option", { value: d.id }, optionText(d))));
-  const error = h("p", { class: "error", role: "alert" });
-  const steps = h("ol", { class: "steps", id: "push-steps" });
-  const button = h("button", { id: "push-button" }, "Push to device…");
-  const assignBox = h("p", { id: "push-assignment" });
-  const showAssignment = () => {
-    for (const opt of select.options) opt.textContent = optionText(devices.find((x) => x.id === opt.value));
-    const d = devices.find((x) => x.id === select.value);
-    const mine = d.patient && d.patient.patient_id === p.patient_id;
-    button.disabled = !mine;
-    assignBox.replaceChildren(mine ? chip(`${d.id} is assigned to ${patient.code_name}`, "ok")
-      : h("span", {}, chip(`${d.id} is ${wearer(d)}`, "warn"), " A table goes only to the leg of its patient. ",
-        h("button", { id: "assign-device", class: "secondary", onclick: assign }, `Assign ${d.id} to ${patient.code_name}…`)));
-  };
-  async function assign() {
-    const d = devices.find((x) => x.id === select.value);
-    const ok = await confirmDialog({ id: "assign-dialog", title: `Assign ${d.id} to ${patient.code_name}?`,
-      facts: [["Worn now by", d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody"],
-        ["Will be worn by", `${patient.code_name} (${fmt(patient.body_mass_kg, 0, "kg")})`],
-        ["Table on the leg", tableName(d.active_table, true)]],
-      confirm: "Assign" });
-    if (!ok) return;
-    try {
-      Object.assign(d, await put(`/api/devices/${d.id}/assignment`, { patient_id: p.patient_id }));
-      showAssignment();
-    } catch (err) {
-      error.textContent = err.message;
-    }
-  }
-  select.addEventListener("change", showAssignment);
-  showAssignment();
-  button.addEventListener("click", async () => {
-    error.textContent = "";
-    const d = await get(`/api/devices/${select.value}`);
-    const current = d.pending_table || d.active_table;
-    const ok = await confirmDialog({ id: "push-dialog", title: `Replace the table on ${d.id}?`,
-      facts: [["Patient", `${patient.code_name} (${fmt(patient.body_mass_kg, 0, "kg")})`],
-        ["On the leg now", tableName(current, true)],
-        ["Replaced by", `${name} (${fmt(p.task.speed_mps, 2, "m/s")}, incline ${fmt(p.task.incline_deg, 1, "°")})`],
-        ["When", "at the next heel strike after the device verifies it"]],
-      requires: "The patient is seated or standing in the parallel bars.", confirm: "Push now" });
-    if (!ok) return;
-    button.disabled = true;
-    steps.replaceChildren(h("li", { class: "doing" }, "sending the table over CAN…"));
-    try {
-      const push = await post(`/api/proposals/${p.id}/push`, { device_id: d.id,
-        replaces_proposal_id: current ? current.proposal_id : null, patient_ready: true });
-      steps.replaceChildren(h("li", { class: "done" }, `device read back CRC-32 ${push.crc32} (matches) in ${fmt(push.elapsed_ms, 1, "ms")}`),
-        h("li", { class: "doing", id: "push-active" }, "waiting for the device to switch at the next heel strike…"));
-      const deadline = Date.now() + 15000;
-      while (Date.now() < deadline) {
-        const now = await get(`/api/devices/${d.id}`);
-        if (now.active_crc32 === push.crc32 && now.active_version === push.table_version) {
-          steps.lastChild.className = "done";
-          steps.lastChild.textContent = `active on ${now.id}: ${push.table_label}, CRC-32 ${now.active_crc32}, mode ${now.mode}`;
-          break;
-        }
-        await new Promise((r) => setTimeout(r, 200));
-      }
-      if (steps.lastChild.className !== "done") steps.lastChild.textContent = "acknowledged, not yet active (the device switches at its next heel strike)";
-      window.dispatchEvent(new CustomEvent("quasitune:device-changed"));
-    } catch (err) {
-      steps.lastChild.className = "failed";
-      error.textContent = err.message;
-    } finally {
-      showAssignment();
-    }
-  });
-  box.append(h("div", { class: "inline" }, select, button), assignBox, steps, error, status);
 }
 
 // ---------------------------------------------------------------------------------------------- versions, preview
@@ -427,7 +305,7 @@ async function renderPreview(box, p) {
 
 // The bench's safety figures, before any tracking error: each flagged on its own bound by the server
 // (backend/experiments/safety_figures.py), whatever the RMSEs say.
-function safetyFigures(flags, t, f) {
+export function safetyFigures(flags, t, f, what = "This table") {
   const flagOf = Object.fromEntries(flags.map((x) => [x.figure, x]));
   const row = (label, figure, shown, bound) => {
     const flag = flagOf[figure];
@@ -442,10 +320,10 @@ function safetyFigures(flags, t, f) {
   return h("div", { id: "preview-safety" },
     h("h3", {}, "Safety on the bench (read first)"),
     flags.length ? h("div", { class: `banner ${bad.length ? "bad" : "warn"}`, role: "alert", id: "preview-safety-flags" },
-      h("strong", {}, bad.length ? "Safety: do not push this table without understanding why. " : "Safety: review before pushing. "),
+      h("strong", {}, bad.length ? `Safety: do not push ${what.toLowerCase()} without understanding why. ` : "Safety: review before pushing. "),
       h("ul", {}, flags.map((x) => h("li", { class: x.severity }, x.message))))
       : h("p", { class: "notice-inline ok", id: "preview-safety-flags" }, "No safety figure outside its bound on this walk."),
-    table(["Safety figure", "This table", "FSMIC", "Bound"], [
+    table(["Safety figure", what, "FSMIC", "Bound"], [
       row("falls", "falls", n("falls"), "none"),
       row("toe catches in mid-swing", "toe_catches", n("toe_catches"), "none"),
       row("heel strikes never reaching stance", "heel_strikes_without_stance", n("heel_strikes_without_stance"), "none"),

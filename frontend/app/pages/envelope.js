@@ -1,0 +1,227 @@
+// Envelope review: per row (joint × sub-phase) a map over speed × incline of k, θe or b, nodes outside the training
+// data hatched, the measured walking conditions as dots; click a node to open it like a proposal. Edits (everywhere
+// or at one node) make a new draft; decide once; push; the bench preview walks the varying-task course with this
+// envelope and with the FSMIC, safety figures first.
+import { get, post } from "../api.js";
+import { app, onLeave } from "../main.js";
+import { envelopeMap, nodeGrid } from "../envelope_map.js";
+import { renderDecision } from "../decision_panel.js";
+import { renderPush } from "../push_panel.js";
+import { safetyFigures } from "./proposal.js";
+import { chip, fieldWords, fmt, h, inWords, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+
+const QUANTITIES = {
+  k_Nm_per_rad: { label: "quasi-stiffness k", unit: "N·m/rad", digits: 0 },
+  theta_e_deg: { label: "equilibrium angle θe", unit: "deg", digits: 1 },
+  b_Nm_s_per_rad: { label: "damping b", unit: "N·m·s/rad", digits: 2 },
+};
+const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
+  active_on_device: ["running on a leg", "ok"], replaced: ["was on a leg, since replaced", ""],
+  push_failed: ["last push failed", "bad"] };
+
+export function rangeText(e) {
+  return `${fmt(e.speeds_mps[0], 1)}–${fmt(e.speeds_mps.at(-1), 1)} m/s × ${fmt(e.inclines_deg[0], 0)}…${fmt(e.inclines_deg.at(-1), 0)}°`;
+}
+
+export async function envelopePage(view, id, params) {
+  const [e, ref] = await Promise.all([get(`/api/envelopes/${id}`), get("/api/reference")]);
+  const patient = await get(`/api/patients/${e.patient_id}`);
+  const canDecide = app.me.role === "prosthetist";
+  const quantity = params?.get("q") in QUANTITIES ? params.get("q") : "k_Nm_per_rad";
+  const nExtra = e.nodes.filter((n) => n.extrapolation).length;
+  const guarded = e.nodes.filter((n) => Object.keys(n.neighbour_guarded).length);
+  const [words, kind] = DEPLOYMENT_WORDS[e.deployment] || [];
+  const head = [
+    h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ",
+      h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `envelope v${e.version}`),
+    h("h1", {}, `${e.envelope_label} · ${rangeText(e)}`),
+    h("p", { class: "chips", id: "envelope-chips" }, chip(e.status, e.status), words ? chip(words, kind) : null,
+      chip(e.safety.ok ? "every node within the limits and the neighbour rule" : "outside the safety limits", e.safety.ok ? "ok" : "bad"),
+      e.source === "edit" ? chip(`edited from v${e.parent_version}`) : chip("model"),
+      chip(`${e.grid[0]} × ${e.grid[1]} nodes`)),
+    h("p", { class: "provenance" }, `Model ${e.model.version} · training data sha256 ${e.model.data_sha256.slice(0, 12)}… · `,
+      `patient mass ${fmt(e.body_mass_kg, 1, "kg")} · nominal task ${fmt(e.nominal.speed_mps, 2, "m/s")}, ${fmt(e.nominal.incline_deg, 1, "°")} `,
+      "(the leg returns there when unsure of its task) · created by ", e.created_by, " ", when(e.created_at), " · CRC-32 ",
+      h("span", { class: "mono", id: "envelope-crc" }, e.wire_crc32 === null ? "—" : hex(e.wire_crc32)), " (as the device runs it)",
+      e.edit_comment ? ` · edit: “${e.edit_comment}”` : "",
+      e.decision ? ` · ${e.decision.status} by ${e.decision.by} ${when(e.decision.at)}${e.decision.comment ? `: “${e.decision.comment}”` : ""}` : ""),
+  ];
+  if (nExtra) {
+    head.push(h("div", { class: "banner warn", role: "alert", id: "extrapolation" }, h("strong", {}, "Extrapolation: "),
+      `${nExtra} of ${e.nodes.length} nodes lie outside the walking data the model was trained on (hatched on the maps). `,
+      "Their tables are less certain; open them and review their values."));
+  }
+  if (!e.safety.ok) {
+    head.push(h("div", { class: "banner bad", role: "alert" }, h("strong", {}, "Safety: "),
+      e.safety.violations.slice(0, 6).map((v) => inWords(v.message, v.field)).join("; ")));
+  }
+  const picker = h("div", { class: "inline", role: "radiogroup", "aria-label": "Value shown on the maps" },
+    Object.entries(QUANTITIES).map(([q, d]) => h("label", {}, h("input", { type: "radio", name: "quantity", value: q,
+      checked: q === quantity, onchange: () => draw(q) }), ` ${d.label} (${d.unit})`)));
+  const maps = h("div", { class: "maps", id: "envelope-maps" });
+  const mapNote = h("p", { class: "muted small" }, "Each cell is one node of the grid (its task at the cell's centre); the leg ",
+    "blends the four nodes around its estimated task, bilinearly, and holds at the edge beyond the grid. Hatched: outside ",
+    "the training data. Dots: measured walking conditions behind the model (",
+    ref.conditions.filter((c) => c.speed_mps !== null && c.incline_deg !== null).map((c) => `${fmt(c.speed_mps, 2)} m/s, ${fmt(c.incline_deg, 0)}°`).join("; "),
+    "). Click a node to open its loops, curves and table.");
+  const measured = ref.conditions.map((c) => ({ speed_mps: c.speed_mps, incline_deg: c.incline_deg, label: `${c.name} — ${c.citation}` }));
+  const draw = (q) => {
+    const d = QUANTITIES[q];
+    maps.replaceChildren();
+    for (const joint of ["knee", "ankle"]) {
+      for (const sp of SUBPHASES) {
+        const fig = h("figure", { class: "map", dataset: { row: `${joint}.${sp}` } });
+        maps.append(fig);
+        envelopeMap(fig, { title: `${joint} ${SUBPHASE_LABEL[sp]}: ${d.label} (${d.unit})`, id: `map-${joint}-${sp}`,
+          speeds: e.speeds_mps, inclines: e.inclines_deg, unit: d.unit, digits: d.digits, measured,
+          values: nodeGrid(e, (n) => n.table.find((r) => r.joint === joint && r.subphase === sp)?.[q] ?? null),
+          extrapolated: nodeGrid(e, (n) => n.extrapolation),
+          onPick: (i, j) => { location.hash = `#/envelopes/${e.id}/nodes/${i}/${j}`; } });
+      }
+    }
+    history.replaceState(null, "", `#/envelopes/${e.id}?q=${q}`);
+  };
+  const decisionBox = h("section", { class: "card", id: "decision" });
+  const pushBox = h("section", { class: "card", id: "push" });
+  const previewBox = h("section", { class: "card", id: "preview" }, h("h2", {}, "Simulated preview: the varying-task course"),
+    h("p", { class: "muted", id: "preview-status" }, "Walking the course with this envelope and with the FSMIC on the simulated bench (about ten seconds, once)…"));
+  view.replaceChildren(...head,
+    h("section", { class: "card" }, h("h2", {}, "Maps over speed × incline"), picker, maps, mapNote,
+      guarded.length ? h("p", { class: "small", id: "guarded-note" }, `${guarded.length} node(s) have values held within a step of `,
+        "their neighbours (the neighbour rule keeps every blend between two safe nodes safe); their tables say which.") : null),
+    decisionBox, pushBox, editCard(e, canDecide), h("section", { class: "card", id: "versions" }), previewBox);
+  draw(quantity);
+  renderDecision(decisionBox, { item: e, name: e.envelope_label, path: `/api/envelopes/${e.id}`, canDecide,
+    reload: () => envelopePage(document.getElementById("view"), e.id) });
+  renderPush(pushBox, { item: e, kind: "envelope", name: e.envelope_label, canPush: canDecide, patient,
+    what: `${e.envelope_label} (adapts over ${rangeText(e)}; nominal ${fmt(e.nominal.speed_mps, 2, "m/s")}, ${fmt(e.nominal.incline_deg, 1, "°")})`,
+    path: `/api/envelopes/${e.id}` });
+  app.envelopeInteractiveAt = performance.now();
+  if (app.envelopeReturnedAt !== undefined) {
+    app.envelopeViewMs = app.envelopeInteractiveAt - app.envelopeReturnedAt;
+    app.envelopeReturnedAt = undefined;
+  }
+  renderVersions(document.getElementById("versions"), e);
+  renderPreview(previewBox, e);
+}
+
+function hex(n) {
+  return n.toString(16).padStart(8, "0");
+}
+
+// One setting changed across the envelope or at one node, by a percentage or an offset; a new draft, or a refusal
+// that says which node and which rule
+function editCard(e, canEdit) {
+  const card = h("section", { class: "card", id: "edit" }, h("h2", {}, "Edit into a new draft"));
+  if (!canEdit || e.status === "rejected") {
+    card.append(h("p", { class: "muted" }, canEdit ? "A rejected envelope is not edited; request a new one." : "Only a prosthetist can edit."));
+    return card;
+  }
+  const fields = [...Object.keys(ROW_WORDS).flatMap((row) => Object.keys(QUANTITIES).map((q) => `${row}.${q}`)),
+    ...Object.keys(e.nodes[0].thresholds).filter((k) => typeof e.nodes[0].thresholds[k] === "number").map((k) => `thresholds.${k}`)];
+  const field = h("select", { name: "field", id: "edit-field", "aria-label": "Setting" },
+    fields.map((f) => h("option", { value: f }, fieldWords(f))));
+  const how = h("select", { name: "how", id: "edit-how", "aria-label": "Change by" },
+    h("option", { value: "percent" }, "percent (k: + is firmer)"), h("option", { value: "offset" }, "offset, in the setting's unit"));
+  const amount = h("input", { name: "amount", id: "edit-amount", type: "number", step: "any", required: true, size: 6, "aria-label": "Amount" });
+  const where = h("select", { name: "where", id: "edit-where", "aria-label": "Where" },
+    h("option", { value: "" }, "every node"),
+    e.nodes.map((n, k) => h("option", { value: k }, `only at ${fmt(n.speed_mps, 2)} m/s, ${fmt(n.incline_deg, 1)}°`)));
+  const comment = h("input", { name: "comment", id: "edit-comment", required: true, size: 40, maxlength: 2000, "aria-label": "Why" });
+  const error = h("p", { class: "error", role: "alert", id: "edit-error" });
+  const form = h("form", { id: "envelope-edit" },
+    h("div", { class: "inline" }, h("label", {}, "Setting ", field), h("label", {}, "by ", how), h("label", {}, "amount ", amount),
+      h("label", {}, "at ", where)),
+    h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), h("button", { type: "submit" }, "Make new draft")),
+    h("p", { class: "muted small" }, "Every node's limits and the neighbour rule are checked again as the device runs them; a refused edit stores nothing. ",
+      "A percentage also scales the differences between neighbours, so it can break the neighbour rule where an offset would not."),
+    error);
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    error.textContent = "";
+    const edit = { field: field.value, [how.value]: Number(amount.value) };
+    if (where.value !== "") edit.node = [Math.floor(Number(where.value) / e.inclines_deg.length), Number(where.value) % e.inclines_deg.length];
+    try {
+      const made = await post(`/api/envelopes/${e.id}/edits`, { edits: [edit], comment: comment.value });
+      location.hash = `#/envelopes/${made.id}`;
+    } catch (err) {
+      error.textContent = err.message;
+    }
+  });
+  card.append(form);
+  return card;
+}
+
+async function renderVersions(box, e) {
+  const versions = await get(`/api/patients/${e.patient_id}/envelopes`);
+  const others = versions.filter((v) => v.id !== e.id);
+  const other = h("select", { id: "diff-other", "aria-label": "Compare with version" },
+    others.map((v) => h("option", { value: v.id, selected: v.id === e.parent_id }, `v${v.version} (${v.status}, ${rangeText(v)})`)));
+  const out = h("div", { id: "diff" });
+  const show = async () => {
+    if (!other.value) return;
+    const d = await get(`/api/envelopes/${other.value}/diff/${e.id}`);
+    if (!d.same_grid) {
+      out.replaceChildren(h("p", {}, "The grids differ: no node-by-node comparison."));
+      return;
+    }
+    out.replaceChildren(d.changes.length ? table(["Node", "Setting", `v${d.from_version}`, `v${d.to_version} (this)`, "Unit"],
+      d.changes.slice(0, 200).map((c) => h("tr", {}, h("td", {}, `${fmt(c.speed_mps, 2)} m/s, ${fmt(c.incline_deg, 1)}°`),
+        h("td", { title: c.field }, fieldWords(c.field)), h("td", { class: "num" }, fmt(c.before, 3)),
+        h("td", { class: "num changed" }, fmt(c.after, 3)), h("td", {}, c.unit))), { id: "diff-table" })
+      : h("p", {}, "No differences."));
+  };
+  other.addEventListener("change", show);
+  box.replaceChildren(h("h2", {}, "Versions and differences"),
+    others.length ? h("div", { class: "inline" }, h("label", {}, "Compare with ", other)) : h("p", { class: "muted" }, "Only one version so far."),
+    out);
+  await show();
+}
+
+async function renderPreview(box, e) {
+  let alive = true;
+  onLeave(() => { alive = false; });
+  let pv;
+  try {
+    pv = await get(`/api/envelopes/${e.id}/preview`);
+  } catch (err) {
+    if (alive) box.querySelector("#preview-status").textContent = `Preview failed: ${err.message}`;
+    return;
+  }
+  if (!alive) return;
+  const t = pv.controllers.envelope, f = pv.controllers.fsmic;
+  const ci = (row, key) => (row[key.replace("_rmse_", "_rmse_ci95_")] ? ` [${fmt(row[key.replace("_rmse_", "_rmse_ci95_")][0], 1)}, ${fmt(row[key.replace("_rmse_", "_rmse_ci95_")][1], 1)}]` : "");
+  const segRows = t.by_segment.map((s, k) => {
+    const fs = f.by_segment[k] || {};
+    return h("tr", {}, h("td", {}, `${k + 1}`), h("td", {}, `${fmt(s.speed_mps, 2, "m/s")}, ${fmt(s.incline_deg, 0, "°")}`),
+      h("td", { class: "num" }, `${s.strides} / ${fs.strides ?? "—"}`),
+      h("td", { class: "num" }, `${fmt(s.knee_angle_rmse_deg, 1)}${ci(s, "knee_angle_rmse_deg")}`),
+      h("td", { class: "num" }, `${fmt(fs.knee_angle_rmse_deg, 1)}${ci(fs, "knee_angle_rmse_deg")}`),
+      h("td", { class: "num" }, `${fmt(s.ankle_angle_rmse_deg, 1)}${ci(s, "ankle_angle_rmse_deg")}`),
+      h("td", { class: "num" }, `${fmt(fs.ankle_angle_rmse_deg, 1)}${ci(fs, "ankle_angle_rmse_deg")}`));
+  });
+  const diffRow = (label, key, unit, digits) => {
+    const d = pv.envelope_minus_fsmic[key];
+    return h("tr", {}, h("td", {}, label), h("td", { class: d.verdict === "not resolved" ? "num muted" : "num" },
+      d.rmse_difference === null ? "—" : `${fmt(d.rmse_difference, digits)} [${fmt(d.ci95[0], digits)}, ${fmt(d.ci95[1], digits)}] ${unit}: ${d.verdict}`));
+  };
+  const est = t.estimation || {};
+  box.replaceChildren(h("h2", {}, "Simulated preview: the varying-task course"),
+    h("p", { class: "muted small" }, `The bench walked the “${pv.course.name}” course (`,
+      pv.course.segments.map((s) => `${fmt(s.speed_mps, 2)} m/s ${s.incline_deg >= 0 ? "+" : ""}${fmt(s.incline_deg, 0)}° for ${fmt(s.duration_s, 0)} s`).join(" → "),
+      `) twice at ${fmt(pv.mass_kg, 0, "kg")}: with this envelope (the leg estimating its own task and changing its rows at heel strikes) and with the FSMIC. `,
+      "Each stride is scored against the reference at its true task. ", `Simulated ${when(pv.created_at)}.`),
+    safetyFigures(pv.safety || [], t, f, "This envelope"),
+    h("h3", {}, "Errors per segment (RMSE, deg; [95 % interval])"),
+    table(["Segment", "Task", "Strides (envelope / FSMIC)", "Knee: envelope", "Knee: FSMIC", "Ankle: envelope", "Ankle: FSMIC"], segRows,
+      { id: "preview-segments" }),
+    h("h3", {}, "Whole course: envelope − FSMIC, mean per-stride RMSE"),
+    table(["Channel", "Difference [95 % interval]"], [diffRow("knee angle", "knee_angle_deg", "deg", 2),
+      diffRow("ankle angle", "ankle_angle_deg", "deg", 2), diffRow("knee moment", "knee_moment_Nm_per_kg", "N·m/kg", 3),
+      diffRow("ankle moment", "ankle_moment_Nm_per_kg", "N·m/kg", 3)], { id: "preview-differences" }),
+    h("p", { class: "small", id: "preview-estimation" }, "The leg's own estimate of its task (not counting 3 strides after each change): speed within ±0.1 m/s on ",
+      fmt((est.speed_within_0_1_mps_fraction ?? NaN) * 100, 0), " % and incline within ±1.5° on ",
+      fmt((est.incline_within_1_5_deg_fraction ?? NaN) * 100, 0), ` % of ${est.strides_counted ?? 0} strides. Rows per stride: `,
+      Object.entries(t.strides_by_mode || {}).map(([m, n]) => `${m} ${n}`).join(", "), "."),
+    (pv.safety || []).length ? h("p", { class: "notice-inline warn small" }, "Lower tracking errors do not outweigh the safety flags above.") : null);
+}
