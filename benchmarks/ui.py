@@ -8,6 +8,11 @@ Figures, not assertions (the browser tests assert behaviour):
   simulated preview arrives later, on its own). The target is ≤ 1000 ms.
 * ``cold_proposal_page_ms``: a fresh page load of a proposal URL (navigation start → interactive), the case of a
   prosthetist opening a link.
+* ``envelope_view_ms`` / ``envelope_from_request_ms``: the envelope page (8 maps of 25 nodes, decision, edit and
+  push controls) interactive after ``POST /api/patients/{id}/envelopes`` returns / after the click that sends it
+  (the server builds all 25 nodes in between). The target is ≤ 1000 ms after the request.
+* ``adaptive_monitor_fps``: the live monitor with an envelope on the leg walking the ``mixed`` course (the map with
+  the estimated task and its trail, the blended values and the state banner, on top of the charts); target ≥ 30.
 * ``monitor_fps``: live-monitor redraws per second (charts and the side view of the leg) while telemetry streams
   (target ≥ 30), with the telemetry rate the page received and any sequence gaps; ``monitor_fps_with_3d_view``
   the same with the viser scene open (the benchmark's server runs ``--viewer3d``; WebGL, which headless Chromium
@@ -59,6 +64,15 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
             page.wait_for_function("() => window.quasitune && window.quasitune.proposalInteractiveAt !== undefined",
                                    timeout=30_000)
             cold_ms.append(page.evaluate("window.quasitune.proposalInteractiveAt"))
+        env_ms, env_request_ms = [], []
+        for _ in range(max(3, repeats // 4)):
+            page.goto(f"{base}/#/patients/{patient['id']}")
+            page.wait_for_selector("#request-envelope")
+            page.evaluate("window.quasitune.envelopeViewMs = undefined")
+            page.click("#request-envelope button[type=submit]")
+            page.wait_for_function("() => window.quasitune.envelopeViewMs !== undefined", timeout=30_000)
+            env_ms.append(page.evaluate("window.quasitune.envelopeViewMs"))
+            env_request_ms.append(page.evaluate("window.quasitune.envelopeFromRequestMs"))
         page.goto(f"{base}/#/monitor/sim-leg-1?patient={patient['id']}")
         page.fill("#session input[name=speed]", "1.2")
         page.click("#start-session")
@@ -76,6 +90,7 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
         page.click("#viewer3d-toggle summary")
         page.click("#stop-session")
         page.wait_for_selector("#session-summary")
+        adaptive = _adaptive_monitor(page, base, h, monitor_s)
         webgl = page.evaluate("""() => { const g = document.createElement('canvas').getContext('webgl');
             const i = g && g.getExtension('WEBGL_debug_renderer_info');
             return g ? (i ? g.getParameter(i.UNMASKED_RENDERER_WEBGL) : 'webgl') : 'none'; }""")
@@ -92,7 +107,40 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
         "monitor_sequence_gaps": after3d["gaps"], "monitor_seconds": round(span_s, 2),
         "monitor_fps_with_3d_view": round((after3d["frames"] - before3d["frames"]) / span3d_s, 1),
         "webgl_renderer": webgl,
+        "envelope_view_ms_median": round(statistics.median(env_ms), 1), "envelope_view_ms_max": round(max(env_ms), 1),
+        "envelope_from_request_ms_median": round(statistics.median(env_request_ms), 1),
+        "envelope_from_request_ms_max": round(max(env_request_ms), 1), "envelope_views": len(env_ms),
+        **adaptive,
     }
+
+
+def _adaptive_monitor(page, base: str, headers: dict, monitor_s: float) -> dict:
+    """Approve and push the patient's newest envelope (over the API), then watch the course on the monitor."""
+    import httpx
+
+    with httpx.Client(base_url=base, timeout=60, headers=headers) as c:
+        device = c.get("/api/devices/sim-leg-1").json()
+        envelope = c.get(f"/api/patients/{device['patient']['patient_id']}/envelopes").json()[0]
+        c.post(f"/api/envelopes/{envelope['id']}/approve", json={"comment": "benchmark"}).raise_for_status()
+        on_leg = device["active_table"]
+        c.post(f"/api/envelopes/{envelope['id']}/push", json={
+            "device_id": "sim-leg-1", "patient_ready": True,
+            "replaces_proposal_id": on_leg and on_leg["proposal_id"],
+            "replaces_envelope_id": on_leg and on_leg["envelope_id"]}).raise_for_status()
+    page.goto(f"{base}/#/monitor/sim-leg-1")
+    page.wait_for_selector("#adaptive:not([hidden]) #live-map")
+    page.select_option("#session-walk", "mixed")
+    page.click("#start-session")
+    page.wait_for_selector("#live-map circle.task-point[visibility=visible]", timeout=30_000)
+    before = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")
+    page.wait_for_timeout(monitor_s * 1000)
+    after = page.evaluate("({...window.quasitune.monitor, now: performance.now()})")
+    page.click("#stop-session")
+    page.wait_for_selector("#session-summary")
+    span_s = (after["now"] - before["now"]) / 1000
+    return {"adaptive_monitor_fps": round((after["frames"] - before["frames"]) / span_s, 1),
+            "adaptive_monitor_telemetry_hz": round((after["samples"] - before["samples"]) / span_s, 1),
+            "adaptive_monitor_sequence_gaps": after["gaps"] - before["gaps"]}
 
 
 def run(repeats: int = 20, monitor_s: float = 5.0) -> dict:

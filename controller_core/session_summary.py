@@ -29,6 +29,21 @@ from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 
 
+def device_times(seq: np.ndarray, received_s: np.ndarray) -> np.ndarray:
+    """Sample times (s) on the device's clock: its sequence numbers at the session's mean rate.
+
+    The host's receive times arrive in bursts when the server is busy (a burst of samples a few microseconds apart
+    would look like a 150 ms swing lasting one sample); the sequence counts the device's fixed period, and a lost
+    sample leaves its gap.
+    """
+    q = np.asarray(seq, dtype=float)
+    r = np.asarray(received_s, dtype=float)
+    if q.size < 2 or q[-1] <= q[0]:
+        return r
+    period = (r[-1] - r[0]) / (q[-1] - q[0])
+    return r[0] + (q - q[0]) * period
+
+
 def session_strikes(t_s: np.ndarray, load_N: np.ndarray, mass_kg: float) -> np.ndarray:
     """Sample indices of heel strikes: load above 10 % of body weight after at least 150 ms below it."""
     t = np.asarray(t_s, dtype=float)

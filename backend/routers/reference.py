@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import Annotated
 
 from fastapi import APIRouter, Query
@@ -10,6 +11,7 @@ from fastapi import APIRouter, Query
 from backend.deps import CurrentUser, Model
 from backend.schemas.errors import UNAUTHORIZED
 from backend.schemas.reference import ReferenceOut
+from controller_core.phase_table import load_shipped_ramps
 from controller_core.reference import CITATIONS
 from controller_core.task import INCLINE_LIMIT_DEG, SPEED_RANGE_MPS
 from controller_core.walking_reference import sloped_walking_reference
@@ -47,6 +49,14 @@ def _at_task(speed_mps: float, incline_deg: float) -> dict | None:
             "ankle_moment_Nm_per_kg": _plain(ref.ankle_moment_Nm_per_kg)}
 
 
+@lru_cache(maxsize=1)
+def _ramp_conditions() -> list[dict]:
+    """The shipped ramp curves' conditions (read once: the file is part of the release)."""
+    return [{"name": rec.name, "dataset": rec.dataset, "citation": CITATIONS.get("vielemeyer2025", rec.dataset),
+             "speed_mps": round(float(rec.task["speed_mps"]), 3), "incline_deg": float(rec.task["incline_deg"]),
+             "strides": rec.n} for rec in load_shipped_ramps().records]
+
+
 @router.get("/reference", response_model=ReferenceOut)
 def get_reference(_user: CurrentUser, model: Model,
                   speed_mps: Annotated[float | None, Query(ge=SPEED_RANGE_MPS[0], le=SPEED_RANGE_MPS[1])] = None,
@@ -64,4 +74,5 @@ def get_reference(_user: CurrentUser, model: Model,
             "ankle_angle_deg": _deg(rec.mean["ankle_angle"]),
             "ankle_moment_Nm_per_kg": _plain(rec.mean["ankle_moment"])})
     return {"model_version": model.model_version, "data_sha256": model.data_sha256_, "conditions": conditions,
+            "ramp_conditions": _ramp_conditions(),
             "at_task": None if speed_mps is None else _at_task(speed_mps, incline_deg)}

@@ -20,7 +20,7 @@ from backend.store import devices as devices_store
 from backend.store import envelopes, patients, pushes
 from backend.store import sessions as store
 from controller_core.session_regions import adaptive_summary
-from controller_core.session_summary import session_strikes, summarize_session
+from controller_core.session_summary import device_times, session_strikes, summarize_session
 from controller_core.session_trend import session_trend
 from device_bridge.protocol import Mode
 from device_bridge.sim.course import COURSES
@@ -82,16 +82,17 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
         devices.stop_recording(session["device_id"])
     t = session["task"]
     cols = store.samples(conn, session_id)
+    times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]))
     reference = task_reference(t["speed_mps"], t["incline_deg"], model, t["body_mass_kg"])
-    summary = summarize_session(np.asarray(cols["t_s"]), np.asarray(cols["knee_angle_rad"]),
+    summary = summarize_session(times, np.asarray(cols["knee_angle_rad"]),
                                 np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
                                 np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
                                 reference, running_table=np.asarray(cols["mode"]) == Mode.ACTIVE)
     if session["envelope_id"] is not None:
         envelope = envelopes.stored_envelope(envelopes.get_row(conn, session["envelope_id"]))
         summary["adaptive"] = adaptive_summary(
-            np.asarray(cols["t_s"]), np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]),
-            session_strikes(np.asarray(cols["t_s"]), np.asarray(cols["load_N"]), t["body_mass_kg"]),
+            times, np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]),
+            session_strikes(times, np.asarray(cols["load_N"]), t["body_mass_kg"]),
             _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]), cols["adaptive_mode"],
             envelope.speeds_mps, envelope.inclines_deg,
             lambda v, g: task_reference(v, g, model, t["body_mass_kg"]))

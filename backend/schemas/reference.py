@@ -40,10 +40,24 @@ class TaskReference(BaseModel):
     ankle_moment_Nm_per_kg: list[float]
 
 
+class RampCondition(BaseModel):
+    """A measured ramp condition the incline change is learned from (one participant; curves not repeated here)."""
+
+    name: str
+    dataset: str
+    citation: str
+    speed_mps: float
+    incline_deg: float
+    strides: int
+
+
 class ReferenceOut(BaseModel):
     model_version: str
     data_sha256: str
     conditions: list[ReferenceCondition]
+    ramp_conditions: list[RampCondition] = Field(
+        default_factory=list, description="the measured ramp walking (±10°, one participant) behind the model's incline "
+                                          "change, with the same participant's level walking")
     at_task: TaskReference | None = Field(
         default=None, description="with speed_mps and incline_deg: the reference at that task, or null where no "
                                   "curves were measured that steep (the proposal is then the model's prediction)")

@@ -42,7 +42,7 @@ export function adaptivePanel(box, envelope) {
   const banner = h("div", { id: "adaptive-state", class: "state-banner nominal", role: "status", "aria-live": "assertive" },
     "waiting for the leg's first estimate (after two strides)…");
   const mapBox = h("figure", { class: "map", id: "monitor-map" });
-  const facts = h("dl", { class: "readout", id: "adaptive-readout" });
+  const facts = h("dl", { class: "facts", id: "adaptive-readout" });
   const values = h("div", { id: "active-values" });
   box.replaceChildren(h("h2", {}, `Adaptive leg · ${envelope.envelope_label}`), banner,
     h("div", { class: "readout-row" }, h("div", { class: "monitor-map-box" }, h("label", {}, "Map of ", rowPick), mapBox), facts),

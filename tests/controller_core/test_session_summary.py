@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from controller_core.session_summary import summarize_session
+from controller_core.session_summary import device_times, session_strikes, summarize_session
 from controller_core.walking_reference import level_walking_reference
 
 
@@ -30,3 +30,17 @@ def test_strides_off_the_table_are_counted_and_left_out_of_the_errors(quasi_stif
     nothing = _summary(log, np.zeros_like(t, dtype=bool))
     assert nothing["strides_scored"] == 0 and nothing["knee_angle_rmse_deg"] is None
     assert nothing["mean_curves"]["knee_angle_deg"] is None
+
+
+def test_bursty_receive_times_do_not_split_strides_on_the_devices_clock():
+    """Scripted telemetry (synthetic load, not gait data): a 1.2 s stride, 60 % stance, at 100 Hz; the server got the
+    samples in bursts of 25, each burst within a millisecond."""
+    seq = np.arange(1200)
+    phase = (seq * 0.01 / 1.2) % 1.0
+    load = np.where(phase < 0.6, 600.0, 0.0) + np.where(seq % 37 == 0, 40.0, 0.0)   # noise below the 10 % threshold
+    received = 1000.0 + (seq // 25) * 0.25 + (seq % 25) * 1e-5
+    on_device = device_times(seq, received)
+    assert np.allclose(np.diff(on_device), 0.01, rtol=0.03)       # the mean rate, within a burst of the end
+    strikes = session_strikes(on_device, load, 75.0)
+    assert len(strikes) == 9 and np.allclose(np.diff(on_device[strikes]), 1.2, rtol=0.03)
+    assert len(session_strikes(received, load, 75.0)) != 9        # the receive times miscount strides

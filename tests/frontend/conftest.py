@@ -3,20 +3,16 @@ its test on any console error the test did not provoke."""
 
 from __future__ import annotations
 
-import re
 import subprocess
 
 import pytest
 
 from backend.app import prepare_storage
 from backend.settings import Settings
-from tests.helpers.browser import CHROMIUM_ARGS, chromium_path
+from tests.helpers.browser import CHROMIUM_ARGS, chromium_path, watch_errors
 from tests.helpers.server import add_user, start_server
 
 playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright is a dev dependency")
-
-
-_EXPECTED = re.compile(r"Failed to load resource: the server responded with a status of (401|403|409|422)")
 
 
 @pytest.fixture(scope="module")
@@ -47,10 +43,7 @@ def browser():
 def page(browser):
     context = browser.new_context(viewport={"width": 1366, "height": 900}, accept_downloads=True)
     p = context.new_page()
-    errors: list[str] = []
-    p.on("pageerror", lambda e: errors.append(str(e)))
-    # refusals the tests provoke (401/403/409/422) are shown on the page; anything else the console reports fails
-    p.on("console", lambda m: errors.append(m.text) if m.type == "error" and not _EXPECTED.search(m.text) else None)
+    errors = watch_errors(p)
     p.errors = errors
     yield p
     context.close()

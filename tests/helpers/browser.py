@@ -25,6 +25,18 @@ def chromium_path() -> str:
     return path
 
 
+# refusals the tests provoke (401/403/409/422) are shown on the page; anything else the console reports is an error
+_EXPECTED = re.compile(r"Failed to load resource: the server responded with a status of (401|403|409|422)")
+
+
+def watch_errors(page) -> list[str]:
+    """Collect the page's uncaught errors and unexpected console errors (the list grows as they happen)."""
+    errors: list[str] = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" and not _EXPECTED.search(m.text) else None)
+    return errors
+
+
 def sign_in(page, base: str, username: str, password: str = PASSWORD) -> None:
     """Sign in through the dashboard's login form and wait for the patient list."""
     page.goto(base + "/")

@@ -11,9 +11,9 @@ import { safetyFigures } from "./proposal.js";
 import { chip, fieldWords, fmt, h, inWords, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
 const QUANTITIES = {
-  k_Nm_per_rad: { label: "quasi-stiffness k", unit: "N·m/rad", digits: 0 },
-  theta_e_deg: { label: "equilibrium angle θe", unit: "deg", digits: 1 },
-  b_Nm_s_per_rad: { label: "damping b", unit: "N·m·s/rad", digits: 2 },
+  k_Nm_per_rad: { label: "quasi-stiffness k", short: "k", unit: "N·m/rad", digits: 0 },
+  theta_e_deg: { label: "equilibrium angle θe", short: "θe", unit: "deg", digits: 1 },
+  b_Nm_s_per_rad: { label: "damping b", short: "b", unit: "N·m·s/rad", digits: 2 },
 };
 const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
   active_on_device: ["running on a leg", "ok"], replaced: ["was on a leg, since replaced", ""],
@@ -59,12 +59,15 @@ export async function envelopePage(view, id, params) {
     Object.entries(QUANTITIES).map(([q, d]) => h("label", {}, h("input", { type: "radio", name: "quantity", value: q,
       checked: q === quantity, onchange: () => draw(q) }), ` ${d.label} (${d.unit})`)));
   const maps = h("div", { class: "maps", id: "envelope-maps" });
-  const mapNote = h("p", { class: "muted small" }, "Each cell is one node of the grid (its task at the cell's centre); the leg ",
+  const measured = [...ref.conditions, ...ref.ramp_conditions]
+    .filter((c) => c.speed_mps !== null && c.incline_deg !== null)
+    .map((c) => ({ speed_mps: c.speed_mps, incline_deg: c.incline_deg, label: `${c.name} — ${c.citation}` }));
+  const mapNote = h("p", { class: "muted small", id: "map-note" }, "Each cell is one node of the grid (its task at the cell's centre); the leg ",
     "blends the four nodes around its estimated task, bilinearly, and holds at the edge beyond the grid. Hatched: outside ",
     "the training data. Dots: measured walking conditions behind the model (",
-    ref.conditions.filter((c) => c.speed_mps !== null && c.incline_deg !== null).map((c) => `${fmt(c.speed_mps, 2)} m/s, ${fmt(c.incline_deg, 0)}°`).join("; "),
-    "). Click a node to open its loops, curves and table.");
-  const measured = ref.conditions.map((c) => ({ speed_mps: c.speed_mps, incline_deg: c.incline_deg, label: `${c.name} — ${c.citation}` }));
+    measured.map((c) => `${fmt(c.speed_mps, 2)} m/s ${c.incline_deg > 0 ? "+" : ""}${fmt(c.incline_deg, 0)}°`).join("; "),
+    "; the ±10° ramps are one participant, so the incline change is a trend, not a population). Click a node to open ",
+    "its loops, curves and table.");
   const draw = (q) => {
     const d = QUANTITIES[q];
     maps.replaceChildren();
@@ -72,7 +75,7 @@ export async function envelopePage(view, id, params) {
       for (const sp of SUBPHASES) {
         const fig = h("figure", { class: "map", dataset: { row: `${joint}.${sp}` } });
         maps.append(fig);
-        envelopeMap(fig, { title: `${joint} ${SUBPHASE_LABEL[sp]}: ${d.label} (${d.unit})`, id: `map-${joint}-${sp}`,
+        envelopeMap(fig, { title: `${joint} ${SUBPHASE_LABEL[sp]} · ${d.short} (${d.unit})`, id: `map-${joint}-${sp}`,
           speeds: e.speeds_mps, inclines: e.inclines_deg, unit: d.unit, digits: d.digits, measured,
           values: nodeGrid(e, (n) => n.table.find((r) => r.joint === joint && r.subphase === sp)?.[q] ?? null),
           extrapolated: nodeGrid(e, (n) => n.extrapolation),
@@ -97,8 +100,9 @@ export async function envelopePage(view, id, params) {
     what: `${e.envelope_label} (adapts over ${rangeText(e)}; nominal ${fmt(e.nominal.speed_mps, 2, "m/s")}, ${fmt(e.nominal.incline_deg, 1, "°")})`,
     path: `/api/envelopes/${e.id}` });
   app.envelopeInteractiveAt = performance.now();
-  if (app.envelopeReturnedAt !== undefined) {
+  if (app.envelopeReturnedAt !== undefined) {   // the request's own time, and the page's after it returned
     app.envelopeViewMs = app.envelopeInteractiveAt - app.envelopeReturnedAt;
+    app.envelopeFromRequestMs = app.envelopeInteractiveAt - app.envelopeRequestedAt;
     app.envelopeReturnedAt = undefined;
   }
   renderVersions(document.getElementById("versions"), e);
@@ -206,7 +210,7 @@ async function renderPreview(box, e) {
       d.rmse_difference === null ? "—" : `${fmt(d.rmse_difference, digits)} [${fmt(d.ci95[0], digits)}, ${fmt(d.ci95[1], digits)}] ${unit}: ${d.verdict}`));
   };
   const est = t.estimation || {};
-  box.replaceChildren(h("h2", {}, "Simulated preview: the varying-task course"),
+  box.replaceChildren(...[h("h2", {}, "Simulated preview: the varying-task course"),
     h("p", { class: "muted small" }, `The bench walked the “${pv.course.name}” course (`,
       pv.course.segments.map((s) => `${fmt(s.speed_mps, 2)} m/s ${s.incline_deg >= 0 ? "+" : ""}${fmt(s.incline_deg, 0)}° for ${fmt(s.duration_s, 0)} s`).join(" → "),
       `) twice at ${fmt(pv.mass_kg, 0, "kg")}: with this envelope (the leg estimating its own task and changing its rows at heel strikes) and with the FSMIC. `,
@@ -223,5 +227,6 @@ async function renderPreview(box, e) {
       fmt((est.speed_within_0_1_mps_fraction ?? NaN) * 100, 0), " % and incline within ±1.5° on ",
       fmt((est.incline_within_1_5_deg_fraction ?? NaN) * 100, 0), ` % of ${est.strides_counted ?? 0} strides. Rows per stride: `,
       Object.entries(t.strides_by_mode || {}).map(([m, n]) => `${m} ${n}`).join(", "), "."),
-    (pv.safety || []).length ? h("p", { class: "notice-inline warn small" }, "Lower tracking errors do not outweigh the safety flags above.") : null);
+    (pv.safety || []).length ? h("p", { class: "notice-inline warn small" }, "Lower tracking errors do not outweigh the safety flags above.") : null]
+    .filter(Boolean));
 }

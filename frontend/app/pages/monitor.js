@@ -177,7 +177,7 @@ function renderStatus(box, d) {
     d.faults.length ? chip(`faults: ${d.faults.join(", ")}`, "bad") : null),
   h("dl", { class: "facts" },
     h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
-    h("dt", {}, "Active table"), h("dd", { id: "active-version" }, d.active_version === null ? "none"
+    h("dt", {}, "On the leg"), h("dd", { id: "active-version" }, d.active_version === null ? "none"
       : d.active_table ? tableName(d.active_table, true) : `device version ${d.active_version} (not sent by this server)`),
     h("dt", {}, "CRC-32 read back"), h("dd", { class: "mono" }, d.active_crc32 || "—"),
     h("dt", {}, "Waiting for heel strike"), h("dd", {}, d.pending_version === null ? "—"

@@ -4,9 +4,9 @@ import { chip, fmt, h, modeWords, table, tableName, when } from "../ui.js";
 import { rangeText } from "./envelope.js";
 
 export async function patientPage(view, id) {
-  const [patient, proposals, envelopes, sessions, devices] = await Promise.all([
+  const [patient, proposals, envelopes, sessions, devices, trend] = await Promise.all([
     get(`/api/patients/${id}`), get(`/api/patients/${id}/proposals`), get(`/api/patients/${id}/envelopes`),
-    get(`/api/patients/${id}/sessions`), get("/api/devices")]);
+    get(`/api/patients/${id}/sessions`), get("/api/devices"), get(`/api/patients/${id}/trend`)]);
   const details = h("dl", { class: "facts" },
     h("dt", {}, "Body mass"), h("dd", { id: "patient-mass" }, fmt(patient.body_mass_kg, 1, "kg")),
     h("dt", {}, "Height"), h("dd", {}, fmt(patient.height_m, 2, "m")),
@@ -44,7 +44,7 @@ export async function patientPage(view, id) {
     h("td", {}, d.active_table ? tableName(d.active_table) : d.active_version === null ? "—" : `device version ${d.active_version}`),
     h("td", { class: "mono" }, d.active_crc32 || "—")));
 
-  view.replaceChildren(
+  view.replaceChildren(...[
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ", patient.code_name),
     h("h1", {}, `Patient ${patient.code_name}`),
     h("section", { class: "card" }, details, app.me.role === "prosthetist" ? massForm(patient) : null),
@@ -61,7 +61,23 @@ export async function patientPage(view, id) {
         : h("p", { class: "muted" }, "No device configured on this server (quasitune serve --device).")),
     h("section", { class: "card" }, h("h2", {}, "Walking sessions"),
       sessions.length ? table(["Session", "Device", "Table", "Speed (m/s)", "Status", "Strides", "Started", ""], sessRows,
-        { id: "sessions" }) : h("p", { class: "muted" }, "No sessions recorded.")));
+        { id: "sessions" }) : h("p", { class: "muted" }, "No sessions recorded.")),
+    trend.length ? h("section", { class: "card" }, h("h2", {}, "Trend over days"), trendTable(trend),
+      h("p", { class: "muted small" }, "Per day (UTC) of stopped sessions. Cadence and errors: weighted by strides. Where: time per ",
+        "task class (slow < 0.9 m/s ≤ moderate < 1.3 m/s ≤ fast; downhill < −4° ≤ level ≤ +4° < uphill), by the leg's own estimate ",
+        "in adaptive sessions, at the session's task otherwise.")) : null].filter(Boolean));   // no "null" text nodes
+}
+
+const CLASS_WORDS = (key) => key.replace("_", ", ");
+
+function trendTable(trend) {
+  return table(["Day", "Sessions", "Strides", "Walking (min)", "Cadence (steps/min)", "Knee angle RMSE (deg)",
+    "Ankle angle RMSE (deg)", "Where (min)"], trend.map((d) => h("tr", {}, h("td", {}, d.day), h("td", { class: "num" }, d.sessions),
+    h("td", { class: "num" }, d.strides), h("td", { class: "num" }, fmt(d.walking_s / 60, 1)),
+    h("td", { class: "num" }, fmt(d.cadence_steps_per_min, 1)), h("td", { class: "num" }, fmt(d.knee_angle_rmse_deg, 1)),
+    h("td", { class: "num" }, fmt(d.ankle_angle_rmse_deg, 1)),
+    h("td", { class: "small" }, Object.entries(d.time_by_task_class_s).filter(([, t]) => t > 0)
+      .sort((a, b) => b[1] - a[1]).map(([k, t]) => `${CLASS_WORDS(k)} ${fmt(t / 60, 1)}`).join(" · ") || "—"))), { id: "trend" });
 }
 
 function envelopeForm(patient) {
@@ -81,6 +97,7 @@ function envelopeForm(patient) {
     const button = form.querySelector("button");
     button.disabled = true;
     button.textContent = "Building every node…";
+    app.envelopeRequestedAt = performance.now();
     try {
       const e = await post(`/api/patients/${patient.id}/envelopes`, { speed_range_mps: [n("speed_lo"), n("speed_hi")],
         incline_range_deg: [n("incline_lo"), n("incline_hi")], grid: [n("n_speeds"), n("n_inclines")] });

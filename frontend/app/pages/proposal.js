@@ -273,7 +273,7 @@ async function renderPreview(box, p) {
   };
   const x = pv.phase_grid.map((s) => s * 100);
   const charts = h("div", { class: "two" });
-  box.replaceChildren(h("h2", {}, "Simulated preview: this table vs the FSMIC"),
+  box.replaceChildren(...[h("h2", {}, "Simulated preview: this table vs the FSMIC"),
     h("p", { class: "muted small" }, `Both controllers walked ${fmt(pv.seconds, 0, "s")} each on the MuJoCo bench at this task `,
       `(socket driven along the able-bodied hip trajectory; metrics as in quasitune simulate). Reference: ${referenceLabel(t)} (${t.reference_source}). `,
       `Simulated ${when(pv.created_at)}.`),
@@ -292,7 +292,7 @@ async function renderPreview(box, p) {
       "\"not resolved\": with these strides either controller could be the lower one. A preview walks only a few strides, ",
       "and the FSMIC's strides change over a longer walk, so a longer walk can change the verdict (quasitune simulate ",
       "--seconds 20). The intervals say nothing about the bench's own assumptions (docs/results.md)."),
-    charts);
+    charts].filter(Boolean));
   for (const key of ["knee_angle_deg", "ankle_angle_deg"]) {
     const el = h("figure", { class: "chart" });
     charts.append(el);

@@ -33,9 +33,11 @@ export async function reportPage(view, id) {
     h("div", { class: "inline no-print" }, h("button", { onclick: () => print() }, "Print"), pdf),
     h("dl", { class: "facts", id: "report-facts" },
       h("dt", {}, "Patient"), h("dd", {}, `${patient.code_name} · ${fmt(patient.body_mass_kg, 1, "kg")} · ${patient.side}`),
-      h("dt", {}, "Task"), h("dd", {}, `${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}`),
-      h("dt", {}, "Active table"), h("dd", { id: "report-table" }, s.table_label === null ? "none from this server"
-        : h("span", {}, h("a", { href: `#/proposals/${s.proposal_id}` }, s.table_label), ` · CRC-32 ${s.table_crc32}`)),
+      h("dt", {}, "Task"), h("dd", {}, s.course ? `the bench's “${s.course}” course (changing speed and incline); headline errors at its first task, `
+        + `${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}` : `${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}`),
+      h("dt", {}, s.envelope_id !== null ? "Envelope on the leg" : "Active table"), h("dd", { id: "report-table" }, s.table_label === null ? "none from this server"
+        : h("span", {}, h("a", { href: s.envelope_id !== null ? `#/envelopes/${s.envelope_id}` : `#/proposals/${s.proposal_id}` }, s.table_label),
+          ` · CRC-32 ${s.table_crc32} · device version ${s.table_version}`)),
       h("dt", {}, "Device"), h("dd", {}, s.device_id),
       h("dt", {}, "Recorded"), h("dd", {}, `${when(s.started_at)} → ${when(s.stopped_at)} by ${s.started_by}`)),
   ];
@@ -51,10 +53,11 @@ export async function reportPage(view, id) {
   const errors = table(["Channel", "RMSE vs reference"], CHANNELS.map(([, label, key, unit]) =>
     h("tr", {}, h("td", {}, label), h("td", { class: "num" }, fmt(m[key], unit === "deg" ? 1 : 3, unit)))), { id: "report-errors" });
   const charts = h("div", { class: "two", id: "report-charts" });
-  view.replaceChildren(...head, h("h2", {}, "Strides and errors"), offTable(m), metrics, errors,
+  view.replaceChildren(...[...head, h("h2", {}, "Strides and errors"), offTable(m), metrics, errors,
     h("p", { class: "muted small", id: "report-reference" }, `Reference: ${referenceLabel(m)} (${m.reference_source})${m.reference_extrapolation ? " (extrapolated)" : ""}. `,
       "Strides between heel strikes (load above 10 % of body weight), averaged on the gait-cycle grid."),
-    h("h2", {}, "Joint trajectories against the reference"), charts);
+    m.adaptive ? adaptiveSection(m.adaptive) : null,
+    h("h2", {}, "Joint trajectories against the reference"), charts].filter(Boolean));   // no "null" text nodes
   const x = m.phase_grid.map((p) => p * 100);
   for (const [key, label, , unit] of CHANNELS) {
     const el = h("figure", { class: "chart" });
@@ -63,4 +66,35 @@ export async function reportPage(view, id) {
       { label: `reference: ${referenceLabel(m)}`, values: m.reference_curves[key], color: "#222222" },
       { label: "measured (stride mean)", values: m.mean_curves[key] || x.map(() => null), color: "#0072B2" }] });
   }
+}
+
+// Where in its envelope the leg walked (its own estimate of the task), and how well, per node's region
+function adaptiveSection(a) {
+  const inclinesTopDown = a.inclines_deg.map((g, j) => [g, j]).reverse();
+  const total = a.time_s.flat().reduce((x, y) => x + y, 0);
+  const cellTable = (id, caption, cell) => h("table", { id, class: "histogram" },
+    h("caption", {}, caption),
+    h("thead", {}, h("tr", {}, h("th", { scope: "col" }, "incline \\ speed"), a.speeds_mps.map((v) => h("th", { scope: "col" }, fmt(v, 2, "m/s"))))),
+    h("tbody", {}, inclinesTopDown.map(([g, j]) => h("tr", {}, h("th", { scope: "row" }, `${g > 0 ? "+" : ""}${fmt(g, 1, "°")}`),
+      a.speeds_mps.map((_, i) => cell(i, j))))));
+  const timeCell = (i, j) => {
+    const t = a.time_s[i][j], n = a.strides[i][j];
+    const td = h("td", { class: `num${t > 0 ? " filled" : ""}`, dataset: { cell: `${i},${j}` } }, t > 0 ? `${fmt(t, 0, "s")} · ${n}` : "—");
+    if (t > 0) td.style.setProperty("--f", String(total ? t / Math.max(...a.time_s.flat()) : 0));
+    return td;
+  };
+  const errCell = (i, j) => {
+    const k = a.errors_by_region.knee_angle_per_stride_rmse_deg[i][j], an = a.errors_by_region.ankle_angle_per_stride_rmse_deg[i][j];
+    return h("td", { class: "num" }, k === null ? "—" : `${fmt(k, 1)} / ${fmt(an, 1)}`);
+  };
+  const modes = a.adaptive_mode_s || {};
+  return h("section", { id: "report-adaptive" }, h("h2", {}, "Where in the envelope the patient walked"),
+    h("p", { class: "small" }, `Estimated for ${fmt(total, 0, "s")} (not yet estimated: ${fmt(a.unestimated_s, 0, "s")}, `,
+      `${a.unestimated_strides} strides); beyond the envelope's edge (rows clamped): ${fmt(a.outside_s, 0, "s")}. Rows: `,
+      Object.entries(modes).map(([k, v]) => `${k} ${fmt(v, 0, "s")}`).join(", "), "."),
+    h("div", { class: "two" },
+      cellTable("report-histogram", "Time · strides per node's region (the leg's own estimate of its task)", timeCell),
+      cellTable("report-errors-by-task", "Knee / ankle angle RMSE per stride (deg), each stride at its estimated task", errCell)),
+    h("p", { class: "muted small" }, "A region is the set of tasks nearer to its node than to any other. Errors by task: ",
+      `${a.errors_reference}; where the estimate is wrong the reference is too, so read them with the estimate's accuracy.`));
 }

@@ -1,0 +1,127 @@
+"""The envelope workflow as a prosthetist clicks it, at desktop and tablet size: new patient → request an envelope →
+review its maps, a node and the bench preview → edit → approve → assign and push → walk the course on the simulated
+leg and watch it adapt → stop → report and trend. The test times its own click path (new patient → envelope running
+on the leg) and writes it with the screenshots."""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+
+import pytest
+
+from tests.helpers.browser import ARTIFACTS, shot, sign_in, watch_errors
+
+VIEWPORTS = {"desktop": (1366, 900), "tablet": (820, 1180)}
+
+
+@pytest.mark.parametrize("size", list(VIEWPORTS))
+def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser, size):
+    width, height = VIEWPORTS[size]
+    context = browser.new_context(viewport={"width": width, "height": height}, has_touch=size == "tablet")
+    page = context.new_page()
+    errors = watch_errors(page)
+    code = f"P-ENV-{size[0].upper()}"
+    sign_in(page, server, "dana")
+
+    t0 = time.monotonic()
+    page.fill("#new-patient input[name=code_name]", code)
+    page.fill("#new-patient input[name=body_mass_kg]", "76")
+    page.click("#new-patient button[type=submit]")
+    page.wait_for_selector("#request-envelope")
+    page.click("#request-envelope button[type=submit]")                    # the defaults: 0.6–1.6 m/s × ±10°, 5 × 5
+    page.wait_for_selector(f"h1:has-text('{code} · envelope v1')")
+    page.wait_for_function("() => window.quasitune.envelopeViewMs !== undefined")
+    view_ms = page.evaluate("window.quasitune.envelopeViewMs")
+
+    # the maps: one per row, a cell per node, the measured conditions drawn, extrapolated nodes hatched
+    assert page.locator("#envelope-maps figure.map").count() == 8
+    assert page.locator("#map-knee-stance_flexion g.node").count() == 25
+    assert page.locator("#map-knee-stance_flexion circle.measured").count() >= 3
+    assert page.locator("#map-knee-stance_flexion rect.extrapolated").count() >= 1    # ±10° at 0.6 m/s lies outside
+    assert "outside the walking data" in page.inner_text("#extrapolation")
+    page.check("input[name=quantity][value=theta_e_deg]")
+    assert "(deg)" in page.text_content("#map-knee-stance_flexion .map-title")
+    # safety figures first, then per-segment errors, once the bench has walked the course
+    page.wait_for_selector("#preview-segments", timeout=120_000)
+    assert page.locator("#preview-safety").count() == 1
+    assert page.locator("#preview-segments tbody tr").count() == 8
+    assert re.search(r"within ±0\.1 m/s on \d+ %", page.inner_text("#preview-estimation"))
+    shot(page, f"env-{size}-01-envelope")
+
+    # a node opens like a proposal: loops, curves, its own table
+    page.click("#map-knee-stance_flexion g.node[data-node='4,2']")          # 1.6 m/s, level
+    page.wait_for_selector("h1:has-text('node at 1.60 m/s')")
+    page.wait_for_selector("#loop-knee svg")
+    assert page.locator("#param-table tbody tr").count() == 8 and page.locator("#features tbody tr").count() > 4
+    shot(page, f"env-{size}-02-node")
+    page.click("#back-to-envelope")
+    page.wait_for_selector("#envelope-edit")
+
+    # a refused edit says why and stores nothing; an offset everywhere makes v2
+    page.select_option("#edit-field", "knee.stance_flexion.theta_e_deg")
+    page.select_option("#edit-how", "offset")
+    page.fill("#edit-amount", "200")
+    page.fill("#edit-comment", "too much, on purpose")
+    page.click("#envelope-edit button[type=submit]")
+    page.wait_for_selector("#edit-error:has-text('nothing stored')")
+    page.fill("#edit-amount", "2")
+    page.fill("#edit-comment", "patient prefers a slightly softer loading response")
+    page.click("#envelope-edit button[type=submit]")
+    page.wait_for_selector(f"h1:has-text('{code} · envelope v2')")
+    page.wait_for_selector("#diff-table")
+    assert page.locator("#diff-table tbody tr").count() == 25                # one value at every node
+    page.wait_for_selector("#preview-segments", timeout=120_000)           # reviewed before deciding
+
+    # approve with a reason, assign the leg, push with the clinical precondition ticked
+    page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
+    page.click("#approve")
+    page.wait_for_selector("#decision:has-text('approved by dana')")
+    page.click("#assign-device")
+    page.click("#assign-dialog-confirm")
+    page.wait_for_selector(f"#push-assignment:has-text('assigned to {code}')")
+    page.click("#push-button")
+    assert "adapts over 0.6–1.6 m/s" in page.inner_text("#push-dialog")
+    page.check("#push-dialog-ready")
+    page.click("#push-dialog-confirm")
+    page.wait_for_selector(f"#push-steps li.done:has-text('active on sim-leg-1: {code} · envelope v2')", timeout=30_000)
+    click_path_s = time.monotonic() - t0
+    shot(page, f"env-{size}-03-pushed")
+
+    # the monitor: walk the mixed course and watch the leg's own estimate move on the map
+    page.click("#nav-monitor")
+    page.wait_for_selector("#adaptive:not([hidden]) #live-map")
+    page.select_option("#session-walk", "mixed")
+    page.click("#start-session")
+    page.wait_for_selector("#stop-session")
+    page.wait_for_selector("#live-map circle.task-point[visibility=visible]", timeout=20_000)
+    page.wait_for_function(
+        "() => ['adaptive', 'partial', 'nominal'].includes(document.querySelector('#adaptive-state').dataset.state)")
+    assert page.locator("#active-values-table tbody tr").count() == 8
+    assert "course mixed" in page.inner_text("#bench-task")
+    page.wait_for_timeout(3000)
+    stats = page.evaluate("window.quasitune.monitor")
+    shot(page, f"env-{size}-04-monitor")
+    page.click("#stop-session")
+    page.wait_for_selector("#session-summary")
+    page.click("#report-link")
+    page.wait_for_selector("#report-histogram")
+    assert f"{code} · envelope v2" in page.inner_text("#report-table") and "CRC-32" in page.inner_text("#report-table")
+    assert page.locator("#report-histogram td.filled").count() >= 1
+    assert "null" not in page.inner_text("#view").split() and 60 < float(page.inner_text("#report-cadence")) < 160
+    shot(page, f"env-{size}-05-report")
+    page.click(f"a:has-text('{code}')")
+    page.wait_for_selector("#trend tbody tr")
+    assert "null" not in page.inner_text("#view").split()
+    shot(page, f"env-{size}-06-patient")
+
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    (ARTIFACTS / f"env-{size}-timings.json").write_text(json.dumps(
+        {"click_path_new_patient_to_pushed_envelope_s": round(click_path_s, 1),
+         "envelope_page_interactive_ms": round(view_ms),
+         "monitor_fps": round(stats["fps"], 1), "telemetry_samples": stats["samples"], "telemetry_gaps": stats["gaps"]}))
+    print(f"{size}: new patient → pushed envelope {click_path_s:.1f} s; envelope page {view_ms:.0f} ms; monitor "
+          f"{stats['fps']:.0f} frames/s")                                   # timings are reported, not asserted
+    context.close()
+    assert not errors, errors
