@@ -65,7 +65,7 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
                                    timeout=30_000)
             cold_ms.append(page.evaluate("window.quasitune.proposalInteractiveAt"))
         env_ms, env_request_ms = [], []
-        for _ in range(max(3, repeats // 4)):
+        for _ in range(3):
             page.goto(f"{base}/#/patients/{patient['id']}")
             page.wait_for_selector("#request-envelope")
             page.evaluate("window.quasitune.envelopeViewMs = undefined")
@@ -73,6 +73,7 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
             page.wait_for_function("() => window.quasitune.envelopeViewMs !== undefined", timeout=30_000)
             env_ms.append(page.evaluate("window.quasitune.envelopeViewMs"))
             env_request_ms.append(page.evaluate("window.quasitune.envelopeFromRequestMs"))
+        page.wait_for_selector("#preview-segments", timeout=300_000)   # the queued course previews are done
         page.goto(f"{base}/#/monitor/sim-leg-1?patient={patient['id']}")
         page.fill("#session input[name=speed]", "1.2")
         page.click("#start-session")

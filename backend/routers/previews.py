@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+
 from fastapi import APIRouter
 
 from backend.deps import Conn, CurrentUser, Model
@@ -17,6 +19,10 @@ from device_bridge.sim.course import COURSES
 router = APIRouter(prefix="/api", tags=["previews"], responses=UNAUTHORIZED)
 
 PREVIEW_SECONDS = 10.0
+# one course preview at a time: each walks ~90 s of bench time (several CPU-seconds); two tabs opening the same new
+# envelope then wait for one walk instead of each starting its own, and many new envelopes queue instead of starving
+# the device loop of CPU
+_COURSE_PREVIEW = threading.Lock()
 
 
 @router.get("/proposals/{proposal_id}/preview", response_model=PreviewOut, responses={**NOT_FOUND, **UNAVAILABLE})
@@ -46,7 +52,10 @@ def get_envelope_preview(envelope_id: IdPath, conn: Conn, _user: CurrentUser, mo
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
     if stored is None:
-        result = preview_envelope(envelopes.stored_envelope(row), model, COURSES[PREVIEW_COURSE])
-        stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
+        with _COURSE_PREVIEW:
+            stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])   # walked meanwhile?
+            if stored is None:
+                result = preview_envelope(envelopes.stored_envelope(row), model, COURSES[PREVIEW_COURSE])
+                stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["envelope"], runs["fsmic"])}
