@@ -296,7 +296,7 @@ def _feature_std(features: list[FeaturePrediction]) -> dict[str, float]:
     return out
 
 
-def _with_values(table: ParameterTable, values: list[float], fitted: list[float]) -> tuple[ParameterTable, dict]:
+def table_with_values(table: ParameterTable, values: list[float], fitted: list[float]) -> tuple[ParameterTable, dict]:
     """The table with the guard's values; rows whose values moved say so (their R² no longer describes them)."""
     moved = {VALUE_FIELDS[f]: round(fitted[f], 6) for f in range(len(values)) if values[f] != fitted[f]}
     if not moved:
@@ -339,7 +339,7 @@ def build_envelope(propose_table: Callable[[float, float, float], tuple[Paramete
     nodes = []
     for idx, ((table, features), values, original) in enumerate(zip(built, guarded, fitted, strict=True)):
         i, j = divmod(idx, len(inclines))
-        table, moved = _with_values(table, values, original)
+        table, moved = table_with_values(table, values, original)
         nodes.append(EnvelopeNode(speed_mps=speeds[i], incline_deg=inclines[j], table=table,
                                   extrapolation=table.provenance.extrapolation, feature_std=_feature_std(features),
                                   neighbour_guarded=moved))

@@ -3,9 +3,13 @@
 "Knee stance flexion 10 % firmer everywhere" is ``{"field": "knee.stance_flexion.k_Nm_per_rad", "percent": 10}``:
 a percentage scales the value (k < 0 is restoring, so +10 % is 10 % more restoring); an offset adds to it, in the
 field's unit. Each node's table is edited with :func:`controller_core.table_edit.edit_table` (rows whose k or θe
-change become ``manual``), so the same rules hold. The neighbour guard is not re-applied: an edit that breaks the
-neighbour rule or a limit is refused by the caller's check (:func:`device_bridge.envelope_wire.check_envelope_as_run`
-in the backend), never quietly corrected.
+change become ``manual``), so the same rules hold. The neighbour guard is not re-applied on its own: an edit that
+breaks the neighbour rule or a limit is refused by the caller's check
+(:func:`device_bridge.envelope_wire.check_envelope_as_run` in the backend), never quietly corrected. A percentage
+scales the differences between neighbours too, so "10 % firmer everywhere" breaks the rule wherever two neighbours
+were already near a step apart; asked to,
+:func:`hold_to_neighbour_rule` then holds those values within a step (the guard the envelope was built with), and
+every held value is reported with what the edit gave.
 """
 
 from __future__ import annotations
@@ -13,7 +17,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
-from controller_core.envelope import THRESHOLD_VALUES, Envelope, EnvelopeNode
+from controller_core.envelope import (
+    THRESHOLD_VALUES,
+    VALUE_FIELDS,
+    Envelope,
+    EnvelopeNode,
+    nearest_node,
+    neighbour_guard,
+    table_values,
+    table_with_values,
+)
 from controller_core.table_edit import ROW_FIELDS, EditError, edit_table
 
 
@@ -100,3 +113,36 @@ def edit_envelope(envelope: Envelope, edits: Sequence[Mapping[str, object]]) -> 
     if not changes:
         raise EditError("the edit changes nothing")
     return envelope.model_copy(update={"nodes": nodes}), changes
+
+
+def hold_to_neighbour_rule(parent: Envelope, edited: Envelope, changes: list[dict]) -> tuple[Envelope, list[dict]]:
+    """``edited`` with the neighbour guard applied again, sweeping out from the nominal node: a value more than a step
+    from an already swept neighbour is moved the least back within it. Held values are recorded in their node's
+    ``neighbour_guarded`` (with the value the edit gave) and their rows become ``neighbour_guard``; the changes
+    against ``parent`` say, per held value, ``held_from`` (the edit's value). Raises EditError if holding leaves
+    nothing changed."""
+    values = [table_values(n.table) for n in edited.nodes]
+    start = nearest_node(edited.speeds_mps, edited.inclines_deg, edited.nominal_speed_mps, edited.nominal_incline_deg)
+    held = neighbour_guard(edited.shape, values, start, edited.neighbour_steps)
+    nodes, moved_at = [], {}
+    for idx, (node, wanted, kept) in enumerate(zip(edited.nodes, values, held, strict=True)):
+        table, moved = table_with_values(node.table, kept, wanted)
+        if moved:
+            moved_at[idx] = moved
+            node = node.model_copy(update={"table": table, "neighbour_guarded": {**node.neighbour_guarded, **moved}})
+        nodes.append(node)
+    result = edited.model_copy(update={"nodes": nodes})
+    n_i = len(edited.inclines_deg)
+    out = [c for c in changes if c["field"] not in VALUE_FIELDS]      # fit-method changes stay as the edit made them
+    for idx, (before_node, after_node) in enumerate(zip(parent.nodes, result.nodes, strict=True)):
+        for field, before, after in zip(VALUE_FIELDS, table_values(before_node.table), table_values(after_node.table),
+                                        strict=True):
+            if before != after:
+                change = {"node": list(divmod(idx, n_i)), "speed_mps": after_node.speed_mps,
+                          "incline_deg": after_node.incline_deg, "field": field, "before": before, "after": after}
+                if field in moved_at.get(idx, {}):
+                    change["held_from"] = moved_at[idx][field]
+                out.append(change)
+    if not any(c["field"] in VALUE_FIELDS for c in out):
+        raise EditError("held to the neighbour rule, the edit changes nothing")
+    return result, out

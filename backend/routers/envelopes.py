@@ -21,7 +21,7 @@ from backend.schemas.envelopes import (
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
 from backend.store import envelopes, patients, pushes
-from controller_core.envelope_edit import edit_envelope
+from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
 from device_bridge.envelope_wire import check_envelope_as_run
 
@@ -72,17 +72,23 @@ def get_node(envelope_id: IdPath, i: Annotated[int, Path(ge=0, le=14, descriptio
 def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prosthetist) -> dict:
     """Derive a new draft with one or more settings changed across the envelope or at one node (prosthetist), e.g.
     knee stance flexion 10 % firmer everywhere. Every node's limits and the neighbour rule are re-checked as the
-    device runs them; a refused edit stores nothing."""
+    device runs them; a refused edit stores nothing. With ``hold_to_neighbour_rule``, values the edit would put more
+    than a step from a neighbour are held within it (listed in the changes with ``held_from``) instead."""
     parent = envelopes.stored_envelope(envelopes.get_row(conn, envelope_id))
     try:
         edited, changes = edit_envelope(parent, [e.model_dump() for e in body.edits])
+        if body.hold_to_neighbour_rule:
+            edited, changes = hold_to_neighbour_rule(parent, edited, changes)
     except (EditError, ValueError) as exc:
         raise InvalidError(str(exc).splitlines()[0]) from exc
     violations = check_envelope_as_run(edited)
     if violations:
+        neighbours_only = all(v.field.startswith("neighbours[") for v in violations)
+        hint = (" Ask again holding those values to the neighbour rule (hold_to_neighbour_rule) to keep them within a "
+                "step of their neighbours." if neighbours_only else "")
         raise InvalidError(f"edit refused, nothing stored: {len(violations)} value(s) outside the safety limits or "
-                           "the neighbour rule: " + "; ".join(v.message for v in violations[:5]),
-                           violations=[v.model_dump() for v in violations])
+                           "the neighbour rule: " + "; ".join(v.message for v in violations[:5]) + hint,
+                           violations=[v.model_dump() for v in violations], neighbour_rule_only=neighbours_only)
     return envelopes.create_edit(conn, envelope_id, edited, changes, body.comment, user)
 
 

@@ -117,6 +117,10 @@ class EnvelopeCellEdit(StrictIn):
 
 class EnvelopeEditRequest(StrictIn):
     edits: list[EnvelopeCellEdit] = Field(min_length=1, max_length=40)
+    hold_to_neighbour_rule: bool = Field(
+        default=False, description="where the edit would put neighbouring nodes more than a step apart, hold those "
+                                   "values within a step (the envelope's own guard, from the nominal node outwards) "
+                                   "instead of refusing; each held value is listed with what the edit gave")
     comment: Text = Field(min_length=1, max_length=2000, description="why (audited)")
 
 

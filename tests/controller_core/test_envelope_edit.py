@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from controller_core.envelope_edit import edit_envelope
+from controller_core.envelope import check_envelope
+from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
 
 
@@ -42,3 +43,25 @@ def test_a_percentage_everywhere_and_an_offset_at_one_node(envelope):
 def test_an_edit_that_is_not_one_is_refused_with_the_reason(envelope, edits, why):
     with pytest.raises(EditError, match=why):
         edit_envelope(envelope, edits)
+
+
+def test_a_value_pushed_past_a_step_is_held_within_it_on_request_and_says_what_the_edit_gave(model):
+    env = model.propose_envelope([0.9, 1.2, 1.5], [-5.0, 0.0, 5.0], 75.0)        # nominal 1.2 m/s level: the middle
+    field = "knee.stance_flexion.k_Nm_per_rad"
+    step = env.neighbour_steps.k_Nm_per_rad
+    edited, changes = edit_envelope(env, [{"field": field, "offset": -2 * step, "node": [2, 2]}])   # one corner
+    assert check_envelope(edited)                                                # refused as it stands
+    held, held_changes = hold_to_neighbour_rule(env, edited, changes)
+    assert not check_envelope(held)
+    corner = held.node(2, 2).table.row("knee", "stance_flexion")
+    wanted = edited.node(2, 2).table.row("knee", "stance_flexion").k_Nm_per_rad
+    assert corner.fit_method == "neighbour_guard"
+    assert held.node(2, 2).neighbour_guarded[field] == pytest.approx(wanted, abs=1e-6)
+    near = [held.node(1, 2).table.row("knee", "stance_flexion").k_Nm_per_rad,
+            held.node(2, 1).table.row("knee", "stance_flexion").k_Nm_per_rad]
+    assert corner.k_Nm_per_rad == pytest.approx(max(near) - step)               # as firm as the rule allows
+    [change] = held_changes
+    assert change["node"] == [2, 2] and change["after"] == corner.k_Nm_per_rad
+    assert change["held_from"] == pytest.approx(wanted, abs=1e-6)
+    assert [n.table for n in held.nodes[:-1]] == [n.table for n in env.nodes[:-1]]   # no other node moved
+

@@ -59,19 +59,25 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.click("#back-to-envelope")
     page.wait_for_selector("#envelope-edit")
 
-    # a refused edit says why and stores nothing; an offset everywhere makes v2
+    # a refused edit says why and stores nothing; "knee stance flexion 10 % firmer everywhere" breaks the neighbour
+    # rule where the guard left neighbours nearly a step apart, and is then made holding those values within a step
     page.select_option("#edit-field", "knee.stance_flexion.theta_e_deg")
     page.select_option("#edit-how", "offset")
     page.fill("#edit-amount", "200")
     page.fill("#edit-comment", "too much, on purpose")
     page.click("#envelope-edit button[type=submit]")
     page.wait_for_selector("#edit-error:has-text('nothing stored')")
-    page.fill("#edit-amount", "2")
-    page.fill("#edit-comment", "patient prefers a slightly softer loading response")
+    assert page.locator("#edit-hold").count() == 0                          # a limit broke: nothing to hold
+    page.select_option("#edit-field", "knee.stance_flexion.k_Nm_per_rad")
+    page.select_option("#edit-how", "percent")
+    page.fill("#edit-amount", "10")
+    page.fill("#edit-comment", "patient wants a firmer loading response")
     page.click("#envelope-edit button[type=submit]")
+    page.click("#edit-hold")
     page.wait_for_selector(f"h1:has-text('{code} · envelope v2')")
     page.wait_for_selector("#diff-table")
     assert page.locator("#diff-table tbody tr").count() == 25                # one value at every node
+    assert "held within a step" in page.inner_text("#guarded-note")
     page.wait_for_selector("#preview-segments", timeout=120_000)           # reviewed before deciding
 
     # approve with a reason, assign the leg, push with the clinical precondition ticked

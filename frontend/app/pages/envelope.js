@@ -138,19 +138,28 @@ function editCard(e, canEdit) {
       h("label", {}, "at ", where)),
     h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), h("button", { type: "submit" }, "Make new draft")),
     h("p", { class: "muted small" }, "Every node's limits and the neighbour rule are checked again as the device runs them; a refused edit stores nothing. ",
-      "A percentage also scales the differences between neighbours, so it can break the neighbour rule where an offset would not."),
+      "A percentage also scales the differences between neighbours, so it can break the neighbour rule where an offset would not; ",
+      "you can then hold those values within a step (the new draft's nodes say which, with what the edit gave)."),
     error);
-  form.addEventListener("submit", async (ev) => {
-    ev.preventDefault();
-    error.textContent = "";
+  const send = async (hold) => {
+    error.replaceChildren();
     const edit = { field: field.value, [how.value]: Number(amount.value) };
     if (where.value !== "") edit.node = [Math.floor(Number(where.value) / e.inclines_deg.length), Number(where.value) % e.inclines_deg.length];
     try {
-      const made = await post(`/api/envelopes/${e.id}/edits`, { edits: [edit], comment: comment.value });
+      const made = await post(`/api/envelopes/${e.id}/edits`, { edits: [edit], comment: comment.value, hold_to_neighbour_rule: hold });
       location.hash = `#/envelopes/${made.id}`;
     } catch (err) {
-      error.textContent = err.message;
+      error.append(err.message);
+      // only the neighbour rule broke: offer to hold those values within a step (each listed in the new draft)
+      if (err.body?.neighbour_rule_only) {
+        error.append(" ", h("button", { type: "button", id: "edit-hold", class: "secondary", onclick: () => send(true) },
+          "Make the draft holding those values within a step"));
+      }
     }
+  };
+  form.addEventListener("submit", (ev) => {
+    ev.preventDefault();
+    send(false);
   });
   card.append(form);
   return card;

@@ -168,3 +168,26 @@ def test_the_preview_walks_the_course_with_the_envelope_and_the_fsmic_once(api):
     assert isinstance(p["safety"], list)
     again = api.client.get(f"/api/envelopes/{e['id']}/preview", headers=api.as_("viewer")).json()
     assert again["created_at"] == p["created_at"]                  # stored, not walked again
+
+
+def test_ten_percent_firmer_everywhere_is_refused_or_held_to_the_neighbour_rule_on_request(api):
+    patient = api.new_patient()
+    e = request_envelope(api, patient["id"], speed_range_mps=[0.6, 1.6], incline_range_deg=[-10, 10], grid=[5, 5])
+    body = {"edits": [{"field": "knee.stance_flexion.k_Nm_per_rad", "percent": 10}], "comment": "firmer loading response"}
+    r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"), json=body)
+    # the guard left some knee stance-flexion neighbours nearly a step apart (it steepens with incline): 10 % more
+    # pushes them past it
+    assert r.status_code == 422 and r.json()["neighbour_rule_only"] and "hold_to_neighbour_rule" in r.json()["detail"]
+    r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"),
+                        json={**body, "hold_to_neighbour_rule": True})
+    assert r.status_code == 201, r.text
+    held = r.json()
+    assert held["safety"]["ok"] and held["version"] == 2
+    nominal = next(k for k, n in enumerate(held["nodes"]) if (n["speed_mps"], n["incline_deg"]) == (1.1, 0.0))
+    k_before = e["nodes"][nominal]["table"][0]["k_Nm_per_rad"]
+    assert held["nodes"][nominal]["table"][0]["k_Nm_per_rad"] == pytest.approx(1.1 * k_before, abs=2e-3)
+    guarded = [n for n in held["nodes"] if "knee.stance_flexion.k_Nm_per_rad" in n["neighbour_guarded"]]
+    assert guarded and all(n["table"][0]["fit_method"] == "neighbour_guard" for n in guarded)
+    [audit] = [a for a in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]
+               if a["action"] == "envelope.edit"]
+    assert any("held_from" in c for c in audit["after"]["changes"])
