@@ -56,8 +56,13 @@ def _facts(session: dict, patient: dict) -> list[tuple[str, str]]:
                       for c in GAIT_CHANNELS)
     return [
         ("Patient", f"{patient['code_name']} · {patient['body_mass_kg']:.1f} kg · {patient['side']} side"),
-        ("Task", f"{t['speed_mps']:.2f} m/s, incline {t['incline_deg']:+.1f}° · device {session['device_id']}"),
-        ("Table that ran", f"{session['table_label'] or 'none from this server'} (CRC-32 {session['table_crc32'] or '—'})"),
+        ("Task", (f"the bench's '{session['course']}' course (speed and incline change); headline errors at its first "
+                  f"task, " if session.get("course") else "")
+         + f"{t['speed_mps']:.2f} m/s, incline {t['incline_deg']:+.1f}° · device {session['device_id']}"),
+        ("Envelope that ran" if session.get("envelope_id") is not None else "Table that ran",
+         f"{session['table_label'] or 'none from this server'} (CRC-32 {session['table_crc32'] or '—'}, "
+         f"device version {session['table_version'] or '—'})"),
+        *_adaptive_facts(s.get("adaptive")),
         ("Recorded", f"{local_time(session['started_at'])} to {local_time(session['stopped_at'])} "
                      f"by {session['started_by']}"),
         ("Samples", f"{s.get('samples', 0)} over {_fmt(s.get('duration_s'), 's', 1)}; "
@@ -75,15 +80,64 @@ def _facts(session: dict, patient: dict) -> list[tuple[str, str]]:
     ]
 
 
+def _adaptive_facts(a: dict | None) -> list[tuple[str, str]]:
+    """Where in its envelope the leg walked, in a line (the second page draws it)."""
+    if not a:
+        return []
+    cells = sorted(((a["time_s"][i][j], a["strides"][i][j], v, g) for i, v in enumerate(a["speeds_mps"])
+                    for j, g in enumerate(a["inclines_deg"]) if a["time_s"][i][j] > 0), reverse=True)
+    where = "; ".join(f"{v:.2f} m/s {g:+.0f}°: {t:.0f} s, {n} strides" for t, n, v, g in cells[:4]) or "no estimate"
+    modes = ", ".join(f"{k} {v:.0f} s" for k, v in (a.get("adaptive_mode_s") or {}).items())
+    return [("Where in the envelope", f"{where} (the leg's own estimate; not yet estimated {a['unestimated_s']:.0f} s, "
+                                      f"beyond its edge {a['outside_s']:.0f} s) · rows: {modes}")]
+
+
 def session_report_pdf(session: dict, patient: dict) -> bytes:
     """One A4 page for a stopped session (``session`` as ``GET /api/sessions/{id}`` returns it): facts as label and
-    value, then the four joint trajectories; times in the server's local zone, every number with its unit."""
-    fig = report_figure(session, patient)
+    value, then the four joint trajectories; with an envelope, a second page with time, strides and errors per region
+    of the envelope. Times in the server's local zone, every number with its unit."""
+    figs = [report_figure(session, patient)]
+    adaptive = (session["summary"] or {}).get("adaptive")
+    if adaptive:
+        figs.append(envelope_figure(session, adaptive))
     buf = io.BytesIO()
     with PdfPages(buf, metadata={"Title": f"QuasiTune session {session['id']}", "Creator": "QuasiTune"}) as pdf:
-        pdf.savefig(fig)
-    plt.close(fig)
+        for fig in figs:
+            pdf.savefig(fig)
+            plt.close(fig)
     return buf.getvalue()
+
+
+def envelope_figure(session: dict, a: dict) -> Figure:
+    """Time per region of the envelope (the leg's own estimate of its task) and per-stride errors by region."""
+    fig = plt.figure(figsize=(8.27, 11.69))
+    fig.text(0.06, 0.955, f"Session {session['id']} · where in {session['table_label']} the patient walked",
+             fontsize=13, weight="bold")
+    speeds, inclines = a["speeds_mps"], a["inclines_deg"]
+    grids = [("time per region (s) · strides", a["time_s"], lambda i, j: f"{a['time_s'][i][j]:.0f} s\n{a['strides'][i][j]}"),
+             ("knee angle RMSE per stride (deg), at each stride's estimated task",
+              a["errors_by_region"]["knee_angle_per_stride_rmse_deg"], None),
+             ("ankle angle RMSE per stride (deg), at each stride's estimated task",
+              a["errors_by_region"]["ankle_angle_per_stride_rmse_deg"], None)]
+    for k, (title, grid, text) in enumerate(grids):
+        ax = fig.add_axes((0.12, 0.70 - k * 0.30, 0.76, 0.22))
+        values = [[float("nan") if grid[i][j] is None else grid[i][j] for i in range(len(speeds))]
+                  for j in range(len(inclines))]
+        image = ax.imshow(values, origin="lower", cmap="Blues", aspect="auto")
+        for j in range(len(inclines)):
+            for i in range(len(speeds)):
+                v = grid[i][j]
+                label = text(i, j) if text else ("—" if v is None else f"{v:.1f}")
+                dark = v is not None and image.norm(v) > 0.6          # white on the darker cells
+                ax.text(i, j, label, ha="center", va="center", fontsize=7, color="white" if dark else "black")
+        ax.set_xticks(range(len(speeds)), [f"{v:.2f}" for v in speeds], fontsize=7)
+        ax.set_yticks(range(len(inclines)), [f"{g:+.0f}" for g in inclines], fontsize=7)
+        ax.set_xlabel("speed (m/s)", fontsize=8)
+        ax.set_ylabel("incline (deg)", fontsize=8)
+        ax.set_title(title, fontsize=9)
+    fig.text(0.06, 0.03, "A region: the tasks nearer to its node than to any other. Errors: "
+             + a.get("errors_reference", "") + ".", fontsize=6.5, color="0.4")
+    return fig
 
 
 def report_figure(session: dict, patient: dict) -> Figure:
