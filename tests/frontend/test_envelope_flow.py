@@ -9,9 +9,11 @@ import json
 import re
 import time
 
+import httpx
 import pytest
 
 from tests.helpers.browser import ARTIFACTS, shot, sign_in, watch_errors
+from tests.helpers.server import PASSWORD
 
 VIEWPORTS = {"desktop": (1366, 900), "tablet": (820, 1180)}
 
@@ -131,3 +133,38 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
           f"{stats['fps']:.0f} frames/s")                                   # timings are reported, not asserted
     context.close()
     assert not errors, errors
+
+
+def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_safe_mode(server, page):
+    """An envelope that starts above the course's first task (1.0 m/s, level): the leg holds its edge rows, and the
+    banner says so; safe mode overrides everything."""
+    with httpx.Client(base_url=server, timeout=60) as c:
+        token = c.post("/api/auth/token", data={"username": "dana", "password": PASSWORD}).json()["access_token"]
+        c.headers["Authorization"] = f"Bearer {token}"
+        patient = c.post("/api/patients", json={"code_name": "P-EDGE", "body_mass_kg": 80, "side": "right"}).json()
+        env = c.post(f"/api/patients/{patient['id']}/envelopes", json={
+            "speed_range_mps": [1.3, 1.6], "incline_range_deg": [3, 9], "grid": [2, 2]}).json()
+        c.post(f"/api/envelopes/{env['id']}/approve", json={"comment": "edge test"}).raise_for_status()
+        c.put("/api/devices/sim-leg-1/assignment", json={"patient_id": patient["id"]}).raise_for_status()
+        on_leg = c.get("/api/devices/sim-leg-1").json()
+        current = on_leg["pending_table"] or on_leg["active_table"]
+        c.post(f"/api/envelopes/{env['id']}/push", json={
+            "device_id": "sim-leg-1", "patient_ready": True, "replaces_proposal_id": current and current["proposal_id"],
+            "replaces_envelope_id": current and current["envelope_id"]}).raise_for_status()
+    sign_in(page, server, "dana")
+    page.click("#nav-monitor")
+    page.wait_for_selector("#adaptive:not([hidden]) #live-map")
+    page.select_option("#session-walk", "mixed")
+    page.click("#start-session")
+    page.wait_for_selector("#adaptive-state[data-state=clamped]", timeout=30_000)
+    assert "CLAMPED AT THE ENVELOPE'S EDGE" in page.inner_text("#adaptive-state")
+    assert page.locator("#live-map circle.task-point[visibility=visible]").count() == 1
+    shot(page, "env-monitor-clamped")
+    page.click("#enter-safe")
+    page.wait_for_selector("#adaptive-state[data-state=safe]", timeout=10_000)
+    assert "SAFE MODE" in page.inner_text("#adaptive-state")
+    shot(page, "env-monitor-safe")
+    page.click("#leave-safe")
+    page.wait_for_selector("#adaptive-state:not([data-state=safe])", timeout=10_000)
+    page.click("#stop-session")
+    page.wait_for_selector("#session-summary")
