@@ -7,8 +7,8 @@ from typing import Literal
 from pydantic import BaseModel, Field
 
 
-class ControllerPreview(BaseModel):
-    """One controller walked on the simulated bench (the metrics of ``quasitune simulate``)."""
+class WalkFigures(BaseModel):
+    """What every bench walk reports: strides, falls, toe catches, joint-angle RMSE (more figures are allowed)."""
 
     model_config = {"extra": "allow"}
 
@@ -17,6 +17,11 @@ class ControllerPreview(BaseModel):
     toe_catches: int
     knee_angle_rmse_deg: float | None
     ankle_angle_rmse_deg: float | None
+
+
+class ControllerPreview(WalkFigures):
+    """One controller walked on the simulated bench (the metrics of ``quasitune simulate``)."""
+
     knee_moment_rmse_Nm_per_kg: float | None
     ankle_moment_rmse_Nm_per_kg: float | None
     cadence_steps_per_min: float | None
@@ -47,16 +52,9 @@ class PreviewOut(BaseModel):
                                                  "empty when all hold")
 
 
-class CourseControllerPreview(BaseModel):
+class CourseControllerPreview(WalkFigures):
     """One controller over the course (``quasitune simulate --course``), each stride scored at its true task."""
 
-    model_config = {"extra": "allow"}
-
-    strides: int
-    falls: int
-    toe_catches: int
-    knee_angle_rmse_deg: float | None
-    ankle_angle_rmse_deg: float | None
     by_segment: list[dict] = Field(description="per course segment: its task, strides and RMSEs with 95 % intervals")
 
 
