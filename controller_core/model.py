@@ -385,23 +385,32 @@ class QuasiStiffnessModel:
                       via_mean_scale=self.via_mean_scale).fit(self.s_ref_, mu0, sigma, self.s_query_)
             self.joints_[joint] = _JointModel(gmm=gmm, kmp=kmp, trend=trend)
 
-    def reference_means(self, task: np.ndarray) -> dict[str, np.ndarray]:
+    def reference_means(self, task: np.ndarray, trend_cache: dict | None = None) -> dict[str, np.ndarray]:
         """Reference mean (n_ref_points, 2) of (angle, moment) per joint for a task, before the via-points.
 
         Registered mode: the GMR mean plus the task trend (task clipped to the training range), in canonical
         phase, re-timed to the landmark phases of the landmark trend (not clipped). Pooled mode: the GMR
         mean, the same array (``kmp.mu_ref_``) for every task. On a slope, plus the change the slope makes
         (:mod:`controller_core.incline`), when the model learned one.
+
+        ``trend_cache``: a dict the caller keeps while it asks for many tasks (an envelope's grid): the trend part
+        depends only on the trend's task dimensions (speed, when the training tasks vary only in speed), so tasks
+        that share them share it.
         """
         if self.landmark_trend_ is None:
             means = {joint: self.joints_[joint].kmp.mu_ref_ for joint in JOINTS}
         else:
             t = np.asarray(task, dtype=float)[self.trend_task_dims_]
-            landmarks = self.canonical_landmarks_ + self.landmark_trend_.predict(t)
-            weights = self.unwarp_.at(landmarks)
-            t_in = np.clip(t, self.trend_lo_, self.trend_hi_)
-            means = {joint: self.unwarp_.apply(weights, jm.kmp.mu_ref_ + jm.trend.predict(t_in))
-                     for joint, jm in self.joints_.items()}
+            key = tuple(t.tolist())
+            means = None if trend_cache is None else trend_cache.get(key)
+            if means is None:
+                landmarks = self.canonical_landmarks_ + self.landmark_trend_.predict(t)
+                weights = self.unwarp_.at(landmarks)
+                t_in = np.clip(t, self.trend_lo_, self.trend_hi_)
+                means = {joint: self.unwarp_.apply(weights, jm.kmp.mu_ref_ + jm.trend.predict(t_in))
+                         for joint, jm in self.joints_.items()}
+                if trend_cache is not None:
+                    trend_cache[key] = means
         incline = float(task[1])
         change = self.incline_grid_.get("uphill" if incline > 0 else "downhill") if incline != 0.0 else None
         if change is not None:
@@ -540,12 +549,14 @@ class QuasiStiffnessModel:
             boundaries=boundaries, fits=fits, table=table, violations=check_table(table), vias=vias)
 
     def propose_table(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
-                      features: list[FeaturePrediction] | None = None) -> tuple[ParameterTable, list[FeaturePrediction]]:
+                      features: list[FeaturePrediction] | None = None, trend_cache: dict | None = None
+                      ) -> tuple[ParameterTable, list[FeaturePrediction]]:
         """The parameter table of :meth:`propose` and the features it came from, without the curves' std (an
         envelope needs 25 tables, not their display curves). The same table as ``propose(...).table``.
 
         Args:
             features: the task's features when already predicted (:meth:`predict_features_many`).
+            trend_cache: shared across the tasks of one grid (:meth:`reference_means`).
 
         Raises:
             InvalidTaskError: NaN or out-of-range input.
@@ -555,7 +566,7 @@ class QuasiStiffnessModel:
             features = self.predict_features(speed_mps, incline_deg)
         fmap = {f.spec.name: f for f in features}
         task = np.array([speed_mps, incline_deg], dtype=float)
-        references = self.reference_means(task)
+        references = self.reference_means(task, trend_cache)
         means: dict[str, np.ndarray] = {}
         for joint in JOINTS:
             jm = self.joints_[joint]
@@ -595,9 +606,10 @@ class QuasiStiffnessModel:
         validate_axes(speeds, inclines)
         grid = [(s, g) for s in speeds for g in inclines]
         predicted = dict(zip(grid, self.predict_features_many(np.array(grid)), strict=True))   # one GPR evaluation
+        trends: dict = {}                                   # the reference's task trend, once per speed
 
         def node_table(speed: float, incline: float, mass: float) -> tuple[ParameterTable, list[FeaturePrediction]]:
-            return self.propose_table(speed, incline, mass, predicted[(speed, incline)])
+            return self.propose_table(speed, incline, mass, predicted[(speed, incline)], trends)
 
         return build_envelope(node_table, speeds, inclines, mass_kg, self.model_version, self.data_sha256_, nominal,
                               steps)
