@@ -48,5 +48,5 @@ export async function envelopeNodePage(view, id, i, j) {
     h("section", { class: "card", id: "table-card" }, parameterTable(p, false)));
   drawLoops(p, ref, atTask);
   explainVias(p, document.getElementById("via-note"));
-  drawCurves(p, atTask, curveBox);
+  drawCurves(p, atTask, curveBox, "model prediction at this node");
 }

@@ -175,7 +175,7 @@ export function explainVias(p, el) {
     + "prediction is unsure. Treat the stars as the model's guess, not a target the table meets.";
 }
 
-export function drawCurves(p, atTask, box) {
+export function drawCurves(p, atTask, box, what = "proposal") {
   const x = p.curves.phase.map((s) => s * 100);
   const b = p.subphase_boundaries_phase;
   const markers = [b.stance_flexion_to_stance_extension, b.stance_extension_to_swing_flexion,
@@ -185,14 +185,14 @@ export function drawCurves(p, atTask, box) {
     ["ankle_angle_deg", "ankle angle (deg)"], ["ankle_moment_Nm_per_kg", "ankle moment (N·m/kg)"]]) {
     const el = h("figure", { class: "chart", dataset: { channel: key } });
     box.append(el);
-    const lines = [{ label: "proposal", values: p.curves[key], color: "#1f4e99" }];
+    const lines = [{ label: what, values: p.curves[key], color: "#1f4e99" }];
     if (atTask) {
       lines.push({ label: atTask.kind === "measured" ? "measured level walking at this speed"
         : "measured level walking + measured ramp change", values: x.map((xx) => interp(xx, refX, atTask[key])),
       color: "#888888", dash: [6, 4], width: 1.5 });
     }
     phaseChart(el, { title: label, yLabel: label.match(/\((.*)\)/)[1], x, markers,
-      bands: [{ label: "proposal", mean: p.curves[key], sd: p.curves[`${key}_std`], color: "#1f4e99" }], lines });
+      bands: [{ label: what, mean: p.curves[key], sd: p.curves[`${key}_std`], color: "#1f4e99" }], lines });
   }
 }
 
