@@ -549,14 +549,12 @@ class QuasiStiffnessModel:
             boundaries=boundaries, fits=fits, table=table, violations=check_table(table), vias=vias)
 
     def propose_table(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
-                      features: list[FeaturePrediction] | None = None, trend_cache: dict | None = None
-                      ) -> tuple[ParameterTable, list[FeaturePrediction]]:
+                      features: list[FeaturePrediction] | None = None) -> tuple[ParameterTable, list[FeaturePrediction]]:
         """The parameter table of :meth:`propose` and the features it came from, without the curves' std (an
         envelope needs 25 tables, not their display curves). The same table as ``propose(...).table``.
 
         Args:
             features: the task's features when already predicted (:meth:`predict_features_many`).
-            trend_cache: shared across the tasks of one grid (:meth:`reference_means`).
 
         Raises:
             InvalidTaskError: NaN or out-of-range input.
@@ -566,16 +564,22 @@ class QuasiStiffnessModel:
             features = self.predict_features(speed_mps, incline_deg)
         fmap = {f.spec.name: f for f in features}
         task = np.array([speed_mps, incline_deg], dtype=float)
-        references = self.reference_means(task, trend_cache)
+        references = self.reference_means(task)
         means: dict[str, np.ndarray] = {}
         for joint in JOINTS:
             jm = self.joints_[joint]
             mu = references[joint]
             mean = jm.kmp.predict_mean(self.via_points(joint, mu, features), None if mu is jm.kmp.mu_ref_ else mu)
             means[f"{joint}_angle"], means[f"{joint}_moment"] = mean[:, 0], mean[:, 1]
+        return self._table_from_means(speed_mps, incline_deg, mass_kg, features, fmap, means), features
+
+    def _table_from_means(self, speed_mps: float, incline_deg: float, mass_kg: float,
+                          features: list[FeaturePrediction], fmap: dict[str, FeaturePrediction],
+                          means: dict[str, np.ndarray]) -> ParameterTable:
+        """The table through the predicted mean curves: sub-phase boundaries, line fits, thresholds."""
         boundaries = self._boundaries(fmap)
         fits = self.fit_subphases(means, fmap, boundaries, mass_kg)
-        return self._table(speed_mps, incline_deg, mass_kg, features, fmap, means, boundaries, fits), features
+        return self._table(speed_mps, incline_deg, mass_kg, features, fmap, means, boundaries, fits)
 
     def _table(self, speed_mps: float, incline_deg: float, mass_kg: float, features: list[FeaturePrediction],
                fmap: dict[str, FeaturePrediction], means: dict[str, np.ndarray],
@@ -595,8 +599,9 @@ class QuasiStiffnessModel:
     def propose_envelope(self, speeds_mps: list[float] | np.ndarray, inclines_deg: list[float] | np.ndarray,
                          mass_kg: float = 75.0, nominal: tuple[float, float] = (1.2, 0.0),
                          steps: NeighbourSteps = DEFAULT_STEPS) -> Envelope:
-        """Tables over a speed × incline grid, each from :meth:`propose_table`, held to the neighbour rule
-        (:mod:`controller_core.envelope`). Check the result with :func:`controller_core.envelope.check_envelope`.
+        """Tables over a speed × incline grid, each the table :meth:`propose_table` gives (computed together: one
+        GPR evaluation, the reference trend once per speed, one stacked KMP solve per joint), held to the neighbour
+        rule (:mod:`controller_core.envelope`). Check the result with :func:`controller_core.envelope.check_envelope`.
 
         Raises:
             InvalidTaskError: a bad axis (fewer than 2 or more than 15 values, not increasing, out of range) or mass.
@@ -605,11 +610,21 @@ class QuasiStiffnessModel:
         speeds, inclines = list(np.asarray(speeds_mps, dtype=float)), list(np.asarray(inclines_deg, dtype=float))
         validate_axes(speeds, inclines)
         grid = [(s, g) for s in speeds for g in inclines]
-        predicted = dict(zip(grid, self.predict_features_many(np.array(grid)), strict=True))   # one GPR evaluation
-        trends: dict = {}                                   # the reference's task trend, once per speed
+        features = self.predict_features_many(np.array(grid))                 # one GPR evaluation
+        trends: dict = {}                                                       # the reference's trend, once per speed
+        references = [self.reference_means(np.array(task), trends) for task in grid]
+        curves: list[dict[str, np.ndarray]] = [{} for _ in grid]
+        for joint in JOINTS:                                                    # one stacked KMP solve per joint
+            kmp = self.joints_[joint].kmp
+            mus = [None if r[joint] is kmp.mu_ref_ else r[joint] for r in references]
+            vias = [self.via_points(joint, r[joint], f) for r, f in zip(references, features, strict=True)]
+            for c, mean in zip(curves, kmp.predict_mean_many(vias, mus), strict=True):
+                c[f"{joint}_angle"], c[f"{joint}_moment"] = mean[:, 0], mean[:, 1]
+        tables = {task: (self._table_from_means(*task, mass_kg, f, {x.spec.name: x for x in f}, c), f)
+                  for task, f, c in zip(grid, features, curves, strict=True)}
 
         def node_table(speed: float, incline: float, mass: float) -> tuple[ParameterTable, list[FeaturePrediction]]:
-            return self.propose_table(speed, incline, mass, predicted[(speed, incline)], trends)
+            return tables[(speed, incline)]      # the same table as propose_table(speed, incline, mass) gives
 
         return build_envelope(node_table, speeds, inclines, mass_kg, self.model_version, self.data_sha256_, nominal,
                               steps)

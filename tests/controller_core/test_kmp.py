@@ -127,3 +127,26 @@ def test_the_model_s_own_via_points_take_the_cached_path(model):
     for speed in (0.8, 1.2, 1.9):
         model.propose(speed, 0.0, 75.0)
     assert kmp.fallbacks_ == before
+
+
+def test_many_means_in_stacked_solves_are_the_single_solves_means(model):
+    """Random via-points (a test of the algebra, not data): groups by via count and replaced points, none, and an
+    ill-conditioned pair that must take the single solve's fallback."""
+    kmp = model.joints_["knee"].kmp
+    rng = np.random.default_rng(3)
+    n = kmp.s_ref_.size
+    sets: list[list[ViaPoint]] = [[]]
+    for _ in range(30):
+        m = int(rng.integers(1, 5))
+        phases = rng.uniform(0.0, 1.0, m)
+        phases[: m // 2] = np.round(phases[: m // 2] * n) / n             # some exactly on the grid: replaced points
+        sets.append([ViaPoint(float(p), rng.normal([0.3, -0.2], [0.2, 0.1]), np.diag(rng.uniform(1e-4, 1e-2, 2)))
+                     for p in phases])
+    sets.append([ViaPoint(0.3, np.array([0.5, -0.4]), np.eye(2) * 1e-10),
+                 ViaPoint(0.3 + 1e-7, np.array([0.5, -0.4]), np.eye(2) * 1e-10)])
+    mus = [None if k % 2 else kmp.mu_ref_ + rng.normal(0.0, 0.02, kmp.mu_ref_.shape) for k in range(len(sets))]
+    many = kmp.predict_mean_many(sets, mus)
+    for v, mu, mean in zip(sets, mus, many, strict=True):
+        np.testing.assert_allclose(mean, kmp.predict_mean(v, mu), atol=1e-9)
+    with pytest.raises(ValueError, match="same length"):
+        kmp.predict_mean_many(sets, mus[:-1])
