@@ -88,8 +88,14 @@ def _adaptive_facts(a: dict | None) -> list[tuple[str, str]]:
                     for j, g in enumerate(a["inclines_deg"]) if a["time_s"][i][j] > 0), reverse=True)
     where = "; ".join(f"{v:.2f} m/s {g:+.0f}°: {t:.0f} s, {n} strides" for t, n, v, g in cells[:4]) or "no estimate"
     modes = ", ".join(f"{k} {v:.0f} s" for k, v in (a.get("adaptive_mode_s") or {}).items())
+    overall = a["errors_by_region"].get("overall") or {}
+    each = ("no stride scored" if not overall.get("strides") else
+            f"knee {overall['knee_angle_per_stride_rmse_deg']:.1f} deg, ankle "
+            f"{overall['ankle_angle_per_stride_rmse_deg']:.1f} deg over {overall['strides']} strides")
     return [("Where in the envelope", f"{where} (the leg's own estimate; not yet estimated {a['unestimated_s']:.0f} s, "
-                                      f"beyond its edge {a['outside_s']:.0f} s) · rows: {modes}")]
+                                      f"beyond its edge {a['outside_s']:.0f} s) · rows: {modes}"),
+            ("RMSE, each stride at its task", f"{each} (angle RMSE per stride against the reference at the stride's "
+                                              "estimated task, averaged)")]
 
 
 def session_report_pdf(session: dict, patient: dict) -> bytes:

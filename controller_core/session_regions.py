@@ -70,18 +70,21 @@ def task_regions(t_s: np.ndarray, speed_mps: np.ndarray, incline_deg: np.ndarray
 
 def errors_by_region(stride_curves: dict[str, np.ndarray], per_stride: list[dict | None], shape: tuple[int, int],
                      reference_at: Callable[[float, float], WalkingReference],
-                     speed_step_mps: float = 0.05, incline_step_deg: float = 0.5) -> dict:
+                     speed_step_mps: float = 0.05, incline_step_deg: float = 0.5,
+                     scored: Sequence[bool] | None = None) -> dict:
     """Mean per-stride RMSE (deg) of :data:`SCORED_CHANNELS` per region, each stride against the reference at its
     estimated task (rounded to ``speed_step_mps``/``incline_step_deg``, so nearby strides share one reference).
 
     ``stride_curves`` maps a channel to (strides, grid) curves, strides in the order of ``per_stride``. Returns
-    per channel a (speed × incline) grid of mean RMSE (None where no stride was scored) and the number scored.
+    per channel a (speed × incline) grid of mean RMSE (None where no stride was scored) and the number scored, and
+    ``overall``: the mean over every scored stride (what a walk whose task changed is best summarised by).
+    ``scored``: per stride, whether it counts (False: the leg did not run its envelope for the whole stride).
     """
     cache: dict[tuple[float, float], dict[str, np.ndarray]] = {}
     sums = {c: np.zeros(shape) for c in SCORED_CHANNELS}
     counts = np.zeros(shape, dtype=int)
     for k, stride in enumerate(per_stride):
-        if stride is None:
+        if stride is None or (scored is not None and not scored[k]):
             continue
         key = (round(round(stride["speed_mps"] / speed_step_mps) * speed_step_mps, 4),
                round(round(stride["incline_deg"] / incline_step_deg) * incline_step_deg, 3))
@@ -91,7 +94,10 @@ def errors_by_region(stride_curves: dict[str, np.ndarray], per_stride: list[dict
         counts[i, j] += 1
         for c in SCORED_CHANNELS:
             sums[c][i, j] += rmse(stride_curves[c][k], cache[key][c])
-    out: dict[str, object] = {"strides_scored": counts.tolist()}
+    total = int(counts.sum())
+    out: dict[str, object] = {"strides_scored": counts.tolist(), "overall": {"strides": total, **{
+        c.replace("_deg", "_per_stride_rmse_deg"): None if not total else round(float(sums[c].sum()) / total, 3)
+        for c in SCORED_CHANNELS}}}
     for c in SCORED_CHANNELS:
         mean = np.divide(sums[c], counts, out=np.full(shape, np.nan), where=counts > 0)
         out[c.replace("_deg", "_per_stride_rmse_deg")] = [[None if not np.isfinite(x) else round(float(x), 3)
@@ -102,14 +108,19 @@ def errors_by_region(stride_curves: dict[str, np.ndarray], per_stride: list[dict
 def adaptive_summary(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray, strikes: np.ndarray,
                      estimated_speed_mps: np.ndarray, estimated_incline_deg: np.ndarray,
                      adaptive_mode: Sequence[str | None], speeds_mps: Sequence[float], inclines_deg: Sequence[float],
-                     reference_at: Callable[[float, float], WalkingReference]) -> dict:
+                     reference_at: Callable[[float, float], WalkingReference],
+                     running_table: np.ndarray | None = None) -> dict:
     """The envelope part of a session summary: the region histogram, errors by region, and time per adaptive mode
-    (nominal, partial, adaptive, clamped; seconds)."""
+    (nominal, partial, adaptive, clamped; seconds). ``running_table``: per sample, whether the leg ran its envelope
+    (not safe mode); a stride with any sample off it is counted in the histogram but not in the errors."""
     t = np.asarray(t_s, dtype=float)
     regions = task_regions(t, estimated_speed_mps, estimated_incline_deg, strikes, speeds_mps, inclines_deg)
     curves = {"knee_angle_deg": stride_curves(np.degrees(knee_angle_rad), strikes),
               "ankle_angle_deg": stride_curves(np.degrees(ankle_angle_rad), strikes)} if strikes.size >= 2 else {}
-    errors = errors_by_region(curves, regions["per_stride"], (len(speeds_mps), len(inclines_deg)), reference_at)
+    running = None if running_table is None else np.asarray(running_table, dtype=bool)
+    scored = None if running is None else [bool(running[a:b + 1].all()) for a, b in itertools.pairwise(strikes)]
+    errors = errors_by_region(curves, regions["per_stride"], (len(speeds_mps), len(inclines_deg)), reference_at,
+                              scored=scored)
     dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
     modes = [m for m in adaptive_mode if m is not None]
     classes = task_regions(t, estimated_speed_mps, estimated_incline_deg, strikes, TASK_CLASS_SPEEDS_MPS,

@@ -95,7 +95,8 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
             session_strikes(times, np.asarray(cols["load_N"]), t["body_mass_kg"]),
             _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]), cols["adaptive_mode"],
             envelope.speeds_mps, envelope.inclines_deg,
-            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]))
+            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]),
+            running_table=np.asarray(cols["mode"]) == Mode.ACTIVE)
     modes = np.asarray(cols["mode"], dtype=int)
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}

@@ -40,4 +40,9 @@ def test_a_stride_walked_like_the_reference_at_its_task_scores_zero_and_another_
     assert out["strides_scored"][1][1] == 2 and out["strides_scored"][0][0] == 0
     assert out["knee_angle_per_stride_rmse_deg"][1][1] == pytest.approx(1.5, abs=1e-3)   # (0 + 3) / 2
     assert out["ankle_angle_per_stride_rmse_deg"][0][0] is None
+    assert out["overall"] == {"strides": 2, "knee_angle_per_stride_rmse_deg": pytest.approx(1.5, abs=1e-3),
+                              "ankle_angle_per_stride_rmse_deg": pytest.approx(1.5, abs=1e-3)}
+    only_first = errors_by_region(strides, per_stride, (3, 3), lambda v, g: level_walking_reference(v),
+                                  scored=[True, False])          # the second stride was walked in safe mode
+    assert only_first["overall"]["strides"] == 1 and only_first["overall"]["knee_angle_per_stride_rmse_deg"] == 0.0
     assert PHASE_GRID.size == strides["knee_angle_deg"].shape[1]

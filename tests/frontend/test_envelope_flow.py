@@ -117,6 +117,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.wait_for_selector("#report-histogram")
     assert f"{code} · envelope v2" in page.inner_text("#report-table") and "CRC-32" in page.inner_text("#report-table")
     assert page.locator("#report-histogram td.filled").count() >= 1
+    assert re.search(r"knee angle RMSE \d+\.\d deg", page.inner_text("#report-overall"))
     assert "null" not in page.inner_text("#view").split() and 60 < float(page.inner_text("#report-cadence")) < 160
     shot(page, f"env-{size}-05-report")
     page.click(f"a:has-text('{code}')")

@@ -88,7 +88,12 @@ function adaptiveSection(a) {
     return h("td", { class: "num" }, k === null ? "—" : `${fmt(k, 1)} / ${fmt(an, 1)}`);
   };
   const modes = a.adaptive_mode_s || {};
+  const overall = a.errors_by_region.overall || {};
   return h("section", { id: "report-adaptive" }, h("h2", {}, "Where in the envelope the patient walked"),
+    h("p", { id: "report-overall" }, h("strong", {}, "Each stride at its own task: "), overall.strides
+      ? `knee angle RMSE ${fmt(overall.knee_angle_per_stride_rmse_deg, 1, "deg")}, ankle ${fmt(overall.ankle_angle_per_stride_rmse_deg, 1, "deg")} `
+        + `per stride over ${overall.strides} strides (against the reference at each stride's estimated task; for a walk whose task `
+        + "changed, this, not the stride mean above, says how well the leg followed)." : "no stride scored."),
     h("p", { class: "small" }, `Estimated for ${fmt(total, 0, "s")} (not yet estimated: ${fmt(a.unestimated_s, 0, "s")}, `,
       `${a.unestimated_strides} strides); beyond the envelope's edge (rows clamped): ${fmt(a.outside_s, 0, "s")}. Rows: `,
       Object.entries(modes).map(([k, v]) => `${k} ${fmt(v, 0, "s")}`).join(", "), "."),

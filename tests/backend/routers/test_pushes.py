@@ -112,5 +112,7 @@ def test_a_course_session_records_the_legs_own_task_estimate_and_summarises_it_b
     assert sum(row[level] for row in adaptive["strides"]) >= 1           # strides counted on level ground
     scored = adaptive["errors_by_region"]["strides_scored"]
     assert sum(map(sum, scored)) >= 1 and sum(adaptive["adaptive_mode_s"].values()) > 0
+    overall = adaptive["errors_by_region"]["overall"]
+    assert overall["strides"] == sum(map(sum, scored)) and 0 < overall["knee_angle_per_stride_rmse_deg"] < 30
     pdf = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=viewer).content
     assert pdf.startswith(b"%PDF") and len(re.findall(rb"/Type\s*/Page\b", pdf)) == 2   # the envelope's own page
