@@ -44,16 +44,17 @@ class ViaPoint:
 
 
 def periodic_kernel(a: np.ndarray, b: np.ndarray, length_scale: float) -> np.ndarray:
-    """k(a_i, b_j) = exp(−sin²(π(a−b)) / (2 π² ℓ²)); ≈ squared-exponential with length ℓ for small gaps."""
-    d = np.sin(np.pi * (np.asarray(a)[:, None] - np.asarray(b)[None, :]))
+    """k(a_i, b_j) = exp(−sin²(π(a−b)) / (2 π² ℓ²)); ≈ squared-exponential with length ℓ for small gaps.
+    Leading dimensions of ``a`` and ``b`` broadcast (a batch of phase sets)."""
+    d = np.sin(np.pi * (np.asarray(a)[..., :, None] - np.asarray(b)[..., None, :]))
     return np.exp(-(d * d) / (2.0 * (np.pi * length_scale) ** 2))
 
 
 def _kron_eye(k: np.ndarray, o: int) -> np.ndarray:
-    """k ⊗ I_o without the generality (and cost) of ``np.kron``."""
-    out = np.zeros((k.shape[0] * o, k.shape[1] * o))
+    """k ⊗ I_o without the generality (and cost) of ``np.kron`` (of each matrix, over leading dimensions)."""
+    out = np.zeros((*k.shape[:-2], k.shape[-2] * o, k.shape[-1] * o))
     for i in range(o):
-        out[i::o, i::o] = k
+        out[..., i::o, i::o] = k
     return out
 
 
@@ -124,12 +125,14 @@ def _block_diagonals(G: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 def _blockdiag(blocks: np.ndarray) -> np.ndarray:
-    """Block-diagonal (n·o, n·o) matrix of n blocks (n, o, o), in one scatter."""
-    n, o, _ = blocks.shape
-    out = np.zeros((n, o, n, o))
+    """Block-diagonal (n·o, n·o) matrix of n blocks (n, o, o), in one scatter (of each set, over leading
+    dimensions)."""
+    n, o, _ = blocks.shape[-3:]
+    lead = blocks.shape[:-3]
+    out = np.zeros((*lead, n, o, n, o))
     idx = np.arange(n)
-    out[idx, :, idx, :] = blocks
-    return out.reshape(n * o, n * o)
+    out[..., idx, :, idx, :] = np.moveaxis(blocks, -3, 0)     # the paired indices come first in the result
+    return out.reshape((*lead, n * o, n * o))
 
 
 class KMP:
@@ -371,25 +374,18 @@ class KMP:
         """The stacked form of :meth:`predict_mean` for tasks with as many via-points and replaced reference
         points (``replaced``: (B, R) grid indices, as :meth:`_replaced` gives them)."""
         O, Q, N = self.n_outputs_, self.s_query_.size, self.s_ref_.size
-        B, m = len(vias), len(vias[0])
+        B = len(vias)
         alpha = np.stack([self._alpha_for(mu) for mu in mus])                                  # (B, NO, 1)
         sv = np.mod(np.array([[p.phase for p in v] for v in vias], dtype=float), 1.0)          # (B, m)
         rows = (replaced[:, :, None] * O + np.arange(O)[None, None]).reshape(B, -1)             # (B, R·O)
         cov_v = np.array([[p.cov for p in v] for v in vias], dtype=float) * self.via_mean_scale  # (B, m, O, O)
         mu_v = np.array([np.concatenate([np.asarray(p.mean, float) for p in v]) for v in vias])[:, :, None]
         pts = np.concatenate([np.broadcast_to(self.s_query_, (B, Q)), np.broadcast_to(self.s_ref_, (B, N)), sv], axis=1)
-        d = np.sin(np.pi * (pts[:, :, None] - sv[:, None, :]))
-        k = np.exp(-(d * d) / (2.0 * (np.pi * self.length_scale) ** 2))                        # (B, Q+N+m, m)
-        K = np.zeros((B, k.shape[1] * O, m * O))
-        for i in range(O):
-            K[:, i::O, i::O] = k
+        K = _kron_eye(periodic_kernel(pts, sv, self.length_scale), O)                          # (B, (Q+N+m)O, mO)
         Kqv, C, Kvv = K[:, :Q * O], K[:, Q * O:(Q + N) * O], K[:, (Q + N) * O:]
         W = self._Ainv @ C                                                                     # (B, NO, mO)
         Ct = C.transpose(0, 2, 1)
-        blk = np.zeros((B, m, O, m, O))
-        idx = np.arange(m)
-        blk[:, idx, :, idx, :] = cov_v.transpose(1, 0, 2, 3)
-        S = Kvv + self.lam * blk.reshape(B, m * O, m * O) - Ct @ W
+        S = Kvv + self.lam * _blockdiag(cov_v) - Ct @ W
         self._check_batch(S)
         rhs = mu_v - Ct @ alpha
         bidx = np.arange(B)[:, None]
@@ -415,9 +411,7 @@ class KMP:
             L = np.linalg.cholesky(A)
         except np.linalg.LinAlgError as exc:
             raise _IllConditioned("ill-conditioned via-point update") from exc
-        d = np.abs(np.diagonal(L, axis1=1, axis2=2))
-        cond = (d.max(axis=1) / d.min(axis=1)) ** 2
-        if not np.all(np.isfinite(cond)) or cond.max() * self._cond_A > MAX_UPDATE_AMPLIFICATION:
+        if max(_condition(factor) for factor in L) * self._cond_A > MAX_UPDATE_AMPLIFICATION:
             raise _IllConditioned("ill-conditioned via-point update")
 
     def _predict(self, vias: list[ViaPoint] | None, mu: np.ndarray | None,
