@@ -46,16 +46,24 @@ SPEED_TOLERANCE_MPS = 0.1
 INCLINE_TOLERANCE_DEG = 1.5
 
 
-def run_course(controller: StepController, course: Course, mass_kg: float, geometry: LegGeometry | None = None,
-               frame_callback=None, frame_every: int = 0) -> tuple[WalkLog, CourseTrajectory]:
-    """Walk the course once (the leg starts in late swing at the first segment's task)."""
+def course_leg(course: Course, mass_kg: float, geometry: LegGeometry | None = None
+               ) -> tuple[CourseTrajectory, SimulatedLeg, tuple[float, float]]:
+    """The course's trajectory, a leg on its floor, and the knee and ankle angles (rad) it starts from: late swing
+    at the first segment's task."""
     geometry = geometry or LegGeometry()
     traj = plan_course_trajectory(course, geometry, mass_kg)
     leg = SimulatedLeg(geometry, timestep_s=0.001, terrain=traj.terrain)
     first = course.segments[0]
     ref = task_pattern(first.speed_mps, first.incline_deg)
     s0 = float(traj.bench.phase[0])
-    angles = (float(np.interp(s0, ref.phase, ref.knee_angle_rad)), float(np.interp(s0, ref.phase, ref.ankle_angle_rad)))
+    return traj, leg, (float(np.interp(s0, ref.phase, ref.knee_angle_rad)),
+                       float(np.interp(s0, ref.phase, ref.ankle_angle_rad)))
+
+
+def run_course(controller: StepController, course: Course, mass_kg: float, geometry: LegGeometry | None = None,
+               frame_callback=None, frame_every: int = 0) -> tuple[WalkLog, CourseTrajectory]:
+    """Walk the course once (the leg starts in late swing at the first segment's task)."""
+    traj, leg, angles = course_leg(course, mass_kg, geometry)
     log = walk_loop(controller, leg, traj.bench, angles, (traj.normal_x, traj.normal_z), mass_kg, frame_callback,
                     frame_every)
     return log, traj

@@ -17,8 +17,8 @@ import numpy as np
 from controller_core.fsm import SensorSample
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import plan_bench_trajectory
-from device_bridge.sim.course import Course, CourseTrajectory, plan_course_trajectory, task_pattern
-from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.course import Course, CourseTrajectory
+from device_bridge.sim.course_walk import course_leg
 from device_bridge.sim.plant import SimulatedLeg
 
 CHUNK_S = 10.0
@@ -73,14 +73,8 @@ class SimWalker:
         """Walk ``course`` once from late swing at its first task, on its floor; walking stops at its end."""
         if not (np.isfinite(mass_kg) and 20.0 <= mass_kg <= 200.0):
             raise ValueError(f"mass_kg must be within [20, 200] kg, got {mass_kg!r}")
-        geometry = LegGeometry()
-        traj = plan_course_trajectory(course, geometry, mass_kg)
-        leg = SimulatedLeg(geometry, timestep_s=0.001, terrain=traj.terrain)
-        first = course.segments[0]
-        ref = task_pattern(first.speed_mps, first.incline_deg)
-        s0 = float(traj.bench.phase[0])
-        sample = leg.reset(traj.bench, float(np.interp(s0, ref.phase, ref.knee_angle_rad)),
-                           float(np.interp(s0, ref.phase, ref.ankle_angle_rad)))
+        traj, leg, angles = course_leg(course, mass_kg)
+        sample = leg.reset(traj.bench, *angles)
         with self._lock:
             self._leg, self._ref, self._mass, self._course = leg, None, float(mass_kg), (course, traj)
             self._chunk_end_tick, self._ticks, self._sample = traj.bench.time_s.shape[0], 0, sample
