@@ -83,11 +83,12 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
     t = session["task"]
     cols = store.samples(conn, session_id)
     times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]))
+    modes = np.asarray(cols["mode"], dtype=int)
     reference = task_reference(t["speed_mps"], t["incline_deg"], model, t["body_mass_kg"])
     summary = summarize_session(times, np.asarray(cols["knee_angle_rad"]),
                                 np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
                                 np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
-                                reference, running_table=np.asarray(cols["mode"]) == Mode.ACTIVE)
+                                reference, running_table=modes == Mode.ACTIVE)
     if session["envelope_id"] is not None:
         envelope = envelopes.stored_envelope(envelopes.get_row(conn, session["envelope_id"]))
         summary["adaptive"] = adaptive_summary(
@@ -95,9 +96,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
             session_strikes(times, np.asarray(cols["load_N"]), t["body_mass_kg"]),
             _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]), cols["adaptive_mode"],
             envelope.speeds_mps, envelope.inclines_deg,
-            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]),
-            running_table=np.asarray(cols["mode"]) == Mode.ACTIVE)
-    modes = np.asarray(cols["mode"], dtype=int)
+            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), running_table=modes == Mode.ACTIVE)
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
     seqs = cols["seq"]
@@ -127,10 +126,12 @@ def get_trend(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
 
 
 @router.get("/sessions/{session_id}/report.pdf", response_class=Response,
-            responses={**NOT_FOUND, **CONFLICT, 200: {"content": {"application/pdf": {}}, "description": "one A4 page"}})
+            responses={**NOT_FOUND, **CONFLICT, 200: {"content": {"application/pdf": {}},
+                                                      "description": "one A4 page; a second with an envelope's regions"}})
 def get_report_pdf(session_id: IdPath, conn: Conn, _user: CurrentUser) -> Response:
-    """The session report as a PDF: task, active table version and CRC, strides, cadence, trajectories against
-    the reference, errors (a stopped session: the summary is made on stop)."""
+    """The session report as a PDF: task, the table or envelope that ran with its version and CRC, strides,
+    cadence, trajectories against the reference, errors; with an envelope a second page of time, strides and errors
+    per region (a stopped session: the summary is made on stop)."""
     session = store.get_session(conn, session_id)
     if session["status"] != "stopped":
         raise ConflictError(f"session {session_id} is still recording; stop it first, the report needs its summary")

@@ -10,7 +10,7 @@ from backend.schemas.common import StrictIn, Text
 from backend.schemas.proposals import (
     Boundaries,
     Curves,
-    Decision,
+    DecidedVersion,
     FeatureOut,
     ModelInfo,
     Safety,
@@ -69,19 +69,8 @@ class NodeOut(BaseModel):
     thresholds: Thresholds
 
 
-class EnvelopeSummary(BaseModel):
-    id: int
-    patient_id: int
-    version: int = Field(description="the envelope's version for its patient (the N of 'envelope vN')")
+class EnvelopeSummary(DecidedVersion):
     envelope_label: str = Field(description="its one name everywhere: 'patient code · envelope vN'")
-    parent_id: int | None
-    parent_version: int | None
-    source: Literal["model", "edit"]
-    status: Literal["draft", "approved", "rejected"]
-    created_by: str
-    created_at: str
-    edit_comment: str | None
-    decision: Decision | None
     body_mass_kg: float
     grid: list[int]
     speeds_mps: list[float]

@@ -127,11 +127,12 @@ class ViaPointOut(BaseModel):
     moment_Nm_per_kg: float
 
 
-class ProposalSummary(BaseModel):
+class DecidedVersion(BaseModel):
+    """What every immutable version decided once has, a table's or an envelope's."""
+
     id: int
     patient_id: int
-    version: int = Field(description="the proposal's version for its patient (the N of 'table vN')")
-    table_label: str = Field(description="the table's one name everywhere: 'patient code · table vN'")
+    version: int = Field(description="its version for its patient (the N of 'table vN' or 'envelope vN')")
     parent_id: int | None
     parent_version: int | None = Field(description="the version this one was edited from")
     source: Literal["model", "edit"]
@@ -140,6 +141,10 @@ class ProposalSummary(BaseModel):
     created_at: str
     edit_comment: str | None
     decision: Decision | None
+
+
+class ProposalSummary(DecidedVersion):
+    table_label: str = Field(description="the table's one name everywhere: 'patient code · table vN'")
     task: Task
     extrapolation: bool
     model: ModelInfo
