@@ -94,7 +94,7 @@ def _adaptive_facts(a: dict | None) -> list[tuple[str, str]]:
             f"{overall['ankle_angle_per_stride_rmse_deg']:.1f} deg over {overall['strides']} strides")
     return [("Where in the envelope", f"{where} (the leg's own estimate; not yet estimated {a['unestimated_s']:.0f} s, "
                                       f"beyond its edge {a['outside_s']:.0f} s) · rows: {modes}"),
-            ("RMSE, each stride at its task", f"{each} (angle RMSE per stride against the reference at the stride's "
+            ("Per-stride RMSE", f"{each} (angle RMSE of each stride against the reference at the stride's "
                                               "estimated task, averaged)")]
 
 
