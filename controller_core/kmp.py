@@ -15,10 +15,12 @@ Via-points (phase, mean, covariance) are added to the database; a reference poin
 Speed: the Cholesky factors of (K + λΣ) and (K + λcΣ) over the reference, their explicit inverses and
 their products with the default query grid are computed once in ``fit``. A set of via-points changes the
 database by a few points, so a new prediction needs only products with those cached matrices, gathers of
-their columns and a small Schur complement (bordering for added points, the inverse-Schur identity for
-removed ones). ``predict_std`` forms only the per-output variances. ``predict_uncached`` builds and
-factorises the full system: the tests' oracle, and the fallback when an update's small system is too
-ill-conditioned to trust (nearly coincident, very confident via-points at a small λ; ``fallbacks_`` counts them).
+their columns and one small bordered system: the via-points added and the replaced reference points removed
+(a removed point is a border column that pins its coefficient to zero), whose Schur complement is factorised
+by two small Cholesky factors (:class:`_Modified`). ``predict_std`` forms only the per-output variances.
+``predict_uncached`` builds and factorises the full system: the tests' oracle, and the fallback when an update's
+small system is too ill-conditioned to trust (nearly coincident, very confident via-points at a small λ;
+``fallbacks_`` counts them).
 
 Phases are in [0, 1); the kernel is periodic (heel strike at 0 and at 1 coincide), written so that
 ``length_scale`` is the equivalent squared-exponential length in phase units.
@@ -31,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import cho_factor, cho_solve
-from scipy.linalg.lapack import dpotrf, dpotrs
+from scipy.linalg.lapack import dpotrf, dpotrs, dtrtrs
 
 
 @dataclass(frozen=True)
@@ -114,14 +116,50 @@ def _solve(L: np.ndarray, B: np.ndarray) -> np.ndarray:
     return X
 
 
+def _tri(L: np.ndarray, B: np.ndarray, trans: int = 0) -> np.ndarray:
+    """L⁻¹ B (``trans=1``: L⁻ᵀ B) for a lower-triangular L (LAPACK dtrtrs, no input checks)."""
+    X, info = dtrtrs(L, B, lower=1, trans=trans)
+    if info != 0:  # pragma: no cover - only on malformed input
+        raise np.linalg.LinAlgError(f"LAPACK dtrtrs info={info}")
+    return X
+
+
+@dataclass(frozen=True)
+class _Modified:
+    """The reference database with via-points added and reference ``rows`` removed, relative to the cached A⁻¹.
+
+    As one bordered system [[A, U], [Uᵀ, D']] with U = [C, E_R] (E_R: unit columns at the removed rows, which pins
+    their coefficients to zero) and D' = [[K_vv + λΣ_v, 0], [0, 0]], its Schur complement is
+    S = [[S_v, −W_Rᵀ], [−W_R, −A⁻¹_RR]] with W = A⁻¹C and S_v = K_vv + λΣ_v − CᵀW. S is factorised blockwise:
+    S_v = Ls Lsᵀ, Y = Ls⁻¹W_Rᵀ, M = A⁻¹_RR + YᵀY = Lm Lmᵀ, so that xᵀS⁻¹y = aₓᵀa_y − cₓᵀc_y with
+    a = Ls⁻¹x₁ and c = Lm⁻¹(x₂ + Yᵀa) (:meth:`half`). ``Y`` and ``Lm`` are None when no row is removed.
+    """
+
+    W: np.ndarray
+    Ls: np.ndarray
+    rows: np.ndarray
+    Y: np.ndarray | None
+    Lm: np.ndarray | None
+
+    def half(self, top: np.ndarray, bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """(a, c) of right-hand sides with via parts ``top`` (mO, k) and removed-row parts ``bottom`` (R, k)."""
+        a = _tri(self.Ls, top)
+        if self.Lm is None:
+            return a, None
+        return a, _tri(self.Lm, bottom + self.Y.T @ a)
+
+    def solve(self, top: np.ndarray, bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """S⁻¹ [top; bottom] as (via part z₁, removed-row part z₂; None when no row is removed)."""
+        a, c = self.half(top, bottom)
+        if c is None:
+            return _tri(self.Ls, a, trans=1), None
+        e = _tri(self.Lm, c, trans=1)                       # M⁻¹(x₂ + W_R S_v⁻¹ x₁)
+        return _tri(self.Ls, a - self.Y @ e, trans=1), -e
+
+
 def _blocks(G: np.ndarray, X: np.ndarray) -> np.ndarray:
     """Per-query O×O blocks of G X for G (Q, O, c) and X (c, Q, O)."""
     return np.einsum("qac,cqb->qab", G, X)
-
-
-def _block_diagonals(G: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Diagonals (Q, O) of the per-query blocks of G X, for G (Q, O, c) and X (c, Q, O)."""
-    return (G * X.transpose(1, 2, 0)).sum(axis=2)
 
 
 def _blockdiag(blocks: np.ndarray) -> np.ndarray:
@@ -242,40 +280,30 @@ class KMP:
         K = _kron_eye(periodic_kernel(np.concatenate([self.s_query_, self.s_ref_, sv]), sv, self.length_scale), O)
         return K[:split[0]], K[split[0]:split[1]], K[split[1]:]
 
-    @staticmethod
-    def _border(Ainv: np.ndarray, C: np.ndarray, Kvv: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Pieces of the modified database that do not depend on the via-point covariances.
+    def _modified(self, Ainv: np.ndarray, C: np.ndarray, Kvv: np.ndarray, lam: float, cov_v: np.ndarray,
+                  rows: np.ndarray) -> _Modified:
+        """Factorise the database modified by via-points (kernels ``C`` to the reference, ``Kvv`` among themselves,
+        covariances ``cov_v``) and the removal of reference ``rows``, from the cached inverse ``Ainv``.
 
-        Returns C = k(reference, vias) ⊗ I, the via-via kernel, W = A⁻¹C and (if reference rows are
-        replaced) the columns of A⁻¹ at those rows, from the cached inverse ``Ainv``.
+        Raises:
+            _IllConditioned: either small factor is not positive definite or its error amplification passes
+                :data:`MAX_UPDATE_AMPLIFICATION`.
         """
-        return C, Kvv, Ainv @ C, (Ainv[:, rows] if rows.size else None)
-
-    def _update(self, border: tuple[np.ndarray, ...], lam: float, cov_v: np.ndarray, rows: np.ndarray,
-                y0: np.ndarray | None, Y_rows: np.ndarray, CtY: np.ndarray, B_v: np.ndarray
-                ) -> tuple[np.ndarray | None, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """Solve the modified database for right-hand sides (B_r, B_v), given Y = A⁻¹B_r in pieces.
-
-        The database is the reference minus the flattened ``rows`` plus the via-points of ``border``.
-        The caller passes the pieces of Y it has: ``y0`` its first column (the mean's, or None when only
-        the covariance is wanted), ``Y_rows`` = Y[rows] and ``CtY`` = CᵀY.
-        Returns the first column of X_r (None without ``y0``), all of X_v, the Schur solve T and, when
-        points are removed, T_e = the Schur solve of −CᵀA⁻¹E and corr, from which callers form only the
-        products they need (A⁻¹ restricted to the kept rows is P_r = A⁻¹E − W T_e).
-        """
-        C, Kvv, W, Ecols = border
+        W = Ainv @ C
         Ls = _update_chol(Kvv + lam * _blockdiag(cov_v) - C.T @ W, self._cond_A)
         if not rows.size:
-            T = _solve(Ls, B_v - CtY)
-            return (None if y0 is None else y0 - W @ T[:, :1]), T, T, None, None
-        k = B_v.shape[1]
-        TT = _solve(Ls, np.hstack([B_v - CtY, -W[rows].T]))        # Cᵀ A⁻¹ E = (A⁻¹C)ᵀ E = W[rows]ᵀ
-        T, T_e = TT[:, :k], TT[:, k:]
-        # inverse-Schur identity: drop the replaced reference rows from the solution
-        P_r = Ecols - W @ T_e
-        corr = _solve(_update_chol(P_r[rows], self._cond_A), Y_rows - W[rows] @ T)
-        X_r = None if y0 is None else y0 - W @ T[:, :1] - P_r @ corr[:, :1]   # only the first column is needed
-        return X_r, T - T_e @ corr, T, T_e, corr
+            return _Modified(W, Ls, rows, None, None)
+        Y = _tri(Ls, W[rows].T)
+        return _Modified(W, Ls, rows, Y, _update_chol(Ainv[np.ix_(rows, rows)] + Y.T @ Y, self._cond_A))
+
+    def _mean_through(self, f: _Modified, Ainv: np.ndarray, C: np.ndarray, Kqv: np.ndarray, alpha: np.ndarray,
+                      mu_v: np.ndarray) -> np.ndarray:
+        """Mean (Q, O) of a modified database: coefficients x = α − A⁻¹U z on the reference, z₁ on the vias."""
+        z1, z2 = f.solve(mu_v - C.T @ alpha, -alpha[f.rows])
+        x = alpha - f.W @ z1
+        if z2 is not None:
+            x = x - Ainv[:, f.rows] @ z2
+        return (_kron_eye_times(self._kq, x, self.n_outputs_) + Kqv @ z1).reshape(self.s_query_.size, self.n_outputs_)
 
     # --------------------------------------------------------------- predict
     def _alpha_for(self, mu: np.ndarray | None) -> np.ndarray:
@@ -297,7 +325,7 @@ class KMP:
                 the covariances Σ, hence the cached factorisations, stay those given to ``fit``.
         """
         try:
-            mean, quad = self._predict(vias, mu, _blocks)
+            mean, quad = self._predict(vias, mu, True)
         except _IllConditioned:
             self.fallbacks_ = getattr(self, "fallbacks_", 0) + 1
             return self.predict_uncached(vias, mu)
@@ -308,7 +336,7 @@ class KMP:
         """Mean (Q, O) and standard deviation (Q, O) per output: :meth:`predict` without the off-diagonal
         covariance terms, which a per-channel display does not need."""
         try:
-            mean, quad = self._predict(vias, mu, _block_diagonals)
+            mean, quad = self._predict(vias, mu, False)
         except _IllConditioned:
             self.fallbacks_ = getattr(self, "fallbacks_", 0) + 1
             mean, cov = self.predict_uncached(vias, mu)
@@ -330,14 +358,12 @@ class KMP:
         cov_v = np.array([p.cov for p in vias], dtype=float)
         mu_v = np.concatenate([np.asarray(p.mean, float) for p in vias])[:, None]
         Kqv, C, Kvv = self._via_kernels(sv)
-        border = self._border(self._Ainv, C, Kvv, rows)
         try:
-            xr, xv, *_ = self._update(border, self.lam, cov_v * self.via_mean_scale, rows, alpha, alpha[rows],
-                                      border[0].T @ alpha, mu_v)
+            f = self._modified(self._Ainv, C, Kvv, self.lam, cov_v * self.via_mean_scale, rows)
         except _IllConditioned:
             self.fallbacks_ = getattr(self, "fallbacks_", 0) + 1
             return self.predict_uncached(vias, mu)[0]
-        return (_kron_eye_times(self._kq, xr, O) + Kqv @ xv).reshape(Q, O)
+        return self._mean_through(f, self._Ainv, C, Kqv, alpha, mu_v)
 
     def predict_mean_many(self, vias: list[list[ViaPoint]], mus: list[np.ndarray | None]) -> list[np.ndarray]:
         """:meth:`predict_mean` for many (via-points, reference means) at once, the same means (to rounding).
@@ -415,13 +441,12 @@ class KMP:
             raise _IllConditioned("ill-conditioned via-point update")
 
     def _predict(self, vias: list[ViaPoint] | None, mu: np.ndarray | None,
-                 blocks) -> tuple[np.ndarray, np.ndarray]:
-        """Mean (Q, O) and the quadratic form k*ᵀ P k* (blocks or their diagonals, as ``blocks`` gives)."""
+                 full: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Mean (Q, O) and the quadratic form k*ᵀ P k*: its (Q, O, O) blocks when ``full``, else their diagonals."""
         vias = list(vias or [])
         O = self.n_outputs_
         Q = self.s_query_.size
         alpha = self._alpha_for(mu)
-        full = blocks is _blocks
         if not vias:
             mean = self._mean_base.copy() if mu is None else _kron_eye_times(self._kq, alpha, O).reshape(Q, O)
             return mean, self._quad_base.copy() if full else self._quad_base_diag.copy()
@@ -431,35 +456,27 @@ class KMP:
         cov_v = np.array([p.cov for p in vias], dtype=float)
         mu_v = np.concatenate([np.asarray(p.mean, float) for p in vias])[:, None]
         Kqv, C, Kvv = self._via_kernels(sv)                                              # Kqv (QO, mO)
-        # mean ξ = Kq x_r + Kqv x_v; covariance from the quadratic form k*ᵀ P k*. With λ = λc both share
-        # one factorisation, so their right-hand sides are solved together (column 0 is the mean).
-        border = self._border(self._Ainv, C, Kvv, rows)
-        if self.lam == self.lam_c and self.via_mean_scale == 1.0:
-            G, W = self._G, border[2]
-            KqW = _kron_eye_times(self._kq, W, O)             # Kq A⁻¹C; its transpose is Cᵀ Zc
-            xr, Xv, T, T_e, corr = self._update(
-                border, self.lam, cov_v, rows, alpha, np.hstack([alpha[rows], self._Zc[rows]]),
-                np.hstack([border[0].T @ alpha, KqW.T]), np.hstack([mu_v, Kqv.T]))
-            xv, Xv, T = Xv[:, :1], Xv[:, 1:], T[:, 1:]
-            corr = None if corr is None else corr[:, 1:]
+        shared = self.lam == self.lam_c and self.via_mean_scale == 1.0
+        f = self._modified(self._Ainv, C, Kvv, self.lam, cov_v * self.via_mean_scale, rows)
+        f_c = f if shared else self._modified(self._Ainv_c, C, Kvv, self.lam_c, cov_v, rows)
+        # k*ᵀ P k* = base + hᵀS⁻¹h per query column, h = [(Kqv − Kq A_c⁻¹C)ᵀ; −(A_c⁻¹Kqᵀ)_R]
+        h_v = (Kqv - _kron_eye_times(self._kq, f_c.W, O)).T
+        h_r = -self._Zc[rows]
+        if shared:   # one factorisation: the mean's right-hand side r rides along as column 0 (ξ = Kqα + hᵀS⁻¹r)
+            a, c = f.half(np.hstack([mu_v - C.T @ alpha, h_v]), np.hstack([-alpha[rows], h_r]))
+            shift = a[:, 1:].T @ a[:, :1] if c is None else a[:, 1:].T @ a[:, :1] - c[:, 1:].T @ c[:, :1]
+            base_mean = self._mean_base if mu is None else _kron_eye_times(self._kq, alpha, O).reshape(Q, O)
+            mean = base_mean + shift.reshape(Q, O)
+            a, c = a[:, 1:], (None if c is None else c[:, 1:])
         else:
-            xr, xv, *_ = self._update(border, self.lam, cov_v * self.via_mean_scale, rows, alpha, alpha[rows],
-                                      border[0].T @ alpha, mu_v)
-            border_c = border if self.lam_c == self.lam else self._border(self._Ainv_c, C, Kvv, rows)
-            G, W = self._G_c, border_c[2]
-            KqW = _kron_eye_times(self._kq, W, O)
-            _, Xv, T, T_e, corr = self._update(border_c, self.lam_c, cov_v, rows, None, self._Zc[rows], KqW.T,
-                                               Kqv.T)
-        mean = (_kron_eye_times(self._kq, xr, O) + Kqv @ xv).reshape(Q, O)
-        base = self._quad_base if full else self._quad_base_diag
-        # k*ᵀ P k* = base − (Kq W) T + Kqv Xv − (Kq P_r) corr, as one product of stacked factors
-        lefts, rights = [KqW, Kqv], [T, -Xv]
-        if corr is not None:
-            lefts.append(G[:, rows] - KqW @ T_e)               # Kq (A⁻¹E − W T_e) without an (NO)-long product
-            rights.append(corr)
-        left, right = np.concatenate(lefts, axis=1), np.concatenate(rights, axis=0)
-        c = left.shape[1]
-        return mean, base - blocks(left.reshape(Q, O, c), right.reshape(c, Q, O))
+            mean = self._mean_through(f, self._Ainv, C, Kqv, alpha, mu_v)
+            a, c = f_c.half(h_v, h_r)
+        if not full:
+            gain = (a * a).sum(axis=0) if c is None else (a * a).sum(axis=0) - (c * c).sum(axis=0)
+            return mean, self._quad_base_diag + gain.reshape(Q, O)
+        left, right = (a, a) if c is None else (np.vstack([a, c]), np.vstack([a, -c]))
+        n = left.shape[0]
+        return mean, self._quad_base + _blocks(left.T.reshape(Q, O, n), right.reshape(n, Q, O))
 
     def predict_uncached(self, vias: list[ViaPoint] | None = None,
                          mu: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -484,3 +501,4 @@ class KMP:
         Z = cho_solve(cho_factor(K + self.lam_c * S, lower=True), Kq.T)
         quad = np.einsum("gqa,gqb->qab", Kq.T.reshape(-1, Q, O), Z.reshape(-1, Q, O))
         return mean, self.cov_scale_ * (np.eye(O)[None] - quad)
+
