@@ -459,21 +459,21 @@ class QuasiStiffnessModel:
         mine = [f for f in features if f.spec.joint == joint and f.spec.quantity in ("angle", "moment")]
         if not mine:
             return []
-        kmp = self.joints_[joint].kmp
-        phases = np.array([f.phase for f in mine])
-        channel = np.array([0 if f.spec.quantity == "angle" else 1 for f in mine])
         n = self.s_ref_.size                                   # the grid is k/n, k = 0…n−1
-        pos = np.mod(phases, 1.0) * n
-        i0 = np.floor(pos).astype(int) % n
-        w = (pos - np.floor(pos))[:, None]
-        means = mu_ref[i0] * (1.0 - w) + mu_ref[(i0 + 1) % n] * w            # reference at each via phase
-        var = np.diagonal(kmp.sigma_ref_[np.rint(pos).astype(int) % n], axis1=1, axis2=2).copy()
-        k = np.arange(len(mine))
-        means[k, channel] = [f.value for f in mine]
-        var[k, channel] = np.maximum([f.std for f in mine], 1e-6) ** 2
-        covs = np.zeros((len(mine), 2, 2))
-        covs[:, 0, 0], covs[:, 1, 1] = var[:, 0], var[:, 1]
-        return [ViaPoint(phase=p, mean=m, cov=c) for p, m, c in zip(phases.tolist(), means, covs, strict=True)]
+        mu = mu_ref.tolist()                                   # a handful of points: plain floats beat array calls
+        ref_var = np.diagonal(self.joints_[joint].kmp.sigma_ref_, axis1=1, axis2=2).tolist()
+        vias = []
+        for f in mine:
+            pos = (f.phase % 1.0) * n
+            i0 = math.floor(pos)
+            w = pos - i0
+            lo, hi = mu[i0 % n], mu[(i0 + 1) % n]
+            mean = [lo[0] * (1.0 - w) + hi[0] * w, lo[1] * (1.0 - w) + hi[1] * w]    # reference at the via phase
+            var = list(ref_var[round(pos) % n])
+            channel = 0 if f.spec.quantity == "angle" else 1
+            mean[channel], var[channel] = f.value, max(f.std, 1e-6) ** 2
+            vias.append(ViaPoint(phase=f.phase, mean=np.array(mean), cov=np.array([[var[0], 0.0], [0.0, var[1]]])))
+        return vias
 
     def _check_table_rules(self) -> None:
         if not isinstance(self.knee_extension_window, bool):

@@ -237,7 +237,7 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
                 span = (float(phase[inside][0]), float(phase[inside][-1]), int(inside.sum()))
                 method = "range_guard" if guarded else "extension_window"
             else:
-                th, ta = theta[masks[i], j], tau[masks[i], j]
+                th = ta = None                                   # gathered only if the passivity guard needs them
                 if lo <= theta_e[i, j] <= hi:
                     ki, tei, r2i, guarded = float(k[i, j]), float(theta_e[i, j]), float(r2[i, j]), False
                 else:    # fit_line's range guard, from the masked sums
@@ -250,15 +250,17 @@ def fit_quasi_stiffness_joints(phase: np.ndarray, theta_rad: np.ndarray, tau_Nm:
             # would push the joint away from θe in both directions: the unstable case the ceiling removes;
             # in stance the patient's weight is on the joint, so any energy-injecting line is replaced
             stance = name.startswith("stance")
-            unstable = th.min() <= tei <= th.max() or (stance and ki > 0.0)
-            if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad and unstable:
-                end = _restoring_line_through_range_end(th, ta, lo, hi, max_k_Nm_per_rad) if stance else None
-                if end is not None:     # in stance: the joint still carries the load, about an end of its range
-                    ki, tei, r2i = end
-                else:
-                    ki = float(max_k_Nm_per_rad)
-                    tei, r2i = fit_fixed_k(th, ta, ki, (lo, hi))
-                method = "passivity_guard"
+            if max_k_Nm_per_rad is not None and ki > max_k_Nm_per_rad:
+                if th is None:
+                    th, ta = theta[masks[i], j], tau[masks[i], j]
+                if th.min() <= tei <= th.max() or (stance and ki > 0.0):      # unstable
+                    end = _restoring_line_through_range_end(th, ta, lo, hi, max_k_Nm_per_rad) if stance else None
+                    if end is not None:     # in stance: the joint still carries the load, about an end of its range
+                        ki, tei, r2i = end
+                    else:
+                        ki = float(max_k_Nm_per_rad)
+                        tei, r2i = fit_fixed_k(th, ta, ki, (lo, hi))
+                    method = "passivity_guard"
             fits.append(SubphaseFit(name, ki, tei, r2i, method not in ("least_squares", "extension_window"),
                                     *span, method))
         out.append(fits)
