@@ -294,7 +294,7 @@ class KMP:
         if not rows.size:
             return _Modified(W, Ls, rows, None, None)
         Y = _tri(Ls, W[rows].T)
-        return _Modified(W, Ls, rows, Y, _update_chol(Ainv[np.ix_(rows, rows)] + Y.T @ Y, self._cond_A))
+        return _Modified(W, Ls, rows, Y, _update_chol(Ainv[rows[:, None], rows] + Y.T @ Y, self._cond_A))
 
     def _mean_through(self, f: _Modified, Ainv: np.ndarray, C: np.ndarray, Kqv: np.ndarray, alpha: np.ndarray,
                       mu_v: np.ndarray) -> np.ndarray:
@@ -472,7 +472,7 @@ class KMP:
             mean = self._mean_through(f, self._Ainv, C, Kqv, alpha, mu_v)
             a, c = f_c.half(h_v, h_r)
         if not full:
-            gain = (a * a).sum(axis=0) if c is None else (a * a).sum(axis=0) - (c * c).sum(axis=0)
+            gain = np.einsum("ij,ij->j", a, a) if c is None else np.einsum("ij,ij->j", a, a) - np.einsum("ij,ij->j", c, c)
             return mean, self._quad_base_diag + gain.reshape(Q, O)
         left, right = (a, a) if c is None else (np.vstack([a, c]), np.vstack([a, -c]))
         n = left.shape[0]

@@ -434,6 +434,7 @@ class QuasiStiffnessModel:
         if incline_deg != 0.0:
             mean = mean + incline_deg * self.trend_per_degree_["uphill" if incline_deg > 0 else "downhill"]
         nv = len(FEATURES)
+        mean, sd, outside = mean.tolist(), sd.tolist(), outside.tolist()     # ten features: plain floats
         vals, val_sd, val_out = mean[:nv], sd[:nv], outside[:nv]
         phs, ph_sd, ph_out = mean[nv:], sd[nv:], outside[nv:]
         out = []
@@ -649,7 +650,7 @@ class QuasiStiffnessModel:
         if self.incline_ is not None and task[1] != 0.0:
             extra = self.incline_.std(float(task[1]), self.between_subject_sd(float(task[0])))
             for channel in CHANNELS:   # the incline change's phase grid is the query grid (both 101 points over [0, 1])
-                stds[channel] = np.sqrt(stds[channel] ** 2 + extra[channel] ** 2)
+                stds[channel] = np.hypot(stds[channel], extra[channel])
         return means, stds, vias_by_joint
 
     def between_subject_sd(self, speed_mps: float) -> dict[str, np.ndarray]:
