@@ -56,20 +56,25 @@ def test_kmp_cached_equals_uncached_with_replace_and_insert(knee_kmp):
     assert np.allclose(kmp.predict(vias, mu=mu2)[0], kmp.predict_uncached(vias, mu=mu2)[0], atol=1e-10)
 
 
+def assert_cached_paths_match_the_plain_solve(kmp: KMP, vias: list[ViaPoint], mu: np.ndarray, atol: float) -> None:
+    """predict, predict_std and predict_mean against predict_uncached (the whole system factorised)."""
+    m1, c1 = kmp.predict_uncached(vias, mu=mu)
+    m0, c0 = kmp.predict(vias, mu=mu)
+    np.testing.assert_allclose(m0, m1, atol=atol)
+    np.testing.assert_allclose(c0, c1, atol=atol)
+    m2, sd = kmp.predict_std(vias, mu=mu)
+    np.testing.assert_allclose(m2, m1, atol=atol)
+    np.testing.assert_allclose(sd, np.sqrt(np.diagonal(c1, axis1=1, axis2=2)), atol=atol)
+    np.testing.assert_allclose(kmp.predict_mean(vias, mu=mu), m1, atol=atol)
+
+
 def test_kmp_cached_equals_uncached_when_via_points_only_insert(knee_kmp):
     """Via-points between grid points remove nothing: the bordered update has no removed-row block."""
     kmp, _ = knee_kmp
     vias = [ViaPoint(0.131, np.array([0.45, -0.6]), np.diag([1e-4, 1e-2])),
             ViaPoint(0.731, np.array([1.1, 0.0]), np.diag([1e-4, 1.0]))]
     assert kmp._replaced(np.array([v.phase for v in vias])).size == 0
-    mu2 = kmp.mu_ref_ * 1.05
-    m1, c1 = kmp.predict_uncached(vias, mu=mu2)
-    m0, c0 = kmp.predict(vias, mu=mu2)
-    assert np.allclose(m0, m1, atol=1e-10) and np.allclose(c0, c1, atol=1e-10)
-    m2, sd = kmp.predict_std(vias, mu=mu2)
-    np.testing.assert_allclose(m2, m1, atol=1e-10)
-    np.testing.assert_allclose(sd, np.sqrt(np.diagonal(c1, axis1=1, axis2=2)), atol=1e-10)
-    np.testing.assert_allclose(kmp.predict_mean(vias, mu=mu2), m1, atol=1e-10)
+    assert_cached_paths_match_the_plain_solve(kmp, vias, kmp.mu_ref_ * 1.05, atol=1e-10)
 
 
 def test_kmp_pickled_with_the_dense_query_kernel_still_predicts_the_same(knee_kmp):
@@ -98,13 +103,7 @@ def test_kmp_split_mean_and_covariance_systems_match_uncached(knee_kmp, lam_c, v
             ViaPoint(0.731, np.array([1.1, 0.0]), np.diag([1e-4, 1.0])),
             ViaPoint(0.9, np.array([0.2, 0.1]), np.diag([1e-3, 1e-2]))]
     mu2 = kmp.mu_ref_ * 0.9
-    m0, c0 = kmp.predict(vias, mu=mu2)
-    m1, c1 = kmp.predict_uncached(vias, mu=mu2)
-    assert np.allclose(m0, m1, atol=1e-9) and np.allclose(c0, c1, atol=1e-9)
-    m2, sd = kmp.predict_std(vias, mu=mu2)
-    np.testing.assert_allclose(m2, m0, atol=1e-12)
-    np.testing.assert_allclose(sd, np.sqrt(np.diagonal(c0, axis1=1, axis2=2)), atol=1e-9)
-    np.testing.assert_allclose(kmp.predict_mean(vias, mu=mu2), m1, atol=1e-9)
+    assert_cached_paths_match_the_plain_solve(kmp, vias, mu2, atol=1e-9)
     np.testing.assert_allclose(kmp.predict_mean([], mu=mu2), kmp.predict_uncached([], mu=mu2)[0], atol=1e-9)
 
 
