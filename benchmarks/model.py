@@ -1,5 +1,7 @@
 """Model benchmark (``python -m benchmarks model``): fit time of the default model, propose() latency on a warm
-model, cached vs uncached KMP, one state-machine step."""
+model, cached vs uncached KMP, one state-machine step, and two machine figures (``machine_*``) that let a latency
+measured on one machine be read against another's: one small numpy call, and one product of the size a KMP update
+multiplies by (``propose()`` is mostly the first kind)."""
 
 from __future__ import annotations
 
@@ -50,6 +52,7 @@ def run(repeats: int = 2000) -> dict[str, float]:
         "kmp_uncached_p99_ms": round(float(np.percentile(uncached, 99)), 4),
         "kmp_speedup_ratio": round(float(np.median(uncached) / np.median(cached)), 2),
         **fsm_step_timings(model.propose(1.2, 0.0, 75.0).table, repeats * 10),
+        **machine_timings(repeats * 10),
         "repeats": repeats,
     }
 
@@ -76,3 +79,14 @@ def fsm_step_timings(table, repeats: int = 20000) -> dict[str, float]:
 
     t = _timings(step, repeats) * 1e6
     return {"fsm_step_median_us": round(float(np.median(t)), 3), "fsm_step_p99_us": round(float(np.percentile(t, 99)), 3)}
+
+
+def machine_timings(repeats: int = 20000) -> dict[str, float]:
+    """Median time (µs) of one small numpy call (two 10-element arrays added) and of a 100 × 100 by 100 × 10
+    product: how fast this machine is at what ``propose()`` does most, to compare latencies across machines."""
+    a, b = np.ones(10), np.ones(10)
+    A, C = np.random.default_rng(0).normal(size=(100, 100)), np.random.default_rng(1).normal(size=(100, 10))
+    small = _timings(lambda: np.add(a, b), repeats) * 1e6
+    product = _timings(lambda: A @ C, repeats) * 1e6
+    return {"machine_numpy_call_median_us": round(float(np.median(small)), 3),
+            "machine_matmul_100x100x10_median_us": round(float(np.median(product)), 3)}
