@@ -54,11 +54,14 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from backend.experiments.evaluation import evaluate, format_incline_report, format_report
+    from backend.experiments.um21_envelopes import format_um21_report
 
     report = evaluate()
     print(format_report(report))
     print()
     print(format_incline_report(report["incline"]))
+    print()
+    print(format_um21_report(report["um21_envelopes"]))
     if args.out:
         write_json(args.out, report)
     return 0

@@ -16,6 +16,9 @@ held-out task. Compared:
 Feature RMSE is over the held-out conditions (GPR vs linear/nearest of the feature values); curve RMSE is
 over all phase points of all held-out conditions, per channel, next to the published between-subject SD
 (RMS over phase and conditions) for scale.
+
+Over incline: one ramp condition held out at a time (:func:`evaluate_incline`), and the model trained on everything
+against ten other people's change from level walking (:mod:`backend.experiments.um21_envelopes`), data it never saw.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import math
 
 import numpy as np
 
+from backend.experiments.um21_envelopes import um21_change_check
 from controller_core.features import FEATURES, FeatureSpec, record_features
 from controller_core.model_io import train
 from controller_core.phase_table import load_shipped_ramps
@@ -117,8 +121,10 @@ def evaluate(reference: ReferenceSet | None = None, ramps: ReferenceSet | None =
                                "linear": rms(feat_err["linear"][spec.name]),
                                "nearest": rms(feat_err["nearest"][spec.name]),
                                "gpr_phase": rms(phase_err[spec.name])}
+    full = train(ref, use_published=True, ramps=ramps, **params)
     return {"conditions": [r.name for r in ref.records], "curve_rmse": curve, "feature_rmse": features,
-            "folds": folds, "incline": evaluate_incline(ref, ramps, **params)}
+            "folds": folds, "incline": evaluate_incline(ref, ramps, **params),
+            "um21_envelopes": um21_change_check(full)}
 
 
 def format_report(report: dict) -> str:

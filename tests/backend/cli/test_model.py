@@ -70,11 +70,13 @@ def test_cli_evaluate_writes_json(capsys, monkeypatch, reference, tmp_path):
     assert main(["evaluate", "--out", str(tmp_path / "eval.json")]) == 0
     text = capsys.readouterr().out
     assert "Leave-one-condition-out curve RMSE" in text and "Leave-one-ramp-condition-out" in text
+    assert "Change from level walking against UM21" in text
     r = json.loads((tmp_path / "eval.json").read_text())
     assert set(r["curve_rmse"]["knee_angle_deg"]) == {"proposal", "reference", "gmr", "linear", "nearest",
                                                           "between_subject_sd"}
     assert [f["held_out"] for f in r["folds"]] == [reference.records[i].name for i in (0, 2, 4)]
     assert [f["incline_deg"] for f in r["incline"]["folds"]] == [-10.0, 10.0]
+    assert set(r["um21_envelopes"]["sides"]) == {"incline_walking", "decline_walking"}
 
 
 def test_cli_envelope_prints_the_grid_its_checks_and_crc_and_refuses_a_bad_grid(capsys):
