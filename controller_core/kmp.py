@@ -226,8 +226,6 @@ class KMP:
         self._kq = periodic_kernel(self.s_query_, s_ref, self.length_scale)               # (Q, N); Kq = kq ⊗ I
         Kq = _kron_eye(self._kq, O)                                                       # (QO, NO)
         self._Zc = _solve(self._chol_c, Kq.T.copy())                                      # (NO, QO)
-        self._G_c = self._Zc.T                                                            # Kq A_c⁻¹ (QO, NO)
-        self._G = self._G_c if self.lam_c == self.lam else Kq @ self._Ainv                # Kq A⁻¹
         Q = self.s_query_.size
         self._mean_base = (Kq @ self._alpha).reshape(Q, O)
         self._quad_base = np.einsum("gqa,gqb->qab", Kq.T.reshape(-1, Q, O), self._Zc.reshape(-1, Q, O))
@@ -244,8 +242,11 @@ class KMP:
         return self
 
     def __setstate__(self, state: dict) -> None:
-        """Unpickle, completing what older saves lack (the dense Kq = kq ⊗ I instead of kq; the condition)."""
+        """Unpickle, completing what older saves lack (the dense Kq = kq ⊗ I instead of kq; the condition) and
+        dropping what they carry that nothing reads now (Kq A⁻¹ and Kq A_c⁻¹)."""
         self.__dict__.update(state)
+        for unused in ("_G", "_G_c"):
+            self.__dict__.pop(unused, None)
         if "_cond_A" not in state:       # saved before the ill-conditioning fallback
             self._cond_A = max(_condition(self._chol), _condition(self._chol_c))
             self.fallbacks_ = 0
@@ -472,7 +473,9 @@ class KMP:
             mean = self._mean_through(f, self._Ainv, C, Kqv, alpha, mu_v)
             a, c = f_c.half(h_v, h_r)
         if not full:
-            gain = np.einsum("ij,ij->j", a, a) if c is None else np.einsum("ij,ij->j", a, a) - np.einsum("ij,ij->j", c, c)
+            gain = np.einsum("ij,ij->j", a, a)
+            if c is not None:
+                gain -= np.einsum("ij,ij->j", c, c)
             return mean, self._quad_base_diag + gain.reshape(Q, O)
         left, right = (a, a) if c is None else (np.vstack([a, c]), np.vstack([a, -c]))
         n = left.shape[0]
@@ -501,4 +504,3 @@ class KMP:
         Z = cho_solve(cho_factor(K + self.lam_c * S, lower=True), Kq.T)
         quad = np.einsum("gqa,gqb->qab", Kq.T.reshape(-1, Q, O), Z.reshape(-1, Q, O))
         return mean, self.cov_scale_ * (np.eye(O)[None] - quad)
-

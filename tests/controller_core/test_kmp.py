@@ -86,10 +86,11 @@ def test_kmp_pickled_with_the_dense_query_kernel_still_predicts_the_same(knee_km
     vias = [ViaPoint(0.20, np.array([0.3, -0.5]), np.diag([1e-4, 1e-2]))]
     state = dict(kmp.__dict__)                    # how a KMP saved before the factored kernel looked
     state["_Kq"] = _kron_eye(state.pop("_kq"), kmp.n_outputs_)
+    state["_G"] = state["_G_c"] = state["_Zc"].T   # products older saves kept and nothing reads now
     old = KMP.__new__(KMP)
     old.__dict__.update(state)
     restored = pickle.loads(pickle.dumps(old))
-    assert not hasattr(restored, "_Kq")
+    assert not hasattr(restored, "_Kq") and not hasattr(restored, "_G") and not hasattr(restored, "_G_c")
     for a, b in zip(restored.predict_std(vias), kmp.predict_std(vias), strict=True):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
