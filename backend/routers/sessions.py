@@ -84,11 +84,12 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
     cols = store.samples(conn, session_id)
     times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]))
     modes = np.asarray(cols["mode"], dtype=int)
+    running = modes == Mode.ACTIVE
     reference = task_reference(t["speed_mps"], t["incline_deg"], model, t["body_mass_kg"])
     summary = summarize_session(times, np.asarray(cols["knee_angle_rad"]),
                                 np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
                                 np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
-                                reference, running_table=modes == Mode.ACTIVE)
+                                reference, running_table=running)
     if session["envelope_id"] is not None:
         envelope = envelopes.stored_envelope(envelopes.get_row(conn, session["envelope_id"]))
         summary["adaptive"] = adaptive_summary(
@@ -96,7 +97,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
             session_strikes(times, np.asarray(cols["load_N"]), t["body_mass_kg"]),
             _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]), cols["adaptive_mode"],
             envelope.speeds_mps, envelope.inclines_deg,
-            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), running_table=modes == Mode.ACTIVE)
+            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), running_table=running)
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
     seqs = cols["seq"]
