@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,6 +28,10 @@ CHANNEL_UNITS_SI: dict[str, str] = {
     "ankle_angle": "rad",
     "ankle_moment": "N·m/kg",
 }
+# channel → (its name with the display unit, the factor from SI to that unit): degrees and N·m/kg on screen
+CHANNEL_DISPLAY: dict[str, tuple[str, float]] = {
+    "knee_angle": ("knee_angle_deg", math.degrees(1.0)), "ankle_angle": ("ankle_angle_deg", math.degrees(1.0)),
+    "knee_moment": ("knee_moment_Nm_per_kg", 1.0), "ankle_moment": ("ankle_moment_Nm_per_kg", 1.0)}
 DEFAULT_TASK_NAMES: tuple[str, ...] = ("speed_mps", "incline_deg")
 SHIPPED_NPZ = "gait_reference_speed_conditions.npz"
 SHIPPED_INCLINE_CSV = "incline_features.csv"

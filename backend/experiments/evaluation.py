@@ -32,10 +32,8 @@ from controller_core.features import FEATURES, FeatureSpec, record_features
 from controller_core.model_io import train
 from controller_core.phase_table import load_shipped_ramps
 from controller_core.proposal import FEATURE_UNITS
-from controller_core.reference import CHANNELS, ReferenceSet, level_curves_at, load_shipped_reference
+from controller_core.reference import CHANNEL_DISPLAY, CHANNELS, ReferenceSet, level_curves_at, load_shipped_reference
 
-DISPLAY = {"knee_angle": ("knee_angle_deg", math.degrees(1.0)), "ankle_angle": ("ankle_angle_deg", math.degrees(1.0)),
-           "knee_moment": ("knee_moment_Nm_per_kg", 1.0), "ankle_moment": ("ankle_moment_Nm_per_kg", 1.0)}
 METHODS = ("proposal", "reference", "gmr", "linear", "nearest")
 
 
@@ -88,7 +86,7 @@ def evaluate(reference: ReferenceSet | None = None, ramps: ReferenceSet | None =
                                                    task)),
                 "nearest": np.interp(prop.phase, held.phase, ref.records[near].mean[c]),
             }
-            name, scale = DISPLAY[c]
+            name, scale = CHANNEL_DISPLAY[c]
             fold["curve_rmse"][name] = {}
             for m, p in preds.items():
                 e = (p - truth) * scale
@@ -113,7 +111,7 @@ def evaluate(reference: ReferenceSet | None = None, ramps: ReferenceSet | None =
     def root_mean(squares: list[float]) -> float:
         return float(np.sqrt(np.mean(squares)))
 
-    curve = {DISPLAY[c][0]: {m: root_mean(sq[m][c]) for m in METHODS}
+    curve = {CHANNEL_DISPLAY[c][0]: {m: root_mean(sq[m][c]) for m in METHODS}
              | {"between_subject_sd": root_mean(sd_sq[c])} for c in CHANNELS}
     features = {}
     for spec in FEATURES:
@@ -194,7 +192,7 @@ def evaluate_incline(reference: ReferenceSet, ramps: ReferenceSet, **params) -> 
             slope = sum(g * d for g, d in corrected) / sum(g * g for g, _ in corrected) if corrected else 0.0
             preds = {"model": on_slope[c] - base[c], "ignore_incline": speed_only[c] - base[c],
                      "linear": speed_effect + incline * slope}
-            name, scale = DISPLAY[c]
+            name, scale = CHANNEL_DISPLAY[c]
             fold["rmse"][name] = {}
             for m, pred in preds.items():
                 e = (np.interp(held.phase, model.s_query_, pred) - truth) * scale if pred.shape != truth.shape \
@@ -204,7 +202,7 @@ def evaluate_incline(reference: ReferenceSet, ramps: ReferenceSet, **params) -> 
             fold["ratio_to_ignore_incline"][name] = {
                 m: fold["rmse"][name][m] / fold["rmse"][name]["ignore_incline"] for m in INCLINE_METHODS}
         out["folds"].append(fold)
-    rmse = {DISPLAY[c][0]: {m: float(np.sqrt(np.mean(sq[m][c]))) for m in INCLINE_METHODS} for c in CHANNELS}
+    rmse = {CHANNEL_DISPLAY[c][0]: {m: float(np.sqrt(np.mean(sq[m][c]))) for m in INCLINE_METHODS} for c in CHANNELS}
     out["rmse"] = rmse
     out["ratio_to_ignore_incline"] = {
         m: float(np.mean([rmse[ch][m] / rmse[ch]["ignore_incline"] for ch in rmse])) for m in INCLINE_METHODS}

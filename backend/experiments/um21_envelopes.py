@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from controller_core.model import QuasiStiffnessModel
-from controller_core.reference import data_dir
+from controller_core.reference import CHANNEL_DISPLAY, data_dir
 
 UM21_CSV = "locohub_um21_phase_ranges.csv"
 UM21_SPEEDS_MPS: tuple[float, ...] = (0.8, 1.0, 1.2)
@@ -33,9 +33,6 @@ UM21_INCLINES_DEG: dict[str, tuple[float, ...]] = {"incline_walking": (5.0, 10.0
 VARIABLES: dict[str, tuple[str, float]] = {
     "knee_flexion_angle_ipsi_rad": ("knee_angle", 1.0), "ankle_flexion_angle_ipsi_rad": ("ankle_angle", -1.0),
     "knee_flexion_moment_ipsi_Nm": ("knee_moment", 1.0), "ankle_flexion_moment_ipsi_Nm": ("ankle_moment", 1.0)}
-DISPLAY: dict[str, tuple[str, float]] = {
-    "knee_angle": ("knee_angle_deg", math.degrees(1.0)), "ankle_angle": ("ankle_angle_deg", math.degrees(1.0)),
-    "knee_moment": ("knee_moment_Nm_per_kg", 1.0), "ankle_moment": ("ankle_moment_Nm_per_kg", 1.0)}
 
 Ranges = dict[tuple[str, str, int], tuple[float, float]]
 
@@ -66,12 +63,12 @@ def load_um21_ranges(path: str | Path | None = None) -> Ranges:
 
 def _mean_change(model: QuasiStiffnessModel, inclines_deg: tuple[float, ...]) -> dict[str, np.ndarray]:
     """The model's change from level walking per channel on its query grid, averaged over the UM21 conditions."""
-    changes: dict[str, list[np.ndarray]] = {c: [] for c in DISPLAY}
+    changes: dict[str, list[np.ndarray]] = {c: [] for c in CHANNEL_DISPLAY}
     for speed in UM21_SPEEDS_MPS:
         level = model.propose(speed, 0.0, 75.0).means
         for incline in inclines_deg:
             sloped = model.propose(speed, incline, 75.0).means
-            for c in DISPLAY:
+            for c in CHANNEL_DISPLAY:
                 changes[c].append(sloped[c] - level[c])
     return {c: np.mean(v, axis=0) for c, v in changes.items()}
 
@@ -87,7 +84,7 @@ def um21_change_check(model: QuasiStiffnessModel, ranges: Ranges | None = None) 
     for task, inclines in UM21_INCLINES_DEG.items():
         model_change = _mean_change(model, inclines)
         side: dict[str, dict] = {}
-        for c, (name, scale) in DISPLAY.items():
+        for c, (name, scale) in CHANNEL_DISPLAY.items():
             phases = [p for p in (0, 25, 50, 75) if (task, c, p) in ranges and ("level_walking", c, p) in ranges]
             if not phases:
                 continue
