@@ -1,22 +1,29 @@
 """Run the firmware on a CAN bus in real time: the simulated prosthesis as a device on the bus.
 
 :class:`DeviceNode` owns a bus, a :class:`device_bridge.firmware.DeviceFirmware` and a leg (anything with
-``sample()`` and ``step(knee_Nm, ankle_Nm)``, e.g. :class:`device_bridge.sim.walker.SimWalker`; or none). Its thread
-runs the 1 kHz control period against the wall clock: every :data:`WAKE_S` it runs the ticks that are due, each with
-its own time stamp (catching up after a stall, at most 100 at a time, then slipping rather than racing), and in
-between it hands every received frame to the firmware as it arrives and sends the answer at once (also when the
-ticks ran late: behind schedule it still reads the bus after every batch). Waking every
-tick would cost a server process that hosts the simulated leg much of its throughput in thread switches
-(docs/results.md); the physics and the firmware see the same 1 ms steps either way.
-:meth:`DeviceNode.snapshot` gives tests and the soak tool a consistent view of the
-buffers (an oracle the host never uses).
+``sample()`` and ``step(knee_Nm, ankle_Nm)``, e.g. :class:`device_bridge.sim.walker.SimWalker`; or none). Two threads,
+as a real device has a control timer and a receive interrupt:
+
+* the **control** thread runs the 1 kHz control period against the wall clock: every :data:`WAKE_S` it runs the
+  ticks that are due, each with its own time stamp (catching up after a stall, at most 100 at a time, then slipping
+  rather than racing). Waking every tick would cost a server process that hosts the simulated leg much of its
+  throughput in thread switches; the physics and the firmware see the same 1 ms steps either way.
+* the **receive** thread hands every frame to the firmware as it arrives and sends the answer at once.
+
+The control loop never parses a frame, so nothing a frame does can stop it; the firmware itself fails safe in both
+(an error in reception aborts that transfer, an error in control puts the leg in safe mode), and each thread logs and
+counts anything that still escapes (:attr:`DeviceNode.errors`) and carries on.
+:meth:`DeviceNode.snapshot` gives tests and the soak tool a consistent view of the buffers (an oracle the host never
+uses).
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -29,6 +36,7 @@ from device_bridge.protocol import Mode
 TICK_S = 0.001
 WAKE_S = 0.01
 MAX_CATCH_UP_TICKS = 100
+log = logging.getLogger(__name__)
 
 
 class Leg(Protocol):
@@ -61,17 +69,23 @@ class DeviceNode:
         self.firmware = DeviceFirmware(config, now_s=time.monotonic())
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name="device-node", daemon=True)
+        self._threads = [threading.Thread(target=self._guarded, args=(self._control_loop,), name="device-control",
+                                          daemon=True),
+                         threading.Thread(target=self._guarded, args=(self._receive_loop,), name="device-receive",
+                                          daemon=True)]
         self.overruns = 0
+        self.errors = 0
 
     def start(self) -> DeviceNode:
-        self._thread.start()
+        for t in self._threads:
+            t.start()
         return self
 
     def close(self) -> None:
         self._stop.set()
-        if self._thread.is_alive():
-            self._thread.join(timeout=2.0)
+        for t in self._threads:
+            if t.is_alive():
+                t.join(timeout=2.0)
         self.bus.shutdown()
 
     def __enter__(self) -> DeviceNode:
@@ -90,7 +104,17 @@ class DeviceNode:
             with contextlib.suppress(can.CanError):   # a full queue (host gone): lost, as on a real bus
                 self.bus.send(f)
 
-    def _loop(self) -> None:
+    def _guarded(self, loop: Callable[[], None]) -> None:
+        """Run ``loop`` until closed; an error that escapes it is logged and counted, and the loop starts again."""
+        while not self._stop.is_set():
+            try:
+                loop()
+            except Exception:   # noqa: BLE001 - a device thread that dies silently is the failure to avoid
+                self.errors += 1
+                log.exception("device node: %s failed; carrying on", threading.current_thread().name)
+                self._stop.wait(TICK_S)
+
+    def _control_loop(self) -> None:
         fw, leg = self.firmware, self.leg
         next_tick = time.monotonic()
         while not self._stop.is_set():
@@ -110,18 +134,18 @@ class DeviceNode:
                     self.overruns += 1
                     next_tick = now + TICK_S
             self._send(out)
-            self._answer_frames_until(next_tick + WAKE_S - TICK_S)
+            self._stop.wait(max(0.0, next_tick + WAKE_S - TICK_S - time.monotonic()))
 
-    def _answer_frames_until(self, deadline: float) -> None:
-        """Hand each frame that arrives before ``deadline`` to the firmware at once and send its answer. Frames
-        already waiting are handled even when the ticks ran late and the deadline has passed, as a real device's
-        receive interrupt would: running behind, the node must not stop hearing the host's heartbeat."""
+    def _receive_loop(self) -> None:
+        """Hand each frame to the firmware as it arrives and send its answer at once."""
         while not self._stop.is_set():
-            left = deadline - time.monotonic()
-            msg = self.bus.recv(min(left, 0.05) if left > 0 else 0.0)
-            if msg is None:
-                if left <= 0:
+            try:
+                msg = self.bus.recv(0.05)
+            except can.CanError:
+                if self._stop.is_set():
                     return
+                raise
+            if msg is None:
                 continue
             with self._lock:
                 out = self.firmware.receive(msg, time.monotonic())

@@ -6,7 +6,9 @@ TABLE_ACK answers, as for a table. The CRC-32 (zlib) covers every raw value in t
 node by node, row by row), packed as little-endian int32, so host and device compute it from exactly what the device
 will run; the device stages the whole envelope or nothing.
 
-A check frame (ENVELOPE_CHECK) carries the CRC-32 of one node's values (node 63: the axes). With ten frames per node
+A check frame (ENVELOPE_CHECK) carries the CRC-32 of one node's values (``target`` 0, ``node`` its index 0–63) or of
+the axes and nominal task (``target`` 1), so every one of the 64 nodes a transfer may carry has its own check. With ten
+frames per node
 and 25 nodes, a corrupted frame would otherwise spoil nearly every transfer on a noisy bus (the first copy of a
 frame is kept, so the whole transfer would have to start over): the device keeps a node once its frames give its
 check and drops the node's frames for fresh copies when they do not, and answers a commit with the number of frames
@@ -40,7 +42,7 @@ from device_bridge.protocol import (
 
 MAX_NODES = 64
 FRAMES_PER_NODE = 10
-AXES_NODE = 63   # the check frame of the axes and nominal task
+CHECK_NODE, CHECK_AXES = 0, 1   # ENVELOPE_CHECK.target: one node's values, or the axes and nominal task
 _ROW = ("k", "theta_e", "b")
 _ROW_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s_per_rad"}
 _A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load")
@@ -116,7 +118,7 @@ class WireEnvelope:
         out = [encode("ENVELOPE_AXIS", {"transfer_id": transfer_id, "axis": a, "index": i, "value": v})
                for a, values in ((AXIS_SPEED, self.speeds), (AXIS_INCLINE, self.inclines), (AXIS_NOMINAL, self.nominal))
                for i, v in enumerate(values)]
-        out.append(encode("ENVELOPE_CHECK", {"transfer_id": transfer_id, "node": AXES_NODE,
+        out.append(encode("ENVELOPE_CHECK", {"transfer_id": transfer_id, "target": CHECK_AXES, "node": 0,
                                              "crc32": _crc([*self.speeds, *self.inclines, *self.nominal])}))
         for n, node in enumerate(self.nodes):
             head = {"transfer_id": transfer_id, "node": n}
@@ -124,7 +126,7 @@ class WireEnvelope:
                     for i in range(len(ROW_ORDER))]
             out.append(encode("ENVELOPE_THRESHOLDS_A", {**head, "row_index": 8, **dict(zip(_A, node[8], strict=True))}))
             out.append(encode("ENVELOPE_THRESHOLDS_B", {**head, "row_index": 9, **dict(zip(_B, node[9], strict=True))}))
-            out.append(encode("ENVELOPE_CHECK", {**head, "crc32": _node_crc(node)}))
+            out.append(encode("ENVELOPE_CHECK", {**head, "target": CHECK_NODE, "crc32": _node_crc(node)}))
         return out
 
     def to_device(self) -> DeviceEnvelope:
@@ -153,39 +155,45 @@ def _node_crc(node: tuple[tuple[int, ...], ...]) -> int:
 
 
 class EnvelopeReceiver:
-    """Collects one envelope transfer's frames on the device, node by node (see the module docstring)."""
+    """Collects one envelope transfer's frames on the device, node by node (see the module docstring).
+
+    Frames that name a node outside the grid, an unknown check target or a row index their message does not carry
+    are ignored (the envelope CRC decides at commit), never an error.
+    """
 
     def __init__(self, transfer_id: int, version: int, crc32: int, n_speeds: int, n_inclines: int,
                  started_s: float) -> None:
         self.transfer_id, self.version, self.crc32 = transfer_id, version, crc32
         self.n_speeds, self.n_inclines, self.started_s = n_speeds, n_inclines, started_s
         self.axes: dict[tuple[int, int], int] = {}
+        self.axes_check: int | None = None
+        self.axes_kept = False
         self.rows: dict[tuple[int, int], tuple[int, ...]] = {}
         self.checks: dict[int, int] = {}
-        self.kept: set[int] = set()   # nodes (and AXES_NODE) whose frames gave their check
+        self.kept: set[int] = set()   # nodes whose frames gave their check
 
     @property
     def n_nodes(self) -> int:
         return self.n_speeds * self.n_inclines
 
-    def _axis_values(self) -> list[int] | None:
-        keys = [(AXIS_SPEED, i) for i in range(self.n_speeds)] + [(AXIS_INCLINE, i) for i in range(self.n_inclines)] + \
+    def _axis_keys(self) -> list[tuple[int, int]]:
+        return [(AXIS_SPEED, i) for i in range(self.n_speeds)] + [(AXIS_INCLINE, i) for i in range(self.n_inclines)] + \
             [(AXIS_NOMINAL, 0), (AXIS_NOMINAL, 1)]
-        return [self.axes[k] for k in keys] if all(k in self.axes for k in keys) else None
+
+    def _verify_axes(self) -> None:
+        """Keep the axes once their values give their check; drop them for fresh copies when they do not."""
+        keys = self._axis_keys()
+        if self.axes_kept or self.axes_check is None or any(k not in self.axes for k in keys):
+            return
+        if _crc([self.axes[k] for k in keys]) == self.axes_check:
+            self.axes_kept = True
+        else:
+            self.axes.clear()
+            self.axes_check = None
 
     def _verify(self, node: int) -> None:
         """Keep a complete node whose values give its check; drop it for fresh copies when they do not."""
         if node in self.kept or node not in self.checks:
-            return
-        if node == AXES_NODE:
-            values = self._axis_values()
-            if values is None:
-                return
-            if _crc(values) == self.checks[node]:
-                self.kept.add(node)
-            else:
-                self.axes.clear()
-                del self.checks[node]
             return
         if any((node, i) not in self.rows for i in range(FRAMES_PER_NODE)):
             return
@@ -199,16 +207,22 @@ class EnvelopeReceiver:
     def add(self, name: str, raw: dict[str, int]) -> None:
         if name == "ENVELOPE_AXIS":
             limit = {AXIS_SPEED: self.n_speeds, AXIS_INCLINE: self.n_inclines, AXIS_NOMINAL: 2}.get(raw["axis"], 0)
-            if raw["index"] < limit and AXES_NODE not in self.kept:
+            if raw["index"] < limit and not self.axes_kept:
                 self.axes.setdefault((raw["axis"], raw["index"]), raw["value"])
-                self._verify(AXES_NODE)
+                self._verify_axes()
+            return
+        if name == "ENVELOPE_CHECK" and raw["target"] == CHECK_AXES:
+            if not self.axes_kept and self.axes_check is None:
+                self.axes_check = raw["crc32"]
+                self._verify_axes()
             return
         node = raw["node"]
-        if node in self.kept or (node >= self.n_nodes and node != AXES_NODE):
+        if node in self.kept or node >= self.n_nodes:
             return
         if name == "ENVELOPE_CHECK":
-            self.checks.setdefault(node, raw["crc32"])
-            self._verify(node)
+            if raw["target"] == CHECK_NODE:
+                self.checks.setdefault(node, raw["crc32"])
+                self._verify(node)
             return
         i = raw["row_index"]
         if name == "ENVELOPE_ROW" and i < len(ROW_ORDER):
@@ -223,14 +237,20 @@ class EnvelopeReceiver:
 
     def missing(self) -> int:
         """How many frames (data and check) the device still lacks: those of every node not yet kept."""
-        axes = 0 if AXES_NODE in self.kept else self.n_speeds + self.n_inclines + 3 - len(self.axes) - (
-            AXES_NODE in self.checks)
+        axes = 0 if self.axes_kept else len(self._axis_keys()) + 1 - len(self.axes) - (self.axes_check is not None)
         nodes = sum(FRAMES_PER_NODE + 1 - sum((n, i) in self.rows for i in range(FRAMES_PER_NODE)) - (n in self.checks)
                     for n in range(self.n_nodes) if n not in self.kept)
         return axes + nodes
 
     def wire(self) -> WireEnvelope:
-        """The complete transfer (call only when nothing is missing)."""
+        """The complete transfer.
+
+        Raises:
+            ProtocolError: a frame is still missing (the caller checks :meth:`missing` first; this is the firmware's
+                second line, never a KeyError).
+        """
+        if self.missing():
+            raise ProtocolError(f"envelope transfer {self.transfer_id}: {self.missing()} frame(s) still missing")
         return WireEnvelope(
             speeds=tuple(self.axes[(AXIS_SPEED, i)] for i in range(self.n_speeds)),
             inclines=tuple(self.axes[(AXIS_INCLINE, i)] for i in range(self.n_inclines)),

@@ -162,7 +162,11 @@ class DeviceFirmware:
     # ------------------------------------------------------------------------------------------ frames in
 
     def receive(self, msg: can.Message, now_s: float) -> list[can.Message]:
-        """Handle one received frame; returns the frames to send in reply."""
+        """Handle one received frame; returns the frames to send in reply.
+
+        Fails safe: any error while handling a frame aborts the transfer being received (a commit is answered
+        DEVICE_ERROR), flags RECEIVE_ERROR and returns; the active and staged tables and the control loop are
+        untouched."""
         try:
             decoded = decode(msg)
         except ProtocolError:
@@ -172,6 +176,17 @@ class DeviceFirmware:
         if decoded is None:
             return []
         name, raw = decoded
+        try:
+            return self._handle(name, raw, now_s)
+        except Exception:   # noqa: BLE001 - the leg must survive any fault in reception; flagged, never silent
+            self._rx = None   # a later frame of it meets no transfer; its commit is answered UNKNOWN_TRANSFER
+            self.rx_errors_ += 1
+            self.faults_ |= Fault.RECEIVE_ERROR
+            if name in ("TABLE_COMMIT", "ENVELOPE_COMMIT"):
+                return [self._refuse(raw.get("transfer_id", 0), AckResult.DEVICE_ERROR, raw.get("version", 0))]
+            return []
+
+    def _handle(self, name: str, raw: dict[str, int], now_s: float) -> list[can.Message]:
         if name == "HOST_HEARTBEAT":
             self.last_heartbeat_s_ = now_s
             return []
@@ -242,7 +257,7 @@ class DeviceFirmware:
         """Keep a verified table or envelope for the next heel strike and acknowledge it with its CRC."""
         self.staged_ = held
         self._last_commit = _LastCommit(tid, held.version, held.crc32)
-        self.faults_ &= ~Fault.TABLE_REFUSED
+        self.faults_ &= ~(Fault.TABLE_REFUSED | Fault.RECEIVE_ERROR)
         return self._ack(tid, AckResult.STAGED, crc32=held.crc32, version=held.version)
 
     def _unknown_or_repeat(self, tid: int, version: int, crc: int) -> can.Message:
@@ -324,6 +339,7 @@ class DeviceFirmware:
         assert staged is not None
         self.staged_ = None
         self.active_ = staged
+        self.faults_ &= ~Fault.CONTROL_ERROR
         ctrl = self.controller_
         if self.mode_ == Mode.ACTIVE and ctrl is not None:   # at heel strike: the leg carries on in stance flexion
             if isinstance(ctrl, StateMachineController) and staged.blender is None:
@@ -346,8 +362,22 @@ class DeviceFirmware:
 
         Returns:
             (knee torque N·m, ankle torque N·m, frames to send).
+
+        Fails safe: an error anywhere in the tick puts the leg in safe mode (CONTROL_ERROR) with passive, damped
+        torques, and the next tick carries on.
         """
         out: list[can.Message] = []
+        try:
+            return self._tick(sample, now_s, out)
+        except Exception:   # noqa: BLE001 - a control loop that stops is the one outcome worse than safe mode
+            self._enter_safe(now_s)
+            self.faults_ |= Fault.CONTROL_ERROR
+            out += self._status_frames()
+            knee, ankle, _ = self._safe_torques(sample) if sample is not None else (0.0, 0.0, None)
+            return knee, ankle, out
+
+    def _tick(self, sample: SensorSample | None, now_s: float,
+              out: list[can.Message]) -> tuple[float, float, list[can.Message]]:
         cfg = self.config
         rx_timeout = cfg.envelope_transfer_timeout_s if isinstance(self._rx, EnvelopeReceiver) else cfg.transfer_timeout_s
         if self._rx is not None and now_s - self._rx.started_s > rx_timeout:
@@ -376,24 +406,30 @@ class DeviceFirmware:
         return knee, ankle, out
 
     def _torques(self, x: SensorSample, now_s: float, out: list[can.Message]) -> tuple[float, float, GaitState]:
-        lim = self.config.actuator
-        ctrl = self.controller_
-        if self.mode_ == Mode.ACTIVE and ctrl is not None:
-            before, guards = ctrl.state_, ctrl.guard_transitions_
-            cmd = ctrl.step(x)
-            heel_strike = before in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) and \
-                cmd.state == GaitState.STANCE_FLEXION
-            if heel_strike and ctrl.guard_transitions_ == guards:
-                self._last_heel_strike_s = now_s
-                if self.staged_ is not None:
-                    self._activate_staged()
-                    out += self._status_frames()
-            return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
-        cfg = self.config
+        if self.mode_ == Mode.ACTIVE and self.controller_ is not None:
+            return self._run_controller(self.controller_, x, now_s, out)
+        return self._safe_torques(x)
+
+    def _run_controller(self, ctrl: StateMachineController | AdaptiveController, x: SensorSample, now_s: float,
+                        out: list[can.Message]) -> tuple[float, float, GaitState]:
+        before, guards = ctrl.state_, ctrl.guard_transitions_
+        cmd = ctrl.step(x)
+        heel_strike = before in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) and \
+            cmd.state == GaitState.STANCE_FLEXION
+        if heel_strike and ctrl.guard_transitions_ == guards:
+            self._last_heel_strike_s = now_s
+            if self.staged_ is not None:
+                self._activate_staged()
+                out += self._status_frames()
+        return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
+
+    def _safe_torques(self, x: SensorSample) -> tuple[float, float, GaitState]:
+        """Passive and damped (safe mode, and no table), clipped to the actuator and range limits."""
+        cfg, lim = self.config, self.config.actuator
         tk, _ = clip_torque(-cfg.safe_damping_knee * x.knee_velocity_rad_s, x.knee_angle_rad, lim.knee_torque_Nm,
-                      *lim.knee_range_rad)
+                            *lim.knee_range_rad)
         ta, _ = clip_torque(-cfg.safe_damping_ankle * x.ankle_velocity_rad_s, x.ankle_angle_rad, lim.ankle_torque_Nm,
-                      *lim.ankle_range_rad)
+                            *lim.ankle_range_rad)
         return tk, ta, GaitState.SWING_EXTENSION
 
     # ------------------------------------------------------------------------------------------ frames out

@@ -67,6 +67,7 @@ class AckResult(IntEnum):
     SAFETY_LIMIT = 4       # intact, but a value is outside the device's own safety limits: nothing kept
     TIMEOUT = 5            # the transfer did not complete in time: nothing kept
     MALFORMED = 6          # begin and commit disagree (version, row count, CRC): nothing kept
+    DEVICE_ERROR = 7       # the device failed while handling the transfer: it was aborted, nothing kept
 
 
 class Command(IntEnum):
@@ -85,6 +86,11 @@ class Fault(IntFlag):
     MALFORMED_FRAME = 4
     NO_TABLE = 8
     OVER_TEMPERATURE = 16
+    RECEIVE_ERROR = 32     # handling a frame failed: that transfer was aborted; the running table and control go on
+    CONTROL_ERROR = 64     # the control step failed: the leg went to safe mode
+
+
+FAULT_MASK = int(sum(Fault))   # every flag this protocol defines (other bits of fault_flags are ignored)
 
 
 TEMPERATURE_UNKNOWN_RAW = 255

@@ -18,29 +18,61 @@ def soak_tables(args: argparse.Namespace, n: int = 12) -> list[ParameterTable]:
     return [model.propose(float(s), 0.0, 75.0).table for s in np.linspace(0.8, 1.9, n)]
 
 
-def soak_envelopes(args: argparse.Namespace, n: int = 4) -> list[Envelope]:
-    """The envelopes the soak pushes in turn: 5 × 5 over 0.6–1.6 m/s × ±10° for patients of 60 to 90 kg."""
+def soak_envelopes(args: argparse.Namespace, shape: tuple[int, int] = (5, 5), n: int = 4) -> list[Envelope]:
+    """The envelopes the soak pushes in turn: ``shape`` nodes over 0.6–1.6 m/s × ±10° for patients of 60 to 90 kg."""
     model = load(args)
-    return [model.propose_envelope(np.linspace(0.6, 1.6, 5), np.linspace(-10, 10, 5), float(m))
+    return [model.propose_envelope(np.linspace(0.6, 1.6, shape[0]), np.linspace(-10, 10, shape[1]), float(m))
             for m in np.linspace(60.0, 90.0, n)]
+
+
+def accepted_grids() -> list[tuple[int, int]]:
+    """Every envelope grid the API accepts (2–15 nodes per axis, at most 64): what one transfer must carry."""
+    from backend.schemas.envelopes import MAX_NODES
+
+    return [(a, b) for a in range(2, 16) for b in range(2, 16) if a * b <= MAX_NODES]
+
+
+def _grids(text: str) -> list[tuple[int, int]]:
+    """``every`` or a comma-separated list of ``NSxNI`` shapes."""
+    if text == "every":
+        return accepted_grids()
+    try:
+        shapes = [tuple(int(v) for v in part.lower().split("x")) for part in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'every' or shapes like 5x5,8x8, got {text!r}") from None
+    bad = [s for s in shapes if len(s) != 2 or s not in accepted_grids()]
+    if bad:
+        raise argparse.ArgumentTypeError(f"not a grid the API accepts (2-15 nodes per axis, at most 64): {bad}")
+    return shapes   # type: ignore[return-value]
+
+
+_OUTCOMES = ("committed", "kept_old", "committed_unconfirmed", "mixed", "crc_mismatch")
 
 
 def cmd_device_soak(args: argparse.Namespace) -> int:
     from device_bridge.soak import soak
 
-    items = soak_envelopes(args) if args.envelopes else soak_tables(args)
-    out = soak(items, args.trials, args.drop, args.corrupt, args.reorder, seed=args.seed,
-               push_timeout_s=4.0 if args.envelopes else 2.0)
-    if args.format == "json":
-        print(json.dumps(out))
+    timeout = 6.0 if args.envelopes else 2.0
+    if not args.envelopes:
+        out = soak(soak_tables(args), args.trials, args.drop, args.corrupt, args.reorder, seed=args.seed,
+                   push_timeout_s=timeout)
+        runs = {"table": out}
     else:
-        what = "envelope" if args.envelopes else "table"
-        print(f"{out['trials']} {what} pushes through a bus with drop {args.drop:g}, corrupt {args.corrupt:g}, "
+        runs = {f"{a}x{b}": soak(soak_envelopes(args, (a, b), n=2), args.trials, args.drop, args.corrupt, args.reorder,
+                                 seed=args.seed, push_timeout_s=timeout) for a, b in args.grids}
+    total = {k: sum(r[k] for r in runs.values()) for k in ("trials", *_OUTCOMES)}
+    if args.format == "json":
+        print(json.dumps({**total, "runs": runs} if args.envelopes else runs["table"]))
+    else:
+        what = "table" if not args.envelopes else f"envelope ({len(runs)} grid size(s))"
+        print(f"{total['trials']} {what} pushes through a bus with drop {args.drop:g}, corrupt {args.corrupt:g}, "
               f"reorder {args.reorder:g}")
-        for key in ("committed", "kept_old", "committed_unconfirmed", "mixed", "crc_mismatch"):
-            print(f"  {key:22s} {out[key]}")
-        print(f"  push median {out['median_push_ms']:.2f} ms, p99 {out['p99_push_ms']:.2f} ms")
-    return 0 if out["mixed"] == 0 and out["crc_mismatch"] == 0 else 1
+        for key in _OUTCOMES:
+            print(f"  {key:22s} {total[key]}")
+        for name, r in runs.items():
+            print(f"  {name:>6s}: {r['committed']} committed, {r['mixed']} mixed, push median "
+                  f"{r['median_push_ms']:.2f} ms, p99 {r['p99_push_ms']:.2f} ms")
+    return 0 if total["mixed"] == 0 and total["crc_mismatch"] == 0 else 1
 
 
 def cmd_device_drill(args: argparse.Namespace) -> int:
@@ -68,7 +100,10 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--corrupt", type=_probability, default=0.02, help="probability a frame gets one bit flipped")
     p.add_argument("--reorder", type=_probability, default=0.05, help="probability a frame swaps with the next")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--envelopes", action="store_true", help="push whole 5 × 5 envelopes instead of single tables")
+    p.add_argument("--envelopes", action="store_true", help="push whole envelopes instead of single tables")
+    p.add_argument("--grids", type=_grids, default=[(5, 5)],
+                   help="with --envelopes: grid shapes, e.g. 5x5,8x8,15x4, or 'every' grid the API accepts "
+                        "(--trials pushes each)")
     p.add_argument("--model", type=Path, default=None, help="model directory whose proposals are pushed")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_device_soak)
