@@ -109,7 +109,7 @@ class DeviceNode:
         while not self._stop.is_set():
             try:
                 loop()
-            except Exception:   # noqa: BLE001 - a device thread that dies silently is the failure to avoid
+            except Exception:
                 self.errors += 1
                 log.exception("device node: %s failed; carrying on", threading.current_thread().name)
                 self._stop.wait(TICK_S)

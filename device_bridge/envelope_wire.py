@@ -36,8 +36,9 @@ from device_bridge.protocol import (
     ProtocolError,
     ValueDoesNotFitError,
     _quantize,
-    _scale,
     encode,
+    to_physical,
+    with_device_values,
 )
 
 MAX_NODES = 64
@@ -131,19 +132,22 @@ class WireEnvelope:
 
     def to_device(self) -> DeviceEnvelope:
         """The physical values the device runs (ValueError on a non-physical threshold)."""
-        unit = _scale("ENVELOPE_AXIS", "value")
+        def axis(raw: int) -> float:
+            return to_physical("ENVELOPE_AXIS", "value", raw)
+
         tables = []
         for node in self.nodes:
-            rows = tuple(DeviceRow(j, s, *(raw * _scale("ENVELOPE_ROW", f) for raw, f in zip(node[i], _ROW, strict=True)))
+            rows = tuple(DeviceRow(j, s, *(to_physical("ENVELOPE_ROW", f, raw)
+                                           for raw, f in zip(node[i], _ROW, strict=True)))
                          for i, (j, s) in enumerate(ROW_ORDER))
-            values = {_THRESHOLD_FIELDS[f]: raw * _scale("ENVELOPE_THRESHOLDS_A", f)
+            values = {_THRESHOLD_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_A", f, raw)
                       for raw, f in zip(node[8], _A, strict=True)}
-            values |= {_THRESHOLD_FIELDS[f]: raw * _scale("ENVELOPE_THRESHOLDS_B", f)
+            values |= {_THRESHOLD_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_B", f, raw)
                        for raw, f in zip(node[9], _B, strict=True)}
             tables.append(DeviceTable(rows=rows, thresholds=Thresholds(**values)))
-        return DeviceEnvelope(speeds_mps=tuple(v * unit for v in self.speeds),
-                              inclines_deg=tuple(v * unit for v in self.inclines),
-                              nominal=(self.nominal[0] * unit, self.nominal[1] * unit), tables=tuple(tables))
+        return DeviceEnvelope(speeds_mps=tuple(axis(v) for v in self.speeds),
+                              inclines_deg=tuple(axis(v) for v in self.inclines),
+                              nominal=(axis(self.nominal[0]), axis(self.nominal[1])), tables=tuple(tables))
 
 
 def _crc(values: list[int]) -> int:
@@ -266,6 +270,24 @@ def envelope_begin_frame(transfer_id: int, version: int, crc32: int, shape: tupl
 def envelope_commit_frame(transfer_id: int, version: int, crc32: int, shape: tuple[int, int]) -> can.Message:
     return encode("ENVELOPE_COMMIT", {"transfer_id": transfer_id, "n_speeds": shape[0], "n_inclines": shape[1],
                                       "version": version, "crc32": crc32})
+
+
+def envelope_as_run(envelope: Envelope) -> Envelope:
+    """The envelope rounded to the node quanta: axes, nominal task and every node's values bit for bit as the device
+    runs them (each node's task is its axes' rounded values). Returned unchanged when a value does not fit the link
+    (:func:`check_envelope_as_run` reports it)."""
+    try:
+        device = WireEnvelope.from_envelope(envelope).to_device()
+    except ValueError:
+        return envelope
+    n_i = len(device.inclines_deg)
+    nodes = [node.model_copy(update={"speed_mps": device.speeds_mps[k // n_i],
+                                     "incline_deg": device.inclines_deg[k % n_i],
+                                     "table": with_device_values(node.table, device.tables[k])})
+             for k, node in enumerate(envelope.nodes)]
+    return envelope.model_copy(update={
+        "speeds_mps": list(device.speeds_mps), "inclines_deg": list(device.inclines_deg),
+        "nominal_speed_mps": device.nominal[0], "nominal_incline_deg": device.nominal[1], "nodes": nodes})
 
 
 def check_envelope_as_run(envelope: Envelope, limits: SafetyLimits | None = None,

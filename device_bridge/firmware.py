@@ -178,7 +178,7 @@ class DeviceFirmware:
         name, raw = decoded
         try:
             return self._handle(name, raw, now_s)
-        except Exception:   # noqa: BLE001 - the leg must survive any fault in reception; flagged, never silent
+        except Exception:
             self._rx = None   # a later frame of it meets no transfer; its commit is answered UNKNOWN_TRANSFER
             self.rx_errors_ += 1
             self.faults_ |= Fault.RECEIVE_ERROR
@@ -369,7 +369,7 @@ class DeviceFirmware:
         out: list[can.Message] = []
         try:
             return self._tick(sample, now_s, out)
-        except Exception:   # noqa: BLE001 - a control loop that stops is the one outcome worse than safe mode
+        except Exception:
             self._enter_safe(now_s)
             self.faults_ |= Fault.CONTROL_ERROR
             out += self._status_frames()

@@ -31,10 +31,10 @@ from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.protocol import (
+    FAULT_MASK,
     ROW_COUNT,
     TEMPERATURE_UNKNOWN_RAW,
     TRANSFER_IDS,
-    FAULT_MASK,
     AckResult,
     Command,
     Fault,

@@ -13,6 +13,7 @@ Every decoded frame is checked for its declared length first: a truncated or ove
 
 from __future__ import annotations
 
+import math
 import struct
 import zlib
 from dataclasses import dataclass
@@ -123,6 +124,15 @@ def _scale(msg_name: str, signal: str) -> float:
     return float(message(msg_name).get_signal_by_name(signal).scale)
 
 
+def to_physical(msg_name: str, signal: str, raw: int) -> float:
+    """A raw wire integer in the signal's unit, as host and device both compute it: divided by the whole number of
+    quanta per unit where there is one (raw 316 at 0.001 gives exactly the double nearest 0.316, so a value shown
+    and stored reads as the decimal it is), else multiplied by the quantum."""
+    scale = _scale(msg_name, signal)
+    per_unit = round(1.0 / scale)
+    return raw / per_unit if abs(per_unit * scale - 1.0) < 1e-12 else raw * scale
+
+
 def encode(name: str, raw: dict[str, int]) -> can.Message:
     """A classic-CAN frame of DBC message ``name`` from raw (unscaled) signal values; unnamed signals are 0."""
     m = message(name)
@@ -195,9 +205,10 @@ _ROW_TABLE_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s
 
 def _quantize(msg_name: str, signal: str, value: float, field: str) -> int:
     s = message(msg_name).get_signal_by_name(signal)
-    raw = round(value / s.scale)
     lo, hi = _raw_range(s)
-    if not lo <= raw <= hi:
+    scaled = value / s.scale
+    raw = round(scaled) if math.isfinite(scaled) else None   # round(inf) raises OverflowError, round(nan) ValueError
+    if raw is None or not lo <= raw <= hi:
         raise ValueDoesNotFitError(f"{field} = {value:.6g} does not fit the wire field {msg_name}.{signal} "
                                    f"([{lo * s.scale:g}, {hi * s.scale:g}] {s.unit})",
                                    field, value, lo * s.scale, hi * s.scale)
@@ -265,10 +276,12 @@ class WireTable:
 
     def to_device_table(self) -> DeviceTable:
         """The physical values the device runs (raises pydantic's ValidationError on a non-physical threshold)."""
-        rows = tuple(DeviceRow(joint, sub, *(raw * _scale("TABLE_ROW", f) for raw, f in zip(r, _ROW_FIELDS, strict=True)))
+        rows = tuple(DeviceRow(joint, sub, *(to_physical("TABLE_ROW", f, raw)
+                                             for raw, f in zip(r, _ROW_FIELDS, strict=True)))
                      for (joint, sub), r in zip(ROW_ORDER, self.rows, strict=True))
         names = [("TABLE_THRESHOLDS_A", f) for f in _THRESH_A] + [("TABLE_THRESHOLDS_B", f) for f in _THRESH_B]
-        values = {_THRESH_TABLE_FIELDS[f]: raw * _scale(m, f) for (m, f), raw in zip(names, self.thresholds, strict=True)}
+        values = {_THRESH_TABLE_FIELDS[f]: to_physical(m, f, raw)
+                  for (m, f), raw in zip(names, self.thresholds, strict=True)}
         return DeviceTable(rows=rows, thresholds=Thresholds(**values))
 
     def frames(self, transfer_id: int) -> list[can.Message]:
@@ -310,6 +323,24 @@ def begin_frame(transfer_id: int, version: int, crc32: int) -> can.Message:
 def commit_frame(transfer_id: int, version: int, crc32: int) -> can.Message:
     return encode("TABLE_COMMIT", {"transfer_id": transfer_id, "version": version, "row_count": ROW_COUNT,
                                    "crc32": crc32})
+
+
+def with_device_values(table: ParameterTable, device: DeviceTable) -> ParameterTable:
+    """``table`` with every row and threshold value replaced by the device's (provenance and fit notes kept)."""
+    rows = [r.model_copy(update={f: getattr(device.row(r.joint, r.subphase), f) for f in _ROW_TABLE_FIELDS.values()})
+            for r in table.rows]
+    return table.model_copy(update={"rows": rows, "thresholds": device.thresholds})
+
+
+def as_run(table: ParameterTable) -> ParameterTable:
+    """The table rounded to the wire's precision: bit for bit the values the device will run, so that what is
+    checked, stored, shown and approved is what runs. A table with a value no wire field can carry is returned
+    unchanged (:func:`check_as_run` reports that value)."""
+    try:
+        device = WireTable.from_table(table).to_device_table()
+    except ValueError:
+        return table
+    return with_device_values(table, device)
 
 
 AS_RUN = "as the device will run it (rounded to the wire's precision): "

@@ -7,13 +7,16 @@ import threading
 from fastapi import APIRouter
 
 from backend.deps import Conn, CurrentUser, Model
+from backend.errors import ConflictError
 from backend.experiments.course import PREVIEW_COURSE, preview_envelope
 from backend.experiments.preview import preview_table
 from backend.experiments.safety_figures import safety_flags
 from backend.schemas.common import IdPath
-from backend.schemas.errors import NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
+from backend.schemas.errors import CONFLICT, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.previews import EnvelopePreviewOut, PreviewOut
 from backend.store import envelopes, previews, proposals
+from device_bridge.envelope_wire import check_envelope_as_run, envelope_as_run
+from device_bridge.protocol import as_run, check_as_run
 from device_bridge.sim.course import COURSES
 
 router = APIRouter(prefix="/api", tags=["previews"], responses=UNAUTHORIZED)
@@ -25,7 +28,8 @@ PREVIEW_SECONDS = 10.0
 _COURSE_PREVIEW = threading.Lock()
 
 
-@router.get("/proposals/{proposal_id}/preview", response_model=PreviewOut, responses={**NOT_FOUND, **UNAVAILABLE})
+@router.get("/proposals/{proposal_id}/preview", response_model=PreviewOut,
+            responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
 def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
     """Walk this proposal's table and the FSMIC benchmark for 10 s each on the simulated bench at the proposal's
     task (computed on first request, about a second, then stored: a proposal never changes). Falls, strides and
@@ -34,7 +38,8 @@ def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Mode
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
     if stored is None:
-        table = proposals.stored_table(row)
+        table = as_run(proposals.stored_table(row))   # walked as the device would run it
+        _refuse_unsafe(check_as_run(table), f"proposal {proposal_id}")
         result = preview_table(table, row["speed_mps"], row["incline_deg"], row["body_mass_kg"], model,
                                PREVIEW_SECONDS)
         stored = previews.store_preview(conn, proposal_id, row["table_sha256"], result)
@@ -43,7 +48,7 @@ def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Mode
 
 
 @router.get("/envelopes/{envelope_id}/preview", response_model=EnvelopePreviewOut,
-            responses={**NOT_FOUND, **UNAVAILABLE})
+            responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
 def get_envelope_preview(envelope_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
     """Walk the bench's ``mixed`` course (speed changes, ramps up and down ±8°) with this envelope, the leg estimating
     its task and adapting, and with the FSMIC (computed on first request, about ten seconds, then stored). Safety
@@ -55,7 +60,18 @@ def get_envelope_preview(envelope_id: IdPath, conn: Conn, _user: CurrentUser, mo
         with _COURSE_PREVIEW:
             stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])   # walked meanwhile?
             if stored is None:
-                result = preview_envelope(envelopes.stored_envelope(row), model, COURSES[PREVIEW_COURSE])
+                envelope = envelope_as_run(envelopes.stored_envelope(row))
+                _refuse_unsafe(check_envelope_as_run(envelope), f"envelope {envelope_id}")
+                result = preview_envelope(envelope, model, COURSES[PREVIEW_COURSE])
                 stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["envelope"], runs["fsmic"])}
+
+
+def _refuse_unsafe(violations: list, what: str) -> None:
+    """The bench runs only what the device would accept (a stored version from before values were rounded first may
+    lie outside a limit by less than a wire step)."""
+    if violations:
+        raise ConflictError(f"{what} fails the safety limits as the device would run it, so the device would refuse "
+                            "it and there is nothing to preview: " + "; ".join(v.message for v in violations[:5]),
+                            violations=[v.model_dump() for v in violations])

@@ -35,6 +35,12 @@ Text = Annotated[str, AfterValidator(_storable_text),
                  Field(json_schema_extra={"pattern": "^[^\\x00-\\x08\\x0b\\x0c\\x0e-\\x1f\\x7f]*$"})]
 
 
+# a value typed into a table or envelope edit: finite and far beyond every limit and wire field (the limits then
+# refuse it with their own words), so that no number overflows fixed-point rounding (1e306 / 0.001 is inf)
+EDIT_BOUND = 10_000.0
+EditValue = Annotated[float | None, Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND)]
+
+
 # a password is taken exactly as typed: never stripped (the strict models strip other text)
 Password = Annotated[str, StringConstraints(strip_whitespace=False, min_length=8, max_length=1024),
                      AfterValidator(_storable_text),

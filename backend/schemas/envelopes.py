@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, model_validator
 
-from backend.schemas.common import StrictIn, Text
+from backend.schemas.common import EDIT_BOUND, StrictIn, Text
 from backend.schemas.proposals import (
     Boundaries,
     Curves,
@@ -96,7 +96,8 @@ class EnvelopeCellEdit(StrictIn):
 
     field: str = Field(min_length=3, max_length=80, description="joint.subphase.(k_Nm_per_rad|theta_e_deg|"
                                                                 "b_Nm_s_per_rad) or thresholds.<name>")
-    offset: float | None = Field(default=None, description="added to the value, in the field's unit")
+    offset: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
+                                 description="added to the value, in the field's unit")
     percent: float | None = Field(default=None, gt=-100, le=1000,
                                   description="the value scaled by (1 + percent/100); k < 0 is restoring, so +10 % "
                                               "is 10 % firmer")

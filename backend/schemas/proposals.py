@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from backend.schemas.common import StrictIn, Text
+from backend.schemas.common import EDIT_BOUND, EditValue, StrictIn, Text
 from controller_core.table import LimitViolation, SafetyLimits, Thresholds
 from controller_core.task import SPEED_RANGE_MPS
 
@@ -24,19 +24,22 @@ class RowEdit(StrictIn):
 
     joint: Joint
     subphase: Subphase
-    k_Nm_per_rad: float | None = Field(default=None, description="quasi-stiffness (N·m/rad; negative = restoring)")
-    theta_e_deg: float | None = Field(default=None, description="equilibrium angle (deg)")
-    b_Nm_s_per_rad: float | None = Field(default=None, description="damping (N·m·s/rad)")
+    k_Nm_per_rad: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
+                                       description="quasi-stiffness (N·m/rad; negative = restoring)")
+    theta_e_deg: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
+                                      description="equilibrium angle (deg)")
+    b_Nm_s_per_rad: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
+                                         description="damping (N·m·s/rad)")
 
 
 class ThresholdEdit(StrictIn):
-    sf_to_se_ankle_moment_Nm: float | None = None
-    se_to_wf_load_N: float | None = None
-    wf_to_we_knee_angle_deg: float | None = None
-    we_to_sf_load_N: float | None = None
-    min_state_time_s: float | None = None
-    max_state_time_s: float | None = None
-    sf_to_se_knee_extension_deg_per_s: float | None = None
+    sf_to_se_ankle_moment_Nm: EditValue = None
+    se_to_wf_load_N: EditValue = None
+    wf_to_we_knee_angle_deg: EditValue = None
+    we_to_sf_load_N: EditValue = None
+    min_state_time_s: EditValue = None
+    max_state_time_s: EditValue = None
+    sf_to_se_knee_extension_deg_per_s: EditValue = None
 
 
 class EditRequest(StrictIn):

@@ -21,7 +21,7 @@ from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
 from backend.store.users import User
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
 from controller_core.table import LimitViolation, display_rows
-from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
+from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run, envelope_as_run
 from device_bridge.protocol import ProtocolError, check_as_run
 
 _UNITS = ROW_UNITS | THRESHOLD_UNITS
@@ -138,7 +138,9 @@ def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, en
 
 
 def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envelope, actor: User) -> dict:
-    """Store a freshly built envelope as the patient's next draft version; returns its API view."""
+    """Store a freshly built envelope as the patient's next draft version, rounded to the node quanta (what the
+    device runs); returns its API view."""
+    envelope = envelope_as_run(envelope)
     violations = check_envelope_as_run(envelope)
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
@@ -154,7 +156,8 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
 def create_edit(conn: sqlite3.Connection, parent_id: int, envelope: Envelope, changes: list[dict], comment: str,
                 actor: User) -> dict:
     """Store an edited envelope (already checked and found within every limit) as a new draft of the parent's
-    patient."""
+    patient, rounded to the node quanta (what the device runs)."""
+    envelope = envelope_as_run(envelope)
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
         meta = _insert(conn, parent["patient_id"], parent_id, envelope, comment, actor, [])

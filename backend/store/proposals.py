@@ -21,7 +21,7 @@ from backend.store.decisions import decide_once
 from backend.store.users import User
 from controller_core.proposal import Proposal
 from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
-from device_bridge.protocol import check_as_run
+from device_bridge.protocol import as_run, check_as_run
 
 LIMITS = SafetyLimits().model_dump()
 # display units of the table's values, for diffs
@@ -141,16 +141,17 @@ def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
     _refuse_non_finite(proposal)
     model_json = to_json(body).decode()   # pydantic-core's encoder: far faster than json.dumps on 808 floats
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
-    violations = check_as_run(proposal.table)   # of the table stored, whatever the proposal says of it
+    table = as_run(proposal.table)   # stored, shown and checked as the device will run it
+    violations = check_as_run(table)
     if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
         raise NotFoundError(f"patient {patient_id} not found")
-    meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, proposal.table,
+    meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, table,
                    None, actor, violations)
     audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
                  after={"patient_id": patient_id, "version": meta["version"], "task": task,
                         "table_sha256": meta["table_sha256"], "safety_ok": not violations,
                         "extrapolation": meta["extrapolation"]})
-    return _assemble(meta, proposal.table, body, full=True, violations=violations)
+    return _assemble(meta, table, body, full=True, violations=violations)
 
 
 def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
@@ -161,7 +162,9 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
 
 def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable, changes: list[dict],
                 comment: str, actor: User) -> dict:
-    """Store ``table`` (already validated and limit-checked) as a new draft derived from ``parent_id``."""
+    """Store ``table`` (already validated and limit-checked) as a new draft derived from ``parent_id``, rounded to
+    the wire's precision (what the device runs)."""
+    table = as_run(table)
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
         task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],

@@ -8,7 +8,7 @@ import sqlite3
 import pytest
 
 from backend.db import write_transaction
-from device_bridge.envelope_wire import WireEnvelope
+from device_bridge.envelope_wire import WireEnvelope, envelope_as_run
 
 
 def request_envelope(api, patient_id: int, **body) -> dict:
@@ -26,7 +26,9 @@ def test_an_envelope_is_built_for_the_patient_with_every_node_checked_and_its_cr
     assert e["body_mass_kg"] == 82.0 and e["nominal"] == {"speed_mps": 1.2, "incline_deg": 0.0}
     assert e["safety"] == {"ok": True, "violations": []} and len(e["nodes"]) == 9
     direct = model.propose_envelope([0.8, 1.1, 1.4], [-6.0, 0.0, 6.0], 82.0)
-    assert e["crc32"] == direct.crc32() and e["wire_crc32"] == WireEnvelope.from_envelope(direct).crc32()
+    # stored as the device runs it: rounded to the node quanta, the same wire CRC as the unrounded envelope
+    assert e["crc32"] == envelope_as_run(direct).crc32() != direct.crc32()
+    assert e["wire_crc32"] == WireEnvelope.from_envelope(direct).crc32()
     node = e["nodes"][5]      # 1.1 m/s, +6°
     assert (node["speed_mps"], node["incline_deg"]) == (1.1, 6.0) and len(node["table"]) == 8
     assert node["table"][0]["k_Nm_per_rad"] == pytest.approx(direct.nodes[5].table.rows[0].k_Nm_per_rad, abs=1e-3)
@@ -191,3 +193,34 @@ def test_ten_percent_firmer_everywhere_is_refused_or_held_to_the_neighbour_rule_
     [audit] = [a for a in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]
                if a["action"] == "envelope.edit"]
     assert any("held_from" in c for c in audit["after"]["changes"])
+
+
+@pytest.mark.parametrize("value", [1e306, 1.79e308])
+def test_a_huge_envelope_offset_is_refused_at_the_schema_naming_the_field(api, value):
+    patient = api.new_patient()
+    e = request_envelope(api, patient["id"], grid=[2, 2])
+    before = api.count("envelopes")
+    r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"), json={
+        "edits": [{"field": "knee.swing_flexion.b_Nm_s_per_rad", "offset": value}], "comment": "overflow"})
+    assert r.status_code == 422 and "offset" in r.text and "10000" in r.text, r.text
+    assert api.count("envelopes") == before
+
+
+def test_an_envelope_is_stored_exactly_as_the_device_runs_it(api):
+    from backend.store import envelopes as envelope_store
+
+    patient = api.new_patient()
+    e = request_envelope(api, patient["id"], grid=[3, 2])
+    conn = api.db()
+    try:
+        stored = envelope_store.stored_envelope(envelope_store.get_row(conn, e["id"]))
+    finally:
+        conn.close()
+    device = WireEnvelope.from_envelope(stored).to_device()
+    assert tuple(stored.speeds_mps) == device.speeds_mps and tuple(stored.inclines_deg) == device.inclines_deg
+    for node, table in zip(stored.nodes, device.tables, strict=True):
+        assert node.table.thresholds == table.thresholds
+        for r in node.table.rows:
+            d = table.row(r.joint, r.subphase)
+            assert (r.k_Nm_per_rad, r.theta_e_deg, r.b_Nm_s_per_rad) == (d.k_Nm_per_rad, d.theta_e_deg,
+                                                                         d.b_Nm_s_per_rad)

@@ -250,3 +250,48 @@ def test_proposal_carries_its_via_points_on_its_curves(api):
         assert abs(angle - v["angle_deg"]) < 3.0
     features = {(f["joint"], round(f["phase"], 3)) for f in prop["features"] if f["quantity"] in ("angle", "moment")}
     assert {(v["joint"], round(v["phase"], 3)) for v in vias} <= features
+
+
+# ------------------------------------------------------------- exactly what runs
+def test_a_value_within_half_a_wire_step_of_a_limit_is_stored_shown_and_approved_as_the_device_runs_it(api):
+    """+0.000316 N·m/rad on a stance row rounds to 0 on the wire: it is stored and shown as 0.0, never as a value
+    outside the limit that the preview then refuses to walk."""
+    from device_bridge.protocol import WireTable
+
+    p = api.propose(api.new_patient()["id"], speed=1.2)
+    r = api.client.post(f"/api/proposals/{p['id']}/edits", headers=api.as_("prosthetist"), json={
+        "rows": [{"joint": "knee", "subphase": "stance_extension", "k_Nm_per_rad": 0.000316,
+                  "theta_e_deg": 4.00049}],
+        "thresholds": {"min_state_time_s": 0.0500004}, "comment": "rounding check"})
+    assert r.status_code == 201, r.text
+    v2 = r.json()
+    row = next(x for x in v2["table"] if (x["joint"], x["subphase"]) == ("knee", "stance_extension"))
+    assert row["k_Nm_per_rad"] == 0.0 and row["theta_e_deg"] == 4.0 and v2["thresholds"]["min_state_time_s"] == 0.05
+    assert v2["safety"]["ok"]
+    conn = api.db()
+    try:
+        stored = proposal_store.stored_table(proposal_store.get_row(conn, v2["id"]))
+    finally:
+        conn.close()
+    device = WireTable.from_table(stored).to_device_table()
+    for r_ in stored.rows:   # bit for bit what the device decodes
+        d = device.row(r_.joint, r_.subphase)
+        assert (r_.k_Nm_per_rad, r_.theta_e_deg, r_.b_Nm_s_per_rad) == (d.k_Nm_per_rad, d.theta_e_deg, d.b_Nm_s_per_rad)
+    assert stored.thresholds == device.thresholds
+    assert api.client.get(f"/api/proposals/{v2['id']}/preview", headers=api.as_("viewer")).status_code == 200
+
+
+@pytest.mark.parametrize("value", [1e306, 1.79e308, -1e306])
+@pytest.mark.parametrize("where", ["row", "threshold"])
+def test_a_huge_finite_value_is_refused_at_the_schema_naming_the_field(api, value, where):
+    p = api.propose(api.new_patient()["id"], speed=1.2)
+    body = ({"rows": [{"joint": "knee", "subphase": "swing_flexion", "b_Nm_s_per_rad": value}]} if where == "row"
+            else {"thresholds": {"se_to_wf_load_N": value}})
+    before = api.count("proposals")
+    r = api.client.post(f"/api/proposals/{p['id']}/edits", headers=api.as_("prosthetist"),
+                        json={**body, "comment": "overflow"})
+    assert r.status_code == 422, r.text
+    text = r.text
+    assert ("b_Nm_s_per_rad" if where == "row" else "se_to_wf_load_N") in text and "10000" in text
+    assert api.count("proposals") == before
+    assert api.client.get("/api/health").status_code == 200   # the connection and the server carry on
