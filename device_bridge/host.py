@@ -362,7 +362,9 @@ class DeviceLink:
 
         Raises:
             ProtocolError: a value does not fit the wire format (nothing sent).
-            PushError: refused for the safety limits, or no matching acknowledgement before ``timeout_s``.
+            PushError: refused for the safety limits (``reason`` "safety_limit"), aborted by a device error
+                ("device_error"), or no matching acknowledgement before ``timeout_s`` ("timeout": unconfirmed, the
+                device may have taken it as the acknowledgement was lost).
         """
         _check_version(version, "table")
         wire = WireTable.from_table(table)
@@ -458,7 +460,11 @@ class DeviceLink:
                     rule = " or two neighbouring nodes break the neighbour rule" if transfer.kind == "envelope" else ""
                     raise PushError(f"the device refused the {transfer.kind}: a value is outside its own safety "
                                     f"limits{rule}", "safety_limit")
+                if result == AckResult.DEVICE_ERROR:
+                    raise PushError(f"the device failed while receiving the {transfer.kind} and aborted it (fault "
+                                    "receive_error); it keeps running what it ran before", "device_error")
                 last_reason = f"the device refused the transfer ({result.name.lower() if result else ack['result']})"
                 break
         raise PushError(f"no acknowledgement of CRC {crc:08x} within {timeout_s:g} s after {attempts} attempt(s): "
-                        f"{last_reason}; the device keeps its previous {transfer.kind}", "timeout")
+                        f"{last_reason}; unconfirmed: the device's next status tells whether it took the "
+                        f"{transfer.kind}", "timeout")

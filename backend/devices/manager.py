@@ -2,14 +2,22 @@
 
 ``sim`` starts the simulated leg (the device firmware driving the MuJoCo bench) on a python-can ``virtual`` bus
 inside this process, so the whole loop works out of the box; a real leg is reached over the python-can bus of its
-spec. The link's receive thread calls back here: a status that reports a newly running table marks its push
-``active``; telemetry goes to the WebSocket fan-out and to the session recorder.
+spec. The link's receive thread calls back here; telemetry goes to the WebSocket fan-out and to the session recorder.
+
+The device's own status (mode, the version and CRC it runs, the version it holds staged) is the truth about the leg:
+at start-up pushes a stopped server left ``sending`` become ``unconfirmed``, and whenever a device's report changes
+(its first status included) :func:`backend.store.pushes.reconcile` makes the records say what it reports. Pushes to
+one device are one at a time (:meth:`DeviceManager.push_slot`): the check of what the leg runs now and the push are
+one step.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
+import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import can
@@ -41,10 +49,14 @@ class ManagedDevice:
     node: DeviceNode | None = None
     walker: SimWalker | None = None
     status: DeviceStatus | None = None
-    noted_active: tuple[int, int] | None = None
     fanout: TelemetryFanout = field(default_factory=TelemetryFanout)
     last_sample: TelemetrySample | None = None
     tables: dict[tuple[int, int | None], dict] = field(default_factory=dict)   # (version, crc) -> its push
+    in_flight: set[int] = field(default_factory=set)        # push ids being sent now (their sender decides them)
+    reconciled: tuple | None = None                         # (report, epoch) the records were last made to follow
+    epoch: int = 0                                          # counts finished pushes: a report is reconciled anew
+    acknowledged: tuple[int, float] | None = None           # (push id, monotonic s) of the last CRC read back
+    push_lock: threading.Lock = field(default_factory=threading.Lock)
 
 
 class DeviceManager:
@@ -60,6 +72,7 @@ class DeviceManager:
         with pooled(self.db) as conn:
             for spec in self._specs:
                 devices_store.register_device(conn, spec.device_id, spec.kind, spec.interface, spec.channel)
+            pushes_store.interrupted_pushes(conn)   # a server that stopped mid-push: each device's status decides
         for spec in self._specs:
             dev = ManagedDevice(spec=spec)
             if spec.kind == "simulated":
@@ -141,6 +154,63 @@ class DeviceManager:
             "recording_session_id": self.recorder.session_of(device_id),
         }
 
+    def on_leg(self, conn: sqlite3.Connection, device_id: str, running_only: bool = False) -> dict:
+        """What the device reports it runs (``running_only``) or will run from its next heel strike, as its last
+        status says (with a CRC this process read back since then): ``push`` (ours, or None), ``version`` and
+        ``crc32`` as reported, ``mode``, and ``words`` for people ("P-001 · envelope v3", "no table", "a table this
+        server did not send (version 7, CRC 1a2b3c4d)", "nothing reported yet")."""
+        dev = self.get(device_id)
+        if running_only:   # a CRC just read back: the device reports its switch in its next status (100 ms)
+            self._status_after(dev, dev.acknowledged[1] if dev.acknowledged else 0.0)
+        s = dev.status
+        if s is None:
+            return {"push": None, "version": None, "crc32": None, "mode": None, "words": "nothing reported yet"}
+        push = None
+        if not running_only and dev.acknowledged is not None and dev.acknowledged[1] > s.received_monotonic_s:
+            push = pushes_store.get_push(conn, dev.acknowledged[0])
+        elif not running_only and s.pending_version is not None:
+            push = pushes_store.push_of_version(conn, device_id, s.pending_version)
+        if push is None and s.active_version is not None:
+            push = pushes_store.push_of_version(conn, device_id, s.active_version, s.active_crc32)
+        if push is not None:
+            words = push["label"]
+        elif s.active_version is None:
+            words = "no table"
+        else:
+            words = f"a table this server did not send (version {s.active_version}, CRC {s.active_crc32:08x})"
+        return {"push": push, "version": s.active_version, "crc32": s.active_crc32, "mode": s.mode.name.lower(),
+                "words": words}
+
+    def _status_after(self, dev: ManagedDevice, after_monotonic_s: float, wait_s: float = 0.5) -> None:
+        """Wait (at most ``wait_s``) for a status received after ``after_monotonic_s``, if the last one is older."""
+        deadline = time.monotonic() + wait_s
+        while (dev.status is None or dev.status.received_monotonic_s <= after_monotonic_s) and \
+                time.monotonic() < deadline and self.online(dev):
+            time.sleep(0.005)
+
+    @contextlib.contextmanager
+    def push_slot(self, device_id: str, wait_s: float = 15.0) -> Iterator[ManagedDevice]:
+        """One push at a time per device: the caller checks what the leg runs, records, sends and finishes inside.
+        A second push waits its turn (then sees what the first left on the leg), or is refused after ``wait_s``."""
+        dev = self.get(device_id)
+        if not dev.push_lock.acquire(timeout=wait_s):
+            raise ConflictError(f"another push to device {device_id} is still in progress; nothing was sent")
+        try:
+            yield dev
+        finally:
+            dev.push_lock.release()
+
+    def push_started(self, device_id: str, push_id: int) -> None:
+        self.get(device_id).in_flight.add(push_id)
+
+    def push_finished(self, device_id: str, push_id: int, acknowledged: bool) -> None:
+        """The push's outcome is recorded: from now on the device's reports decide it."""
+        dev = self.get(device_id)
+        if acknowledged:
+            dev.acknowledged = (push_id, time.monotonic())
+        dev.in_flight.discard(push_id)
+        dev.epoch += 1   # the next status (sent after this push ended) is reconciled whatever it says
+
     # ------------------------------------------------------------------------------------------ commands
 
     def push(self, device_id: str, table: ParameterTable, version: int) -> PushResult:
@@ -176,22 +246,40 @@ class DeviceManager:
         elif dev.walker is not None and reference is not None:
             dev.walker.start(reference, mass_kg)
 
-    def stop_recording(self, device_id: str) -> None:
-        """Stop recording (everything received so far is written before this returns)."""
+    def stop_recording(self, device_id: str) -> list[dict]:
+        """Stop recording (everything received so far is written before this returns). Returns what the device's
+        status reported while it walked, most reported first: mode, table version and CRC (None: no table), the
+        version's name when this server sent it, and the share of the status reports."""
         dev = self.get(device_id)
-        self.recorder.end(device_id)
+        reports = self.recorder.end(device_id)
+        if not reports and dev.status is not None:   # shorter than one status period: its latest report
+            s = dev.status
+            reports[(s.mode.name.lower(), None if s.active_version is None else (s.active_version, s.active_crc32))] = 1
         if dev.walker is not None:
             dev.walker.stop()
+        total = sum(reports.values()) or 1
+        out = []
+        with pooled(self.db) as conn:
+            for (mode, active), n in reports.most_common():
+                push = None if active is None else pushes_store.push_of_version(conn, device_id, *active)
+                out.append({"mode": mode, "table_version": None if active is None else active[0],
+                            "crc32": None if active is None else f"{active[1]:08x}",
+                            "label": None if push is None else push["label"], "share": round(n / total, 3)})
+        return out
 
     # ------------------------------------------------------------------------------------------ callbacks (rx thread)
 
     def _on_status(self, dev: ManagedDevice, status: DeviceStatus) -> None:
         dev.status = status
         active = None if status.active_version is None else (status.active_version, status.active_crc32)
-        if active is not None and active != dev.noted_active:
+        key = ((active, status.pending_version), dev.epoch)   # the epoch first, then who is in flight (see below)
+        in_flight = set(dev.in_flight)
+        if key != dev.reconciled:
             with pooled(self.db) as conn:
-                pushes_store.mark_active(conn, dev.spec.device_id, active[0], active[1])
-            dev.noted_active = active
+                pushes_store.reconcile(conn, dev.spec.device_id, active, status.pending_version, in_flight)
+            # a push that finished meanwhile moved the epoch on: the next status is reconciled again
+            dev.reconciled = key
+        self.recorder.note_status(dev.spec.device_id, status.mode.name.lower(), active)
         if dev.fanout:
             dev.fanout.publish({"type": "status", **self.view(dev.spec.device_id)})
 

@@ -5,6 +5,7 @@ sample would cost the bus thread a commit every 10 ms). Stopping a session write
 from __future__ import annotations
 
 import threading
+from collections import Counter
 
 from sqlalchemy.pool import QueuePool
 
@@ -20,6 +21,7 @@ class SessionRecorder:
     def __init__(self, db: QueuePool) -> None:
         self._db = db
         self._recording: dict[str, int] = {}        # device id → session id
+        self._reports: dict[str, Counter] = {}      # device id → (mode, (version, crc) or None) → status reports
         self._buffers: dict[str, list[tuple]] = {}
         self._lock = threading.Lock()
         self._write_lock = threading.Lock()
@@ -43,13 +45,23 @@ class SessionRecorder:
         with self._lock:
             self._recording[device_id] = session_id
             self._buffers[device_id] = []
+            self._reports[device_id] = Counter()
 
-    def end(self, device_id: str) -> None:
-        """Stop recording ``device_id``; everything received so far is written before this returns."""
+    def end(self, device_id: str) -> Counter:
+        """Stop recording ``device_id``; everything received so far is written before this returns. Returns what
+        the device's status reports said while it was recorded: (mode, (version, CRC) or None) → how many."""
         self.flush()
         with self._lock:
             self._recording.pop(device_id, None)
             self._buffers.pop(device_id, None)
+            return self._reports.pop(device_id, Counter())
+
+    def note_status(self, device_id: str, mode: str, active: tuple[int, int] | None) -> None:
+        """One status report of a device (counted only while it is recorded)."""
+        with self._lock:
+            reports = self._reports.get(device_id)
+            if reports is not None:
+                reports[(mode, active)] += 1
 
     def add(self, device_id: str, row: tuple) -> None:
         """One sample (in :data:`backend.store.sessions.SAMPLE_COLUMNS` order), if the device is recording."""

@@ -71,27 +71,41 @@ def push_envelope(envelope_id: IdPath, body: PushRequest, request: Request, conn
 
 def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed,
           row: sqlite3.Row, violations: list, crc: int, send: Callable[[int], PushResult]) -> dict:
-    """The checks every push passes, in order, then record → send → finish. Nothing is sent when one fails."""
+    """The checks every push passes, in order, then record → send → finish, one push at a time per device (what the
+    leg runs is checked inside that turn, so two pushes confirming the same table cannot both go). Nothing is sent
+    when a check fails."""
     kind, item_id = item
     if row["status"] != "approved":
         raise ConflictError(f"{kind} {item_id} is {row['status']}; only approved {kind}s can be pushed")
     devices.get(body.device_id)
     _check_patient(conn, row, body.device_id, "table" if kind == "proposal" else "envelope")
-    _check_replaces(conn, body)
     if violations:
         raise ConflictError(f"{kind} {item_id} fails the safety limits; not pushed: "
                             + "; ".join(v.message for v in violations[:5]),
                             violations=[v.model_dump() for v in violations])
-    if not devices.online(devices.get(body.device_id)):
-        raise ConflictError(f"device {body.device_id} is offline (no status in the last second); nothing was sent")
-    push_id, version = store.begin_push(conn, item, body.device_id, crc, user)
-    t0 = time.monotonic()
-    try:
-        result = send(version)
-    except (PushError, ConflictError) as exc:
-        store.finish_push(conn, push_id, False, None, (time.monotonic() - t0) * 1e3, str(exc))
-        raise DeviceError(f"push {push_id} failed: {exc}", push=store.get_push(conn, push_id)) from exc
-    store.finish_push(conn, push_id, True, result.attempts, result.elapsed_ms, None)
+    with devices.push_slot(body.device_id):
+        _check_replaces(conn, devices, body)
+        if not devices.online(devices.get(body.device_id)):
+            raise ConflictError(f"device {body.device_id} is offline (no status in the last second); nothing was sent")
+        push_id, version = store.begin_push(conn, item, body.device_id, crc, user)
+        devices.push_started(body.device_id, push_id)
+        t0 = time.monotonic()
+        try:
+            result = send(version)
+        except (PushError, ConflictError) as exc:
+            unconfirmed = isinstance(exc, PushError) and exc.reason == "timeout"
+            store.finish_push(conn, push_id, "unconfirmed" if unconfirmed else "failed", None,
+                              (time.monotonic() - t0) * 1e3, str(exc))
+            devices.push_finished(body.device_id, push_id, acknowledged=False)
+            raise DeviceError(f"push {push_id} {'unconfirmed' if unconfirmed else 'failed'}: {exc}",
+                              push=store.get_push(conn, push_id)) from exc
+        except BaseException:
+            store.finish_push(conn, push_id, "unconfirmed", None, (time.monotonic() - t0) * 1e3,
+                              "the push was interrupted; the device's next status tells whether it holds it")
+            devices.push_finished(body.device_id, push_id, acknowledged=False)
+            raise
+        store.finish_push(conn, push_id, "acknowledged", result.attempts, result.elapsed_ms, None)
+        devices.push_finished(body.device_id, push_id, acknowledged=True)
     return store.get_push(conn, push_id)
 
 
@@ -112,16 +126,19 @@ def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, w
                             "mass; propose again for the new mass. Nothing was sent")
 
 
-def _check_replaces(conn: sqlite3.Connection, body: PushRequest) -> None:
-    """What the caller confirmed replacing is what the leg runs (or is about to run) now."""
-    current = store.current_push(conn, body.device_id)
+def _check_replaces(conn: sqlite3.Connection, devices: DeviceManager, body: PushRequest) -> None:
+    """What the caller confirmed replacing is what the device reports running (or about to run) now."""
+    leg = devices.on_leg(conn, body.device_id)
+    current = leg["push"]
     now = (None, None) if current is None else (current["proposal_id"], current["envelope_id"])
     if now != (body.replaces_proposal_id, body.replaces_envelope_id):
-        running = "nothing from this server" if current is None else (
+        running = leg["words"] if current is None else (
             f"{current['label']} ({current['task']['speed_mps']:g} m/s, {current['task']['incline_deg']:g}°"
             f"{' nominal' if current['kind'] == 'envelope' else ''})")
         raise ConflictError(f"device {body.device_id} now runs {running}, not what you confirmed replacing; review "
-                            "and confirm again. Nothing was sent")
+                            "and confirm again. Nothing was sent", on_leg={
+                                "label": None if current is None else current["label"],
+                                "proposal_id": now[0], "envelope_id": now[1], "words": leg["words"]})
 
 
 @router.get("/proposals/{proposal_id}/pushes", response_model=list[PushOut], responses=NOT_FOUND)

@@ -17,7 +17,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest, TrendDay
 from backend.store import devices as devices_store
-from backend.store import envelopes, patients, pushes
+from backend.store import envelopes, patients
 from backend.store import sessions as store
 from controller_core.session_regions import adaptive_summary
 from controller_core.session_summary import device_times, session_strikes, summarize_session
@@ -33,7 +33,8 @@ router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
 def start_session(patient_id: IdPath, body: SessionRequest, request: Request, conn: Conn, user: Monitor,
                   model: Model) -> dict:
     """Start recording the device's telemetry for this patient (prosthetist or viewer): the device must be
-    assigned to the patient, and the table or envelope on it (if any) be theirs. The task defaults to that of the
+    assigned to the patient, and the table or envelope it reports running (if any) be theirs; the session records the
+    version and CRC the device reports, never what the records believe. The task defaults to that of the
     table on the device (an envelope's nominal task); the simulated leg starts walking at it, or walks ``course``
     (its first task is then the session's task)."""
     devices: DeviceManager = request.app.state.devices
@@ -44,7 +45,8 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
         on = "nobody" if assigned is None else f"{assigned['patient_code']} ({assigned['body_mass_kg']:g} kg)"
         raise ConflictError(f"device {body.device_id} is assigned to {on}, not to {patient['code_name']}: a session "
                             "records the patient wearing the device; change the assignment first")
-    active = pushes.current_push(conn, body.device_id)
+    leg = devices.on_leg(conn, body.device_id, running_only=True)   # what the device reports, not our records
+    active = leg["push"]
     if active is not None and active["patient_id"] != patient_id:
         raise ConflictError(f"the leg runs {active['label']}, another patient's {active['kind']}; push one of "
                             f"{patient['code_name']}'s approved tables or envelopes before recording")
@@ -65,7 +67,9 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
     mass = patient["body_mass_kg"]
     reference = task_reference(speed, incline, model, mass)
     task = {"speed_mps": speed, "incline_deg": incline, "body_mass_kg": mass}
-    session_id = store.start_session(conn, patient_id, body.device_id, task, active, user, body.course)
+    ran = {"proposal_id": active and active["proposal_id"], "envelope_id": active and active["envelope_id"],
+           "table_version": leg["version"], "crc32": leg["crc32"]}
+    session_id = store.start_session(conn, patient_id, body.device_id, task, ran, user, body.course)
     devices.start_recording(body.device_id, session_id, reference, mass, course)
     return store.get_session(conn, session_id)
 
@@ -78,8 +82,9 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
     session = store.get_session(conn, session_id)
     if session["status"] != "recording":
         raise ConflictError(f"session {session_id} was already stopped at {session['stopped_at']}")
+    reported: list[dict] = []
     if session["device_id"] in devices.ids():
-        devices.stop_recording(session["device_id"])
+        reported = devices.stop_recording(session["device_id"])
     t = session["task"]
     cols = store.samples(conn, session_id)
     times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]))
@@ -100,6 +105,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor
             lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), running_table=running)
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
+    summary["device_reported"] = reported
     seqs = cols["seq"]
     summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
     store.stop_session(conn, session_id, summary, user)

@@ -86,7 +86,8 @@ class EnvelopeSummary(DecidedVersion):
 
 
 class EnvelopeOut(EnvelopeSummary):
-    deployment: Literal["pushed", "active_on_device", "replaced", "push_failed"] | None = Field(
+    deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
+                        "push_failed"] | None = Field(
         default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it")
     nodes: list[NodeOut] = Field(description="speed-major: node i × len(inclines_deg) + j")
 

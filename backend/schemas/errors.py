@@ -34,4 +34,5 @@ CONFLICT = {409: _r("clashes with the stored state")}
 UNAVAILABLE = {503: _r("the model is still loading (see Retry-After)")}
 TOO_MANY = {429: _r("too many failed sign-ins (see Retry-After)")}
 INVALID = {422: _r("a field is missing, malformed or out of range; `detail` names it")}
-DEVICE_FAILED = {502: _r("the device did not acknowledge (or refused); it keeps its previous table")}
+DEVICE_FAILED = {502: _r("the device refused the push (it keeps its previous table), or did not acknowledge it "
+                         "(then the push is unconfirmed until the device's next status decides)")}

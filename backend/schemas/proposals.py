@@ -158,7 +158,8 @@ class ProposalSummary(DecidedVersion):
 
 
 class ProposalOut(ProposalSummary):
-    deployment: Literal["pushed", "active_on_device", "replaced", "push_failed"] | None = Field(
+    deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
+                        "push_failed"] | None = Field(
         default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it; "
                                   "replaced once another table took its place")
     features: list[FeatureOut]

@@ -36,7 +36,9 @@ class PushOut(BaseModel):
     task: dict[str, float] = Field(description="the table's task, or the envelope's nominal task")
     table_version: int = Field(description="the device's own version number for this push (16-bit, per device)")
     crc32: str = Field(description="CRC-32 (hex) of the table or envelope as sent, in the wire's fixed-point")
-    status: Literal["sending", "acknowledged", "active", "failed", "superseded"]
+    status: Literal["sending", "unconfirmed", "acknowledged", "active", "failed", "superseded", "lost"] = Field(
+        description="as the device last reported it: unconfirmed (no acknowledgement yet: the device's next status "
+                    "decides), lost (the device reported it no longer holds it: restarted or lost)")
     requested_by: str
     requested_at: str
     acknowledged_at: str | None

@@ -81,51 +81,88 @@ def begin_push(conn: sqlite3.Connection, item: Pushed, device_id: str, crc32: in
     return push_id, version
 
 
-def finish_push(conn: sqlite3.Connection, push_id: int, ok: bool, attempts: int | None, elapsed_ms: float,
-                error: str | None) -> None:
-    """``acknowledged`` or ``failed`` (a push already marked active by the device's status stays active)."""
+def finish_push(conn: sqlite3.Connection, push_id: int, outcome: Literal["acknowledged", "failed", "unconfirmed"],
+                attempts: int | None, elapsed_ms: float, error: str | None) -> None:
+    """``acknowledged`` (the device read back the CRC), ``failed`` (it refused) or ``unconfirmed`` (no answer: its
+    next status decides, :func:`reconcile`). A push the device's status has already decided keeps that."""
     now = utc_now()
     with write_transaction(conn):
-        if ok:
+        if outcome == "acknowledged":
             conn.execute("UPDATE pushes SET status = CASE status WHEN 'sending' THEN 'acknowledged' ELSE status END, "
                          "acknowledged_at = ?, attempts = ?, elapsed_ms = ? WHERE id = ?",
                          (now, attempts, elapsed_ms, push_id))
         else:
-            conn.execute("UPDATE pushes SET status = CASE status WHEN 'sending' THEN 'failed' ELSE status END, "
-                         "ended_at = ?, elapsed_ms = ?, error = ? WHERE id = ?", (now, elapsed_ms, error, push_id))
+            conn.execute("UPDATE pushes SET status = CASE status WHEN 'sending' THEN ? ELSE status END, "
+                         "ended_at = CASE ? WHEN 'failed' THEN ? ELSE ended_at END, elapsed_ms = ?, error = ? "
+                         "WHERE id = ?", (outcome, outcome, now, elapsed_ms, error, push_id))
+
+
+def interrupted_pushes(conn: sqlite3.Connection) -> int:
+    """At start-up: pushes left ``sending`` by a server that stopped mid-push become ``unconfirmed`` (each device's
+    next status decides them). Returns how many."""
+    with write_transaction(conn):
+        cur = conn.execute("UPDATE pushes SET status = 'unconfirmed', error = ? WHERE status = 'sending'",
+                           ("the server stopped during this push; the device's next status tells whether it holds it",))
+    return cur.rowcount
+
+
+def _describe(active: tuple[int, int] | None) -> str:
+    return "no table" if active is None else f"version {active[0]}, CRC {active[1]:08x}"
+
+
+def reconcile(conn: sqlite3.Connection, device_id: str, active: tuple[int, int] | None, pending_version: int | None,
+              in_flight: set[int]) -> list[Pushed]:
+    """Make the records say what the device reports: ``active`` (version, CRC) running, ``pending_version`` staged.
+
+    * the newest push of exactly the running version and CRC is ``active`` (whatever it was recorded as: a push whose
+      acknowledgement was lost, or one from before a restart);
+    * an ``active`` push the device no longer runs is ``superseded`` when the device runs one of ours sent later or a
+      table this server did not send, and ``lost`` when it reports no table (it restarted, or lost it);
+    * an ``acknowledged`` push stays while the device reports it staged; otherwise it is superseded or lost likewise;
+    * ``sending`` and ``unconfirmed`` pushes not in flight in this process are ``acknowledged`` when the device
+      reports them staged and ``failed`` when it holds neither.
+
+    Pushes in ``in_flight`` (being sent now) are left to their sender. Returns what changed."""
+    now, changed = utc_now(), []
+    reported = _describe(active)
+    with write_transaction(conn):
+        running = None if active is None else conn.execute(
+            "SELECT id FROM pushes WHERE device_id = ? AND table_version = ? AND crc32 = ? ORDER BY id DESC LIMIT 1",
+            (device_id, *active)).fetchone()
+        running_id = None if running is None else running["id"]
+        rows = conn.execute("SELECT id, proposal_id, envelope_id, status, table_version FROM pushes WHERE device_id = ? "
+                            "AND (status IN ('sending', 'unconfirmed', 'acknowledged', 'active') OR id = ?)",
+                            (device_id, running_id)).fetchall()
+        for r in rows:
+            if r["id"] in in_flight:
+                continue
+            status, error, at = r["status"], None, {}
+            if r["id"] == running_id:
+                status, at = "active", {"active_at": now}
+            elif r["status"] in ("sending", "unconfirmed"):
+                if pending_version == r["table_version"]:
+                    status, at = "acknowledged", {"acknowledged_at": now}
+                    error = "no acknowledgement arrived; the device's status then reported it staged"
+                else:
+                    status, at = "failed", {"ended_at": now}
+                    error = f"no acknowledgement, and the device then reported {reported}: it did not take this push"
+            elif r["status"] == "acknowledged" and pending_version == r["table_version"]:
+                continue
+            elif r["status"] in ("acknowledged", "active"):
+                ours_later = running_id is not None and running_id > r["id"]
+                status, at = ("superseded" if ours_later or active is not None else "lost"), {"ended_at": now}
+                error = None if ours_later else f"the device reported {reported}: it no longer holds this table"
+            if status == r["status"]:
+                continue
+            sets = ", ".join(["status = ?", *(f"{k} = ?" for k in at), *(["error = ?"] if error else [])])
+            conn.execute(f"UPDATE pushes SET {sets} WHERE id = ?",
+                         (status, *at.values(), *([error] if error else []), r["id"]))
+            changed.append(_item(r))
+    return changed
 
 
 def _item(row: sqlite3.Row) -> Pushed:
     return ("proposal", row["proposal_id"]) if row["proposal_id"] is not None else ("envelope", row["envelope_id"])
-
-
-def mark_active(conn: sqlite3.Connection, device_id: str, version: int, crc32: int) -> list[Pushed]:
-    """The device reports ``version``/``crc32`` running: the newest push of exactly that table becomes ``active``
-    and any other active push on the device ``superseded``. Returns what changed (``("proposal", id)`` or
-    ``("envelope", id)``)."""
-    now = utc_now()
-    with write_transaction(conn):
-        row = conn.execute("SELECT id, proposal_id, envelope_id, status FROM pushes WHERE device_id = ? AND "
-                           "table_version = ? AND "
-                           "crc32 = ? ORDER BY id DESC LIMIT 1", (device_id, version, crc32)).fetchone()
-        old = conn.execute("SELECT id, proposal_id, envelope_id FROM pushes WHERE device_id = ? AND status = 'active'",
-                           (device_id,)).fetchall()
-        changed = []
-        for o in old:
-            if row is None or o["id"] != row["id"]:
-                conn.execute("UPDATE pushes SET status = 'superseded', ended_at = ? WHERE id = ?", (now, o["id"]))
-                changed.append(_item(o))
-        if row is not None and row["status"] != "active":
-            conn.execute("UPDATE pushes SET status = 'active', active_at = ? WHERE id = ?", (now, row["id"]))
-            changed.append(_item(row))
-        if row is not None:     # older pushes the device acknowledged but never ran were overwritten by this one
-            stale = conn.execute("SELECT id, proposal_id, envelope_id FROM pushes WHERE device_id = ? AND "
-                                 "status = 'acknowledged' "
-                                 "AND id < ?", (device_id, row["id"])).fetchall()
-            for o in stale:
-                conn.execute("UPDATE pushes SET status = 'superseded', ended_at = ? WHERE id = ?", (now, o["id"]))
-                changed.append(_item(o))
-    return changed
 
 
 def push_of_version(conn: sqlite3.Connection, device_id: str, version: int | None,
@@ -150,14 +187,21 @@ def current_push(conn: sqlite3.Connection, device_id: str) -> dict | None:
 
 
 def deployment_state(conn: sqlite3.Connection, item: Pushed) -> str | None:
-    """``active_on_device`` / ``pushed`` (on its way: sent or read back, not yet running) / ``replaced`` (ran or
-    was sent, then another table took its place) / ``push_failed`` / None (never pushed), from its pushes."""
+    """From its pushes, as the device last reported them (:func:`reconcile`): ``active_on_device`` / ``pushed`` (on
+    its way: sent or read back, not yet running) / ``unconfirmed`` (no acknowledgement yet; the device's next status
+    decides) / ``replaced`` (ran or was sent, then another table took its place) / ``not_on_device`` (the device
+    reported it no longer holds it: restarted or lost) / ``push_failed`` / None (never pushed)."""
     kind, item_id = item
+    row = conn.execute(f"SELECT status FROM pushes WHERE {kind}_id = ? ORDER BY id DESC LIMIT 1", (item_id,)).fetchone()
     statuses = {r[0] for r in conn.execute(f"SELECT status FROM pushes WHERE {kind}_id = ?", (item_id,))}
     if "active" in statuses:
         return "active_on_device"
     if statuses & {"acknowledged", "sending"}:
         return "pushed"
-    if "superseded" in statuses:
+    if "unconfirmed" in statuses:
+        return "unconfirmed"
+    if row is not None and row[0] == "lost":
+        return "not_on_device"
+    if statuses & {"superseded", "lost"}:
         return "replaced"
     return "push_failed" if statuses else None

@@ -55,9 +55,11 @@ def sessions_of_patient(conn: sqlite3.Connection, patient_id: int) -> list[dict]
     return [_session(r) for r in rows]
 
 
-def start_session(conn: sqlite3.Connection, patient_id: int, device_id: str, task: dict, active: dict | None,
+def start_session(conn: sqlite3.Connection, patient_id: int, device_id: str, task: dict, ran: dict,
                   actor: User, course: str | None = None) -> int:
-    """Open a recording session (409 when the device already records one)."""
+    """Open a recording session (409 when the device already records one). ``ran``: what the device reports running
+    (``table_version`` and ``crc32`` as reported, None for no table; ``proposal_id`` or ``envelope_id`` when this
+    server sent it)."""
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM walking_sessions WHERE device_id = ? AND status = 'recording'",
                         (device_id,)).fetchone():
@@ -66,15 +68,14 @@ def start_session(conn: sqlite3.Connection, patient_id: int, device_id: str, tas
             "INSERT INTO walking_sessions (patient_id, device_id, proposal_id, envelope_id, table_version, table_crc32, "
             "speed_mps, incline_deg, body_mass_kg, course, status, started_by, started_at) "
             "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'recording', ?, ?)",
-            (patient_id, device_id, active["proposal_id"] if active else None,
-             active["envelope_id"] if active else None,
-             active["table_version"] if active else None, int(active["crc32"], 16) if active else None,
+            (patient_id, device_id, ran["proposal_id"], ran["envelope_id"], ran["table_version"], ran["crc32"],
              task["speed_mps"], task["incline_deg"], task["body_mass_kg"], course, actor.id, utc_now()))
         session_id = int(cur.lastrowid)
         audit.record(conn, actor.id, actor.username, "session.start", "session", session_id,
                      after={"patient_id": patient_id, "device_id": device_id, "task": task, "course": course,
-                            "proposal_id": active["proposal_id"] if active else None,
-                            "envelope_id": active["envelope_id"] if active else None})
+                            "proposal_id": ran["proposal_id"], "envelope_id": ran["envelope_id"],
+                            "device_reported": {"table_version": ran["table_version"],
+                                                "crc32": None if ran["crc32"] is None else f"{ran['crc32']:08x}"}})
     return session_id
 
 

@@ -13,7 +13,8 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
   if (pushes.length) {
     status.append(table(["Push", "Device", "CRC-32", "Status", "Requested", "Acknowledged", "Active"],
       pushes.map((x) => h("tr", {}, h("td", {}, `#${x.id}`), h("td", {}, x.device_id), h("td", { class: "mono" }, x.crc32),
-        h("td", {}, chip(x.status, x.status === "failed" ? "bad" : x.status === "superseded" ? "" : "ok")),
+        h("td", {}, chip(x.status, ["failed", "lost"].includes(x.status) ? "bad"
+          : x.status === "unconfirmed" ? "warn" : x.status === "superseded" ? "" : "ok")),
         h("td", {}, when(x.requested_at)), h("td", {}, when(x.acknowledged_at)), h("td", {}, when(x.active_at))))));
   }
   if (item.status !== "approved" || !canPush || !devices.length) {

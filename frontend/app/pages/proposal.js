@@ -97,6 +97,8 @@ export async function proposalPage(view, id) {
 
 const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
   active_on_device: ["running on a leg", "ok"], replaced: ["was on a leg, since replaced", ""],
+  unconfirmed: ["push unconfirmed: waiting for the leg's status", "warn"],
+  not_on_device: ["no longer on the leg (the leg reported it does not hold it)", "bad"],
   push_failed: ["last push failed", "bad"] };
 
 function headChips(p) {

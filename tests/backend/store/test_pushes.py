@@ -25,15 +25,15 @@ def _pushes(api, n: int) -> tuple[object, list[int], list[int], list[int]]:
 def test_acknowledged_push_is_current_before_the_device_reports_it(api):
     conn, proposal_ids, (push_id,), _versions = _pushes(api, 1)
     assert pushes.current_push(conn, "leg") is None                    # still sending: nothing on the leg yet
-    pushes.finish_push(conn, push_id, True, 1, 3.0, None)
+    pushes.finish_push(conn, push_id, "acknowledged", 1, 3.0, None)
     assert pushes.current_push(conn, "leg")["proposal_id"] == proposal_ids[0]
 
 
 def test_running_a_table_supersedes_older_acknowledged_pushes(api):
     conn, proposal_ids, push_ids, versions = _pushes(api, 3)
     for push_id in push_ids:
-        pushes.finish_push(conn, push_id, True, 1, 3.0, None)
-    changed = pushes.mark_active(conn, "leg", versions[1], 0xABC0 + proposal_ids[1])
+        pushes.finish_push(conn, push_id, "acknowledged", 1, 3.0, None)
+    changed = pushes.reconcile(conn, "leg", (versions[1], 0xABC0 + proposal_ids[1]), versions[2], set())
     statuses = [pushes.get_push(conn, i)["status"] for i in push_ids]
     assert statuses == ["superseded", "active", "acknowledged"]        # the newest is still to be run
     assert set(changed) == {("proposal", proposal_ids[0]), ("proposal", proposal_ids[1])}
@@ -64,3 +64,48 @@ def test_the_table_version_is_the_devices_own_counter_and_wraps_past_16_bits(api
     # a reused number still names the newest push of that version and CRC
     assert pushes.push_of_version(conn, "leg", 2, 0x1234)["id"] > push_ids[1]
     assert pushes.push_of_version(conn, "leg", 2, 0xABC0 + proposal_ids[1])["id"] == push_ids[1]
+
+
+def test_the_records_follow_what_the_device_reports_after_a_restart(api):
+    """A server killed mid-push, a device that came back with no table: nothing stays active or sending."""
+    conn, proposal_ids, push_ids, versions = _pushes(api, 3)
+    pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)
+    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), None, set())
+    pushes.finish_push(conn, push_ids[1], "acknowledged", 1, 3.0, None)      # staged, waiting for heel strike
+    # push 2 is left 'sending' by a server that was killed
+    assert pushes.interrupted_pushes(conn) == 1
+    assert pushes.get_push(conn, push_ids[2])["status"] == "unconfirmed"
+    pushes.reconcile(conn, "leg", None, None, set())                          # the leg restarted: no table
+    statuses = [pushes.get_push(conn, i)["status"] for i in push_ids]
+    assert statuses == ["lost", "lost", "failed"]
+    assert "no table" in pushes.get_push(conn, push_ids[0])["error"]
+    assert pushes.current_push(conn, "leg") is None
+    assert [pushes.deployment_state(conn, ("proposal", p)) for p in proposal_ids] == ["not_on_device"] * 2 + [
+        "push_failed"]
+
+
+def test_an_unconfirmed_push_is_decided_by_the_devices_next_status(api):
+    conn, proposal_ids, push_ids, versions = _pushes(api, 2)
+    for i in push_ids:
+        pushes.finish_push(conn, i, "unconfirmed", 3, 2000.0, "no acknowledgement")
+    assert [pushes.get_push(conn, i)["status"] for i in push_ids] == ["unconfirmed", "unconfirmed"]
+    assert pushes.deployment_state(conn, ("proposal", proposal_ids[0])) == "unconfirmed"
+    # the device runs the first (its acknowledgement was lost as it switched) and never got the second
+    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), None, set())
+    assert [pushes.get_push(conn, i)["status"] for i in push_ids] == ["active", "failed"]
+
+
+def test_a_push_in_flight_is_left_to_its_sender_and_a_staged_one_is_kept(api):
+    conn, _proposal_ids, push_ids, versions = _pushes(api, 2)
+    pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)
+    pushes.reconcile(conn, "leg", None, versions[0], {push_ids[1]})
+    assert [pushes.get_push(conn, i)["status"] for i in push_ids] == ["acknowledged", "sending"]
+
+
+def test_a_device_running_a_table_this_server_did_not_send_supersedes_ours(api):
+    conn, proposal_ids, push_ids, versions = _pushes(api, 1)
+    pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)
+    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), None, set())
+    pushes.reconcile(conn, "leg", (999, 0xDEADBEEF), None, set())
+    push = pushes.get_push(conn, push_ids[0])
+    assert push["status"] == "superseded" and "version 999, CRC deadbeef" in push["error"]
