@@ -22,7 +22,7 @@ from backend.db import open_pool
 from backend.devices import DeviceManager, parse_device_spec
 from backend.errors import DomainError
 from backend.frontend import mount_frontend
-from backend.headers import add_security_headers, mount_docs
+from backend.headers import add_security_headers, mount_docs, refuse_anonymous_writes
 from backend.migrate import migrate
 from backend.model_service import ModelService
 from backend.routers import (
@@ -128,6 +128,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)
+    refuse_anonymous_writes(app)   # inside the security headers, so its 401 carries them too
     add_security_headers(app)
     app.openapi = lambda: _openapi(app)
     return app

@@ -13,7 +13,7 @@ from collections.abc import Awaitable, Callable
 
 from fastapi import FastAPI, Request, Response
 from fastapi.openapi.docs import get_swagger_ui_html
-from fastapi.responses import HTMLResponse
+from fastapi.responses import HTMLResponse, JSONResponse
 
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:; "
        "connect-src 'self'; frame-src http://127.0.0.1:*; frame-ancestors 'none'; base-uri 'none'; "
@@ -31,6 +31,24 @@ def add_security_headers(app: FastAPI) -> None:
         for name, value in HEADERS.items():
             response.headers.setdefault(name, value)
         return response
+
+
+# writes that need a signed-in user: everything under /api except signing in (and the health check, a GET)
+_OPEN_WRITES = ("/api/auth/token",)
+
+
+def refuse_anonymous_writes(app: FastAPI) -> None:
+    """A write under /api without any credentials is answered 401 before its body is read or validated, so an
+    anonymous client learns nothing of the schema (a malformed body would otherwise answer 422 first)."""
+
+    @app.middleware("http")
+    async def _anonymous(request: Request, call_next: Callable[[Request], Awaitable[Response]]) -> Response:
+        path = request.url.path
+        if (request.method in ("POST", "PUT", "PATCH", "DELETE") and path.startswith("/api/")
+                and path not in _OPEN_WRITES and "authorization" not in request.headers):
+            return JSONResponse({"detail": "not signed in"}, status_code=401,
+                                headers={"WWW-Authenticate": "Bearer"})
+        return await call_next(request)
 
 
 def mount_docs(app: FastAPI) -> None:

@@ -81,7 +81,10 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
     if host not in ("127.0.0.1", "::1", "localhost"):
         print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
     try:
-        uvicorn.Server(uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on")).run(sockets=[sock])
+        # forwarded headers only from the proxies named in the settings (uvicorn trusts 127.0.0.1 by default)
+        proxies = list(settings.trusted_proxies)
+        uvicorn.Server(uvicorn.Config(app, log_level=log_level, access_log=False, lifespan="on",
+                                      proxy_headers=bool(proxies), forwarded_allow_ips=proxies)).run(sockets=[sock])
     finally:
         sock.close()
     return 0

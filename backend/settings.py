@@ -38,6 +38,9 @@ class Settings:
         viewer3d: also serve viser's 3D view of each leg on a loopback port. Off by default: viser has no login,
             so anyone on this machine could watch the live telemetry there; the dashboard's own leg view comes
             through the signed-in telemetry stream instead.
+        trusted_proxies: addresses of reverse proxies whose ``X-Forwarded-For`` / ``X-Forwarded-Proto`` are believed
+            (uvicorn's ``forwarded_allow_ips``). None by default: every other client could otherwise claim any
+            address and dodge, or aim, the sign-in throttle.
     """
 
     data_dir: Path
@@ -47,6 +50,7 @@ class Settings:
     device: str = "none"
     frontend_dir: Path = field(default_factory=default_frontend_dir)
     viewer3d: bool = False
+    trusted_proxies: tuple[str, ...] = ()
 
     @property
     def db_path(self) -> Path:

@@ -49,6 +49,7 @@ async def _telemetry(ws_url: str, stop: asyncio.Event) -> dict:
     import websockets
 
     seqs: list[int] = []
+    arrivals: list[float] = []
     async with websockets.connect(ws_url, max_queue=None) as ws:
         t0 = time.perf_counter()
         while not stop.is_set():
@@ -58,9 +59,44 @@ async def _telemetry(ws_url: str, stop: asyncio.Event) -> dict:
                 continue
             if msg["type"] == "telemetry":
                 seqs.append(msg["seq"])
+                arrivals.append(time.perf_counter())
         wall = time.perf_counter() - t0
     gaps = sum(1 for a, b in itertools.pairwise(seqs) if (b - a) % 65536 != 1)
-    return {"telemetry_hz": round(len(seqs) / wall, 1), "telemetry_sequence_gaps": gaps}
+    largest = max((b - a for a, b in itertools.pairwise(arrivals)), default=wall)
+    return {"telemetry_hz": round(len(seqs) / wall, 1), "telemetry_sequence_gaps": gaps,
+            "telemetry_largest_gap_ms": round(largest * 1e3, 1)}
+
+
+async def _reads(base: str, headers: dict, paths: list[str], clients: int, seconds: float, ws_url: str) -> dict:
+    """``clients`` clients reading ``paths`` in turn for ``seconds`` while one WebSocket client takes the telemetry:
+    what a clinic's list pages cost the live stream."""
+    import httpx
+
+    latencies: list[float] = []
+    codes: dict[int, int] = {}
+
+    async def reader(i: int, deadline: float) -> None:
+        async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) as c:
+            n = i
+            while time.perf_counter() < deadline:
+                t0 = time.perf_counter()
+                r = await c.get(paths[n % len(paths)])
+                latencies.append(time.perf_counter() - t0)
+                codes[r.status_code] = codes.get(r.status_code, 0) + 1
+                n += 1
+
+    stop = asyncio.Event()
+    telemetry = asyncio.create_task(_telemetry(ws_url, stop))
+    await asyncio.sleep(0.5)
+    t_start = time.perf_counter()
+    await asyncio.gather(*(reader(i, t_start + seconds) for i in range(clients)))
+    stop.set()
+    stream = await telemetry
+    lat = np.array(latencies) * 1e3
+    return {"read_requests": int(lat.size), "read_p50_ms": round(float(np.percentile(lat, 50)), 2),
+            "read_p99_ms": round(float(np.percentile(lat, 99)), 2), "read_non_200": sum(v for k, v in codes.items()
+                                                                                     if k != 200),
+            **{f"reads_{k}": v for k, v in stream.items()}}
 
 
 async def _run(base: str, clients: int, seconds: float) -> dict:
@@ -112,6 +148,11 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
     stop.set()
     stream = await telemetry
     wall = max(finished) - t_start
+    envelope = (await httpx.AsyncClient(base_url=base, headers=headers, timeout=60.0).post(
+        f"/api/patients/{patient['id']}/envelopes", json={"grid": [5, 5]})).json()
+    reads = await _reads(base, headers, [url, f"/api/patients/{patient['id']}/envelopes", f"/api/envelopes/"
+                                         f"{envelope['id']}", f"/api/patients/{patient['id']}/sessions"],
+                         clients, seconds, ws_url)
     async with httpx.AsyncClient(base_url=base, timeout=30.0) as c:
         summary = (await c.post(f"/api/sessions/{session['id']}/stop", headers=headers)).json()["summary"]
     lat = np.array(latencies) * 1e3
@@ -119,7 +160,7 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
             "proposals_per_s": round(statuses.get(201, 0) / wall, 1),
             "p50_ms": round(float(np.percentile(lat, 50)), 2), "p95_ms": round(float(np.percentile(lat, 95)), 2),
             "p99_ms": round(float(np.percentile(lat, 99)), 2), "max_ms": round(float(lat.max()), 2),
-            "non_201": sum(v for k, v in statuses.items() if k != 201), **stream,
+            "non_201": sum(v for k, v in statuses.items() if k != 201), **stream, **reads,
             "session_missing_samples": summary["missing_samples"]}
 
 

@@ -52,8 +52,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     device = args.device or os.environ.get("QUASITUNE_DEVICE") or "sim"
     parse_device_spec(device)   # refuse a bad spec before anything starts
-    return serve(dataclasses.replace(_settings(args), device=device, viewer3d=args.viewer3d), host=args.host,
-                 port=args.port, bootstrap=not args.no_bootstrap_user)
+    proxies = tuple(args.trusted_proxy or os.environ.get("QUASITUNE_TRUSTED_PROXIES", "").replace(",", " ").split())
+    return serve(dataclasses.replace(_settings(args), device=device, viewer3d=args.viewer3d, trusted_proxies=proxies),
+                 host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user)
 
 
 def _read_password() -> str:
@@ -170,6 +171,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="'sim' (default: the simulated leg on an in-process virtual CAN bus), 'none', or "
                         "INTERFACE:CHANNEL for a real leg on a python-can bus (e.g. socketcan:can0); "
                         "default $QUASITUNE_DEVICE or sim")
+    p.add_argument("--trusted-proxy", action="append", default=None, metavar="ADDRESS",
+                   help="a reverse proxy whose X-Forwarded-For is believed (repeatable; default "
+                        "$QUASITUNE_TRUSTED_PROXIES, comma-separated, else none)")
     p.add_argument("--viewer3d", action="store_true",
                    help="also serve viser's 3D view of the leg on a loopback port; viser has no login, so anyone on "
                         "this machine can watch it: only for an engineer's single-user bench")

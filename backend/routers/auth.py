@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, Request, status
+from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
 from fastapi.security import OAuth2PasswordRequestForm
 
 from backend.deps import Conn, SignedIn, get_settings, oauth2
@@ -33,11 +33,12 @@ def _throttled(request: Request, name: str) -> tuple[LoginThrottle, str]:
 
 
 @router.post("/auth/token", response_model=TokenOut, responses={**UNAUTHORIZED, **TOO_MANY})
-def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Request, conn: Conn,
+def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Request, response: Response, conn: Conn,
           settings: Annotated[Settings, Depends(get_settings)]) -> TokenOut:
     """Exchange a user name and password (form fields) for a bearer token that expires. After too many failed
-    sign-ins for one name, or from one address, within a minute: 429 with Retry-After, and nothing is checked or
-    written until then (so failed sign-ins write a bounded number of audit rows)."""
+    sign-ins for one name from one address, from one address for any names, or for one name from everywhere, within
+    a minute: 429 with Retry-After, and nothing is checked or written until then (so failed sign-ins write a bounded
+    number of audit rows). The address is the TCP peer's, or the one a trusted proxy (settings) forwards."""
     name = form.username[:64] if is_utf8_encodable(form.username) else "<not UTF-8>"
     throttle, address = _throttled(request, name)
     found = users.credentials(conn, form.username) if is_utf8_encodable(form.username) and len(form.username) <= 64 else None
@@ -52,6 +53,8 @@ def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Reques
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "incorrect user name or password",
                             headers={"WWW-Authenticate": "Bearer"})
     token = users.issue_token(conn, found[0], settings.token_ttl_s)
+    response.headers["Cache-Control"] = "no-store"   # a bearer token is never kept by a cache (RFC 6749 §5.1)
+    response.headers["Pragma"] = "no-cache"
     return TokenOut(access_token=token, expires_in=settings.token_ttl_s)
 
 

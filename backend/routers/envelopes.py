@@ -5,18 +5,18 @@ from __future__ import annotations
 from typing import Annotated
 
 import numpy as np
-from fastapi import APIRouter, Path, status
+from fastapi import APIRouter, Path, Response, status
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
-from backend.schemas.common import IdPath
+from backend.schemas.common import BeforeVersion, IdPath, PageLimit, page_headers
 from backend.schemas.envelopes import (
     EnvelopeDiffOut,
     EnvelopeEditRequest,
+    EnvelopeListItem,
     EnvelopeNodeOut,
     EnvelopeOut,
     EnvelopeRequest,
-    EnvelopeSummary,
 )
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
@@ -41,11 +41,15 @@ def create_envelope(patient_id: IdPath, body: EnvelopeRequest, conn: Conn, user:
     return envelopes.create_from_model(conn, patient_id, env, user)
 
 
-@router.get("/patients/{patient_id}/envelopes", response_model=list[EnvelopeSummary], responses=NOT_FOUND)
-def list_envelopes(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
-    """The patient's envelope versions, newest first (without nodes)."""
+@router.get("/patients/{patient_id}/envelopes", response_model=list[EnvelopeListItem], responses=NOT_FOUND)
+def list_envelopes(patient_id: IdPath, response: Response, conn: Conn, _user: CurrentUser, limit: PageLimit = 50,
+                   before_version: BeforeVersion = None) -> list[dict]:
+    """One page of the patient's envelope versions, newest first: metadata and axes only (nodes and the live
+    device-side check are on ``GET /api/envelopes/{id}``). ``X-Total-Count``: how many in all;
+    ``X-Next-Before-Version``: the cursor of the next page."""
     patients.get_patient(conn, patient_id)
-    return envelopes.list_envelopes(conn, patient_id)
+    items, total = envelopes.list_envelopes(conn, patient_id, limit, before_version)
+    return page_headers(response, items, total, limit)
 
 
 @router.get("/envelopes/{envelope_id}", response_model=EnvelopeOut, responses=NOT_FOUND)

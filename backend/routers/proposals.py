@@ -2,20 +2,20 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, status
+from fastapi import APIRouter, Response, status
 from pydantic import ValidationError
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
-from backend.schemas.common import IdPath
+from backend.schemas.common import BeforeVersion, IdPath, PageLimit, page_headers
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import (
     DecisionRequest,
     DiffOut,
     EditRequest,
+    ProposalListItem,
     ProposalOut,
     ProposalRequest,
-    ProposalSummary,
 )
 from backend.store import patients, proposals, pushes
 from controller_core.table_edit import EditError, edit_table
@@ -37,11 +37,15 @@ async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn,
     return {**proposals.create_from_model(conn, patient_id, proposal, user), "deployment": None}
 
 
-@router.get("/patients/{patient_id}/proposals", response_model=list[ProposalSummary], responses=NOT_FOUND)
-def list_proposals(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
-    """The patient's proposal versions, newest first (without curves)."""
+@router.get("/patients/{patient_id}/proposals", response_model=list[ProposalListItem], responses=NOT_FOUND)
+def list_proposals(patient_id: IdPath, response: Response, conn: Conn, _user: CurrentUser, limit: PageLimit = 50,
+                   before_version: BeforeVersion = None) -> list[dict]:
+    """One page of the patient's proposal versions, newest first: metadata only (the table, curves and live check
+    are on ``GET /api/proposals/{id}``). ``X-Total-Count``: how many in all; ``X-Next-Before-Version``: the
+    cursor of the next page."""
     patients.get_patient(conn, patient_id)
-    return proposals.list_proposals(conn, patient_id)
+    items, total = proposals.list_proposals(conn, patient_id, limit, before_version)
+    return page_headers(response, items, total, limit)
 
 
 @router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from typing import Annotated
 
-from fastapi import Path
+from fastapi import Path, Query, Response
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StringConstraints
 
 MAX_ID = 2**53  # ids beyond what JSON numbers carry exactly are refused before they reach SQLite
@@ -67,3 +67,18 @@ class Message(BaseModel):
     """Error body: ``detail`` is a sentence for a person; other keys (``errors``, ``violations``) for scripts."""
 
     detail: str
+
+
+# one page of a list of versions: newest first, at most ``limit``, older than ``before_version``; the response's
+# X-Total-Count header says how many there are in all, X-Next-Before-Version the cursor of the next page (if any)
+PageLimit = Annotated[int, Query(ge=1, le=200, description="at most this many (default 50)")]
+BeforeVersion = Annotated[int | None, Query(ge=1, le=MAX_ID, description="only versions older than this one (the "
+                                                                       "previous page's X-Next-Before-Version)")]
+
+
+def page_headers(response: Response, items: list[dict], total: int, limit: int) -> list[dict]:
+    """Set the paging headers of a list response; returns ``items``."""
+    response.headers["X-Total-Count"] = str(total)
+    if len(items) == limit and items[-1]["version"] > 1:
+        response.headers["X-Next-Before-Version"] = str(items[-1]["version"])
+    return items

@@ -85,6 +85,22 @@ class EnvelopeSummary(DecidedVersion):
     safety: Safety
 
 
+class EnvelopeListItem(DecidedVersion):
+    """A version in the patient's list: what tells versions apart (nodes and the live check on its own endpoint)."""
+
+    envelope_label: str = Field(description="its one name everywhere: 'patient code · envelope vN'")
+    body_mass_kg: float
+    grid: list[int]
+    speeds_mps: list[float]
+    inclines_deg: list[float]
+    extrapolation: bool = Field(description="some node lies outside the training data")
+    crc32: int = Field(description="CRC-32 of the envelope's JSON")
+    wire_crc32: int | None = Field(description="the CRC-32 the device reports once it holds this envelope")
+    envelope_sha256: str
+    safety_ok: bool = Field(description="every node and the neighbour rule within the limits as the device runs "
+                                        "them, checked when it was stored")
+
+
 class EnvelopeOut(EnvelopeSummary):
     deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
                         "push_failed"] | None = Field(

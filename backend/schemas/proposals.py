@@ -157,6 +157,16 @@ class ProposalSummary(DecidedVersion):
     safety: Safety
 
 
+class ProposalListItem(DecidedVersion):
+    """A version in the patient's list: what tells versions apart (the full version on its own endpoint)."""
+
+    table_label: str = Field(description="the table's one name everywhere: 'patient code · table vN'")
+    task: Task
+    extrapolation: bool
+    table_sha256: str
+    safety_ok: bool = Field(description="within every limit as the device runs it, checked when it was stored")
+
+
 class ProposalOut(ProposalSummary):
     deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
                         "push_failed"] | None = Field(

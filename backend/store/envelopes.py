@@ -113,10 +113,22 @@ def get_envelope(conn: sqlite3.Connection, envelope_id: int, full: bool = True) 
     return _public(_meta(row), stored_envelope(row), full)
 
 
-def list_envelopes(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
-    """Summaries (no nodes), newest version first."""
-    rows = conn.execute(_SELECT + " WHERE e.patient_id = ? ORDER BY e.version DESC", (patient_id,)).fetchall()
-    return [_public(_meta(r), stored_envelope(r), full=False) for r in rows]
+_SUMMARY_SELECT = _SELECT.replace("SELECT e.*,", "SELECT e.id, e.patient_id, e.version, e.parent_id, e.source, "
+                                  "e.status, e.created_at, e.edit_comment, e.decided_at, e.decision_comment, "
+                                  "e.body_mass_kg, e.n_speeds, e.n_inclines, e.extrapolation, e.crc32, e.wire_crc32, "
+                                  "e.envelope_sha256, e.safety_ok, json_extract(e.envelope_json, '$.speeds_mps') AS "
+                                  "speeds_json, json_extract(e.envelope_json, '$.inclines_deg') AS inclines_json,")
+
+
+def list_envelopes(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
+                   before_version: int | None = None) -> tuple[list[dict], int]:
+    """One page of summaries, newest version first (metadata and axes: the nodes and the live device-side check are
+    the full version's, on its own endpoint), and how many versions the patient has in all."""
+    total = conn.execute("SELECT count(*) FROM envelopes WHERE patient_id = ?", (patient_id,)).fetchone()[0]
+    rows = conn.execute(_SUMMARY_SELECT + " WHERE e.patient_id = ? AND e.version < ? ORDER BY e.version DESC LIMIT ?",
+                        (patient_id, before_version or 2**62, limit)).fetchall()
+    return [{**_meta(r), "speeds_mps": json.loads(r["speeds_json"]), "inclines_deg": json.loads(r["inclines_json"]),
+             "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
 
 def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, envelope: Envelope, comment: str | None,

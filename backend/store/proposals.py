@@ -101,10 +101,20 @@ def get_proposal(conn: sqlite3.Connection, proposal_id: int, full: bool = True) 
     return _public(get_row(conn, proposal_id), full)
 
 
-def list_proposals(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
-    """Summaries (no curves or features), newest version first."""
-    rows = conn.execute(_SELECT + " WHERE p.patient_id = ? ORDER BY p.version DESC", (patient_id,)).fetchall()
-    return [_public(r, full=False) for r in rows]
+_SUMMARY_SELECT = _SELECT.replace("SELECT p.*,", "SELECT p.id, p.patient_id, p.version, p.parent_id, p.source, "
+                                  "p.status, p.created_at, p.edit_comment, p.decided_at, p.decision_comment, "
+                                  "p.speed_mps, p.incline_deg, p.body_mass_kg, p.extrapolation, p.table_sha256, "
+                                  "p.safety_ok,")
+
+
+def list_proposals(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
+                   before_version: int | None = None) -> tuple[list[dict], int]:
+    """One page of summaries, newest version first (metadata only: the table, curves and the live limit check are
+    the full version's, on its own endpoint), and how many versions the patient has in all."""
+    total = conn.execute("SELECT count(*) FROM proposals WHERE patient_id = ?", (patient_id,)).fetchone()[0]
+    rows = conn.execute(_SUMMARY_SELECT + " WHERE p.patient_id = ? AND p.version < ? ORDER BY p.version DESC LIMIT ?",
+                        (patient_id, before_version or 2**62, limit)).fetchall()
+    return [{**_meta(r), "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
 
 def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, source: str, task: dict,

@@ -295,3 +295,23 @@ def test_a_huge_finite_value_is_refused_at_the_schema_naming_the_field(api, valu
     assert ("b_Nm_s_per_rad" if where == "row" else "se_to_wf_load_N") in text and "10000" in text
     assert api.count("proposals") == before
     assert api.client.get("/api/health").status_code == 200   # the connection and the server carry on
+
+
+def test_the_version_list_is_paged_summaries_with_the_total_and_a_cursor(api):
+    patient = api.new_patient()
+    ids = [api.propose(patient["id"], speed=0.9 + 0.1 * i)["id"] for i in range(5)]
+    h = api.as_("viewer")
+    r = api.client.get(f"/api/patients/{patient['id']}/proposals", headers=h, params={"limit": 2})
+    assert r.status_code == 200 and r.headers["X-Total-Count"] == "5"
+    page = r.json()
+    assert [p["version"] for p in page] == [5, 4] and "curves" not in page[0] and "table" not in page[0]
+    assert page[0]["safety_ok"] is True and page[0]["table_label"] == "P-001 · table v5"
+    seen = [p["id"] for p in page]
+    while "X-Next-Before-Version" in r.headers:
+        r = api.client.get(f"/api/patients/{patient['id']}/proposals", headers=h,
+                           params={"limit": 2, "before_version": r.headers["X-Next-Before-Version"]})
+        seen += [p["id"] for p in r.json()]
+    assert seen == ids[::-1]
+    assert api.client.get(f"/api/patients/{patient['id']}/proposals", headers=h).headers["X-Total-Count"] == "5"
+    assert api.client.get(f"/api/patients/{patient['id']}/proposals", headers=h,
+                          params={"limit": 201}).status_code == 422

@@ -116,3 +116,38 @@ def test_a_course_session_records_the_legs_own_task_estimate_and_summarises_it_b
     assert overall["strides"] == sum(map(sum, scored)) and 0 < overall["knee_angle_per_stride_rmse_deg"] < 30
     pdf = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=viewer).content
     assert pdf.startswith(b"%PDF") and len(re.findall(rb"/Type\s*/Page\b", pdf)) == 2   # the envelope's own page
+
+
+def test_two_pushes_confirming_the_same_envelope_on_the_leg_cannot_both_go(sim_api):
+    """The check of what the leg runs and the push are one step per device: of two pushes that both confirm the
+    envelope on the leg, one goes and the other is refused naming what the leg now runs."""
+    import threading
+
+    api = sim_api
+    patient = api.new_patient()
+    assign(api, patient["id"])
+    current = approved_envelope(api, patient["id"])
+    assert push_envelope(api, current["id"]).status_code == 201
+    wait_for(lambda: api.client.get(f"/api/envelopes/{current['id']}", headers=api.as_("viewer")).json(),
+             lambda e: e["deployment"] == "active_on_device")
+    rivals = [approved_envelope(api, patient["id"]) for _ in range(2)]
+    body = {**push_body(api), "replaces_envelope_id": current["id"]}
+    answers: dict[int, object] = {}
+    gate = threading.Barrier(2)
+
+    def push(env: dict) -> None:
+        gate.wait()
+        answers[env["id"]] = api.client.post(f"/api/envelopes/{env['id']}/push", headers=api.as_("prosthetist"),
+                                             json=body)
+
+    threads = [threading.Thread(target=push, args=(e,)) for e in rivals]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    codes = sorted(r.status_code for r in answers.values())
+    assert codes == [201, 409], [r.text for r in answers.values()]
+    winner = next(i for i, r in answers.items() if r.status_code == 201)
+    loser = next(r for r in answers.values() if r.status_code == 409)
+    label = next(e["envelope_label"] for e in rivals if e["id"] == winner)
+    assert label in loser.json()["detail"] and loser.json()["on_leg"]["envelope_id"] == winner
