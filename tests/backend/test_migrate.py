@@ -124,3 +124,50 @@ def test_envelope_pushes_migration_keeps_every_table_push(tmp_path):
         conn.execute("DELETE FROM pushes")
     assert conn.execute("PRAGMA foreign_key_check").fetchall() == []
     conn.close()
+
+
+def test_push_reconciliation_migration_keeps_every_push_and_admits_the_two_new_states(tmp_path):
+    """0008 rebuilds ``pushes`` for 'unconfirmed' and 'lost': table and envelope pushes of every old state survive."""
+    mig = tmp_path / "migrations"
+    mig.mkdir()
+    for m in discover()[:7]:
+        (mig / m.name).write_text(m.sql)
+    db = tmp_path / "q.sqlite"
+    migrate(db, mig)
+    conn = connect(db)
+    now = "2026-11-24T00:00:00Z"
+    conn.execute("INSERT INTO users (id, username, role, password_hash, created_at) VALUES (1, 'p', 'prosthetist', "
+                 "'x', ?)", (now,))
+    conn.execute("INSERT INTO patients (id, code_name, body_mass_kg, side, created_by, created_at, updated_at) "
+                 "VALUES (1, 'P-1', 80, 'left', 1, ?, ?)", (now, now))
+    conn.execute("INSERT INTO proposals (id, patient_id, version, source, speed_mps, incline_deg, body_mass_kg, "
+                 "extrapolation, safety_ok, model_json, table_json, table_sha256, created_by, created_at) "
+                 "VALUES (1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 'x', 1, ?)", (now,))
+    conn.execute("INSERT INTO envelopes (id, patient_id, version, source, body_mass_kg, n_speeds, n_inclines, "
+                 "extrapolation, safety_ok, envelope_json, envelope_sha256, crc32, created_by, created_at) "
+                 "VALUES (1, 1, 1, 'model', 80, 2, 2, 0, 1, '{}', 'x', 5, 1, ?)", (now,))
+    conn.execute("INSERT INTO devices (id, kind, interface, channel, registered_at) VALUES ('leg', 'simulated', "
+                 "'virtual', 'x', ?)", (now,))
+    old = ["sending", "acknowledged", "active", "failed", "superseded"]
+    for i, status in enumerate(old):
+        item = "proposal_id, envelope_id" if i % 2 else "envelope_id, proposal_id"
+        conn.execute(f"INSERT INTO pushes (id, {item}, device_id, table_version, crc32, status, requested_by, "
+                     "requested_at, error) VALUES (?, 1, NULL, 'leg', ?, 77, ?, 1, ?, ?)",
+                     (i + 1, i + 1, status, now, f"e{i}"))
+    conn.commit()
+    before = [tuple(r) for r in conn.execute("SELECT * FROM pushes ORDER BY id")]
+    conn.close()
+    shutil.copy(MIGRATIONS_DIR / discover()[7].name, mig)
+    assert migrate(db, mig) == [8]
+    conn = connect(db)
+    assert [tuple(r) for r in conn.execute("SELECT * FROM pushes ORDER BY id")] == before
+    for status in ("unconfirmed", "lost"):
+        conn.execute("INSERT INTO pushes (proposal_id, device_id, table_version, crc32, status, requested_by, "
+                     "requested_at) VALUES (1, 'leg', 9, 1, ?, 1, ?)", (status, now))
+    with pytest.raises(sqlite3.IntegrityError, match="CHECK"):
+        conn.execute("INSERT INTO pushes (proposal_id, device_id, table_version, crc32, status, requested_by, "
+                     "requested_at) VALUES (1, 'leg', 9, 1, 'maybe', 1, ?)", (now,))
+    with pytest.raises(sqlite3.IntegrityError, match="never deleted"):
+        conn.execute("DELETE FROM pushes")
+    assert conn.execute("PRAGMA foreign_key_check").fetchall() == []
+    conn.close()

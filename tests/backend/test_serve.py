@@ -121,7 +121,15 @@ def test_sigkill_mid_load_loses_no_acknowledged_write(tmp_path):
     proc, base = start_server(tmp_path)
     try:
         h = _login(base, "pat")
-        stored = {p["id"] for p in httpx.get(f"{base}/api/patients/{patient['id']}/proposals", headers=h).json()}
+        stored: set[int] = set()
+        params: dict = {"limit": 200}
+        while True:   # every page of the version list
+            r = httpx.get(f"{base}/api/patients/{patient['id']}/proposals", headers=h, params=params)
+            stored |= {p["id"] for p in r.json()}
+            if "X-Next-Before-Version" not in r.headers:
+                break
+            params["before_version"] = r.headers["X-Next-Before-Version"]
+        assert len(stored) == int(r.headers["X-Total-Count"])
         assert set(acknowledged) <= stored
         codes = {p["code_name"] for p in httpx.get(f"{base}/api/patients", headers=h).json()}
         assert set(patients_acked) <= codes

@@ -33,7 +33,7 @@ def add_user(data_dir: Path, name: str, role: str, password: str = PASSWORD) -> 
 
 
 def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none",
-                 viewer3d: bool = False) -> tuple[subprocess.Popen, str]:
+                 viewer3d: bool = False, extra_args: tuple[str, ...] = ()) -> tuple[subprocess.Popen, str]:
     """``quasitune serve --port 0`` in a subprocess; returns (process, base URL) once it listens (its further
     stdout lines are left unread in ``process.stdout``)."""
     cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", "0", "--data-dir", str(data_dir), "--device", device]
@@ -41,6 +41,7 @@ def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none",
         cmd.append("--no-bootstrap-user")
     if viewer3d:
         cmd.append("--viewer3d")
+    cmd += extra_args
     err_path = data_dir / "serve.stderr.log"    # a file, not a pipe nobody drains
     with err_path.open("a") as err:
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True,

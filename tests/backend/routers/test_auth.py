@@ -176,3 +176,18 @@ def test_an_admin_reset_ends_the_sessions_and_forces_a_change(api):
     assert c.get("/api/patients", headers=api.as_("viewer")).status_code == 401
     h = _sign_in(api, "viewer", "reset-by-admin")
     assert c.get("/api/patients", headers=h).status_code == 403
+
+
+def test_the_token_answer_is_never_cached(api):
+    r = api.client.post("/api/auth/token", data={"username": "viewer", "password": PASSWORD})
+    assert r.status_code == 200 and r.headers["cache-control"] == "no-store"
+
+
+@pytest.mark.parametrize("path", ["/api/patients", "/api/proposals/1/approve", "/api/envelopes/1/push"])
+def test_an_anonymous_malformed_write_is_refused_before_its_body_is_read(api, path):
+    r = api.client.post(path, content=b"{not json", headers={"Content-Type": "application/json"})
+    assert r.status_code == 401 and r.headers["www-authenticate"] == "Bearer"
+    assert r.headers["x-content-type-options"] == "nosniff"          # still inside the security headers
+    signed_in = api.client.post(path, content=b"{not json",
+                                headers={"Content-Type": "application/json", **api.as_("prosthetist")})
+    assert signed_in.status_code == 422                               # a signed-in caller is told what is wrong

@@ -70,7 +70,7 @@ def test_the_records_follow_what_the_device_reports_after_a_restart(api):
     """A server killed mid-push, a device that came back with no table: nothing stays active or sending."""
     conn, proposal_ids, push_ids, versions = _pushes(api, 3)
     pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)
-    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), None, set())
+    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), None, set(push_ids[1:]))   # in flight
     pushes.finish_push(conn, push_ids[1], "acknowledged", 1, 3.0, None)      # staged, waiting for heel strike
     # push 2 is left 'sending' by a server that was killed
     assert pushes.interrupted_pushes(conn) == 1
