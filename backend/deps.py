@@ -10,7 +10,6 @@ import sqlite3
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Annotated
 
-import anyio.to_thread
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
 
@@ -18,6 +17,7 @@ from backend.db import pooled
 from backend.model_service import ModelService
 from backend.settings import Settings
 from backend.store.users import User, user_for_token
+from backend.threads import run_waiting
 from controller_core import QuasiStiffnessModel
 
 oauth2 = OAuth2PasswordBearer(tokenUrl="/api/auth/token", auto_error=False)
@@ -84,7 +84,7 @@ Monitor = Annotated[User, Depends(require_role("prosthetist", "viewer"))]
 async def get_model(request: Request) -> QuasiStiffnessModel:
     service: ModelService = request.app.state.model
     if service.status == "loading":   # wait off the event loop
-        return await anyio.to_thread.run_sync(service.get, request.app.state.settings.model_wait_s)
+        return await run_waiting(service.get, request.app.state.settings.model_wait_s)
     return service.get(0.0)
 
 

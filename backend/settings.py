@@ -41,6 +41,8 @@ class Settings:
         trusted_proxies: addresses of reverse proxies whose ``X-Forwarded-For`` / ``X-Forwarded-Proto`` are believed
             (uvicorn's ``forwarded_allow_ips``). None by default: every other client could otherwise claim any
             address and dodge, or aim, the sign-in throttle.
+        request_threads: request handlers run at once in worker threads. The process is bound by one interpreter
+            lock: more threads add no throughput and starve the event loop that streams live telemetry.
     """
 
     data_dir: Path
@@ -51,6 +53,7 @@ class Settings:
     frontend_dir: Path = field(default_factory=default_frontend_dir)
     viewer3d: bool = False
     trusted_proxies: tuple[str, ...] = ()
+    request_threads: int = 2
 
     @property
     def db_path(self) -> Path:

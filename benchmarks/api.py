@@ -62,9 +62,11 @@ async def _telemetry(ws_url: str, stop: asyncio.Event) -> dict:
                 arrivals.append(time.perf_counter())
         wall = time.perf_counter() - t0
     gaps = sum(1 for a, b in itertools.pairwise(seqs) if (b - a) % 65536 != 1)
-    largest = max((b - a for a, b in itertools.pairwise(arrivals)), default=wall)
+    spans = [(b - a, a - t0) for a, b in itertools.pairwise(arrivals)] or [(wall, 0.0)]
+    largest, at = max(spans)
     return {"telemetry_hz": round(len(seqs) / wall, 1), "telemetry_sequence_gaps": gaps,
-            "telemetry_largest_gap_ms": round(largest * 1e3, 1)}
+            "telemetry_largest_gap_ms": round(largest * 1e3, 1), "telemetry_largest_gap_at_s": round(at, 2),
+            "telemetry_gaps_over_100ms": sum(1 for g, _ in spans if g > 0.1)}
 
 
 async def _reads(base: str, headers: dict, paths: list[str], clients: int, seconds: float, ws_url: str) -> dict:
@@ -75,23 +77,27 @@ async def _reads(base: str, headers: dict, paths: list[str], clients: int, secon
     latencies: list[float] = []
     codes: dict[int, int] = {}
 
-    async def reader(i: int, deadline: float) -> None:
-        async with httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) as c:
-            n = i
-            while time.perf_counter() < deadline:
-                t0 = time.perf_counter()
-                r = await c.get(paths[n % len(paths)])
-                latencies.append(time.perf_counter() - t0)
-                codes[r.status_code] = codes.get(r.status_code, 0) + 1
-                n += 1
+    async def reader(c: httpx.AsyncClient, i: int, deadline: float) -> None:
+        n = i
+        while time.perf_counter() < deadline:
+            t0 = time.perf_counter()
+            r = await c.get(paths[n % len(paths)])
+            latencies.append(time.perf_counter() - t0)
+            codes[r.status_code] = codes.get(r.status_code, 0) + 1
+            n += 1
 
+    # the clients are made before the stream is measured: making one builds an SSL context (tens of ms of this
+    # process's own event loop, where the telemetry is received), which would read as a gap in the server's stream
+    readers = [httpx.AsyncClient(base_url=base, headers=headers, timeout=30.0) for _ in range(clients)]
     stop = asyncio.Event()
     telemetry = asyncio.create_task(_telemetry(ws_url, stop))
     await asyncio.sleep(0.5)
     t_start = time.perf_counter()
-    await asyncio.gather(*(reader(i, t_start + seconds) for i in range(clients)))
+    await asyncio.gather(*(reader(c, i, t_start + seconds) for i, c in enumerate(readers)))
     stop.set()
     stream = await telemetry
+    for c in readers:
+        await c.aclose()
     lat = np.array(latencies) * 1e3
     return {"read_requests": int(lat.size), "read_p50_ms": round(float(np.percentile(lat, 50)), 2),
             "read_p99_ms": round(float(np.percentile(lat, 99)), 2), "read_non_200": sum(v for k, v in codes.items()

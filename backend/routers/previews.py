@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sqlite3
 import threading
 
 from fastapi import APIRouter
@@ -15,6 +16,8 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.previews import EnvelopePreviewOut, PreviewOut
 from backend.store import envelopes, previews, proposals
+from backend.threads import run_waiting
+from controller_core.model import QuasiStiffnessModel
 from device_bridge.envelope_wire import check_envelope_as_run, envelope_as_run
 from device_bridge.protocol import as_run, check_as_run
 from device_bridge.sim.course import COURSES
@@ -30,11 +33,15 @@ _COURSE_PREVIEW = threading.Lock()
 
 @router.get("/proposals/{proposal_id}/preview", response_model=PreviewOut,
             responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
+async def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
     """Walk this proposal's table and the FSMIC benchmark for 10 s each on the simulated bench at the proposal's
     task (computed on first request, about a second, then stored: a proposal never changes). Falls, strides and
     joint RMSE against the able-bodied reference, and the stride-averaged trajectories; ``safety`` flags the
     table's safety figures (falls, toe catches, time on swing settings under load) on their own bounds."""
+    return await run_waiting(_table_preview, proposal_id, conn, model)
+
+
+def _table_preview(proposal_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel) -> dict:
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
     if stored is None:
@@ -49,11 +56,15 @@ def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Mode
 
 @router.get("/envelopes/{envelope_id}/preview", response_model=EnvelopePreviewOut,
             responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-def get_envelope_preview(envelope_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
+async def get_envelope_preview(envelope_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
     """Walk the bench's ``mixed`` course (speed changes, ramps up and down ±8°) with this envelope, the leg estimating
     its task and adapting, and with the FSMIC (computed on first request, about ten seconds, then stored). Safety
     figures (``safety``: flags on their own bounds), errors per segment against the reference at each stride's true
     task, the leg's estimation accuracy, and the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
+    return await run_waiting(_envelope_preview, envelope_id, conn, model)
+
+
+def _envelope_preview(envelope_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel) -> dict:
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
     if stored is None:

@@ -18,6 +18,7 @@ from backend.store import devices as devices_store
 from backend.store import envelopes, patients, proposals
 from backend.store import pushes as store
 from backend.store.users import User
+from backend.threads import run_waiting
 from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
 from device_bridge.host import PushError, PushResult
 from device_bridge.protocol import ProtocolError, WireTable, check_as_run
@@ -30,7 +31,7 @@ _PUSH_RESPONSES = {**FORBIDDEN, **NOT_FOUND, **CONFLICT, **DEVICE_FAILED}
 
 @router.post("/proposals/{proposal_id}/push", response_model=PushOut, status_code=status.HTTP_201_CREATED,
              responses=_PUSH_RESPONSES)
-def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
+async def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
     """Send an approved proposal's table to a device (prosthetist) and wait for the device to read back its exact
     CRC-32. The device must be assigned to the proposal's patient, whose body mass must still be the one the table
     was proposed for. The caller confirms what it replaces (``replaces_proposal_id`` / ``replaces_envelope_id``:
@@ -38,7 +39,11 @@ def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, u
     is seated or in the parallel bars. The push is recorded first; it is ``acknowledged`` when the CRC comes back,
     and ``active`` when the device's status reports that table running — at the next heel strike. The version on
     the wire is the device's own counter. A failed push leaves the device on what it ran before."""
-    devices: DeviceManager = request.app.state.devices
+    return await run_waiting(_push_table, proposal_id, body, request.app.state.devices, conn, user)
+
+
+def _push_table(proposal_id: int, body: PushRequest, devices: DeviceManager, conn: sqlite3.Connection,
+                user: User) -> dict:
     row = proposals.get_row(conn, proposal_id)
     table = proposals.stored_table(row)
     violations = check_as_run(table)
@@ -52,12 +57,17 @@ def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: Conn, u
 
 @router.post("/envelopes/{envelope_id}/push", response_model=PushOut, status_code=status.HTTP_201_CREATED,
              responses=_PUSH_RESPONSES)
-def push_envelope(envelope_id: IdPath, body: PushRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
+async def push_envelope(envelope_id: IdPath, body: PushRequest, request: Request, conn: Conn,
+                        user: Prosthetist) -> dict:
     """Send an approved envelope to a device (prosthetist), all or nothing, and wait for the device to read back its
     exact CRC-32 after re-checking every node and the neighbour rule itself. The same checks and confirmations as a
     table push (device assigned to the envelope's patient, same body mass, what it replaces, patient ready); from
     the next heel strike the leg takes its rows from the envelope at the task it estimates."""
-    devices: DeviceManager = request.app.state.devices
+    return await run_waiting(_push_envelope, envelope_id, body, request.app.state.devices, conn, user)
+
+
+def _push_envelope(envelope_id: int, body: PushRequest, devices: DeviceManager, conn: sqlite3.Connection,
+                   user: User) -> dict:
     row = envelopes.get_row(conn, envelope_id)
     envelope = envelopes.stored_envelope(row)
     violations = check_envelope_as_run(envelope)

@@ -9,18 +9,20 @@ import httpx
 from tests.helpers.server import add_user, start_server
 
 
-def _guesses(base: str, forwarded: list[str]) -> list[int]:
+def _guesses(base: str, forwarded: list[str], names: list[str] | None = None) -> list[int]:
+    names = names or ["pat"] * len(forwarded)
     return [httpx.post(f"{base}/api/auth/token", headers={"X-Forwarded-For": ip},
-                       data={"username": "pat", "password": f"wrong-{i}"}).status_code
-            for i, ip in enumerate(forwarded)]
+                       data={"username": name, "password": f"wrong-{i}"}).status_code
+            for i, (ip, name) in enumerate(zip(forwarded, names, strict=True))]
 
 
 def test_a_rotating_forwarded_header_does_not_dodge_the_throttle_by_default(tmp_path):
+    """Guessing many names, each from a claimed new address: the server counts the real peer's address."""
     add_user(tmp_path, "pat", "prosthetist")
     proc, base = start_server(tmp_path)
     try:
-        codes = _guesses(base, [f"203.0.113.{i}" for i in range(8)])
-        assert codes[:5] == [401] * 5 and set(codes[5:]) == {429}
+        codes = _guesses(base, [f"203.0.113.{i}" for i in range(24)], [f"user{i}" for i in range(24)])
+        assert codes[:20] == [401] * 20 and set(codes[20:]) == {429}
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(timeout=30)
