@@ -122,7 +122,8 @@ def reconcile(conn: sqlite3.Connection, device_id: str, active: tuple[int, int] 
     * ``sending`` and ``unconfirmed`` pushes not in flight in this process are ``acknowledged`` when the device
       reports them staged and ``failed`` when it holds neither.
 
-    Pushes in ``in_flight`` (being sent now) are left to their sender. Returns what changed."""
+    Pushes in ``in_flight`` (being sent now) are left to their sender, unless the device reports running exactly
+    them. Returns what changed."""
     now, changed = utc_now(), []
     reported = _describe(active)
     with write_transaction(conn):
@@ -134,11 +135,11 @@ def reconcile(conn: sqlite3.Connection, device_id: str, active: tuple[int, int] 
                             "AND (status IN ('sending', 'unconfirmed', 'acknowledged', 'active') OR id = ?)",
                             (device_id, running_id)).fetchall()
         for r in rows:
-            if r["id"] in in_flight:
-                continue
             status, error, at = r["status"], None, {}
-            if r["id"] == running_id:
+            if r["id"] == running_id:   # the device's word on this push is final, in flight or not
                 status, at = "active", {"active_at": now}
+            elif r["id"] in in_flight:
+                continue
             elif r["status"] in ("sending", "unconfirmed"):
                 if pending_version == r["table_version"]:
                     status, at = "acknowledged", {"acknowledged_at": now}

@@ -6,6 +6,17 @@ import { legView } from "../leg_view.js";
 import { adaptivePanel } from "../adaptive_panel.js";
 import { bodyWeightN, chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
 
+// the device's fault flags (DEVICE_HEALTH), as the leg reports them, in a prosthetist's words
+const FAULT_WORDS = {
+  heartbeat_lost: "lost contact with this server",
+  table_refused: "refused the last table sent",
+  malformed_frame: "received a damaged message",
+  no_table: "holds no table",
+  over_temperature: "too hot",
+  receive_error: "aborted a transfer after an internal fault (still runs its previous table)",
+  control_error: "control fault: went to safe mode",
+};
+
 export async function monitorPage(view, deviceId, params) {
   const [device, patients] = await Promise.all([get(`/api/devices/${deviceId}`), get("/api/patients")]);
   const canCommand = app.me.role === "prosthetist";
@@ -174,7 +185,7 @@ function renderStatus(box, d) {
   box.replaceChildren(h("p", { class: "chips" },
     chip(d.online ? "online" : "offline", d.online ? "ok" : "bad"),
     chip(d.safe_mode ? "SAFE MODE" : modeWords(d.mode), d.safe_mode ? "bad" : d.mode === "active" ? "ok" : "warn"),
-    d.faults.length ? chip(`faults: ${d.faults.join(", ")}`, "bad") : null),
+    d.faults.length ? chip(`the leg reports: ${d.faults.map((f) => FAULT_WORDS[f] || f).join("; ")}`, "bad") : null),
   h("dl", { class: "facts" },
     h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
     h("dt", {}, "On the leg"), h("dd", { id: "active-version" }, d.active_version === null ? "none"

@@ -109,3 +109,11 @@ def test_a_device_running_a_table_this_server_did_not_send_supersedes_ours(api):
     pushes.reconcile(conn, "leg", (999, 0xDEADBEEF), None, set())
     push = pushes.get_push(conn, push_ids[0])
     assert push["status"] == "superseded" and "version 999, CRC deadbeef" in push["error"]
+
+
+def test_a_push_the_device_reports_running_is_active_even_while_its_sender_finishes(api):
+    conn, proposal_ids, push_ids, versions = _pushes(api, 1)
+    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), None, {push_ids[0]})
+    assert pushes.get_push(conn, push_ids[0])["status"] == "active"
+    pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)     # the sender's answer keeps it active
+    assert pushes.get_push(conn, push_ids[0])["status"] == "active"
