@@ -42,3 +42,25 @@ def decide_once(conn: sqlite3.Connection, entity: str, row: sqlite3.Row, status:
     audit.record(conn, actor.id, actor.username, f"{entity}.{'approve' if status == 'approved' else 'reject'}",
                  entity, row["id"], before={"status": "draft"}, after={"status": status, "comment": comment,
                                                                       **audit_after})
+
+
+# what every decided-once version's summary reads, besides its own columns
+VERSION_COLUMNS = ("id", "patient_id", "version", "parent_id", "source", "status", "created_at", "edit_comment",
+                   "decided_at", "decision_comment", "safety_ok")
+
+
+def summary_select(select: str, alias: str, columns: str) -> str:
+    """``select`` (``SELECT {alias}.*, …``) reading only the shared version columns and ``columns``, not the
+    stored bodies."""
+    shared = ", ".join(f"{alias}.{c}" for c in VERSION_COLUMNS)
+    return select.replace(f"SELECT {alias}.*,", f"SELECT {shared}, {columns},", 1)
+
+
+def version_page(conn: sqlite3.Connection, entity: str, select: str, alias: str, patient_id: int, limit: int,
+                 before_version: int | None) -> tuple[list[sqlite3.Row], int]:
+    """One page of a patient's versions, newest first (older than ``before_version``), and how many in all."""
+    table = _TABLES[entity]
+    total = conn.execute(f"SELECT count(*) FROM {table} WHERE patient_id = ?", (patient_id,)).fetchone()[0]
+    rows = conn.execute(select + f" WHERE {alias}.patient_id = ? AND {alias}.version < ? ORDER BY {alias}.version "
+                        "DESC LIMIT ?", (patient_id, before_version or 2**62, limit)).fetchall()
+    return rows, total

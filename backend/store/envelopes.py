@@ -16,7 +16,7 @@ import sqlite3
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
-from backend.store.decisions import decide_once
+from backend.store.decisions import decide_once, summary_select, version_page
 from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
 from backend.store.users import User
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
@@ -113,20 +113,17 @@ def get_envelope(conn: sqlite3.Connection, envelope_id: int, full: bool = True) 
     return _public(_meta(row), stored_envelope(row), full)
 
 
-_SUMMARY_SELECT = _SELECT.replace("SELECT e.*,", "SELECT e.id, e.patient_id, e.version, e.parent_id, e.source, "
-                                  "e.status, e.created_at, e.edit_comment, e.decided_at, e.decision_comment, "
-                                  "e.body_mass_kg, e.n_speeds, e.n_inclines, e.extrapolation, e.crc32, e.wire_crc32, "
-                                  "e.envelope_sha256, e.safety_ok, json_extract(e.envelope_json, '$.speeds_mps') AS "
-                                  "speeds_json, json_extract(e.envelope_json, '$.inclines_deg') AS inclines_json,")
+_SUMMARY_SELECT = summary_select(_SELECT, "e", "e.body_mass_kg, e.n_speeds, e.n_inclines, e.extrapolation, e.crc32, "
+                                                "e.wire_crc32, e.envelope_sha256, json_extract(e.envelope_json, "
+                                                "'$.speeds_mps') AS speeds_json, json_extract(e.envelope_json, "
+                                                "'$.inclines_deg') AS inclines_json")
 
 
 def list_envelopes(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
                    before_version: int | None = None) -> tuple[list[dict], int]:
     """One page of summaries, newest version first (metadata and axes: the nodes and the live device-side check are
     the full version's, on its own endpoint), and how many versions the patient has in all."""
-    total = conn.execute("SELECT count(*) FROM envelopes WHERE patient_id = ?", (patient_id,)).fetchone()[0]
-    rows = conn.execute(_SUMMARY_SELECT + " WHERE e.patient_id = ? AND e.version < ? ORDER BY e.version DESC LIMIT ?",
-                        (patient_id, before_version or 2**62, limit)).fetchall()
+    rows, total = version_page(conn, "envelope", _SUMMARY_SELECT, "e", patient_id, limit, before_version)
     return [{**_meta(r), "speeds_mps": json.loads(r["speeds_json"]), "inclines_deg": json.loads(r["inclines_json"]),
              "safety_ok": bool(r["safety_ok"])} for r in rows], total
 

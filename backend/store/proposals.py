@@ -17,7 +17,7 @@ from pydantic_core import to_json
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
-from backend.store.decisions import decide_once
+from backend.store.decisions import decide_once, summary_select, version_page
 from backend.store.users import User
 from controller_core.proposal import Proposal
 from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
@@ -101,19 +101,15 @@ def get_proposal(conn: sqlite3.Connection, proposal_id: int, full: bool = True) 
     return _public(get_row(conn, proposal_id), full)
 
 
-_SUMMARY_SELECT = _SELECT.replace("SELECT p.*,", "SELECT p.id, p.patient_id, p.version, p.parent_id, p.source, "
-                                  "p.status, p.created_at, p.edit_comment, p.decided_at, p.decision_comment, "
-                                  "p.speed_mps, p.incline_deg, p.body_mass_kg, p.extrapolation, p.table_sha256, "
-                                  "p.safety_ok,")
+_SUMMARY_SELECT = summary_select(_SELECT, "p", "p.speed_mps, p.incline_deg, p.body_mass_kg, p.extrapolation, "
+                                                "p.table_sha256")
 
 
 def list_proposals(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
                    before_version: int | None = None) -> tuple[list[dict], int]:
     """One page of summaries, newest version first (metadata only: the table, curves and the live limit check are
     the full version's, on its own endpoint), and how many versions the patient has in all."""
-    total = conn.execute("SELECT count(*) FROM proposals WHERE patient_id = ?", (patient_id,)).fetchone()[0]
-    rows = conn.execute(_SUMMARY_SELECT + " WHERE p.patient_id = ? AND p.version < ? ORDER BY p.version DESC LIMIT ?",
-                        (patient_id, before_version or 2**62, limit)).fetchall()
+    rows, total = version_page(conn, "proposal", _SUMMARY_SELECT, "p", patient_id, limit, before_version)
     return [{**_meta(r), "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
 

@@ -87,26 +87,36 @@ def test_two_processes_starting_at_once(tmp_path):
     assert versions == [m.version for m in discover()]
 
 
-def test_envelope_pushes_migration_keeps_every_table_push(tmp_path):
-    """0007 rebuilds ``pushes`` (proposal_id may now be NULL for an envelope): old rows, the trigger and the
-    one-of rule survive."""
+def _database_before(tmp_path, n: int):
+    """A database migrated to version ``n`` with a user, a patient, a proposal and a device; (db, migrations dir)."""
     mig = tmp_path / "migrations"
     mig.mkdir()
-    for m in discover()[:6]:
+    for m in discover()[:n]:
         (mig / m.name).write_text(m.sql)
     db = tmp_path / "q.sqlite"
     migrate(db, mig)
     conn = connect(db)
-    now = "2026-11-24T00:00:00Z"
     conn.execute("INSERT INTO users (id, username, role, password_hash, created_at) VALUES (1, 'p', 'prosthetist', "
-                 "'x', ?)", (now,))
+                 "'x', ?)", (NOW,))
     conn.execute("INSERT INTO patients (id, code_name, body_mass_kg, side, created_by, created_at, updated_at) "
-                 "VALUES (1, 'P-1', 80, 'left', 1, ?, ?)", (now, now))
+                 "VALUES (1, 'P-1', 80, 'left', 1, ?, ?)", (NOW, NOW))
     conn.execute("INSERT INTO proposals (id, patient_id, version, source, speed_mps, incline_deg, body_mass_kg, "
                  "extrapolation, safety_ok, model_json, table_json, table_sha256, created_by, created_at) "
-                 "VALUES (1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 'x', 1, ?)", (now,))
+                 "VALUES (1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 'x', 1, ?)", (NOW,))
     conn.execute("INSERT INTO devices (id, kind, interface, channel, registered_at) VALUES ('leg', 'simulated', "
-                 "'virtual', 'x', ?)", (now,))
+                 "'virtual', 'x', ?)", (NOW,))
+    conn.commit()
+    return db, mig, conn
+
+
+NOW = "2026-11-24T00:00:00Z"
+
+
+def test_envelope_pushes_migration_keeps_every_table_push(tmp_path):
+    """0007 rebuilds ``pushes`` (proposal_id may now be NULL for an envelope): old rows, the trigger and the
+    one-of rule survive."""
+    db, mig, conn = _database_before(tmp_path, 6)
+    now = NOW
     conn.execute("INSERT INTO pushes (id, proposal_id, device_id, table_version, crc32, status, requested_by, "
                  "requested_at, attempts) VALUES (7, 1, 'leg', 3, 4660, 'active', 1, ?, 2)", (now,))
     conn.commit()
@@ -128,26 +138,11 @@ def test_envelope_pushes_migration_keeps_every_table_push(tmp_path):
 
 def test_push_reconciliation_migration_keeps_every_push_and_admits_the_two_new_states(tmp_path):
     """0008 rebuilds ``pushes`` for 'unconfirmed' and 'lost': table and envelope pushes of every old state survive."""
-    mig = tmp_path / "migrations"
-    mig.mkdir()
-    for m in discover()[:7]:
-        (mig / m.name).write_text(m.sql)
-    db = tmp_path / "q.sqlite"
-    migrate(db, mig)
-    conn = connect(db)
-    now = "2026-11-24T00:00:00Z"
-    conn.execute("INSERT INTO users (id, username, role, password_hash, created_at) VALUES (1, 'p', 'prosthetist', "
-                 "'x', ?)", (now,))
-    conn.execute("INSERT INTO patients (id, code_name, body_mass_kg, side, created_by, created_at, updated_at) "
-                 "VALUES (1, 'P-1', 80, 'left', 1, ?, ?)", (now, now))
-    conn.execute("INSERT INTO proposals (id, patient_id, version, source, speed_mps, incline_deg, body_mass_kg, "
-                 "extrapolation, safety_ok, model_json, table_json, table_sha256, created_by, created_at) "
-                 "VALUES (1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 'x', 1, ?)", (now,))
+    db, mig, conn = _database_before(tmp_path, 7)
+    now = NOW
     conn.execute("INSERT INTO envelopes (id, patient_id, version, source, body_mass_kg, n_speeds, n_inclines, "
                  "extrapolation, safety_ok, envelope_json, envelope_sha256, crc32, created_by, created_at) "
                  "VALUES (1, 1, 1, 'model', 80, 2, 2, 0, 1, '{}', 'x', 5, 1, ?)", (now,))
-    conn.execute("INSERT INTO devices (id, kind, interface, channel, registered_at) VALUES ('leg', 'simulated', "
-                 "'virtual', 'x', ?)", (now,))
     old = ["sending", "acknowledged", "active", "failed", "superseded"]
     for i, status in enumerate(old):
         item = "proposal_id, envelope_id" if i % 2 else "envelope_id, proposal_id"

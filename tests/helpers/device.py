@@ -29,3 +29,11 @@ def until(predicate: Callable[[], bool], timeout_s: float = 5.0) -> None:
     while not predicate():
         assert time.monotonic() < deadline, "condition not reached in time"
         time.sleep(0.002)
+
+
+def assert_same_as_device(table, device) -> None:
+    """Every row and threshold value of a stored ``table`` is bit for bit what the device decodes (``device``)."""
+    for r in table.rows:
+        d = device.row(r.joint, r.subphase)
+        assert (r.k_Nm_per_rad, r.theta_e_deg, r.b_Nm_s_per_rad) == (d.k_Nm_per_rad, d.theta_e_deg, d.b_Nm_s_per_rad)
+    assert table.thresholds == device.thresholds

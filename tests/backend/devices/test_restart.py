@@ -12,24 +12,18 @@ import os
 import signal
 import sqlite3
 import threading
-import time
 
 import httpx
 
 from backend.settings import DB_FILE
+from tests.helpers.api import wait_for
 from tests.helpers.server import PASSWORD, add_user, start_server
 
 DEVICE = "sim-leg-1"
 
 
 def _until(fetch, ok, timeout_s: float = 30.0):
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = fetch()
-        if ok(value):
-            return value
-        assert time.monotonic() < deadline, f"not reached in time: {value!r}"
-        time.sleep(0.02)
+    return wait_for(fetch, ok, timeout_s)
 
 
 def _client(base: str) -> httpx.Client:
