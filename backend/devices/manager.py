@@ -121,7 +121,7 @@ class DeviceManager:
                 return None
             dev.tables[key] = {k: push[k] for k in ("kind", "proposal_id", "proposal_version", "envelope_id",
                                                     "envelope_version", "patient_id", "patient_code", "label",
-                                                    "table_label", "task")}
+                                                    "table_label", "task", "body_mass_kg")}
         return dev.tables[key]
 
     def view(self, device_id: str) -> dict:
@@ -136,6 +136,7 @@ class DeviceManager:
             pending = None if s is None else self._table(conn, dev, s.pending_version, None)
         return {
             "patient": patient, "active_table": active, "pending_table": pending,
+            "body_mass_mismatch": mass_mismatch(active, patient),
             "id": dev.spec.device_id, "kind": dev.spec.kind, "interface": dev.spec.interface,
             "channel": dev.spec.channel, "online": self.online(dev),
             "mode": None if s is None else s.mode.name.lower(),
@@ -291,6 +292,23 @@ class DeviceManager:
             x.ankle_moment_Nm, *_task_columns(x)))
         if dev.fanout:
             dev.fanout.publish({"type": "telemetry", **x.to_json()})
+
+
+MASS_MISMATCH = 0.05   # a table built for a body mass more than 5 % from the patient's current one is flagged
+
+
+def mass_mismatch(table: dict | None, patient: dict | None) -> dict | None:
+    """The running table's body mass against its patient's current one, when they differ by more than 5 %."""
+    if table is None or patient is None or patient["patient_id"] != table["patient_id"]:
+        return None
+    built, now = table["body_mass_kg"], patient["body_mass_kg"]
+    if abs(now - built) <= MASS_MISMATCH * built:
+        return None
+    pct = 100.0 * (now - built) / built
+    return {"built_for_kg": built, "patient_now_kg": now, "difference_percent": round(pct, 1),
+            "message": f"{table['label']} was built for {built:g} kg and {patient['patient_code']} now weighs {now:g} "
+                       f"kg ({pct:+.0f} %): its torques and load thresholds scale with body mass; propose again for "
+                       "the new mass and push it"}
 
 
 def _task_columns(x: TelemetrySample) -> tuple:

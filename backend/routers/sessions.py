@@ -8,7 +8,7 @@ from typing import Annotated
 import numpy as np
 from fastapi import APIRouter, Query, Request, Response, status
 
-from backend.deps import Conn, CurrentUser, Model, Monitor
+from backend.deps import Conn, CurrentUser, Model, Monitor, Prosthetist
 from backend.devices import DeviceManager
 from backend.errors import ConflictError, InvalidError
 from backend.experiments.reference import task_reference
@@ -76,8 +76,9 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
 
 @router.post("/sessions/{session_id}/stop", response_model=SessionOut,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
-def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Monitor, model: Model) -> dict:
-    """Stop recording and store the summary: strides, cadence, joint RMSE against the reference for the task."""
+def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthetist, model: Model) -> dict:
+    """Stop recording and store the summary: strides, cadence, joint RMSE against the reference for the task. The
+    prosthetist's (a viewer who watches remotely must not end the prosthetist's recording: 403)."""
     devices: DeviceManager = request.app.state.devices
     session = store.get_session(conn, session_id)
     if session["status"] != "recording":

@@ -34,6 +34,17 @@ class TableOnDevice(BaseModel):
     table_label: str | None = Field(description="the same, for a table (null for an envelope)")
     task: dict[str, float] = Field(description="speed_mps and incline_deg the table was proposed for (an "
                                                "envelope: its nominal task)")
+    body_mass_kg: float = Field(description="the body mass the table or envelope was built for (kg)")
+
+
+class MassMismatch(BaseModel):
+    """The table on the leg was built for another body mass than the patient's now (torques and load thresholds scale
+    with body mass)."""
+
+    built_for_kg: float
+    patient_now_kg: float
+    difference_percent: float
+    message: str
 
 
 class BenchTask(BaseModel):
@@ -48,6 +59,9 @@ class DeviceOut(BaseModel):
                                                          "sessions are for this patient only)")
     active_table: TableOnDevice | None = Field(description="the table the device reports running")
     pending_table: TableOnDevice | None = Field(description="a verified table waiting for the next heel strike")
+    body_mass_mismatch: MassMismatch | None = Field(
+        default=None, description="set when the table running was built for a body mass more than 5 % away from "
+                                  "the assigned patient's current mass")
     kind: Literal["simulated", "can"]
     interface: str
     channel: str

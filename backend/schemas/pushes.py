@@ -34,6 +34,7 @@ class PushOut(BaseModel):
     label: str = Field(description="its one name everywhere: 'patient code · table vN' or '… · envelope vN'")
     table_label: str | None = Field(description="the same name, for a table push (null for an envelope)")
     task: dict[str, float] = Field(description="the table's task, or the envelope's nominal task")
+    body_mass_kg: float = Field(description="the body mass the table or envelope was built for (kg)")
     table_version: int = Field(description="the device's own version number for this push (16-bit, per device)")
     crc32: str = Field(description="CRC-32 (hex) of the table or envelope as sent, in the wire's fixed-point")
     status: Literal["sending", "unconfirmed", "acknowledged", "active", "failed", "superseded", "lost"] = Field(

@@ -100,5 +100,6 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     page.click("#leave-safe")
     page.wait_for_selector("#recording-chip .chip.ok:has-text('recording')", timeout=10_000)
     page.click("#stop-session")
+    page.click("#stop-dialog-confirm")
     page.wait_for_selector("#session-summary")
     assert page.locator("#off-table").count() == 1                          # the summary says it, before errors

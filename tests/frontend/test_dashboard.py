@@ -139,6 +139,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     shot(page, "05-monitor")
     page.wait_for_timeout(2500)                                            # a few strides
     page.click("#stop-session")
+    page.click("#stop-dialog-confirm")
     page.wait_for_selector("#session-summary")
 
     # the report: task, version, strides, cadence, trajectories; PDF export

@@ -112,6 +112,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     stats = page.evaluate("window.quasitune.monitor")
     shot(page, f"env-{size}-04-monitor")
     page.click("#stop-session")
+    page.click("#stop-dialog-confirm")
     page.wait_for_selector("#session-summary")
     page.click("#report-link")
     page.wait_for_selector("#report-histogram")
@@ -168,4 +169,5 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
     page.click("#leave-safe")
     page.wait_for_selector("#adaptive-state:not([data-state=safe])", timeout=10_000)
     page.click("#stop-session")
+    page.click("#stop-dialog-confirm")
     page.wait_for_selector("#session-summary")

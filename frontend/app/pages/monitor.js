@@ -17,6 +17,8 @@ const FAULT_WORDS = {
   control_error: "control fault: went to safe mode",
 };
 
+const canCommandOf = () => app.me.role === "prosthetist";
+
 export async function monitorPage(view, deviceId, params) {
   const [device, patients] = await Promise.all([get(`/api/devices/${deviceId}`), get("/api/patients")]);
   const canCommand = app.me.role === "prosthetist";
@@ -189,7 +191,8 @@ function renderStatus(box, d) {
   h("dl", { class: "facts" },
     h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
     h("dt", {}, "On the leg"), h("dd", { id: "active-version" }, d.active_version === null ? "none"
-      : d.active_table ? tableName(d.active_table, true) : `device version ${d.active_version} (not sent by this server)`),
+      : d.active_table ? tableName(d.active_table, true) : `device version ${d.active_version} (not sent by this server)`,
+      d.body_mass_mismatch ? h("span", { id: "mass-mismatch" }, " ", chip(d.body_mass_mismatch.message, "warn")) : null),
     h("dt", {}, "CRC-32 read back"), h("dd", { class: "mono" }, d.active_crc32 || "—"),
     h("dt", {}, "Waiting for heel strike"), h("dd", {}, d.pending_version === null ? "—"
       : d.pending_table ? tableName(d.pending_table) : `device version ${d.pending_version}`),
@@ -229,6 +232,9 @@ async function renderSession(box, deviceId, patients, params) {
     const s = await get(`/api/sessions/${device.recording_session_id}`);
     const stop = h("button", { id: "stop-session" }, "Stop and summarise");
     stop.addEventListener("click", async () => {
+      const ok = await confirmDialog({ id: "stop-dialog", title: `Stop recording session #${s.id}?`,
+        facts: [["Patient", s.patient_code], ["Started", when(s.started_at)]], confirm: "Stop and summarise" });
+      if (!ok) return;
       try {
         const done = await post(`/api/sessions/${s.id}/stop`);
         notice(`Session #${done.id} stopped: ${done.summary.strides} strides`, "ok");
@@ -240,7 +246,9 @@ async function renderSession(box, deviceId, patients, params) {
     });
     box.append(h("p", {}, h("span", { id: "recording-chip" }, chip("recording", "ok")), ` session #${s.id} since ${when(s.started_at)} `,
       s.course ? `walking the “${s.course}” course, ` : `at ${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}, `,
-      `for ${s.patient_code}, running ${s.table_label ?? "no table from this server"}`), stop, error);
+      `for ${s.patient_code}, running ${s.table_label ?? "no table from this server"}`),
+      canCommandOf() ? stop : h("p", { class: "muted", id: "stop-session-note" }, "Only a prosthetist stops a recording."),
+      error);
     return;
   }
   box.append(assignment(box, device, patients, deviceId, params));

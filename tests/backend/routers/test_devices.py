@@ -55,10 +55,13 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
     assert max(s["knee_angle_deg"] for s in samples) - min(s["knee_angle_deg"] for s in samples) > 10
     time.sleep(1.0)
-    r = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer)
+    refused = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer)   # the prosthetist's recording
+    assert refused.status_code == 403, refused.text
+    assert c.get(f"/api/sessions/{session['id']}", headers=viewer).json()["status"] == "recording"
+    r = c.post(f"/api/sessions/{session['id']}/stop", headers=api.as_("prosthetist"))
     assert r.status_code == 200, r.text
     summary = r.json()["summary"]
-    again = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer)
+    again = c.post(f"/api/sessions/{session['id']}/stop", headers=api.as_("prosthetist"))
     assert again.status_code == 409 and "already stopped" in again.json()["detail"]
     assert summary["samples"] >= 350 and summary["missing_samples"] == 0
     assert summary["strides"] >= 2 and 60 < summary["cadence_steps_per_min"] < 160
@@ -198,3 +201,19 @@ def test_an_open_telemetry_stream_closes_when_its_user_is_disabled(sim_api):
             for _ in range(1000):                         # status at 10 Hz: the re-check comes within ~1 s
                 ws.receive_json()
         assert closed.value.code == 1008 and "disabled" in closed.value.reason
+
+
+def test_a_table_built_for_another_body_mass_is_flagged_on_the_device(sim_api):
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    prop = approved_proposal(api)                                  # built for 80 kg
+    assert push_to_leg(api, prop).status_code == 201
+    device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
+                      lambda d: d["active_table"] is not None)
+    assert device["active_table"]["body_mass_kg"] == 80.0 and device["body_mass_mismatch"] is None
+    assert c.patch(f"/api/patients/{prop['patient_id']}", headers=pro, json={"body_mass_kg": 83.0}).status_code == 200
+    assert c.get(f"/api/devices/{DEVICE}", headers=pro).json()["body_mass_mismatch"] is None      # within 5 %
+    assert c.patch(f"/api/patients/{prop['patient_id']}", headers=pro, json={"body_mass_kg": 95.0}).status_code == 200
+    flag = c.get(f"/api/devices/{DEVICE}", headers=pro).json()["body_mass_mismatch"]
+    assert flag["built_for_kg"] == 80.0 and flag["patient_now_kg"] == 95.0 and flag["difference_percent"] == 18.8
+    assert "P-001 · table v1 was built for 80 kg" in flag["message"] and "95 kg" in flag["message"]
