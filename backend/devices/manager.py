@@ -121,7 +121,8 @@ class DeviceManager:
                 return None
             dev.tables[key] = {k: push[k] for k in ("kind", "proposal_id", "proposal_version", "envelope_id",
                                                     "envelope_version", "patient_id", "patient_code", "label",
-                                                    "table_label", "task", "body_mass_kg")}
+                                                    "table_label", "task", "body_mass_kg", "override_reason",
+                                                    "approval_override")}
         return dev.tables[key]
 
     def view(self, device_id: str) -> dict:

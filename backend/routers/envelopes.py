@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sqlite3
 from typing import Annotated
 
 import numpy as np
@@ -20,7 +21,7 @@ from backend.schemas.envelopes import (
 )
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
-from backend.store import envelopes, patients, pushes
+from backend.store import bench_verdict, envelopes, patients, pushes
 from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
 from device_bridge.envelope_wire import check_envelope_as_run
@@ -38,7 +39,8 @@ def create_envelope(patient_id: IdPath, body: EnvelopeRequest, conn: Conn, user:
     env = model.propose_envelope(np.linspace(*body.speed_range_mps, body.grid[0]),
                                  np.linspace(*body.incline_range_deg, body.grid[1]), patient["body_mass_kg"],
                                  nominal=(body.nominal_speed_mps, body.nominal_incline_deg))
-    return envelopes.create_from_model(conn, patient_id, env, user)
+    created = envelopes.create_from_model(conn, patient_id, env, user)
+    return {**created, **_shown_with(conn, created["id"])}
 
 
 @router.get("/patients/{patient_id}/envelopes", response_model=list[EnvelopeListItem], responses=NOT_FOUND)
@@ -55,8 +57,13 @@ def list_envelopes(patient_id: IdPath, response: Response, conn: Conn, _user: Cu
 @router.get("/envelopes/{envelope_id}", response_model=EnvelopeOut, responses=NOT_FOUND)
 def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """An envelope with every node's table, extrapolation flag, feature SDs and guarded values, and its check."""
-    return {**envelopes.get_envelope(conn, envelope_id),
-            "deployment": pushes.deployment_state(conn, ("envelope", envelope_id))}
+    return {**envelopes.get_envelope(conn, envelope_id), **_shown_with(conn, envelope_id)}
+
+
+def _shown_with(conn: sqlite3.Connection, envelope_id: int) -> dict:
+    """What the page shows beside the version: where it runs, and the bench's verdict on exactly its content."""
+    return {"deployment": pushes.deployment_state(conn, ("envelope", envelope_id)),
+            "bench": bench_verdict.verdict(conn, "envelope", envelopes.get_row(conn, envelope_id))}
 
 
 @router.get("/envelopes/{envelope_id}/nodes/{i}/{j}", response_model=EnvelopeNodeOut, responses=NOT_FOUND)
@@ -93,7 +100,8 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
         raise InvalidError(f"edit refused, nothing stored: {len(violations)} value(s) outside the safety limits or "
                            "the neighbour rule: " + "; ".join(v.message for v in violations[:5]) + hint,
                            violations=[v.model_dump() for v in violations], neighbour_rule_only=neighbours_only)
-    return envelopes.create_edit(conn, envelope_id, edited, changes, body.comment, user)
+    created = envelopes.create_edit(conn, envelope_id, edited, changes, body.comment, user)
+    return {**created, **_shown_with(conn, created["id"])}
 
 
 @router.get("/envelopes/{envelope_id}/diff/{other_id}", response_model=EnvelopeDiffOut, responses=NOT_FOUND)
@@ -107,11 +115,12 @@ def diff(envelope_id: IdPath, other_id: IdPath, conn: Conn, _user: CurrentUser) 
 def approve_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Approve a draft envelope (prosthetist). The stored envelope is re-validated and every node and the neighbour
     rule re-checked as the device will run them; an approved envelope never changes."""
-    return envelopes.decide(conn, envelope_id, "approved", body.comment, user)
+    return {**envelopes.decide(conn, envelope_id, "approved", body.comment, user, body.override_reason),
+            **_shown_with(conn, envelope_id)}
 
 
 @router.post("/envelopes/{envelope_id}/reject", response_model=EnvelopeOut,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def reject_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Reject a draft envelope (prosthetist)."""
-    return envelopes.decide(conn, envelope_id, "rejected", body.comment, user)
+    return {**envelopes.decide(conn, envelope_id, "rejected", body.comment, user), **_shown_with(conn, envelope_id)}

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sqlite3
+
 from fastapi import APIRouter, Response, status
 from pydantic import ValidationError
 
@@ -17,7 +19,7 @@ from backend.schemas.proposals import (
     ProposalOut,
     ProposalRequest,
 )
-from backend.store import patients, proposals, pushes
+from backend.store import bench_verdict, patients, proposals, pushes
 from controller_core.table_edit import EditError, edit_table
 from device_bridge.protocol import check_as_run
 
@@ -34,7 +36,8 @@ async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn,
     # the GIL; the write is one short transaction.
     patient = patients.get_patient(conn, patient_id)
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
-    return {**proposals.create_from_model(conn, patient_id, proposal, user), "deployment": None}
+    created = proposals.create_from_model(conn, patient_id, proposal, user)
+    return {**created, **_shown_with(conn, created["id"])}
 
 
 @router.get("/patients/{patient_id}/proposals", response_model=list[ProposalListItem], responses=NOT_FOUND)
@@ -51,8 +54,13 @@ def list_proposals(patient_id: IdPath, response: Response, conn: Conn, _user: Cu
 @router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)
 def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """A proposal with its curves, features, table and safety check, and its deployment state."""
-    return {**proposals.get_proposal(conn, proposal_id),
-            "deployment": pushes.deployment_state(conn, ("proposal", proposal_id))}
+    return {**proposals.get_proposal(conn, proposal_id), **_shown_with(conn, proposal_id)}
+
+
+def _shown_with(conn: sqlite3.Connection, proposal_id: int) -> dict:
+    """What the page shows beside the version: where it runs, and the bench's verdict on exactly its content."""
+    return {"deployment": pushes.deployment_state(conn, ("proposal", proposal_id)),
+            "bench": bench_verdict.verdict(conn, "proposal", proposals.get_row(conn, proposal_id))}
 
 
 @router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
@@ -71,7 +79,8 @@ def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Pros
     if violations:
         raise InvalidError("edit refused, nothing stored: " + "; ".join(v.message for v in violations),
                            violations=[v.model_dump() for v in violations])
-    return proposals.create_edit(conn, proposal_id, table, changes, body.comment, user)
+    created = proposals.create_edit(conn, proposal_id, table, changes, body.comment, user)
+    return {**created, **_shown_with(conn, created["id"])}
 
 
 @router.get("/proposals/{proposal_id}/diff/{other_id}", response_model=DiffOut, responses=NOT_FOUND)
@@ -85,11 +94,12 @@ def diff_proposals(proposal_id: IdPath, other_id: IdPath, conn: Conn, _user: Cur
 def approve(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Approve a draft (prosthetist). The stored table is re-validated and every limit re-checked first;
     an approved proposal never changes."""
-    return proposals.decide(conn, proposal_id, "approved", body.comment, user)
+    return {**proposals.decide(conn, proposal_id, "approved", body.comment, user, body.override_reason),
+            **_shown_with(conn, proposal_id)}
 
 
 @router.post("/proposals/{proposal_id}/reject", response_model=ProposalOut,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def reject(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Reject a draft (prosthetist)."""
-    return proposals.decide(conn, proposal_id, "rejected", body.comment, user)
+    return {**proposals.decide(conn, proposal_id, "rejected", body.comment, user), **_shown_with(conn, proposal_id)}

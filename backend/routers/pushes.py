@@ -14,8 +14,8 @@ from backend.errors import ConflictError, DeviceError, InvalidError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.pushes import PushOut, PushRequest
+from backend.store import bench_verdict, envelopes, patients, proposals
 from backend.store import devices as devices_store
-from backend.store import envelopes, patients, proposals
 from backend.store import pushes as store
 from backend.store.users import User
 from backend.threads import run_waiting
@@ -93,11 +93,13 @@ def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: Pu
         raise ConflictError(f"{kind} {item_id} fails the safety limits; not pushed: "
                             + "; ".join(v.message for v in violations[:5]),
                             violations=[v.model_dump() for v in violations])
+    bench = bench_verdict.require_bench(conn, kind, row, body.override_reason, "pushed")
+    override = body.override_reason if bench["status"] not in ("clean", "warnings") else None
     with devices.push_slot(body.device_id):
         _check_replaces(conn, devices, body)
         if not devices.online(devices.get(body.device_id)):
             raise ConflictError(f"device {body.device_id} is offline (no status in the last second); nothing was sent")
-        push_id, version = store.begin_push(conn, item, body.device_id, crc, user)
+        push_id, version = store.begin_push(conn, item, body.device_id, crc, user, override)
         devices.push_started(body.device_id, push_id)
         t0 = time.monotonic()
         try:

@@ -35,6 +35,9 @@ class TableOnDevice(BaseModel):
     task: dict[str, float] = Field(description="speed_mps and incline_deg the table was proposed for (an "
                                                "envelope: its nominal task)")
     body_mass_kg: float = Field(description="the body mass the table or envelope was built for (kg)")
+    approval_override: str | None = Field(
+        default=None, description="approved without a clean bench preview: the prosthetist's reason")
+    override_reason: str | None = Field(default=None, description="pushed without a clean bench preview: why")
 
 
 class MassMismatch(BaseModel):

@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field, model_validator
 
 from backend.schemas.common import EDIT_BOUND, StrictIn, Text
 from backend.schemas.proposals import (
+    BenchVerdict,
     Boundaries,
     Curves,
     DecidedVersion,
@@ -102,6 +103,7 @@ class EnvelopeListItem(DecidedVersion):
 
 
 class EnvelopeOut(EnvelopeSummary):
+    bench: BenchVerdict | None = Field(default=None, description="the bench's verdict on exactly this envelope")
     deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
                         "push_failed"] | None = Field(
         default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it")

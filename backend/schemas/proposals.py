@@ -51,6 +51,27 @@ class EditRequest(StrictIn):
 class DecisionRequest(StrictIn):
     comment: Text = Field(min_length=1, max_length=2000,
                           description="why the table is approved or rejected (required, audited), e.g. what was reviewed")
+    override_reason: Text | None = Field(
+        default=None, min_length=20, max_length=2000,
+        description="approve although the bench preview of this version is not walked or shows an unsafe figure: "
+                    "why (at least 20 characters; audited, and shown wherever the version is shown)")
+
+
+class BenchFlag(BaseModel):
+    figure: str
+    severity: Literal["bad", "warn"]
+    value: float | int
+    fsmic_value: float | int | None
+    unit: str
+    message: str
+
+
+class BenchVerdict(BaseModel):
+    """The bench's verdict on exactly this version's content: its stored preview's safety flags."""
+
+    status: Literal["clean", "warnings", "unsafe", "not_walked"]
+    flags: list[BenchFlag]
+    words: str = Field(description="for the chip beside 'within parameter limits'")
 
 
 class Task(BaseModel):
@@ -69,6 +90,8 @@ class Decision(BaseModel):
     by: str
     at: str
     comment: str | None
+    override_reason: str | None = Field(
+        default=None, description="approved without a clean bench preview: the prosthetist's written reason")
 
 
 class TableRowOut(BaseModel):
@@ -168,6 +191,7 @@ class ProposalListItem(DecidedVersion):
 
 
 class ProposalOut(ProposalSummary):
+    bench: BenchVerdict | None = Field(default=None, description="the bench's verdict on exactly this table")
     deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
                         "push_failed"] | None = Field(
         default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it; "

@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from backend.schemas.common import StrictIn
+from backend.schemas.common import StrictIn, Text
 from backend.schemas.devices import DeviceId
 
 
@@ -19,6 +19,10 @@ class PushRequest(StrictIn):
         default=None, description="the envelope you saw on the leg and are replacing (null: not an envelope)")
     patient_ready: Literal[True] = Field(description="you confirm the patient is seated or in the parallel bars: "
                                                      "the leg changes its behaviour at the next heel strike")
+    override_reason: Text | None = Field(
+        default=None, min_length=20, max_length=2000,
+        description="push although the bench preview of this version is not walked or shows an unsafe figure: why "
+                    "(at least 20 characters; audited, and shown with the push and on the device page)")
 
 
 class PushOut(BaseModel):
@@ -35,6 +39,9 @@ class PushOut(BaseModel):
     table_label: str | None = Field(description="the same name, for a table push (null for an envelope)")
     task: dict[str, float] = Field(description="the table's task, or the envelope's nominal task")
     body_mass_kg: float = Field(description="the body mass the table or envelope was built for (kg)")
+    override_reason: str | None = Field(default=None, description="pushed without a clean bench preview: why")
+    approval_override: str | None = Field(
+        default=None, description="the version was approved without a clean bench preview: why")
     table_version: int = Field(description="the device's own version number for this push (16-bit, per device)")
     crc32: str = Field(description="CRC-32 (hex) of the table or envelope as sent, in the wire's fixed-point")
     status: Literal["sending", "unconfirmed", "acknowledged", "active", "failed", "superseded", "lost"] = Field(

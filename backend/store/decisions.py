@@ -8,6 +8,7 @@ from collections.abc import Callable
 from backend.db import utc_now
 from backend.errors import ConflictError
 from backend.store import audit
+from backend.store.bench_verdict import require_bench
 from backend.store.users import User
 from controller_core.table import LimitViolation
 
@@ -15,38 +16,47 @@ _TABLES = {"proposal": "proposals", "envelope": "envelopes"}
 
 
 def decide_once(conn: sqlite3.Connection, entity: str, row: sqlite3.Row, status: str, comment: str, actor: User,
-                recheck: Callable[[], list[LimitViolation]], checked_against: str, audit_after: dict) -> None:
+                recheck: Callable[[], list[LimitViolation]], checked_against: str, audit_after: dict,
+                override_reason: str | None = None) -> None:
     """Record the decision on draft ``row`` (inside the caller's write transaction) and audit it.
 
     Args:
         entity: ``proposal`` or ``envelope``.
         recheck: the check of the stored content an approval must pass (run only to approve).
         checked_against: what ``recheck`` checks, for the refusal (e.g. "the safety limits").
+        override_reason: an approval without a clean bench preview goes ahead only with this written reason
+            (:mod:`backend.store.bench_verdict`); kept with the decision and audited.
 
     Raises:
-        ConflictError: already decided, or an approval whose content fails ``recheck`` (nothing written).
+        ConflictError: already decided, an approval whose content fails ``recheck``, or one the bench's verdict
+            does not allow without an override (nothing written).
     """
     if status not in ("approved", "rejected"):
         raise ValueError(f"status must be 'approved' or 'rejected', got {status!r}")
     if row["status"] != "draft":
         raise ConflictError(f"{entity} {row['id']} was already {row['status']} by {row['decided_by_name']} at "
                             f"{row['decided_at']}; derive a new version to change it")
+    bench = None
     if status == "approved":
         violations = recheck()
         if violations:
             raise ConflictError(f"{entity} {row['id']} cannot be approved: {len(violations)} value(s) outside "
                                 f"{checked_against}: " + "; ".join(v.message for v in violations),
                                 violations=[v.model_dump() for v in violations])
-    conn.execute(f"UPDATE {_TABLES[entity]} SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ? "
-                 "WHERE id = ? AND status = 'draft'", (status, actor.id, utc_now(), comment, row["id"]))
+        bench = require_bench(conn, entity, row, override_reason, "approved")["status"]   # type: ignore[arg-type]
+    override = override_reason if status == "approved" and bench not in ("clean", "warnings") else None
+    conn.execute(f"UPDATE {_TABLES[entity]} SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ?, "
+                 "decision_override = ? WHERE id = ? AND status = 'draft'",
+                 (status, actor.id, utc_now(), comment, override, row["id"]))
     audit.record(conn, actor.id, actor.username, f"{entity}.{'approve' if status == 'approved' else 'reject'}",
-                 entity, row["id"], before={"status": "draft"}, after={"status": status, "comment": comment,
-                                                                      **audit_after})
+                 entity, row["id"], before={"status": "draft"}, after={
+                     "status": status, "comment": comment, **audit_after,
+                     **({"bench": bench} if bench else {}), **({"override_reason": override} if override else {})})
 
 
 # what every decided-once version's summary reads, besides its own columns
 VERSION_COLUMNS = ("id", "patient_id", "version", "parent_id", "source", "status", "created_at", "edit_comment",
-                   "decided_at", "decision_comment", "safety_ok")
+                   "decided_at", "decision_comment", "decision_override", "safety_ok")
 
 
 def summary_select(select: str, alias: str, columns: str) -> str:

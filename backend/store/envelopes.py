@@ -61,7 +61,7 @@ def _meta(row: sqlite3.Row) -> dict:
         "created_at": row["created_at"], "edit_comment": row["edit_comment"],
         "decision": None if row["status"] == "draft" else {
             "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
-            "comment": row["decision_comment"]},
+            "comment": row["decision_comment"], "override_reason": row["decision_override"]},
         "body_mass_kg": row["body_mass_kg"], "grid": [row["n_speeds"], row["n_inclines"]],
         "extrapolation": bool(row["extrapolation"]), "crc32": row["crc32"], "wire_crc32": row["wire_crc32"],
         "envelope_sha256": row["envelope_sha256"],
@@ -196,10 +196,11 @@ def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
 
 
 
-def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str, actor: User) -> dict:
+def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str, actor: User,
+           override_reason: str | None = None) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored envelope and re-runs the device-side check."""
     with write_transaction(conn):
         row = get_row(conn, envelope_id)
         decide_once(conn, "envelope", row, status, comment, actor, lambda: check_envelope_as_run(stored_envelope(row)),
-                    "the safety limits or the neighbour rule", {"crc32": row["crc32"]})
+                    "the safety limits or the neighbour rule", {"crc32": row["crc32"]}, override_reason)
         return get_envelope(conn, envelope_id)

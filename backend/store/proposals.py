@@ -78,7 +78,7 @@ def _meta(row: sqlite3.Row) -> dict:
         "created_by": row["created_by_name"], "created_at": row["created_at"], "edit_comment": row["edit_comment"],
         "decision": None if row["status"] == "draft" else {
             "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
-            "comment": row["decision_comment"]},
+            "comment": row["decision_comment"], "override_reason": row["decision_override"]},
         "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
                  "body_mass_kg": row["body_mass_kg"]},
         "extrapolation": bool(row["extrapolation"]),
@@ -189,12 +189,13 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable,
     return out
 
 
-def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str, actor: User) -> dict:
+def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str, actor: User,
+           override_reason: str | None = None) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored table and re-checks every limit."""
     with write_transaction(conn):
         row = get_row(conn, proposal_id)
         decide_once(conn, "proposal", row, status, comment, actor, lambda: check_as_run(stored_table(row)),
-                    "the safety limits", {"table_sha256": row["table_sha256"]})
+                    "the safety limits", {"table_sha256": row["table_sha256"]}, override_reason)
         return get_proposal(conn, proposal_id)
 
 

@@ -25,7 +25,8 @@ _PUSH_SELECT = ("SELECT pu.*, u.username AS requested_by_name, pr.version AS pro
                 "pa.code_name AS patient_code, "
                 "coalesce(pr.speed_mps, json_extract(en.envelope_json, '$.nominal_speed_mps')) AS speed_mps, "
                 "coalesce(pr.incline_deg, json_extract(en.envelope_json, '$.nominal_incline_deg')) AS incline_deg, "
-                "coalesce(pr.body_mass_kg, en.body_mass_kg) AS built_for_mass_kg "
+                "coalesce(pr.body_mass_kg, en.body_mass_kg) AS built_for_mass_kg, "
+                "coalesce(pr.decision_override, en.decision_override) AS approval_override "
                 "FROM pushes pu "
                 "JOIN users u ON u.id = pu.requested_by LEFT JOIN proposals pr ON pr.id = pu.proposal_id "
                 "LEFT JOIN envelopes en ON en.id = pu.envelope_id "
@@ -42,7 +43,8 @@ def _push(row: sqlite3.Row) -> dict:
             "proposal_version": row["proposal_version"], "envelope_version": row["envelope_version"],
             "label": label, "table_label": label if table else None,
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"]},
-            "body_mass_kg": row["built_for_mass_kg"],
+            "body_mass_kg": row["built_for_mass_kg"], "override_reason": row["override_reason"],
+            "approval_override": row["approval_override"],
             "table_version": row["table_version"], "crc32": f"{row['crc32']:08x}", "status": row["status"],
             "requested_by": row["requested_by_name"], "requested_at": row["requested_at"],
             "acknowledged_at": row["acknowledged_at"], "active_at": row["active_at"], "ended_at": row["ended_at"],
@@ -67,19 +69,22 @@ def pushes_of(conn: sqlite3.Connection, item: Pushed) -> list[dict]:
     return [_push(r) for r in rows]
 
 
-def begin_push(conn: sqlite3.Connection, item: Pushed, device_id: str, crc32: int, actor: User) -> tuple[int, int]:
-    """Record a push about to be sent (``sending``) under the device's next table version, and audit it;
-    returns (push id, version)."""
+def begin_push(conn: sqlite3.Connection, item: Pushed, device_id: str, crc32: int, actor: User,
+               override_reason: str | None = None) -> tuple[int, int]:
+    """Record a push about to be sent (``sending``) under the device's next table version, and audit it (with the
+    prosthetist's reason when it goes ahead without a clean bench preview); returns (push id, version)."""
     kind, item_id = item
     with write_transaction(conn):
         version = devices.next_wire_version(conn, device_id)
         cur = conn.execute(
-            f"INSERT INTO pushes ({kind}_id, device_id, table_version, crc32, status, requested_by, requested_at) "
-            "VALUES (?, ?, ?, ?, 'sending', ?, ?)", (item_id, device_id, version, crc32, actor.id, utc_now()))
+            f"INSERT INTO pushes ({kind}_id, device_id, table_version, crc32, status, requested_by, requested_at, "
+            "override_reason) VALUES (?, ?, ?, ?, 'sending', ?, ?, ?)",
+            (item_id, device_id, version, crc32, actor.id, utc_now(), override_reason))
         push_id = int(cur.lastrowid)
         audit.record(conn, actor.id, actor.username, f"{kind}.push", kind, item_id,
                      after={"push_id": push_id, "device_id": device_id, "table_version": version,
-                            "crc32": f"{crc32:08x}"})
+                            "crc32": f"{crc32:08x}", **({"override_reason": override_reason} if override_reason
+                                                        else {})})
     return push_id, version
 
 

@@ -60,19 +60,26 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
     error.textContent = "";
     const d = await get(`/api/devices/${select.value}`);
     const current = d.pending_table || d.active_table;
+    const bench = item.bench || { status: "not_walked", words: "bench preview not walked yet", flags: [] };
+    const unclean = bench.status === "unsafe" || bench.status === "not_walked";
     const ok = await confirmDialog({ id: "push-dialog", title: `Replace what runs on ${d.id}?`,
       facts: [["Patient", `${patient.code_name} (${fmt(patient.body_mass_kg, 0, "kg")})`],
         ["On the leg now", tableName(current, true)],
         ["Replaced by", what],
+        ["Bench preview", bench.status === "unsafe" ? `UNSAFE: ${bench.flags.filter((f) => f.severity === "bad").map((f) => f.message).join("; ")}`
+          : bench.words],
+        ...(item.decision?.override_reason ? [["Approved without a clean preview", `“${item.decision.override_reason}”`]] : []),
         ["When", kind === "envelope" ? "at the next heel strike after the device re-checks every node; from then on the "
           + "leg changes its rows with the task it estimates, at heel strikes only" : "at the next heel strike after the device verifies it"]],
-      requires: "The patient is seated or standing in the parallel bars.", confirm: "Push now" });
+      requires: "The patient is seated or standing in the parallel bars.", confirm: "Push now",
+      reason: unclean ? { label: "Push anyway because", min: 20 } : null });
     if (!ok) return;
     button.disabled = true;
     steps.replaceChildren(h("li", { class: "doing" }, `sending the ${kind} over CAN…`));
     try {
       const push = await post(`${path}/push`, { device_id: d.id, patient_ready: true,
-        replaces_proposal_id: current ? current.proposal_id : null, replaces_envelope_id: current ? current.envelope_id : null });
+        replaces_proposal_id: current ? current.proposal_id : null, replaces_envelope_id: current ? current.envelope_id : null,
+        ...(unclean ? { override_reason: ok } : {}) });
       steps.replaceChildren(h("li", { class: "done" }, `device read back CRC-32 ${push.crc32} (matches) in ${fmt(push.elapsed_ms, 1, "ms")}`),
         h("li", { class: "doing", id: "push-active" }, "waiting for the device to switch at the next heel strike…"));
       const deadline = Date.now() + 15000;

@@ -129,19 +129,25 @@ export function referenceLabel(summary) {
 
 // A modal question with the facts it is about; resolves true only when confirmed. With `requires`, the confirm
 // button stays disabled until that checkbox (a clinical precondition) is ticked.
-export function confirmDialog({ id, title, facts = [], requires = null, confirm = "Confirm", danger = false }) {
+// reason: { label, min } asks for a written reason too (e.g. an override); the promise then resolves to the text
+// (or false), else to true or false.
+export function confirmDialog({ id, title, facts = [], requires = null, confirm = "Confirm", danger = false, reason = null }) {
   return new Promise((resolve) => {
     const tick = requires ? h("input", { type: "checkbox", id: `${id}-ready` }) : null;
-    const yes = h("button", { id: `${id}-confirm`, class: danger ? "danger" : "", disabled: Boolean(requires) }, confirm);
+    const text = reason ? h("textarea", { id: `${id}-reason`, rows: 2, cols: 50, maxlength: 2000, "aria-label": reason.label }) : null;
+    const yes = h("button", { id: `${id}-confirm`, class: danger ? "danger" : "", disabled: Boolean(requires || reason) }, confirm);
     const no = h("button", { id: `${id}-cancel`, class: "secondary", type: "button" }, "Cancel");
     const dlg = h("dialog", { id, "aria-labelledby": `${id}-title` },
       h("h2", { id: `${id}-title` }, title),
       h("dl", { class: "facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, v)])),
+      text ? h("p", {}, h("label", {}, `${reason.label} (at least ${reason.min} characters) `, text)) : null,
       tick ? h("p", {}, h("label", {}, tick, " ", requires)) : null,
       h("div", { class: "inline" }, yes, no));
-    tick?.addEventListener("change", () => { yes.disabled = !tick.checked; });
+    const ready = () => { yes.disabled = (tick && !tick.checked) || (text && text.value.trim().length < reason.min); };
+    tick?.addEventListener("change", ready);
+    text?.addEventListener("input", ready);
     const close = (answer) => { dlg.close(); dlg.remove(); resolve(answer); };
-    yes.addEventListener("click", () => close(true));
+    yes.addEventListener("click", () => close(text ? text.value.trim() : true));
     no.addEventListener("click", () => close(false));
     dlg.addEventListener("cancel", (ev) => { ev.preventDefault(); close(false); });
     document.body.append(dlg);

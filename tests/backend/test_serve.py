@@ -59,6 +59,8 @@ def test_first_start_prints_a_password_once_and_a_restart_keeps_everything(tmp_p
                              json={"code_name": "SRV-1", "body_mass_kg": 71.0, "side": "right"}).json()
         proposal = httpx.post(f"{base}/api/patients/{patient['id']}/proposals", headers=h,
                               json={"speed_mps": 1.1, "incline_deg": 0.0}).json()
+        assert httpx.get(f"{base}/api/proposals/{proposal['id']}/preview", headers=h,
+                         timeout=60).status_code == 200   # approval rests on the bench
         approved = httpx.post(f"{base}/api/proposals/{proposal['id']}/approve", headers=h,
                               json={"comment": "looks right"}).json()
         assert approved["status"] == "approved"

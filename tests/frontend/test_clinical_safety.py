@@ -68,6 +68,7 @@ def test_clinical_words_by_default_and_the_engineering_view_one_click_away(serve
 def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, page):
     sign_in(page, server, "dana")
     pid = create_patient_and_propose(page, "P-420", speed="1.2")
+    assert call(page, "GET", f"/api/proposals/{pid}/preview")["status"] == 200     # approval rests on the bench
     assert call(page, "POST", f"/api/proposals/{pid}/approve", {"comment": "reviewed"})["status"] == 200
     patient_id = call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
     assert call(page, "PUT", "/api/devices/sim-leg-1/assignment", {"patient_id": patient_id})["status"] == 200

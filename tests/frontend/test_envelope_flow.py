@@ -146,13 +146,16 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
         patient = c.post("/api/patients", json={"code_name": "P-EDGE", "body_mass_kg": 80, "side": "right"}).json()
         env = c.post(f"/api/patients/{patient['id']}/envelopes", json={
             "speed_range_mps": [1.3, 1.6], "incline_range_deg": [3, 9], "grid": [2, 2]}).json()
-        c.post(f"/api/envelopes/{env['id']}/approve", json={"comment": "edge test"}).raise_for_status()
+        c.post(f"/api/envelopes/{env['id']}/approve", json={
+            "comment": "edge test", "override_reason": "clamping drill: the leg is held at the edge on purpose"}
+               ).raise_for_status()
         c.put("/api/devices/sim-leg-1/assignment", json={"patient_id": patient["id"]}).raise_for_status()
         on_leg = c.get("/api/devices/sim-leg-1").json()
         current = on_leg["pending_table"] or on_leg["active_table"]
         c.post(f"/api/envelopes/{env['id']}/push", json={
             "device_id": "sim-leg-1", "patient_ready": True, "replaces_proposal_id": current and current["proposal_id"],
-            "replaces_envelope_id": current and current["envelope_id"]}).raise_for_status()
+            "replaces_envelope_id": current and current["envelope_id"],
+            "override_reason": "clamping drill: the leg is held at the edge on purpose"}).raise_for_status()
     sign_in(page, server, "dana")
     page.click("#nav-monitor")
     page.wait_for_selector("#adaptive:not([hidden]) #live-map")

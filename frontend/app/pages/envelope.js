@@ -5,7 +5,7 @@
 import { get, post } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { envelopeMap, nodeGrid } from "../envelope_map.js";
-import { renderDecision } from "../decision_panel.js";
+import { BENCH_CHIP, renderDecision } from "../decision_panel.js";
 import { renderPush } from "../push_panel.js";
 import { safetyFigures } from "./proposal.js";
 import { chip, fieldWords, fmt, h, inWords, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
@@ -38,7 +38,9 @@ export async function envelopePage(view, id, params) {
       h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `envelope v${e.version}`),
     h("h1", {}, `${e.envelope_label} · ${rangeText(e)}`),
     h("p", { class: "chips", id: "envelope-chips" }, chip(e.status, e.status), words ? chip(words, kind) : null,
-      chip(e.safety.ok ? "every node within the limits and the neighbour rule" : "outside the safety limits", e.safety.ok ? "ok" : "bad"),
+      chip(e.safety.ok ? "every node within the parameter limits and the neighbour rule" : "outside the parameter limits", e.safety.ok ? "ok" : "bad"),
+      e.bench ? h("span", { id: "bench-chip" }, chip(e.bench.words, BENCH_CHIP[e.bench.status])) : null,
+      e.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
       e.source === "edit" ? chip(`edited from v${e.parent_version}`) : chip("model"),
       chip(`${e.grid[0]} × ${e.grid[1]} nodes`)),
     h("p", { class: "provenance" }, `Model ${e.model.version} · training data sha256 ${e.model.data_sha256.slice(0, 12)}… · `,
@@ -199,6 +201,9 @@ async function renderPreview(box, e) {
   let pv;
   try {
     pv = await get(`/api/envelopes/${e.id}/preview`);
+    window.dispatchEvent(new CustomEvent("quasitune:bench-walked", { detail: { path: `/api/envelopes/${e.id}` } }));
+    const now = await get(`/api/envelopes/${e.id}`).catch(() => null);   // the header's bench chip follows
+    if (now?.bench) document.getElementById("bench-chip")?.replaceChildren(chip(now.bench.words, BENCH_CHIP[now.bench.status]));
   } catch (err) {
     if (alive) box.querySelector("#preview-status").textContent = `Preview failed: ${err.message}`;
     return;

@@ -20,7 +20,7 @@ export async function envelopeNodePage(view, id, i, j) {
       `node ${fmt(p.task.speed_mps, 2, "m/s")}, ${fmt(p.task.incline_deg, 1, "°")}`),
     h("h1", {}, `${p.envelope_label} · node at ${fmt(p.task.speed_mps, 2, "m/s")} · incline ${fmt(p.task.incline_deg, 1, "°")}`),
     h("p", { class: "chips" }, chip(`envelope ${p.envelope_status}`, p.envelope_status),
-      chip(p.safety.ok ? "within safety limits" : "outside safety limits", p.safety.ok ? "ok" : "bad"),
+      chip(p.safety.ok ? "within parameter limits" : "outside parameter limits", p.safety.ok ? "ok" : "bad"),
       p.extrapolation ? chip("outside the training data", "warn") : chip("inside the training data", "ok")),
     h("p", { class: "provenance" }, `Table: as the envelope holds it (built by model ${p.envelope_model.version}). Loops, curves and `,
       `features: the model serving now (${p.model.version}) at this task, for ${fmt(mass, 1, "kg")}.`,

@@ -192,7 +192,11 @@ function renderStatus(box, d) {
     h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
     h("dt", {}, "On the leg"), h("dd", { id: "active-version" }, d.active_version === null ? "none"
       : d.active_table ? tableName(d.active_table, true) : `device version ${d.active_version} (not sent by this server)`,
-      d.body_mass_mismatch ? h("span", { id: "mass-mismatch" }, " ", chip(d.body_mass_mismatch.message, "warn")) : null),
+      d.body_mass_mismatch ? h("span", { id: "mass-mismatch" }, " ", chip(d.body_mass_mismatch.message, "warn")) : null,
+      d.active_table?.approval_override ? h("span", { id: "approval-override" }, " ",
+        chip(`approved without a clean bench preview: “${d.active_table.approval_override}”`, "warn")) : null,
+      d.active_table?.override_reason ? h("span", { id: "push-override" }, " ",
+        chip(`pushed without a clean bench preview: “${d.active_table.override_reason}”`, "warn")) : null),
     h("dt", {}, "CRC-32 read back"), h("dd", { class: "mono" }, d.active_crc32 || "—"),
     h("dt", {}, "Waiting for heel strike"), h("dd", {}, d.pending_version === null ? "—"
       : d.pending_table ? tableName(d.pending_table) : `device version ${d.pending_version}`),

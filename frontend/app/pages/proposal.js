@@ -4,7 +4,7 @@ import { get } from "../api.js";
 import { app, onLeave } from "../main.js";
 import { legend, loopChart, phaseChart } from "../charts.js";
 import { parameterTable, tableView } from "./parameter_table.js";
-import { renderDecision } from "../decision_panel.js";
+import { BENCH_CHIP, renderDecision } from "../decision_panel.js";
 import { renderPush } from "../push_panel.js";
 import { chip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table,
   when } from "../ui.js";
@@ -92,7 +92,11 @@ export async function proposalPage(view, id) {
     if (now) document.getElementById("proposal-chips")?.replaceWith(headChips(now));
   };
   window.addEventListener("quasitune:device-changed", refresh);
-  onLeave(() => window.removeEventListener("quasitune:device-changed", refresh));
+  window.addEventListener("quasitune:bench-walked", refresh);
+  onLeave(() => {
+    window.removeEventListener("quasitune:device-changed", refresh);
+    window.removeEventListener("quasitune:bench-walked", refresh);
+  });
 }
 
 const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
@@ -105,7 +109,9 @@ function headChips(p) {
   const [words, kind] = DEPLOYMENT_WORDS[p.deployment] || [];
   return h("p", { class: "chips", id: "proposal-chips" }, chip(p.status, p.status),
     words ? chip(words, kind) : null,
-    chip(p.safety.ok ? "within safety limits" : "outside safety limits", p.safety.ok ? "ok" : "bad"),
+    chip(p.safety.ok ? "within parameter limits" : "outside parameter limits", p.safety.ok ? "ok" : "bad"),
+    p.bench ? h("span", { id: "bench-chip" }, chip(p.bench.words, BENCH_CHIP[p.bench.status])) : null,
+    p.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
     p.source === "edit" ? chip(`edited from v${p.parent_version}`) : chip("model"));
 }
 
@@ -250,6 +256,7 @@ async function renderPreview(box, p) {
   let pv;
   try {
     pv = await get(`/api/proposals/${p.id}/preview`);
+    window.dispatchEvent(new CustomEvent("quasitune:bench-walked", { detail: { path: `/api/proposals/${p.id}` } }));
   } catch (err) {
     if (alive) box.querySelector("#preview-status").textContent = `Preview failed: ${err.message}`;
     return;

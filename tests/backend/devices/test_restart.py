@@ -16,7 +16,7 @@ import threading
 import httpx
 
 from backend.settings import DB_FILE
-from tests.helpers.api import wait_for
+from tests.helpers.api import FIXTURE_OVERRIDE, wait_for
 from tests.helpers.server import PASSWORD, add_user, start_server
 
 DEVICE = "sim-leg-1"
@@ -39,14 +39,16 @@ def _approved_envelope(c: httpx.Client, patient_id: int, speeds: list[float]) ->
     e = c.post(f"/api/patients/{patient_id}/envelopes", json={"speed_range_mps": speeds, "incline_range_deg": [-4, 4],
                                                               "grid": [2, 2]})
     assert e.status_code == 201, e.text
-    a = c.post(f"/api/envelopes/{e.json()['id']}/approve", json={"comment": "bench check"})
+    a = c.post(f"/api/envelopes/{e.json()['id']}/approve", json={"comment": "bench check",
+                                                                  "override_reason": FIXTURE_OVERRIDE})
     assert a.status_code == 200, a.text
     return a.json()
 
 
 def _push(c: httpx.Client, envelope_id: int, replaces: int | None) -> httpx.Response:
     return c.post(f"/api/envelopes/{envelope_id}/push", json={
-        "device_id": DEVICE, "replaces_proposal_id": None, "replaces_envelope_id": replaces, "patient_ready": True})
+        "device_id": DEVICE, "replaces_proposal_id": None, "replaces_envelope_id": replaces, "patient_ready": True,
+        "override_reason": FIXTURE_OVERRIDE})
 
 
 def _push_ignoring_the_kill(base: str, headers, envelope_id: int, replaces: int) -> None:

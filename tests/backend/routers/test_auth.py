@@ -6,7 +6,7 @@ import pytest
 from starlette.websockets import WebSocketDisconnect
 
 from backend.db import write_transaction
-from tests.helpers.api import PASSWORD
+from tests.helpers.api import PASSWORD, walk_preview
 
 
 # ------------------------------------------------------------------ auth
@@ -97,6 +97,7 @@ def test_roles_are_enforced_on_the_server(api):
         assert api.client.patch(f"/api/patients/{patient['id']}", headers=h, json={"notes": "x"}).status_code == 403
         assert api.client.post(f"/api/patients/{patient['id']}/proposals", headers=h,
                                json={"speed_mps": 1.0}).status_code == 403
+        walk_preview(api, proposal["id"])   # approval rests on the bench
         r = api.client.post(f"/api/proposals/{proposal['id']}/approve", headers=h, json={"comment": "ok"})
         assert r.status_code == 403 and "prosthetist" in r.json()["detail"]
         # reading is allowed

@@ -8,7 +8,7 @@ import pytest
 from starlette.websockets import WebSocketDisconnect
 
 from device_bridge.protocol import WireTable
-from tests.helpers.api import DEVICE, approved_proposal, assign, push_body, push_to_leg, wait_for
+from tests.helpers.api import DEVICE, approved_proposal, assign, push_body, push_to_leg, wait_for, walk_preview
 
 
 def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
@@ -82,6 +82,7 @@ def test_push_refusals(sim_api):
     body = push_body(api)
     r = c.post(f"/api/proposals/{draft['id']}/push", headers=pro, json=body)
     assert r.status_code == 409 and "only approved proposals" in r.json()["detail"]
+    walk_preview(api, draft["id"])   # approval rests on the bench
     c.post(f"/api/proposals/{draft['id']}/approve", headers=pro, json={"comment": "ok"})
     r = c.post(f"/api/proposals/{draft['id']}/push", headers=api.as_("viewer"), json=body)
     assert r.status_code == 403
@@ -107,6 +108,7 @@ def test_a_table_goes_only_to_the_leg_of_its_patient_and_a_session_records_that_
     c, pro = api.client, api.as_("prosthetist")
     heavy, light = api.new_patient("P-190", 190.0), api.new_patient("P-045", 45.0)
     heavy_table = api.propose(heavy["id"])
+    walk_preview(api, heavy_table["id"])   # approval rests on the bench
     c.post(f"/api/proposals/{heavy_table['id']}/approve", headers=pro, json={"comment": "ok"})
     assign(api, light["id"])
     r = c.post(f"/api/proposals/{heavy_table['id']}/push", headers=pro, json=push_body(api))
@@ -148,6 +150,7 @@ def test_a_push_names_what_it_replaces_and_is_refused_when_the_leg_changed_meanw
     first = approved_proposal(api)
     assert push_to_leg(api, first).status_code == 201
     second = api.propose(first["patient_id"], speed=1.4)
+    walk_preview(api, second["id"])   # approval rests on the bench
     c.post(f"/api/proposals/{second['id']}/approve", headers=pro, json={"comment": "faster"})
     stale = {"device_id": DEVICE, "replaces_proposal_id": None, "patient_ready": True}   # looked before the first
     r = c.post(f"/api/proposals/{second['id']}/push", headers=pro, json=stale)

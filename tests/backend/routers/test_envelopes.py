@@ -9,6 +9,7 @@ import pytest
 
 from backend.db import write_transaction
 from device_bridge.envelope_wire import WireEnvelope, envelope_as_run
+from tests.helpers.api import FIXTURE_OVERRIDE
 
 
 def request_envelope(api, patient_id: int, **body) -> dict:
@@ -63,8 +64,9 @@ def test_only_a_prosthetist_builds_or_decides_and_a_decision_is_taken_once(api):
     r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("viewer"), json={"comment": "ok"})
     assert r.status_code == 403
     r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"),
-                        json={"comment": "reviewed every node"})
+                        json={"comment": "reviewed every node", "override_reason": FIXTURE_OVERRIDE})
     assert r.status_code == 200 and r.json()["status"] == "approved" and r.json()["decision"]["by"] == "prosthetist"
+    assert r.json()["decision"]["override_reason"] == FIXTURE_OVERRIDE   # no preview walked: the reason is kept
     r = api.client.post(f"/api/envelopes/{e['id']}/reject", headers=api.as_("prosthetist"), json={"comment": "no"})
     assert r.status_code == 409 and "already approved" in r.json()["detail"]
     actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]]

@@ -13,6 +13,7 @@ import pytest
 from backend.db import write_transaction
 from backend.store import proposals as proposal_store
 from backend.store.users import User
+from tests.helpers.api import walk_preview
 
 
 # ------------------------------------------------------------- proposals
@@ -144,10 +145,12 @@ def test_unsafe_or_empty_edit_is_refused_and_nothing_stored(api, edit, words):
 def test_approve_once_then_immutable(api):
     patient = api.new_patient()
     p = api.propose(patient["id"])
+    walk_preview(api, p["id"])   # approval rests on the bench
     for body in ({}, {"comment": ""}, {"comment": "   "}):                   # a decision needs its reason
         r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"), json=body)
         assert r.status_code == 422 and "comment" in r.text
     assert api.client.get(f"/api/proposals/{p['id']}", headers=api.as_("viewer")).json()["status"] == "draft"
+    walk_preview(api, p["id"])   # approval rests on the bench
     r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"),
                         json={"comment": "matches the gait lab"})
     assert r.status_code == 200
@@ -198,8 +201,9 @@ def test_approval_rechecks_the_limits_of_the_stored_table(api, model):
     stored = proposal_store.create_from_model(conn, patient["id"], proposal, User(1, "prosthetist", "prosthetist"))
     conn.close()
     assert stored["safety"]["ok"] is False
+    assert api.client.get(f"/api/proposals/{stored['id']}/preview", headers=api.as_("viewer")).status_code == 409
     r = api.client.post(f"/api/proposals/{stored['id']}/approve", headers=api.as_("prosthetist"),
-                        json={"comment": "ok"})
+                        json={"comment": "ok", "override_reason": "an override never passes a limit"})
     assert r.status_code == 409 and "outside the safety limits" in r.json()["detail"]
     assert r.json()["violations"][0]["field"] == "knee.stance_flexion.k_Nm_per_rad"
     assert api.client.get(f"/api/proposals/{stored['id']}", headers=api.as_("viewer")).json()["status"] == "draft"

@@ -8,19 +8,20 @@ import time
 import pytest
 
 from tests.backend.routers.test_envelopes import request_envelope
-from tests.helpers.api import DEVICE, assign, push_body, wait_for
+from tests.helpers.api import DEVICE, FIXTURE_OVERRIDE, assign, push_body, wait_for
 
 
 def approved_envelope(api, patient_id: int) -> dict:
     e = request_envelope(api, patient_id)
-    r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
+    r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"),
+                        json={"comment": "ok", "override_reason": FIXTURE_OVERRIDE})
     assert r.status_code == 200, r.text
     return r.json()
 
 
 def push_envelope(api, envelope_id: int, **overrides):
     return api.client.post(f"/api/envelopes/{envelope_id}/push", headers=api.as_("prosthetist"),
-                           json={**push_body(api), **overrides})
+                           json={**push_body(api), "override_reason": FIXTURE_OVERRIDE, **overrides})
 
 
 def test_an_approved_envelope_runs_on_its_patients_leg_and_a_table_can_replace_it(sim_api):
@@ -53,7 +54,8 @@ def test_an_approved_envelope_runs_on_its_patients_leg_and_a_table_can_replace_i
 
     # what the caller confirms replacing must be the envelope now on the leg
     prop = api.propose(patient["id"])
-    c.post(f"/api/proposals/{prop['id']}/approve", headers=pro, json={"comment": "ok"})
+    assert c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer).status_code == 200
+    assert c.post(f"/api/proposals/{prop['id']}/approve", headers=pro, json={"comment": "ok"}).status_code == 200
     stale = {**push_body(api), "replaces_envelope_id": None}
     r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json=stale)
     assert r.status_code == 409 and "now runs P-001 · envelope v2" in r.json()["detail"]
@@ -131,7 +133,7 @@ def test_two_pushes_confirming_the_same_envelope_on_the_leg_cannot_both_go(sim_a
     wait_for(lambda: api.client.get(f"/api/envelopes/{current['id']}", headers=api.as_("viewer")).json(),
              lambda e: e["deployment"] == "active_on_device")
     rivals = [approved_envelope(api, patient["id"]) for _ in range(2)]
-    body = {**push_body(api), "replaces_envelope_id": current["id"]}
+    body = {**push_body(api), "replaces_envelope_id": current["id"], "override_reason": FIXTURE_OVERRIDE}
     answers: dict[int, object] = {}
     gate = threading.Barrier(2)
 
