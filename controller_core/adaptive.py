@@ -23,7 +23,12 @@ from typing import Literal
 
 from controller_core.envelope_blend import Blend, EnvelopeBlender
 from controller_core.fsm import ActuatorLimits, GaitState, SensorSample, StateMachineController, TorqueCommand
-from controller_core.task_estimator import TaskEstimate, TaskEstimator
+from controller_core.task_estimator import (
+    INCLINE_RESOLUTION_DEG,
+    SPEED_RESOLUTION_MPS,
+    TaskEstimate,
+    TaskEstimator,
+)
 
 AdaptiveMode = Literal["nominal", "partial", "adaptive", "clamped"]
 
@@ -39,7 +44,8 @@ class StrideDecision:
         speed_mps, incline_deg: the task it runs at for the next stride (after the rate limit and clamping).
         mode: ``adaptive`` (following a confident estimate of both), ``partial`` (one of them not confident: that
             one towards its nominal value), ``nominal`` (neither confident: towards the nominal task) or
-            ``clamped`` (following, but the target lies outside the envelope: held at its edge).
+            ``clamped`` (following, but the target lies outside the envelope by more than the estimate's resolution:
+            held at its edge).
     """
 
     time_s: float
@@ -147,8 +153,8 @@ class AdaptiveController:
         mode: AdaptiveMode
         if not (follow_speed or follow_incline):
             mode = "nominal"
-        elif not self.blender.contains(*target):
-            mode = "clamped"
+        elif not self.blender.contains(*target, SPEED_RESOLUTION_MPS, INCLINE_RESOLUTION_DEG):
+            mode = "clamped"   # beyond the edge by more than the estimate can resolve (at the edge is inside)
         else:
             mode = "adaptive" if follow_speed and follow_incline else "partial"
         self.blend_, self.mode_ = blend, mode

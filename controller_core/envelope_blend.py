@@ -119,10 +119,10 @@ class EnvelopeBlender:
         first = schedules[0]
         self._fixed = (first.swing_slowing_rad_s, first.event_hold_s, first.heel_strike_hold_s)
 
-    def contains(self, speed_mps: float, incline_deg: float) -> bool:
-        """The task lies inside the grid (edges included)."""
-        return (self.speeds_mps[0] <= speed_mps <= self.speeds_mps[-1]
-                and self.inclines_deg[0] <= incline_deg <= self.inclines_deg[-1])
+    def contains(self, speed_mps: float, incline_deg: float, margin_mps: float = 0.0, margin_deg: float = 0.0) -> bool:
+        """The task lies inside the grid (edges included), or within the margins (m/s, deg) beyond its edges."""
+        return (self.speeds_mps[0] - margin_mps <= speed_mps <= self.speeds_mps[-1] + margin_mps
+                and self.inclines_deg[0] - margin_deg <= incline_deg <= self.inclines_deg[-1] + margin_deg)
 
     def at(self, speed_mps: float, incline_deg: float) -> Blend:
         """The schedule blended at a task (clamped to the grid's edge outside it).

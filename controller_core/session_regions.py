@@ -2,7 +2,9 @@
 
 Regions are the envelope's nodes: a node owns the tasks nearer to it than to its neighbours (edges halfway between
 nodes, open at the grid's ends), so the histogram reads "time walked near 1.1 m/s, +5°". A task beyond the grid
-belongs to the edge node and is also counted as outside (the leg clamps there). Time counts the samples that carry
+belongs to the edge node and is also counted as outside (the leg clamps there) when it lies beyond the edge by more
+than the estimate's resolution (:data:`controller_core.task_estimator.SPEED_RESOLUTION_MPS`, ``INCLINE_…``): at the
+edge, within what the leg can tell apart, is inside. Time counts the samples that carry
 an estimate; a stride belongs to the region of the mean estimate over its samples, or is "unestimated".
 
 Errors by task: each stride's knee and ankle angle RMSE (deg) against the able-bodied reference at that stride's
@@ -18,6 +20,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from controller_core.gait_metrics import reference_curves, rmse, stride_curves
+from controller_core.task_estimator import INCLINE_RESOLUTION_DEG, SPEED_RESOLUTION_MPS
 from controller_core.walking_reference import WalkingReference
 
 SCORED_CHANNELS = ("knee_angle_deg", "ankle_angle_deg")
@@ -50,7 +53,9 @@ def task_regions(t_s: np.ndarray, speed_mps: np.ndarray, incline_deg: np.ndarray
     iv, ig = region_index(v, speeds_mps), region_index(g, inclines_deg)
     time_s = np.zeros(shape)
     np.add.at(time_s, (iv[seen], ig[seen]), dt)
-    outside = seen & ((v < speeds_mps[0]) | (v > speeds_mps[-1]) | (g < inclines_deg[0]) | (g > inclines_deg[-1]))
+    dv, dg = SPEED_RESOLUTION_MPS, INCLINE_RESOLUTION_DEG   # within the estimate's resolution of the edge is inside
+    outside = seen & ((v < speeds_mps[0] - dv) | (v > speeds_mps[-1] + dv) | (g < inclines_deg[0] - dg)
+                      | (g > inclines_deg[-1] + dg))
     strides = np.zeros(shape, dtype=int)
     per_stride: list[dict | None] = []
     for a, b in itertools.pairwise(strikes):

@@ -46,3 +46,13 @@ def test_a_stride_walked_like_the_reference_at_its_task_scores_zero_and_another_
                                   scored=[True, False])          # the second stride was walked in safe mode
     assert only_first["overall"]["strides"] == 1 and only_first["overall"]["knee_angle_per_stride_rmse_deg"] == 0.0
     assert PHASE_GRID.size == strides["knee_angle_deg"].shape[1]
+
+
+def test_walking_at_the_edge_within_the_estimates_resolution_is_not_beyond_it():
+    t = np.arange(300) * 0.01
+    speed, incline = np.full(300, 1.6), np.full(300, 10.0)     # exactly the 1.6 m/s, +10° corner
+    speed[150:], incline[150:] = 1.68, 11.2                    # a little beyond, within ±0.1 m/s, ±1.5°
+    out = task_regions(t, speed, incline, np.arange(0, 300, 100), SPEEDS, INCLINES)
+    assert out["outside_s"] == 0.0 and out["time_s"][2][2] == pytest.approx(3.0)
+    incline[250:] = 12.0                                        # 0.5 s clearly beyond the incline edge
+    assert task_regions(t, speed, incline, np.arange(0, 300, 100), SPEEDS, INCLINES)["outside_s"] == pytest.approx(0.5)
