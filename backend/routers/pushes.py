@@ -25,7 +25,7 @@ from device_bridge.protocol import ProtocolError, WireTable, check_as_run
 
 router = APIRouter(prefix="/api", tags=["pushes"], responses=UNAUTHORIZED)
 
-MASS_TOLERANCE = 0.02   # a table proposed for a body mass more than 2 % off the patient's current one is refused
+MASS_TOLERANCE = 0.05   # a version built for a body mass more than 5 % off the patient's current one needs a reason
 _PUSH_RESPONSES = {**FORBIDDEN, **NOT_FOUND, **CONFLICT, **DEVICE_FAILED}
 
 
@@ -88,13 +88,14 @@ def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: Pu
     if row["status"] != "approved":
         raise ConflictError(f"{kind} {item_id} is {row['status']}; only approved {kind}s can be pushed")
     devices.get(body.device_id)
-    _check_patient(conn, row, body.device_id, "table" if kind == "proposal" else "envelope")
+    mass_overridden = _check_patient(conn, row, body.device_id, "table" if kind == "proposal" else "envelope",
+                                     body.override_reason)
     if violations:
         raise ConflictError(f"{kind} {item_id} fails the safety limits; not pushed: "
                             + "; ".join(v.message for v in violations[:5]),
                             violations=[v.model_dump() for v in violations])
     bench = bench_verdict.require_bench(conn, kind, row, body.override_reason, "pushed")
-    override = body.override_reason if bench["status"] not in ("clean", "warnings") else None
+    override = body.override_reason if bench["status"] not in ("clean", "warnings") or mass_overridden else None
     with devices.push_slot(body.device_id):
         _check_replaces(conn, devices, body)
         if not devices.online(devices.get(body.device_id)):
@@ -121,8 +122,10 @@ def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: Pu
     return store.get_push(conn, push_id)
 
 
-def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, what: str) -> None:
-    """The device is assigned to the row's patient, who still weighs what the table or envelope was made for."""
+def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, what: str,
+                   override_reason: str | None) -> bool:
+    """The device is assigned to the row's patient, who still weighs (within 5 %) what the table or envelope was
+    made for, or the prosthetist wrote why it goes anyway; returns whether that reason was needed."""
     patient = patients.get_patient(conn, row["patient_id"])
     assigned = devices_store.assignment(conn, device_id)
     who = f"{patient['code_name']} ({patient['body_mass_kg']:g} kg)"
@@ -132,10 +135,14 @@ def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, w
     if assigned["patient_id"] != row["patient_id"]:
         raise ConflictError(f"device {device_id} is assigned to {assigned['patient_code']} "
                             f"({assigned['body_mass_kg']:g} kg), not to {who} whose {what} this is; nothing was sent")
-    if abs(patient["body_mass_kg"] - row["body_mass_kg"]) > MASS_TOLERANCE * row["body_mass_kg"]:
-        raise ConflictError(f"this {what} was proposed for {row['body_mass_kg']:g} kg and {patient['code_name']} now "
-                            f"weighs {patient['body_mass_kg']:g} kg: its torques and load thresholds scale with body "
-                            "mass; propose again for the new mass. Nothing was sent")
+    if abs(patient["body_mass_kg"] - row["body_mass_kg"]) <= MASS_TOLERANCE * row["body_mass_kg"]:
+        return False
+    if override_reason:
+        return True
+    raise ConflictError(f"this {what} was built for {row['body_mass_kg']:g} kg and {patient['code_name']} now "
+                        f"weighs {patient['body_mass_kg']:g} kg (more than 5 % apart): its torques and load "
+                        "thresholds scale with body mass; propose again for the new mass, or give override_reason "
+                        "(at least 20 characters, audited). Nothing was sent")
 
 
 def _check_replaces(conn: sqlite3.Connection, devices: DeviceManager, body: PushRequest) -> None:

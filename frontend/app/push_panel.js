@@ -61,7 +61,9 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
     const d = await get(`/api/devices/${select.value}`);
     const current = d.pending_table || d.active_table;
     const bench = item.bench || { status: "not_walked", words: "bench preview not walked yet", flags: [] };
-    const unclean = bench.status === "unsafe" || bench.status === "not_walked";
+    const builtFor = item.body_mass_kg ?? item.task?.body_mass_kg;
+    const massOff = builtFor && Math.abs(patient.body_mass_kg - builtFor) > 0.05 * builtFor;
+    const unclean = bench.status === "unsafe" || bench.status === "not_walked" || massOff;
     const ok = await confirmDialog({ id: "push-dialog", title: `Replace what runs on ${d.id}?`,
       facts: [["Patient", `${patient.code_name} (${fmt(patient.body_mass_kg, 0, "kg")})`],
         ["On the leg now", tableName(current, true)],
@@ -69,6 +71,7 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
         ["Bench preview", bench.status === "unsafe" ? `UNSAFE: ${bench.flags.filter((f) => f.severity === "bad").map((f) => f.message).join("; ")}`
           : bench.words],
         ...(item.decision?.override_reason ? [["Approved without a clean preview", `“${item.decision.override_reason}”`]] : []),
+        ...(massOff ? [["Body mass", `built for ${fmt(builtFor, 0, "kg")}; ${patient.code_name} now weighs ${fmt(patient.body_mass_kg, 0, "kg")} (more than 5 % apart)`]] : []),
         ["When", kind === "envelope" ? "at the next heel strike after the device re-checks every node; from then on the "
           + "leg changes its rows with the task it estimates, at heel strikes only" : "at the next heel strike after the device verifies it"]],
       requires: "The patient is seated or standing in the parallel bars.", confirm: "Push now",

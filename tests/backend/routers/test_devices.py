@@ -160,14 +160,22 @@ def test_a_push_names_what_it_replaces_and_is_refused_when_the_leg_changed_meanw
     assert r.status_code == 201 and r.json()["table_label"] == "P-001 · table v2"
 
 
-def test_a_table_proposed_for_another_body_mass_is_not_pushed(sim_api):
+def test_a_table_built_for_another_body_mass_is_pushed_only_with_a_written_reason(sim_api):
     api = sim_api
-    prop = approved_proposal(api)
-    conn = api.db()
-    conn.execute("UPDATE patients SET body_mass_kg = 95 WHERE id = ?", (prop["patient_id"],))
-    conn.commit()
+    c, pro = api.client, api.as_("prosthetist")
+    prop = approved_proposal(api)                                   # built for 80 kg
+    c.patch(f"/api/patients/{prop['patient_id']}", headers=pro, json={"body_mass_kg": 95.0})
     r = push_to_leg(api, prop)
-    assert r.status_code == 409 and "proposed for 80 kg and P-001 now weighs 95 kg" in r.json()["detail"]
+    assert r.status_code == 409 and "built for 80 kg and P-001 now weighs 95 kg" in r.json()["detail"]
+    assert "override_reason" in r.json()["detail"] and c.get(f"/api/proposals/{prop['id']}/pushes",
+                                                               headers=pro).json() == []
+    reason = "weighed in shoes today; the table is being re-proposed"
+    r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json={**push_body(api), "override_reason": reason})
+    assert r.status_code == 201 and r.json()["override_reason"] == reason
+    c.patch(f"/api/patients/{prop['patient_id']}", headers=pro, json={"body_mass_kg": 83.0})   # within 5 %
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"])
+    r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json=push_body(api))      # no reason needed
+    assert r.status_code == 201 and r.json()["override_reason"] is None
 
 
 def test_telemetry_websocket_needs_a_token(sim_api):

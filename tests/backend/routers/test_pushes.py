@@ -78,8 +78,8 @@ def test_an_envelope_goes_only_to_the_leg_of_its_patient_at_its_body_mass(sim_ap
     conn = api.db()
     conn.execute("UPDATE patients SET body_mass_kg = 80 WHERE id = ?", (owner["id"],))
     conn.commit()
-    r = push_envelope(api, env["id"])
-    assert r.status_code == 409 and "proposed for 70 kg and P-070 now weighs 80 kg" in r.json()["detail"]
+    r = push_envelope(api, env["id"], override_reason=None)
+    assert r.status_code == 409 and "built for 70 kg and P-070 now weighs 80 kg" in r.json()["detail"]
     assert c.get(f"/api/envelopes/{env['id']}/pushes", headers=api.as_("viewer")).json() == []
 
 
