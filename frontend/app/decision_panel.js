@@ -32,6 +32,9 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
     "aria-label": "Why approve without a clean bench preview" });
   const gate = h("div", { id: "bench-gate" });
   const needsOverride = () => bench.status === "unsafe" || bench.status === "not_walked";
+  let unsaved = false;   // cells typed into the table and not saved: Approve would approve the stored values
+  const unsavedNote = h("p", { class: "banner warn", id: "unsaved-edits", hidden: true },
+    "The table has unsaved edits: save them as a new version, or discard them, before deciding.");
   const decide = (what) => async () => {
     error.textContent = "";
     try {
@@ -50,8 +53,10 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   const update = () => {       // a decision needs its reason, like an edit; an unclean bench needs a written override
     const said = comment.value.trim().length > 0;
     const overridden = !needsOverride() || override.value.trim().length >= MIN_OVERRIDE;
-    approve.disabled = !said || !item.safety.ok || !overridden;
-    approve.title = !item.safety.ok ? "outside the parameter limits: cannot be approved"
+    approve.disabled = !said || !item.safety.ok || !overridden || unsaved;
+    unsavedNote.hidden = !unsaved;
+    approve.title = unsaved ? "unsaved edits in the table: save them as a new version, or discard them"
+      : !item.safety.ok ? "outside the parameter limits: cannot be approved"
       : !overridden ? `the bench preview is ${bench.status === "unsafe" ? "unsafe" : "not walked yet"}: write why you approve anyway`
         : "say why first (what you reviewed)";
     reject.disabled = !said;
@@ -66,11 +71,19 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   override.addEventListener("input", update);
   // the preview finished (on this page): follow the bench's verdict in place
   const walked = async (ev) => {
+    if (!box.isConnected) { window.removeEventListener("quasitune:bench-walked", walked); return; }   // page left
     if (ev.detail?.path !== path) return;
     const now = await get(path).catch(() => null);
     if (now?.bench) { bench = now.bench; update(); }
   };
   window.addEventListener("quasitune:bench-walked", walked);
+  const edited = (ev) => {
+    if (!box.isConnected) { window.removeEventListener("quasitune:unsaved-edits", edited); return; }
+    unsaved = Boolean(ev.detail?.unsaved);
+    update();
+  };
+  window.addEventListener("quasitune:unsaved-edits", edited);
   update();
-  box.append(h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject), gate, error);
+  box.append(h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject),
+    unsavedNote, gate, error);
 }

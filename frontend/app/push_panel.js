@@ -30,11 +30,19 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
   const steps = h("ol", { class: "steps", id: "push-steps" });
   const button = h("button", { id: "push-button" }, "Push to device…");
   const assignBox = h("p", { id: "push-assignment" });
+  let unsaved = false;   // cells typed into the table and not saved: a push would send the stored values
+  const edited = (ev) => {
+    if (!box.isConnected) { window.removeEventListener("quasitune:unsaved-edits", edited); return; }
+    unsaved = Boolean(ev.detail?.unsaved);
+    showAssignment();
+  };
+  window.addEventListener("quasitune:unsaved-edits", edited);
   const showAssignment = () => {
     for (const opt of select.options) opt.textContent = optionText(devices.find((x) => x.id === opt.value));
     const d = devices.find((x) => x.id === select.value);
     const mine = d.patient && d.patient.patient_id === item.patient_id;
-    button.disabled = !mine;
+    button.disabled = !mine || unsaved;
+    button.title = unsaved ? "unsaved edits in the table: save them as a new version, or discard them" : "";
     assignBox.replaceChildren(mine ? chip(`${d.id} is assigned to ${patient.code_name}`, "ok")
       : h("span", {}, chip(`${d.id} is ${wearer(d)}`, "warn"), ` A ${kind} goes only to the leg of its patient. `,
         h("button", { id: "assign-device", class: "secondary", onclick: assign }, `Assign ${d.id} to ${patient.code_name}…`)));

@@ -79,6 +79,15 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     assert page.locator("#param-table td.out").count() == 1 and page.is_disabled("#edit-form button[type=submit]")
     assert f"#/proposals/{first_id}" in page.url
 
+    # typed but not saved: Approve would approve the stored values, so it waits (and says why) until saved or discarded
+    page.fill("#decision input[name=comment]", "reviewed")
+    page.wait_for_selector("#unsaved-edits:not([hidden])")
+    assert page.is_disabled("#approve") and "unsaved edits" in page.get_attribute("#approve", "title")
+    page.click("#discard-edits")
+    page.wait_for_selector("#unsaved-edits[hidden]", state="attached")
+    assert page.input_value("#param-table input[data-field='knee.stance_flexion.theta_e_deg']") != "150"
+    page.fill("#decision input[name=comment]", "")
+
     # a valid edit becomes draft v2; its diff against v1 shows the changed cell
     page.fill("#param-table input[data-field='knee.stance_flexion.theta_e_deg']", "12")
     page.fill("#edit-form input[name=comment]", "more knee flexion in early stance")

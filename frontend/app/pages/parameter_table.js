@@ -171,8 +171,9 @@ function editForm(p) {
   const live = h("ul", { class: "error", id: "edit-live", "aria-live": "polite" });
   const comment = h("input", { name: "comment", required: true, maxlength: 2000, size: 40 });
   const save = h("button", { type: "submit" }, "Save edits as a new draft version");
-  const form = h("form", { id: "edit-form" }, h("div", { class: "inline" }, h("label", {}, "Why (audited)", comment), save),
-    live, error);
+  const discard = h("button", { type: "button", class: "secondary", id: "discard-edits" }, "Discard edits");
+  const form = h("form", { id: "edit-form" }, h("div", { class: "inline" }, h("label", {}, "Why (audited)", comment), save,
+    discard), live, error);
   // checked as the prosthetist types: the touched cell is painted, the reasons listed, Save held back
   const check = () => {
     const found = liveViolations(typedValues(), p.limits, p.task.body_mass_kg);
@@ -186,8 +187,16 @@ function editForm(p) {
     live.replaceChildren(...found.map((v) => h("li", { dataset: { field: v.field } }, v.message)));
     save.disabled = found.length > 0;
     save.title = found.length ? "fix the values marked red first" : "";
+    // typed but not saved: the page's Approve and Push must not act on the stored values as if they were these
+    const unsaved = [...document.querySelectorAll("#table-card input[data-field]")].some((i) => i.value !== i.dataset.original);
+    window.dispatchEvent(new CustomEvent("quasitune:unsaved-edits", { detail: { unsaved } }));
     return found;
   };
+  discard.addEventListener("click", () => {
+    for (const input of document.querySelectorAll("#table-card input[data-field]")) input.value = input.dataset.original;
+    error.textContent = "";
+    check();
+  });
   queueMicrotask(() => document.getElementById("table-card")?.addEventListener("input", check));
   form.addEventListener("submit", async (ev) => {
     ev.preventDefault();
