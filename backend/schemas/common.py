@@ -82,3 +82,11 @@ def page_headers(response: Response, items: list[dict], total: int, limit: int) 
     if len(items) == limit and items[-1]["version"] > 1:
         response.headers["X-Next-Before-Version"] = str(items[-1]["version"])
     return items
+
+
+# a prosthetist going ahead without a clean bench preview (or past a body-mass mismatch): why, in words that a reader of
+# the audit, the version and the device page can weigh
+OverrideReason = Annotated[Text | None, Field(
+    default=None, min_length=20, max_length=2000,
+    description="go ahead although the bench preview of this version is not walked or shows an unsafe figure: why "
+                "(at least 20 characters; audited, and shown wherever the version is shown)")]

@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from backend.schemas.common import EDIT_BOUND, EditValue, StrictIn, Text
+from backend.schemas.common import EDIT_BOUND, EditValue, OverrideReason, StrictIn, Text
 from controller_core.table import LimitViolation, SafetyLimits, Thresholds
 from controller_core.task import SPEED_RANGE_MPS
 
@@ -51,10 +51,7 @@ class EditRequest(StrictIn):
 class DecisionRequest(StrictIn):
     comment: Text = Field(min_length=1, max_length=2000,
                           description="why the table is approved or rejected (required, audited), e.g. what was reviewed")
-    override_reason: Text | None = Field(
-        default=None, min_length=20, max_length=2000,
-        description="approve although the bench preview of this version is not walked or shows an unsafe figure: "
-                    "why (at least 20 characters; audited, and shown wherever the version is shown)")
+    override_reason: OverrideReason = None
 
 
 class BenchFlag(BaseModel):

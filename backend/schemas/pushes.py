@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import BaseModel, Field
 
-from backend.schemas.common import StrictIn, Text
+from backend.schemas.common import OverrideReason, StrictIn
 from backend.schemas.devices import DeviceId
 
 
@@ -19,10 +19,7 @@ class PushRequest(StrictIn):
         default=None, description="the envelope you saw on the leg and are replacing (null: not an envelope)")
     patient_ready: Literal[True] = Field(description="you confirm the patient is seated or in the parallel bars: "
                                                      "the leg changes its behaviour at the next heel strike")
-    override_reason: Text | None = Field(
-        default=None, min_length=20, max_length=2000,
-        description="push although the bench preview of this version is not walked or shows an unsafe figure: why "
-                    "(at least 20 characters; audited, and shown with the push and on the device page)")
+    override_reason: OverrideReason = None
 
 
 class PushOut(BaseModel):
