@@ -49,7 +49,8 @@ def local_time(iso: str | None) -> str:
     return datetime.fromisoformat(iso.replace("Z", "+00:00")).astimezone().strftime("%Y-%m-%d %H:%M %Z")
 
 
-def _facts(session: dict, patient: dict) -> list[tuple[str, str]]:
+def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
+    """The report's first block, (label, words) pairs: task, what ran (and any override), when, how much."""
     s, t = session["summary"] or {}, session["task"]
     modes = s.get("mode_s") or {}
     rmse = " · ".join(f"{_LABELS[c].split(' (')[0]} {_fmt(s.get(rmse_key(c)), _UNITS[c], 1 if _UNITS[c] == 'deg' else 3)}"
@@ -62,6 +63,8 @@ def _facts(session: dict, patient: dict) -> list[tuple[str, str]]:
         ("Envelope that ran" if session.get("envelope_id") is not None else "Table that ran",
          f"{session['table_label'] or 'none from this server'} (CRC-32 {session['table_crc32'] or '—'}, "
          f"device version {session['table_version'] or '—'})"),
+        *([("Approved without a clean bench preview", f"“{session['approval_override']}”")]
+          if session.get("approval_override") else []),
         *_adaptive_facts(s.get("adaptive")),
         ("Recorded", f"{local_time(session['started_at'])} to {local_time(session['stopped_at'])} "
                      f"by {session['started_by']}"),
@@ -152,8 +155,8 @@ def report_figure(session: dict, patient: dict) -> Figure:
     fig = plt.figure(figsize=(8.27, 11.69))
     fig.text(0.06, 0.955, f"QuasiTune session report · session {session['id']}", fontsize=15, weight="bold")
     y = 0.925
-    for label, value in _facts(session, patient):
-        warn = label == "Leg off its table" and value != "never"
+    for label, value in report_facts(session, patient):
+        warn = (label == "Leg off its table" and value != "never") or label.startswith("Approved without")
         fig.text(0.06, y, label, fontsize=8, color="0.35")
         for k, line in enumerate(textwrap.wrap(value, 88) or [""]):
             fig.text(0.27, y - k * 0.014, line, fontsize=8, color="#b3261e" if warn else "black",

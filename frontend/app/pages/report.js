@@ -2,7 +2,7 @@
 import { get, token } from "../api.js";
 import { phaseChart } from "../charts.js";
 import { offTable } from "./monitor.js";
-import { fmt, h, notice, referenceLabel, table, when } from "../ui.js";
+import { chip, fmt, h, notice, referenceLabel, table, when } from "../ui.js";
 
 const CHANNELS = [["knee_angle_deg", "knee angle (deg, flexion +)", "knee_angle_rmse_deg", "deg"],
   ["ankle_angle_deg", "ankle angle (deg, dorsiflexion +)", "ankle_angle_rmse_deg", "deg"],
@@ -37,7 +37,8 @@ export async function reportPage(view, id) {
         + `${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}` : `${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}`),
       h("dt", {}, s.envelope_id !== null ? "Envelope on the leg" : "Active table"), h("dd", { id: "report-table" }, s.table_label === null ? "none from this server"
         : h("span", {}, h("a", { href: s.envelope_id !== null ? `#/envelopes/${s.envelope_id}` : `#/proposals/${s.proposal_id}` }, s.table_label),
-          ` · CRC-32 ${s.table_crc32} · device version ${s.table_version}`)),
+          ` · CRC-32 ${s.table_crc32} · device version ${s.table_version}`,
+          s.approval_override ? h("span", { id: "report-override" }, " ", chip(`approved without a clean bench preview: “${s.approval_override}”`, "warn")) : null)),
       h("dt", {}, "Device"), h("dd", {}, s.device_id),
       h("dt", {}, "Recorded"), h("dd", {}, `${when(s.started_at)} → ${when(s.stopped_at)} by ${s.started_by}`)),
   ];

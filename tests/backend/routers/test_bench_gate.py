@@ -64,3 +64,25 @@ def test_an_envelope_is_not_approved_before_its_preview_exists(api):
     r = _approve(api, "envelope", e["id"])
     assert r.status_code == 409 and "not been walked" in r.json()["detail"]
     assert api.client.get(f"/api/envelopes/{e['id']}", headers=api.as_("viewer")).json()["status"] == "draft"
+
+
+def test_a_session_on_a_version_approved_by_override_carries_the_reason_into_its_report(sim_api):
+    from backend.report import report_facts
+
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    patient = api.new_patient()
+    p = api.propose(patient["id"], speed=1.2)                         # approved before its preview was walked
+    assert _approve(api, "proposal", p["id"], override_reason=REASON).status_code == 200
+    assign(api, patient["id"])
+    assert c.post(f"/api/proposals/{p['id']}/push", headers=pro,
+                  json={**push_body(api), "override_reason": REASON}).status_code == 201
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"])
+    s = c.post(f"/api/patients/{patient['id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
+    assert s["approval_override"] == REASON
+    wait_for(lambda: c.get(f"/api/sessions/{s['id']}/samples", headers=pro).json()["count"], lambda n: n >= 100)
+    assert c.post(f"/api/sessions/{s['id']}/stop", headers=pro).status_code == 200
+    stopped = c.get(f"/api/sessions/{s['id']}", headers=pro).json()
+    facts = dict(report_facts(stopped, c.get(f"/api/patients/{patient['id']}", headers=pro).json()))
+    assert facts["Approved without a clean bench preview"] == f"“{REASON}”"              # the PDF's first block
+    assert c.get(f"/api/sessions/{s['id']}/report.pdf", headers=pro).status_code == 200
