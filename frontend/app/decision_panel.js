@@ -44,6 +44,11 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
       notice(`${name} ${what === "approve" ? "approved" : "rejected"}`, "ok");
       await reload();
     } catch (err) {
+      if (err.status === 409) {     // the version changed under a stale tab (decided elsewhere, bench walked): redraw
+        await reload();
+        notice(err.message, "warn");
+        return;
+      }
       error.textContent = err.message;
     }
   };
@@ -60,7 +65,12 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
       : !overridden ? `the bench preview is ${bench.status === "unsafe" ? "unsafe" : "not walked yet"}: write why you approve anyway`
         : "say why first (what you reviewed)";
     reject.disabled = !said;
-    gate.replaceChildren(...(needsOverride() ? [
+    const warnings = bench.flags.filter((f) => f.severity === "warn").map((f) => f.message);
+    gate.replaceChildren(h("p", { id: "decision-bench" }, h("strong", {}, "Bench: "),
+      bench.status === "clean" ? "the preview walked clean: no safety figure outside its bound."
+        : bench.status === "warnings" ? `the preview walked with warnings: ${warnings.join("; ")}.`
+          : bench.status === "unsafe" ? "the preview shows an unsafe figure (below)." : "the preview has not finished walking."),
+    ...(needsOverride() ? [
       h("p", { class: `banner ${bench.status === "unsafe" ? "bad" : "warn"}` }, h("strong", {}, "Approval rests on the bench: "),
         bench.status === "unsafe" ? bench.flags.filter((f) => f.severity === "bad").map((f) => f.message).join("; ")
           : "its preview is still walking (or has not been walked). Wait for it, or write why you approve without it."),
