@@ -255,8 +255,7 @@ class DeviceManager:
         dev = self.get(device_id)
         reports = self.recorder.end(device_id)
         if not reports and dev.status is not None:   # shorter than one status period: its latest report
-            s = dev.status
-            reports[(s.mode.name.lower(), None if s.active_version is None else (s.active_version, s.active_crc32))] = 1
+            reports[(dev.status.mode.name.lower(), _running(dev.status))] = 1
         if dev.walker is not None:
             dev.walker.stop()
         total = sum(reports.values()) or 1
@@ -273,7 +272,7 @@ class DeviceManager:
 
     def _on_status(self, dev: ManagedDevice, status: DeviceStatus) -> None:
         dev.status = status
-        active = None if status.active_version is None else (status.active_version, status.active_crc32)
+        active = _running(status)
         key = ((active, status.pending_version), dev.epoch)   # the epoch first, then who is in flight (see below)
         in_flight = set(dev.in_flight)
         if key != dev.reconciled:
@@ -298,18 +297,29 @@ class DeviceManager:
 MASS_MISMATCH = 0.05   # a table built for a body mass more than 5 % from the patient's current one is flagged
 
 
+def mass_differs(built_kg: float, now_kg: float) -> bool:
+    """The patient's body mass now lies more than 5 % from the one a table or envelope was built for: its torques and
+    load thresholds no longer fit (flagged on the device, and a push needs a written reason)."""
+    return abs(now_kg - built_kg) > MASS_MISMATCH * built_kg
+
+
 def mass_mismatch(table: dict | None, patient: dict | None) -> dict | None:
     """The running table's body mass against its patient's current one, when they differ by more than 5 %."""
     if table is None or patient is None or patient["patient_id"] != table["patient_id"]:
         return None
     built, now = table["body_mass_kg"], patient["body_mass_kg"]
-    if abs(now - built) <= MASS_MISMATCH * built:
+    if not mass_differs(built, now):
         return None
     pct = 100.0 * (now - built) / built
     return {"built_for_kg": built, "patient_now_kg": now, "difference_percent": round(pct, 1),
             "message": f"{table['label']} was built for {built:g} kg and {patient['patient_code']} now weighs {now:g} "
                        f"kg ({pct:+.0f} %): its torques and load thresholds scale with body mass; propose again for "
                        "the new mass and push it"}
+
+
+def _running(status: DeviceStatus) -> tuple[int, int] | None:
+    """(version, CRC) of the table a status reports running, or None for none."""
+    return None if status.active_version is None else (status.active_version, status.active_crc32)
 
 
 def _task_columns(x: TelemetrySample) -> tuple:

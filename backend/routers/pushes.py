@@ -10,6 +10,7 @@ from fastapi import APIRouter, Request, status
 
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
+from backend.devices.manager import mass_differs
 from backend.errors import ConflictError, DeviceError, InvalidError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
@@ -25,7 +26,6 @@ from device_bridge.protocol import ProtocolError, WireTable, check_as_run
 
 router = APIRouter(prefix="/api", tags=["pushes"], responses=UNAUTHORIZED)
 
-MASS_TOLERANCE = 0.05   # a version built for a body mass more than 5 % off the patient's current one needs a reason
 _PUSH_RESPONSES = {**FORBIDDEN, **NOT_FOUND, **CONFLICT, **DEVICE_FAILED}
 
 
@@ -94,8 +94,8 @@ def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: Pu
         raise ConflictError(f"{kind} {item_id} fails the safety limits; not pushed: "
                             + "; ".join(v.message for v in violations[:5]),
                             violations=[v.model_dump() for v in violations])
-    bench = bench_verdict.require_bench(conn, kind, row, body.override_reason, "pushed")
-    override = body.override_reason if bench["status"] not in ("clean", "warnings") or mass_overridden else None
+    _, override = bench_verdict.require_bench(conn, kind, row, body.override_reason, "pushed")
+    override = override or (body.override_reason if mass_overridden else None)
     with devices.push_slot(body.device_id):
         _check_replaces(conn, devices, body)
         if not devices.online(devices.get(body.device_id)):
@@ -135,7 +135,7 @@ def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, w
     if assigned["patient_id"] != row["patient_id"]:
         raise ConflictError(f"device {device_id} is assigned to {assigned['patient_code']} "
                             f"({assigned['body_mass_kg']:g} kg), not to {who} whose {what} this is; nothing was sent")
-    if abs(patient["body_mass_kg"] - row["body_mass_kg"]) <= MASS_TOLERANCE * row["body_mass_kg"]:
+    if not mass_differs(row["body_mass_kg"], patient["body_mass_kg"]):
         return False
     if override_reason:
         return True

@@ -35,12 +35,15 @@ def verdict(conn: sqlite3.Connection, kind: Kind, row: sqlite3.Row) -> dict:
 
 
 def require_bench(conn: sqlite3.Connection, kind: Kind, row: sqlite3.Row, override_reason: str | None,
-                  action: str) -> dict:
-    """The verdict, when it allows ``action`` ("approved", "pushed") or an override reason is given; else 409 with
-    the reason in a prosthetist's words."""
+                  action: str) -> tuple[dict, str | None]:
+    """(the verdict, the override reason to keep: None where the bench allows ``action`` by itself), when the
+    verdict allows ``action`` ("approved", "pushed") or an override reason is given; else 409 with the reason in a
+    prosthetist's words."""
     v = verdict(conn, kind, row)
-    if v["status"] in ("clean", "warnings") or override_reason:
-        return v
+    if v["status"] in ("clean", "warnings"):
+        return v, None
+    if override_reason:
+        return v, override_reason
     path = f"/api/{kind}s/{row['id']}/preview"
     if v["status"] == "not_walked":
         why = f"its bench preview has not been walked yet (open its preview, GET {path}, and look at it first)"

@@ -36,15 +36,15 @@ def decide_once(conn: sqlite3.Connection, entity: str, row: sqlite3.Row, status:
     if row["status"] != "draft":
         raise ConflictError(f"{entity} {row['id']} was already {row['status']} by {row['decided_by_name']} at "
                             f"{row['decided_at']}; derive a new version to change it")
-    bench = None
+    bench, override = None, None
     if status == "approved":
         violations = recheck()
         if violations:
             raise ConflictError(f"{entity} {row['id']} cannot be approved: {len(violations)} value(s) outside "
                                 f"{checked_against}: " + "; ".join(v.message for v in violations),
                                 violations=[v.model_dump() for v in violations])
-        bench = require_bench(conn, entity, row, override_reason, "approved")["status"]   # type: ignore[arg-type]
-    override = override_reason if status == "approved" and bench not in ("clean", "warnings") else None
+        verdict, override = require_bench(conn, entity, row, override_reason, "approved")   # type: ignore[arg-type]
+        bench = verdict["status"]
     conn.execute(f"UPDATE {_TABLES[entity]} SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ?, "
                  "decision_override = ? WHERE id = ? AND status = 'draft'",
                  (status, actor.id, utc_now(), comment, override, row["id"]))

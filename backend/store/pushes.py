@@ -200,15 +200,16 @@ def deployment_state(conn: sqlite3.Connection, item: Pushed) -> str | None:
     decides) / ``replaced`` (ran or was sent, then another table took its place) / ``not_on_device`` (the device
     reported it no longer holds it: restarted or lost) / ``push_failed`` / None (never pushed)."""
     kind, item_id = item
-    row = conn.execute(f"SELECT status FROM pushes WHERE {kind}_id = ? ORDER BY id DESC LIMIT 1", (item_id,)).fetchone()
-    statuses = {r[0] for r in conn.execute(f"SELECT status FROM pushes WHERE {kind}_id = ?", (item_id,))}
+    newest_first = [r[0] for r in conn.execute(f"SELECT status FROM pushes WHERE {kind}_id = ? ORDER BY id DESC",
+                                               (item_id,))]
+    statuses = set(newest_first)
     if "active" in statuses:
         return "active_on_device"
     if statuses & {"acknowledged", "sending"}:
         return "pushed"
     if "unconfirmed" in statuses:
         return "unconfirmed"
-    if row is not None and row[0] == "lost":
+    if newest_first and newest_first[0] == "lost":
         return "not_on_device"
     if statuses & {"superseded", "lost"}:
         return "replaced"
