@@ -63,7 +63,7 @@ def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
         ("Envelope that ran" if session.get("envelope_id") is not None else "Table that ran",
          f"{session['table_label'] or 'none from this server'} (CRC-32 {session['table_crc32'] or '—'}, "
          f"device version {session['table_version'] or '—'})"),
-        *([("Approved without a clean bench preview", f"“{session['approval_override']}”")]
+        *([("Bench override", f"approved without a clean bench preview: “{session['approval_override']}”")]
           if session.get("approval_override") else []),
         *_adaptive_facts(s.get("adaptive")),
         ("Recorded", f"{local_time(session['started_at'])} to {local_time(session['stopped_at'])} "
@@ -156,7 +156,7 @@ def report_figure(session: dict, patient: dict) -> Figure:
     fig.text(0.06, 0.955, f"QuasiTune session report · session {session['id']}", fontsize=15, weight="bold")
     y = 0.925
     for label, value in report_facts(session, patient):
-        warn = (label == "Leg off its table" and value != "never") or label.startswith("Approved without")
+        warn = (label == "Leg off its table" and value != "never") or label == "Bench override"
         fig.text(0.06, y, label, fontsize=8, color="0.35")
         for k, line in enumerate(textwrap.wrap(value, 88) or [""]):
             fig.text(0.27, y - k * 0.014, line, fontsize=8, color="#b3261e" if warn else "black",

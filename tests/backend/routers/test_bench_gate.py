@@ -84,5 +84,5 @@ def test_a_session_on_a_version_approved_by_override_carries_the_reason_into_its
     assert c.post(f"/api/sessions/{s['id']}/stop", headers=pro).status_code == 200
     stopped = c.get(f"/api/sessions/{s['id']}", headers=pro).json()
     facts = dict(report_facts(stopped, c.get(f"/api/patients/{patient['id']}", headers=pro).json()))
-    assert facts["Approved without a clean bench preview"] == f"“{REASON}”"              # the PDF's first block
+    assert facts["Bench override"] == f"approved without a clean bench preview: “{REASON}”"   # the PDF's first block
     assert c.get(f"/api/sessions/{s['id']}/report.pdf", headers=pro).status_code == 200
