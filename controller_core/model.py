@@ -29,7 +29,7 @@ from __future__ import annotations
 import bisect
 import hashlib
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -48,10 +48,10 @@ from controller_core.incline import InclineChange
 from controller_core.kmp import KMP, ViaPoint
 from controller_core.proposal import FeaturePrediction, Proposal
 from controller_core.published_features import PublishedPoint
-from controller_core.quasi_stiffness import SubphaseFit, fit_quasi_stiffness_joints
+from controller_core.quasi_stiffness import SUBPHASES, SubphaseFit, fit_fixed_k, fit_quasi_stiffness_joints, subphase_masks
 from controller_core.reference import CHANNELS, JOINTS, ReferenceRecord, ReferenceSet, level_curves_at
 from controller_core.registration import TaskTrend, UniformUnwarp, ordered_landmarks, register
-from controller_core.table import ParameterRow, ParameterTable, Provenance, Thresholds, check_table
+from controller_core.table import DEFAULT_LIMITS, ParameterRow, ParameterTable, Provenance, Thresholds, check_table
 from controller_core.task import validate_task
 from controller_core.units import body_weight_N
 
@@ -153,6 +153,10 @@ class QuasiStiffnessModel:
             by k = −value·mass and a re-fitted θe (see :mod:`controller_core.quasi_stiffness`). The default,
             0.25 N·m/rad/kg (about 19 N·m/rad at 75 kg), lies within the swing stiffnesses of the Open Source
             Leg's published walking example (0.13–0.66 N·m/rad/kg); 0 disables the guard.
+        knee_support_floor_Nm_per_rad_per_kg: the stance support floor (N·m/rad per kg, the safety limit's
+            :attr:`~controller_core.table.SafetyLimits.knee_stance_support_Nm_per_rad_per_kg`): a knee
+            stance-flexion line softer than −value·mass (where the person's knee does positive work, climbing
+            slowly, which a spring cannot) holds −value·mass with a re-fitted θe (``support_floor``).
         knee_extension_window: False (default): the knee's stance-extension row is fitted over the whole
             sub-phase, stance-flexion peak to toe-off (the literal framework, a poor line). True: over the knee's
             extension only, up to its late-stance minimum on the predicted curve (``extension_window``, see
@@ -187,6 +191,7 @@ class QuasiStiffnessModel:
                  state_time_s: tuple[float, float] = (0.05, 1.5), stance_extension_knee_speed_deg_per_s: float = 11.0,
                  reference_mode: str = "registered",
                  via_mean_scale: float = 1.0, min_restoring_stiffness_Nm_per_rad_per_kg: float = 0.25,
+                 knee_support_floor_Nm_per_rad_per_kg: float = DEFAULT_LIMITS.knee_stance_support_Nm_per_rad_per_kg,
                  knee_extension_window: bool = False, swing_rule: str = "target",
                  swing_knee_stiffness_Nm_per_rad_per_kg: tuple[float, float] = (0.66, 0.25),
                  swing_ankle_stiffness_Nm_per_rad_per_kg: float = 0.25, swing_ankle_clearance_deg: float = 5.0,
@@ -203,6 +208,7 @@ class QuasiStiffnessModel:
         self.reference_mode = reference_mode
         self.via_mean_scale = via_mean_scale
         self.min_restoring_stiffness_Nm_per_rad_per_kg = min_restoring_stiffness_Nm_per_rad_per_kg
+        self.knee_support_floor_Nm_per_rad_per_kg = knee_support_floor_Nm_per_rad_per_kg
         self.knee_extension_window = knee_extension_window
         self.swing_rule = swing_rule
         self.swing_knee_stiffness_Nm_per_rad_per_kg = swing_knee_stiffness_Nm_per_rad_per_kg
@@ -678,7 +684,21 @@ class QuasiStiffnessModel:
             self.s_query_, np.array([means[f"{j}_angle"] for j in JOINTS]),
             np.array([means[f"{j}_moment"] for j in JOINTS]) * mass_kg,
             boundaries, [JOINT_RANGE_RAD[j] for j in JOINTS], max_k, fixed, windows)
-        return dict(zip(JOINTS, joint_fits, strict=True))
+        fits = dict(zip(JOINTS, joint_fits, strict=True))
+        fits["knee"][0] = self._support_floor(fits["knee"][0], means, boundaries, mass_kg)
+        return fits
+
+    def _support_floor(self, fit: SubphaseFit, means: dict[str, np.ndarray], boundaries: tuple[float, float, float],
+                       mass_kg: float) -> SubphaseFit:
+        """The knee's stance-flexion line held at the stance support floor where the fit is softer (θe re-fitted
+        over the sub-phase with k fixed)."""
+        ceiling = -self.knee_support_floor_Nm_per_rad_per_kg * mass_kg
+        if fit.k_Nm_per_rad <= ceiling:
+            return fit
+        inside = subphase_masks(self.s_query_, boundaries)[SUBPHASES.index(fit.subphase)]
+        theta_e, r2 = fit_fixed_k(means["knee_angle"][inside], means["knee_moment"][inside] * mass_kg, ceiling,
+                                  JOINT_RANGE_RAD["knee"])
+        return replace(fit, k_Nm_per_rad=ceiling, theta_e_rad=theta_e, r2=r2, guarded=True, method="support_floor")
 
     @staticmethod
     def _rows(fits: dict[str, list[SubphaseFit]], mass_kg: float) -> list[ParameterRow]:

@@ -64,6 +64,7 @@ class SubphaseFit:
     phase_end: float
     n_points: int
     method: str = "least_squares"   # least_squares | extension_window | range_guard | passivity_guard | swing_target
+    #                                 | support_floor (set by the model, controller_core.model)
 
 
 def subphase_masks(phase: np.ndarray, boundaries: tuple[float, float, float]) -> np.ndarray:

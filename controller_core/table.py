@@ -39,7 +39,7 @@ class ParameterRow(_Strict):
     r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
     guarded: bool = Field(default=False, description="the plain least-squares line was not used (see fit_method)")
     fit_method: Literal["least_squares", "extension_window", "range_guard", "passivity_guard", "swing_target",
-                        "manual", "literature", "neighbour_guard"] = Field(
+                        "manual", "literature", "neighbour_guard", "support_floor"] = Field(
         default="least_squares",
         description="least_squares: τ = kθ + c; extension_window: the same line fitted over the knee's stance "
                     "extension only (stance-flexion peak to the knee's late-stance minimum), leaving out the "
@@ -48,7 +48,9 @@ class ParameterRow(_Strict):
                     "restoring floor and a re-fitted θe; swing_target: a swing sub-phase whose θe is the model's "
                     "predicted swing target and whose k is the model's swing stiffness; manual: edited; "
                     "literature: a published table; neighbour_guard: moved into the envelope's step from its neighbours "
-                    "(see controller_core.envelope)")
+                    "(see controller_core.envelope); support_floor: the knee's stance-flexion line was softer than the "
+                    "stance support floor (the person does positive work here, which a spring cannot), so the row "
+                    "holds the floor and θe is re-fitted")
 
 
 class Thresholds(_Strict):
@@ -85,6 +87,11 @@ class ParameterTable(_Strict):
     rows: list[ParameterRow]
     thresholds: Thresholds
     provenance: Provenance
+
+    @property
+    def body_mass_kg(self) -> float:
+        """The body mass (kg) the table was built for: the stance support floor scales with it."""
+        return self.provenance.patient_mass_kg
 
     @field_validator("rows")
     @classmethod
@@ -126,6 +133,8 @@ class ImpedanceTable(Protocol):
     def rows(self) -> Sequence[ImpedanceRow]: ...
     @property
     def thresholds(self) -> Thresholds: ...
+    @property
+    def body_mass_kg(self) -> float: ...
     def row(self, joint: str, subphase: str) -> ImpedanceRow: ...
 
 
@@ -146,6 +155,13 @@ class SafetyLimits(_Strict):
     no tolerance: with k > 0 the row is a negative spring, which under the patient's weight drives the joint
     away from θe (a knee that gives way into flexion); b ≥ 0 keeps the damping passive too. Damping 0–30
     N·m·s/rad; loads 0–3000 N; state times 0.01–3 s; the SF→SE knee-extension speed 0–200 deg/s (0 = off).
+
+    **Stance support floor**: the knee's stance-flexion row must be at least as firm as
+    ``knee_stance_support_Nm_per_rad_per_kg`` × the body mass the table was built for (k ≤ −floor), or the knee
+    buckles under load. 1.2 N·m/rad/kg is the Open Source Leg's published early-stance knee stiffness, 99.4
+    N·m/rad (OSL example walking controller, Neurobionics Lab, University of Michigan; Azocar et al., Nat Biomed Eng
+    4:941-953, 2020), for an 82 kg user; the example states 60 kg (1.66 N·m/rad/kg), so the floor sits below the
+    benchmark's own stance stiffness at every mass. The body mass itself must lie in ``body_mass_kg``.
     """
 
     k_Nm_per_rad: Range = Range(low=-1200.0, high=200.0)
@@ -157,6 +173,8 @@ class SafetyLimits(_Strict):
     ankle_moment_Nm: Range = Range(low=-300.0, high=0.0)
     state_time_s: Range = Range(low=0.01, high=3.0)
     knee_extension_deg_per_s: Range = Range(low=0.0, high=200.0)
+    knee_stance_support_Nm_per_rad_per_kg: float = Field(default=1.2, ge=0.0)
+    body_mass_kg: Range = Range(low=20.0, high=200.0)
 
 
 class LimitViolation(_Strict):
@@ -199,6 +217,27 @@ def _check_stance_k(row: ImpedanceRow, rng: Range, out: list[LimitViolation]) ->
                     f"({effect}); a stance row must resist or be neutral, k ≤ {rng.high:g} N·m/rad"))
 
 
+def _check_support_floor(table: ImpedanceTable, lim: SafetyLimits, out: list[LimitViolation]) -> None:
+    """The knee's stance-flexion row at least as firm as the stance support floor for the table's body mass."""
+    mass = table.body_mass_kg
+    _check("body_mass_kg", mass, lim.body_mass_kg, "kg", out)
+    if not (math.isfinite(mass) and lim.body_mass_kg.low <= mass <= lim.body_mass_kg.high):
+        return
+    k = table.row("knee", "stance_flexion").k_Nm_per_rad
+    ceiling = -lim.knee_stance_support_Nm_per_rad_per_kg * mass
+    if math.isfinite(k) and ceiling < k <= lim.stance_k_Nm_per_rad.high:
+        out.append(LimitViolation(
+            field="knee.stance_flexion.k_Nm_per_rad", value=k, low=lim.stance_k_Nm_per_rad.low, high=ceiling,
+            message=f"knee stance flexion: k = {k:+.4g} N·m/rad is softer than the stance support floor "
+                    f"({ceiling:+.4g} N·m/rad = {lim.knee_stance_support_Nm_per_rad_per_kg:g} N·m/rad per kg × "
+                    f"{mass:g} kg): the knee could buckle under the patient's weight; k ≤ {ceiling:+.4g} N·m/rad"))
+
+
+def support_floor_Nm_per_rad(mass_kg: float, limits: SafetyLimits | None = None) -> float:
+    """The knee's stance-flexion stiffness ceiling (N·m/rad, negative) for a body mass (kg): k must not exceed it."""
+    return -(limits or DEFAULT_LIMITS).knee_stance_support_Nm_per_rad_per_kg * mass_kg
+
+
 DEFAULT_LIMITS = SafetyLimits()   # frozen: the defaults, built once
 
 
@@ -215,6 +254,7 @@ def check_table(table: ImpedanceTable, limits: SafetyLimits | None = None) -> li
         theta_rng = lim.knee_theta_e_deg if r.joint == "knee" else lim.ankle_theta_e_deg
         _check(f"{key}.theta_e_deg", r.theta_e_deg, theta_rng, "deg", out)
         _check(f"{key}.b_Nm_s_per_rad", r.b_Nm_s_per_rad, lim.b_Nm_s_per_rad, "N·m·s/rad", out)
+    _check_support_floor(table, lim, out)
     t = table.thresholds
     _check("thresholds.sf_to_se_ankle_moment_Nm", t.sf_to_se_ankle_moment_Nm, lim.ankle_moment_Nm, "N·m", out)
     _check("thresholds.se_to_wf_load_N", t.se_to_wf_load_N, lim.load_N, "N", out)

@@ -1,6 +1,7 @@
 """An envelope on the wire: axes, nominal task and every node's table as raw fixed-point integers.
 
-A transfer is ENVELOPE_BEGIN, the axis frames (speeds, inclines, the nominal task) and their check, ten frames per
+A transfer is ENVELOPE_BEGIN, the axis frames (speeds, inclines, the nominal task, the body mass the envelope was
+built for, which the knee's stance support floor scales with) and their check, ten frames per
 node (eight rows and two threshold frames, each carrying its node index) and the node's check, ENVELOPE_COMMIT;
 TABLE_ACK answers, as for a table. The CRC-32 (zlib) covers every raw value in transfer order (axes, nominal, then
 node by node, row by row), packed as little-endian int32, so host and device compute it from exactly what the device
@@ -52,7 +53,7 @@ _THRESHOLD_FIELDS = {"sf_to_se_ankle_moment": "sf_to_se_ankle_moment_Nm", "se_to
                      "we_to_sf_load": "we_to_sf_load_N", "wf_to_we_knee_angle": "wf_to_we_knee_angle_deg",
                      "min_state_time": "min_state_time_s", "max_state_time": "max_state_time_s",
                      "sf_to_se_knee_extension": "sf_to_se_knee_extension_deg_per_s"}
-AXIS_SPEED, AXIS_INCLINE, AXIS_NOMINAL = 0, 1, 2
+AXIS_SPEED, AXIS_INCLINE, AXIS_NOMINAL, AXIS_BODY = 0, 1, 2, 3   # AXIS_BODY index 0: body mass (kg)
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,7 @@ class DeviceEnvelope:
     inclines_deg: tuple[float, ...]
     nominal: tuple[float, float]
     tables: tuple[DeviceTable, ...]
+    body_mass_kg: float
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,7 @@ class WireEnvelope:
     speeds: tuple[int, ...]
     inclines: tuple[int, ...]
     nominal: tuple[int, int]
+    body_mass: int
     nodes: tuple[tuple[tuple[int, ...], ...], ...]   # per node: 8 row triples, then thresholds A (3) and B (4)
 
     @property
@@ -107,20 +110,25 @@ class WireEnvelope:
                    inclines=tuple(axis(v, "inclines_deg") for v in envelope.inclines_deg),
                    nominal=(axis(envelope.nominal_speed_mps, "nominal_speed_mps"),
                             axis(envelope.nominal_incline_deg, "nominal_incline_deg")),
-                   nodes=tuple(nodes))
+                   body_mass=axis(envelope.mass_kg, "mass_kg"), nodes=tuple(nodes))
+
+    @property
+    def axis_values(self) -> list[int]:
+        """The raw axis values in transfer order (what the axes check covers)."""
+        return [*self.speeds, *self.inclines, *self.nominal, self.body_mass]
 
     def crc32(self) -> int:
         """CRC-32 of every raw value in transfer order (little-endian int32 each)."""
-        return _crc([*self.speeds, *self.inclines, *self.nominal, *(v for node in self.nodes for part in node
-                                                                    for v in part)])
+        return _crc([*self.axis_values, *(v for node in self.nodes for part in node for v in part)])
 
     def frames(self, transfer_id: int) -> list[can.Message]:
         """The data frames of a transfer: axes, nominal and their check, then ten per node and its check."""
         out = [encode("ENVELOPE_AXIS", {"transfer_id": transfer_id, "axis": a, "index": i, "value": v})
-               for a, values in ((AXIS_SPEED, self.speeds), (AXIS_INCLINE, self.inclines), (AXIS_NOMINAL, self.nominal))
+               for a, values in ((AXIS_SPEED, self.speeds), (AXIS_INCLINE, self.inclines), (AXIS_NOMINAL, self.nominal),
+                                 (AXIS_BODY, (self.body_mass,)))
                for i, v in enumerate(values)]
         out.append(encode("ENVELOPE_CHECK", {"transfer_id": transfer_id, "target": CHECK_AXES, "node": 0,
-                                             "crc32": _crc([*self.speeds, *self.inclines, *self.nominal])}))
+                                             "crc32": _crc(self.axis_values)}))
         for n, node in enumerate(self.nodes):
             head = {"transfer_id": transfer_id, "node": n}
             out += [encode("ENVELOPE_ROW", {**head, "row_index": i, **dict(zip(_ROW, node[i], strict=True))})
@@ -135,6 +143,7 @@ class WireEnvelope:
         def axis(raw: int) -> float:
             return to_physical("ENVELOPE_AXIS", "value", raw)
 
+        mass = axis(self.body_mass)
         tables = []
         for node in self.nodes:
             rows = tuple(DeviceRow(j, s, *(to_physical("ENVELOPE_ROW", f, raw)
@@ -144,10 +153,11 @@ class WireEnvelope:
                       for raw, f in zip(node[8], _A, strict=True)}
             values |= {_THRESHOLD_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_B", f, raw)
                        for raw, f in zip(node[9], _B, strict=True)}
-            tables.append(DeviceTable(rows=rows, thresholds=Thresholds(**values)))
+            tables.append(DeviceTable(rows=rows, thresholds=Thresholds(**values), body_mass_kg=mass))
         return DeviceEnvelope(speeds_mps=tuple(axis(v) for v in self.speeds),
                               inclines_deg=tuple(axis(v) for v in self.inclines),
-                              nominal=(axis(self.nominal[0]), axis(self.nominal[1])), tables=tuple(tables))
+                              nominal=(axis(self.nominal[0]), axis(self.nominal[1])), tables=tuple(tables),
+                              body_mass_kg=mass)
 
 
 def _crc(values: list[int]) -> int:
@@ -182,7 +192,7 @@ class EnvelopeReceiver:
 
     def _axis_keys(self) -> list[tuple[int, int]]:
         return [(AXIS_SPEED, i) for i in range(self.n_speeds)] + [(AXIS_INCLINE, i) for i in range(self.n_inclines)] + \
-            [(AXIS_NOMINAL, 0), (AXIS_NOMINAL, 1)]
+            [(AXIS_NOMINAL, 0), (AXIS_NOMINAL, 1), (AXIS_BODY, 0)]
 
     def _verify_axes(self) -> None:
         """Keep the axes once their values give their check; drop them for fresh copies when they do not."""
@@ -210,7 +220,8 @@ class EnvelopeReceiver:
 
     def add(self, name: str, raw: dict[str, int]) -> None:
         if name == "ENVELOPE_AXIS":
-            limit = {AXIS_SPEED: self.n_speeds, AXIS_INCLINE: self.n_inclines, AXIS_NOMINAL: 2}.get(raw["axis"], 0)
+            limit = {AXIS_SPEED: self.n_speeds, AXIS_INCLINE: self.n_inclines, AXIS_NOMINAL: 2,
+                     AXIS_BODY: 1}.get(raw["axis"], 0)
             if raw["index"] < limit and not self.axes_kept:
                 self.axes.setdefault((raw["axis"], raw["index"]), raw["value"])
                 self._verify_axes()
@@ -259,6 +270,7 @@ class EnvelopeReceiver:
             speeds=tuple(self.axes[(AXIS_SPEED, i)] for i in range(self.n_speeds)),
             inclines=tuple(self.axes[(AXIS_INCLINE, i)] for i in range(self.n_inclines)),
             nominal=(self.axes[(AXIS_NOMINAL, 0)], self.axes[(AXIS_NOMINAL, 1)]),
+            body_mass=self.axes[(AXIS_BODY, 0)],
             nodes=tuple(tuple(self.rows[(n, i)] for i in range(FRAMES_PER_NODE)) for n in range(self.n_nodes)))
 
 

@@ -196,7 +196,7 @@ class DeviceFirmware:
                 self._rx = None
                 return [self._ack(raw["transfer_id"], AckResult.MALFORMED, version=raw["version"])]
             return []
-        if name in ("TABLE_ROW", "TABLE_THRESHOLDS_A", "TABLE_THRESHOLDS_B"):
+        if name in ("TABLE_ROW", "TABLE_THRESHOLDS_A", "TABLE_THRESHOLDS_B", "TABLE_BODY"):
             rx = self._rx
             row = WireTable.row_from_frame(name, raw)
             if isinstance(rx, _Transfer) and raw["transfer_id"] == rx.transfer_id and row is not None:

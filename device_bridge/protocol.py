@@ -34,7 +34,8 @@ JOINTS: tuple[str, str] = ("knee", "ankle")
 ROW_ORDER: tuple[tuple[str, str], ...] = tuple((j, s) for j in JOINTS for s in SUBPHASES)
 THRESHOLDS_A_INDEX = len(ROW_ORDER)        # 8
 THRESHOLDS_B_INDEX = len(ROW_ORDER) + 1    # 9
-ROW_COUNT = len(ROW_ORDER) + 2             # 10 frames between begin and commit
+BODY_INDEX = len(ROW_ORDER) + 2            # 10: the body mass the table was built for (the support floor needs it)
+ROW_COUNT = len(ROW_ORDER) + 3             # 11 frames between begin and commit
 TRANSFER_IDS = 16                          # 4-bit transfer id
 
 
@@ -233,6 +234,7 @@ class DeviceTable:
 
     rows: tuple[DeviceRow, ...]
     thresholds: Thresholds
+    body_mass_kg: float
 
     def row(self, joint: str, subphase: str) -> DeviceRow:
         for r in self.rows:
@@ -249,10 +251,13 @@ class WireTable:
         rows: eight (k, θe, b) raw triples in :data:`ROW_ORDER`.
         thresholds: seven raw threshold values (A: moment, toe-off load, heel-strike load, SF→SE knee
             extension speed; B: knee angle, minimum and maximum state time).
+        body_mass: the body mass the table was built for (TABLE_BODY, 0.01 kg): the device checks the knee's
+            stance support floor, which scales with it, on exactly what it will run.
     """
 
     rows: tuple[tuple[int, int, int], ...]
     thresholds: tuple[int, int, int, int, int, int, int]
+    body_mass: int
 
     @classmethod
     def from_table(cls, table: ParameterTable) -> WireTable:
@@ -267,11 +272,12 @@ class WireTable:
                         f"thresholds.{_THRESH_TABLE_FIELDS[f]}") for f in _THRESH_A]
         th += [_quantize("TABLE_THRESHOLDS_B", f, getattr(t, _THRESH_TABLE_FIELDS[f]),
                          f"thresholds.{_THRESH_TABLE_FIELDS[f]}") for f in _THRESH_B]
-        return cls(rows=tuple(rows), thresholds=tuple(th))  # type: ignore[arg-type]
+        mass = _quantize("TABLE_BODY", "body_mass", table.body_mass_kg, "body_mass_kg")
+        return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass)  # type: ignore[arg-type]
 
     def crc32(self) -> int:
         """CRC-32 of the raw values in transfer order (little-endian int32 each)."""
-        flat = [v for row in self.rows for v in row] + list(self.thresholds)
+        flat = [v for row in self.rows for v in row] + list(self.thresholds) + [self.body_mass]
         return zlib.crc32(struct.pack(f"<{len(flat)}i", *flat))
 
     def to_device_table(self) -> DeviceTable:
@@ -282,10 +288,11 @@ class WireTable:
         names = [("TABLE_THRESHOLDS_A", f) for f in _THRESH_A] + [("TABLE_THRESHOLDS_B", f) for f in _THRESH_B]
         values = {_THRESH_TABLE_FIELDS[f]: to_physical(m, f, raw)
                   for (m, f), raw in zip(names, self.thresholds, strict=True)}
-        return DeviceTable(rows=rows, thresholds=Thresholds(**values))
+        return DeviceTable(rows=rows, thresholds=Thresholds(**values),
+                           body_mass_kg=to_physical("TABLE_BODY", "body_mass", self.body_mass))
 
     def frames(self, transfer_id: int) -> list[can.Message]:
-        """The ten data frames (row_index 0–9) of a transfer."""
+        """The eleven data frames (row_index 0–10) of a transfer."""
         out = [encode("TABLE_ROW", {"transfer_id": transfer_id, "row_index": i, "k": k, "theta_e": th, "b": b})
                for i, (k, th, b) in enumerate(self.rows)]
         a, b = self.thresholds[:len(_THRESH_A)], self.thresholds[len(_THRESH_A):]
@@ -293,6 +300,8 @@ class WireTable:
                                                  **dict(zip(_THRESH_A, a, strict=True))}))
         out.append(encode("TABLE_THRESHOLDS_B", {"transfer_id": transfer_id, "row_index": THRESHOLDS_B_INDEX,
                                                  **dict(zip(_THRESH_B, b, strict=True))}))
+        out.append(encode("TABLE_BODY", {"transfer_id": transfer_id, "row_index": BODY_INDEX,
+                                         "body_mass": self.body_mass}))
         return out
 
     @staticmethod
@@ -305,6 +314,8 @@ class WireTable:
             return i, tuple(raw[f] for f in _THRESH_A)
         if name == "TABLE_THRESHOLDS_B" and i == THRESHOLDS_B_INDEX:
             return i, tuple(raw[f] for f in _THRESH_B)
+        if name == "TABLE_BODY" and i == BODY_INDEX:
+            return i, (raw["body_mass"],)
         return None
 
     @classmethod
@@ -312,7 +323,7 @@ class WireTable:
         """Assemble from the row values of a complete transfer (index → raw values)."""
         rows = tuple(values[i] for i in range(THRESHOLDS_A_INDEX))
         th = values[THRESHOLDS_A_INDEX] + values[THRESHOLDS_B_INDEX]
-        return cls(rows=rows, thresholds=th)  # type: ignore[arg-type]
+        return cls(rows=rows, thresholds=th, body_mass=values[BODY_INDEX][0])  # type: ignore[arg-type]
 
 
 def begin_frame(transfer_id: int, version: int, crc32: int) -> can.Message:

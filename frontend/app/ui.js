@@ -69,6 +69,7 @@ export const FIT_METHOD_WORDS = {
   range_guard: "fitted, angle held in range", passivity_guard: "fitted, held resistive",
   swing_target: "set from the swing target", manual: "edited by hand", literature: "published value",
   neighbour_guard: "held within a step of its envelope neighbours",
+  support_floor: "held at the stance support floor",
 };
 const THRESHOLD_WORDS = {
   sf_to_se_ankle_moment_Nm: "stance extension begins: ankle moment below",
@@ -163,4 +164,14 @@ export function tableName(t, withTask = false) {
   if (!withTask) return name;
   const task = `${fmt(t.task.speed_mps, 2, "m/s")}, incline ${fmt(t.task.incline_deg, 1, "°")}`;
   return t.kind === "envelope" ? `${name} (adapts to the task; nominal ${task})` : `${name} (${task})`;
+}
+
+// A version's extrapolation, said the same way everywhere: beyond what the model knows (with the prosthetist's written
+// reason), or only a little outside its data
+export function extrapolationChip(v, outsideWords = "extrapolation") {
+  if (v.extrapolation_reason) {
+    return h("span", { class: "chip bad", title: `requested beyond what the model knows: ${v.extrapolation_reason}` },
+      "extrapolated beyond the data");
+  }
+  return v.extrapolation ? chip(outsideWords, "warn") : "";
 }

@@ -120,3 +120,17 @@ def test_features_predicted_for_many_tasks_at_once_are_those_of_each_task(model)
             assert a.spec == b.spec and a.extrapolation == b.extrapolation
             assert (a.value, a.std, a.phase, a.phase_std) == pytest.approx((b.value, b.std, b.phase, b.phase_std),
                                                                            rel=1e-9, abs=1e-12)
+
+
+def test_where_the_knee_does_positive_work_the_envelope_holds_the_stance_support_floor(model):
+    """The default grid for 70 kg: at 0.6 m/s up a 10° ramp the fit wants a knee that barely resists (the person's
+    knee does positive work climbing slowly); the row holds −1.2 N·m/rad/kg × 70 kg instead, says so, and every node
+    (neighbour guard included) is at least that firm."""
+    env = model.propose_envelope([0.6, 0.8, 1.0, 1.3, 1.6], [-10.0, -5.0, 0.0, 5.0, 10.0], 70.0)
+    floor = -1.2 * 70.0
+    rows = {(n.speed_mps, n.incline_deg): n.table.row("knee", "stance_flexion") for n in env.nodes}
+    assert all(r.k_Nm_per_rad <= floor + 1e-9 for r in rows.values())
+    held = rows[(0.6, 10.0)]
+    assert held.fit_method == "support_floor" and held.guarded and held.k_Nm_per_rad == pytest.approx(floor)
+    assert 0.0 <= held.theta_e_deg <= 120.0
+    assert check_envelope(env) == []

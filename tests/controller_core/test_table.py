@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from controller_core import ParameterTable, SafetyLimitError, assert_safe, check_table
-from controller_core.table import ParameterRow
+from controller_core.table import ParameterRow, support_floor_Nm_per_rad
 
 
 def test_safety_check_names_the_offending_field(model):
@@ -35,10 +35,40 @@ def test_a_stance_row_that_injects_energy_is_refused_in_words_a_prosthetist_read
     [violation] = check_table(bad)
     assert violation.field == f"{joint}.{subphase}.k_Nm_per_rad" and violation.high == 0.0
     assert "gives way" in violation.message or "pushes" in violation.message
-    # a pure damper (k = 0) is passive, and swing rows may still brake with a small positive k
+    # a pure damper (k = 0) is passive; only the knee's stance flexion must also hold the support floor
     ok = [r.model_copy(update={"k_Nm_per_rad": 0.0}) if (r.joint, r.subphase) == (joint, subphase) else r
           for r in table.rows]
-    assert check_table(ParameterTable(rows=ok, thresholds=table.thresholds, provenance=table.provenance)) == []
+    found = check_table(ParameterTable(rows=ok, thresholds=table.thresholds, provenance=table.provenance))
+    if (joint, subphase) == ("knee", "stance_flexion"):
+        assert [v.field for v in found] == ["knee.stance_flexion.k_Nm_per_rad"] and "support floor" in found[0].message
+    else:
+        assert found == []
+
+
+@pytest.mark.parametrize("mass_kg", [50.0, 82.0, 140.0])
+def test_the_knee_stance_support_floor_scales_with_body_mass(model, mass_kg):
+    """A knee stance-flexion k softer than 1.2 N·m/rad per kg is refused, naming the floor, the rate and the mass;
+    one just firmer than the floor passes."""
+    table = model.propose(1.25, 0.0, mass_kg).table
+    floor = support_floor_Nm_per_rad(mass_kg)
+    assert floor == pytest.approx(-1.2 * mass_kg)
+
+    def with_knee_sf(k: float) -> ParameterTable:
+        rows = [r.model_copy(update={"k_Nm_per_rad": k}) if (r.joint, r.subphase) == ("knee", "stance_flexion")
+                else r for r in table.rows]
+        return ParameterTable(rows=rows, thresholds=table.thresholds, provenance=table.provenance)
+
+    [violation] = check_table(with_knee_sf(floor + 1.0))
+    assert violation.field == "knee.stance_flexion.k_Nm_per_rad" and violation.high == pytest.approx(floor)
+    assert f"{mass_kg:g} kg" in violation.message and "1.2 N·m/rad per kg" in violation.message
+    assert "buckle" in violation.message
+    assert check_table(with_knee_sf(floor - 1.0)) == []
+
+
+def test_a_body_mass_outside_the_range_is_a_violation(model):
+    table = model.propose(1.25, 0.0, 75.0).table
+    odd = table.model_copy(update={"provenance": table.provenance.model_copy(update={"patient_mass_kg": 5.0})})
+    assert "body_mass_kg" in [v.field for v in check_table(odd)]
 
 
 def test_every_proposal_over_the_task_range_has_passive_stance_rows(model):

@@ -111,7 +111,7 @@ def test_rows_of_another_transfer_are_not_mixed_in(tables):
     fw = DeviceFirmware()
     begin, rows, commit, _ = transfer(tables[0], 5, 1)
     _, other_rows, _, _ = transfer(tables[1], 6, 2)
-    [nack] = feed(fw, [begin, *rows[:9], other_rows[9], commit], 0.0)
+    [nack] = feed(fw, [begin, *rows[:9], other_rows[9], *rows[10:], commit], 0.0)
     assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << 9
 
 
@@ -147,6 +147,29 @@ def test_the_device_refuses_an_unsafe_table_itself(tables):
     [nack] = feed(fw, [begin, *rows, commit], 0.1)
     assert nack["result"] == AckResult.SAFETY_LIMIT and nack["crc32"] == 0
     assert fw.active_.crc32 == old and fw.staged_ is None
+
+
+def test_the_device_holds_the_stance_support_floor_for_the_mass_on_the_wire(tables):
+    """The body mass travels in the transfer (TABLE_BODY, under the CRC): the same rows pass for the 75 kg they were
+    built for and are refused for 180 kg, whose floor (−216 N·m/rad) the knee's stance flexion is softer than."""
+    fw = DeviceFirmware()
+    table = tables[0]
+    k = table.row("knee", "stance_flexion").k_Nm_per_rad
+    assert -1.2 * 180.0 < k <= -1.2 * 75.0
+    install(fw, table, 1)
+    heavier = table.model_copy(update={"provenance": table.provenance.model_copy(update={"patient_mass_kg": 180.0})})
+    begin, rows, commit, _ = transfer(heavier, 2, 2)
+    [nack] = feed(fw, [begin, *rows, commit], 0.1)
+    assert nack["result"] == AckResult.SAFETY_LIMIT and fw.staged_ is None
+
+
+def test_the_body_mass_frame_is_part_of_the_transfer(tables):
+    begin, rows, commit, crc = transfer(tables[0], 3, 3)
+    fw = DeviceFirmware()
+    [nack] = feed(fw, [begin, *rows[:-1], commit], 0.0)   # the body mass frame lost
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << (ROW_COUNT - 1)
+    [ack] = feed(fw, [rows[-1], commit], 0.1)
+    assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
 
 
 def test_a_lost_acknowledgement_is_answered_again(tables):

@@ -19,6 +19,7 @@ const FIT_METHOD_HELP = {
   manual: "edited by hand",
   literature: "published table",
   neighbour_guard: "an envelope node: the fitted value differed from a neighbouring node's by more than the envelope's step per cell, so it was moved the least into that step",
+  support_floor: "the person does positive work here (the knee extends under load, which a spring cannot); the leg holds the knee firm instead: k at the stance support floor, θe re-fitted",
 };
 
 // How each field is shown: scale from SI to the shown unit, the unit, and digits. Loads are % body weight in the
@@ -36,13 +37,22 @@ function units(field, mass) {
   return { scale: 1, unit: "s", digits: 3 };
 }
 
-// The SI range of a field (the server's SafetyLimits): stance stiffness has its own (resistive only) range
-function limitOf(field, L) {
+// The knee's stance-flexion ceiling (N·m/rad, negative): the stance support floor for the body mass
+export function supportFloor(L, mass) {
+  return -L.knee_stance_support_Nm_per_rad_per_kg * mass;
+}
+
+// The SI range of a field (the server's SafetyLimits): stance stiffness has its own (resistive only) range, and
+// the knee's stance flexion must be at least as firm as the stance support floor for the body mass
+function limitOf(field, L, mass) {
   const [a, b, c] = field.split(".");
   if (a === "thresholds") {
     return { sf_to_se_ankle_moment_Nm: L.ankle_moment_Nm, se_to_wf_load_N: L.load_N, we_to_sf_load_N: L.load_N,
       wf_to_we_knee_angle_deg: L.knee_theta_e_deg, min_state_time_s: L.state_time_s, max_state_time_s: L.state_time_s,
       sf_to_se_knee_extension_deg_per_s: L.knee_extension_deg_per_s }[b];
+  }
+  if (c === "k_Nm_per_rad" && `${a}.${b}` === "knee.stance_flexion" && mass) {
+    return { low: L.stance_k_Nm_per_rad.low, high: Math.min(L.stance_k_Nm_per_rad.high, supportFloor(L, mass)) };
   }
   if (c === "k_Nm_per_rad") return b.startsWith("stance") ? L.stance_k_Nm_per_rad : L.k_Nm_per_rad;
   if (c === "theta_e_deg") return a === "knee" ? L.knee_theta_e_deg : L.ankle_theta_e_deg;
@@ -58,9 +68,13 @@ export function liveViolations(values, L, mass) {
   const out = [];
   const range = (lim, u) => `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)} ${u.unit}`;
   for (const [field, v] of Object.entries(values)) {
-    const u = units(field, mass), lim = limitOf(field, L);
+    const u = units(field, mass), lim = limitOf(field, L, mass);
     if (!Number.isFinite(v)) out.push({ field, message: `${label(field)}: not a number` });
-    else if (field.endsWith("k_Nm_per_rad") && field.includes(".stance_") && v > lim.high) {
+    else if (field === "knee.stance_flexion.k_Nm_per_rad" && v > lim.high && v <= L.stance_k_Nm_per_rad.high) {
+      out.push({ field, message: `${label(field)} = ${fmt(v * u.scale, u.digits)} ${u.unit} is softer than the stance `
+        + `support floor, ${fmt(lim.high * u.scale, u.digits)} ${u.unit} (${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} `
+        + `N·m/rad per kg × ${fmt(mass, 1)} kg): the knee could buckle under the patient's weight` });
+    } else if (field.endsWith("k_Nm_per_rad") && field.includes(".stance_") && v > lim.high) {
       const joint = field.split(".")[0];
       out.push({ field, message: `${label(field)} = ${fmt(v * u.scale, u.digits)} ${u.unit} pushes the joint instead of `
         + `resisting it (${joint === "knee" ? "the knee gives way into flexion under load" : "the ankle is pushed off its equilibrium under load"}): `
@@ -98,7 +112,7 @@ export function parameterTable(p, canEdit) {
   const cell = (field, si) => {
     const u = units(field, mass);
     const shown = (si * u.scale).toFixed(u.digits);
-    const lim = limitOf(field, L);
+    const lim = limitOf(field, L, mass);
     const out = violated.has(field) || si < lim.low || si > lim.high;
     return h("td", { class: `num${out ? " out" : ""}`, dataset: { cell: field } }, canEdit
       ? h("input", { type: "number", step: "any", value: shown, "aria-label": `${label(field)} (${u.unit})`,
@@ -124,7 +138,7 @@ export function parameterTable(p, canEdit) {
   });
   const th = p.thresholds;
   const thRows = THRESHOLD_KEYS.map((k) => {
-    const field = `thresholds.${k}`, u = units(field, mass), lim = limitOf(field, L);
+    const field = `thresholds.${k}`, u = units(field, mass), lim = limitOf(field, L, mass);
     return h("tr", {}, h("td", {}, label(field)), cell(field, th[k]), h("td", {}, u.unit),
       h("td", { class: "muted" }, `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)}`));
   });
@@ -138,6 +152,10 @@ export function parameterTable(p, canEdit) {
     table(heads, rows, { id: "param-table" }),
     h("p", { class: "muted small" }, `Limits: stiffness ${range(L.k_Nm_per_rad, ku)} ${ku.unit}, in stance at most `,
       `${fmt(L.stance_k_Nm_per_rad.high, 0)} (a stance setting must resist: negative k resists, positive pushes); `,
+      h("span", { id: "support-floor" }, `the knee in stance flexion at most ${fmt(supportFloor(L, mass) * ku.scale, ku.digits)} `
+        + `${ku.unit}: the stance support floor, ${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} N·m/rad per kg × `
+        + `${fmt(mass, 1)} kg (the Open Source Leg's published early-stance knee stiffness), below which the knee could `
+        + "buckle under load; "),
       `θe knee ${range(L.knee_theta_e_deg, { scale: 1, digits: 0 })}°, ankle ${range(L.ankle_theta_e_deg, { scale: 1, digits: 0 })}°; `,
       `damping ${range(L.b_Nm_s_per_rad, bu)} ${bu.unit}. Values outside the limits are marked red as you type. `,
       "R² (fit quality): how well the row's straight line explains the predicted torque-angle loop in that phase. ",
