@@ -65,6 +65,8 @@ def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
          f"device version {session['table_version'] or '—'})"),
         *([("Bench override", f"approved without a clean bench preview: “{session['approval_override']}”")]
           if session.get("approval_override") else []),
+        *([("Extrapolated", f"requested beyond what the model knows: “{session['extrapolation_reason']}”")]
+          if session.get("extrapolation_reason") else []),
         *_adaptive_facts(s.get("adaptive")),
         ("Recorded", f"{local_time(session['started_at'])} to {local_time(session['stopped_at'])} "
                      f"by {session['started_by']}"),
@@ -156,7 +158,7 @@ def report_figure(session: dict, patient: dict) -> Figure:
     fig.text(0.06, 0.955, f"QuasiTune session report · session {session['id']}", fontsize=15, weight="bold")
     y = 0.925
     for label, value in report_facts(session, patient):
-        warn = (label == "Leg off its table" and value != "never") or label == "Bench override"
+        warn = (label == "Leg off its table" and value != "never") or label in ("Bench override", "Extrapolated")
         fig.text(0.06, y, label, fontsize=8, color="0.35")
         for k, line in enumerate(textwrap.wrap(value, 88) or [""]):
             fig.text(0.27, y - k * 0.014, line, fontsize=8, color="#b3261e" if warn else "black",

@@ -122,7 +122,7 @@ class DeviceManager:
             dev.tables[key] = {k: push[k] for k in ("kind", "proposal_id", "proposal_version", "envelope_id",
                                                     "envelope_version", "patient_id", "patient_code", "label",
                                                     "table_label", "task", "body_mass_kg", "override_reason",
-                                                    "approval_override")}
+                                                    "approval_override", "extrapolation_reason")}
         return dev.tables[key]
 
     def view(self, device_id: str) -> dict:

@@ -22,6 +22,7 @@ from backend.schemas.envelopes import (
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
 from backend.store import bench_verdict, envelopes, patients, pushes
+from backend.task_range import extrapolation_reason
 from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
 from device_bridge.envelope_wire import check_envelope_as_run
@@ -34,12 +35,15 @@ router = APIRouter(prefix="/api", tags=["envelopes"], responses=UNAUTHORIZED)
 def create_envelope(patient_id: IdPath, body: EnvelopeRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
     """Build the patient's next draft envelope (prosthetist): one table per node of the speed × incline grid, for the
     patient's body mass, each from the model and within the limits, neighbours held to the neighbour rule; with the
-    device-side check of every node and both CRCs."""
+    device-side check of every node and both CRCs. Nodes beyond what the model knows (``GET /api/task-range``) are
+    refused (422) unless ``extrapolate`` comes with a ``reason``, which is audited and shown with the version."""
     patient = patients.get_patient(conn, patient_id)
+    corners = [(s, g) for s in body.speed_range_mps for g in body.incline_range_deg]
+    reason = extrapolation_reason(model, corners, body.extrapolate, body.reason)
     env = model.propose_envelope(np.linspace(*body.speed_range_mps, body.grid[0]),
                                  np.linspace(*body.incline_range_deg, body.grid[1]), patient["body_mass_kg"],
                                  nominal=(body.nominal_speed_mps, body.nominal_incline_deg))
-    created = envelopes.create_from_model(conn, patient_id, env, user)
+    created = envelopes.create_from_model(conn, patient_id, env, user, reason)
     return {**created, **_shown_with(conn, created["id"])}
 
 

@@ -20,6 +20,7 @@ from backend.schemas.proposals import (
     ProposalRequest,
 )
 from backend.store import bench_verdict, patients, proposals, pushes
+from backend.task_range import extrapolation_reason
 from controller_core.table_edit import EditError, edit_table
 from device_bridge.protocol import check_as_run
 
@@ -31,12 +32,15 @@ router = APIRouter(prefix="/api", tags=["proposals"], responses=UNAUTHORIZED)
 async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn, user: Prosthetist,
                           model: Model) -> dict:
     """Predict features, curves and the parameter table for a task and this patient's body mass, and store it
-    as the patient's next draft version (prosthetist). Its safety check and extrapolation flag are included."""
+    as the patient's next draft version (prosthetist). Its safety check and extrapolation flag are included. A task
+    beyond what the model knows (``GET /api/task-range``) is refused (422) unless ``extrapolate`` comes with a
+    ``reason``, which is audited and shown with the version."""
     # On the event loop: about a millisecond of NumPy, which in a worker thread only contends with the loop for
     # the GIL; the write is one short transaction.
     patient = patients.get_patient(conn, patient_id)
+    reason = extrapolation_reason(model, [(body.speed_mps, body.incline_deg)], body.extrapolate, body.reason)
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
-    created = proposals.create_from_model(conn, patient_id, proposal, user)
+    created = proposals.create_from_model(conn, patient_id, proposal, user, reason)
     return {**created, **_shown_with(conn, created["id"])}
 
 

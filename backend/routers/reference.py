@@ -9,11 +9,13 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from backend.deps import CurrentUser, Model
+from backend.schemas.envelopes import MAX_NODES
 from backend.schemas.errors import UNAUTHORIZED
-from backend.schemas.reference import ReferenceOut
+from backend.schemas.reference import ReferenceOut, TaskRangeOut
+from controller_core.known_range import known_range
 from controller_core.phase_table import load_shipped_ramps
 from controller_core.reference import CITATIONS
-from controller_core.task import INCLINE_LIMIT_DEG, SPEED_RANGE_MPS
+from controller_core.task import INCLINE_LIMIT_DEG, MASS_RANGE_KG, SPEED_RANGE_MPS
 from controller_core.walking_reference import sloped_walking_reference
 
 router = APIRouter(prefix="/api", tags=["reference"], responses=UNAUTHORIZED)
@@ -76,3 +78,13 @@ def get_reference(_user: CurrentUser, model: Model,
     return {"model_version": model.model_version, "data_sha256": model.data_sha256_, "conditions": conditions,
             "ramp_conditions": _ramp_conditions(),
             "at_task": None if speed_mps is None else _at_task(speed_mps, incline_deg)}
+
+
+@router.get("/task-range", response_model=TaskRangeOut)
+def get_task_range(_user: CurrentUser, model: Model) -> dict:
+    """The limits of any request (speed, incline, body mass, envelope grid) and the tasks the model knows: its data's
+    range plus the stated margin, beyond which a proposal or envelope needs ``extrapolate`` and a ``reason``. The
+    forms take their bounds from here."""
+    return {"speed_mps": list(SPEED_RANGE_MPS), "incline_deg": [-INCLINE_LIMIT_DEG, INCLINE_LIMIT_DEG],
+            "body_mass_kg": list(MASS_RANGE_KG), "envelope_nodes_per_axis": [2, 15], "envelope_max_nodes": MAX_NODES,
+            "known": known_range(model).to_json()}

@@ -90,3 +90,17 @@ OverrideReason = Annotated[Text | None, Field(
     default=None, min_length=20, max_length=2000,
     description="go ahead although the bench preview of this version is not walked or shows an unsafe figure: why "
                 "(at least 20 characters; audited, and shown wherever the version is shown)")]
+
+
+# a request beyond the tasks the model knows (controller_core.known_range): why the prosthetist extrapolates anyway
+ExtrapolationReason = Annotated[Text | None, Field(
+    default=None, min_length=20, max_length=2000,
+    description="with extrapolate: why a task beyond what the model knows is requested (at least 20 characters; "
+                "audited, and shown with the version everywhere)")]
+
+
+def require_reason_to_extrapolate(extrapolate: bool, reason: str | None) -> None:
+    """``extrapolate`` needs its written reason (raised as a validation error naming both fields)."""
+    if extrapolate and reason is None:
+        raise ValueError('"extrapolate": true needs a "reason" of at least 20 characters: why this task is requested '
+                         "beyond what the model knows")

@@ -37,6 +37,8 @@ class TableOnDevice(BaseModel):
     body_mass_kg: float = Field(description="the body mass the table or envelope was built for (kg)")
     approval_override: str | None = Field(
         default=None, description="approved without a clean bench preview: the prosthetist's reason")
+    extrapolation_reason: str | None = Field(
+        default=None, description="requested beyond the tasks the model knows: the prosthetist's written reason")
     override_reason: str | None = Field(default=None, description="pushed without a clean bench preview: why")
 
 

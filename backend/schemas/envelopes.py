@@ -6,7 +6,13 @@ from typing import Literal
 
 from pydantic import BaseModel, Field, model_validator
 
-from backend.schemas.common import EDIT_BOUND, StrictIn, Text
+from backend.schemas.common import (
+    EDIT_BOUND,
+    ExtrapolationReason,
+    StrictIn,
+    Text,
+    require_reason_to_extrapolate,
+)
 from backend.schemas.proposals import (
     BenchVerdict,
     Boundaries,
@@ -36,9 +42,13 @@ class EnvelopeRequest(StrictIn):
                                         "transfer to the leg carries)")
     nominal_speed_mps: float = Field(default=1.2, description="the task the leg returns to when unsure (m/s)")
     nominal_incline_deg: float = Field(default=0.0, description="(deg); clamped into the envelope")
+    extrapolate: bool = Field(default=False, description="nodes beyond the tasks the model knows (GET /api/task-range): "
+                                                         "needs a reason")
+    reason: ExtrapolationReason = None
 
     @model_validator(mode="after")
     def _ranges(self) -> EnvelopeRequest:
+        require_reason_to_extrapolate(self.extrapolate, self.reason)
         (s0, s1), (g0, g1), (ns, ni) = self.speed_range_mps, self.incline_range_deg, self.grid
         if not (SPEED_RANGE_MPS[0] <= s0 < s1 <= SPEED_RANGE_MPS[1]):
             raise ValueError(f"speed_range_mps must be increasing within [{SPEED_RANGE_MPS[0]:g}, "

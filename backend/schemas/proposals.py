@@ -4,9 +4,17 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, model_validator
 
-from backend.schemas.common import EDIT_BOUND, EditValue, OverrideReason, StrictIn, Text
+from backend.schemas.common import (
+    EDIT_BOUND,
+    EditValue,
+    ExtrapolationReason,
+    OverrideReason,
+    StrictIn,
+    Text,
+    require_reason_to_extrapolate,
+)
 from controller_core.table import LimitViolation, SafetyLimits, Thresholds
 from controller_core.task import SPEED_RANGE_MPS
 
@@ -17,6 +25,14 @@ Subphase = Literal["stance_flexion", "stance_extension", "swing_flexion", "swing
 class ProposalRequest(StrictIn):
     speed_mps: float = Field(ge=SPEED_RANGE_MPS[0], le=SPEED_RANGE_MPS[1], description="walking speed (m/s), [0.1, 3]")
     incline_deg: float = Field(default=0.0, ge=-20, le=20, description="incline (deg, + uphill), [-20, 20]")
+    extrapolate: bool = Field(default=False, description="go beyond the tasks the model knows (GET /api/task-range): "
+                                                         "needs a reason")
+    reason: ExtrapolationReason = None
+
+    @model_validator(mode="after")
+    def _reasoned(self) -> ProposalRequest:
+        require_reason_to_extrapolate(self.extrapolate, self.reason)
+        return self
 
 
 class RowEdit(StrictIn):
@@ -164,6 +180,8 @@ class DecidedVersion(BaseModel):
     created_at: str
     edit_comment: str | None
     decision: Decision | None
+    extrapolation_reason: str | None = Field(
+        description="requested beyond the tasks the model knows: the prosthetist's written reason (else null)")
 
 
 class ProposalSummary(DecidedVersion):

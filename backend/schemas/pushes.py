@@ -39,6 +39,8 @@ class PushOut(BaseModel):
     override_reason: str | None = Field(default=None, description="pushed without a clean bench preview: why")
     approval_override: str | None = Field(
         default=None, description="the version was approved without a clean bench preview: why")
+    extrapolation_reason: str | None = Field(
+        default=None, description="requested beyond the tasks the model knows: the prosthetist's written reason")
     table_version: int = Field(description="the device's own version number for this push (16-bit, per device)")
     crc32: str = Field(description="CRC-32 (hex) of the table or envelope as sent, in the wire's fixed-point")
     status: Literal["sending", "unconfirmed", "acknowledged", "active", "failed", "superseded", "lost"] = Field(

@@ -61,3 +61,25 @@ class ReferenceOut(BaseModel):
     at_task: TaskReference | None = Field(
         default=None, description="with speed_mps and incline_deg: the reference at that task, or null where no "
                                   "curves were measured that steep (the proposal is then the model's prediction)")
+
+
+class KnownRangeOut(BaseModel):
+    data_speed_mps: list[float] = Field(description="the level walking data's speeds, lowest and highest (m/s)")
+    data_incline_deg: list[float] = Field(description="the measured ramps' inclines, lowest and highest (deg)")
+    speed_margin_mps: float = Field(description="how far beyond the data's speeds the model predicts unasked (m/s)")
+    incline_margin_deg: float = Field(description="how far beyond the data's inclines the model predicts unasked (deg)")
+    speed_mps: list[float] = Field(description="speeds a request may name without extrapolate (m/s)")
+    incline_deg: list[float] = Field(description="inclines a request may name without extrapolate (deg)")
+
+
+class TaskRangeOut(BaseModel):
+    """What a request may name: any walking task within the limits, and without ``extrapolate`` only what the model
+    knows."""
+
+    speed_mps: list[float] = Field(description="any request's speed limits (m/s)")
+    incline_deg: list[float] = Field(description="any request's incline limits (deg)")
+    body_mass_kg: list[float] = Field(description="a patient's body mass limits (kg)")
+    envelope_nodes_per_axis: list[int] = Field(description="an envelope's nodes along each axis, fewest and most")
+    envelope_max_nodes: int = Field(description="an envelope's nodes in all, at most (what one transfer carries)")
+    known: KnownRangeOut
+    extrapolation_reason_min_chars: int = 20

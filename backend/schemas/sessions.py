@@ -37,6 +37,8 @@ class SessionOut(BaseModel):
     table_label: str | None = Field(description="what the leg ran: 'patient code · table vN' or '… · envelope vN'")
     approval_override: str | None = Field(
         default=None, description="that version was approved without a clean bench preview: the written reason")
+    extrapolation_reason: str | None = Field(
+        default=None, description="requested beyond the tasks the model knows: the prosthetist's written reason")
     table_version: int | None = Field(description="the device's own version number of that table or envelope")
     table_crc32: str | None = Field(description="CRC-32 (hex) of the table or envelope as the device runs it")
     course: str | None = Field(description="the bench course walked, if any")

@@ -63,7 +63,8 @@ def _meta(row: sqlite3.Row) -> dict:
             "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
             "comment": row["decision_comment"], "override_reason": row["decision_override"]},
         "body_mass_kg": row["body_mass_kg"], "grid": [row["n_speeds"], row["n_inclines"]],
-        "extrapolation": bool(row["extrapolation"]), "crc32": row["crc32"], "wire_crc32": row["wire_crc32"],
+        "extrapolation": bool(row["extrapolation"]), "extrapolation_reason": row["extrapolation_reason"],
+        "crc32": row["crc32"], "wire_crc32": row["wire_crc32"],
         "envelope_sha256": row["envelope_sha256"],
     }
 
@@ -113,7 +114,8 @@ def get_envelope(conn: sqlite3.Connection, envelope_id: int, full: bool = True) 
     return _public(_meta(row), stored_envelope(row), full)
 
 
-_SUMMARY_SELECT = summary_select(_SELECT, "e", "e.body_mass_kg, e.n_speeds, e.n_inclines, e.extrapolation, e.crc32, "
+_SUMMARY_SELECT = summary_select(_SELECT, "e", "e.body_mass_kg, e.n_speeds, e.n_inclines, e.extrapolation, "
+                                                "e.extrapolation_reason, e.crc32, "
                                                 "e.wire_crc32, e.envelope_sha256, json_extract(e.envelope_json, "
                                                 "'$.speeds_mps') AS speeds_json, json_extract(e.envelope_json, "
                                                 "'$.inclines_deg') AS inclines_json")
@@ -129,36 +131,40 @@ def list_envelopes(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
 
 
 def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, envelope: Envelope, comment: str | None,
-            actor: User, violations: list[LimitViolation]) -> dict:
-    """Insert a draft inside the caller's write transaction; returns its metadata."""
+            actor: User, violations: list[LimitViolation], extrapolation_reason: str | None = None) -> dict:
+    """Insert a draft inside the caller's write transaction (``extrapolation_reason``: why it was requested beyond the
+    tasks the model knows); returns its metadata."""
     body = json.dumps(envelope.to_json(), sort_keys=True, allow_nan=False)
     n_s, n_i = envelope.shape
     version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM envelopes WHERE patient_id = ?",
                            (patient_id,)).fetchone()[0]
     cur = conn.execute(
         "INSERT INTO envelopes (patient_id, version, parent_id, source, body_mass_kg, n_speeds, n_inclines, "
-        "extrapolation, safety_ok, envelope_json, envelope_sha256, crc32, wire_crc32, edit_comment, created_by, "
-        "created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        "extrapolation, extrapolation_reason, safety_ok, envelope_json, envelope_sha256, crc32, wire_crc32, "
+        "edit_comment, created_by, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         (patient_id, version, parent_id, "model" if parent_id is None else "edit", envelope.mass_kg, n_s, n_i,
-         int(any(n.extrapolation for n in envelope.nodes)), int(not violations), body,
+         int(any(n.extrapolation for n in envelope.nodes) or extrapolation_reason is not None), extrapolation_reason,
+         int(not violations), body,
          hashlib.sha256(body.encode()).hexdigest(), envelope.crc32(), _wire_crc(envelope), comment, actor.id,
          utc_now()))
     return _meta(get_row(conn, int(cur.lastrowid)))
 
 
-def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envelope, actor: User) -> dict:
+def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envelope, actor: User,
+                      extrapolation_reason: str | None = None) -> dict:
     """Store a freshly built envelope as the patient's next draft version, rounded to the node quanta (what the
-    device runs); returns its API view."""
+    device runs); returns its API view. ``extrapolation_reason``: the prosthetist's reason for nodes beyond the
+    tasks the model knows (audited, shown with the version)."""
     envelope = envelope_as_run(envelope)
     violations = check_envelope_as_run(envelope)
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
             raise NotFoundError(f"patient {patient_id} not found")
-        meta = _insert(conn, patient_id, None, envelope, None, actor, violations)
+        meta = _insert(conn, patient_id, None, envelope, None, actor, violations, extrapolation_reason)
         audit.record(conn, actor.id, actor.username, "envelope.create", "envelope", meta["id"],
                      after={"patient_id": patient_id, "version": meta["version"], "speeds_mps": envelope.speeds_mps,
                             "inclines_deg": envelope.inclines_deg, "crc32": meta["crc32"], "safety_ok": not violations,
-                            "extrapolation": meta["extrapolation"]})
+                            "extrapolation": meta["extrapolation"], "extrapolation_reason": extrapolation_reason})
     return _public(meta, envelope, full=True, violations=violations)
 
 
@@ -169,7 +175,8 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, envelope: Envelope, ch
     envelope = envelope_as_run(envelope)
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
-        meta = _insert(conn, parent["patient_id"], parent_id, envelope, comment, actor, [])
+        meta = _insert(conn, parent["patient_id"], parent_id, envelope, comment, actor, [],
+                       parent["extrapolation_reason"])
         audit.record(conn, actor.id, actor.username, "envelope.edit", "envelope", meta["id"],
                      before={"envelope_id": parent_id, "version": parent["version"], "crc32": parent["crc32"]},
                      after={"version": meta["version"], "crc32": meta["crc32"], "comment": comment,

@@ -82,6 +82,7 @@ def _meta(row: sqlite3.Row) -> dict:
         "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
                  "body_mass_kg": row["body_mass_kg"]},
         "extrapolation": bool(row["extrapolation"]),
+        "extrapolation_reason": row["extrapolation_reason"],
         "table_sha256": row["table_sha256"],
     }
 
@@ -102,7 +103,7 @@ def get_proposal(conn: sqlite3.Connection, proposal_id: int, full: bool = True) 
 
 
 _SUMMARY_SELECT = summary_select(_SELECT, "p", "p.speed_mps, p.incline_deg, p.body_mass_kg, p.extrapolation, "
-                                                "p.table_sha256")
+                                                "p.extrapolation_reason, p.table_sha256")
 
 
 def list_proposals(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
@@ -115,8 +116,9 @@ def list_proposals(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
 
 def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
             extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User,
-            violations: list[LimitViolation]) -> dict:
-    """Insert a draft (``violations``: its table's limit check); returns its metadata as :func:`_meta` gives it."""
+            violations: list[LimitViolation], extrapolation_reason: str | None = None) -> dict:
+    """Insert a draft (``violations``: its table's limit check; ``extrapolation_reason``: why it was requested beyond
+    the tasks the model knows); returns its metadata as :func:`_meta` gives it."""
     table_json = table.model_dump_json()
     created_at = utc_now()
     table_sha256 = _sha256(table_json)
@@ -124,11 +126,11 @@ def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, so
                            (patient_id,)).fetchone()[0]
     cur = conn.execute(
         "INSERT INTO proposals (patient_id, version, parent_id, source, speed_mps, incline_deg, body_mass_kg, "
-        "extrapolation, safety_ok, model_json, table_json, table_sha256, edit_comment, created_by, created_at) "
-        "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        "extrapolation, extrapolation_reason, safety_ok, model_json, table_json, table_sha256, edit_comment, created_by, "
+        "created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         (patient_id, version, parent_id, source, task["speed_mps"], task["incline_deg"], task["body_mass_kg"],
-         int(extrapolation), int(not violations), model_json, table_json, table_sha256, comment,
-         actor.id, created_at))
+         int(extrapolation or extrapolation_reason is not None), extrapolation_reason, int(not violations), model_json,
+         table_json, table_sha256, comment, actor.id, created_at))
     return _meta(conn.execute(_SELECT + " WHERE p.id = ?", (int(cur.lastrowid),)).fetchone())
 
 
@@ -140,9 +142,11 @@ def _refuse_non_finite(proposal: Proposal) -> None:
         raise RuntimeError("the model produced a non-finite curve or feature; nothing stored")
 
 
-def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
+def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User,
+                      extrapolation_reason: str | None = None) -> dict:
     """Store a freshly computed proposal as the patient's next draft version, inside the caller's write
-    transaction; returns its API view."""
+    transaction; returns its API view. ``extrapolation_reason``: the prosthetist's reason for a task beyond the
+    tasks the model knows (audited, shown with the version)."""
     body = proposal.model_body()
     _refuse_non_finite(proposal)
     model_json = to_json(body).decode()   # pydantic-core's encoder: far faster than json.dumps on 808 floats
@@ -152,18 +156,19 @@ def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
     if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
         raise NotFoundError(f"patient {patient_id} not found")
     meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, table,
-                   None, actor, violations)
+                   None, actor, violations, extrapolation_reason)
     audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
                  after={"patient_id": patient_id, "version": meta["version"], "task": task,
                         "table_sha256": meta["table_sha256"], "safety_ok": not violations,
-                        "extrapolation": meta["extrapolation"]})
+                        "extrapolation": meta["extrapolation"], "extrapolation_reason": extrapolation_reason})
     return _assemble(meta, table, body, full=True, violations=violations)
 
 
-def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User) -> dict:
+def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User,
+                      extrapolation_reason: str | None = None) -> dict:
     """:func:`insert_from_model` in a write transaction of its own."""
     with write_transaction(conn):
-        return insert_from_model(conn, patient_id, proposal, actor)
+        return insert_from_model(conn, patient_id, proposal, actor, extrapolation_reason)
 
 
 def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable, changes: list[dict],
@@ -177,7 +182,7 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable,
                 "body_mass_kg": parent["body_mass_kg"]}
         violations = check_as_run(table)
         meta = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
-                       parent["model_json"], table, comment, actor, violations)
+                       parent["model_json"], table, comment, actor, violations, parent["extrapolation_reason"])
         out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
         pid = meta["id"]
         audit.record(conn, actor.id, actor.username, "proposal.edit", "proposal", pid,

@@ -26,7 +26,8 @@ _PUSH_SELECT = ("SELECT pu.*, u.username AS requested_by_name, pr.version AS pro
                 "coalesce(pr.speed_mps, json_extract(en.envelope_json, '$.nominal_speed_mps')) AS speed_mps, "
                 "coalesce(pr.incline_deg, json_extract(en.envelope_json, '$.nominal_incline_deg')) AS incline_deg, "
                 "coalesce(pr.body_mass_kg, en.body_mass_kg) AS built_for_mass_kg, "
-                "coalesce(pr.decision_override, en.decision_override) AS approval_override "
+                "coalesce(pr.decision_override, en.decision_override) AS approval_override, "
+                "coalesce(pr.extrapolation_reason, en.extrapolation_reason) AS extrapolation_reason "
                 "FROM pushes pu "
                 "JOIN users u ON u.id = pu.requested_by LEFT JOIN proposals pr ON pr.id = pu.proposal_id "
                 "LEFT JOIN envelopes en ON en.id = pu.envelope_id "
@@ -44,7 +45,7 @@ def _push(row: sqlite3.Row) -> dict:
             "label": label, "table_label": label if table else None,
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"]},
             "body_mass_kg": row["built_for_mass_kg"], "override_reason": row["override_reason"],
-            "approval_override": row["approval_override"],
+            "approval_override": row["approval_override"], "extrapolation_reason": row["extrapolation_reason"],
             "table_version": row["table_version"], "crc32": f"{row['crc32']:08x}", "status": row["status"],
             "requested_by": row["requested_by_name"], "requested_at": row["requested_at"],
             "acknowledged_at": row["acknowledged_at"], "active_at": row["active_at"], "ended_at": row["ended_at"],

@@ -16,7 +16,8 @@ from backend.store.users import User
 _SESSION_SELECT = ("SELECT s.*, su.username AS started_by_name, pu.username AS stopped_by_name, "
                    "pa.code_name AS patient_code, pr.version AS proposal_version, en.version AS envelope_version, "
                    "pp.code_name AS table_patient_code, "
-                   "coalesce(pr.decision_override, en.decision_override) AS approval_override "
+                   "coalesce(pr.decision_override, en.decision_override) AS approval_override, "
+                   "coalesce(pr.extrapolation_reason, en.extrapolation_reason) AS extrapolation_reason "
                    "FROM walking_sessions s JOIN users su ON su.id = s.started_by "
                    "LEFT JOIN users pu ON pu.id = s.stopped_by JOIN patients pa ON pa.id = s.patient_id "
                    "LEFT JOIN proposals pr ON pr.id = s.proposal_id LEFT JOIN envelopes en ON en.id = s.envelope_id "
@@ -35,7 +36,7 @@ def _session(row: sqlite3.Row) -> dict:
     return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
             "device_id": row["device_id"], "proposal_id": row["proposal_id"], "envelope_id": row["envelope_id"],
             "table_label": _label(row), "course": row["course"], "approval_override": row["approval_override"],
-            "table_version": row["table_version"],
+            "extrapolation_reason": row["extrapolation_reason"], "table_version": row["table_version"],
             "table_crc32": None if row["table_crc32"] is None else f"{row['table_crc32']:08x}",
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
                      "body_mass_kg": row["body_mass_kg"]},

@@ -79,6 +79,8 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
         ["Bench preview", bench.status === "unsafe" ? `UNSAFE: ${bench.flags.filter((f) => f.severity === "bad").map((f) => f.message).join("; ")}`
           : bench.words],
         ...(item.decision?.override_reason ? [["Approved without a clean preview", `“${item.decision.override_reason}”`]] : []),
+        ...(item.extrapolation_reason ? [["Extrapolated", `requested beyond what the model knows: “${item.extrapolation_reason}”`]]
+          : item.extrapolation ? [["Extrapolation", "a little outside the walking data (flagged on its page)"]] : []),
         ...(massOff ? [["Body mass", `built for ${fmt(builtFor, 0, "kg")}; ${patient.code_name} now weighs ${fmt(patient.body_mass_kg, 0, "kg")} (more than 5 % apart)`]] : []),
         ["When", kind === "envelope" ? "at the next heel strike after the device re-checks every node; from then on the "
           + "leg changes its rows with the task it estimates, at heel strikes only" : "at the next heel strike after the device verifies it"]],

@@ -45,9 +45,10 @@ class Api:
         assert r.status_code == 201, r.text
         return r.json()
 
-    def propose(self, patient_id: int, speed: float = 1.2, incline: float = 0.0) -> dict:
+    def propose(self, patient_id: int, speed: float = 1.2, incline: float = 0.0, **extra) -> dict:
+        """A draft proposal (``extra``: more of the request body, e.g. ``extrapolate`` and ``reason``)."""
         r = self.client.post(f"/api/patients/{patient_id}/proposals", headers=self.as_("prosthetist"),
-                             json={"speed_mps": speed, "incline_deg": incline})
+                             json={"speed_mps": speed, "incline_deg": incline, **extra})
         assert r.status_code == 201, r.text
         return r.json()
 

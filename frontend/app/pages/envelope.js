@@ -8,7 +8,7 @@ import { envelopeMap, nodeGrid } from "../envelope_map.js";
 import { BENCH_CHIP, renderDecision } from "../decision_panel.js";
 import { renderPush } from "../push_panel.js";
 import { safetyFigures } from "./proposal.js";
-import { chip, fieldWords, fmt, h, inWords, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+import { chip, extrapolationChip, fieldWords, fmt, h, inWords, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
 const QUANTITIES = {
   k_Nm_per_rad: { label: "quasi-stiffness k", short: "k", unit: "N·m/rad", digits: 0 },
@@ -41,6 +41,7 @@ export async function envelopePage(view, id, params) {
       chip(e.safety.ok ? "every node within the parameter limits and the neighbour rule" : "outside the parameter limits", e.safety.ok ? "ok" : "bad"),
       e.bench ? h("span", { id: "bench-chip" }, chip(e.bench.words, BENCH_CHIP[e.bench.status])) : null,
       e.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
+      e.extrapolation_reason ? extrapolationChip(e) : null,
       e.source === "edit" ? chip(`edited from v${e.parent_version}`) : chip("model"),
       chip(`${e.grid[0]} × ${e.grid[1]} nodes`)),
     h("p", { class: "provenance" }, `Model ${e.model.version} · training data sha256 ${e.model.data_sha256.slice(0, 12)}… · `,
@@ -53,7 +54,8 @@ export async function envelopePage(view, id, params) {
   if (nExtra) {
     head.push(h("div", { class: "banner warn", role: "alert", id: "extrapolation" }, h("strong", {}, "Extrapolation: "),
       `${nExtra} of ${e.nodes.length} nodes lie outside the walking data the model was trained on (hatched on the maps). `,
-      "Their tables are less certain; open them and review their values."));
+      "Their tables are less certain; open them and review their values.",
+      e.extrapolation_reason ? h("span", { id: "extrapolation-reason" }, ` Requested beyond what the model knows by the prosthetist: “${e.extrapolation_reason}”`) : ""));
   }
   if (!e.safety.ok) {
     head.push(h("div", { class: "banner bad", role: "alert" }, h("strong", {}, "Safety: "),

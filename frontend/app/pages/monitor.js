@@ -195,6 +195,8 @@ function renderStatus(box, d) {
       d.body_mass_mismatch ? h("span", { id: "mass-mismatch" }, " ", chip(d.body_mass_mismatch.message, "warn")) : null,
       d.active_table?.approval_override ? h("span", { id: "approval-override" }, " ",
         chip(`approved without a clean bench preview: “${d.active_table.approval_override}”`, "warn")) : null,
+      d.active_table?.extrapolation_reason ? h("span", { id: "extrapolated" }, " ",
+        chip(`extrapolated beyond the data: “${d.active_table.extrapolation_reason}”`, "bad")) : null,
       d.active_table?.override_reason ? h("span", { id: "push-override" }, " ",
         chip(`pushed without a clean bench preview: “${d.active_table.override_reason}”`, "warn")) : null),
     h("dt", {}, "CRC-32 read back"), h("dd", { class: "mono" }, d.active_crc32 || "—"),

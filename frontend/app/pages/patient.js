@@ -1,12 +1,12 @@
 import { api, get, post } from "../api.js";
 import { app } from "../main.js";
-import { chip, fmt, h, modeWords, table, tableName, when } from "../ui.js";
+import { chip, extrapolationChip, fmt, h, modeWords, table, tableName, when } from "../ui.js";
 import { rangeText } from "./envelope.js";
 
 export async function patientPage(view, id) {
-  const [patient, proposals, envelopes, sessions, devices, trend] = await Promise.all([
+  const [patient, proposals, envelopes, sessions, devices, trend, range] = await Promise.all([
     get(`/api/patients/${id}`), get(`/api/patients/${id}/proposals`), get(`/api/patients/${id}/envelopes`),
-    get(`/api/patients/${id}/sessions`), get("/api/devices"), get(`/api/patients/${id}/trend`)]);
+    get(`/api/patients/${id}/sessions`), get("/api/devices"), get(`/api/patients/${id}/trend`), get("/api/task-range")]);
   const details = h("dl", { class: "facts" },
     h("dt", {}, "Body mass"), h("dd", { id: "patient-mass" }, fmt(patient.body_mass_kg, 1, "kg")),
     h("dt", {}, "Height"), h("dd", {}, fmt(patient.height_m, 2, "m")),
@@ -19,7 +19,7 @@ export async function patientPage(view, id) {
     h("td", {}, h("a", { href: `#/proposals/${p.id}` }, `v${p.version}`)),
     h("td", { class: "num" }, fmt(p.task.speed_mps, 2)), h("td", { class: "num" }, fmt(p.task.incline_deg, 1)),
     h("td", {}, chip(p.status, p.status)), h("td", {}, p.source === "edit" ? `edited from v${versionOf[p.parent_id] ?? "?"}` : "model"),
-    h("td", {}, p.extrapolation ? chip("extrapolation", "warn") : ""), h("td", {}, p.created_by),
+    h("td", {}, extrapolationChip(p)), h("td", {}, p.created_by),
     h("td", {}, when(p.created_at))));
 
   const envVersion = Object.fromEntries(envelopes.map((e) => [e.id, e.version]));
@@ -27,7 +27,7 @@ export async function patientPage(view, id) {
     h("td", {}, h("a", { href: `#/envelopes/${e.id}` }, `v${e.version}`)), h("td", {}, rangeText(e)),
     h("td", { class: "num" }, `${e.grid[0]} × ${e.grid[1]}`), h("td", {}, chip(e.status, e.status)),
     h("td", {}, e.source === "edit" ? `edited from v${envVersion[e.parent_id] ?? "?"}` : "model"),
-    h("td", {}, e.extrapolation ? chip("some nodes outside data", "warn") : ""), h("td", {}, e.created_by),
+    h("td", {}, extrapolationChip(e, "some nodes outside data")), h("td", {}, e.created_by),
     h("td", {}, when(e.created_at))));
 
   const sessRows = sessions.map((s) => h("tr", {},
@@ -49,11 +49,11 @@ export async function patientPage(view, id) {
     h("h1", {}, `Patient ${patient.code_name}`),
     h("section", { class: "card" }, details, app.me.role === "prosthetist" ? massForm(patient) : null),
     h("section", { class: "card" }, h("h2", {}, "Proposals"),
-      app.me.role === "prosthetist" ? proposalForm(patient) : null,
+      app.me.role === "prosthetist" ? proposalForm(patient, range) : null,
       proposals.length ? table(["Version", "Speed (m/s)", "Incline (deg)", "Status", "Source", "", "By", "Created"],
         propRows, { id: "proposals" }) : h("p", { class: "muted" }, "No proposals yet.")),
     h("section", { class: "card" }, h("h2", {}, "Envelopes (the leg adapts to speed and incline inside one)"),
-      app.me.role === "prosthetist" ? envelopeForm(patient) : null,
+      app.me.role === "prosthetist" ? envelopeForm(patient, range) : null,
       envelopes.length ? table(["Version", "Range", "Grid (speeds × inclines)", "Status", "Source", "", "By", "Created"],
         envRows, { id: "envelopes" }) : h("p", { class: "muted" }, "No envelopes yet.")),
     h("section", { class: "card" }, h("h2", {}, "Devices"),
@@ -80,15 +80,45 @@ function trendTable(trend) {
       .sort((a, b) => b[1] - a[1]).map(([k, t]) => `${CLASS_WORDS(k)} ${fmt(t / 60, 1)}`).join(" · ") || "—"))), { id: "trend" });
 }
 
-function envelopeForm(patient) {
+// The tasks the model knows (the server's range): a request beyond them needs "extrapolate" and a written reason,
+// asked for here only when a value typed lies beyond
+function extrapolationFields(range, tasks) {
+  const k = range.known;
+  const note = h("p", { class: "muted small", id: "known-range" }, `The model knows ${fmt(k.speed_mps[0], 2)}–`
+    + `${fmt(k.speed_mps[1], 2)} m/s and ${fmt(k.incline_deg[0], 0)}° to +${fmt(k.incline_deg[1], 0)}°: its walking data `
+    + `cover ${fmt(k.data_speed_mps[0], 2)}–${fmt(k.data_speed_mps[1], 2)} m/s and ${fmt(k.data_incline_deg[0], 0)}° to `
+    + `+${fmt(k.data_incline_deg[1], 0)}°, and it predicts up to ${fmt(k.speed_margin_mps, 2)} m/s and `
+    + `${fmt(k.incline_margin_deg, 0)}° beyond them (flagged as extrapolation). Further out its uncertainty no longer `
+    + "says anything about the patient: it is built only with a written reason.");
+  const check = h("input", { type: "checkbox", name: "extrapolate" });
+  const reason = h("textarea", { name: "reason", rows: 2, cols: 50, minlength: range.extrapolation_reason_min_chars,
+    placeholder: `why this task, beyond what the model knows (at least ${range.extrapolation_reason_min_chars} characters)` });
+  const box = h("fieldset", { class: "extrapolate", hidden: true }, h("legend", {}, "Beyond what the model knows"),
+    h("label", {}, check, " build it anyway (audited; the version is marked as extrapolated everywhere)"), reason);
+  const beyond = () => tasks().some(([s, g]) => s < k.speed_mps[0] || s > k.speed_mps[1] || g < k.incline_deg[0]
+    || g > k.incline_deg[1]);
+  const update = () => { box.hidden = !beyond(); reason.required = !box.hidden && check.checked; };
+  check.addEventListener("change", update);
+  return { note, box, update, body: () => (!box.hidden && check.checked ? { extrapolate: true, reason: reason.value } : {}) };
+}
+
+function envelopeForm(patient, range) {
   const error = h("p", { class: "error", role: "alert" });
   const num = (name, label, value, min, max, step) => h("label", {}, label,
     h("input", { name, type: "number", min, max, step, value, required: true, size: 5 }));
+  const [s0, s1] = range.speed_mps, [g0, g1] = range.incline_deg, [n0, n1] = range.envelope_nodes_per_axis;
   const form = h("form", { class: "inline", id: "request-envelope" },
-    num("speed_lo", "Speed from (m/s)", "0.6", 0.1, 3, 0.05), num("speed_hi", "to", "1.6", 0.1, 3, 0.05),
-    num("incline_lo", "Incline from (deg)", "-10", -20, 20, 0.5), num("incline_hi", "to", "10", -20, 20, 0.5),
-    num("n_speeds", "Grid: speeds", "5", 2, 15, 1), num("n_inclines", "× inclines", "5", 2, 15, 1),
+    num("speed_lo", "Speed from (m/s)", "0.6", s0, s1, 0.05), num("speed_hi", "to", "1.6", s0, s1, 0.05),
+    num("incline_lo", "Incline from (deg)", "-10", g0, g1, 0.5), num("incline_hi", "to", "10", g0, g1, 0.5),
+    num("n_speeds", "Grid: speeds", "5", n0, n1, 1), num("n_inclines", "× inclines", "5", n0, n1, 1),
     h("button", { type: "submit" }, "Request envelope"), error);
+  const value = (name) => Number(form.elements[name].value);
+  const extra = extrapolationFields(range, () => [value("speed_lo"), value("speed_hi")].flatMap((s) =>
+    [[s, value("incline_lo")], [s, value("incline_hi")]]));
+  const grid = h("p", { class: "muted small" }, `At most ${range.envelope_max_nodes} nodes in all (what one transfer to the `
+    + "leg carries).");
+  form.append(extra.box, extra.note, grid);
+  form.addEventListener("input", extra.update);
   form.addEventListener("submit", async (ev) => {
     ev.preventDefault();
     error.textContent = "";
@@ -100,7 +130,7 @@ function envelopeForm(patient) {
     app.envelopeRequestedAt = performance.now();
     try {
       const e = await post(`/api/patients/${patient.id}/envelopes`, { speed_range_mps: [n("speed_lo"), n("speed_hi")],
-        incline_range_deg: [n("incline_lo"), n("incline_hi")], grid: [n("n_speeds"), n("n_inclines")] });
+        incline_range_deg: [n("incline_lo"), n("incline_hi")], grid: [n("n_speeds"), n("n_inclines")], ...extra.body() });
       app.envelopeReturnedAt = performance.now();   // start of "interactive within 1 s" (bench-ui reads it)
       location.hash = `#/envelopes/${e.id}`;
     } catch (err) {
@@ -113,14 +143,18 @@ function envelopeForm(patient) {
   return form;
 }
 
-function proposalForm(patient) {
+function proposalForm(patient, range) {
   const error = h("p", { class: "error", role: "alert" });
   const form = h("form", { class: "inline", id: "propose" },
-    h("label", {}, "Speed (m/s)", h("input", { name: "speed_mps", type: "number", min: 0.1, max: 3, step: 0.01,
-      value: "1.25", required: true })),
-    h("label", {}, "Incline (deg, + uphill)", h("input", { name: "incline_deg", type: "number", min: -20, max: 20,
-      step: 0.5, value: "0", required: true })),
+    h("label", {}, "Speed (m/s)", h("input", { name: "speed_mps", type: "number", min: range.speed_mps[0],
+      max: range.speed_mps[1], step: 0.01, value: "1.25", required: true })),
+    h("label", {}, "Incline (deg, + uphill)", h("input", { name: "incline_deg", type: "number",
+      min: range.incline_deg[0], max: range.incline_deg[1], step: 0.5, value: "0", required: true })),
     h("button", { type: "submit" }, "Request proposal"), error);
+  const extra = extrapolationFields(range, () => [[Number(form.elements.speed_mps.value),
+    Number(form.elements.incline_deg.value)]]);
+  form.append(extra.box, extra.note);
+  form.addEventListener("input", extra.update);
   form.addEventListener("submit", async (ev) => {
     ev.preventDefault();
     error.textContent = "";
@@ -129,7 +163,7 @@ function proposalForm(patient) {
     button.disabled = true;
     try {
       const p = await post(`/api/patients/${patient.id}/proposals`,
-        { speed_mps: Number(d.get("speed_mps")), incline_deg: Number(d.get("incline_deg")) });
+        { speed_mps: Number(d.get("speed_mps")), incline_deg: Number(d.get("incline_deg")), ...extra.body() });
       app.proposalReturnedAt = performance.now();   // start of "interactive within 1 s" (bench-ui reads it)
       location.hash = `#/proposals/${p.id}`;
     } catch (err) {
@@ -141,15 +175,15 @@ function proposalForm(patient) {
   return form;
 }
 
-// Body mass sets every torque and load threshold of a proposal: editable here, and a table proposed for a mass
-// more than 2 % away is then refused at push (propose again).
+// Body mass sets every torque and load threshold of a proposal: editable here, and a version built for a mass
+// more than 5 % away is then pushed only with a written reason (propose again).
 function massForm(patient) {
   const error = h("p", { class: "error", role: "alert" });
   const mass = h("input", { name: "body_mass_kg", type: "number", min: 20, max: 200, step: 0.1, required: true,
     value: patient.body_mass_kg });
   const form = h("form", { class: "inline", id: "edit-mass" }, h("label", {}, "Body mass (kg) ", mass),
     h("button", { type: "submit", class: "secondary" }, "Save body mass"),
-    h("span", { class: "muted small" }, "Tables proposed for another mass (more than 2 % away) can no longer be pushed."),
+    h("span", { class: "muted small" }, "A table or envelope built for another mass (more than 5 % away) is pushed only with a written reason; propose again for the new mass."),
     error);
   form.addEventListener("submit", async (ev) => {
     ev.preventDefault();

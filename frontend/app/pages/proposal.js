@@ -6,7 +6,7 @@ import { legend, loopChart, phaseChart } from "../charts.js";
 import { parameterTable, tableView } from "./parameter_table.js";
 import { BENCH_CHIP, renderDecision } from "../decision_panel.js";
 import { renderPush } from "../push_panel.js";
-import { chip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table,
+import { chip, extrapolationChip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table,
   when } from "../ui.js";
 
 const RAD = Math.PI / 180;
@@ -37,8 +37,10 @@ export async function proposalPage(view, id) {
   if (p.extrapolation) {
     const outside = p.features.filter((f) => f.extrapolation).map((f) => f.label).join(", ");
     head.push(h("div", { class: "banner warn", role: "alert", id: "extrapolation" },
-      h("strong", {}, "Extrapolation: "), "this task is outside the walking data the model was trained on. ",
-      "Predictions there are less certain (see the ± SD); review every value. Outside: ", outside || "task hull"));
+      h("strong", {}, p.extrapolation_reason ? "Extrapolated beyond what the model knows: " : "Extrapolation: "),
+      "this task is outside the walking data the model was trained on. ",
+      "Predictions there are less certain (see the ± SD); review every value. Outside: ", outside || "task hull",
+      p.extrapolation_reason ? h("span", { id: "extrapolation-reason" }, `. Requested anyway by the prosthetist: “${p.extrapolation_reason}”`) : ""));
   }
   if (!p.safety.ok) {
     head.push(h("div", { class: "banner bad", role: "alert" }, h("strong", {}, "Safety limits: "),
@@ -112,6 +114,7 @@ function headChips(p) {
     chip(p.safety.ok ? "within parameter limits" : "outside parameter limits", p.safety.ok ? "ok" : "bad"),
     p.bench ? h("span", { id: "bench-chip" }, chip(p.bench.words, BENCH_CHIP[p.bench.status])) : null,
     p.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
+    p.extrapolation_reason ? extrapolationChip(p) : null,
     p.source === "edit" ? chip(`edited from v${p.parent_version}`) : chip("model"));
 }
 

@@ -33,7 +33,8 @@ def test_an_unsafe_preview_stops_approval_and_push_unless_a_written_reason_is_gi
     api = sim_api
     c, pro = api.client, api.as_("prosthetist")
     patient = api.new_patient()
-    p = api.propose(patient["id"], speed=0.15, incline=-19.0)
+    p = api.propose(patient["id"], speed=0.15, incline=-19.0, extrapolate=True,
+                    reason="testing what the bench says of a task far outside the data")
     assert c.get(f"/api/proposals/{p['id']}/preview", headers=pro).status_code == 200
     bench = c.get(f"/api/proposals/{p['id']}", headers=pro).json()["bench"]
     assert bench["status"] == "unsafe" and any(f["figure"] == "falls" for f in bench["flags"])
