@@ -104,3 +104,45 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     page.click("#stop-dialog-confirm")
     page.wait_for_selector("#session-summary")
     assert page.locator("#off-table").count() == 1                          # the summary says it, before errors
+
+
+def test_a_knee_too_soft_to_carry_the_patient_is_refused_as_typed_and_by_the_server(server, page):
+    """The stance support floor: 1.2 N·m/rad per kg × 78 kg = −93.6 N·m/rad for the knee's stance flexion, stated
+    with the limits; a softer value is marked as typed and refused by the server."""
+    sign_in(page, server, "dana")
+    pid = create_patient_and_propose(page, "P-430")
+    floor_text = page.inner_text("#support-floor")
+    assert "-93.6 N·m/rad" in floor_text and "1.2 N·m/rad per kg × 78.0 kg" in floor_text, floor_text
+    k_cell = "#param-table input[data-field='knee.stance_flexion.k_Nm_per_rad']"
+    page.fill("#edit-form input[name=comment]", "softer knee on the ramp")
+    page.fill(k_cell, "-40")
+    live = page.inner_text("#edit-live")
+    assert "softer than the stance support floor" in live and "buckle" in live, live
+    assert page.is_disabled("#edit-form button[type=submit]")
+    refused = call(page, "POST", f"/api/proposals/{pid}/edits", {"comment": "softer knee", "rows": [
+        {"joint": "knee", "subphase": "stance_flexion", "k_Nm_per_rad": -40.0}]})
+    assert refused["status"] == 422 and "support floor" in refused["body"]["detail"], refused
+
+
+def test_a_task_far_outside_the_data_needs_a_written_reason_and_says_so_everywhere(server, page):
+    sign_in(page, server, "dana")
+    page.fill("#new-patient input[name=code_name]", "P-440")
+    page.fill("#new-patient input[name=body_mass_kg]", "78")
+    page.click("#new-patient button[type=submit]")
+    page.wait_for_selector("#propose")
+    known = page.inner_text("#propose #known-range")
+    assert "The model knows 0.49–2.30 m/s" in known and "0.84–1.95 m/s" in known, known
+    assert page.get_attribute("#propose input[name=speed_mps]", "max") == "3"   # the server's bounds
+    assert page.is_hidden("#propose fieldset.extrapolate")
+    page.fill("#propose input[name=speed_mps]", "0.3")
+    assert page.is_visible("#propose fieldset.extrapolate")
+    page.click("#propose button[type=submit]")                    # not ticked: the server refuses, nothing stored
+    page.wait_for_function("document.querySelector('#propose .error').textContent.length > 0")
+    assert "beyond what the model knows" in page.inner_text("#propose .error")
+    page.check("#propose input[name=extrapolate]")
+    page.fill("#propose textarea[name=reason]", "the patient walks this slowly at home")
+    page.click("#propose button[type=submit]")
+    page.wait_for_selector("#param-table")
+    assert "extrapolated beyond the data" in page.inner_text("#proposal-chips")
+    assert "the patient walks this slowly at home" in page.inner_text("#extrapolation-reason")
+    shot(page, "11-extrapolated-on-purpose")

@@ -152,10 +152,10 @@ export function parameterTable(p, canEdit) {
     table(heads, rows, { id: "param-table" }),
     h("p", { class: "muted small" }, `Limits: stiffness ${range(L.k_Nm_per_rad, ku)} ${ku.unit}, in stance at most `,
       `${fmt(L.stance_k_Nm_per_rad.high, 0)} (a stance setting must resist: negative k resists, positive pushes); `,
-      h("span", { id: "support-floor" }, `the knee in stance flexion at most ${fmt(supportFloor(L, mass) * ku.scale, ku.digits)} `
-        + `${ku.unit}: the stance support floor, ${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} N·m/rad per kg × `
-        + `${fmt(mass, 1)} kg (the Open Source Leg's published early-stance knee stiffness), below which the knee could `
-        + "buckle under load; "),
+      h("span", { id: "support-floor" }, `the knee in stance flexion at least as firm as ${fmt(supportFloor(L, mass) * ku.scale, ku.digits)} `
+        + `${ku.unit} (k ≤ that): the stance support floor, ${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} N·m/rad per kg × `
+        + `${fmt(mass, 1)} kg (the Open Source Leg's published early-stance knee stiffness), softer than which the knee `
+        + "could buckle under load; "),
       `θe knee ${range(L.knee_theta_e_deg, { scale: 1, digits: 0 })}°, ankle ${range(L.ankle_theta_e_deg, { scale: 1, digits: 0 })}°; `,
       `damping ${range(L.b_Nm_s_per_rad, bu)} ${bu.unit}. Values outside the limits are marked red as you type. `,
       "R² (fit quality): how well the row's straight line explains the predicted torque-angle loop in that phase. ",
