@@ -49,17 +49,26 @@ def local_time(iso: str | None) -> str:
     return datetime.fromisoformat(iso.replace("Z", "+00:00")).astimezone().strftime("%Y-%m-%d %H:%M %Z")
 
 
+def headline_words(head: dict | None) -> str:
+    """The headline errors in words: each stride against its own task, or too few strides to judge."""
+    if not head:
+        return "—"
+    n = head["strides_scored"]
+    if not head["enough_strides"]:
+        return f"too few strides to judge ({n} scored; at least {head['min_strides']} needed)"
+    return (f"knee {head['knee_angle_rmse_deg']:.1f} deg, ankle {head['ankle_angle_rmse_deg']:.1f} deg (RMSE of each "
+            f"of {n} strides against the reference at {head['against']}, averaged)")
+
+
 def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
     """The report's first block, (label, words) pairs: task, what ran (and any override), when, how much."""
-    s, t = session["summary"] or {}, session["task"]
+    s = session["summary"] or {}
     modes = s.get("mode_s") or {}
     rmse = " · ".join(f"{_LABELS[c].split(' (')[0]} {_fmt(s.get(rmse_key(c)), _UNITS[c], 1 if _UNITS[c] == 'deg' else 3)}"
                       for c in GAIT_CHANNELS)
     return [
         ("Patient", f"{patient['code_name']} · {patient['body_mass_kg']:.1f} kg · {patient['side']} side"),
-        ("Task", (f"the bench's '{session['course']}' course (speed and incline change); headline errors at its first "
-                  f"task, " if session.get("course") else "")
-         + f"{t['speed_mps']:.2f} m/s, incline {t['incline_deg']:+.1f}° · device {session['device_id']}"),
+        ("Task", f"{session['task_words']} · device {session['device_id']}"),
         ("Envelope that ran" if session.get("envelope_id") is not None else "Table that ran",
          f"{session['table_label'] or 'none from this server'} (CRC-32 {session['table_crc32'] or '—'}, "
          f"device version {session['table_version'] or '—'})"),
@@ -79,7 +88,8 @@ def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
                                     f"{_fmt(s.get('cadence_steps_per_min'), 'steps/min', 1)}"),
         ("Stride time", f"{_fmt(s.get('stride_time_s'), 's', 3)} "
                         f"(reference {_fmt(s.get('reference_stride_time_s'), 's', 3)})"),
-        ("RMSE vs reference", rmse),
+        ("Angle error per stride", headline_words(s.get("headline"))),
+        *([] if session.get("course") else [("Mean stride vs reference", rmse)]),
         ("Reference", f"{REFERENCE_KIND.get(s.get('reference_kind'), 'reference')}"
                       + (" [EXTRAPOLATION]" if s.get("reference_extrapolation") else "")),
     ]

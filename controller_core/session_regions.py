@@ -138,3 +138,31 @@ def adaptive_summary(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_ra
             "errors_by_region": errors,
             "adaptive_mode_s": {m: round(modes.count(m) * dt, 3) for m in ("nominal", "partial", "adaptive", "clamped")},
             "errors_reference": "each stride against the able-bodied reference at the leg's own estimate of its task"}
+
+
+MIN_STRIDES_TO_JUDGE = 5   # fewer scored strides than this: errors are shown as too few to judge
+
+
+def own_task_errors(knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray, strikes: np.ndarray,
+                    stride_tasks: Sequence[tuple[float, float] | None],
+                    reference_at: Callable[[float, float], WalkingReference], against: str,
+                    scored: Sequence[bool] | None = None) -> dict:
+    """The session's headline errors: each stride's knee and ankle angle RMSE (deg) against the able-bodied reference
+    at that stride's own task, averaged over the scored strides (a course or an adaptive walk compared with one task's
+    reference would blame the leg for the change of task).
+
+    Args:
+        stride_tasks: per stride (between consecutive ``strikes``), its (speed m/s, incline deg), or None when unknown
+            (left out).
+        against: in words, where the strides' tasks come from (shown with the figures).
+        scored: per stride, whether it counts (False: the leg did not run its table for the whole stride).
+    """
+    curves = {"knee_angle_deg": stride_curves(np.degrees(knee_angle_rad), strikes),
+              "ankle_angle_deg": stride_curves(np.degrees(ankle_angle_rad), strikes)} if strikes.size >= 2 else {}
+    per_stride = [None if task is None else {"speed_mps": task[0], "incline_deg": task[1], "region": (0, 0)}
+                  for task in stride_tasks]
+    overall = errors_by_region(curves, per_stride, (1, 1), reference_at, scored=scored)["overall"]
+    n = int(overall["strides"])
+    return {"knee_angle_rmse_deg": overall["knee_angle_per_stride_rmse_deg"],
+            "ankle_angle_rmse_deg": overall["ankle_angle_per_stride_rmse_deg"], "strides_scored": n,
+            "enough_strides": n >= MIN_STRIDES_TO_JUDGE, "min_strides": MIN_STRIDES_TO_JUDGE, "against": against}

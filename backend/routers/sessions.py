@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Annotated
 
@@ -19,7 +20,7 @@ from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest, Tre
 from backend.store import devices as devices_store
 from backend.store import envelopes, patients
 from backend.store import sessions as store
-from controller_core.session_regions import adaptive_summary
+from controller_core.session_regions import adaptive_summary, own_task_errors
 from controller_core.session_summary import device_times, session_strikes, summarize_session
 from controller_core.session_trend import session_trend
 from device_bridge.protocol import Mode
@@ -96,14 +97,19 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
                                 np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
                                 np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
                                 reference, running_table=running)
+    strikes = session_strikes(times, np.asarray(cols["load_N"]), t["body_mass_kg"])
     if session["envelope_id"] is not None:
         envelope = envelopes.stored_envelope(envelopes.get_row(conn, session["envelope_id"]))
         summary["adaptive"] = adaptive_summary(
-            times, np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]),
-            session_strikes(times, np.asarray(cols["load_N"]), t["body_mass_kg"]),
+            times, np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]), strikes,
             _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]), cols["adaptive_mode"],
             envelope.speeds_mps, envelope.inclines_deg,
             lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), running_table=running)
+    stride_tasks, against = _stride_tasks(session, summary, times, strikes)
+    summary["headline"] = own_task_errors(
+        np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]), strikes, stride_tasks,
+        lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), against,
+        scored=[bool(running[a:b + 1].all()) for a, b in itertools.pairwise(strikes)])
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
     summary["device_reported"] = reported
@@ -111,6 +117,23 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
     summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
     store.stop_session(conn, session_id, summary, user)
     return store.get_session(conn, session_id)
+
+
+def _stride_tasks(session: dict, summary: dict, times: np.ndarray, strikes: np.ndarray
+                  ) -> tuple[list[tuple[float, float] | None], str]:
+    """Each stride's own task and where it comes from: on a bench course, the course's task at the stride (the truth);
+    with an envelope, the leg's own estimate; otherwise the session's task."""
+    if session["course"] in COURSES and times.size:
+        mid = np.array([0.5 * (times[a] + times[b]) for a, b in itertools.pairwise(strikes)]) - times[0]
+        speed, incline = COURSES[session["course"]].task_at(mid)
+        return ([(float(v), float(g)) for v, g in zip(speed, incline, strict=True)],
+                f"each stride's own task on the '{session['course']}' course")
+    adaptive = summary.get("adaptive")
+    if adaptive:
+        return ([None if x is None else (x[0], x[1]) for x in adaptive["stride_tasks"]],
+                "each stride's task as the leg estimated it")
+    t = session["task"]
+    return [(t["speed_mps"], t["incline_deg"])] * max(int(strikes.size) - 1, 0), "the session's task"
 
 
 def _floats(values: list) -> np.ndarray:

@@ -42,15 +42,18 @@ class SessionOut(BaseModel):
     table_version: int | None = Field(description="the device's own version number of that table or envelope")
     table_crc32: str | None = Field(description="CRC-32 (hex) of the table or envelope as the device runs it")
     course: str | None = Field(description="the bench course walked, if any")
-    task: SessionTask = Field(description="the task the session's headline errors are scored at: the table's, the "
-                                          "envelope's nominal, or the course's first")
+    task: SessionTask = Field(description="the task the session started at: the table's, the envelope's nominal, or "
+                                          "the course's first (each stride's errors are scored at its own task)")
+    task_words: str = Field(description="the task in words: its speed and incline, or a course by its name and range")
     status: Literal["recording", "stopped"]
     started_by: str
     started_at: str
     stopped_by: str | None
     stopped_at: str | None
-    summary: dict | None = Field(description="strides, cadence_steps_per_min, *_rmse_deg, *_rmse_Nm_per_kg, "
-                                             "mean and reference curves on phase_grid (deg, N·m/kg)")
+    summary: dict | None = Field(description="headline (each stride's knee and ankle angle RMSE against the reference at "
+                                             "its own task, averaged; enough_strides false below 5), strides, "
+                                             "cadence_steps_per_min, stride-mean *_rmse_deg and *_rmse_Nm_per_kg at the "
+                                             "session's task, mean and reference curves on phase_grid (deg, N·m/kg)")
 
 
 class SamplesOut(BaseModel):
@@ -70,7 +73,8 @@ class TrendDay(BaseModel):
     strides: int
     walking_s: float
     cadence_steps_per_min: float | None = Field(description="stride-weighted mean of the day's sessions")
-    knee_angle_rmse_deg: float | None = Field(description="weighted by the strides scored")
+    knee_angle_rmse_deg: float | None = Field(description="each stride against its own task, weighted by the strides "
+                                                          "scored")
     ankle_angle_rmse_deg: float | None
     time_by_task_class_s: dict[str, float] = Field(
         description="seconds per speed class (slow < 0.9 m/s ≤ moderate < 1.3 m/s ≤ fast) × incline class (downhill "

@@ -12,6 +12,7 @@ from backend.store import audit
 from backend.store.envelopes import envelope_label
 from backend.store.proposals import table_label
 from backend.store.users import User
+from device_bridge.sim.course import COURSES
 
 _SESSION_SELECT = ("SELECT s.*, su.username AS started_by_name, pu.username AS stopped_by_name, "
                    "pa.code_name AS patient_code, pr.version AS proposal_version, en.version AS envelope_version, "
@@ -32,10 +33,24 @@ def _label(row: sqlite3.Row) -> str | None:
     return None
 
 
+def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
+    """A session's task as people read it: a bench course by its name and range, else the speed and incline."""
+    walked = COURSES.get(course) if course else None
+    if walked is None:
+        return f"{speed_mps:.2f} m/s, incline {incline_deg:+.1f}°"
+    speeds = [seg.speed_mps for seg in walked.segments]
+    inclines = [seg.incline_deg for seg in walked.segments]
+    slope = (f"incline {min(inclines):+.0f}° to {max(inclines):+.0f}°" if min(inclines) != max(inclines)
+             else f"incline {inclines[0]:+.0f}°")
+    return f"'{course}' course: {min(speeds):.2f}–{max(speeds):.2f} m/s, {slope}"
+
+
 def _session(row: sqlite3.Row) -> dict:
     return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
             "device_id": row["device_id"], "proposal_id": row["proposal_id"], "envelope_id": row["envelope_id"],
-            "table_label": _label(row), "course": row["course"], "approval_override": row["approval_override"],
+            "table_label": _label(row), "course": row["course"],
+            "task_words": task_words(row["course"], row["speed_mps"], row["incline_deg"]),
+            "approval_override": row["approval_override"],
             "extrapolation_reason": row["extrapolation_reason"], "table_version": row["table_version"],
             "table_crc32": None if row["table_crc32"] is None else f"{row['table_crc32']:08x}",
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],

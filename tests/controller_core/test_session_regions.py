@@ -56,3 +56,24 @@ def test_walking_at_the_edge_within_the_estimates_resolution_is_not_beyond_it():
     assert out["outside_s"] == 0.0 and out["time_s"][2][2] == pytest.approx(3.0)
     incline[250:] = 12.0                                        # 0.5 s clearly beyond the incline edge
     assert task_regions(t, speed, incline, np.arange(0, 300, 100), SPEEDS, INCLINES)["outside_s"] == pytest.approx(0.5)
+
+
+def test_the_headline_scores_each_stride_at_its_own_task_and_says_when_strides_are_too_few():
+    """Scripted telemetry (synthetic: strides drawn exactly as the references at 0.85 and 1.6 m/s): against each
+    stride's own task the error is nearly nothing; against the first task's reference alone, the fast strides look
+    several degrees wrong, which is what a course's report used to headline."""
+    from controller_core.session_regions import own_task_errors
+
+    tasks = [(0.85, 0.0)] * 4 + [(1.6, 0.0)] * 4
+    curves = {task: reference_curves(level_walking_reference(task[0])) for task in set(tasks)}
+    knee = np.concatenate([np.radians(curves[task]["knee_angle_deg"][:-1]) for task in tasks] + [np.zeros(1)])
+    ankle = np.concatenate([np.radians(curves[task]["ankle_angle_deg"][:-1]) for task in tasks] + [np.zeros(1)])
+    strikes = np.arange(0, len(tasks) * (PHASE_GRID.size - 1) + 1, PHASE_GRID.size - 1)
+    own = own_task_errors(knee, ankle, strikes, tasks, lambda v, g: level_walking_reference(v), "each stride's task")
+    first = own_task_errors(knee, ankle, strikes, [tasks[0]] * len(tasks), lambda v, g: level_walking_reference(v),
+                            "the first task")
+    assert own["strides_scored"] == 8 and own["enough_strides"] and own["against"] == "each stride's task"
+    assert own["knee_angle_rmse_deg"] < 1.0 and own["ankle_angle_rmse_deg"] < 1.0
+    assert first["knee_angle_rmse_deg"] > own["knee_angle_rmse_deg"] + 1.0
+    few = own_task_errors(knee, ankle, strikes, tasks[:3] + [None] * 5, lambda v, g: level_walking_reference(v), "x")
+    assert few["strides_scored"] == 3 and not few["enough_strides"] and few["min_strides"] == 5

@@ -27,3 +27,13 @@ def test_days_weigh_sessions_by_strides_and_sum_time_per_task_class():
     assert first["time_by_task_class_s"]["slow_downhill"] == pytest.approx(33.0)
     assert second["sessions"] == 1                                     # a session still recording is not counted
     assert second["time_by_task_class_s"]["fast_uphill"] == 7.0 and second["time_by_task_class_s"]["fast_level"] == 3.0
+
+
+def test_a_day_reads_each_sessions_headline_errors_where_it_has_them():
+    """A course session's stride-mean error at its first task (12°) is not what the day shows: its headline, each
+    stride at its own task (3°), weighted by the strides that headline scored."""
+    course = _session("2026-11-25", 20, 12.0)
+    course["summary"]["headline"] = {"knee_angle_rmse_deg": 3.0, "ankle_angle_rmse_deg": 4.0, "strides_scored": 18,
+                                     "enough_strides": True, "min_strides": 5, "against": "each stride's own task"}
+    [day] = session_trend([course, _session("2026-11-25", 6, 9.0)])
+    assert day["knee_angle_rmse_deg"] == pytest.approx((18 * 3.0 + 6 * 9.0) / 24)

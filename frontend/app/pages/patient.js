@@ -32,8 +32,9 @@ export async function patientPage(view, id) {
 
   const sessRows = sessions.map((s) => h("tr", {},
     h("td", {}, `#${s.id}`), h("td", {}, s.device_id), h("td", {}, s.table_label ?? "—"),
-    h("td", { class: "num" }, fmt(s.task.speed_mps, 2)), h("td", {}, chip(s.status, s.status)),
-    h("td", { class: "num" }, s.summary ? s.summary.strides : "—"), h("td", {}, when(s.started_at)),
+    h("td", {}, s.task_words), h("td", {}, chip(s.status, s.status)),
+    h("td", { class: "num" }, s.summary ? s.summary.strides : "—"), h("td", { class: "num" }, sessionErrors(s.summary)),
+    h("td", {}, when(s.started_at)),
     h("td", {}, s.status === "stopped" ? h("a", { href: `#/sessions/${s.id}/report` }, "report")
       : h("a", { href: `#/monitor/${s.device_id}?patient=${patient.id}` }, "monitor"))));
 
@@ -60,19 +61,28 @@ export async function patientPage(view, id) {
       devices.length ? table(["Device", "Kind", "Link", "Mode", "Worn by", "Active table", "Active CRC-32"], devRows)
         : h("p", { class: "muted" }, "No device configured on this server (quasitune serve --device).")),
     h("section", { class: "card" }, h("h2", {}, "Walking sessions"),
-      sessions.length ? table(["Session", "Device", "Table", "Speed (m/s)", "Status", "Strides", "Started", ""], sessRows,
+      sessions.length ? table(["Session", "Device", "Table", "Task", "Status", "Strides",
+        "Angle error per stride, knee / ankle (deg)", "Started", ""], sessRows,
         { id: "sessions" }) : h("p", { class: "muted" }, "No sessions recorded.")),
     trend.length ? h("section", { class: "card" }, h("h2", {}, "Trend over days"), trendTable(trend),
-      h("p", { class: "muted small" }, "Per day (UTC) of stopped sessions. Cadence and errors: weighted by strides. Where: time per ",
+      h("p", { class: "muted small" }, "Per day (UTC) of stopped sessions. Cadence and errors (each stride against the reference at its own task): weighted by strides. Where: time per ",
         "task class (slow < 0.9 m/s ≤ moderate < 1.3 m/s ≤ fast; downhill < −4° ≤ level ≤ +4° < uphill), by the leg's own estimate ",
         "in adaptive sessions, at the session's task otherwise.")) : null].filter(Boolean));   // no "null" text nodes
 }
 
 const CLASS_WORDS = (key) => key.replace("_", ", ");
 
+// a session's headline errors (each stride at its own task), or why there are none
+function sessionErrors(m) {
+  const head = m?.headline;
+  if (!head) return "—";
+  if (!head.enough_strides) return h("span", { class: "muted", title: `at least ${head.min_strides} strides are needed` }, "too few strides to judge");
+  return `${fmt(head.knee_angle_rmse_deg, 1)} / ${fmt(head.ankle_angle_rmse_deg, 1)}`;
+}
+
 function trendTable(trend) {
-  return table(["Day", "Sessions", "Strides", "Walking (min)", "Cadence (steps/min)", "Knee angle RMSE (deg)",
-    "Ankle angle RMSE (deg)", "Where (min)"], trend.map((d) => h("tr", {}, h("td", {}, d.day), h("td", { class: "num" }, d.sessions),
+  return table(["Day", "Sessions", "Strides", "Walking (min)", "Cadence (steps/min)", "Knee angle error per stride (deg)",
+    "Ankle angle error per stride (deg)", "Where (min)"], trend.map((d) => h("tr", {}, h("td", {}, d.day), h("td", { class: "num" }, d.sessions),
     h("td", { class: "num" }, d.strides), h("td", { class: "num" }, fmt(d.walking_s / 60, 1)),
     h("td", { class: "num" }, fmt(d.cadence_steps_per_min, 1)), h("td", { class: "num" }, fmt(d.knee_angle_rmse_deg, 1)),
     h("td", { class: "num" }, fmt(d.ankle_angle_rmse_deg, 1)),

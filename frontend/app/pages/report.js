@@ -33,8 +33,7 @@ export async function reportPage(view, id) {
     h("div", { class: "inline no-print" }, h("button", { onclick: () => print() }, "Print"), pdf),
     h("dl", { class: "facts", id: "report-facts" },
       h("dt", {}, "Patient"), h("dd", {}, `${patient.code_name} · ${fmt(patient.body_mass_kg, 1, "kg")} · ${patient.side}`),
-      h("dt", {}, "Task"), h("dd", {}, s.course ? `the bench's “${s.course}” course (changing speed and incline); headline errors at its first task, `
-        + `${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}` : `${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}`),
+      h("dt", {}, "Task"), h("dd", { id: "report-task" }, s.course ? `the bench's ${s.task_words} (speed and incline change)` : s.task_words),
       h("dt", {}, s.envelope_id !== null ? "Envelope on the leg" : "Active table"), h("dd", { id: "report-table" }, s.table_label === null ? "none from this server"
         : h("span", {}, h("a", { href: s.envelope_id !== null ? `#/envelopes/${s.envelope_id}` : `#/proposals/${s.proposal_id}` }, s.table_label),
           ` · CRC-32 ${s.table_crc32} · device version ${s.table_version}`,
@@ -52,10 +51,11 @@ export async function reportPage(view, id) {
     h("td", { class: "num", id: "report-cadence" }, fmt(m.cadence_steps_per_min, 1)), h("td", { class: "num" }, fmt(m.stride_time_s, 3)),
     h("td", { class: "num" }, fmt(m.reference_stride_time_s, 3)), h("td", { class: "num" }, m.samples),
     h("td", { class: "num" }, m.missing_samples))]);
-  const errors = table(["Channel", "RMSE vs reference"], CHANNELS.map(([, label, key, unit]) =>
-    h("tr", {}, h("td", {}, label), h("td", { class: "num" }, fmt(m[key], unit === "deg" ? 1 : 3, unit)))), { id: "report-errors" });
+  const errors = s.course ? null : h("div", {}, h("h3", {}, `Mean stride against the reference at ${s.task_words}`),
+    table(["Channel", "RMSE of the mean stride"], CHANNELS.map(([, label, key, unit]) =>
+      h("tr", {}, h("td", {}, label), h("td", { class: "num" }, fmt(m[key], unit === "deg" ? 1 : 3, unit)))), { id: "report-errors" }));
   const charts = h("div", { class: "two", id: "report-charts" });
-  view.replaceChildren(...[...head, h("h2", {}, "Strides and errors"), offTable(m), metrics, errors,
+  view.replaceChildren(...[...head, h("h2", {}, "Strides and errors"), headline(m.headline), offTable(m), metrics, errors,
     h("p", { class: "muted small", id: "report-reference" }, `Reference: ${referenceLabel(m)} (${m.reference_source})${m.reference_extrapolation ? " (extrapolated)" : ""}. `,
       "Strides between heel strikes (load above 10 % of body weight), averaged on the gait-cycle grid."),
     m.adaptive ? adaptiveSection(m.adaptive) : null,
@@ -68,6 +68,21 @@ export async function reportPage(view, id) {
       { label: `reference: ${referenceLabel(m)}`, values: m.reference_curves[key], color: "#222222" },
       { label: "measured (stride mean)", values: m.mean_curves[key] || x.map(() => null), color: "#0072B2" }] });
   }
+}
+
+// The session's headline: each stride's angle error against the reference at its own task, averaged; too few
+// strides are said to be too few instead of shown as a figure
+export function headline(head) {
+  if (!head) return null;
+  if (!head.enough_strides) {
+    return h("p", { class: "banner warn", id: "report-headline" }, h("strong", {}, "Too few strides to judge: "),
+      `${head.strides_scored} scored, at least ${head.min_strides} needed for the errors to mean anything.`);
+  }
+  return h("div", { class: "headline", id: "report-headline" },
+    h("p", {}, h("strong", {}, "Angle error per stride: "), `knee ${fmt(head.knee_angle_rmse_deg, 1, "deg")}, `
+      + `ankle ${fmt(head.ankle_angle_rmse_deg, 1, "deg")}`),
+    h("p", { class: "muted small" }, `RMSE of each of ${head.strides_scored} strides against the able-bodied reference `
+      + `at ${head.against}, averaged.`));
 }
 
 // Where in its envelope the leg walked (its own estimate of the task), and how well, per node's region

@@ -116,6 +116,12 @@ def test_a_course_session_records_the_legs_own_task_estimate_and_summarises_it_b
     assert sum(map(sum, scored)) >= 1 and sum(adaptive["adaptive_mode_s"].values()) > 0
     overall = adaptive["errors_by_region"]["overall"]
     assert overall["strides"] == sum(map(sum, scored)) and 0 < overall["knee_angle_per_stride_rmse_deg"] < 30
+    # the headline scores each stride at the course's own task there, not at the course's first task
+    head = summary["headline"]
+    assert head["against"] == "each stride's own task on the 'mixed' course" and head["strides_scored"] >= 1
+    assert head["enough_strides"] == (head["strides_scored"] >= 5) and 0 < head["knee_angle_rmse_deg"] < 30
+    listed = c.get(f"/api/patients/{patient['id']}/sessions", headers=viewer).json()[0]
+    assert listed["task_words"].startswith("'mixed' course: ") and "m/s" in listed["task_words"]
     pdf = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=viewer).content
     assert pdf.startswith(b"%PDF") and len(re.findall(rb"/Type\s*/Page\b", pdf)) == 2   # the envelope's own page
 

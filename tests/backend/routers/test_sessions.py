@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import time
 
+from backend.report import report_facts
 from tests.helpers.api import DEVICE, approved_proposal, push_to_leg, wait_for
 
 
@@ -24,7 +25,14 @@ def test_session_report_pdf(sim_api):
     assert r.status_code == 200 and r.headers["content-type"] == "application/pdf"
     assert r.content.startswith(b"%PDF") and len(r.content) > 5000
     assert f"session-{session['id']}.pdf" in r.headers["content-disposition"]
-    json.dumps(c.get(f"/api/sessions/{session['id']}", headers=pro).json())
+    stopped = c.get(f"/api/sessions/{session['id']}", headers=pro).json()
+    json.dumps(stopped)
+    # 2.5 s is two strides or so: the headline says so instead of showing a figure to trust, here and in the PDF
+    head = stopped["summary"]["headline"]
+    assert head["strides_scored"] < 5 and not head["enough_strides"] and head["against"] == "the session's task"
+    facts = dict(report_facts(stopped, c.get(f"/api/patients/{prop['patient_id']}", headers=pro).json()))
+    assert facts["Angle error per stride"].startswith("too few strides to judge")
+    assert facts["Task"].startswith(stopped["task_words"]) and stopped["task_words"] == "1.20 m/s, incline +0.0°"
 
 
 def test_strides_in_safe_mode_are_marked_and_left_out_of_the_errors(sim_api):
