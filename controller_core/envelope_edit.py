@@ -2,7 +2,8 @@
 
 "Knee stance flexion 10 % firmer everywhere" is ``{"field": "knee.stance_flexion.k_Nm_per_rad", "percent": 10}``:
 a percentage scales the value (k < 0 is restoring, so +10 % is 10 % more restoring); an offset adds to it, in the
-field's unit. Each node's table is edited with :func:`controller_core.table_edit.edit_table` (rows whose k or θe
+field's unit; ``set_to`` sets it, in the field's unit. Each node's table is edited with
+:func:`controller_core.table_edit.edit_table` (rows whose k or θe
 change become ``manual``), so the same rules hold. The neighbour guard is not re-applied on its own: an edit that
 breaks the neighbour rule or a limit is refused by the caller's check
 (:func:`device_bridge.envelope_wire.check_envelope_as_run` in the backend), never quietly corrected. A percentage
@@ -43,14 +44,16 @@ def _target(field: str) -> tuple[str, str | None, str | None]:
 
 
 def _new_value(old: float, edit: Mapping[str, object]) -> float:
-    offset, percent = edit.get("offset"), edit.get("percent")
-    if (offset is None) == (percent is None):
-        raise EditError(f"{edit.get('field')}: give exactly one of offset or percent")
-    amount = float(offset if offset is not None else percent)   # type: ignore[arg-type]
+    offset, percent, set_to = edit.get("offset"), edit.get("percent"), edit.get("set_to")
+    if sum(v is not None for v in (offset, percent, set_to)) != 1:
+        raise EditError(f"{edit.get('field')}: give exactly one of offset, percent or set_to")
+    amount = float(next(v for v in (offset, percent, set_to) if v is not None))   # type: ignore[arg-type]
     if not math.isfinite(amount):
         raise EditError(f"{edit.get('field')}: the change must be a finite number")
     if percent is not None and not -100.0 < amount <= 1000.0:
         raise EditError(f"{edit.get('field')}: percent must be within (-100, 1000], got {amount:g}")
+    if set_to is not None:
+        return amount
     return old + amount if offset is not None else old * (1.0 + amount / 100.0)
 
 

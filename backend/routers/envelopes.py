@@ -8,6 +8,7 @@ from typing import Annotated
 import numpy as np
 from fastapi import APIRouter, Path, Response, status
 
+from backend.clinical_words import violation_words
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
 from backend.schemas.common import BeforeVersion, IdPath, PageLimit, page_headers
@@ -99,11 +100,12 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
     violations = check_envelope_as_run(edited)
     if violations:
         neighbours_only = all(v.field.startswith("neighbours[") for v in violations)
-        hint = (" Ask again holding those values to the neighbour rule (hold_to_neighbour_rule) to keep them within a "
-                "step of their neighbours." if neighbours_only else "")
-        raise InvalidError(f"edit refused, nothing stored: {len(violations)} value(s) outside the safety limits or "
-                           "the neighbour rule: " + "; ".join(v.message for v in violations[:5]) + hint,
-                           violations=[v.model_dump() for v in violations], neighbour_rule_only=neighbours_only)
+        hint = (" Ask again holding those values within a step of their neighbours (“hold within a step”): each "
+                "value so held is listed with what the edit gave." if neighbours_only else "")
+        raise InvalidError(f"Edit refused, nothing stored: {len(violations)} value(s) outside the safety limits or "
+                           "more than a step from a neighbouring task: " + "; ".join(violation_words(v) for v in violations)
+                           + "." + hint, violations=[v.model_dump() for v in violations],
+                           neighbour_rule_only=neighbours_only)
     created = envelopes.create_edit(conn, envelope_id, edited, changes, body.comment, user)
     return {**created, **_shown_with(conn, created["id"])}
 

@@ -121,7 +121,8 @@ class EnvelopeOut(EnvelopeSummary):
 
 
 class EnvelopeCellEdit(StrictIn):
-    """One setting changed across the envelope, or at one node: by an offset (in the field's unit) or a percentage."""
+    """One setting changed across the envelope, or at one node: by an offset (in the field's unit), a percentage, or set
+    to a value."""
 
     field: str = Field(min_length=3, max_length=80, description="joint.subphase.(k_Nm_per_rad|theta_e_deg|"
                                                                 "b_Nm_s_per_rad) or thresholds.<name>")
@@ -130,6 +131,9 @@ class EnvelopeCellEdit(StrictIn):
     percent: float | None = Field(default=None, gt=-100, le=1000,
                                   description="the value scaled by (1 + percent/100); k < 0 is restoring, so +10 % "
                                               "is 10 % firmer")
+    set_to: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
+                                 description="the value set to this, in the field's unit (exactly one of offset, "
+                                             "percent and set_to)")
     node: list[int] | None = Field(default=None, min_length=2, max_length=2,
                                    description="[speed index, incline index]; omitted: every node")
 
@@ -148,9 +152,16 @@ class EnvelopeChange(BaseModel):
     speed_mps: float
     incline_deg: float
     field: str
+    setting: str = Field(description="the field in words")
     before: float
     after: float
+    change: float = Field(description="after − before, in the unit")
+    percent: float | None = Field(description="the change as a percentage of before, as an edit's percent reads "
+                                              "(after = before × (1 + percent/100); null where before is 0)")
     unit: str
+    held_by_neighbour_rule: bool = Field(
+        description="the neighbour rule moved this value: it is not what the pipeline fitted or the edit asked for")
+    wanted: float | None = Field(description="held values: what the fit or the edit gave before the rule moved it")
 
 
 class EnvelopeDiffOut(BaseModel):

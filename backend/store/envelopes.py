@@ -13,6 +13,7 @@ import hashlib
 import json
 import sqlite3
 
+from backend.clinical_words import field_words
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
@@ -195,9 +196,13 @@ def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
         for idx, (na, nb) in enumerate(zip(a.nodes, b.nodes, strict=True)):
             for field, x, y in zip(VALUE_FIELDS, table_values(na.table), table_values(nb.table), strict=True):
                 if x != y:
+                    held = field in nb.neighbour_guarded   # the rule, not the fit or the edit, set this value
                     changes.append({"node": list(divmod(idx, n_i)), "speed_mps": na.speed_mps,
-                                    "incline_deg": na.incline_deg, "field": field, "before": x, "after": y,
-                                    "unit": _UNITS[field.rsplit(".", 1)[1]]})
+                                    "incline_deg": na.incline_deg, "field": field, "setting": field_words(field),
+                                    "before": x, "after": y, "change": y - x,
+                                    "percent": None if x == 0 else round(100.0 * (y - x) / x, 2),   # as an edit's percent
+                                    "unit": _UNITS[field.rsplit(".", 1)[1]], "held_by_neighbour_rule": held,
+                                    "wanted": nb.neighbour_guarded[field] if held else None})
     return {"from_id": a_id, "to_id": b_id, "from_version": ra["version"], "to_version": rb["version"],
             "same_patient": ra["patient_id"] == rb["patient_id"], "same_grid": same_grid, "changes": changes}
 

@@ -145,4 +145,4 @@ def test_a_task_far_outside_the_data_needs_a_written_reason_and_says_so_everywhe
     page.wait_for_selector("#param-table")
     assert "extrapolated beyond the data" in page.inner_text("#proposal-chips")
     assert "the patient walks this slowly at home" in page.inner_text("#extrapolation-reason")
-    shot(page, "11-extrapolated-on-purpose")
+    shot(page, "14-extrapolated-on-purpose")

@@ -132,7 +132,8 @@ function editCard(e, canEdit) {
   const field = h("select", { name: "field", id: "edit-field", "aria-label": "Setting" },
     fields.map((f) => h("option", { value: f }, fieldWords(f))));
   const how = h("select", { name: "how", id: "edit-how", "aria-label": "Change by" },
-    h("option", { value: "percent" }, "percent (k: + is firmer)"), h("option", { value: "offset" }, "offset, in the setting's unit"));
+    h("option", { value: "percent" }, "percent (k: + is firmer)"), h("option", { value: "offset" }, "offset, in the setting's unit"),
+    h("option", { value: "set_to" }, "set to, in the setting's unit"));
   const amount = h("input", { name: "amount", id: "edit-amount", type: "number", step: "any", required: true, size: 6, "aria-label": "Amount" });
   const where = h("select", { name: "where", id: "edit-where", "aria-label": "Where" },
     h("option", { value: "" }, "every node"),
@@ -184,11 +185,20 @@ async function renderVersions(box, e) {
       out.replaceChildren(h("p", {}, "The grids differ: no node-by-node comparison."));
       return;
     }
-    out.replaceChildren(d.changes.length ? table(["Node", "Setting", `v${d.from_version}`, `v${d.to_version} (this)`, "Unit"],
-      d.changes.slice(0, 200).map((c) => h("tr", {}, h("td", {}, `${fmt(c.speed_mps, 2)} m/s, ${fmt(c.incline_deg, 1)}°`),
-        h("td", { title: c.field }, fieldWords(c.field)), h("td", { class: "num" }, fmt(c.before, 3)),
-        h("td", { class: "num changed" }, fmt(c.after, 3)), h("td", {}, c.unit))), { id: "diff-table" })
-      : h("p", {}, "No differences."));
+    const held = d.changes.filter((c) => c.held_by_neighbour_rule).length;
+    out.replaceChildren(...(d.changes.length ? [
+      held ? h("p", { class: "banner warn", id: "diff-held" }, h("strong", {}, `${held} value(s) held by the neighbour rule: `),
+        "marked below; they changed by other amounts than the edit asked, to stay within a step of their neighbouring tasks.") : null,
+      table(["Node", "Setting", `v${d.from_version}`, `v${d.to_version} (this)`, "Change", "%", "Unit", ""],
+        d.changes.map((c) => h("tr", { class: c.held_by_neighbour_rule ? "warn-row" : "" },
+          h("td", {}, `${fmt(c.speed_mps, 2)} m/s, ${fmt(c.incline_deg, 1)}°`),
+          h("td", { title: c.field }, c.setting), h("td", { class: "num" }, fmt(c.before, 3)),
+          h("td", { class: "num changed" }, fmt(c.after, 3)),
+          h("td", { class: "num" }, `${c.change > 0 ? "+" : ""}${fmt(c.change, 3)}`),
+          h("td", { class: "num" }, c.percent === null ? "—" : `${c.percent > 0 ? "+" : ""}${fmt(c.percent, 1)} %`),
+          h("td", {}, c.unit),
+          h("td", {}, c.held_by_neighbour_rule ? chip(`held by the neighbour rule (asked for ${fmt(c.wanted, 3)})`, "warn") : ""))),
+        { id: "diff-table" })].filter(Boolean) : [h("p", {}, "No differences.")]));
   };
   other.addEventListener("change", show);
   box.replaceChildren(h("h2", {}, "Versions and differences"),

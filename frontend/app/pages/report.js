@@ -4,6 +4,7 @@ import { phaseChart } from "../charts.js";
 import { offTable } from "./monitor.js";
 import { chip, fmt, h, notice, referenceLabel, table, when } from "../ui.js";
 
+const MIN_STRIDES = 5;   // the server's (controller_core.session_regions.MIN_STRIDES_TO_JUDGE): fewer are too few to judge
 const CHANNELS = [["knee_angle_deg", "knee angle (deg, flexion +)", "knee_angle_rmse_deg", "deg"],
   ["ankle_angle_deg", "ankle angle (deg, dorsiflexion +)", "ankle_angle_rmse_deg", "deg"],
   ["knee_moment_Nm_per_kg", "knee moment (N·m/kg, flexor +)", "knee_moment_rmse_Nm_per_kg", "N·m/kg"],
@@ -107,10 +108,11 @@ function adaptiveSection(a) {
   const modes = a.adaptive_mode_s || {};
   const overall = a.errors_by_region.overall || {};
   return h("section", { id: "report-adaptive" }, h("h2", {}, "Where in the envelope the patient walked"),
-    h("p", { id: "report-overall" }, h("strong", {}, "Each stride at its own task: "), overall.strides
-      ? `knee angle RMSE ${fmt(overall.knee_angle_per_stride_rmse_deg, 1, "deg")}, ankle ${fmt(overall.ankle_angle_per_stride_rmse_deg, 1, "deg")} `
-        + `per stride over ${overall.strides} strides (against the reference at each stride's estimated task; for a walk whose task `
-        + "changed, this, not the stride mean above, says how well the leg followed)." : "no stride scored."),
+    h("p", { id: "report-overall" }, h("strong", {}, "Each stride at the task the leg estimated: "), !overall.strides ? "no stride scored."
+      : overall.strides < MIN_STRIDES ? `too few strides to judge (${overall.strides} scored, at least ${MIN_STRIDES} needed).`
+        : `knee angle RMSE ${fmt(overall.knee_angle_per_stride_rmse_deg, 1, "deg")}, ankle ${fmt(overall.ankle_angle_per_stride_rmse_deg, 1, "deg")} `
+          + `per stride over ${overall.strides} strides (against the reference at each stride's estimated task: what the leg `
+          + "itself could know; where the estimate is wrong, so is the reference)."),
     h("p", { class: "small" }, `Estimated for ${fmt(total, 0, "s")} (not yet estimated: ${fmt(a.unestimated_s, 0, "s")}, `,
       `${a.unestimated_strides} strides); beyond the envelope's edge (rows clamped): ${fmt(a.outside_s, 0, "s")}. Rows: `,
       Object.entries(modes).map(([k, v]) => `${k} ${fmt(v, 0, "s")}`).join(", "), "."),

@@ -97,7 +97,7 @@ def test_ankle_loading_ten_percent_firmer_everywhere_is_a_new_version_and_its_di
     # the knee's stance flexion at +6° was held to its neighbours' step by the guard: 10 % more breaks the rule
     r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"), json={
         "edits": [{"field": "knee.stance_flexion.k_Nm_per_rad", "percent": 10}], "comment": "firmer landing"})
-    assert r.status_code == 422 and "neighbouring nodes" in r.json()["detail"]
+    assert r.status_code == 422 and "between the neighbouring tasks" in r.json()["detail"]
     r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"), json={
         "edits": [{"field": "ankle.stance_flexion.k_Nm_per_rad", "percent": 10}], "comment": "firmer landing"})
     assert r.status_code == 201, r.text
@@ -181,7 +181,14 @@ def test_ten_percent_firmer_everywhere_is_refused_or_held_to_the_neighbour_rule_
     r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"), json=body)
     # the guard left some knee stance-flexion neighbours nearly a step apart (it steepens with incline): 10 % more
     # pushes them past it
-    assert r.status_code == 422 and r.json()["neighbour_rule_only"] and "hold_to_neighbour_rule" in r.json()["detail"]
+    assert r.status_code == 422 and r.json()["neighbour_rule_only"]
+    # in clinical words, every value it counts listed, no field keys or parameter names
+    detail, counted = r.json()["detail"], len(r.json()["violations"])
+    assert f"{counted} value(s)" in detail and detail.count("changes by") == counted, detail
+    assert "knee stance flexion resistance (loading response): stiffness changes by" in detail
+    for code in ("k_Nm_per_rad", "hold_to_neighbour_rule", "knee.stance_flexion", "neighbours[", "_deg"):
+        assert code not in detail, code
+    assert "hold within a step" in detail
     r = api.client.post(f"/api/envelopes/{e['id']}/edits", headers=api.as_("prosthetist"),
                         json={**body, "hold_to_neighbour_rule": True})
     assert r.status_code == 201, r.text
@@ -195,6 +202,35 @@ def test_ten_percent_firmer_everywhere_is_refused_or_held_to_the_neighbour_rule_
     [audit] = [a for a in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]
                if a["action"] == "envelope.edit"]
     assert any("held_from" in c for c in audit["after"]["changes"])
+    # the diff says per cell old, new, change and percent, and marks every value the rule moved (it did not move
+    # them by the 10 % asked)
+    diff = api.client.get(f"/api/envelopes/{e['id']}/diff/{held['id']}", headers=api.as_("viewer")).json()
+    k_cells = [c for c in diff["changes"] if c["field"] == "knee.stance_flexion.k_Nm_per_rad"]
+    assert len(k_cells) == len(held["nodes"])
+    for cell in k_cells:
+        assert cell["change"] == pytest.approx(cell["after"] - cell["before"])
+        assert cell["percent"] == pytest.approx(100 * cell["change"] / cell["before"], abs=0.01)   # as asked: scaled
+        assert cell["setting"] == "knee stance flexion resistance (loading response): stiffness"
+    marked = [c for c in k_cells if c["held_by_neighbour_rule"]]
+    assert len(marked) == len(guarded) and all(c["wanted"] is not None for c in marked)
+    assert all(c["percent"] == pytest.approx(10.0, abs=0.01) for c in k_cells if not c["held_by_neighbour_rule"])
+    assert any(abs(c["percent"] - 10.0) > 0.1 for c in marked)
+
+
+def test_a_set_to_edit_sets_the_value_and_exactly_one_kind_of_change_is_accepted(api):
+    patient = api.new_patient()
+    e = request_envelope(api, patient["id"])
+    url, pro = f"/api/envelopes/{e['id']}/edits", api.as_("prosthetist")
+    field = "ankle.swing_flexion.b_Nm_s_per_rad"
+    r = api.client.post(url, headers=pro, json={"edits": [{"field": field, "set_to": 1.5, "node": [1, 1]}],
+                                                "comment": "a little more damping in swing"})
+    assert r.status_code == 201, r.text
+    node = r.json()["nodes"][1 * 3 + 1]
+    assert next(row for row in node["table"] if (row["joint"], row["subphase"]) == ("ankle", "swing_flexion"))[
+        "b_Nm_s_per_rad"] == pytest.approx(1.5, abs=0.01)
+    both = api.client.post(url, headers=pro, json={"edits": [{"field": field, "set_to": 1.5, "percent": 10}],
+                                                   "comment": "two at once"})
+    assert both.status_code == 422 and "exactly one of offset, percent or set_to" in both.json()["detail"]
 
 
 @pytest.mark.parametrize("value", [1e306, 1.79e308])
