@@ -283,11 +283,26 @@ def assert_safe(table: ImpedanceTable, limits: SafetyLimits | None = None) -> No
         raise SafetyLimitError(violations)
 
 
+# A fitted line that explains less than half of the moment's variance in its sub-phase is a weak fit: marked on the
+# table and the maps, so that a prosthetist reads its k and θe as a rough summary rather than a measurement.
+WEAK_FIT_R2 = 0.5
+FITTED_METHODS = ("least_squares", "extension_window", "range_guard", "passivity_guard", "support_floor")
+# rows whose k (and θe) were moved from the plain fit to a limit, a floor or a neighbour's step
+HELD_METHODS = ("range_guard", "passivity_guard", "support_floor", "neighbour_guard")
+
+
+def weak_fit(row: ParameterRow) -> bool:
+    """The row is a line fit whose R² is below :data:`WEAK_FIT_R2`."""
+    return row.r2 is not None and row.fit_method in FITTED_METHODS and row.r2 < WEAK_FIT_R2
+
+
 def display_rows(table: ParameterTable) -> list[dict]:
-    """The table's rows for people and JSON: k in N·m/rad and N·m/deg, θe in deg, b in N·m·s/rad."""
+    """The table's rows for people and JSON: k in N·m/rad and N·m/deg, θe in deg, b in N·m·s/rad; whether the row is
+    a weak fit, held at a limit, floor or neighbour's step, and that damping is a default per kg, never fitted."""
     return [{
         "joint": r.joint, "subphase": r.subphase, "k_Nm_per_rad": round(r.k_Nm_per_rad, 3),
         "k_Nm_per_deg": round(r.k_Nm_per_rad * math.pi / 180.0, 4), "theta_e_deg": round(r.theta_e_deg, 3),
         "b_Nm_s_per_rad": round(r.b_Nm_s_per_rad, 4), "r2": None if r.r2 is None else round(r.r2, 4),
-        "guarded": r.guarded, "fit_method": r.fit_method,
+        "guarded": r.guarded, "fit_method": r.fit_method, "weak_fit": weak_fit(r),
+        "held": r.fit_method in HELD_METHODS, "damping_source": "default",
     } for r in table.rows]

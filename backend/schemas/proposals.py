@@ -117,6 +117,12 @@ class TableRowOut(BaseModel):
     r2: float | None
     guarded: bool
     fit_method: str
+    weak_fit: bool = Field(default=False, description="a line fit with R² below 0.5 (controller_core.table.WEAK_FIT_R2): "
+                                                      "less than half the moment's variance explained")
+    held: bool = Field(default=False, description="k (and θe) held at a limit, the stance support floor or a "
+                                                  "neighbour's step instead of the plain fit (see fit_method)")
+    damping_source: Literal["default"] = Field(
+        default="default", description="damping is never fitted: a default per kg of body mass (or as edited)")
 
 
 class Safety(BaseModel):

@@ -55,6 +55,7 @@ export function adaptivePanel(box, envelope) {
     const [joint, sp] = rowPick.value.split(".");
     map = envelopeMap(mapBox, { title: `${joint} ${SUBPHASE_LABEL[sp]}: k (N·m/rad)`, id: "live-map", speeds: envelope.speeds_mps,
       inclines: envelope.inclines_deg, unit: "N·m/rad", digits: 0, extrapolated: nodeGrid(envelope, (n) => n.extrapolation),
+      darker: "low", keyWords: "darker = firmer",
       values: nodeGrid(envelope, (n) => n.table.find((r) => r.joint === joint && r.subphase === sp).k_Nm_per_rad) });
     map.setTrail(trail);
   };

@@ -64,6 +64,8 @@ export const ROW_WORDS = {
 };
 const PARAMETER_WORDS = { k_Nm_per_rad: "stiffness", theta_e_deg: "equilibrium angle", b_Nm_s_per_rad: "damping",
   fit_method: "where the value comes from", r2: "fit quality R²" };
+// the server's threshold (controller_core.table.WEAK_FIT_R2): a line fit below it is marked a weak fit
+export const WEAK_FIT_R2 = 0.5;
 export const FIT_METHOD_WORDS = {
   least_squares: "fitted to the predicted loop", extension_window: "fitted to stance extension",
   range_guard: "fitted, angle held in range", passivity_guard: "fitted, held resistive",

@@ -146,3 +146,59 @@ def test_a_task_far_outside_the_data_needs_a_written_reason_and_says_so_everywhe
     assert "extrapolated beyond the data" in page.inner_text("#proposal-chips")
     assert "the patient walks this slowly at home" in page.inner_text("#extrapolation-reason")
     shot(page, "14-extrapolated-on-purpose")
+
+
+_MAP_JS = """(id) => {
+  const svg = document.getElementById(id);
+  const cells = [...svg.querySelectorAll('g.node')].map((g) => {
+    const [i, j] = g.dataset.node.split(',').map(Number);
+    return {i, j, fill: g.querySelector('rect').getAttribute('fill')};
+  });
+  const order = [...svg.children].map((c) => c.tagName + (c.getAttribute('class') ? '.' + c.getAttribute('class') : ''));
+  return {cells, order, key: svg.querySelector('.key-words')?.textContent,
+          lo: svg.querySelector('.key-lo')?.textContent, hi: svg.querySelector('.key-hi')?.textContent,
+          held: svg.querySelectorAll('.held-mark').length, weak: svg.querySelectorAll('.weak-mark').length};
+}"""
+
+
+def _lightness(fill: str) -> float:
+    return float(fill.rsplit(",", 1)[1].strip(" %)"))
+
+
+def test_every_map_has_a_key_with_its_unit_darker_is_firmer_and_dots_never_hide_a_value(server, page):
+    """The default 5 × 5 envelope for a 70 kg patient: the knee's stance flexion holds the support floor at the slow
+    uphill corner and the neighbour rule moves others; both are marked, and every map says its range and unit."""
+    sign_in(page, server, "dana")
+    page.fill("#new-patient input[name=code_name]", "P-450")
+    page.fill("#new-patient input[name=body_mass_kg]", "70")
+    page.click("#new-patient button[type=submit]")
+    page.wait_for_selector("#request-envelope")
+    page.click("#request-envelope button[type=submit]")
+    page.wait_for_selector("#map-knee-stance_flexion")
+    env = call(page, "GET", "/api/envelopes/" + page.url.split("/envelopes/")[1].split("?")[0])["body"]
+    values = {(round(n["speed_mps"], 2), round(n["incline_deg"], 1)): n["table"][0]["k_Nm_per_rad"] for n in env["nodes"]}
+    m = page.evaluate(_MAP_JS, "map-knee-stance_flexion")
+    assert m["key"] == "N·m/rad · darker = firmer" and float(m["lo"]) < float(m["hi"])
+    # darker is firmer: the most negative k is the darkest cell
+    by_node = {(c["i"], c["j"]): _lightness(c["fill"]) for c in m["cells"]}
+    speeds, inclines = env["speeds_mps"], env["inclines_deg"]
+    k = {(i, j): values[(round(v, 2), round(g, 1))] for i, v in enumerate(speeds) for j, g in enumerate(inclines)}
+    assert min(by_node, key=by_node.get) == min(k, key=k.get)
+    assert max(by_node, key=by_node.get) == max(k, key=k.get)
+    # the measured-condition dots come before the values, which are drawn last, over them
+    first_value = next(n for n, tag in enumerate(m["order"]) if tag.startswith("text.cell-value"))
+    last_dot = max(n for n, tag in enumerate(m["order"]) if tag == "circle.measured")
+    assert last_dot < first_value
+    assert m["held"] >= 1                                          # the support floor at 0.6 m/s, +10°, at least
+    for q, words in (("theta_e_deg", "deg · darker = more flexed"), ("b_Nm_s_per_rad", "N·m·s/rad · darker = firmer")):
+        page.check(f"input[name=quantity][value={q}]")
+        assert page.evaluate(_MAP_JS, "map-knee-stance_flexion")["key"] == words
+    assert page.locator("svg.envelope-map .colour-key").count() == 8
+    shot(page, "15-envelope-map-keys")
+    # the node's table: held values flagged, the support floor named, damping said to be a default
+    page.check("input[name=quantity][value=k_Nm_per_rad]")
+    page.click("#map-knee-stance_flexion g.node[data-node='0,4']")          # 0.6 m/s, +10°
+    page.wait_for_selector("#param-table")
+    assert "held at the stance support floor" in page.inner_text("#param-table")
+    assert page.locator("#param-table td.held").count() >= 2              # its k and θe
+    assert "a default per kg, not fitted" in page.inner_text("#param-table thead")

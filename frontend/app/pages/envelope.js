@@ -10,11 +10,27 @@ import { renderPush } from "../push_panel.js";
 import { safetyFigures } from "./proposal.js";
 import { chip, extrapolationChip, fieldWords, fmt, h, inWords, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
+// darker reads the same way on every map: firmer (k more negative, more damping), or more flexion / dorsiflexion
 const QUANTITIES = {
-  k_Nm_per_rad: { label: "quasi-stiffness k", short: "k", unit: "N·m/rad", digits: 0 },
-  theta_e_deg: { label: "equilibrium angle θe", short: "θe", unit: "deg", digits: 1 },
-  b_Nm_s_per_rad: { label: "damping b", short: "b", unit: "N·m·s/rad", digits: 2 },
+  k_Nm_per_rad: { label: "quasi-stiffness k", short: "k", unit: "N·m/rad", digits: 0, darker: "low",
+    keyWords: () => "darker = firmer" },
+  theta_e_deg: { label: "equilibrium angle θe", short: "θe", unit: "deg", digits: 1, darker: "high",
+    keyWords: (joint) => (joint === "knee" ? "darker = more flexed" : "darker = more dorsiflexed") },
+  b_Nm_s_per_rad: { label: "damping b (a default per kg, not fitted)", short: "b", unit: "N·m·s/rad", digits: 2,
+    darker: "high", keyWords: () => "darker = firmer" },
 };
+const HELD_WORDS = { range_guard: "θe held in the joint range", passivity_guard: "held resistive",
+  support_floor: "held at the stance support floor", neighbour_guard: "held within a step of its neighbours" };
+
+// per node, how a row's value was made: held at a limit, floor or neighbour's step; or a weak line fit (R² < 0.5)
+function valueMark(n, joint, sp, q) {
+  const r = n.table.find((x) => x.joint === joint && x.subphase === sp);
+  if (!r) return null;
+  const field = `${joint}.${sp}.${q}`;
+  const held = field in n.neighbour_guarded ? HELD_WORDS.neighbour_guard
+    : q !== "b_Nm_s_per_rad" && r.held ? HELD_WORDS[r.fit_method] || r.fit_method : null;
+  return { held, weak: q !== "b_Nm_s_per_rad" && r.weak_fit };
+}
 const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
   active_on_device: ["running on a leg", "ok"], replaced: ["was on a leg, since replaced", ""],
   unconfirmed: ["push unconfirmed: waiting for the leg's status", "warn"],
@@ -72,8 +88,10 @@ export async function envelopePage(view, id, params) {
     "blends the four nodes around its estimated task, bilinearly, and holds at the edge beyond the grid. Hatched: outside ",
     "the training data. Dots: measured walking conditions behind the model (",
     measured.map((c) => `${fmt(c.speed_mps, 2)} m/s ${c.incline_deg > 0 ? "+" : ""}${fmt(c.incline_deg, 0)}°`).join("; "),
-    "; the ±10° ramps are one participant, so the incline change is a trend, not a population). Click a node to open ",
-    "its loops, curves and table.");
+    "; the ±10° ramps are one participant, so the incline change is a trend, not a population). Each map has its own ",
+    "colour key (its range and unit); darker always reads firmer for stiffness and damping, more flexed or dorsiflexed ",
+    "for angles. ◥ corner: a value held at a limit, the stance support floor or a neighbour's step; dashed outline: a weak ",
+    "fit (R² below 0.5). Click a node to open its loops, curves and table.");
   const draw = (q) => {
     const d = QUANTITIES[q];
     maps.replaceChildren();
@@ -84,7 +102,8 @@ export async function envelopePage(view, id, params) {
         envelopeMap(fig, { title: `${joint} ${SUBPHASE_LABEL[sp]} · ${d.short} (${d.unit})`, id: `map-${joint}-${sp}`,
           speeds: e.speeds_mps, inclines: e.inclines_deg, unit: d.unit, digits: d.digits, measured,
           values: nodeGrid(e, (n) => n.table.find((r) => r.joint === joint && r.subphase === sp)?.[q] ?? null),
-          extrapolated: nodeGrid(e, (n) => n.extrapolation),
+          extrapolated: nodeGrid(e, (n) => n.extrapolation), darker: d.darker, keyWords: d.keyWords(joint),
+          marks: nodeGrid(e, (n) => valueMark(n, joint, sp, q)),
           onPick: (i, j) => { location.hash = `#/envelopes/${e.id}/nodes/${i}/${j}`; } });
       }
     }

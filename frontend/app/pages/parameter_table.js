@@ -1,7 +1,7 @@
 // A proposal's parameter table: read in clinical words (default) or engineering codes, edited into a new draft
 // version with every value checked against the safety limits as it is typed (the server checks again on save).
 import { post } from "../api.js";
-import { bodyWeightN, chip, fieldWords, FIT_METHOD_WORDS, fmt, h, inWords, notice, ROW_WORDS, SUBPHASE_COLOUR, table } from "../ui.js";
+import { bodyWeightN, chip, fieldWords, FIT_METHOD_WORDS, fmt, h, inWords, notice, ROW_WORDS, SUBPHASE_COLOUR, table, WEAK_FIT_R2 } from "../ui.js";
 
 const RAD = Math.PI / 180;
 // kept across versions and visits: the stiffness unit and the clinical / engineering view
@@ -109,12 +109,13 @@ export function parameterTable(p, canEdit) {
     h("fieldset", { class: "toggle", id: "k-unit" }, h("legend", {}, "Stiffness and damping per"),
       ...["rad", "deg"].map((u) => radio("k-unit", u, u === "rad" ? "radian" : "degree", tableView.kUnit,
         (v) => { tableView.kUnit = v; localStorage.setItem("quasitune.kUnit", v); }))));
-  const cell = (field, si) => {
+  const cell = (field, si, held = false) => {
     const u = units(field, mass);
     const shown = (si * u.scale).toFixed(u.digits);
     const lim = limitOf(field, L, mass);
     const out = violated.has(field) || si < lim.low || si > lim.high;
-    return h("td", { class: `num${out ? " out" : ""}`, dataset: { cell: field } }, canEdit
+    return h("td", { class: `num${out ? " out" : ""}${held ? " held" : ""}`, dataset: { cell: field },
+      title: held ? "held at a limit, the stance support floor or a neighbour's step, not the plain fit (see where the value comes from)" : null }, canEdit
       ? h("input", { type: "number", step: "any", value: shown, "aria-label": `${label(field)} (${u.unit})`,
         dataset: { field, original: shown, scale: u.scale } })
       : `${shown}`);
@@ -126,13 +127,16 @@ export function parameterTable(p, canEdit) {
   // R² says how well a fitted line explains the loop; a swing target or a hand edit is not a fit
   const r2 = (r) => r.r2 === null || ["swing_target", "manual", "literature"].includes(r.fit_method)
     ? h("span", { title: r.r2 === null ? "" : `not a fit (a line through the swing moment would explain R² = ${fmt(r.r2, 2)})` }, "—")
-    : fmt(r.r2, 2);
+    : r.weak_fit ? h("span", { class: "weak-fit", title: `R² below ${WEAK_FIT_R2}: the line explains less than half of the `
+      + "moment in this phase; read k and θe as a rough summary" }, `${fmt(r.r2, 2)} `, chip("weak fit", "warn"))
+      : fmt(r.r2, 2);
   const rows = p.table.map((r) => {
     const key = `${r.joint}.${r.subphase}`;
     const name = clinical ? [h("td", {}, r.joint === "knee" ? "Knee" : "Ankle"),
       h("td", {}, h("span", { class: "dot", style: `--c:${SUBPHASE_COLOUR[r.subphase]}` }), ROW_WORDS[key].replace(/^(knee|ankle) /, ""))]
       : [h("td", {}, r.joint), h("td", {}, h("span", { class: "dot", style: `--c:${SUBPHASE_COLOUR[r.subphase]}` }), r.subphase)];
-    return h("tr", {}, ...name, cell(`${key}.k_Nm_per_rad`, r.k_Nm_per_rad), cell(`${key}.theta_e_deg`, r.theta_e_deg),
+    return h("tr", { class: [r.held ? "held-row" : "", r.weak_fit ? "weak-row" : ""].join(" ").trim() || null },
+      ...name, cell(`${key}.k_Nm_per_rad`, r.k_Nm_per_rad, r.held), cell(`${key}.theta_e_deg`, r.theta_e_deg, r.held),
       cell(`${key}.b_Nm_s_per_rad`, r.b_Nm_s_per_rad), h("td", { class: "num" }, r2(r)),
       h("td", { title: FIT_METHOD_HELP[r.fit_method] ?? "" }, fit(r)));
   });
@@ -144,8 +148,8 @@ export function parameterTable(p, canEdit) {
   });
   const ku = units("k_Nm_per_rad", mass), bu = units("b_Nm_s_per_rad", mass);
   const heads = clinical ? ["Joint", "Phase of gait", `Stiffness k (${ku.unit})`, "Equilibrium angle θe (deg)",
-    `Damping b (${bu.unit})`, "Fit quality R²", "Where the value comes from"]
-    : ["joint", "subphase", `k (${ku.unit})`, "theta_e (deg)", `b (${bu.unit})`, "R²", "fit_method"];
+    `Damping b (${bu.unit}; a default per kg, not fitted)`, "Fit quality R²", "Where the value comes from"]
+    : ["joint", "subphase", `k (${ku.unit})`, "theta_e (deg)", `b (${bu.unit}; default, not fitted)`, "R²", "fit_method"];
   const range = (lim, u) => `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)}`;
   const box = h("div", {},
     h("h2", {}, "Parameter table: τ = k(θ − θe) − b·θ̇ per phase of gait"), toggles,
@@ -158,7 +162,9 @@ export function parameterTable(p, canEdit) {
         + "could buckle under load; "),
       `θe knee ${range(L.knee_theta_e_deg, { scale: 1, digits: 0 })}°, ankle ${range(L.ankle_theta_e_deg, { scale: 1, digits: 0 })}°; `,
       `damping ${range(L.b_Nm_s_per_rad, bu)} ${bu.unit}. Values outside the limits are marked red as you type. `,
-      "R² (fit quality): how well the row's straight line explains the predicted torque-angle loop in that phase. ",
+      "R² (fit quality): how well the row's straight line explains the predicted torque-angle loop in that phase; ",
+      `below ${WEAK_FIT_R2} it is marked a weak fit. Values held at a limit, the stance support floor or a neighbour's step are `,
+      "marked ◥ (their row says why). Damping is never fitted: a default per kg of body mass, editable. ",
       "Swing rows are not fits (R² —): in swing the foot is unloaded, so θe is the predicted swing target (knee: ",
       "swing-flexion peak, then heel-strike angle; ankle: swing dorsiflexion plus a toe-clearance margin) and k a set ",
       "swing stiffness."),
