@@ -177,3 +177,23 @@ export function extrapolationChip(v, outsideWords = "extrapolation") {
   }
   return v.extrapolation ? chip(outsideWords, "warn") : "";
 }
+
+// One moment unit per page, the prosthetist's choice, kept across pages and visits: the patient's N·m (what the leg
+// produces) or N·m/kg (how walking data compare across people). Values arrive in N·m/kg.
+export const momentView = { unit: localStorage.getItem("quasitune.momentUnit") === "Nm_per_kg" ? "Nm_per_kg" : "Nm" };
+export function momentUnit() {
+  return momentView.unit === "Nm" ? "N·m" : "N·m/kg";
+}
+export function momentScale(mass) {
+  return momentView.unit === "Nm" ? mass : 1;
+}
+export function momentToggle(mass, onChange) {
+  const radio = (value, text) => h("label", {}, h("input", { type: "radio", name: "moment-unit", value,
+    checked: momentView.unit === value, onchange: () => {
+      momentView.unit = value;
+      localStorage.setItem("quasitune.momentUnit", value);
+      onChange();
+    } }), text);
+  return h("fieldset", { class: "toggle", id: "moment-unit" }, h("legend", {}, "Moments in"),
+    radio("Nm", `N·m (this patient, ${fmt(mass, 1)} kg)`), radio("Nm_per_kg", "N·m/kg (per kg of body mass)"));
+}

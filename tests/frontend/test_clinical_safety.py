@@ -202,3 +202,30 @@ def test_every_map_has_a_key_with_its_unit_darker_is_firmer_and_dots_never_hide_
     assert "held at the stance support floor" in page.inner_text("#param-table")
     assert page.locator("#param-table td.held").count() >= 2              # its k and θe
     assert "a default per kg, not fitted" in page.inner_text("#param-table thead")
+
+
+def test_one_moment_unit_per_page_chosen_once_and_kept(server, page):
+    sign_in(page, server, "dana")
+    create_patient_and_propose(page, "P-460")
+    page.evaluate("localStorage.removeItem('quasitune.momentUnit')")
+    page.reload()
+    page.wait_for_selector("#loop-knee svg")
+
+    def units_shown() -> set[str]:
+        labels = page.locator("#loop-knee .axis-label, #loop-ankle .axis-label").all_text_contents()
+        titles = page.locator("#curves .u-title").all_text_contents()
+        features = page.inner_text("#features")
+        found = {m for text in labels + titles for m in ("N·m/kg", "N·m)") if m in text}
+        return found | ({"features N·m/kg"} if "N·m/kg" in features else set())
+
+    assert units_shown() == {"N·m)"}                                    # the patient's N·m everywhere by default
+    page.check("#moment-unit input[value=Nm_per_kg]")
+    page.wait_for_selector("#reference-note:has-text('Moments on this page in N·m/kg')")
+    page.wait_for_selector("#curves .u-title")
+    assert units_shown() == {"N·m/kg", "features N·m/kg"}
+    page.reload()                                                      # kept across visits
+    page.wait_for_selector("#reference-note:has-text('Moments on this page in N·m/kg')")
+    page.check("#moment-unit input[value=Nm]")
+    page.wait_for_selector("#reference-note:has-text('Moments on this page in N·m:')")
+    page.wait_for_selector("#curves .u-title")
+    assert units_shown() == {"N·m)"}

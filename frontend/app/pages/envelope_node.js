@@ -5,7 +5,7 @@ import { get } from "../api.js";
 import { legend } from "../charts.js";
 import { drawCurves, drawLoops, explainVias, featureTable, reference } from "./proposal.js";
 import { parameterTable } from "./parameter_table.js";
-import { chip, fieldWords, fmt, h, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table } from "../ui.js";
+import { chip, fieldWords, fmt, h, momentToggle, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table } from "../ui.js";
 
 export async function envelopeNodePage(view, id, i, j) {
   const p = await get(`/api/envelopes/${id}/nodes/${i}/${j}`);
@@ -35,7 +35,8 @@ export async function envelopeNodePage(view, id, i, j) {
   const curveBox = h("div", { class: "four", id: "curves" });
   const stds = Object.entries(p.feature_std);
   view.replaceChildren(...head,
-    h("section", { class: "card" }, h("h2", {}, "Torque-angle loops at this node"), loops,
+    h("section", { class: "card" }, h("div", { class: "inline" }, h("h2", {}, "Torque-angle loops at this node"),
+      momentToggle(mass, () => envelopeNodePage(document.getElementById("view"), id, i, j))), loops,
       legend([["#1f4e99", "model prediction (KMP mean) with ±1 SD band", "band"],
         ["#999", atTask ? `grey: measured level walking; bold: reference at this task — ${atTask.label}` : "grey: measured level walking"],
         ["#222", "via-points: the GPR's predicted peaks at this task", "star"],

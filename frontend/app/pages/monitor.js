@@ -54,7 +54,7 @@ export async function monitorPage(view, deviceId, params) {
   const torque = liveChart(figs[1], { title: "joint torques (N·m)", yLabel: "N·m",
     lines: [{ label: "knee", color: "#0072B2" }, { label: "ankle", color: "#D55E00" }] });
   const fsm = liveChart(figs[2], { title: "FSM state and pylon load", yLabel: "state / load (kN)",
-    lines: [{ label: "FSM state (0 SF, 1 SE, 2 WF, 3 WE)", color: "#009E73" }, { label: "load (kN)", color: "#555555" }],
+    lines: [{ label: "FSM state (0 SF, 1 SE, 2 WF, 3 WE)", color: "#009E73" }, { label: "pylon load (kN, compression +)", color: "#555555" }],
     yRange: [-0.2, 3.2] });
 
   renderStatus(statusBox, device);
@@ -219,11 +219,11 @@ function recordingChip(d) {
 function renderReadout(box, m, stats, weightN) {
   const item = (label, value, id) => [h("dt", {}, label), h("dd", { id }, value)];
   box.replaceChildren(
-    ...item("Knee angle", fmt(m.knee_angle_deg, 1, "deg"), "knee-angle"),
-    ...item("Knee torque", fmt(m.knee_torque_Nm, 1, "N·m"), "knee-torque"),
-    ...item("Ankle angle", fmt(m.ankle_angle_deg, 1, "deg"), "ankle-angle"),
-    ...item("Ankle torque", fmt(m.ankle_torque_Nm, 1, "N·m"), "ankle-torque"),
-    ...item("Load", weightN ? `${fmt(m.load_N, 0, "N")} (${fmt(100 * m.load_N / weightN, 0)} % body weight)`
+    ...item("Knee angle (flexion +)", fmt(m.knee_angle_deg, 1, "deg"), "knee-angle"),
+    ...item("Knee torque (flexor +)", fmt(m.knee_torque_Nm, 1, "N·m"), "knee-torque"),
+    ...item("Ankle angle (dorsiflexion +)", fmt(m.ankle_angle_deg, 1, "deg"), "ankle-angle"),
+    ...item("Ankle torque (dorsiflexor +)", fmt(m.ankle_torque_Nm, 1, "N·m"), "ankle-torque"),
+    ...item("Pylon load (compression +)", weightN ? `${fmt(m.load_N, 0, "N")} (${fmt(100 * m.load_N / weightN, 0)} % body weight)`
       : fmt(m.load_N, 0, "N"), "load"),
     ...item("Mode", modeWords(m.mode), "sample-mode"),
     ...item("FSM state", m.fsm_state === null ? "—" : FSM_STATES[m.fsm_state], "fsm-state"),

@@ -6,8 +6,8 @@ import { legend, loopChart, phaseChart } from "../charts.js";
 import { parameterTable, tableView } from "./parameter_table.js";
 import { BENCH_CHIP, renderDecision } from "../decision_panel.js";
 import { renderPush } from "../push_panel.js";
-import { chip, extrapolationChip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table,
-  when } from "../ui.js";
+import { chip, extrapolationChip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, momentScale, momentToggle, momentUnit, momentView,
+  pm, referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
 const RAD = Math.PI / 180;
 
@@ -61,10 +61,12 @@ export async function proposalPage(view, id) {
     h("p", { class: "muted", id: "preview-status" }, "Walking both controllers on the simulated bench…"));
 
   view.replaceChildren(...head,
-    h("section", { class: "card" }, h("h2", {}, "Torque-angle loops"), loops, loopLegend,
+    h("section", { class: "card" }, h("div", { class: "inline" }, h("h2", {}, "Torque-angle loops"),
+      momentToggle(mass, () => proposalPage(document.getElementById("view"), p.id))), loops, loopLegend,
       h("p", { class: "small", id: "via-note" }),
-      h("p", { class: "muted small", id: "reference-note" }, "Moments are internal joint moments of this patient (N·m = N·m/kg × ",
-        fmt(mass, 1, "kg"), "), flexor / dorsiflexor positive. ", atTask
+      h("p", { class: "muted small", id: "reference-note" }, `Moments on this page in ${momentUnit()}: internal joint moments `,
+        momentView.unit === "Nm" ? `of this patient (N·m = N·m/kg × ${fmt(mass, 1, "kg")})` : "per kg of body mass",
+        ", flexor / dorsiflexor positive. ", atTask
           ? `Reference at this task: ${atTask.source}. Data: ${atTask.citations.join(" ")}`
           : `No measured curves at ${fmt(p.task.incline_deg, 1, "°")}: the reference is the model's own prediction, not data.`)),
     h("section", { class: "card" }, h("h2", {}, "Over the gait cycle"), curveBox,
@@ -119,7 +121,7 @@ function headChips(p) {
 }
 
 function moments(p, joint) {
-  return p.curves[`${joint}_moment_Nm_per_kg`].map((m) => m * p.task.body_mass_kg);
+  return p.curves[`${joint}_moment_Nm_per_kg`].map((m) => m * momentScale(p.task.body_mass_kg));
 }
 
 function subphaseOf(phase, b) {
@@ -129,7 +131,7 @@ function subphaseOf(phase, b) {
 }
 
 export function drawLoops(p, ref, atTask) {
-  const mass = p.task.body_mass_kg;
+  const mass = momentScale(p.task.body_mass_kg), mu = momentUnit();   // "mass": N·m/kg → the page's moment unit
   for (const joint of ["knee", "ankle"]) {
     const ang = p.curves[`${joint}_angle_deg`];
     const mom = moments(p, joint);
@@ -139,13 +141,14 @@ export function drawLoops(p, ref, atTask) {
       const inPhase = ang.filter((_, i) => subphaseOf(p.curves.phase[i], p.subphase_boundaries_phase).includes(row.subphase));
       if (!inPhase.length) continue;
       const lo = Math.min(...inPhase), hi = Math.max(...inPhase);
-      lines.push({ color: SUBPHASE_COLOUR[row.subphase], points: [lo, hi].map((th) => [th, row.k_Nm_per_rad * (th - row.theta_e_deg) * RAD]),
+      const toUnit = momentView.unit === "Nm" ? 1 : 1 / p.task.body_mass_kg;   // the line's torque is in N·m
+      lines.push({ color: SUBPHASE_COLOUR[row.subphase], points: [lo, hi].map((th) => [th, row.k_Nm_per_rad * (th - row.theta_e_deg) * RAD * toUnit]),
         label: `${SUBPHASE_LABEL[row.subphase]}: k = ${fmt(row.k_Nm_per_rad, 0)} N·m/rad, θe = ${fmt(row.theta_e_deg, 1)}°, R² = ${fmt(row.r2, 2)}` });
     }
     loopChart(document.getElementById(`loop-${joint}`), {
       title: `${joint === "knee" ? "Knee" : "Ankle"} torque-angle loop`,
       xLabel: `${joint} angle (deg, ${joint === "knee" ? "flexion" : "dorsiflexion"} +)`,
-      yLabel: `${joint} moment (N·m)`,
+      yLabel: `${joint} moment (${mu})`,
       reference: [...ref.conditions.map((c) => ({ nearest: false, label: `measured: ${c.name} (${fmt(c.speed_mps, 2)} m/s, level)`,
         points: c[`${joint}_angle_deg`].map((a, i) => [a, c[`${joint}_moment_Nm_per_kg`][i] * mass]) })),
       ...(atTask ? [{ nearest: true, label: `reference at this task: ${atTask.label}`,
@@ -153,7 +156,7 @@ export function drawLoops(p, ref, atTask) {
       mean: ang.map((a, i) => [a, mom[i]]),
       band: { upper: ang.map((a, i) => [a, mom[i] + sd[i]]), lower: ang.map((a, i) => [a, mom[i] - sd[i]]) },
       vias: p.via_points.filter((v) => v.joint === joint).map((v) => ({ point: [v.angle_deg, v.moment_Nm_per_kg * mass],
-        label: `via-point at ${fmt(v.phase * 100, 0)} % of the cycle: ${fmt(v.angle_deg, 1)}°, ${fmt(v.moment_Nm_per_kg * mass, 1)} N·m` })),
+        label: `via-point at ${fmt(v.phase * 100, 0)} % of the cycle: ${fmt(v.angle_deg, 1)}°, ${fmt(v.moment_Nm_per_kg * mass, mu === "N·m" ? 1 : 3)} ${mu}` })),
       lines,
     });
   }
@@ -162,7 +165,7 @@ export function drawLoops(p, ref, atTask) {
 // Where a via-point sits off the proposal loop, say why: the KMP weighs each via-point by how sure the GPR is, so it
 // passes an uncertain one (typically outside the training data) only approximately, by design.
 export function explainVias(p, el) {
-  const mass = p.task.body_mass_kg;
+  const mass = p.task.body_mass_kg, scale = momentScale(mass), mu = momentUnit();
   const at = (key, phase) => interp(phase * 100, p.curves.phase.map((x) => x * 100), p.curves[key]);
   const off = p.via_points.map((v) => {
     const dAngle = v.angle_deg - at(`${v.joint}_angle_deg`, v.phase);
@@ -179,7 +182,7 @@ export function explainVias(p, el) {
   const worst = off.reduce((a, b) => (Math.abs(b.dAngle) > Math.abs(a.dAngle) ? b : a));
   el.className = "notice-inline warn small";
   el.textContent = `${off.length} via-point(s) lie off the proposal loop (largest: ${worst.joint} at ${fmt(worst.phase * 100, 0)} % `
-    + `of the cycle, ${fmt(worst.dAngle, 1)}° and ${fmt(worst.dMoment, 1)} N·m from the loop). `
+    + `of the cycle, ${fmt(worst.dAngle, 1)}° and ${fmt(worst.dMoment * scale / mass, mu === "N·m" ? 1 : 3)} ${mu} from the loop). `
     + (p.extrapolation ? "This task is outside the walking data, so the GPR is unsure of these peaks (see the ± SD in the features). "
       : "The GPR is less sure of these peaks (see the ± SD in the features). ")
     + "By design the KMP passes an uncertain via-point only approximately: the loop keeps the measured shape where the "
@@ -192,18 +195,21 @@ export function drawCurves(p, atTask, box, what = "proposal") {
   const markers = [b.stance_flexion_to_stance_extension, b.stance_extension_to_swing_flexion,
     b.swing_flexion_to_swing_extension].map((v) => v * 100);
   const refX = atTask ? atTask.phase.map((s) => s * 100) : null;
-  for (const [key, label] of [["knee_angle_deg", "knee angle (deg)"], ["knee_moment_Nm_per_kg", "knee moment (N·m/kg)"],
-    ["ankle_angle_deg", "ankle angle (deg)"], ["ankle_moment_Nm_per_kg", "ankle moment (N·m/kg)"]]) {
+  const mu = momentUnit(), scale = momentScale(p.task.body_mass_kg);
+  for (const [key, label] of [["knee_angle_deg", "knee angle (deg)"], ["knee_moment_Nm_per_kg", `knee moment (${mu})`],
+    ["ankle_angle_deg", "ankle angle (deg)"], ["ankle_moment_Nm_per_kg", `ankle moment (${mu})`]]) {
     const el = h("figure", { class: "chart", dataset: { channel: key } });
     box.append(el);
-    const lines = [{ label: what, values: p.curves[key], color: "#1f4e99" }];
+    const k = key.endsWith("_Nm_per_kg") ? scale : 1;
+    const mean = p.curves[key].map((v) => v * k), sd = p.curves[`${key}_std`].map((v) => v * k);
+    const lines = [{ label: what, values: mean, color: "#1f4e99" }];
     if (atTask) {
       lines.push({ label: atTask.kind === "measured" ? "measured level walking at this speed"
-        : "measured level walking + measured ramp change", values: x.map((xx) => interp(xx, refX, atTask[key])),
+        : "measured level walking + measured ramp change", values: x.map((xx) => interp(xx, refX, atTask[key]) * k),
       color: "#888888", dash: [6, 4], width: 1.5 });
     }
     phaseChart(el, { title: label, yLabel: label.match(/\((.*)\)/)[1], x, markers,
-      bands: [{ label: what, mean: p.curves[key], sd: p.curves[`${key}_std`], color: "#1f4e99" }], lines });
+      bands: [{ label: what, mean, sd, color: "#1f4e99" }], lines });
   }
 }
 
@@ -216,8 +222,10 @@ function interp(x, xs, ys) {
 }
 
 export function featureTable(p) {
+  const shown = (f) => (f.unit === "N·m/kg" ? { k: momentScale(p.task.body_mass_kg), unit: momentUnit() } : { k: 1, unit: f.unit });
   const rows = p.features.map((f) => h("tr", { class: f.extrapolation ? "warn-row" : "" },
-    h("td", {}, f.label), h("td", {}, f.joint), h("td", { class: "num" }, pm(f.value, f.std, f.unit === "deg" ? 1 : 3, f.unit)),
+    h("td", {}, f.label), h("td", {}, f.joint), h("td", { class: "num" }, pm(f.value * shown(f).k, f.std * shown(f).k,
+      f.unit === "deg" ? 1 : shown(f).unit === "N·m" ? 1 : 3, shown(f).unit)),
     h("td", { class: "num" }, pm(f.phase * 100, f.phase_std * 100, 1, "% cycle")),
     h("td", {}, f.extrapolation ? chip("outside data", "warn") : "")));
   return table(["Feature", "Joint", "Value ± SD", "Phase ± SD", ""], rows, { id: "features" });
@@ -270,11 +278,15 @@ async function renderPreview(box, p) {
     h("td", { class: "num" }, fmt(f[key], d, unit)), h("td", {}));
   // an RMSE with its 95 % interval over strides, and this table's difference from the FSMIC with its verdict;
   // previews stored before the intervals existed show the point estimates only
-  const rmseRow = (label, base, u, unit, d) => {
+  const rmseRow = (label, base, u, unitIn, dIn) => {
+    // moments in the page's unit (RMSE scales with it); angles as they come
+    const k = u === "Nm_per_kg" ? momentScale(p.task.body_mass_kg) : 1;
+    const unit = u === "Nm_per_kg" ? momentUnit() : unitIn, d = u === "Nm_per_kg" && unit === "N·m" ? 1 : dIn;
     const key = `${base}_rmse_${u}`, ciKey = `${base}_rmse_ci95_${u}`;
-    const withCi = (run) => fmt(run[key], d) + (run[ciKey] ? ` [${fmt(run[ciKey][0], d)}, ${fmt(run[ciKey][1], d)}]` : "")
+    const x = (v) => (v === null || v === undefined ? v : v * k);
+    const withCi = (run) => fmt(x(run[key]), d) + (run[ciKey] ? ` [${fmt(x(run[ciKey][0]), d)}, ${fmt(x(run[ciKey][1]), d)}]` : "")
       + ` ${unit}`;
-    const diff = vs[`${base}_rmse_difference_${u}`], diffCi = vs[`${base}_rmse_difference_ci95_${u}`];
+    const diff = x(vs[`${base}_rmse_difference_${u}`]), diffCi = vs[`${base}_rmse_difference_ci95_${u}`]?.map(x);
     const verdict = { "learned lower": "this table lower", "FSMIC lower": "FSMIC lower" }[vs[`${base}_verdict`]]
       || vs[`${base}_verdict`];
     const signed = (v) => (v > 0 ? "+" : "") + fmt(v, d);
