@@ -84,7 +84,22 @@ class DeviceManager:
             self._devices[spec.device_id] = dev   # before the link starts: its callbacks look the device up
             dev.link.start()
         self.recorder.start()
+        with pooled(self.db) as conn:
+            for spec in self._specs:
+                worn = devices_store.assignment(conn, spec.device_id)
+                self.worn_by(spec.device_id, None if worn is None else worn["body_mass_kg"])
         return self
+
+    def worn_by(self, device_id: str, mass_kg: float | None) -> None:
+        """A simulated leg's patient: stands on it between walks (``mass_kg``), or nobody wears it (None). A walk
+        under way goes on; a real leg's sensors say for themselves."""
+        walker = self.get(device_id).walker
+        if walker is None or walker.walking:
+            return
+        if mass_kg is None:
+            walker.stop()
+        else:
+            walker.stand(mass_kg)
 
     def close(self) -> None:
         self.recorder.close()
@@ -152,6 +167,7 @@ class DeviceManager:
             "last_heartbeat_unix_s": None if s is None else round(s.received_unix_s, 3),
             "last_heartbeat_age_s": age,
             "walking": None if dev.walker is None else dev.walker.walking,
+            "bench_state": None if dev.walker is None else dev.walker.state,
             "bench_task": _bench_task(dev.walker),
             "recording_session_id": self.recorder.session_of(device_id),
         }
@@ -257,7 +273,10 @@ class DeviceManager:
         if not reports and dev.status is not None:   # shorter than one status period: its latest report
             reports[(dev.status.mode.name.lower(), _running(dev.status))] = 1
         if dev.walker is not None:
+            with pooled(self.db) as conn:
+                worn = devices_store.assignment(conn, device_id)
             dev.walker.stop()
+            self.worn_by(device_id, None if worn is None else worn["body_mass_kg"])   # the patient stands
         total = sum(reports.values()) or 1
         out = []
         with pooled(self.db) as conn:

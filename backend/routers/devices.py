@@ -15,6 +15,7 @@ from backend.errors import ConflictError
 from backend.schemas.devices import AssignmentRequest, CommandRequest, DeviceIdPath, DeviceOut, ViewerOut
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.store import devices as devices_store
+from backend.store import patients
 from backend.store.users import user_for_token
 from device_bridge.protocol import Command
 
@@ -51,6 +52,7 @@ def assign(device_id: DeviceIdPath, body: AssignmentRequest, request: Request, c
     m = manager(request)
     m.get(device_id)
     devices_store.assign(conn, device_id, body.patient_id, user)
+    m.worn_by(device_id, patients.get_patient(conn, body.patient_id)["body_mass_kg"])   # a simulated patient stands
     return m.view(device_id)
 
 
@@ -61,6 +63,7 @@ def unassign(device_id: DeviceIdPath, request: Request, conn: Conn, user: Prosth
     m = manager(request)
     m.get(device_id)
     devices_store.assign(conn, device_id, None, user)
+    m.worn_by(device_id, None)
     return m.view(device_id)
 
 

@@ -84,6 +84,9 @@ class DeviceOut(BaseModel):
     last_heartbeat_unix_s: float | None = Field(description="when the device's last status arrived (Unix s)")
     last_heartbeat_age_s: float | None
     walking: bool | None = Field(description="simulated leg only: the bench is walking")
+    bench_state: Literal["walking", "standing", "not_worn"] | None = Field(
+        default=None, description="simulated leg only: its patient walks, stands on it between walks (live quiet-stance "
+                                  "readings), or nobody wears it (no readings)")
     bench_task: BenchTask | None = Field(description="simulated leg only: the true task the bench walks now "
                                                      "(ground truth for the leg's own estimate)")
     recording_session_id: int | None

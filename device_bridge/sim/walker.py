@@ -6,6 +6,12 @@ bench for a task (the able-bodied hip trajectory and load at that speed and incl
 :meth:`SimWalker.step` advances the physics by one millisecond; the next chunk of the trajectory continues the
 previous one exactly, so a session can last any length of time. :meth:`SimWalker.start_course` walks a varying-task
 course (:mod:`device_bridge.sim.course`) once instead, on its own floor, and stops at its end.
+
+Between walks a patient who wears the leg **stands** (:meth:`SimWalker.stand`; after a course, on its own): the
+sensors then read a quiet stance, half the body weight through the pylon with the knee near extension and the foot
+flat, swaying slowly (0.25 Hz: about ±0.5° at the ankle and ±5 % body weight, the order of quiet-standing sway). The
+bench has no physics of standing: these readings do not answer the leg's torques, they give the leg and the monitor
+what a standing patient's sensors show, so that the clinic sees live signals whenever the leg is worn.
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ import threading
 import numpy as np
 
 from controller_core.fsm import SensorSample
+from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import plan_bench_trajectory
 from device_bridge.sim.course import Course, CourseTrajectory
@@ -22,6 +29,11 @@ from device_bridge.sim.course_walk import course_leg
 from device_bridge.sim.plant import SimulatedLeg
 
 CHUNK_S = 10.0
+STANDING_TIMESTEP_S = 0.001           # one reading per control tick, as while walking
+STANDING_LOAD_FRACTION = 0.5          # of body weight, through the prosthesis
+STANDING_SWAY_HZ = 0.25
+STANDING_KNEE_DEG, STANDING_ANKLE_DEG = 3.0, 1.0
+STANDING_SWAY_ANKLE_DEG, STANDING_SWAY_LOAD_FRACTION = 0.5, 0.05
 
 
 class SimWalker:
@@ -36,10 +48,38 @@ class SimWalker:
         self._ticks = 0
         self._sample: SensorSample | None = None
         self._course: tuple[Course, CourseTrajectory] | None = None
+        self._standing_kg: float | None = None   # body mass of the patient standing on the leg, or None
+        self._standing_ticks = 0
 
     @property
     def walking(self) -> bool:
         return self._leg is not None
+
+    @property
+    def state(self) -> str:
+        """``walking``, ``standing`` (worn, between walks) or ``not_worn`` (no sensor readings)."""
+        return "walking" if self._leg is not None else "standing" if self._standing_kg is not None else "not_worn"
+
+    def stand(self, mass_kg: float) -> None:
+        """The patient of ``mass_kg`` stands on the leg (ends a walk)."""
+        if not (np.isfinite(mass_kg) and 20.0 <= mass_kg <= 200.0):
+            raise ValueError(f"mass_kg must be within [20, 200] kg, got {mass_kg!r}")
+        with self._lock:
+            self._leg, self._ref, self._sample, self._course = None, None, None, None
+            self._standing_kg, self._standing_ticks = float(mass_kg), 0
+
+    def _standing_sample(self) -> SensorSample:
+        """Quiet standing at the current tick (see the module docstring)."""
+        t = self._standing_ticks * STANDING_TIMESTEP_S
+        w = 2.0 * np.pi * STANDING_SWAY_HZ
+        sway, rate = float(np.sin(w * t)), float(w * np.cos(w * t))
+        weight = float(self._standing_kg or 0.0) * G_MPS2
+        ankle = np.radians(STANDING_ANKLE_DEG + STANDING_SWAY_ANKLE_DEG * sway)
+        return SensorSample(time_s=t, knee_angle_rad=float(np.radians(STANDING_KNEE_DEG)), knee_velocity_rad_s=0.0,
+                            ankle_angle_rad=float(ankle),
+                            ankle_velocity_rad_s=float(np.radians(STANDING_SWAY_ANKLE_DEG) * rate),
+                            load_N=weight * (STANDING_LOAD_FRACTION + STANDING_SWAY_LOAD_FRACTION * sway),
+                            ankle_moment_Nm=0.0, thigh_angle_rad=0.0, thigh_velocity_rad_s=0.0)
 
     @property
     def course(self) -> str | None:
@@ -66,6 +106,7 @@ class SimWalker:
         sample = leg.reset(traj, float(np.interp(s0, reference.phase, reference.knee_angle_rad)),
                            float(np.interp(s0, reference.phase, reference.ankle_angle_rad)))
         with self._lock:
+            self._standing_kg = None
             self._leg, self._ref, self._mass, self._course = leg, reference, float(mass_kg), None
             self._chunk_end_tick, self._ticks, self._sample = traj.time_s.shape[0], 0, sample
 
@@ -76,15 +117,20 @@ class SimWalker:
         traj, leg, angles = course_leg(course, mass_kg)
         sample = leg.reset(traj.bench, *angles)
         with self._lock:
+            self._standing_kg = None
             self._leg, self._ref, self._mass, self._course = leg, None, float(mass_kg), (course, traj)
             self._chunk_end_tick, self._ticks, self._sample = traj.bench.time_s.shape[0], 0, sample
 
     def stop(self) -> None:
+        """Nobody wears the leg: no walk, no stance, no readings."""
         with self._lock:
             self._leg, self._ref, self._sample, self._course = None, None, None, None
+            self._standing_kg = None
 
     def sample(self) -> SensorSample | None:
-        """The sensors now, or None while not walking."""
+        """The sensors now: walking, standing, or None while nobody wears the leg."""
+        if self._leg is None and self._standing_kg is not None:
+            return self._standing_sample()
         return self._sample
 
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None:
@@ -92,10 +138,12 @@ class SimWalker:
         with self._lock:
             leg = self._leg
             if leg is None:
+                self._standing_ticks += 1
                 return
             self._ticks += 1
-            if self._ticks >= self._chunk_end_tick and self._course is not None:   # the course is walked
+            if self._ticks >= self._chunk_end_tick and self._course is not None:   # the course is walked: stand
                 self._leg, self._sample, self._course = None, None, None
+                self._standing_kg, self._standing_ticks = self._mass, 0
                 return
             if self._ticks >= self._chunk_end_tick:
                 assert self._ref is not None

@@ -4,7 +4,7 @@ there is no data and what safe mode means."""
 
 from __future__ import annotations
 
-from tests.helpers.browser import create_patient_and_propose, shot, sign_in
+from tests.helpers.browser import ARTIFACTS, create_patient_and_propose, shot, sign_in
 
 _FETCH = """async ([method, path, body]) => {
   const r = await fetch(path, {method, headers: {'Content-Type': 'application/json',
@@ -79,9 +79,16 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     assert pushed["status"] == 201, pushed
     page.goto(f"{server}/#/monitor/sim-leg-1")
 
-    # nobody walks: the monitor says "no data" and why, instead of blank charts
-    page.wait_for_selector("#telemetry-state:has-text('no data')")
-    assert "nobody is walking" in page.inner_text("#telemetry-state")
+    # the assigned patient stands on the leg between walks: live signals, and the monitor says they stand
+    page.wait_for_selector("#telemetry-state:has-text('the patient stands')", timeout=20_000)
+    assert "% body weight" in page.inner_text("#load")                       # the stance load, as read
+    # nobody wears it: the monitor says "no data" and why, instead of blank charts
+    assert call(page, "DELETE", "/api/devices/sim-leg-1/assignment")["status"] == 200
+    page.wait_for_selector("#telemetry-state:has-text('no data')", timeout=10_000)
+    assert "nobody wears the simulated leg" in page.inner_text("#telemetry-state")
+    assert call(page, "PUT", "/api/devices/sim-leg-1/assignment", {"patient_id": patient_id})["status"] == 200
+    page.reload()
+    page.wait_for_selector("#telemetry-state:has-text('the patient stands')", timeout=20_000)
     # the safe-mode buttons only where they change something; entering it is a caution, not a green "done"
     page.wait_for_function("() => !document.querySelector('#enter-safe').disabled")
     assert page.is_disabled("#leave-safe")
@@ -98,6 +105,23 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     assert "not scored" in page.inner_text("#recording-chip")
     assert "SAFE MODE" in page.inner_text("#sample-mode")
     shot(page, "11-monitor-safe-mode")
+    # Stop and Safe mode stay beside the charts on a small laptop and a tablet; each value sits under its label
+    for width, height in ((1024, 700), (768, 1024)):
+        page.set_viewport_size({"width": width, "height": height})
+        page.locator(".chart").last.scroll_into_view_if_needed()
+        page.wait_for_timeout(200)
+        for button in ("#stop-session", "#enter-safe", "#leave-safe"):
+            box = page.locator(button).bounding_box()
+            assert box is not None and box["y"] >= 0 and box["y"] + box["height"] <= height, (width, button, box)
+        chart = page.locator(".chart").last.bounding_box()
+        assert chart["y"] < height, (width, chart)                        # the charts are on screen with them
+        pairs = page.evaluate("""[...document.querySelectorAll('#readout .readout-item')].map((d) => {
+            const a = d.querySelector('dt').getBoundingClientRect(), b = d.querySelector('dd').getBoundingClientRect();
+            return [a.left, b.left, a.bottom <= b.top + 1]; })""")
+        assert pairs and all(abs(a - b) < 1 and below for a, b, below in pairs), pairs
+        assert page.evaluate("document.documentElement.scrollWidth - window.innerWidth") <= 0
+        page.screenshot(path=str(ARTIFACTS / f"16-monitor-{width}x{height}.png"))   # the window, as scrolled
+    page.set_viewport_size({"width": 1366, "height": 900})
     page.click("#leave-safe")
     page.wait_for_selector("#recording-chip .chip.ok:has-text('recording')", timeout=10_000)
     page.click("#stop-session")

@@ -19,6 +19,22 @@ const FAULT_WORDS = {
 
 const canCommandOf = () => app.me.role === "prosthetist";
 
+// what the simulated patient is doing, beside "live"
+const BENCH_WORDS = { walking: " · the simulated patient walks", standing: " · the patient stands (quiet stance between walks)" };
+
+// In a recording, what the patient does now: a course ends and the patient stands while the session still records
+function walkState(status) {
+  const el = document.getElementById("walk-state");
+  if (!el || status.recording_session_id === null || status.bench_state === null || status.bench_state === undefined) return;
+  const text = status.bench_state === "walking" ? (status.bench_task?.course ? `walking the “${status.bench_task.course}” course`
+    : "walking") : status.bench_state === "standing" ? "the walk has ended and the patient stands: the session still "
+      + "records (standing adds no strides); stop it to summarise" : "nobody wears the leg";
+  if (el.dataset.text === text) return;
+  el.dataset.text = text;
+  el.replaceChildren(chip(status.bench_state === "walking" ? "walking" : status.bench_state === "standing" ? "standing" : "not worn",
+    status.bench_state === "walking" ? "ok" : "warn"), ` ${text}`);
+}
+
 export async function monitorPage(view, deviceId, params) {
   const [device, patients] = await Promise.all([get(`/api/devices/${deviceId}`), get("/api/patients")]);
   const canCommand = app.me.role === "prosthetist";
@@ -33,16 +49,20 @@ export async function monitorPage(view, deviceId, params) {
     h("summary", {}, "3D view of the leg (viser, engineering bench only)"), viewerBox);
   const legFigure = h("figure", { class: "leg-view", id: "leg-view" });
   const charts = h("div", { class: "three" });
+  // Safe mode and Stop stay in reach beside the charts: a bar that sticks to the top of the window while they scroll
+  const actions = h("div", { class: "monitor-actions", id: "monitor-actions" },
+    h("span", { id: "telemetry-state", "aria-live": "polite" }, chip("waiting for data…", "warn")),
+    h("span", { class: "spacer" }),
+    h("span", { id: "stop-slot" }),
+    canCommand ? h("button", { class: "danger", id: "enter-safe", onclick: () => command("enter_safe_mode") }, "Enter safe mode") : null,
+    canCommand ? h("button", { class: "secondary", id: "leave-safe", onclick: () => command("leave_safe_mode") }, "Leave safe mode") : null);
   view.replaceChildren(
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / live monitor"),
     h("h1", {}, `Live monitor · ${deviceId}`),
-    h("section", { class: "card" }, h("h2", {}, "Device"), statusBox,
-      canCommand ? h("div", { class: "inline" },
-        h("button", { class: "danger", id: "enter-safe", onclick: () => command("enter_safe_mode") }, "Enter safe mode"),
-        h("button", { class: "secondary", id: "leave-safe", onclick: () => command("leave_safe_mode") }, "Leave safe mode")) : null),
+    actions,
+    h("section", { class: "card" }, h("h2", {}, "Device"), statusBox),
     adaptiveBox, sessionBox,
     h("section", { class: "card" }, h("h2", {}, "Telemetry (last 5 s, 100 Hz)"),
-      h("p", { id: "telemetry-state", "aria-live": "polite" }, chip("waiting for data…", "warn")),
       h("div", { class: "readout-row" }, legFigure, readout), charts),
     h("section", { class: "card" }, viewerToggle));
 
@@ -107,14 +127,16 @@ export async function monitorPage(view, deviceId, params) {
   const showDataState = () => {
     const fresh = lastSampleAt !== null && performance.now() - lastSampleAt < NO_DATA_AFTER_MS;
     const why = !status.online ? "the device is offline"
-      : status.walking === false ? "nobody is walking on the simulated leg (its simulated patient walks while a session records)"
+      : status.bench_state === "not_worn" ? "nobody wears the simulated leg (assign it to a patient: they stand on it between walks)"
         : "the leg sends no sensor samples";
-    const text = fresh ? "live" : `no data: ${why}`;
+    const what = BENCH_WORDS[status.bench_state] ?? "";
+    const text = fresh ? `live${what}` : `no data: ${why}`;
     if (stateLine.dataset.text !== text) {
       stateLine.dataset.text = text;
       stateLine.replaceChildren(chip(fresh ? "live" : "no data", fresh ? "ok" : "warn"),
-        fresh ? ` samples from ${deviceId}` : ` ${why}; the charts hold the last data received.`);
+        fresh ? ` samples from ${deviceId}${what}` : ` ${why}; the charts hold the last data received.`);
     }
+    walkState(status);
   };
   showDataState();
   const dataTimer = setInterval(showDataState, 250);
@@ -217,7 +239,8 @@ function recordingChip(d) {
 }
 
 function renderReadout(box, m, stats, weightN) {
-  const item = (label, value, id) => [h("dt", {}, label), h("dd", { id }, value)];
+  // each label with its value in one cell (a dl may group its pairs in divs), so they stay aligned at any width
+  const item = (label, value, id) => [h("div", { class: "readout-item" }, h("dt", {}, label), h("dd", { id }, value))];
   box.replaceChildren(
     ...item("Knee angle (flexion +)", fmt(m.knee_angle_deg, 1, "deg"), "knee-angle"),
     ...item("Knee torque (flexor +)", fmt(m.knee_torque_Nm, 1, "N·m"), "knee-torque"),
@@ -253,10 +276,13 @@ async function renderSession(box, deviceId, patients, params) {
     box.append(h("p", {}, h("span", { id: "recording-chip" }, chip("recording", "ok")), ` session #${s.id} since ${when(s.started_at)} `,
       s.course ? `walking the “${s.course}” course, ` : `at ${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}, `,
       `for ${s.patient_code}, running ${s.table_label ?? "no table from this server"}`),
-      canCommandOf() ? stop : h("p", { class: "muted", id: "stop-session-note" }, "Only a prosthetist stops a recording."),
+      h("p", { id: "walk-state", "aria-live": "polite" }),
+      canCommandOf() ? null : h("p", { class: "muted", id: "stop-session-note" }, "Only a prosthetist stops a recording."),
       error);
+    document.getElementById("stop-slot")?.replaceChildren(canCommandOf() ? stop : "");   // in the bar beside the charts
     return;
   }
+  document.getElementById("stop-slot")?.replaceChildren();
   box.append(assignment(box, device, patients, deviceId, params));
   if (!device.patient) {
     box.append(error);

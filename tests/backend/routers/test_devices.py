@@ -228,3 +228,22 @@ def test_a_table_built_for_another_body_mass_is_flagged_on_the_device(sim_api):
     flag = c.get(f"/api/devices/{DEVICE}", headers=pro).json()["body_mass_mismatch"]
     assert flag["built_for_kg"] == 80.0 and flag["patient_now_kg"] == 95.0 and flag["difference_percent"] == 18.8
     assert "P-001 · table v1 was built for 80 kg" in flag["message"] and "95 kg" in flag["message"]
+
+
+def test_the_assigned_patient_stands_on_the_simulated_leg_between_walks_with_live_signals(sim_api):
+    """Live signals while the patient stands, not only during a recorded walk; nobody wearing the leg: none."""
+    api = sim_api
+    c, viewer = api.client, api.as_("viewer")
+    patient = api.new_patient("P-STAND", 80.0)
+    device = assign(api, patient["id"])
+    assert device["bench_state"] == "standing" and device["walking"] is False
+    samples = []
+    with c.websocket_connect(f"/api/devices/{DEVICE}/telemetry?token={viewer['Authorization'].split()[1]}") as ws:
+        while len(samples) < 50:
+            msg = ws.receive_json()
+            if msg["type"] == "telemetry":
+                samples.append(msg)
+    assert all(0.4 * 80 * 9.81 < s["load_N"] < 0.6 * 80 * 9.81 for s in samples)   # half the body weight
+    assert max(s["knee_angle_deg"] for s in samples) < 10.0                      # the knee near extension
+    r = c.delete(f"/api/devices/{DEVICE}/assignment", headers=api.as_("prosthetist"))
+    assert r.status_code == 200 and r.json()["bench_state"] == "not_worn"

@@ -39,7 +39,7 @@ def test_the_walking_simulated_leg_streams_telemetry_without_gaps(tables):
     assert {s.mode for s in got} == {Mode.ACTIVE} and {s.fsm_state for s in got} >= {0, 1}
 
 
-def test_a_course_is_walked_once_at_its_true_task_and_the_bench_stops_at_its_end():
+def test_a_course_is_walked_once_at_its_true_task_and_the_patient_then_stands():
     course = Course("short", (Segment(1.5, 1.0, 0.0), Segment(1.5, 1.0, 6.0)), transition_s=1.0)
     walker = SimWalker()
     walker.start_course(course, 75.0)
@@ -52,4 +52,28 @@ def test_a_course_is_walked_once_at_its_true_task_and_the_bench_stops_at_its_end
         steps += 1
         if steps == 2900:
             assert walker.task == pytest.approx((1.0, 6.0))        # the ramp, after the transition
-    assert steps == round(course.duration_s / 0.001) and walker.sample() is None and walker.task is None
+    assert steps == round(course.duration_s / 0.001) and walker.task is None
+    # the course walked, the patient stands on the leg: live readings of quiet stance (about half the body weight,
+    # knee near extension, swaying slowly), not "no data"
+    assert walker.state == "standing"
+    loads, ankles = [], []
+    for _ in range(4000):                                          # one sway period, 4 s
+        sample = walker.sample()
+        loads.append(sample.load_N)
+        ankles.append(np.degrees(sample.ankle_angle_rad))
+        walker.step(0.0, 0.0)
+    weight = 75.0 * 9.81
+    assert 0.4 * weight < min(loads) < max(loads) < 0.6 * weight and np.ptp(ankles) > 0.5
+    assert np.degrees(walker.sample().knee_angle_rad) < 10.0
+    walker.stop()
+    assert walker.state == "not_worn" and walker.sample() is None
+
+
+def test_standing_refuses_a_body_mass_out_of_range_and_a_walk_ends_the_stance():
+    walker = SimWalker()
+    with pytest.raises(ValueError, match="mass_kg"):
+        walker.stand(float("nan"))
+    walker.stand(80.0)
+    assert walker.state == "standing" and walker.sample() is not None
+    walker.start(level_walking_reference(1.2), 80.0)
+    assert walker.state == "walking"
