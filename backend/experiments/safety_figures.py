@@ -76,3 +76,24 @@ def safety_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) -> li
             flags.append(_flag("heel_strike_to_stance_ms_max", "warn", float(entry), fsmic_entry, "ms",
                                f"up to {float(entry):.0f} ms from foot contact to the stance settings{versus}"))
     return sorted(flags, key=lambda f: f["severity"] != "bad")
+
+
+_FIGURES = (("falls", "falls", "falls"), ("toe_catches", "toe catches in mid-swing", "catches"),
+            ("heel_strikes_without_stance", "strides that never reached stance", "strides"),
+            ("loaded_swing_ms_max_stride", "loaded swing, longest in a stride", "ms"),
+            ("heel_strike_to_stance_ms_max", "foot contact → stance settings, longest", "ms"))
+
+
+def safety_figures(table: Mapping[str, object], fsmic: Mapping[str, object]) -> list[dict[str, object]]:
+    """Every safety figure of ``table``'s bench walk beside the FSMIC's, with its flag's severity (None: within its
+    bound): what the decision shows next to Approve and Push, before any tracking error."""
+    severity = {f["figure"]: f["severity"] for f in safety_flags(table, fsmic)}
+    out = []
+    for key, label, unit in _FIGURES:
+        value = table.get(key)
+        if key == "loaded_swing_ms_max_stride" and value is None:   # previews stored before the longest stride
+            key, label, value = "loaded_swing_ms_per_stride", "loaded swing, per stride", table.get(
+                "loaded_swing_ms_per_stride")
+        out.append({"figure": key, "label": label, "unit": unit, "value": value, "fsmic_value": fsmic.get(key),
+                    "severity": severity.get(key)})
+    return out

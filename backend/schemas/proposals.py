@@ -79,11 +79,22 @@ class BenchFlag(BaseModel):
     message: str
 
 
+class BenchFigure(BaseModel):
+    figure: str
+    label: str
+    unit: str
+    value: float | int | None
+    fsmic_value: float | int | None
+    severity: Literal["bad", "warn"] | None = Field(description="its flag, or null within its bound")
+
+
 class BenchVerdict(BaseModel):
     """The bench's verdict on exactly this version's content: its stored preview's safety flags."""
 
     status: Literal["clean", "warnings", "unsafe", "not_walked"]
     flags: list[BenchFlag]
+    figures: list[BenchFigure] = Field(default_factory=list, description="every safety figure of the walk beside the "
+                                                                         "FSMIC's (empty before it is walked)")
     words: str = Field(description="for the chip beside 'within parameter limits'")
 
 

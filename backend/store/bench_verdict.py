@@ -12,7 +12,7 @@ import sqlite3
 from typing import Literal
 
 from backend.errors import ConflictError
-from backend.experiments.safety_figures import safety_flags
+from backend.experiments.safety_figures import safety_figures, safety_flags
 from backend.store import previews
 
 MIN_OVERRIDE_CHARS = 20
@@ -22,16 +22,18 @@ _WORDS = {"clean": "bench preview clean", "warnings": "bench preview with warnin
 
 
 def verdict(conn: sqlite3.Connection, kind: Kind, row: sqlite3.Row) -> dict:
-    """``status`` clean / warnings / unsafe / not_walked, the ``flags`` (bad first) and ``words`` for the chip."""
+    """``status`` clean / warnings / unsafe / not_walked, the ``flags`` (bad first), every safety ``figure`` beside the
+    FSMIC's, and ``words`` for the chip."""
     if kind == "proposal":
         stored, own = previews.get_preview(conn, row["id"], row["table_sha256"]), "table"
     else:
         stored, own = previews.get_envelope_preview(conn, row["id"], row["envelope_sha256"]), "envelope"
     if stored is None:
-        return {"status": "not_walked", "flags": [], "words": _WORDS["not_walked"]}
-    flags = safety_flags(stored["controllers"][own], stored["controllers"]["fsmic"])
+        return {"status": "not_walked", "flags": [], "figures": [], "words": _WORDS["not_walked"]}
+    mine, fsmic = stored["controllers"][own], stored["controllers"]["fsmic"]
+    flags = safety_flags(mine, fsmic)
     status = "unsafe" if any(f["severity"] == "bad" for f in flags) else "warnings" if flags else "clean"
-    return {"status": status, "flags": flags, "words": _WORDS[status]}
+    return {"status": status, "flags": flags, "figures": safety_figures(mine, fsmic), "words": _WORDS[status]}
 
 
 def require_bench(conn: sqlite3.Connection, kind: Kind, row: sqlite3.Row, override_reason: str | None,

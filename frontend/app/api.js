@@ -35,7 +35,8 @@ export async function api(path, { method = "GET", body } = {}) {
   if (!r.ok) {
     if (r.status === 401) {
       signOut();
-      location.hash = "#/login";
+      const here = location.hash;   // back to this page after signing in again
+      location.hash = here.startsWith("#/") && !here.startsWith("#/login") ? `#/login?next=${encodeURIComponent(here)}` : "#/login";
     }
     throw new ApiError(r.status, data.detail || `${method} ${path} failed (${r.status})`, data);
   }

@@ -3,9 +3,22 @@
 // showing an unsafe figure, Approve needs a written override (20 characters at least; audited and shown wherever the
 // version is shown). The card follows the preview when it finishes, without losing what was typed.
 import { get, post } from "./api.js";
-import { h, notice, when } from "./ui.js";
+import { fmt, h, notice, table, when } from "./ui.js";
 
 export const BENCH_CHIP = { clean: "ok", warnings: "warn", unsafe: "bad", not_walked: "" };
+
+// The bench's safety figures, compact, beside Approve and Push: this version's and the FSMIC's on the same walk, each
+// flagged on its own bound (the preview card below has the tracking errors)
+export function benchFigures(bench, id) {
+  if (!bench.figures?.length) {
+    return h("p", { class: "muted small", id }, "Bench safety figures: the preview has not finished walking.");
+  }
+  const value = (v, unit) => (v === null || v === undefined ? "—" : `${fmt(v, unit === "ms" ? 0 : 0)} ${unit}`);
+  return table(["Bench safety figure", "This version", "FSMIC"], bench.figures.map((f) => h("tr",
+    { class: f.severity ? `flag-${f.severity}` : "", dataset: { figure: f.figure } },
+    h("td", {}, f.label), h("td", { class: `num${f.severity ? ` ${f.severity}` : ""}` }, value(f.value, f.unit)),
+    h("td", { class: "num" }, value(f.fsmic_value, f.unit)))), { id, class: "compact" });
+}
 const MIN_OVERRIDE = 20;
 
 // item: the proposal or envelope (status, decision, safety, bench); name: its one name; path: its API path;
@@ -66,7 +79,7 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
         : "say why first (what you reviewed)";
     reject.disabled = !said;
     const warnings = bench.flags.filter((f) => f.severity === "warn").map((f) => f.message);
-    gate.replaceChildren(h("p", { id: "decision-bench" }, h("strong", {}, "Bench: "),
+    gate.replaceChildren(benchFigures(bench, "decision-figures"), h("p", { id: "decision-bench" }, h("strong", {}, "Bench: "),
       bench.status === "clean" ? "the preview walked clean: no safety figure outside its bound."
         : bench.status === "warnings" ? `the preview walked with warnings: ${warnings.join("; ")}.`
           : bench.status === "unsafe" ? "the preview shows an unsafe figure (below)." : "the preview has not finished walking."),
@@ -94,6 +107,6 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   };
   window.addEventListener("quasitune:unsaved-edits", edited);
   update();
-  box.append(h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject),
-    unsavedNote, gate, error);
+  box.append(gate, h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject),
+    unsavedNote, error);
 }

@@ -1,7 +1,8 @@
-// Hash router: #/login, #/patients, #/patients/:id, #/proposals/:id, #/envelopes/:id(/nodes/:i/:j), #/monitor/:deviceId, #/sessions/:id/report
+// Hash router: #/login(?next=…), #/audit, #/patients, #/patients/:id, #/proposals/:id, #/envelopes/:id(/nodes/:i/:j), #/monitor/:deviceId, #/sessions/:id/report
 import { get, post, signOut, token } from "./api.js";
 import { h, notice } from "./ui.js";
 import { loginPage } from "./pages/login.js";
+import { auditPage } from "./pages/audit.js";
 import { patientsPage } from "./pages/patients.js";
 import { patientPage } from "./pages/patient.js";
 import { proposalPage } from "./pages/proposal.js";
@@ -24,6 +25,7 @@ const routes = [
   [/^#\/sessions\/(\d+)\/report$/, reportPage],
   [/^#\/password$/, passwordPage],
   [/^#\/users$/, usersPage],
+  [/^#\/audit$/, auditPage],
 ];
 
 export const app = { me: null, cleanup: [] };
@@ -48,6 +50,7 @@ function renderChrome() {
   }
   nav.replaceChildren(...(app.me.must_change_password ? [] : [h("a", { href: "#/patients" }, "Patients"),
     h("a", { href: "#/monitor", id: "nav-monitor" }, "Live monitor"),
+    ["prosthetist", "admin"].includes(app.me.role) ? h("a", { href: "#/audit", id: "nav-audit" }, "Audit log") : null,
     app.me.role === "admin" ? h("a", { href: "#/users", id: "nav-users" }, "Accounts") : null].filter(Boolean)));
   who.replaceChildren(h("span", {}, `${app.me.username} · ${app.me.role}`),
     h("a", { href: "#/password", id: "change-password" }, "Change password"),
@@ -65,7 +68,7 @@ async function route() {
   const [hash, query = ""] = (location.hash || "#/patients").split("?");
   if (hash !== "#/login" && !app.me) app.me = await whoAmI();
   if (hash !== "#/login" && !app.me) {
-    location.hash = "#/login";
+    location.hash = loginHash();   // back to this page after signing in (a link opened in a new tab)
     return;
   }
   if (app.me?.must_change_password && hash !== "#/password" && hash !== "#/login") {   // the server refuses all else
@@ -95,6 +98,12 @@ async function firstDevice(view) {
   if (devices.length) location.replace(`#/monitor/${devices[0].id}`);
   else view.replaceChildren(h("h1", {}, "Live monitor"), h("p", { class: "muted" },
     "No device is configured on this server (start it with quasitune serve --device sim or INTERFACE:CHANNEL)."));
+}
+
+// the sign-in page, remembering the page asked for (only pages of this app: a hash route, never a URL elsewhere)
+export function loginHash() {
+  const here = location.hash;
+  return here && here.startsWith("#/") && !here.startsWith("#/login") ? `#/login?next=${encodeURIComponent(here)}` : "#/login";
 }
 
 export function onLeave(fn) {

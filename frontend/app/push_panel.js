@@ -2,6 +2,7 @@
 // assign it here), a confirmation that names what the leg runs now and what replaces it, then the live steps:
 // sent → CRC read back → running at the next heel strike.
 import { get, post, put } from "./api.js";
+import { benchFigures } from "./decision_panel.js";
 import { chip, confirmDialog, fmt, h, table, tableName, when } from "./ui.js";
 
 // item: the proposal or envelope; kind "table" | "envelope"; name: its one name; what: its name with its task in
@@ -41,11 +42,14 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
     for (const opt of select.options) opt.textContent = optionText(devices.find((x) => x.id === opt.value));
     const d = devices.find((x) => x.id === select.value);
     const mine = d.patient && d.patient.patient_id === item.patient_id;
-    button.disabled = !mine || unsaved;
+    // a leg worn by nobody is assigned in the push's own dialog; one worn by another patient is changed deliberately
+    button.disabled = Boolean(d.patient && !mine) || unsaved;
     button.title = unsaved ? "unsaved edits in the table: save them as a new version, or discard them" : "";
     assignBox.replaceChildren(mine ? chip(`${d.id} is assigned to ${patient.code_name}`, "ok")
-      : h("span", {}, chip(`${d.id} is ${wearer(d)}`, "warn"), ` A ${kind} goes only to the leg of its patient. `,
-        h("button", { id: "assign-device", class: "secondary", onclick: assign }, `Assign ${d.id} to ${patient.code_name}…`)));
+      : !d.patient ? h("span", {}, chip(`${d.id} is assigned to nobody`, "warn"),
+        ` The push assigns it to ${patient.code_name} first (said in its dialog).`)
+        : h("span", {}, chip(`${d.id} is ${wearer(d)}`, "warn"), ` A ${kind} goes only to the leg of its patient. `,
+          h("button", { id: "assign-device", class: "secondary", onclick: assign }, `Assign ${d.id} to ${patient.code_name}…`)));
   };
   async function assign() {
     const d = devices.find((x) => x.id === select.value);
@@ -72,8 +76,10 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
     const builtFor = item.body_mass_kg ?? item.task?.body_mass_kg;
     const massOff = builtFor && Math.abs(patient.body_mass_kg - builtFor) > 0.05 * builtFor;
     const unclean = bench.status === "unsafe" || bench.status === "not_walked" || massOff;
+    const toAssign = !d.patient;   // worn by nobody: this one dialog assigns it to the patient, then pushes
     const ok = await confirmDialog({ id: "push-dialog", title: `Replace what runs on ${d.id}?`,
       facts: [["Patient", `${patient.code_name} (${fmt(patient.body_mass_kg, 0, "kg")})`],
+        ...(toAssign ? [["Device", `${d.id} is worn by nobody: confirming assigns it to ${patient.code_name}, then pushes`]] : []),
         ["On the leg now", tableName(current, true)],
         ["Replaced by", what],
         ["Bench preview", bench.status === "unsafe" ? `UNSAFE: ${bench.flags.filter((f) => f.severity === "bad").map((f) => f.message).join("; ")}`
@@ -90,6 +96,9 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
     button.disabled = true;
     steps.replaceChildren(h("li", { class: "doing" }, `sending the ${kind} over CAN…`));
     try {
+      if (toAssign) {
+        Object.assign(devices.find((x) => x.id === d.id), await put(`/api/devices/${d.id}/assignment`, { patient_id: item.patient_id }));
+      }
       const push = await post(`${path}/push`, { device_id: d.id, patient_ready: true,
         replaces_proposal_id: current ? current.proposal_id : null, replaces_envelope_id: current ? current.envelope_id : null,
         ...(unclean ? { override_reason: ok } : {}) });
@@ -114,6 +123,7 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
       showAssignment();
     }
   });
-  box.append(h("p", { class: "muted small" }, `Sends ${name} to the leg.`), h("div", { class: "inline" }, select, button),
+  box.append(benchFigures(item.bench || { figures: [] }, "push-figures"),
+    h("p", { class: "muted small" }, `Sends ${name} to the leg.`), h("div", { class: "inline" }, select, button),
     assignBox, steps, error, status);
 }

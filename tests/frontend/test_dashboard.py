@@ -105,24 +105,27 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.fill("#decision input[name=comment]", "reviewed loops and preview")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
-    # a table goes only to its patient's leg: the device is assigned first, deliberately
-    assert page.is_disabled("#push-button")
-    page.click("#assign-device")
-    assert "nobody" in page.inner_text("#assign-dialog")
-    page.click("#assign-dialog-confirm")
-    page.wait_for_selector("#push-assignment:has-text('sim-leg-1 is assigned to P-100')")
-    assert "worn by P-100" in page.inner_text("#push-device")                # the device list follows
-    # the push names what it replaces and needs the clinical precondition ticked
+    # a table goes only to its patient's leg: a leg worn by nobody is assigned in the push's own dialog (one step),
+    # whose bench figures stand beside the button
+    assert page.locator("#push-figures tbody tr").count() == 5 and page.locator("#assign-device").count() == 0
+    assert "The push assigns it to P-100 first" in page.inner_text("#push-assignment")
+    # the push names what it replaces, the assignment it makes, and needs the clinical precondition ticked
     page.click("#push-button")
     dialog = page.inner_text("#push-dialog")
     assert "no table from this server" in dialog and "P-100 · table v2" in dialog, dialog
+    assert "worn by nobody: confirming assigns it to P-100, then pushes" in dialog
     assert page.is_disabled("#push-dialog-confirm")
-    page.click("#push-dialog-cancel")                                      # cancelled: nothing sent
+    page.click("#push-dialog-cancel")                                      # cancelled: nothing sent or assigned
     assert page.locator("#push-steps li").count() == 0
+    device = page.evaluate("""async () => (await fetch('/api/devices/sim-leg-1', {headers: {Authorization:
+        'Bearer ' + sessionStorage.getItem('quasitune.token')}})).json()""")
+    assert device["patient"] is None
     page.click("#push-button")
     page.check("#push-dialog-ready")
     page.click("#push-dialog-confirm")
     page.wait_for_selector("#push-steps li.done:has-text('active on sim-leg-1: P-100 · table v2')", timeout=20_000)
+    page.wait_for_selector("#push-assignment:has-text('sim-leg-1 is assigned to P-100')")
+    assert "worn by P-100" in page.inner_text("#push-device")                # the device list follows
     assert re.search(r"CRC-32 [0-9a-f]{8}", page.inner_text("#push-steps"))
     page.wait_for_selector("#proposal-chips:has-text('running on a leg')")     # the header follows, no reload
     shot(page, "04-pushed")
@@ -290,3 +293,46 @@ def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(serv
         newbie.wait_for_selector("#login-form")
     finally:
         other.close()
+
+
+def test_a_link_opened_in_a_new_tab_survives_sign_in_and_the_audit_view_lists_the_changes(server, browser, page):
+    sign_in(page, server, "dana")
+    pid = create_patient_and_propose(page, "P-700")
+    # the decision shows the bench's safety figures at its top, beside Approve, once the preview has walked
+    page.wait_for_selector("#decision-figures tbody tr", timeout=60_000)
+    assert page.locator("#decision-figures tbody tr").count() == 5
+    assert "falls" in page.inner_text("#decision-figures")
+    fresh = browser.new_context()            # a new tab's session: not signed in
+    tab = fresh.new_page()
+    try:
+        tab.goto(f"{server}/#/proposals/{pid}")
+        tab.wait_for_selector("#login-form")
+        assert "next=" in tab.url
+        tab.fill("input[name=username]", "dana")
+        tab.fill("input[name=password]", PASSWORD)
+        tab.click("#login-form button[type=submit]")
+        tab.wait_for_selector("h1:has-text('P-700 · table v1')")        # the page the link named, not the list
+        # the audit view, for prosthetists and admins: every change, filtered to this proposal
+        tab.click("#nav-audit")
+        tab.wait_for_selector("#audit-table")
+        assert "proposal.create" in tab.inner_text("#audit-table")
+        tab.select_option("#audit-filter select[name=entity]", "proposal")
+        tab.fill("#audit-filter input[name=entity_id]", str(pid))
+        tab.click("#audit-filter button[type=submit]")
+        tab.wait_for_selector(f"#audit-table a[href='#/proposals/{pid}']")
+        concerning = tab.locator("#audit-table tbody td:nth-child(4)").all_inner_texts()
+        assert concerning and set(concerning) == {f"proposal {pid}"}, concerning
+        shot(tab, "17-audit-log")
+    finally:
+        fresh.close()
+    # a viewer has no audit view
+    viewer = browser.new_context()
+    vpage = viewer.new_page()
+    try:
+        sign_in(vpage, server, "vic")
+        assert vpage.locator("#nav-audit").count() == 0
+        vpage.goto(f"{server}/#/audit")
+        vpage.wait_for_selector("h1:has-text('Audit log')")
+        assert "for prosthetists and administrators" in vpage.inner_text("#view")
+    finally:
+        viewer.close()

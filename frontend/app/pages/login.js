@@ -3,7 +3,13 @@ import { app } from "../main.js";
 import { get } from "../api.js";
 import { h } from "../ui.js";
 
-export async function loginPage(view) {
+// where to go once signed in: the page asked for (a hash route of this app only), else the patient list
+function nextPage(params) {
+  const next = params?.get("next") || "";
+  return /^#\/[\w/?=&.-]*$/.test(next) && !next.startsWith("#/login") ? next : "#/patients";
+}
+
+export async function loginPage(view, params) {
   const error = h("p", { class: "error", role: "alert", id: "login-error" });
   const form = h("form", { class: "card narrow", id: "login-form" },
     h("h1", {}, "Sign in"),
@@ -18,7 +24,7 @@ export async function loginPage(view) {
     try {
       await signIn(data.get("username"), data.get("password"));
       app.me = await get("/api/auth/me");
-      location.hash = "#/patients";
+      location.hash = nextPage(params);
     } catch (err) {
       error.textContent = err.message;
     }
