@@ -76,3 +76,14 @@ def create_patient_and_propose(page, code: str, speed: str = "1.25", incline: st
     return int(re.search(r"#/proposals/(\d+)", page.url).group(1))
 
 
+
+
+_FETCH = """async ([method, path, body]) => {
+  const r = await fetch(path, {method, headers: {'Content-Type': 'application/json',
+    Authorization: 'Bearer ' + sessionStorage.getItem('quasitune.token')}, body: body ? JSON.stringify(body) : undefined});
+  return {status: r.status, body: await r.json().catch(() => null)}; }"""
+
+
+def api_call(page, method: str, path: str, body: dict | None = None) -> dict:
+    """The API as the signed-in page's user (what a script with the same token could do): status and JSON body."""
+    return page.evaluate(_FETCH, [method, path, body])

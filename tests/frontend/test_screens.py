@@ -1,0 +1,68 @@
+"""Every page a prosthetist or clinician uses, at the three screen sizes the clinic has (1280 × 800 laptop, 1024 × 700
+small laptop, 768 × 1024 tablet): no page wider than the screen, no script error, and a screenshot of each to look
+at (artifacts/browser/screens/)."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from tests.helpers.browser import ARTIFACTS, api_call, create_patient_and_propose, sign_in, watch_errors
+
+SIZES = [(1280, 800), (1024, 700), (768, 1024)]
+
+
+@pytest.fixture(scope="module")
+def pages(server, browser) -> dict[str, str]:
+    """One patient with a walked, approved, pushed table, an envelope, and a stopped session: the pages to show."""
+    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    page = context.new_page()
+    try:
+        sign_in(page, server, "dana")
+        pid = create_patient_and_propose(page, "P-SCR")
+        patient_id = api_call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
+        assert api_call(page, "GET", f"/api/proposals/{pid}/preview")["status"] == 200
+        assert api_call(page, "POST", f"/api/proposals/{pid}/approve", {"comment": "reviewed"})["status"] == 200
+        assert api_call(page, "PUT", "/api/devices/sim-leg-1/assignment", {"patient_id": patient_id})["status"] == 200
+        pushed = api_call(page, "POST", f"/api/proposals/{pid}/push", {"device_id": "sim-leg-1", "patient_ready": True,
+                                                                     "replaces_proposal_id": None, "replaces_envelope_id": None})
+        assert pushed["status"] == 201, pushed
+        envelope = api_call(page, "POST", f"/api/patients/{patient_id}/envelopes", {"grid": [3, 3]})["body"]
+        deadline = time.monotonic() + 20
+        while api_call(page, "GET", "/api/devices/sim-leg-1")["body"]["active_crc32"] != pushed["body"]["crc32"]:
+            assert time.monotonic() < deadline
+            time.sleep(0.2)
+        session = api_call(page, "POST", f"/api/patients/{patient_id}/sessions", {"device_id": "sim-leg-1"})["body"]
+        time.sleep(3.0)
+        assert api_call(page, "POST", f"/api/sessions/{session['id']}/stop")["status"] == 200
+    finally:
+        context.close()
+    return {"patients": "#/patients", "patient": f"#/patients/{patient_id}", "proposal": f"#/proposals/{pid}",
+            "envelope": f"#/envelopes/{envelope['id']}", "envelope-node": f"#/envelopes/{envelope['id']}/nodes/1/1",
+            "monitor": "#/monitor/sim-leg-1", "report": f"#/sessions/{session['id']}/report", "audit": "#/audit"}
+
+
+READY = {"patients": "#patients, table", "patient": "#propose", "proposal": "#param-table", "envelope": "#envelope-maps svg",
+         "envelope-node": "#param-table", "monitor": "#monitor-actions", "report": "#report-facts", "audit": "#audit-table"}
+
+
+@pytest.mark.parametrize(("width", "height"), SIZES)
+def test_every_page_fits_the_screen_without_script_errors(server, browser, pages, width, height):
+    context = browser.new_context(viewport={"width": width, "height": height}, has_touch=width < 1000)
+    page = context.new_page()
+    errors = watch_errors(page)
+    out = ARTIFACTS / "screens"
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        sign_in(page, server, "dana")
+        for name, route in pages.items():
+            page.goto(f"{server}/{route}")
+            page.wait_for_selector(READY[name], timeout=30_000)
+            page.wait_for_timeout(400)                       # charts draw on the next animation frames
+            overflow = page.evaluate("document.documentElement.scrollWidth - window.innerWidth")
+            assert overflow <= 0, f"{name} is {overflow}px wider than a {width} × {height} screen"
+            page.screenshot(path=str(out / f"{name}-{width}x{height}.png"), full_page=True)
+        assert not errors, errors
+    finally:
+        context.close()
