@@ -25,8 +25,8 @@ def pages(server, browser) -> dict[str, str]:
         assert api_call(page, "GET", f"/api/proposals/{pid}/preview")["status"] == 200
         assert api_call(page, "POST", f"/api/proposals/{pid}/approve", {"comment": "reviewed"})["status"] == 200
         assert api_call(page, "PUT", "/api/devices/sim-leg-1/assignment", {"patient_id": patient_id})["status"] == 200
-        pushed = api_call(page, "POST", f"/api/proposals/{pid}/push", {"device_id": "sim-leg-1", "patient_ready": True,
-                                                                     "replaces_proposal_id": None, "replaces_envelope_id": None})
+        body = {"device_id": "sim-leg-1", "patient_ready": True, "replaces_proposal_id": None, "replaces_envelope_id": None}
+        pushed = api_call(page, "POST", f"/api/proposals/{pid}/push", body)
         assert pushed["status"] == 201, pushed
         envelope = api_call(page, "POST", f"/api/patients/{patient_id}/envelopes", {"grid": [3, 3]})["body"]
         deadline = time.monotonic() + 20
