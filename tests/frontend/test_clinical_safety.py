@@ -161,7 +161,7 @@ def test_a_task_far_outside_the_data_needs_a_written_reason_and_says_so_everywhe
     page.fill("#propose input[name=speed_mps]", "0.3")
     assert page.is_visible("#propose fieldset.extrapolate")
     page.click("#propose button[type=submit]")                    # not ticked: the server refuses, nothing stored
-    page.wait_for_function("document.querySelector('#propose .error').textContent.length > 0")
+    page.wait_for_selector("#propose .error:not(:empty)")
     assert "beyond what the model knows" in page.inner_text("#propose .error")
     page.check("#propose input[name=extrapolate]")
     page.fill("#propose textarea[name=reason]", "the patient walks this slowly at home")

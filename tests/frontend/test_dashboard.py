@@ -137,8 +137,8 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.wait_for_selector("#stop-session")
     page.wait_for_function("() => window.quasitune.monitor && window.quasitune.monitor.samples > 150", timeout=20_000)
     first = page.inner_text("#knee-angle")
-    page.wait_for_timeout(700)
-    assert page.inner_text("#knee-angle") != first                        # the numbers move
+    page.wait_for_function("(first) => document.querySelector('#knee-angle').textContent !== first", arg=first,
+                           timeout=10_000)                                   # the numbers move
     stats = page.evaluate("window.quasitune.monitor")
     assert stats["gaps"] == 0 and stats["frames"] > 10
     assert min(canvas_ink(page, "#view .three canvas")) > 200
