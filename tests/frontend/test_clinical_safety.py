@@ -4,17 +4,8 @@ there is no data and what safe mode means."""
 
 from __future__ import annotations
 
-from tests.helpers.browser import ARTIFACTS, create_patient_and_propose, shot, sign_in
-
-_FETCH = """async ([method, path, body]) => {
-  const r = await fetch(path, {method, headers: {'Content-Type': 'application/json',
-    Authorization: 'Bearer ' + sessionStorage.getItem('quasitune.token')}, body: body ? JSON.stringify(body) : undefined});
-  return {status: r.status, body: await r.json().catch(() => null)}; }"""
-
-
-def call(page, method: str, path: str, body: dict | None = None) -> dict:
-    """The API as the signed-in page's user (what a script with the same token could do)."""
-    return page.evaluate(_FETCH, [method, path, body])
+from tests.helpers.browser import ARTIFACTS, create_patient, create_patient_and_propose, shot, sign_in
+from tests.helpers.browser import api_call as call
 
 
 def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server, page):
@@ -150,10 +141,7 @@ def test_a_knee_too_soft_to_carry_the_patient_is_refused_as_typed_and_by_the_ser
 
 def test_a_task_far_outside_the_data_needs_a_written_reason_and_says_so_everywhere(server, page):
     sign_in(page, server, "dana")
-    page.fill("#new-patient input[name=code_name]", "P-440")
-    page.fill("#new-patient input[name=body_mass_kg]", "78")
-    page.click("#new-patient button[type=submit]")
-    page.wait_for_selector("#propose")
+    create_patient(page, "P-440")
     known = page.inner_text("#propose #known-range")
     assert "The model knows 0.49–2.30 m/s" in known and "0.84–1.95 m/s" in known, known
     assert page.get_attribute("#propose input[name=speed_mps]", "max") == "3"   # the server's bounds
@@ -193,10 +181,7 @@ def test_every_map_has_a_key_with_its_unit_darker_is_firmer_and_dots_never_hide_
     """The default 5 × 5 envelope for a 70 kg patient: the knee's stance flexion holds the support floor at the slow
     uphill corner and the neighbour rule moves others; both are marked, and every map says its range and unit."""
     sign_in(page, server, "dana")
-    page.fill("#new-patient input[name=code_name]", "P-450")
-    page.fill("#new-patient input[name=body_mass_kg]", "70")
-    page.click("#new-patient button[type=submit]")
-    page.wait_for_selector("#request-envelope")
+    create_patient(page, "P-450", "70")
     page.click("#request-envelope button[type=submit]")
     page.wait_for_selector("#map-knee-stance_flexion")
     env = call(page, "GET", "/api/envelopes/" + page.url.split("/envelopes/")[1].split("?")[0])["body"]

@@ -7,7 +7,7 @@ import re
 
 import pytest
 
-from tests.helpers.browser import canvas_ink, create_patient_and_propose, shot, sign_in
+from tests.helpers.browser import canvas_ink, create_patient, create_patient_and_propose, shot, sign_in
 from tests.helpers.server import PASSWORD
 
 _CONTRAST_JS = """(selectors) => {
@@ -242,9 +242,7 @@ def test_security_headers_hold_and_the_api_docs_load_from_this_server_only(serve
 
 def test_body_mass_is_editable_on_the_patient_page(server, page):
     sign_in(page, server, "dana")
-    page.fill("#new-patient input[name=code_name]", "P-MASS")
-    page.fill("#new-patient input[name=body_mass_kg]", "78")
-    page.click("#new-patient button[type=submit]")
+    create_patient(page, "P-MASS")
     page.wait_for_selector("#edit-mass")
     page.fill("#edit-mass input[name=body_mass_kg]", "250")
     page.click("#edit-mass button[type=submit]")                                       # the form refuses it

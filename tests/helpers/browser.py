@@ -63,12 +63,17 @@ def canvas_ink(page, selector: str) -> list[int]:
         let n = 0; for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++; return n; })""", selector)
 
 
-def create_patient_and_propose(page, code: str, speed: str = "1.25", incline: str = "0") -> int:
-    """From the patient list: a new 78 kg patient and a proposal at the task; returns the proposal id."""
+def create_patient(page, code: str, mass_kg: str = "78") -> None:
+    """From the patient list: a new patient, through the form; waits for their page."""
     page.fill("#new-patient input[name=code_name]", code)
-    page.fill("#new-patient input[name=body_mass_kg]", "78")
+    page.fill("#new-patient input[name=body_mass_kg]", mass_kg)
     page.click("#new-patient button[type=submit]")
     page.wait_for_selector("#propose")
+
+
+def create_patient_and_propose(page, code: str, speed: str = "1.25", incline: str = "0") -> int:
+    """From the patient list: a new 78 kg patient and a proposal at the task; returns the proposal id."""
+    create_patient(page, code)
     page.fill("#propose input[name=speed_mps]", speed)
     page.fill("#propose input[name=incline_deg]", incline)
     page.click("#propose button[type=submit]")
