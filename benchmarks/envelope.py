@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from benchmarks.model import _timings
+from benchmarks.model import timings
 from controller_core.model_io import load_default_model
 
 SPEEDS = np.linspace(0.6, 1.6, 5)
@@ -73,13 +73,13 @@ def run(repeats: int = 50, pushes: int = 100, trials: int = 500) -> dict:
     model = load_default_model()
     for _ in range(3):
         model.propose_envelope(SPEEDS, INCLINES, 75.0)
-    envelope_ms = _timings(lambda: model.propose_envelope(SPEEDS, INCLINES, 75.0), repeats) * 1e3
+    envelope_ms = timings(lambda: model.propose_envelope(SPEEDS, INCLINES, 75.0), repeats) * 1e3
     rng = np.random.default_rng(0)
     tasks = iter(np.column_stack([rng.uniform(0.5, 1.7, 10**6), rng.uniform(-11, 11, 10**6)]).tolist())
-    propose_ms = _timings(lambda: model.propose(*next(tasks), 75.0), 500) * 1e3
+    propose_ms = timings(lambda: model.propose(*next(tasks), 75.0), 500) * 1e3
     env = model.propose_envelope(SPEEDS, INCLINES, 75.0)
     blender = EnvelopeBlender(env.speeds_mps, env.inclines_deg, env.tables())
-    blend_us = _timings(lambda: blender.at(*next(tasks)), 20000) * 1e6
+    blend_us = timings(lambda: blender.at(*next(tasks)), 20000) * 1e6
     envelopes = [model.propose_envelope(SPEEDS, INCLINES, m) for m in (60.0, 75.0, 90.0)]
     push_ms = _pushes(envelopes, pushes)
     faulty = soak(envelopes, trials, drop=0.1, corrupt=0.02, reorder=0.05, seed=0, push_timeout_s=4.0)

@@ -12,7 +12,7 @@ import numpy as np
 from controller_core.model_io import train_default
 
 
-def _timings(fn, repeats: int) -> np.ndarray:
+def timings(fn, repeats: int) -> np.ndarray:
     for _ in range(min(50, repeats)):  # warm-up
         fn()
     out = np.empty(repeats)
@@ -36,12 +36,12 @@ def run(repeats: int = 2000) -> dict[str, float]:
         sp, inc = tasks[next(it) % len(tasks)]
         model.propose(float(sp), float(inc), 75.0)
 
-    prop = _timings(propose, repeats) * 1e3
+    prop = timings(propose, repeats) * 1e3
     feats = model.predict_features(1.3, 2.0)
     vias = model.via_points("knee", model.joints_["knee"].kmp.mu_ref_, feats)
     kmp = model.joints_["knee"].kmp
-    cached = _timings(lambda: kmp.predict(vias), repeats) * 1e3
-    uncached = _timings(lambda: kmp.predict_uncached(vias), max(50, repeats // 10)) * 1e3
+    cached = timings(lambda: kmp.predict(vias), repeats) * 1e3
+    uncached = timings(lambda: kmp.predict_uncached(vias), max(50, repeats // 10)) * 1e3
     return {
         "fit_default_model_s": round(fit_s, 3),
         "propose_median_ms": round(float(np.median(prop)), 4),
@@ -77,7 +77,7 @@ def fsm_step_timings(table, repeats: int = 20000) -> dict[str, float]:
     def step() -> None:
         ctrl.step(next(it))
 
-    t = _timings(step, repeats) * 1e6
+    t = timings(step, repeats) * 1e6
     return {"fsm_step_median_us": round(float(np.median(t)), 3), "fsm_step_p99_us": round(float(np.percentile(t, 99)), 3)}
 
 
@@ -86,7 +86,7 @@ def machine_timings(repeats: int = 20000) -> dict[str, float]:
     product: how fast this machine is at what ``propose()`` does most, to compare latencies across machines."""
     a, b = np.ones(10), np.ones(10)
     A, C = np.random.default_rng(0).normal(size=(100, 100)), np.random.default_rng(1).normal(size=(100, 10))
-    small = _timings(lambda: np.add(a, b), repeats) * 1e6
-    product = _timings(lambda: A @ C, repeats) * 1e6
+    small = timings(lambda: np.add(a, b), repeats) * 1e6
+    product = timings(lambda: A @ C, repeats) * 1e6
     return {"machine_numpy_call_median_us": round(float(np.median(small)), 3),
             "machine_matmul_100x100x10_median_us": round(float(np.median(product)), 3)}

@@ -145,7 +145,7 @@ def sha256_of(*paths: Path) -> str:
     return h.hexdigest()
 
 
-def _load_npz(path: Path) -> dict[str, np.ndarray]:
+def load_npz(path: Path) -> dict[str, np.ndarray]:
     with np.load(path, allow_pickle=False) as d:
         return {k: d[k] for k in d.files}
 
@@ -190,7 +190,7 @@ def load_shipped_reference(
         correct_bovi_ankle: add :func:`bovi_ankle_offset_deg` to Bovi ankle angles.
     """
     path = data_dir() / SHIPPED_NPZ
-    d = _load_npz(path)
+    d = load_npz(path)
     phase = d["phase_pct"].astype(float) / 100.0
     offset = bovi_ankle_offset_deg(d) if correct_bovi_ankle else 0.0
     records: list[ReferenceRecord] = []

@@ -27,7 +27,7 @@ import numpy as np
 
 from controller_core.incline import InclineChange
 from controller_core.phase_table import load_shipped_ramps
-from controller_core.reference import SHIPPED_NPZ, _load_npz, bovi_ankle_offset_deg, data_dir, sha256_of
+from controller_core.reference import SHIPPED_NPZ, bovi_ankle_offset_deg, data_dir, load_npz, sha256_of
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ def level_walking_reference(speed_mps: float) -> WalkingReference:
     if not (np.isfinite(speed_mps) and speed_mps > 0):
         raise ValueError(f"speed_mps must be a positive finite number (m/s), got {speed_mps!r}")
     path = data_dir() / SHIPPED_NPZ
-    d = _load_npz(path)
+    d = load_npz(path)
     keep = np.flatnonzero((d["dataset"] == "bovi2011") & (d["task"] == "level_walking")
                           & (d["population"] == "adult") & np.isfinite(d["speed_mps"]))
     order = keep[np.argsort(d["speed_mps"][keep])]

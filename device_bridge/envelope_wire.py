@@ -32,12 +32,14 @@ from controller_core.envelope import Envelope, NeighbourSteps, check_envelope, c
 from controller_core.table import LimitViolation, SafetyLimits, Thresholds
 from device_bridge.protocol import (
     ROW_ORDER,
+    ROW_SIGNALS,
+    SIGNAL_FIELDS,
     DeviceRow,
     DeviceTable,
     ProtocolError,
     ValueDoesNotFitError,
-    _quantize,
     encode,
+    quantize,
     to_physical,
     with_device_values,
 )
@@ -45,14 +47,8 @@ from device_bridge.protocol import (
 MAX_NODES = 64
 FRAMES_PER_NODE = 10
 CHECK_NODE, CHECK_AXES = 0, 1   # ENVELOPE_CHECK.target: one node's values, or the axes and nominal task
-_ROW = ("k", "theta_e", "b")
-_ROW_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s_per_rad"}
 _A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load")
 _B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time", "sf_to_se_knee_extension")
-_THRESHOLD_FIELDS = {"sf_to_se_ankle_moment": "sf_to_se_ankle_moment_Nm", "se_to_wf_load": "se_to_wf_load_N",
-                     "we_to_sf_load": "we_to_sf_load_N", "wf_to_we_knee_angle": "wf_to_we_knee_angle_deg",
-                     "min_state_time": "min_state_time_s", "max_state_time": "max_state_time_s",
-                     "sf_to_se_knee_extension": "sf_to_se_knee_extension_deg_per_s"}
 AXIS_SPEED, AXIS_INCLINE, AXIS_NOMINAL, AXIS_BODY = 0, 1, 2, 3   # AXIS_BODY index 0: body mass (kg)
 
 
@@ -94,17 +90,17 @@ class WireEnvelope:
                                 f"axis and {MAX_NODES} nodes")
 
         def axis(value: float, name: str) -> int:
-            return _quantize("ENVELOPE_AXIS", "value", value, name)
+            return quantize("ENVELOPE_AXIS", "value", value, name)
 
         nodes = []
         for k, node in enumerate(envelope.nodes):
             t = node.table
-            rows = [tuple(_quantize("ENVELOPE_ROW", f, getattr(t.row(j, s), _ROW_FIELDS[f]),
-                                    f"node {k}: {j}.{s}.{_ROW_FIELDS[f]}") for f in _ROW) for j, s in ROW_ORDER]
-            a = tuple(_quantize("ENVELOPE_THRESHOLDS_A", f, getattr(t.thresholds, _THRESHOLD_FIELDS[f]),
-                                f"node {k}: thresholds.{_THRESHOLD_FIELDS[f]}") for f in _A)
-            b = tuple(_quantize("ENVELOPE_THRESHOLDS_B", f, getattr(t.thresholds, _THRESHOLD_FIELDS[f]),
-                                f"node {k}: thresholds.{_THRESHOLD_FIELDS[f]}") for f in _B)
+            rows = [tuple(quantize("ENVELOPE_ROW", f, getattr(t.row(j, s), SIGNAL_FIELDS[f]),
+                                    f"node {k}: {j}.{s}.{SIGNAL_FIELDS[f]}") for f in ROW_SIGNALS) for j, s in ROW_ORDER]
+            a = tuple(quantize("ENVELOPE_THRESHOLDS_A", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
+                                f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in _A)
+            b = tuple(quantize("ENVELOPE_THRESHOLDS_B", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
+                                f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in _B)
             nodes.append((*rows, a, b))
         return cls(speeds=tuple(axis(v, "speeds_mps") for v in envelope.speeds_mps),
                    inclines=tuple(axis(v, "inclines_deg") for v in envelope.inclines_deg),
@@ -131,7 +127,7 @@ class WireEnvelope:
                                              "crc32": _crc(self.axis_values)}))
         for n, node in enumerate(self.nodes):
             head = {"transfer_id": transfer_id, "node": n}
-            out += [encode("ENVELOPE_ROW", {**head, "row_index": i, **dict(zip(_ROW, node[i], strict=True))})
+            out += [encode("ENVELOPE_ROW", {**head, "row_index": i, **dict(zip(ROW_SIGNALS, node[i], strict=True))})
                     for i in range(len(ROW_ORDER))]
             out.append(encode("ENVELOPE_THRESHOLDS_A", {**head, "row_index": 8, **dict(zip(_A, node[8], strict=True))}))
             out.append(encode("ENVELOPE_THRESHOLDS_B", {**head, "row_index": 9, **dict(zip(_B, node[9], strict=True))}))
@@ -147,11 +143,11 @@ class WireEnvelope:
         tables = []
         for node in self.nodes:
             rows = tuple(DeviceRow(j, s, *(to_physical("ENVELOPE_ROW", f, raw)
-                                           for raw, f in zip(node[i], _ROW, strict=True)))
+                                           for raw, f in zip(node[i], ROW_SIGNALS, strict=True)))
                          for i, (j, s) in enumerate(ROW_ORDER))
-            values = {_THRESHOLD_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_A", f, raw)
+            values = {SIGNAL_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_A", f, raw)
                       for raw, f in zip(node[8], _A, strict=True)}
-            values |= {_THRESHOLD_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_B", f, raw)
+            values |= {SIGNAL_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_B", f, raw)
                        for raw, f in zip(node[9], _B, strict=True)}
             tables.append(DeviceTable(rows=rows, thresholds=Thresholds(**values), body_mass_kg=mass))
         return DeviceEnvelope(speeds_mps=tuple(axis(v) for v in self.speeds),
@@ -241,7 +237,7 @@ class EnvelopeReceiver:
             return
         i = raw["row_index"]
         if name == "ENVELOPE_ROW" and i < len(ROW_ORDER):
-            self.rows.setdefault((node, i), tuple(raw[f] for f in _ROW))
+            self.rows.setdefault((node, i), tuple(raw[f] for f in ROW_SIGNALS))
         elif name == "ENVELOPE_THRESHOLDS_A" and i == 8:
             self.rows.setdefault((node, i), tuple(raw[f] for f in _A))
         elif name == "ENVELOPE_THRESHOLDS_B" and i == 9:

@@ -121,7 +121,7 @@ def frame_id(name: str) -> int:
     return message(name).frame_id
 
 
-def _scale(msg_name: str, signal: str) -> float:
+def signal_scale(msg_name: str, signal: str) -> float:
     return float(message(msg_name).get_signal_by_name(signal).scale)
 
 
@@ -129,7 +129,7 @@ def to_physical(msg_name: str, signal: str, raw: int) -> float:
     """A raw wire integer in the signal's unit, as host and device both compute it: divided by the whole number of
     quanta per unit where there is one (raw 316 at 0.001 gives exactly the double nearest 0.316, so a value shown
     and stored reads as the decimal it is), else multiplied by the quantum."""
-    scale = _scale(msg_name, signal)
+    scale = signal_scale(msg_name, signal)
     per_unit = round(1.0 / scale)
     return raw / per_unit if abs(per_unit * scale - 1.0) < 1e-12 else raw * scale
 
@@ -192,19 +192,20 @@ def physical(name: str, raw: dict[str, int]) -> dict[str, float]:
 
 # --------------------------------------------------------------------------------------------- tables
 
-_ROW_FIELDS = ("k", "theta_e", "b")
-_THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load", "sf_to_se_knee_extension")
-_THRESH_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time")
-_THRESH_TABLE_FIELDS = {   # wire signal -> Thresholds field
+ROW_SIGNALS = ("k", "theta_e", "b")   # an impedance row's signals, in frame order (tables and envelope nodes)
+# the one map from a wire signal to the table field it carries (rows: ParameterRow; thresholds: Thresholds)
+SIGNAL_FIELDS = {
+    "k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s_per_rad",
     "sf_to_se_ankle_moment": "sf_to_se_ankle_moment_Nm", "se_to_wf_load": "se_to_wf_load_N",
     "we_to_sf_load": "we_to_sf_load_N", "wf_to_we_knee_angle": "wf_to_we_knee_angle_deg",
     "min_state_time": "min_state_time_s", "max_state_time": "max_state_time_s",
     "sf_to_se_knee_extension": "sf_to_se_knee_extension_deg_per_s",
 }
-_ROW_TABLE_FIELDS = {"k": "k_Nm_per_rad", "theta_e": "theta_e_deg", "b": "b_Nm_s_per_rad"}
+_THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load", "sf_to_se_knee_extension")
+_THRESH_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time")
 
 
-def _quantize(msg_name: str, signal: str, value: float, field: str) -> int:
+def quantize(msg_name: str, signal: str, value: float, field: str) -> int:
     s = message(msg_name).get_signal_by_name(signal)
     lo, hi = _raw_range(s)
     scaled = value / s.scale
@@ -265,14 +266,14 @@ class WireTable:
         rows = []
         for joint, sub in ROW_ORDER:
             r = table.row(joint, sub)
-            rows.append(tuple(_quantize("TABLE_ROW", f, getattr(r, _ROW_TABLE_FIELDS[f]),
-                                        f"{joint}.{sub}.{_ROW_TABLE_FIELDS[f]}") for f in _ROW_FIELDS))
+            rows.append(tuple(quantize("TABLE_ROW", f, getattr(r, SIGNAL_FIELDS[f]),
+                                        f"{joint}.{sub}.{SIGNAL_FIELDS[f]}") for f in ROW_SIGNALS))
         t = table.thresholds
-        th = [_quantize("TABLE_THRESHOLDS_A", f, getattr(t, _THRESH_TABLE_FIELDS[f]),
-                        f"thresholds.{_THRESH_TABLE_FIELDS[f]}") for f in _THRESH_A]
-        th += [_quantize("TABLE_THRESHOLDS_B", f, getattr(t, _THRESH_TABLE_FIELDS[f]),
-                         f"thresholds.{_THRESH_TABLE_FIELDS[f]}") for f in _THRESH_B]
-        mass = _quantize("TABLE_BODY", "body_mass", table.body_mass_kg, "body_mass_kg")
+        th = [quantize("TABLE_THRESHOLDS_A", f, getattr(t, SIGNAL_FIELDS[f]),
+                        f"thresholds.{SIGNAL_FIELDS[f]}") for f in _THRESH_A]
+        th += [quantize("TABLE_THRESHOLDS_B", f, getattr(t, SIGNAL_FIELDS[f]),
+                         f"thresholds.{SIGNAL_FIELDS[f]}") for f in _THRESH_B]
+        mass = quantize("TABLE_BODY", "body_mass", table.body_mass_kg, "body_mass_kg")
         return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass)  # type: ignore[arg-type]
 
     def crc32(self) -> int:
@@ -283,10 +284,10 @@ class WireTable:
     def to_device_table(self) -> DeviceTable:
         """The physical values the device runs (raises pydantic's ValidationError on a non-physical threshold)."""
         rows = tuple(DeviceRow(joint, sub, *(to_physical("TABLE_ROW", f, raw)
-                                             for raw, f in zip(r, _ROW_FIELDS, strict=True)))
+                                             for raw, f in zip(r, ROW_SIGNALS, strict=True)))
                      for (joint, sub), r in zip(ROW_ORDER, self.rows, strict=True))
         names = [("TABLE_THRESHOLDS_A", f) for f in _THRESH_A] + [("TABLE_THRESHOLDS_B", f) for f in _THRESH_B]
-        values = {_THRESH_TABLE_FIELDS[f]: to_physical(m, f, raw)
+        values = {SIGNAL_FIELDS[f]: to_physical(m, f, raw)
                   for (m, f), raw in zip(names, self.thresholds, strict=True)}
         return DeviceTable(rows=rows, thresholds=Thresholds(**values),
                            body_mass_kg=to_physical("TABLE_BODY", "body_mass", self.body_mass))
@@ -309,7 +310,7 @@ class WireTable:
         """(row index, raw values) of a decoded data frame; None when its index does not belong to its kind."""
         i = raw["row_index"]
         if name == "TABLE_ROW" and i < THRESHOLDS_A_INDEX:
-            return i, tuple(raw[f] for f in _ROW_FIELDS)
+            return i, tuple(raw[f] for f in ROW_SIGNALS)
         if name == "TABLE_THRESHOLDS_A" and i == THRESHOLDS_A_INDEX:
             return i, tuple(raw[f] for f in _THRESH_A)
         if name == "TABLE_THRESHOLDS_B" and i == THRESHOLDS_B_INDEX:
@@ -338,8 +339,8 @@ def commit_frame(transfer_id: int, version: int, crc32: int) -> can.Message:
 
 def with_device_values(table: ParameterTable, device: DeviceTable) -> ParameterTable:
     """``table`` with every row and threshold value replaced by the device's (provenance and fit notes kept)."""
-    rows = [r.model_copy(update={f: getattr(device.row(r.joint, r.subphase), f) for f in _ROW_TABLE_FIELDS.values()})
-            for r in table.rows]
+    fields = [SIGNAL_FIELDS[s] for s in ROW_SIGNALS]
+    rows = [r.model_copy(update={f: getattr(device.row(r.joint, r.subphase), f) for f in fields}) for r in table.rows]
     return table.model_copy(update={"rows": rows, "thresholds": device.thresholds})
 
 

@@ -35,7 +35,7 @@ MID_STANCE = (0.15, 0.40)
 HARMONICS = 12   # harmonics kept when smoothing the periodic socket signals
 
 
-def _fourier(values: np.ndarray, harmonics: int) -> tuple[np.ndarray, np.ndarray]:
+def fourier_coefficients(values: np.ndarray, harmonics: int) -> tuple[np.ndarray, np.ndarray]:
     """Cosine/sine coefficients (a, b) of a periodic signal sampled on [0, 1) (last grid point dropped)."""
     y = values[:-1] if values.shape[0] == 101 else values
     n = y.shape[0]
@@ -83,7 +83,7 @@ def stance_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, 
     return g.contact_radius_m - lowest
 
 
-def _grid_hip_heights_m(ref: WalkingReference, thigh: np.ndarray, geometry: LegGeometry) -> tuple[np.ndarray, np.ndarray]:
+def grid_hip_heights_m(ref: WalkingReference, thigh: np.ndarray, geometry: LegGeometry) -> tuple[np.ndarray, np.ndarray]:
     """(hip height target, height at which the ipsilateral reference leg touches) on the reference grid (m)."""
     s_grid = ref.phase
     h_ipsi = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, geometry, ref.incline_deg)
@@ -114,8 +114,8 @@ def hip_height_mismatch_mm(ref: WalkingReference, geometry: LegGeometry, harmoni
     what they do to the stance knee.
     """
     thigh = thigh_angle_rad(ref, ref.incline_deg)
-    height, h_ipsi = _grid_hip_heights_m(ref, thigh, geometry)
-    a, b = _fourier(height, harmonics)
+    height, h_ipsi = grid_hip_heights_m(ref, thigh, geometry)
+    a, b = fourier_coefficients(height, harmonics)
     smooth, _ = _eval_fourier(a, b, ref.phase)
     excess = smooth - h_ipsi
     stance = ref.phase <= ref.toe_off_phase
@@ -157,13 +157,13 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
     incline = ref.incline_deg
     s_grid = ref.phase
     thigh = thigh_angle_rad(ref, incline)
-    height, _ = _grid_hip_heights_m(ref, thigh, geometry)
+    height, _ = grid_hip_heights_m(ref, thigh, geometry)
     T = ref.stride_time_s
     n = round(seconds / timestep_s)
     t = t0_s + np.arange(n) * timestep_s
     s = (start_phase + t / T) % 1.0
-    a_h, b_h = _fourier(height, harmonics)
-    a_t, b_t = _fourier(thigh, harmonics)
+    a_h, b_h = fourier_coefficients(height, harmonics)
+    a_t, b_t = fourier_coefficients(thigh, harmonics)
     h, dh = _eval_fourier(a_h, b_h, s)
     th, dth = _eval_fourier(a_t, b_t, s)
     alpha = math.radians(incline)

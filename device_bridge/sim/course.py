@@ -31,7 +31,13 @@ import numpy as np
 from controller_core.task import validate_task
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference, sloped_walking_reference
-from device_bridge.sim.bench_trajectory import HARMONICS, BenchTrajectory, _fourier, _grid_hip_heights_m, thigh_angle_rad
+from device_bridge.sim.bench_trajectory import (
+    HARMONICS,
+    BenchTrajectory,
+    fourier_coefficients,
+    grid_hip_heights_m,
+    thigh_angle_rad,
+)
 from device_bridge.sim.leg_model import LegGeometry
 
 TERRAIN_STEP_M = 0.02
@@ -179,9 +185,9 @@ def _pattern(speed_mps: float, incline_deg: float, body_height_m: float) -> tupl
     ref = task_pattern(speed_mps, incline_deg)
     geometry = LegGeometry(body_height_m=body_height_m)
     thigh = thigh_angle_rad(ref, incline_deg)
-    height, _ = _grid_hip_heights_m(ref, thigh, geometry)
-    a_t, b_t = _fourier(thigh, HARMONICS)
-    a_h, b_h = _fourier(height, HARMONICS)
+    height, _ = grid_hip_heights_m(ref, thigh, geometry)
+    a_t, b_t = fourier_coefficients(thigh, HARMONICS)
+    a_h, b_h = fourier_coefficients(height, HARMONICS)
     return np.concatenate([a_t, b_t, a_h, b_h]), np.interp(LOAD_GRID, ref.phase, ref.vgrf_bw), ref.stride_time_s
 
 

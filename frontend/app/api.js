@@ -1,4 +1,5 @@
 // The API client: bearer token in sessionStorage (gone with the tab), JSON in and out, errors people can read.
+import { loginHash } from "./state.js";
 
 const TOKEN_KEY = "quasitune.token";
 
@@ -35,8 +36,7 @@ export async function api(path, { method = "GET", body } = {}) {
   if (!r.ok) {
     if (r.status === 401) {
       signOut();
-      const here = location.hash;   // back to this page after signing in again
-      location.hash = here.startsWith("#/") && !here.startsWith("#/login") ? `#/login?next=${encodeURIComponent(here)}` : "#/login";
+      location.hash = loginHash();   // back to this page after signing in again
     }
     throw new ApiError(r.status, data.detail || `${method} ${path} failed (${r.status})`, data);
   }

@@ -1,6 +1,7 @@
 // Hash router: #/login(?next=…), #/audit, #/patients, #/patients/:id, #/proposals/:id, #/envelopes/:id(/nodes/:i/:j), #/monitor/:deviceId, #/sessions/:id/report
 import { get, post, signOut, token } from "./api.js";
 import { h, notice } from "./ui.js";
+import { app, loginHash } from "./state.js";
 import { loginPage } from "./pages/login.js";
 import { auditPage } from "./pages/audit.js";
 import { patientsPage } from "./pages/patients.js";
@@ -28,8 +29,6 @@ const routes = [
   [/^#\/audit$/, auditPage],
 ];
 
-export const app = { me: null, cleanup: [] };
-window.quasitune = app;   // read by the browser tests and the UI benchmark (timings, frame rates)
 
 async function whoAmI() {
   if (!token()) return null;
@@ -100,15 +99,6 @@ async function firstDevice(view) {
     "No device is configured on this server (start it with quasitune serve --device sim or INTERFACE:CHANNEL)."));
 }
 
-// the sign-in page, remembering the page asked for (only pages of this app: a hash route, never a URL elsewhere)
-export function loginHash() {
-  const here = location.hash;
-  return here && here.startsWith("#/") && !here.startsWith("#/login") ? `#/login?next=${encodeURIComponent(here)}` : "#/login";
-}
-
-export function onLeave(fn) {
-  app.cleanup.push(fn);
-}
 
 window.addEventListener("hashchange", route);
 route();

@@ -197,3 +197,8 @@ export function momentToggle(mass, onChange) {
   return h("fieldset", { class: "toggle", id: "moment-unit" }, h("legend", {}, "Moments in"),
     radio("Nm", `N·m (this patient, ${fmt(mass, 1)} kg)`), radio("Nm_per_kg", "N·m/kg (per kg of body mass)"));
 }
+
+// an envelope's grid in words: "0.6–1.6 m/s × -10…10°"
+export function rangeText(e) {
+  return `${fmt(e.speeds_mps[0], 1)}–${fmt(e.speeds_mps.at(-1), 1)} m/s × ${fmt(e.inclines_deg[0], 0)}…${fmt(e.inclines_deg.at(-1), 0)}°`;
+}

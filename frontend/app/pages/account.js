@@ -1,7 +1,7 @@
 // Your own password: changed here, and first of all when someone else chose it (the printed one-time password, or
 // one an admin typed): until then the server refuses everything else.
 import { post } from "../api.js";
-import { app } from "../main.js";
+import { app } from "../state.js";
 import { h, notice } from "../ui.js";
 
 export async function passwordPage(view) {

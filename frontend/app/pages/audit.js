@@ -1,7 +1,7 @@
 // The audit log for prosthetists and admins: every state change, newest first, who, when, what, and the values
 // before and after; filtered by what it concerns and by whom, paged (the server's GET /api/audit).
 import { get } from "../api.js";
-import { app } from "../main.js";
+import { app } from "../state.js";
 import { h, table, when } from "../ui.js";
 
 const ENTITIES = ["proposal", "envelope", "device", "session", "patient", "user"];

@@ -3,12 +3,12 @@
 // or at one node) make a new draft; decide once; push; the bench preview walks the varying-task course with this
 // envelope and with the FSMIC, safety figures first.
 import { get, post } from "../api.js";
-import { app, onLeave } from "../main.js";
-import { envelopeMap, nodeGrid } from "../envelope_map.js";
-import { BENCH_CHIP, renderDecision } from "../decision_panel.js";
-import { renderPush } from "../push_panel.js";
-import { safetyFigures } from "./proposal.js";
-import { chip, extrapolationChip, fieldWords, fmt, h, inWords, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+import { app, onLeave } from "../state.js";
+import { envelopeMap, nodeGrid } from "../widgets/envelope_map.js";
+import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
+import { renderPush } from "../widgets/push_panel.js";
+import { safetyFigures } from "../widgets/proposal_views.js";
+import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
 // darker reads the same way on every map: firmer (k more negative, more damping), or more flexion / dorsiflexion
 const QUANTITIES = {
@@ -37,9 +37,6 @@ const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "w
   not_on_device: ["no longer on the leg (the leg reported it does not hold it)", "bad"],
   push_failed: ["last push failed", "bad"] };
 
-export function rangeText(e) {
-  return `${fmt(e.speeds_mps[0], 1)}–${fmt(e.speeds_mps.at(-1), 1)} m/s × ${fmt(e.inclines_deg[0], 0)}…${fmt(e.inclines_deg.at(-1), 0)}°`;
-}
 
 export async function envelopePage(view, id, params) {
   const [e, ref] = await Promise.all([get(`/api/envelopes/${id}`), get("/api/reference")]);

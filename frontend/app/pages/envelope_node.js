@@ -2,9 +2,9 @@
 // GPR features at the node's task (the model's prediction there), and the node's own table as the envelope holds it
 // (fitted, held to the neighbour rule, edited). Read-only: an envelope is edited as a whole, on its page.
 import { get } from "../api.js";
-import { legend } from "../charts.js";
-import { drawCurves, drawLoops, explainVias, featureTable, reference } from "./proposal.js";
-import { parameterTable } from "./parameter_table.js";
+import { legend } from "../widgets/charts.js";
+import { drawCurves, drawLoops, explainVias, featureTable, reference } from "../widgets/proposal_views.js";
+import { parameterTable } from "../widgets/parameter_table.js";
 import { chip, fieldWords, fmt, h, momentToggle, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table } from "../ui.js";
 
 export async function envelopeNodePage(view, id, i, j) {

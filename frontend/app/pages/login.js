@@ -1,5 +1,5 @@
 import { signIn } from "../api.js";
-import { app } from "../main.js";
+import { app } from "../state.js";
 import { get } from "../api.js";
 import { h } from "../ui.js";
 

@@ -1,9 +1,10 @@
 // Live monitoring of a device: status, safe mode, walking session start/stop, telemetry charts, the 3D view.
 import { del, get, post, put, token } from "../api.js";
-import { app, onLeave } from "../main.js";
-import { liveChart } from "../charts.js";
-import { legView } from "../leg_view.js";
-import { adaptivePanel } from "../adaptive_panel.js";
+import { app, onLeave } from "../state.js";
+import { liveChart } from "../widgets/charts.js";
+import { legView } from "../widgets/leg_view.js";
+import { adaptivePanel } from "../widgets/adaptive_panel.js";
+import { headline, offTable } from "../widgets/session_views.js";
 import { bodyWeightN, chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
 
 // the device's fault flags (DEVICE_HEALTH), as the leg reports them, in a prosthetist's words
@@ -358,18 +359,10 @@ function summaryTable(s) {
   const m = s.summary;
   return h("div", { id: "session-summary" },
     offTable(m),
-    table(["Strides scored / walked", "Cadence (steps/min)", "Knee angle RMSE (deg)", "Ankle angle RMSE (deg)", "Missing samples"],
+    headline(m.headline),
+    table(["Strides scored / walked", "Cadence (steps/min)", "Missing samples"],
       [h("tr", {}, h("td", { class: "num" }, `${m.strides_scored ?? m.strides} / ${m.strides}`), h("td", { class: "num" }, fmt(m.cadence_steps_per_min, 1)),
-        h("td", { class: "num" }, fmt(m.knee_angle_rmse_deg, 1)), h("td", { class: "num" }, fmt(m.ankle_angle_rmse_deg, 1)),
         h("td", { class: "num" }, m.missing_samples))]),
     h("p", {}, h("a", { href: `#/sessions/${s.id}/report`, id: "report-link" }, "Open the session report")));
 }
 
-// Time the leg did not run its table during a session, said before any error figure
-export function offTable(m) {
-  if (!m.strides_off_table && !m.off_table_s) return null;
-  const modes = m.mode_s || {};
-  return h("p", { class: "notice-inline bad", id: "off-table" }, `The leg did not run its table for ${fmt(m.off_table_s, 1, "s")}`,
-    modes.safe ? ` (safe mode ${fmt(modes.safe, 1, "s")})` : "", modes.no_table ? ` (no table ${fmt(modes.no_table, 1, "s")})` : "",
-    `: ${m.strides_off_table} of ${m.strides} strides are left out of the errors below, which describe the table only.`);
-}

@@ -1,7 +1,6 @@
 import { api, get, post } from "../api.js";
-import { app } from "../main.js";
-import { chip, extrapolationChip, fmt, h, modeWords, table, tableName, when } from "../ui.js";
-import { rangeText } from "./envelope.js";
+import { app } from "../state.js";
+import { chip, extrapolationChip, fmt, h, modeWords, rangeText, table, tableName, when } from "../ui.js";
 
 export async function patientPage(view, id) {
   const [patient, proposals, envelopes, sessions, devices, trend, range] = await Promise.all([

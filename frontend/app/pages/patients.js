@@ -1,5 +1,5 @@
 import { get, post } from "../api.js";
-import { app } from "../main.js";
+import { app } from "../state.js";
 import { h, table, when } from "../ui.js";
 
 export async function patientsPage(view) {

@@ -1,7 +1,7 @@
 // The printable session report (Print → the browser's PDF, or the server's PDF export).
 import { get, token } from "../api.js";
-import { phaseChart } from "../charts.js";
-import { offTable } from "./monitor.js";
+import { phaseChart } from "../widgets/charts.js";
+import { headline, offTable } from "../widgets/session_views.js";
 import { chip, fmt, h, notice, referenceLabel, table, when } from "../ui.js";
 
 const MIN_STRIDES = 5;   // the server's (controller_core.session_regions.MIN_STRIDES_TO_JUDGE): fewer are too few to judge
@@ -71,20 +71,6 @@ export async function reportPage(view, id) {
   }
 }
 
-// The session's headline: each stride's angle error against the reference at its own task, averaged; too few
-// strides are said to be too few instead of shown as a figure
-export function headline(head) {
-  if (!head) return null;
-  if (!head.enough_strides) {
-    return h("p", { class: "banner warn", id: "report-headline" }, h("strong", {}, "Too few strides to judge: "),
-      `${head.strides_scored} scored, at least ${head.min_strides} needed for the errors to mean anything.`);
-  }
-  return h("div", { class: "headline", id: "report-headline" },
-    h("p", {}, h("strong", {}, "Angle error per stride: "), `knee ${fmt(head.knee_angle_rmse_deg, 1, "deg")}, `
-      + `ankle ${fmt(head.ankle_angle_rmse_deg, 1, "deg")}`),
-    h("p", { class: "muted small" }, `RMSE of each of ${head.strides_scored} strides against the able-bodied reference `
-      + `at ${head.against}, averaged.`));
-}
 
 // Where in its envelope the leg walked (its own estimate of the task), and how well, per node's region
 function adaptiveSection(a) {

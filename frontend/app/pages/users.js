@@ -1,7 +1,7 @@
 // Accounts (admin): who may sign in, with which role; disable an account (its sessions end at once), give a
 // forgotten password a one-time replacement, add a user with a one-time password.
 import { get, patch, post, put } from "../api.js";
-import { app } from "../main.js";
+import { app } from "../state.js";
 import { chip, confirmDialog, h, notice, table, when } from "../ui.js";
 
 export async function usersPage(view) {

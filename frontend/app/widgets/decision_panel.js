@@ -2,8 +2,8 @@
 // outside the parameter limits cannot be approved. Approval rests on the bench: with its preview not walked yet, or
 // showing an unsafe figure, Approve needs a written override (20 characters at least; audited and shown wherever the
 // version is shown). The card follows the preview when it finishes, without losing what was typed.
-import { get, post } from "./api.js";
-import { fmt, h, notice, table, when } from "./ui.js";
+import { get, post } from "../api.js";
+import { fmt, h, notice, table, when } from "../ui.js";
 
 export const BENCH_CHIP = { clean: "ok", warnings: "warn", unsafe: "bad", not_walked: "" };
 

@@ -1,7 +1,7 @@
 // Charts: uPlot (npm) for signals over the gait cycle or over time; an SVG of our own for torque-angle loops,
 // which are closed x-y curves (uPlot wants x sorted).
 import uPlot from "/vendor/uplot/uPlot.esm.js";
-import { h } from "./ui.js";
+import { h } from "../ui.js";
 
 const BAND_ALPHA = "33";
 

@@ -2,7 +2,7 @@
 // angles as measured (flexion and dorsiflexion +), the foot coloured by pylon load. The device measures no hip
 // angle, so the thigh is drawn upright. Segment lengths: the simulated leg's proportions of a 1.75 m body
 // (device_bridge/sim/leg_model.py), for drawing only.
-import { h } from "./ui.js";
+import { h } from "../ui.js";
 
 const THIGH_M = 0.43, SHANK_M = 0.43, FOOT_M = 0.27, HEEL_FRACTION = 0.2;
 const RAD = Math.PI / 180;

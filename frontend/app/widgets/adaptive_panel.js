@@ -3,7 +3,7 @@
 // runs, as the device blends them), and an unmistakable banner when it is clamped at the envelope's edge, fell back
 // to its nominal task, or is in safe mode.
 import { envelopeMap, nodeGrid } from "./envelope_map.js";
-import { fmt, h, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table } from "./ui.js";
+import { fmt, h, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table } from "../ui.js";
 
 const TRAIL = 12;   // strides: the estimate changes once per stride
 

@@ -1,9 +1,9 @@
 // The "Device" card of a table or an envelope: its pushes, the device to send it to (assigned to the patient, or
 // assign it here), a confirmation that names what the leg runs now and what replaces it, then the live steps:
 // sent → CRC read back → running at the next heel strike.
-import { get, post, put } from "./api.js";
+import { get, post, put } from "../api.js";
 import { benchFigures } from "./decision_panel.js";
-import { chip, confirmDialog, fmt, h, table, tableName, when } from "./ui.js";
+import { chip, confirmDialog, fmt, h, table, tableName, when } from "../ui.js";
 
 // item: the proposal or envelope; kind "table" | "envelope"; name: its one name; what: its name with its task in
 // words; path: its API path (…/push, …/pushes); patient: its patient.

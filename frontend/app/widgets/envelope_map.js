@@ -2,7 +2,7 @@
 // with its unit, nodes outside the training data hatched, the measured walking conditions as dots, and (live
 // monitor) the leg's estimated task as a moving point with a short trail. Speed runs left → right (m/s), incline
 // bottom → top (deg, + uphill).
-import { fmt } from "./ui.js";
+import { fmt } from "../ui.js";
 
 const NS = "http://www.w3.org/2000/svg";
 const W = 300, H = 262, L = 44, R = 8, T = 24, B = 64;

@@ -1,0 +1,96 @@
+"""The code's shape holds: imports point down (backend → device_bridge → controller_core), no module imports one that
+imports it back (Python and the dashboard's JavaScript), no private name crosses a module, and no dashboard page
+imports another page or the router."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("controller_core", "device_bridge", "backend", "benchmarks", "tests")
+LAYER = {"controller_core": 0, "device_bridge": 1, "backend": 2}
+
+
+def _python_modules() -> dict[str, Path]:
+    out = {}
+    for package in PACKAGES:
+        for path in (ROOT / package).rglob("*.py"):
+            name = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+            out[name.removesuffix(".__init__")] = path
+    return out
+
+
+def _module_imports(modules: dict[str, Path]) -> dict[str, list[tuple[str, str]]]:
+    """Per module, its module-level imports of our modules as (module, name) (``if TYPE_CHECKING`` left out)."""
+    out: dict[str, list[tuple[str, str]]] = {}
+    for name, path in modules.items():
+        found = []
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                for alias in node.names:
+                    full = f"{node.module}.{alias.name}"
+                    if full in modules:
+                        found.append((full, ""))
+                    elif node.module in modules:
+                        found.append((node.module, alias.name))
+            elif isinstance(node, ast.Import):
+                found += [(alias.name, "") for alias in node.names if alias.name in modules]
+        out[name] = found
+    return out
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    colour: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(u: str) -> None:
+        colour[u] = 1
+        stack.append(u)
+        for v in sorted(graph.get(u, ())):
+            if colour.get(v) == 1:
+                found.append([*stack[stack.index(v):], v])
+            elif not colour.get(v):
+                visit(v)
+        stack.pop()
+        colour[u] = 2
+
+    for node in sorted(graph):
+        if not colour.get(node):
+            visit(node)
+    return found
+
+
+def test_python_imports_point_down_and_never_close_a_circle():
+    modules = _python_modules()
+    imports = _module_imports(modules)
+    upward = [(m, target) for m, found in imports.items() for target, _ in found
+              if m.split(".")[0] in LAYER and target.split(".")[0] in LAYER
+              and LAYER[target.split(".")[0]] > LAYER[m.split(".")[0]]]
+    assert upward == []
+    assert _cycles({m: {t for t, _ in found if t != m} for m, found in imports.items()}) == []
+
+
+def test_no_private_name_is_imported_from_another_module():
+    modules = _python_modules()
+    crossing = [(m, target, name) for m, found in _module_imports(modules).items() for target, name in found
+                if name.startswith("_") and not name.startswith("__") and target != m]
+    assert crossing == []
+
+
+_JS_IMPORT = re.compile(r"""^\s*import\s+(?:[^"']*?\s+from\s+)?["'](\.[^"']+)["']""", re.M)
+
+
+def test_the_dashboard_modules_form_no_circle_and_pages_import_no_page_nor_the_router():
+    app = (ROOT / "frontend" / "app").resolve()
+    graph = {path: {(path.parent / dep).resolve() for dep in _JS_IMPORT.findall(path.read_text())}
+             for path in app.rglob("*.js")}
+    missing = [(str(a.relative_to(app)), str(b)) for a, deps in graph.items() for b in deps if not b.exists()]
+    assert missing == []
+    named = {str(k.relative_to(app)): {str(d.relative_to(app)) for d in v} for k, v in graph.items()}
+    assert _cycles(named) == []
+    pages = {k: v for k, v in named.items() if k.startswith("pages/")}
+    assert {k: sorted(d for d in v if d.startswith("pages/") or d == "main.js") for k, v in pages.items()} == {
+        k: [] for k in pages}
