@@ -258,11 +258,13 @@ class DeviceManager:
         """Record the device's telemetry into ``session_id``; a simulated leg starts walking at the task, or walks
         the course."""
         dev = self.get(device_id)
-        self.recorder.begin(device_id, session_id)
+        # the simulated patient sets off first (planning a course takes a moment, stood still), then the recording
+        # begins: the session holds the walk, not the stance before it
         if dev.walker is not None and course is not None:
             dev.walker.start_course(course, mass_kg)
         elif dev.walker is not None and reference is not None:
             dev.walker.start(reference, mass_kg)
+        self.recorder.begin(device_id, session_id)
 
     def stop_recording(self, device_id: str) -> list[dict]:
         """Stop recording (everything received so far is written before this returns). Returns what the device's

@@ -17,6 +17,7 @@ what a standing patient's sensors show, so that the clinic sees live signals whe
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 
 import numpy as np
 
@@ -50,6 +51,10 @@ class SimWalker:
         self._course: tuple[Course, CourseTrajectory] | None = None
         self._standing_kg: float | None = None   # body mass of the patient standing on the leg, or None
         self._standing_ticks = 0
+        # one clock for every reading, as a real leg's: each walk's physics starts at 0 s, so its readings are shifted
+        # to follow the last one given (a clock that jumped back would freeze the state machine's dwell times)
+        self._offset_s = 0.0
+        self._last_s = 0.0
 
     @property
     def walking(self) -> bool:
@@ -67,10 +72,11 @@ class SimWalker:
         with self._lock:
             self._leg, self._ref, self._sample, self._course = None, None, None, None
             self._standing_kg, self._standing_ticks = float(mass_kg), 0
+            self._offset_s = self._last_s + STANDING_TIMESTEP_S
 
     def _standing_sample(self) -> SensorSample:
         """Quiet standing at the current tick (see the module docstring)."""
-        t = self._standing_ticks * STANDING_TIMESTEP_S
+        t = self._offset_s + self._standing_ticks * STANDING_TIMESTEP_S
         w = 2.0 * np.pi * STANDING_SWAY_HZ
         sway, rate = float(np.sin(w * t)), float(w * np.cos(w * t))
         weight = float(self._standing_kg or 0.0) * G_MPS2
@@ -107,6 +113,7 @@ class SimWalker:
                            float(np.interp(s0, reference.phase, reference.ankle_angle_rad)))
         with self._lock:
             self._standing_kg = None
+            self._offset_s = self._last_s + leg.timestep_s - sample.time_s
             self._leg, self._ref, self._mass, self._course = leg, reference, float(mass_kg), None
             self._chunk_end_tick, self._ticks, self._sample = traj.time_s.shape[0], 0, sample
 
@@ -118,6 +125,7 @@ class SimWalker:
         sample = leg.reset(traj.bench, *angles)
         with self._lock:
             self._standing_kg = None
+            self._offset_s = self._last_s + leg.timestep_s - sample.time_s
             self._leg, self._ref, self._mass, self._course = leg, None, float(mass_kg), (course, traj)
             self._chunk_end_tick, self._ticks, self._sample = traj.bench.time_s.shape[0], 0, sample
 
@@ -128,10 +136,15 @@ class SimWalker:
             self._standing_kg = None
 
     def sample(self) -> SensorSample | None:
-        """The sensors now: walking, standing, or None while nobody wears the leg."""
+        """The sensors now: walking, standing, or None while nobody wears the leg (on one monotonic clock)."""
         if self._leg is None and self._standing_kg is not None:
-            return self._standing_sample()
-        return self._sample
+            out = self._standing_sample()
+        elif self._sample is None:
+            return None
+        else:
+            out = replace(self._sample, time_s=self._sample.time_s + self._offset_s)
+        self._last_s = out.time_s
+        return out
 
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None:
         """Apply the torques for one timestep (nothing while not walking)."""

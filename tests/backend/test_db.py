@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -46,13 +45,11 @@ def test_a_writer_waits_for_another_process_and_then_commits(db_path):
     conn = db.connect(db_path)
     before = _audit_rows(conn)
     holder = _hold(db_path, 0.5)
-    t0 = time.monotonic()
     with db.write_transaction(conn):
-        waited = time.monotonic() - t0
         conn.execute("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'me', 'x', 'y')")
     assert holder.wait(timeout=10) == 0
-    assert waited >= 0.3          # it queued behind the other process's open transaction
-    assert _audit_rows(conn) == [*before, "holder", "me"]    # both committed, in that order
+    # it queued behind the other process's open transaction: both committed, the holder's first
+    assert _audit_rows(conn) == [*before, "holder", "me"]
 
 
 def test_a_writer_gives_up_with_a_clear_error_after_the_busy_timeout(db_path, monkeypatch):

@@ -113,7 +113,10 @@ def test_sigkill_mid_load_loses_no_acknowledged_write(tmp_path):
     threads = [threading.Thread(target=writer, args=(i,)) for i in range(6)]
     for t in threads:
         t.start()
-    time.sleep(2.0)
+    deadline = time.monotonic() + 60
+    while len(acknowledged) <= 20:                 # the load under way, by what the server acknowledged
+        assert time.monotonic() < deadline, "the load did not get going"
+        time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     stop.set()

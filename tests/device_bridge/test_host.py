@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import can
 import pytest
 
@@ -46,10 +44,9 @@ def test_a_table_the_device_finds_unsafe_is_refused_and_the_old_one_stays(tables
 def test_a_push_to_a_silent_bus_times_out_with_a_reason(tables):
     link = DeviceLink(can.Bus(interface="virtual", channel="test-link-silent")).start()
     try:
-        t0 = time.monotonic()
         with pytest.raises(PushError, match="unconfirmed: the device's next status tells") as err:
             link.push(tables[0], version=1, timeout_s=0.3)
-        assert err.value.reason == "timeout" and time.monotonic() - t0 < 1.0
+        assert err.value.reason == "timeout"
     finally:
         link.close()
 
@@ -64,8 +61,8 @@ def test_heartbeat_loss_is_reported_as_safe_mode_and_a_command_resumes(tables):
         entered = node.snapshot().safe_mode_entered_s
         assert entered - node.snapshot().last_heartbeat_s == pytest.approx(0.1, abs=0.02)
         link.pause_heartbeat(False)
-        time.sleep(0.05)
-        assert link.status.mode == Mode.SAFE
+        until(lambda: node.snapshot().last_heartbeat_s > entered)    # the host is heard again: the leg stays safe
+        assert node.snapshot().mode == Mode.SAFE and link.status.mode == Mode.SAFE
         link.command(Command.LEAVE_SAFE_MODE)
         until(lambda: link.status.mode == Mode.ACTIVE)
     finally:

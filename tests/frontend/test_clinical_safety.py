@@ -4,7 +4,7 @@ there is no data and what safe mode means."""
 
 from __future__ import annotations
 
-from tests.helpers.browser import ARTIFACTS, create_patient, create_patient_and_propose, shot, sign_in
+from tests.helpers.browser import ARTIFACTS, create_patient, create_patient_and_propose, next_frames, shot, sign_in
 from tests.helpers.browser import api_call as call
 
 
@@ -100,7 +100,7 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     for width, height in ((1024, 700), (768, 1024)):
         page.set_viewport_size({"width": width, "height": height})
         page.locator(".chart").last.scroll_into_view_if_needed()
-        page.wait_for_timeout(200)
+        next_frames(page)   # the sticky bar settles
         for button in ("#stop-session", "#enter-safe", "#leave-safe"):
             box = page.locator(button).bounding_box()
             assert box is not None and box["y"] >= 0 and box["y"] + box["height"] <= height, (width, button, box)

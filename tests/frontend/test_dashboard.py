@@ -149,7 +149,8 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     assert page.locator("#viewer3d iframe").count() == 0
     assert "P-100 · table v2" in page.inner_text("#active-version")
     shot(page, "05-monitor")
-    page.wait_for_timeout(2500)                                            # a few strides
+    seen = page.evaluate("window.quasitune.monitor.samples")                # a few strides more, by the samples
+    page.wait_for_function("(n) => window.quasitune.monitor.samples > n", arg=seen + 250, timeout=20_000)
     page.click("#stop-session")
     page.click("#stop-dialog-confirm")
     page.wait_for_selector("#session-summary")

@@ -119,7 +119,8 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
         "() => ['adaptive', 'partial', 'nominal'].includes(document.querySelector('#adaptive-state').dataset.state)")
     assert page.locator("#active-values-table tbody tr").count() == 8
     assert "course mixed" in page.inner_text("#bench-task")
-    page.wait_for_timeout(3000)
+    seen = page.evaluate("window.quasitune.monitor.samples")                # three seconds more, by the samples
+    page.wait_for_function("(n) => window.quasitune.monitor.samples > n", arg=seen + 300, timeout=20_000)
     stats = page.evaluate("window.quasitune.monitor")
     shot(page, f"env-{size}-04-monitor")
     page.click("#stop-session")

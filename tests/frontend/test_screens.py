@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from tests.helpers.browser import ARTIFACTS, api_call, create_patient_and_propose, sign_in, watch_errors
+from tests.helpers.browser import ARTIFACTS, api_call, create_patient_and_propose, next_frames, sign_in, watch_errors
 
 SIZES = [(1280, 800), (1024, 700), (768, 1024)]
 
@@ -34,7 +34,10 @@ def pages(server, browser) -> dict[str, str]:
             assert time.monotonic() < deadline
             time.sleep(0.2)
         session = api_call(page, "POST", f"/api/patients/{patient_id}/sessions", {"device_id": "sim-leg-1"})["body"]
-        time.sleep(3.0)
+        deadline = time.monotonic() + 30
+        while api_call(page, "GET", f"/api/sessions/{session['id']}/samples?every=10")["body"]["count"] < 30:
+            assert time.monotonic() < deadline                   # 3 s of the device's samples
+            time.sleep(0.2)
         assert api_call(page, "POST", f"/api/sessions/{session['id']}/stop")["status"] == 200
     finally:
         context.close()
@@ -59,7 +62,7 @@ def test_every_page_fits_the_screen_without_script_errors(server, browser, pages
         for name, route in pages.items():
             page.goto(f"{server}/{route}")
             page.wait_for_selector(READY[name], timeout=30_000)
-            page.wait_for_timeout(400)                       # charts draw on the next animation frames
+            next_frames(page)   # charts draw on the next frames
             overflow = page.evaluate("document.documentElement.scrollWidth - window.innerWidth")
             assert overflow <= 0, f"{name} is {overflow}px wider than a {width} × {height} screen"
             page.screenshot(path=str(out / f"{name}-{width}x{height}.png"), full_page=True)

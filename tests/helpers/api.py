@@ -81,6 +81,18 @@ def wait_for(fetch: Callable[[], object], predicate: Callable[[object], bool], t
         time.sleep(0.02)
 
 
+def wait_recorded(api: Api, session_id: int, seconds: float, timeout_s: float = 60.0) -> None:
+    """Wait until the session holds ``seconds`` of the device's samples (by its 10 ms period, not the host's clock).
+    Polled twice a second: the simulated leg runs in this process, and a busier poll would take its interpreter time
+    (its heartbeat, its physics) and change what it walks."""
+    wanted = round(seconds * 100 / 100)
+    deadline = time.monotonic() + timeout_s
+    while api.client.get(f"/api/sessions/{session_id}/samples", params={"every": 100},
+                         headers=api.as_("viewer")).json()["count"] < wanted:
+        assert time.monotonic() < deadline, f"{seconds} s of samples not recorded in {timeout_s} s"
+        time.sleep(0.5)
+
+
 # approving an envelope needs its bench preview (about ten seconds of the mixed course) or a written override; the
 # tests whose subject is not the approval gate (tests/backend/routers/test_bench_gate.py) take the override
 FIXTURE_OVERRIDE = "test fixture: this test is about what follows approval, not the bench gate"

@@ -92,3 +92,9 @@ _FETCH = """async ([method, path, body]) => {
 def api_call(page, method: str, path: str, body: dict | None = None) -> dict:
     """The API as the signed-in page's user (what a script with the same token could do): status and JSON body."""
     return page.evaluate(_FETCH, [method, path, body])
+
+
+def next_frames(page, frames: int = 2) -> None:
+    """Wait for the page's next animation frames (charts and sticky layouts settle on them): an event, not a clock."""
+    page.evaluate("(n) => new Promise((done) => { const step = (k) => (k ? requestAnimationFrame(() => step(k - 1)) "
+                  ": done()); step(n); })", frames)

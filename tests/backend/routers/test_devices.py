@@ -2,13 +2,20 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 from starlette.websockets import WebSocketDisconnect
 
 from device_bridge.protocol import WireTable
-from tests.helpers.api import DEVICE, approved_proposal, assign, push_body, push_to_leg, wait_for, walk_preview
+from tests.helpers.api import (
+    DEVICE,
+    approved_proposal,
+    assign,
+    push_body,
+    push_to_leg,
+    wait_for,
+    wait_recorded,
+    walk_preview,
+)
 
 
 def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
@@ -54,7 +61,7 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     seqs = [s["seq"] for s in samples]
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
     assert max(s["knee_angle_deg"] for s in samples) - min(s["knee_angle_deg"] for s in samples) > 10
-    time.sleep(1.0)
+    wait_recorded(api, session["id"], 3.6)                                   # the 300 seen, and more
     refused = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer)   # the prosthetist's recording
     assert refused.status_code == 403, refused.text
     assert c.get(f"/api/sessions/{session['id']}", headers=viewer).json()["status"] == "recording"

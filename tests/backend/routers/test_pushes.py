@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import re
-import time
 
 import pytest
 
 from tests.backend.routers.test_envelopes import request_envelope
-from tests.helpers.api import DEVICE, FIXTURE_OVERRIDE, assign, push_body, wait_for
+from tests.helpers.api import DEVICE, FIXTURE_OVERRIDE, assign, push_body, wait_for, wait_recorded
 
 
 def approved_envelope(api, patient_id: int) -> dict:
@@ -99,7 +98,7 @@ def test_a_course_session_records_the_legs_own_task_estimate_and_summarises_it_b
     assert session["table_label"] == "P-001 · envelope v1" and session["task"]["speed_mps"] == 1.0   # first segment
     device = c.get(f"/api/devices/{DEVICE}", headers=viewer).json()
     assert device["bench_task"]["course"] == "mixed"
-    time.sleep(7.0)
+    wait_recorded(api, session["id"], 7.0)                                   # 7 s of the course, by the device
     summary = c.post(f"/api/sessions/{session['id']}/stop", headers=api.as_("prosthetist")).json()["summary"]
     cols = c.get(f"/api/sessions/{session['id']}/samples", headers=viewer).json()["columns"]
     estimates = [v for v in cols["estimated_speed_mps"] if v is not None]

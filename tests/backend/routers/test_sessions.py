@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import json
-import time
 
 from backend.report import report_facts
-from tests.helpers.api import DEVICE, approved_proposal, push_to_leg, wait_for
+from tests.helpers.api import DEVICE, approved_proposal, push_to_leg, wait_for, wait_recorded
 
 
 def test_session_report_pdf(sim_api):
@@ -19,7 +18,7 @@ def test_session_report_pdf(sim_api):
     session = started.json()
     early = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=pro)
     assert early.status_code == 409 and "still recording" in early.json()["detail"]
-    time.sleep(2.5)
+    wait_recorded(api, session["id"], 2.5)
     assert c.post(f"/api/sessions/{session['id']}/stop", headers=pro).status_code == 200
     r = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=api.as_("viewer"))
     assert r.status_code == 200 and r.headers["content-type"] == "application/pdf"

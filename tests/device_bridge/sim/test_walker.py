@@ -77,3 +77,22 @@ def test_standing_refuses_a_body_mass_out_of_range_and_a_walk_ends_the_stance():
     assert walker.state == "standing" and walker.sample() is not None
     walker.start(level_walking_reference(1.2), 80.0)
     assert walker.state == "walking"
+
+
+def test_the_readings_keep_one_clock_from_standing_to_walking_and_back():
+    """A real leg's clock never jumps back; a walk's physics starting at 0 s again would freeze the state machine
+    (its dwell time negative) after the patient had stood a while."""
+    walker = SimWalker()
+    walker.stand(75.0)
+    times = []
+    for _ in range(500):
+        times.append(walker.sample().time_s)
+        walker.step(0.0, 0.0)
+    walker.start(level_walking_reference(1.2), 75.0)
+    for _ in range(500):
+        times.append(walker.sample().time_s)
+        walker.step(0.0, 0.0)
+    walker.stand(75.0)
+    times.append(walker.sample().time_s)
+    steps = np.diff(times)
+    assert np.all(steps > 0) and np.allclose(steps, 0.001, atol=1e-6)
