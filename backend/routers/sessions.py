@@ -92,23 +92,23 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
     times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]))
     modes = np.asarray(cols["mode"], dtype=int)
     running = modes == Mode.ACTIVE
-    reference = task_reference(t["speed_mps"], t["incline_deg"], model, t["body_mass_kg"])
-    summary = summarize_session(times, np.asarray(cols["knee_angle_rad"]),
-                                np.asarray(cols["ankle_angle_rad"]), np.asarray(cols["knee_torque_Nm"]),
-                                np.asarray(cols["ankle_torque_Nm"]), np.asarray(cols["load_N"]), t["body_mass_kg"],
-                                reference, running_table=running)
-    strikes = session_strikes(times, np.asarray(cols["load_N"]), t["body_mass_kg"])
+    knee, ankle, load = (np.asarray(cols[c]) for c in ("knee_angle_rad", "ankle_angle_rad", "load_N"))
+
+    def reference_at(speed_mps: float, incline_deg: float):
+        return task_reference(speed_mps, incline_deg, model, t["body_mass_kg"])
+
+    summary = summarize_session(times, knee, ankle, np.asarray(cols["knee_torque_Nm"]),
+                                np.asarray(cols["ankle_torque_Nm"]), load, t["body_mass_kg"],
+                                reference_at(t["speed_mps"], t["incline_deg"]), running_table=running)
+    strikes = session_strikes(times, load, t["body_mass_kg"])
     if session["envelope_id"] is not None:
         envelope = envelopes.stored_envelope(envelopes.get_row(conn, session["envelope_id"]))
         summary["adaptive"] = adaptive_summary(
-            times, np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]), strikes,
-            _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]), cols["adaptive_mode"],
-            envelope.speeds_mps, envelope.inclines_deg,
-            lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), running_table=running)
+            times, knee, ankle, strikes, _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]),
+            cols["adaptive_mode"], envelope.speeds_mps, envelope.inclines_deg, reference_at, running_table=running)
     stride_tasks, against = _stride_tasks(session, summary, times, strikes)
     summary["headline"] = own_task_errors(
-        np.asarray(cols["knee_angle_rad"]), np.asarray(cols["ankle_angle_rad"]), strikes, stride_tasks,
-        lambda v, g: task_reference(v, g, model, t["body_mass_kg"]), against,
+        knee, ankle, strikes, stride_tasks, reference_at, against,
         scored=[bool(running[a:b + 1].all()) for a, b in itertools.pairwise(strikes)])
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
