@@ -38,8 +38,8 @@ def run(repeats: int = 2000) -> dict[str, float]:
 
     prop = timings(propose, repeats) * 1e3
     feats = model.predict_features(1.3, 2.0)
-    vias = model.via_points("knee", model.joints_["knee"].kmp.mu_ref_, feats)
-    kmp = model.joints_["knee"].kmp
+    kmp = model.joint_reference_.joints_["knee"].kmp
+    vias = model.joint_reference_.via_points("knee", kmp.mu_ref_, feats)
     cached = timings(lambda: kmp.predict(vias), repeats) * 1e3
     uncached = timings(lambda: kmp.predict_uncached(vias), max(50, repeats // 10)) * 1e3
     return {

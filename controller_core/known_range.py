@@ -78,7 +78,7 @@ class KnownRange:
 
 def known_range(model: QuasiStiffnessModel) -> KnownRange:
     """The fitted model's data range (level speeds; the measured ramps' inclines, 0 without ramps) and the margins."""
-    speeds = model.level_speeds_
+    speeds = model.joint_reference_.level_speeds_
     inclines = [0.0, *(r.task.get("incline_deg", 0.0) for r in model.ramps_.records)] if model.ramps_ is not None else [0.0]
     return KnownRange(data_speed_mps=(float(np.min(speeds)), float(np.max(speeds))),
                       data_incline_deg=(float(min(inclines)), float(max(inclines))))
@@ -87,7 +87,7 @@ def known_range(model: QuasiStiffnessModel) -> KnownRange:
 def speed_uncertainty_ratio(model: QuasiStiffnessModel, speeds_mps: np.ndarray) -> np.ndarray:
     """The median over feature GPRs of the predicted SD in units of the spread of that feature's training values,
     along level walking at each speed (the figure the speed margin is chosen from)."""
-    bank = model.feature_bank_
+    bank = model.feature_model_.bank_
     tasks = np.column_stack([np.asarray(speeds_mps, dtype=float), np.zeros(len(speeds_mps))])
     _mean, sd, _out = bank.predict_many(tasks)
     return np.median(sd / bank.y_std[None], axis=1)

@@ -53,7 +53,7 @@ def self_selected_knee_extensor(reference: ReferenceSet) -> tuple[float, float] 
 def train(reference: ReferenceSet, use_published: bool, ramps: ReferenceSet | None = None,
           **params) -> QuasiStiffnessModel:
     """Fit a model on a reference set, plus the shipped published incline features if asked, plus one person's
-    ramp walking (the change a slope makes) if given."""
+    ramp walking (the change a slope makes) if given. ``params``: :class:`QuasiStiffnessModel`'s settings."""
     published = published_points(self_selected_knee_extensor(reference)) if use_published else None
     version = f"quasitune-{PACKAGE_VERSION}+{code_sha256()[:8]}"
     return QuasiStiffnessModel(**({"model_version": version} | params)).fit(reference, published, ramps)
@@ -107,12 +107,19 @@ def load_model(directory: str | Path) -> QuasiStiffnessModel:
     model = joblib.load(path)
     if not isinstance(model, QuasiStiffnessModel):
         raise ValueError(f"{path} does not hold a QuasiStiffnessModel")
-    settings = [p for p in inspect.signature(QuasiStiffnessModel.__init__).parameters if p != "self"]
-    missing = [p for p in settings if not hasattr(model, p)]
+    parts = [model, *(getattr(model, name, None) for name in ("feature_model_", "joint_reference_", "table_rules_"))]
+    missing = [p for part in parts for p in _settings(part) if not hasattr(part, p)]
     if missing:
         raise ValueError(f"the model at {directory!s} was trained by an older QuasiTune and lacks the settings "
                          f"{', '.join(missing)}; re-train it with 'quasitune train'")
     return model
+
+
+def _settings(estimator: object) -> list[str]:
+    """The constructor settings an estimator must carry (every one, for a part the model lacks altogether)."""
+    if estimator is None:
+        return ["feature_model_", "joint_reference_", "table_rules_"]
+    return [p for p in inspect.signature(type(estimator).__init__).parameters if p not in ("self", "args", "kwargs")]
 
 
 def cache_dir() -> Path:

@@ -23,12 +23,14 @@ against ten other people's change from level walking (:mod:`backend.experiments.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 
 from backend.experiments.um21_envelopes import um21_change_check
 from controller_core.features import FEATURES, FeatureSpec, record_features
+from controller_core.joint_reference import JointReference
 from controller_core.model_io import train
 from controller_core.phase_table import load_shipped_ramps
 from controller_core.proposal import FEATURE_UNITS
@@ -66,11 +68,13 @@ def evaluate(reference: ReferenceSet | None = None, ramps: ReferenceSet | None =
     phase_err: dict[str, list[float]] = {f.name: [] for f in FEATURES}
     sd_sq: dict[str, list[float]] = {c: [] for c in CHANNELS}
     folds = []
+    pooled_reference = copy.deepcopy(params.get("joint_reference") or JointReference())
+    pooled_reference.reference_mode = "pooled"      # the GMR baseline: the same settings, one reference for all tasks
     for i, held in enumerate(ref.records):
         keep = [j for j in range(len(ref.records)) if j != i]
         train_ref = ref.subset(keep)
         model = train(train_ref, use_published=True, ramps=ramps, **params)
-        pooled = train(train_ref, use_published=True, ramps=ramps, **(params | {"reference_mode": "pooled"}))
+        pooled = train(train_ref, use_published=True, ramps=ramps, **(params | {"joint_reference": pooled_reference}))
         task, incline = held.task["speed_mps"], held.task.get("incline_deg", 0.0)
         prop = model.propose(task, incline, 75.0)
         base = model.propose(task, incline, 75.0, with_vias=False)

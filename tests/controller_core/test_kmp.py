@@ -109,7 +109,7 @@ def test_kmp_split_mean_and_covariance_systems_match_uncached(knee_kmp, lam_c, v
 
 
 def test_kmp_replaced_points_fast_path_matches_brute_force(model):
-    kmp = model.joints_["knee"].kmp
+    kmp = model.joint_reference_.joints_["knee"].kmp
     n, rng = kmp.s_ref_.size, np.random.default_rng(1)
     for _ in range(2000):
         sv = rng.uniform(0.0, 1.0, rng.integers(1, 6))
@@ -121,7 +121,7 @@ def test_kmp_replaced_points_fast_path_matches_brute_force(model):
 
 @pytest.mark.parametrize(("lam", "gap", "var"), [(1e-3, 1e-5, 1e-10), (1e-2, 1e-7, 1e-10), (0.1, 1e-5, 1e-10)])
 def test_an_ill_conditioned_update_falls_back_to_the_plain_solve(model, lam, gap, var):
-    ref = model.joints_["knee"].kmp
+    ref = model.joint_reference_.joints_["knee"].kmp
     kmp = KMP(length_scale=ref.length_scale, lam=lam, lam_c=lam, via_tolerance=ref.via_tolerance).fit(
         ref.s_ref_, ref.mu_ref_, ref.sigma_ref_, ref.s_query_)
     twins = [ViaPoint(0.3, np.array([0.5, -0.4]), np.eye(2) * var),          # two nearly coincident,
@@ -138,7 +138,7 @@ def test_an_ill_conditioned_update_falls_back_to_the_plain_solve(model, lam, gap
 
 
 def test_the_model_s_own_via_points_take_the_cached_path(model):
-    kmp = model.joints_["knee"].kmp
+    kmp = model.joint_reference_.joints_["knee"].kmp
     before = kmp.fallbacks_
     for speed in (0.8, 1.2, 1.9):
         model.propose(speed, 0.0, 75.0)
@@ -148,7 +148,7 @@ def test_the_model_s_own_via_points_take_the_cached_path(model):
 def test_many_means_in_stacked_solves_are_the_single_solves_means(model):
     """Random via-points (a test of the algebra, not data): groups by via count and replaced points, none, and an
     ill-conditioned pair that must take the single solve's fallback."""
-    kmp = model.joints_["knee"].kmp
+    kmp = model.joint_reference_.joints_["knee"].kmp
     rng = np.random.default_rng(3)
     n = kmp.s_ref_.size
     sets: list[list[ViaPoint]] = [[]]

@@ -11,6 +11,7 @@ import pytest
 from controller_core import InvalidTaskError
 from controller_core.model import QuasiStiffnessModel
 from controller_core.quasi_stiffness import subphase_masks
+from controller_core.table_rules import TableRules
 
 TASKS = [(0.84, 0.0, 60.0), (1.25, 0.0, 75.0), (1.6, 5.0, 90.0), (2.2, -8.0, 75.0)]
 
@@ -98,7 +99,8 @@ def test_bad_tasks_are_refused(model, speed, incline, mass, msg):
 @pytest.mark.parametrize("speed", [0.84, 1.2, 1.6])
 def test_knee_extension_window_fits_the_stance_extension_up_to_the_knee_minimum(model, speed):
     windowed = copy.copy(model)
-    windowed.knee_extension_window = True
+    windowed.table_rules_ = copy.copy(model.table_rules_)
+    windowed.table_rules_.knee_extension_window = True
     p, q = model.propose(speed, 0.0, 75.0), windowed.propose(speed, 0.0, 75.0)
     row = {(r.joint, r.subphase): r for r in q.table.rows}[("knee", "stance_extension")]
     fit = next(f for f in q.fits["knee"] if f.subphase == "stance_extension")
@@ -116,10 +118,8 @@ def test_knee_extension_window_fits_the_stance_extension_up_to_the_knee_minimum(
 
 
 def test_knee_extension_window_setting_is_checked(model):
-    from controller_core.model import QuasiStiffnessModel
-
     with pytest.raises(ValueError, match="knee_extension_window"):
-        QuasiStiffnessModel(knee_extension_window="yes").fit(reference=None)
+        QuasiStiffnessModel(table_rules=TableRules(knee_extension_window="yes")).fit(reference=None)
 
 
 @pytest.mark.parametrize(("speed", "incline", "mass"), TASKS)
@@ -127,13 +127,13 @@ def test_swing_rows_aim_at_the_predicted_swing_targets(model, speed, incline, ma
     p = model.propose(speed, incline, mass)
     rows = {(r.joint, r.subphase): r for r in p.table.rows}
     feature = {f.spec.name: f for f in p.features}
-    knee_wf_stiffness, knee_we_stiffness = model.swing_knee_stiffness_Nm_per_rad_per_kg
+    knee_wf_stiffness, knee_we_stiffness = model.table_rules_.swing_knee_stiffness_Nm_per_rad_per_kg
     ankle_after_toe_off = p.means["ankle_angle"][p.phase >= p.boundaries[1]]
     expected = {
         ("knee", "swing_flexion"): (-knee_wf_stiffness * mass, math.degrees(feature["knee_swing_flexion_peak"].value)),
         ("knee", "swing_extension"): (-knee_we_stiffness * mass, math.degrees(p.means["knee_angle"][0])),
-        ("ankle", "swing_flexion"): (-model.swing_ankle_stiffness_Nm_per_rad_per_kg * mass,
-                                     math.degrees(ankle_after_toe_off.max()) + model.swing_ankle_clearance_deg),
+        ("ankle", "swing_flexion"): (-model.table_rules_.swing_ankle_stiffness_Nm_per_rad_per_kg * mass,
+                                     math.degrees(ankle_after_toe_off.max()) + model.table_rules_.swing_ankle_clearance_deg),
     }
     expected[("ankle", "swing_extension")] = expected[("ankle", "swing_flexion")]
     masks = dict(zip(("stance_flexion", "stance_extension", "swing_flexion", "swing_extension"),
@@ -159,7 +159,8 @@ def test_swing_rows_aim_at_the_predicted_swing_targets(model, speed, incline, ma
 
 def test_least_squares_swing_rule_gives_back_the_plain_fits(model):
     literal = copy.copy(model)
-    literal.swing_rule = "least_squares"
+    literal.table_rules_ = copy.copy(model.table_rules_)
+    literal.table_rules_.swing_rule = "least_squares"
     p, q = model.propose(1.2, 0.0, 75.0), literal.propose(1.2, 0.0, 75.0)
     for a, b in zip(p.table.rows, q.table.rows, strict=True):
         if a.subphase.startswith("stance"):
@@ -178,4 +179,4 @@ def test_least_squares_swing_rule_gives_back_the_plain_fits(model):
 ])
 def test_bad_swing_settings_are_refused_before_fitting(params, message):
     with pytest.raises(ValueError, match=message):
-        QuasiStiffnessModel(**params).fit(reference=None)   # refused before the data is touched
+        QuasiStiffnessModel(table_rules=TableRules(**params)).fit(reference=None)   # refused before the data is touched

@@ -54,8 +54,8 @@ def test_vectorised_subphase_fit_equals_line_by_line(model):
 
 
 def test_joint_batched_fit_equals_one_joint_at_a_time(model):
-    from controller_core.model import JOINT_RANGE_RAD
     from controller_core.quasi_stiffness import fit_quasi_stiffness_joints
+    from controller_core.table_rules import JOINT_RANGE_RAD
 
     p = model.propose(1.6, 4.0, 80.0)
     ranges = [JOINT_RANGE_RAD[j] for j in ("knee", "ankle")]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from controller_core.features import record_features
+from controller_core.joint_reference import JointReference
 from controller_core.registration import TaskTrend, UniformUnwarp, canonical_phase, ordered_landmarks, register, unwarp
 
 LANDMARK_NAMES = ("ankle_plantarflexor_moment_peak", "ankle_plantarflexion_peak")
@@ -77,7 +78,7 @@ def test_task_trend_refuses_bad_training_data():
 
 
 def test_registered_reference_follows_speed_inside_the_data_and_holds_amplitude_outside(model):
-    knee = {v: model.reference_means(np.array([v, 0.0]))["knee"][:, 0] for v in (0.9, 1.2, 1.9, 2.6)}
+    knee = {v: model.joint_reference_.at_task(np.array([v, 0.0])).means["knee"][:, 0] for v in (0.9, 1.2, 1.9, 2.6)}
     # knee swing flexion grows with speed between the shipped conditions (Bovi 2011: 57° → 64°)
     assert knee[1.9].max() > knee[0.9].max() + np.radians(2.0)
     # beyond the fastest condition (1.95 m/s) the amplitudes are held, only the timing moves on
@@ -88,9 +89,9 @@ def test_registered_reference_follows_speed_inside_the_data_and_holds_amplitude_
 def test_pooled_reference_is_the_same_for_every_task(reference):
     from controller_core.model_io import train
 
-    pooled = train(reference, use_published=True, reference_mode="pooled")
-    a = pooled.reference_means(np.array([0.9, 0.0]))["ankle"]
-    b = pooled.reference_means(np.array([1.9, 0.0]))["ankle"]
+    pooled = train(reference, use_published=True, joint_reference=JointReference(reference_mode="pooled"))
+    a = pooled.joint_reference_.at_task(np.array([0.9, 0.0])).means["ankle"]
+    b = pooled.joint_reference_.at_task(np.array([1.9, 0.0])).means["ankle"]
     np.testing.assert_array_equal(a, b)
     with pytest.raises(ValueError, match="reference_mode"):
-        train(reference, use_published=False, reference_mode="task")
+        train(reference, use_published=False, joint_reference=JointReference(reference_mode="task"))
