@@ -21,9 +21,7 @@ CRC-32 (zlib) over its canonical form, so a stored or transferred envelope is ve
 from __future__ import annotations
 
 import itertools
-import json
 import math
-import zlib
 from collections.abc import Callable, Sequence
 from typing import Literal
 
@@ -170,29 +168,21 @@ class Envelope(_Strict):
     def tables(self) -> list[ParameterTable]:
         return [n.table for n in self.nodes]
 
-    def crc32(self) -> int:
-        """CRC-32 (zlib) of the canonical JSON of everything in the envelope."""
-        body = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
-        return zlib.crc32(body.encode())
-
     def to_json(self) -> dict:
-        """The envelope as JSON (units in the field names) with its CRC."""
-        return {**self.model_dump(mode="json"), "crc32": self.crc32()}
+        """The envelope as JSON (units in the field names)."""
+        return self.model_dump(mode="json")
 
     @classmethod
     def from_json(cls, body: dict) -> Envelope:
-        """Parse and verify: a missing or wrong CRC is refused, so a damaged envelope is never half-used.
+        """Parse and validate. Storage proves the bytes by their sha256 (:mod:`controller_core.content`); the
+        ``crc32`` key that older releases wrote into the JSON is read past.
 
         Raises:
-            ValueError: malformed, or the CRC does not match.
+            ValueError: malformed.
         """
-        if not isinstance(body, dict) or not isinstance(body.get("crc32"), int):
-            raise ValueError("an envelope needs its crc32")
-        content = {k: v for k, v in body.items() if k != "crc32"}
-        env = cls.model_validate(content)
-        if env.crc32() != body["crc32"]:
-            raise ValueError(f"envelope CRC mismatch: carried {body['crc32']}, content gives {env.crc32()}")
-        return env
+        if not isinstance(body, dict):
+            raise ValueError("an envelope is a JSON object")
+        return cls.model_validate({k: v for k, v in body.items() if k != "crc32"})
 
 
 # ---------------------------------------------------------------- values, the neighbour rule

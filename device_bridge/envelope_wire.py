@@ -22,8 +22,6 @@ or deg. At most 64 nodes. :func:`check_envelope_as_run` checks what the device w
 
 from __future__ import annotations
 
-import struct
-import zlib
 from dataclasses import dataclass
 
 import can
@@ -41,6 +39,7 @@ from device_bridge.protocol import (
     encode,
     quantize,
     to_physical,
+    wire_crc32,
     with_device_values,
 )
 
@@ -115,7 +114,7 @@ class WireEnvelope:
 
     def crc32(self) -> int:
         """CRC-32 of every raw value in transfer order (little-endian int32 each)."""
-        return _crc([*self.axis_values, *(v for node in self.nodes for part in node for v in part)])
+        return wire_crc32([*self.axis_values, *(v for node in self.nodes for part in node for v in part)])
 
     def frames(self, transfer_id: int) -> list[can.Message]:
         """The data frames of a transfer: axes, nominal and their check, then ten per node and its check."""
@@ -124,7 +123,7 @@ class WireEnvelope:
                                  (AXIS_BODY, (self.body_mass,)))
                for i, v in enumerate(values)]
         out.append(encode("ENVELOPE_CHECK", {"transfer_id": transfer_id, "target": CHECK_AXES, "node": 0,
-                                             "crc32": _crc(self.axis_values)}))
+                                             "crc32": wire_crc32(self.axis_values)}))
         for n, node in enumerate(self.nodes):
             head = {"transfer_id": transfer_id, "node": n}
             out += [encode("ENVELOPE_ROW", {**head, "row_index": i, **dict(zip(ROW_SIGNALS, node[i], strict=True))})
@@ -156,12 +155,8 @@ class WireEnvelope:
                               body_mass_kg=mass)
 
 
-def _crc(values: list[int]) -> int:
-    return zlib.crc32(struct.pack(f"<{len(values)}i", *values))
-
-
 def _node_crc(node: tuple[tuple[int, ...], ...]) -> int:
-    return _crc([v for part in node for v in part])
+    return wire_crc32([v for part in node for v in part])
 
 
 class EnvelopeReceiver:
@@ -195,7 +190,7 @@ class EnvelopeReceiver:
         keys = self._axis_keys()
         if self.axes_kept or self.axes_check is None or any(k not in self.axes for k in keys):
             return
-        if _crc([self.axes[k] for k in keys]) == self.axes_check:
+        if wire_crc32([self.axes[k] for k in keys]) == self.axes_check:
             self.axes_kept = True
         else:
             self.axes.clear()

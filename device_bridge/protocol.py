@@ -244,6 +244,12 @@ class DeviceTable:
         raise KeyError((joint, subphase))
 
 
+def wire_crc32(raw: list[int]) -> int:
+    """The link's one checksum: CRC-32 (zlib) of raw field values, little-endian int32 each, in transfer order. The
+    device computes the same over what it received; a table, an envelope and each envelope node use it."""
+    return zlib.crc32(struct.pack(f"<{len(raw)}i", *raw))
+
+
 @dataclass(frozen=True)
 class WireTable:
     """A parameter table as raw fixed-point integers, in transfer order.
@@ -277,9 +283,8 @@ class WireTable:
         return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass)  # type: ignore[arg-type]
 
     def crc32(self) -> int:
-        """CRC-32 of the raw values in transfer order (little-endian int32 each)."""
-        flat = [v for row in self.rows for v in row] + list(self.thresholds) + [self.body_mass]
-        return zlib.crc32(struct.pack(f"<{len(flat)}i", *flat))
+        """CRC-32 of the raw values in transfer order (what the device verifies and reads back)."""
+        return wire_crc32([v for row in self.rows for v in row] + list(self.thresholds) + [self.body_mass])
 
     def to_device_table(self) -> DeviceTable:
         """The physical values the device runs (raises pydantic's ValidationError on a non-physical threshold)."""

@@ -70,22 +70,24 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 def cmd_envelope(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
+    from controller_core.content import canonical_json, content_sha256
+    from device_bridge.as_run import as_run
 
     (s0, s1), (g0, g1) = args.speeds, args.inclines
     env = load(args).propose_envelope(np.linspace(s0, s1, args.grid[0]), np.linspace(g0, g1, args.grid[1]), args.mass,
                                       nominal=(args.nominal[0], args.nominal[1]))
-    violations = check_envelope_as_run(env)
-    wire_crc = WireEnvelope.from_envelope(env).crc32() if not violations else None
+    checked = as_run(env)
+    violations, wire_crc = checked.violations, checked.wire_crc32 if checked.ok else None
+    sha256 = content_sha256(canonical_json(checked.item))
     if args.format == "json":
-        print(json.dumps({**env.to_json(), "wire_crc32": wire_crc, "safety": {
+        print(json.dumps({**env.to_json(), "wire_crc32": wire_crc, "envelope_sha256": sha256, "safety": {
             "ok": not violations, "violations": [v.model_dump() for v in violations]}}, allow_nan=False))
         return 0 if not violations else 1
     print(f"Envelope {len(env.speeds_mps)} × {len(env.inclines_deg)}: speeds "
           f"{', '.join(f'{v:g}' for v in env.speeds_mps)} m/s × inclines {', '.join(f'{v:+g}' for v in env.inclines_deg)}"
           f" deg, patient {env.mass_kg:g} kg, nominal {env.nominal_speed_mps:g} m/s {env.nominal_incline_deg:+g} deg")
-    print(f"Model {env.model_version}; CRC-32 {env.crc32():08x} (JSON)" + (f", {wire_crc:08x} (on the wire)" if wire_crc
-                                                                         is not None else ""))
+    print(f"Model {env.model_version}; sha256 {sha256[:16]}… (as the device runs it)"
+          + (f"; CRC-32 {wire_crc:08x} (what the device reads back)" if wire_crc is not None else ""))
     print("\nNodes (x: outside the training data; g: values held to the neighbour rule)")
     print("  " + "speed \\ incline".ljust(16) + "".join(f"{v:+8g}" for v in env.inclines_deg))
     for i, speed in enumerate(env.speeds_mps):

@@ -20,6 +20,7 @@ from controller_core.fsmic import fsmic_table
 from controller_core.gait_metrics import GAIT_CHANNELS, bootstrap_means, percentile_interval, verdict
 from controller_core.model import QuasiStiffnessModel
 from controller_core.task_estimator import TaskEstimator
+from device_bridge.as_run import as_run
 from device_bridge.sim.course import Course
 from device_bridge.sim.course_walk import CourseScore, run_course, score_course
 from device_bridge.sim.leg_model import LegGeometry
@@ -103,7 +104,8 @@ def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 
             rows[channel] = {"rmse_difference": d["difference"], "ci95": d["interval"], "verdict": words}
         versus[other] = rows
     return {"course": course.to_json(),
-            "envelope": {"speeds_mps": env.speeds_mps, "inclines_deg": env.inclines_deg, "crc32": env.crc32(),
+            "envelope": {"speeds_mps": env.speeds_mps, "inclines_deg": env.inclines_deg,
+                         "wire_crc32": as_run(env).wire_crc32,
                          "nominal": [env.nominal_speed_mps, env.nominal_incline_deg]},
             "rows": [scores[name].to_dict() for name in COURSE_CONTROLLERS],
             "adaptive_minus": versus}

@@ -26,7 +26,7 @@ from backend.store import bench_verdict, envelopes, patients, pushes
 from backend.task_range import extrapolation_reason
 from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
-from device_bridge.envelope_wire import check_envelope_as_run
+from device_bridge.as_run import as_run
 
 router = APIRouter(prefix="/api", tags=["envelopes"], responses=UNAUTHORIZED)
 
@@ -97,7 +97,7 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
             edited, changes = hold_to_neighbour_rule(parent, edited, changes)
     except (EditError, ValueError) as exc:
         raise InvalidError(str(exc).splitlines()[0]) from exc
-    violations = check_envelope_as_run(edited)
+    violations = as_run(edited).violations
     if violations:
         neighbours_only = all(v.field.startswith("neighbours[") for v in violations)
         hint = (" Ask again holding those values within a step of their neighbours (“hold within a step”): each "

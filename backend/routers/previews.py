@@ -18,8 +18,7 @@ from backend.schemas.previews import EnvelopePreviewOut, PreviewOut
 from backend.store import envelopes, previews, proposals
 from backend.threads import run_waiting
 from controller_core.model import QuasiStiffnessModel
-from device_bridge.envelope_wire import check_envelope_as_run, envelope_as_run
-from device_bridge.protocol import as_run, check_as_run
+from device_bridge.as_run import as_run
 from device_bridge.sim.course import COURSES
 
 router = APIRouter(prefix="/api", tags=["previews"], responses=UNAUTHORIZED)
@@ -45,8 +44,9 @@ def _table_preview(proposal_id: int, conn: sqlite3.Connection, model: QuasiStiff
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
     if stored is None:
-        table = as_run(proposals.stored_table(row))   # walked as the device would run it
-        _refuse_unsafe(check_as_run(table), f"proposal {proposal_id}")
+        checked = as_run(proposals.stored_table(row))   # walked as the device would run it
+        _refuse_unsafe(checked.violations, f"proposal {proposal_id}")
+        table = checked.item
         result = preview_table(table, row["speed_mps"], row["incline_deg"], row["body_mass_kg"], model,
                                PREVIEW_SECONDS)
         stored = previews.store_preview(conn, proposal_id, row["table_sha256"], result)
@@ -71,8 +71,9 @@ def _envelope_preview(envelope_id: int, conn: sqlite3.Connection, model: QuasiSt
         with _COURSE_PREVIEW:
             stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])   # walked meanwhile?
             if stored is None:
-                envelope = envelope_as_run(envelopes.stored_envelope(row))
-                _refuse_unsafe(check_envelope_as_run(envelope), f"envelope {envelope_id}")
+                checked = as_run(envelopes.stored_envelope(row))
+                _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
+                envelope = checked.item
                 result = preview_envelope(envelope, model, COURSES[PREVIEW_COURSE])
                 stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
     runs = stored["controllers"]

@@ -22,7 +22,7 @@ from backend.schemas.proposals import (
 from backend.store import bench_verdict, patients, proposals, pushes
 from backend.task_range import extrapolation_reason
 from controller_core.table_edit import EditError, edit_table
-from device_bridge.protocol import check_as_run
+from device_bridge.as_run import as_run
 
 router = APIRouter(prefix="/api", tags=["proposals"], responses=UNAUTHORIZED)
 
@@ -79,7 +79,7 @@ def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Pros
                                     body.thresholds.model_dump(exclude_none=True) if body.thresholds else None)
     except (EditError, ValidationError) as exc:
         raise InvalidError(str(exc).splitlines()[0]) from exc
-    violations = check_as_run(table)
+    violations = as_run(table).violations
     if violations:
         raise InvalidError("edit refused, nothing stored: " + "; ".join(v.message for v in violations),
                            violations=[v.model_dump() for v in violations])

@@ -20,9 +20,8 @@ from backend.store import devices as devices_store
 from backend.store import pushes as store
 from backend.store.users import User
 from backend.threads import run_waiting
-from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run
+from device_bridge.as_run import as_run
 from device_bridge.host import PushError, PushResult
-from device_bridge.protocol import ProtocolError, WireTable, check_as_run
 
 router = APIRouter(prefix="/api", tags=["pushes"], responses=UNAUTHORIZED)
 
@@ -46,12 +45,8 @@ def _push_table(proposal_id: int, body: PushRequest, devices: DeviceManager, con
                 user: User) -> dict:
     row = proposals.get_row(conn, proposal_id)
     table = proposals.stored_table(row)
-    violations = check_as_run(table)
-    try:
-        crc = WireTable.from_table(table).crc32() if not violations else 0
-    except ProtocolError as exc:
-        raise InvalidError(f"the table cannot be sent: {exc}") from exc
-    return _push(conn, devices, user, body, ("proposal", proposal_id), row, violations, crc,
+    checked = as_run(table)
+    return _push(conn, devices, user, body, ("proposal", proposal_id), row, checked.violations, checked.wire_crc32,
                  lambda version: devices.push(body.device_id, table, version))
 
 
@@ -70,17 +65,13 @@ def _push_envelope(envelope_id: int, body: PushRequest, devices: DeviceManager, 
                    user: User) -> dict:
     row = envelopes.get_row(conn, envelope_id)
     envelope = envelopes.stored_envelope(row)
-    violations = check_envelope_as_run(envelope)
-    try:
-        crc = WireEnvelope.from_envelope(envelope).crc32() if not violations else 0
-    except ProtocolError as exc:
-        raise InvalidError(f"the envelope cannot be sent: {exc}") from exc
-    return _push(conn, devices, user, body, ("envelope", envelope_id), row, violations, crc,
+    checked = as_run(envelope)
+    return _push(conn, devices, user, body, ("envelope", envelope_id), row, checked.violations, checked.wire_crc32,
                  lambda version: devices.push_envelope(body.device_id, envelope, version))
 
 
 def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed,
-          row: sqlite3.Row, violations: list, crc: int, send: Callable[[int], PushResult]) -> dict:
+          row: sqlite3.Row, violations: list, crc: int | None, send: Callable[[int], PushResult]) -> dict:
     """The checks every push passes, in order, then record → send → finish, one push at a time per device (what the
     leg runs is checked inside that turn, so two pushes confirming the same table cannot both go). Nothing is sent
     when a check fails."""
@@ -94,6 +85,8 @@ def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: Pu
         raise ConflictError(f"{kind} {item_id} fails the safety limits; not pushed: "
                             + "; ".join(v.message for v in violations[:5]),
                             violations=[v.model_dump() for v in violations])
+    if crc is None:
+        raise InvalidError(f"{kind} {item_id} cannot be sent: a value does not fit the link")
     _, override = bench_verdict.require_bench(conn, kind, row, body.override_reason, "pushed")
     override = override or (body.override_reason if mass_overridden else None)
     with devices.push_slot(body.device_id):

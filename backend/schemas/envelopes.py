@@ -88,9 +88,9 @@ class EnvelopeSummary(DecidedVersion):
     inclines_deg: list[float]
     nominal: Nominal
     extrapolation: bool = Field(description="some node lies outside the training data")
-    crc32: int = Field(description="CRC-32 of the envelope's JSON")
-    wire_crc32: int | None = Field(description="the CRC-32 the device reports once it holds this envelope")
-    envelope_sha256: str
+    wire_crc32: int | None = Field(description="the CRC-32 the device verifies and reads back once it holds this "
+                                               "envelope (null: it cannot be sent)")
+    envelope_sha256: str = Field(description="SHA-256 of the stored envelope JSON, checked at every read")
     model: ModelInfo
     neighbour_steps: NeighbourSteps
     safety: Safety
@@ -105,9 +105,9 @@ class EnvelopeListItem(DecidedVersion):
     speeds_mps: list[float]
     inclines_deg: list[float]
     extrapolation: bool = Field(description="some node lies outside the training data")
-    crc32: int = Field(description="CRC-32 of the envelope's JSON")
-    wire_crc32: int | None = Field(description="the CRC-32 the device reports once it holds this envelope")
-    envelope_sha256: str
+    wire_crc32: int | None = Field(description="the CRC-32 the device verifies and reads back once it holds this "
+                                               "envelope (null: it cannot be sent)")
+    envelope_sha256: str = Field(description="SHA-256 of the stored envelope JSON, checked at every read")
     safety_ok: bool = Field(description="every node and the neighbour rule within the limits as the device runs "
                                         "them, checked when it was stored")
 

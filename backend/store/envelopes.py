@@ -2,14 +2,14 @@
 
 Like a proposal, an envelope's content is immutable (SQLite triggers refuse any change, migration 0006), its
 decision is taken at most once, and versions are numbered per patient. What is stored is the Envelope JSON with its
-CRC-32; every read re-validates it, checks its sha256 and CRC, and re-runs the device-side check (every node's
+sha256 (:mod:`controller_core.content`) and the wire CRC-32 the device will read back; every read re-validates it,
+checks its sha256, and re-runs the device-side check (every node's
 limits and the neighbour rule, as the device will run it), so what is shown and approved is what the device would
 accept.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import sqlite3
 
@@ -20,10 +20,10 @@ from backend.store import audit
 from backend.store.decisions import decide_once, summary_select, version_page
 from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
 from backend.store.users import User
+from controller_core.content import canonical_json, content_sha256
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
 from controller_core.table import LimitViolation, display_rows
-from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run, envelope_as_run
-from device_bridge.protocol import ProtocolError, check_as_run
+from device_bridge.as_run import AsRun, as_run
 
 _UNITS = ROW_UNITS | THRESHOLD_UNITS
 _SELECT = ("SELECT e.*, cu.username AS created_by_name, du.username AS decided_by_name, "
@@ -38,20 +38,13 @@ def envelope_label(patient_code: str, version: int) -> str:
 
 
 def stored_envelope(row: sqlite3.Row) -> Envelope:
-    """The envelope, re-validated from storage and checked against its recorded sha256 and CRC-32."""
-    if hashlib.sha256(row["envelope_json"].encode()).hexdigest() != row["envelope_sha256"]:
+    """The envelope, re-validated from storage and checked against its recorded sha256."""
+    if content_sha256(row["envelope_json"]) != row["envelope_sha256"]:
         raise ConflictError(f"envelope {row['id']}: stored content does not match its sha256; refusing to use it")
     try:
         return Envelope.from_json(json.loads(row["envelope_json"]))
     except ValueError as exc:
         raise ConflictError(f"envelope {row['id']}: {str(exc).splitlines()[0]}; refusing to use it") from exc
-
-
-def _wire_crc(envelope: Envelope) -> int | None:
-    try:
-        return WireEnvelope.from_envelope(envelope).crc32()
-    except ProtocolError:
-        return None
 
 
 def _meta(row: sqlite3.Row) -> dict:
@@ -65,13 +58,13 @@ def _meta(row: sqlite3.Row) -> dict:
             "comment": row["decision_comment"], "override_reason": row["decision_override"]},
         "body_mass_kg": row["body_mass_kg"], "grid": [row["n_speeds"], row["n_inclines"]],
         "extrapolation": bool(row["extrapolation"]), "extrapolation_reason": row["extrapolation_reason"],
-        "crc32": row["crc32"], "wire_crc32": row["wire_crc32"],
+        "wire_crc32": row["wire_crc32"],
         "envelope_sha256": row["envelope_sha256"],
     }
 
 
 def _public(meta: dict, envelope: Envelope, full: bool, violations: list[LimitViolation] | None = None) -> dict:
-    violations = check_envelope_as_run(envelope) if violations is None else violations
+    violations = as_run(envelope).violations if violations is None else violations
     out = {**meta, "speeds_mps": envelope.speeds_mps, "inclines_deg": envelope.inclines_deg,
            "nominal": {"speed_mps": envelope.nominal_speed_mps, "incline_deg": envelope.nominal_incline_deg},
            "model": {"version": envelope.model_version, "data_sha256": envelope.data_sha256},
@@ -92,7 +85,7 @@ def node_view(row: sqlite3.Row, envelope: Envelope, i: int, j: int) -> dict:
     if not (0 <= i < n_s and 0 <= j < n_i):
         raise NotFoundError(f"envelope {row['id']} has nodes [0..{n_s - 1}] × [0..{n_i - 1}], not [{i}, {j}]")
     node = envelope.node(i, j)
-    violations = check_as_run(node.table)
+    violations = as_run(node.table).violations
     return {"envelope_id": row["id"], "envelope_label": envelope_label(row["patient_code"], row["version"]),
             "envelope_status": row["status"], "patient_id": row["patient_id"], "node": [i, j],
             "task": {"speed_mps": node.speed_mps, "incline_deg": node.incline_deg, "body_mass_kg": envelope.mass_kg},
@@ -116,7 +109,7 @@ def get_envelope(conn: sqlite3.Connection, envelope_id: int, full: bool = True) 
 
 
 _SUMMARY_SELECT = summary_select(_SELECT, "e", "e.body_mass_kg, e.n_speeds, e.n_inclines, e.extrapolation, "
-                                                "e.extrapolation_reason, e.crc32, "
+                                                "e.extrapolation_reason, "
                                                 "e.wire_crc32, e.envelope_sha256, json_extract(e.envelope_json, "
                                                 "'$.speeds_mps') AS speeds_json, json_extract(e.envelope_json, "
                                                 "'$.inclines_deg') AS inclines_json")
@@ -131,22 +124,23 @@ def list_envelopes(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
              "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
 
-def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, envelope: Envelope, comment: str | None,
-            actor: User, violations: list[LimitViolation], extrapolation_reason: str | None = None) -> dict:
-    """Insert a draft inside the caller's write transaction (``extrapolation_reason``: why it was requested beyond the
-    tasks the model knows); returns its metadata."""
-    body = json.dumps(envelope.to_json(), sort_keys=True, allow_nan=False)
+def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, checked: AsRun[Envelope],
+            comment: str | None, actor: User, extrapolation_reason: str | None = None) -> dict:
+    """Insert a draft, as the device will run it, inside the caller's write transaction (``extrapolation_reason``: why
+    it was requested beyond the tasks the model knows); returns its metadata."""
+    envelope, violations = checked.item, checked.violations
+    body = canonical_json(envelope)
     n_s, n_i = envelope.shape
     version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM envelopes WHERE patient_id = ?",
                            (patient_id,)).fetchone()[0]
     cur = conn.execute(
         "INSERT INTO envelopes (patient_id, version, parent_id, source, body_mass_kg, n_speeds, n_inclines, "
-        "extrapolation, extrapolation_reason, safety_ok, envelope_json, envelope_sha256, crc32, wire_crc32, "
-        "edit_comment, created_by, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        "extrapolation, extrapolation_reason, safety_ok, envelope_json, envelope_sha256, wire_crc32, "
+        "edit_comment, created_by, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         (patient_id, version, parent_id, "model" if parent_id is None else "edit", envelope.mass_kg, n_s, n_i,
          int(any(n.extrapolation for n in envelope.nodes) or extrapolation_reason is not None), extrapolation_reason,
          int(not violations), body,
-         hashlib.sha256(body.encode()).hexdigest(), envelope.crc32(), _wire_crc(envelope), comment, actor.id,
+         content_sha256(body), checked.wire_crc32, comment, actor.id,
          utc_now()))
     return _meta(get_row(conn, int(cur.lastrowid)))
 
@@ -156,15 +150,16 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
     """Store a freshly built envelope as the patient's next draft version, rounded to the node quanta (what the
     device runs); returns its API view. ``extrapolation_reason``: the prosthetist's reason for nodes beyond the
     tasks the model knows (audited, shown with the version)."""
-    envelope = envelope_as_run(envelope)
-    violations = check_envelope_as_run(envelope)
+    checked = as_run(envelope)
+    envelope, violations = checked.item, checked.violations
     with write_transaction(conn):
         if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
             raise NotFoundError(f"patient {patient_id} not found")
-        meta = _insert(conn, patient_id, None, envelope, None, actor, violations, extrapolation_reason)
+        meta = _insert(conn, patient_id, None, checked, None, actor, extrapolation_reason)
         audit.record(conn, actor.id, actor.username, "envelope.create", "envelope", meta["id"],
                      after={"patient_id": patient_id, "version": meta["version"], "speeds_mps": envelope.speeds_mps,
-                            "inclines_deg": envelope.inclines_deg, "crc32": meta["crc32"], "safety_ok": not violations,
+                            "inclines_deg": envelope.inclines_deg, "wire_crc32": meta["wire_crc32"],
+                            "safety_ok": not violations,
                             "extrapolation": meta["extrapolation"], "extrapolation_reason": extrapolation_reason})
     return _public(meta, envelope, full=True, violations=violations)
 
@@ -173,16 +168,17 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, envelope: Envelope, ch
                 actor: User) -> dict:
     """Store an edited envelope (already checked and found within every limit) as a new draft of the parent's
     patient, rounded to the node quanta (what the device runs)."""
-    envelope = envelope_as_run(envelope)
+    checked = as_run(envelope)
+    envelope = checked.item
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
-        meta = _insert(conn, parent["patient_id"], parent_id, envelope, comment, actor, [],
-                       parent["extrapolation_reason"])
+        meta = _insert(conn, parent["patient_id"], parent_id, checked, comment, actor, parent["extrapolation_reason"])
         audit.record(conn, actor.id, actor.username, "envelope.edit", "envelope", meta["id"],
-                     before={"envelope_id": parent_id, "version": parent["version"], "crc32": parent["crc32"]},
-                     after={"version": meta["version"], "crc32": meta["crc32"], "comment": comment,
+                     before={"envelope_id": parent_id, "version": parent["version"],
+                             "wire_crc32": parent["wire_crc32"]},
+                     after={"version": meta["version"], "wire_crc32": meta["wire_crc32"], "comment": comment,
                             "changes": changes})
-    return _public(meta, envelope, full=True, violations=[])
+    return _public(meta, envelope, full=True, violations=checked.violations)
 
 
 def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
@@ -213,6 +209,6 @@ def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str
     """Approve or reject a draft once. Approval re-validates the stored envelope and re-runs the device-side check."""
     with write_transaction(conn):
         row = get_row(conn, envelope_id)
-        decide_once(conn, "envelope", row, status, comment, actor, lambda: check_envelope_as_run(stored_envelope(row)),
-                    "the safety limits or the neighbour rule", {"crc32": row["crc32"]}, override_reason)
+        decide_once(conn, "envelope", row, status, comment, actor, lambda: as_run(stored_envelope(row)).violations,
+                    "the safety limits or the neighbour rule", {"wire_crc32": row["wire_crc32"]}, override_reason)
         return get_envelope(conn, envelope_id)

@@ -7,7 +7,6 @@ an edit records its parent.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import sqlite3
 
@@ -19,9 +18,10 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.decisions import decide_once, summary_select, version_page
 from backend.store.users import User
+from controller_core.content import canonical_json, content_sha256
 from controller_core.proposal import Proposal
 from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
-from device_bridge.protocol import as_run, check_as_run
+from device_bridge.as_run import as_run
 
 LIMITS = SafetyLimits().model_dump()
 # display units of the table's values, for diffs
@@ -35,13 +35,9 @@ _SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_b
            "LEFT JOIN proposals pp ON pp.id = p.parent_id JOIN patients pa ON pa.id = p.patient_id")
 
 
-def _sha256(text: str) -> str:
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
 def stored_table(row: sqlite3.Row) -> ParameterTable:
     """The proposal's table, re-validated from storage and checked against its recorded sha256."""
-    if _sha256(row["table_json"]) != row["table_sha256"]:
+    if content_sha256(row["table_json"]) != row["table_sha256"]:
         raise ConflictError(f"proposal {row['id']}: stored table does not match its sha256; refusing to use it")
     return ParameterTable.model_validate_json(row["table_json"])
 
@@ -50,7 +46,7 @@ def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
               violations: list[LimitViolation] | None = None) -> dict:
     """The API view of a proposal from its metadata, its (validated) table and its stored model body
     (``violations``: the table's limit check when the caller has just made it)."""
-    violations = check_as_run(table) if violations is None else violations
+    violations = as_run(table).violations if violations is None else violations
     out = {
         **meta,
         "model": body["model"],
@@ -119,9 +115,9 @@ def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, so
             violations: list[LimitViolation], extrapolation_reason: str | None = None) -> dict:
     """Insert a draft (``violations``: its table's limit check; ``extrapolation_reason``: why it was requested beyond
     the tasks the model knows); returns its metadata as :func:`_meta` gives it."""
-    table_json = table.model_dump_json()
+    table_json = canonical_json(table)
     created_at = utc_now()
-    table_sha256 = _sha256(table_json)
+    table_sha256 = content_sha256(table_json)
     version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM proposals WHERE patient_id = ?",
                            (patient_id,)).fetchone()[0]
     cur = conn.execute(
@@ -151,8 +147,8 @@ def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
     _refuse_non_finite(proposal)
     model_json = to_json(body).decode()   # pydantic-core's encoder: far faster than json.dumps on 808 floats
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
-    table = as_run(proposal.table)   # stored, shown and checked as the device will run it
-    violations = check_as_run(table)
+    checked = as_run(proposal.table)   # stored, shown and checked as the device will run it
+    table, violations = checked.item, checked.violations
     if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
         raise NotFoundError(f"patient {patient_id} not found")
     meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, table,
@@ -175,12 +171,12 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable,
                 comment: str, actor: User) -> dict:
     """Store ``table`` (already validated and limit-checked) as a new draft derived from ``parent_id``, rounded to
     the wire's precision (what the device runs)."""
-    table = as_run(table)
+    checked = as_run(table)
+    table, violations = checked.item, checked.violations
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
         task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],
                 "body_mass_kg": parent["body_mass_kg"]}
-        violations = check_as_run(table)
         meta = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
                        parent["model_json"], table, comment, actor, violations, parent["extrapolation_reason"])
         out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
@@ -199,7 +195,7 @@ def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str
     """Approve or reject a draft once. Approval re-validates the stored table and re-checks every limit."""
     with write_transaction(conn):
         row = get_row(conn, proposal_id)
-        decide_once(conn, "proposal", row, status, comment, actor, lambda: check_as_run(stored_table(row)),
+        decide_once(conn, "proposal", row, status, comment, actor, lambda: as_run(stored_table(row)).violations,
                     "the safety limits", {"table_sha256": row["table_sha256"]}, override_reason)
         return get_proposal(conn, proposal_id)
 

@@ -166,3 +166,27 @@ def test_push_reconciliation_migration_keeps_every_push_and_admits_the_two_new_s
         conn.execute("DELETE FROM pushes")
     assert conn.execute("PRAGMA foreign_key_check").fetchall() == []
     conn.close()
+
+
+def test_one_envelope_checksum_migration_drops_the_json_crc_and_keeps_every_envelope(tmp_path):
+    """0011 drops ``envelopes.crc32``: every envelope keeps every other column, content stays immutable."""
+    db, mig, conn = _database_before(tmp_path, 10)
+    for version in (1, 2):
+        conn.execute("INSERT INTO envelopes (id, patient_id, version, source, body_mass_kg, n_speeds, n_inclines, "
+                     "extrapolation, safety_ok, envelope_json, envelope_sha256, crc32, wire_crc32, created_by, "
+                     "created_at) VALUES (?, 1, ?, 'model', 80, 2, 2, 0, 1, '{}', ?, 5, ?, 1, ?)",
+                     (version, version, f"sha{version}", 1000 + version, NOW))
+    conn.commit()
+    kept = "id, patient_id, version, envelope_sha256, wire_crc32, status"
+    before = [tuple(r) for r in conn.execute(f"SELECT {kept} FROM envelopes ORDER BY id")]
+    conn.close()
+    shutil.copy(MIGRATIONS_DIR / discover()[10].name, mig)
+    assert migrate(db, mig) == [11]
+    conn = connect(db)
+    assert [tuple(r) for r in conn.execute(f"SELECT {kept} FROM envelopes ORDER BY id")] == before
+    assert "crc32" not in [r["name"] for r in conn.execute("PRAGMA table_info(envelopes)")]
+    with pytest.raises(sqlite3.IntegrityError, match="immutable"):
+        conn.execute("UPDATE envelopes SET wire_crc32 = 1 WHERE id = 1")
+    with pytest.raises(sqlite3.IntegrityError, match="never deleted"):
+        conn.execute("DELETE FROM envelopes")
+    conn.close()

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from controller_core.content import canonical_json, content_sha256
 from controller_core.envelope import (
     VALUE_FIELDS,
     Envelope,
@@ -83,16 +84,17 @@ def test_a_jump_between_neighbours_is_named_with_both_nodes(envelope):
     assert any("0.60 m/s, -10.0 deg" in v.message and "0.85 m/s, -10.0 deg" in v.message for v in broken)
 
 
-def test_json_carries_units_and_a_crc_that_catches_a_changed_value(envelope):
-    body = envelope.to_json()
-    text = json.dumps(body)
+def test_json_carries_units_and_a_content_hash_that_catches_a_changed_value(envelope):
+    text = canonical_json(envelope)
     assert "k_Nm_per_rad" in text and "theta_e_deg" in text and "speeds_mps" in text and "inclines_deg" in text
     assert Envelope.from_json(json.loads(text)) == envelope
+    body = json.loads(text)
     body["nodes"][7]["table"]["rows"][0]["theta_e_deg"] += 0.001
-    with pytest.raises(ValueError, match="CRC"):
-        Envelope.from_json(body)
-    with pytest.raises(ValueError, match="crc32"):
-        Envelope.from_json({k: v for k, v in envelope.to_json().items() if k != "crc32"})
+    assert content_sha256(canonical_json(Envelope.from_json(body))) != content_sha256(text)
+    legacy = {**envelope.to_json(), "crc32": 12345}           # what an older release stored: read past
+    assert Envelope.from_json(legacy) == envelope
+    with pytest.raises(ValueError, match="JSON object"):
+        Envelope.from_json([])
 
 
 @pytest.mark.parametrize(("speeds", "inclines", "why"), [

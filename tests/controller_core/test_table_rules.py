@@ -31,7 +31,7 @@ def test_boundaries_are_the_predicted_events(model):
 def test_the_knee_stance_flexion_row_never_goes_below_the_support_floor(model, mass):
     phase, means, features, provenance = _inputs(model, 0.84, 10.0)
     rules = TableRules()
-    table, _, fits = rules.table(phase, means, features, mass, provenance)
+    table, _, _ = rules.table(phase, means, features, mass, provenance)
     row = next(r for r in table.rows if (r.joint, r.subphase) == ("knee", "stance_flexion"))
     assert row.k_Nm_per_rad <= -rules.knee_support_floor_Nm_per_rad_per_kg * mass + 1e-9
 

@@ -81,14 +81,17 @@ def test_cli_evaluate_writes_json(capsys, monkeypatch, reference, tmp_path):
 
 def test_cli_envelope_prints_the_grid_its_checks_and_crc_and_refuses_a_bad_grid(capsys):
     from backend.cli import main
+    from controller_core.content import canonical_json, content_sha256
     from controller_core.envelope import Envelope
+    from device_bridge.as_run import as_run
 
     assert main(["envelope", "--speeds", "0.8", "1.4", "--inclines", "-6", "6", "--grid", "3", "3"]) == 0
     text = capsys.readouterr().out
     assert "Envelope 3 × 3" in text and "CRC-32" in text and "all within limits" in text
     assert main(["envelope", "--grid", "3", "2", "--mass", "80", "--format", "json"]) == 0
     body = json.loads(capsys.readouterr().out)
-    env = Envelope.from_json({k: v for k, v in body.items() if k not in ("wire_crc32", "safety")})
+    env = Envelope.from_json({k: v for k, v in body.items() if k not in ("wire_crc32", "envelope_sha256", "safety")})
     assert env.shape == (3, 2) and env.mass_kg == 80.0 and body["safety"]["ok"] and body["wire_crc32"] > 0
+    assert body["envelope_sha256"] == content_sha256(canonical_json(as_run(env).item))
     assert main(["envelope", "--grid", "1", "5"]) == 2
     assert "at least 2" in capsys.readouterr().err

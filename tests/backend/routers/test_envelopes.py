@@ -8,7 +8,9 @@ import sqlite3
 import pytest
 
 from backend.db import write_transaction
-from device_bridge.envelope_wire import WireEnvelope, envelope_as_run
+from controller_core.content import canonical_json, content_sha256
+from device_bridge.as_run import as_run
+from device_bridge.envelope_wire import WireEnvelope
 from tests.helpers.api import FIXTURE_OVERRIDE
 
 
@@ -28,8 +30,10 @@ def test_an_envelope_is_built_for_the_patient_with_every_node_checked_and_its_cr
     assert e["safety"] == {"ok": True, "violations": []} and len(e["nodes"]) == 9
     direct = model.propose_envelope([0.8, 1.1, 1.4], [-6.0, 0.0, 6.0], 82.0)
     # stored as the device runs it: rounded to the node quanta, the same wire CRC as the unrounded envelope
-    assert e["crc32"] == envelope_as_run(direct).crc32() != direct.crc32()
-    assert e["wire_crc32"] == WireEnvelope.from_envelope(direct).crc32()
+    rounded = as_run(direct)
+    assert e["envelope_sha256"] == content_sha256(canonical_json(rounded.item)) != content_sha256(canonical_json(direct))
+    assert e["wire_crc32"] == rounded.wire_crc32 == WireEnvelope.from_envelope(direct).crc32()
+    assert "crc32" not in e                 # one CRC (the device's) and one content hash, nothing else
     node = e["nodes"][5]      # 1.1 m/s, +6°
     assert (node["speed_mps"], node["incline_deg"]) == (1.1, 6.0) and len(node["table"]) == 8
     assert node["table"][0]["k_Nm_per_rad"] == pytest.approx(direct.nodes[5].table.rows[0].k_Nm_per_rad, abs=1e-3)
@@ -103,7 +107,7 @@ def test_ankle_loading_ten_percent_firmer_everywhere_is_a_new_version_and_its_di
     assert r.status_code == 201, r.text
     v2 = r.json()
     assert (v2["version"], v2["parent_version"], v2["source"], v2["edit_comment"]) == (2, 1, "edit", "firmer landing")
-    assert v2["safety"]["ok"] and v2["crc32"] != e["crc32"]
+    assert v2["safety"]["ok"] and v2["wire_crc32"] != e["wire_crc32"] and v2["envelope_sha256"] != e["envelope_sha256"]
     for old, new in zip(e["nodes"], v2["nodes"], strict=True):
         ko = next(r for r in old["table"] if (r["joint"], r["subphase"]) == ("ankle", "stance_flexion"))
         kn = next(r for r in new["table"] if (r["joint"], r["subphase"]) == ("ankle", "stance_flexion"))
