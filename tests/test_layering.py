@@ -1,6 +1,7 @@
-"""The code's shape holds: imports point down (backend → device_bridge → controller_core), no module imports one that
-imports it back (Python and the dashboard's JavaScript), no private name crosses a module, and no dashboard page
-imports another page or the router."""
+"""The code's shape holds: imports point down (backend → device_bridge → controller_core), the lab stands apart from
+the product, the leg's own code never reaches the model, no module imports one that imports it back (Python and the
+dashboard's JavaScript), no private name crosses a module, and no dashboard page imports another page or the
+router."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("controller_core", "device_bridge", "backend", "benchmarks", "tests")
+PACKAGES = ("controller_core", "device_bridge", "backend", "lab", "benchmarks", "tests")
 LAYER = {"controller_core": 0, "device_bridge": 1, "backend": 2}
 
 
@@ -41,6 +42,21 @@ def _module_imports(modules: dict[str, Path]) -> dict[str, list[tuple[str, str]]
     return out
 
 
+def _every_import(modules: dict[str, Path]) -> dict[str, set[str]]:
+    """Per module, every module of ours it imports anywhere (inside functions too: a lazy import is still a use)."""
+    out: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                found |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in modules else node.module
+                          for a in node.names if node.module in modules or f"{node.module}.{a.name}" in modules}
+            elif isinstance(node, ast.Import):
+                found |= {a.name for a in node.names if a.name in modules}
+        out[name] = found
+    return out
+
+
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     colour: dict[str, int] = {}
     stack: list[str] = []
@@ -65,12 +81,31 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def test_python_imports_point_down_and_never_close_a_circle():
     modules = _python_modules()
-    imports = _module_imports(modules)
-    upward = [(m, target) for m, found in imports.items() for target, _ in found
+    every = _every_import(modules)
+    upward = [(m, target) for m, found in every.items() for target in found
               if m.split(".")[0] in LAYER and target.split(".")[0] in LAYER
               and LAYER[target.split(".")[0]] > LAYER[m.split(".")[0]]]
     assert upward == []
+    imports = _module_imports(modules)
     assert _cycles({m: {t for t, _ in found if t != m} for m, found in imports.items()}) == []
+
+
+def test_the_lab_stands_apart_from_the_product():
+    every = _every_import(_python_modules())
+    lab_uses_backend = sorted((m, t) for m, found in every.items() if m.split(".")[0] == "lab"
+                              for t in found if t.split(".")[0] == "backend")
+    assert lab_uses_backend == []
+    product_uses_lab = sorted((m, t) for m, found in every.items() if m.split(".")[0] == "backend"
+                              and not m.startswith("backend.cli") for t in found if t.split(".")[0] == "lab")
+    assert product_uses_lab == []            # only the command line offers the lab's commands
+
+
+def test_the_legs_own_code_never_reaches_the_model():
+    every = _every_import(_python_modules())
+    reaching = sorted((m, t) for m, found in every.items() if m.startswith("device_bridge")
+                      and not m.startswith("device_bridge.bench") for t in found
+                      if t in ("controller_core.model", "controller_core.model_io", "controller_core"))
+    assert reaching == []
 
 
 def test_no_private_name_is_imported_from_another_module():

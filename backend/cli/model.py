@@ -34,7 +34,7 @@ def cmd_predict(args: argparse.Namespace) -> int:
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    from backend.experiments.plotting import plot_proposal
+    from lab.plotting import plot_proposal
 
     model = load(args)
     proposal = model.propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass)
@@ -53,8 +53,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from backend.experiments.evaluation import evaluate, format_incline_report, format_report
-    from backend.experiments.um21_envelopes import format_um21_report
+    from lab.evaluation import evaluate, format_incline_report, format_report
+    from lab.um21_envelopes import format_um21_report
 
     report = evaluate()
     print(format_report(report))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from backend.cli.formatting import emit, format_compare, write_json
+from backend.cli.formatting import emit, write_json
 from backend.cli.model import load, task_args
 
 
@@ -17,7 +17,8 @@ def _course(args: argparse.Namespace):
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     if args.course is not None:
-        from backend.experiments.course import NOMINAL_TASK, walk_course
+        from device_bridge.bench.controllers import NOMINAL_TASK
+        from device_bridge.bench.walks import walk_course
 
         course = _course(args)
         task = (args.speed if args.speed is not None else NOMINAL_TASK[0],
@@ -30,7 +31,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise ValueError("simulate needs --speed (a fixed task) or --course NAME|FILE")
     if args.controller == "adaptive":
         raise ValueError("the adaptive controller walks a course: add --course NAME|FILE")
-    from backend.experiments.walks import simulate
+    from device_bridge.bench.walks import simulate
 
     model = load(args) if args.controller == "quasi-stiffness" or args.incline != 0.0 else None
     score = simulate(args.controller, args.speed, args.incline, args.seconds, args.mass, model,
@@ -41,15 +42,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     if args.course is not None:
-        from backend.cli.formatting import format_course_compare
-        from backend.experiments.course import compare_course
+        from lab.course_compare import compare_course, format_course_compare
 
         result = compare_course(load(args), _course(args), args.mass)
         print(format_course_compare(result))
         if args.out:
             write_json(args.out, result)
         return 0
-    from backend.experiments.comparison import compare, plot_compare
+    from lab.comparison import compare, format_compare, plot_compare
 
     results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass)
     rows = [score.to_dict() for score, _ in results]

@@ -7,11 +7,10 @@ import threading
 
 from fastapi import APIRouter
 
+from backend.bench.preview import PREVIEW_COURSE, preview_envelope, preview_table
+from backend.bench.safety_figures import safety_flags
 from backend.deps import Conn, CurrentUser, Model
 from backend.errors import ConflictError
-from backend.experiments.course import PREVIEW_COURSE, preview_envelope
-from backend.experiments.preview import preview_table
-from backend.experiments.safety_figures import safety_flags
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.previews import EnvelopePreviewOut, PreviewOut

@@ -12,7 +12,6 @@ from fastapi import APIRouter, Query, Request, Response, status
 from backend.deps import Conn, CurrentUser, Model, Monitor, Prosthetist
 from backend.devices import DeviceManager
 from backend.errors import ConflictError, InvalidError
-from backend.experiments.reference import task_reference
 from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
@@ -23,6 +22,7 @@ from backend.store import sessions as store
 from controller_core.session_regions import adaptive_summary, own_task_errors
 from controller_core.session_summary import device_times, session_strikes, summarize_session
 from controller_core.session_trend import session_trend
+from device_bridge.bench.task_reference import task_reference
 from device_bridge.protocol import Mode
 from device_bridge.sim.course import COURSES
 

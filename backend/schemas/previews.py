@@ -29,7 +29,7 @@ class ControllerPreview(WalkFigures):
 
 
 class SafetyFlag(BaseModel):
-    """One safety figure of this table's walk outside its bound (backend/experiments/safety_figures.py)."""
+    """One safety figure of this table's walk outside its bound (backend/bench/safety_figures.py)."""
 
     figure: str = Field(description="the summary key, e.g. toe_catches, loaded_swing_ms_per_stride")
     severity: Literal["bad", "warn"]

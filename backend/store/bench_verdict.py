@@ -11,8 +11,8 @@ from __future__ import annotations
 import sqlite3
 from typing import Literal
 
+from backend.bench.safety_figures import safety_figures, safety_flags
 from backend.errors import ConflictError
-from backend.experiments.safety_figures import safety_figures, safety_flags
 from backend.store import previews
 
 MIN_OVERRIDE_CHARS = 20

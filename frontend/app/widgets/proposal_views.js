@@ -123,7 +123,7 @@ export function featureTable(p) {
 }
 
 // The bench's safety figures, before any tracking error: each flagged on its own bound by the server
-// (backend/experiments/safety_figures.py), whatever the RMSEs say.
+// (backend/bench/safety_figures.py), whatever the RMSEs say.
 export function safetyFigures(flags, t, f, what = "This table") {
   const flagOf = Object.fromEntries(flags.map((x) => [x.figure, x]));
   const row = (label, figure, shown, bound) => {

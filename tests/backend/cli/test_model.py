@@ -63,7 +63,7 @@ def test_cli_train_on_standard_format_then_predict_with_it(capsys, reference, tm
 
 
 def test_cli_evaluate_writes_json(capsys, monkeypatch, reference, tmp_path):
-    from backend.experiments import evaluation
+    from lab import evaluation
 
     # three real conditions keep the leave-one-out short; the shipped five are the same code path
     monkeypatch.setattr(evaluation, "load_shipped_reference", lambda: reference.subset([0, 2, 4]))

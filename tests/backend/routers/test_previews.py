@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from backend.experiments.safety_figures import safety_flags
+from backend.bench.safety_figures import safety_flags
 
 
 def test_preview_walks_the_table_and_the_fsmic_once_and_keeps_it(api):

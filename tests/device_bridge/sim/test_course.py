@@ -58,11 +58,11 @@ def test_courses_come_by_name_or_from_a_file(tmp_path):
 
 @pytest.fixture(scope="module")
 def adaptive_walk(model):
-    from backend.experiments.course import make_course_controller
+    from device_bridge.bench.controllers import make_controller
     from device_bridge.sim.course_walk import run_course, score_course
 
     env = model.propose_envelope([0.8, 1.1, 1.4], [-8.0, 0.0, 8.0], 75.0, nominal=(1.1, 0.0))
-    ctrl = make_course_controller("adaptive", model, 75.0, LegGeometry(), env)
+    ctrl = make_controller("adaptive", 75.0, model, envelope=env, geometry=LegGeometry())
     changes: list[tuple[int, int]] = []
     step = ctrl.step
 

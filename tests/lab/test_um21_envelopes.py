@@ -6,8 +6,8 @@ import math
 
 import pytest
 
-from backend.experiments.um21_envelopes import format_um21_report, load_um21_ranges, um21_change_check
 from controller_core.model_io import train
+from lab.um21_envelopes import format_um21_report, load_um21_ranges, um21_change_check
 
 
 def test_the_shipped_ranges_load_in_our_convention():

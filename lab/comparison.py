@@ -1,16 +1,18 @@
-"""The controller comparison (``quasitune compare``): the learned table against the FSMIC over a task grid, with
+"""The fixed-task controller comparison (``quasitune compare``): the learned table against the FSMIC over a task grid, with
 intervals over strides saying whether each difference is resolved, and the trajectory figure."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from backend.experiments.walks import CONTROLLERS, simulate
-from controller_core.gait_metrics import GAIT_CHANNELS, difference_keys, rmse_difference
+from controller_core.gait_metrics import GAIT_CHANNELS, difference_keys
 from controller_core.model import QuasiStiffnessModel
+from device_bridge.bench.versus import against_fsmic
+from device_bridge.bench.walks import simulate
 from device_bridge.sim.simulate import WalkScore
 
 COMPARE_SPEEDS_MPS: tuple[float, ...] = (0.84, 1.2, 1.49, 1.95)
+COMPARED: tuple[str, ...] = ("quasi-stiffness", "fsmic")
 
 
 def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_SPEEDS_MPS,
@@ -18,37 +20,15 @@ def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_
             ) -> list[tuple[WalkScore, str]]:
     """Both controllers over the task grid; returns (score, controller) pairs in grid order.
 
-    Each learned walk's summary also carries ``vs_fsmic`` (:func:`against_fsmic`): how its RMSEs differ from
-    the FSMIC's at the same task, and whether the strides walked resolve the difference.
+    Each learned walk's summary also carries ``vs_fsmic`` (:func:`device_bridge.bench.versus.against_fsmic`): how its
+    RMSEs differ from the FSMIC's at the same task, and whether the strides walked resolve the difference.
     """
     out = []
     for incline in inclines_deg:
         for speed in speeds_mps:
-            pair = {name: simulate(name, speed, incline, seconds, mass_kg, model) for name in CONTROLLERS}
+            pair = {name: simulate(name, speed, incline, seconds, mass_kg, model) for name in COMPARED}
             pair["quasi-stiffness"].summary["vs_fsmic"] = against_fsmic(pair["quasi-stiffness"], pair["fsmic"])
-            out.extend((pair[name], name) for name in CONTROLLERS)
-    return out
-
-
-def against_fsmic(learned: WalkScore, fsmic: WalkScore, level: float = 0.95) -> dict[str, object]:
-    """Learned minus FSMIC stride-averaged RMSE per channel, with a bootstrap interval over strides.
-
-    Keys per channel (units in the names): ``knee_angle_rmse_difference_deg``,
-    ``knee_angle_rmse_difference_ci95_deg`` (lo, hi) and ``knee_angle_verdict``: ``"learned lower"`` or
-    ``"FSMIC lower"`` when the interval excludes zero, ``"not resolved"`` when the two walks' stride-to-stride
-    variation allows either (:func:`controller_core.gait_metrics.rmse_difference`). A channel either walk could
-    not score (fewer than two strides) is None.
-    """
-    words = {"A lower": "learned lower", "B lower": "FSMIC lower", "not resolved": "not resolved"}
-    out: dict[str, object] = {}
-    for name in GAIT_CHANNELS:
-        key, ci_key, verdict_key = difference_keys(name)
-        a, b = learned.stride_curves.get(name), fsmic.stride_curves.get(name)
-        if a is None or b is None or a.shape[0] < 2 or b.shape[0] < 2:
-            out[key] = out[ci_key] = out[verdict_key] = None
-            continue
-        d = rmse_difference(a, b, learned.reference_curves[name], level)
-        out[key], out[ci_key], out[verdict_key] = d["difference"], list(d["interval"]), words[str(d["verdict"])]
+            out.extend((pair[name], name) for name in COMPARED)
     return out
 
 
@@ -97,3 +77,31 @@ def plot_compare(results: list[tuple[WalkScore, str]], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def cell(v: object) -> str:
+    """A table cell: — for none, two decimals for a float."""
+    return "—" if v is None else f"{v:.2f}" if isinstance(v, float) else str(v)
+
+
+def format_compare(rows: list[dict]) -> str:
+    """Markdown table of a comparison (one row per task and controller)."""
+    cols = ["speed_mps", "incline_deg", "controller", "strides", "falls", "toe_catches", "loaded_swing_ms_max_stride",
+            "knee_angle_rmse_deg", "ankle_angle_rmse_deg", "knee_moment_rmse_Nm_per_kg", "ankle_moment_rmse_Nm_per_kg",
+            "real_time_factor"]
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines += ["| " + " | ".join(cell(r.get(c)) for c in cols) + " |" for r in rows]
+    verdicts = [r for r in rows if r.get("vs_fsmic")]
+    if verdicts:
+        keys = [difference_keys(channel) for channel in GAIT_CHANNELS]
+        lines += ["", "learned − FSMIC RMSE, 95 % interval over strides (bootstrap), verdict:", "",
+                  "| speed_mps | incline_deg | " + " | ".join(k for k, _, _ in keys) + " |",
+                  "|" + "---|" * (2 + len(keys))]
+        for r in verdicts:
+            v = r["vs_fsmic"]
+            cells = []
+            for key, ci_key, verdict_key in keys:
+                d, ci = v.get(key), v.get(ci_key)
+                cells.append("—" if d is None else f"{d:+.2f} [{ci[0]:+.2f}, {ci[1]:+.2f}] {v[verdict_key]}")
+            lines.append(f"| {cell(r.get('speed_mps'))} | {cell(r.get('incline_deg'))} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)

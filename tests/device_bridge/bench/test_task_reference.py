@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from backend.experiments.reference import task_reference
+from device_bridge.bench.task_reference import task_reference
 
 
 def test_measured_where_the_data_reach_and_the_model_beyond(model):

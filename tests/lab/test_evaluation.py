@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from backend.experiments.evaluation import evaluate_incline, format_incline_report
 from controller_core.phase_table import load_shipped_ramps
+from lab.evaluation import evaluate_incline, format_incline_report
 
 
 def test_each_slope_held_out_is_scored_against_ignoring_incline_and_linear_interpolation(reference):

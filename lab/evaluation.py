@@ -18,7 +18,7 @@ over all phase points of all held-out conditions, per channel, next to the publi
 (RMS over phase and conditions) for scale.
 
 Over incline: one ramp condition held out at a time (:func:`evaluate_incline`), and the model trained on everything
-against ten other people's change from level walking (:mod:`backend.experiments.um21_envelopes`), data it never saw.
+against ten other people's change from level walking (:mod:`lab.um21_envelopes`), data it never saw.
 """
 
 from __future__ import annotations
@@ -28,13 +28,13 @@ import math
 
 import numpy as np
 
-from backend.experiments.um21_envelopes import um21_change_check
 from controller_core.features import FEATURES, FeatureSpec, record_features
 from controller_core.joint_reference import JointReference
 from controller_core.model_io import train
 from controller_core.phase_table import load_shipped_ramps
 from controller_core.proposal import FEATURE_UNITS
 from controller_core.reference import CHANNEL_DISPLAY, CHANNELS, ReferenceSet, level_curves_at, load_shipped_reference
+from lab.um21_envelopes import um21_change_check
 
 METHODS = ("proposal", "reference", "gmr", "linear", "nearest")
 

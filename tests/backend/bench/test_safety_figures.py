@@ -5,7 +5,7 @@ The summaries here are hand-written (not walks): each test sets the one figure i
 
 from __future__ import annotations
 
-from backend.experiments.safety_figures import safety_flags
+from backend.bench.safety_figures import safety_flags
 
 SAFE = {"strides": 8, "falls": 0, "toe_catches": 0, "heel_strikes_without_stance": 0,
         "heel_strike_to_stance_ms_median": 24.0, "heel_strike_to_stance_ms_max": 30.0,

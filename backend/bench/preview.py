@@ -1,0 +1,60 @@
+"""The dashboard's simulated preview of a version: its table (or envelope) and the FSMIC walked on the bench.
+
+A table walks at its task for ten seconds; an envelope walks the mixed course (the leg estimating its task and
+adapting), both against the FSMIC on the same plant, reference and metrics as ``quasitune simulate``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller_core.envelope import Envelope
+from controller_core.gait_metrics import PHASE_GRID, reference_curves
+from controller_core.model import QuasiStiffnessModel
+from controller_core.table import ImpedanceTable
+from controller_core.task import validate_task
+from device_bridge.bench.controllers import make_controller
+from device_bridge.bench.task_reference import task_reference
+from device_bridge.bench.versus import against_fsmic, versus
+from device_bridge.bench.walks import walk_course
+from device_bridge.sim.course import Course
+from device_bridge.sim.simulate import run_walk, score_walk
+
+PREVIEW_COURSE = "mixed"
+
+
+def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, mass_kg: float,
+                  model: QuasiStiffnessModel | None = None, seconds: float = 10.0) -> dict[str, object]:
+    """Walk a given (e.g. proposed or edited) table and the FSMIC benchmark on the bench at a task.
+
+    Returns JSON-ready data: ``phase_grid`` (101 points), ``reference_curves`` and, per controller (``table``,
+    ``fsmic``), its summary and stride-averaged ``mean_curves`` (deg, N·m/kg); the table's entry also carries
+    ``vs_fsmic`` (its RMSEs minus the FSMIC's, with 95 % intervals).
+
+    Raises:
+        SafetyLimitError: a table fails the safety limits (checked again, as the device does).
+    """
+    def rounded(curves: dict[str, np.ndarray]) -> dict[str, list[float]]:
+        return {k: [round(float(v), 3) for v in c] for k, c in curves.items()}
+
+    validate_task(speed_mps, incline_deg, mass_kg)
+    ref = task_reference(speed_mps, incline_deg, model, mass_kg)
+    scores = {name: score_walk(run_walk(make_controller(name, mass_kg, table=table), ref, mass_kg, seconds), ref)
+              for name in ("table", "fsmic")}
+    controllers: dict[str, object] = {name: {**score.summary, "mean_curves": rounded(score.mean_curves)}
+                                      for name, score in scores.items()}
+    controllers["table"]["vs_fsmic"] = against_fsmic(scores["table"], scores["fsmic"])
+    return {"seconds": seconds, "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
+            "reference_curves": rounded(reference_curves(ref)), "controllers": controllers}
+
+
+def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course) -> dict[str, object]:
+    """The envelope's preview for its page: the course walked with the envelope (the leg estimating its task and
+    adapting) and with the FSMIC, at the envelope's body mass. Per controller its summary (safety figures, errors by
+    segment, estimation accuracy for the envelope); ``envelope_minus_fsmic``: per channel the mean per-stride RMSE
+    difference with its 95 % interval and verdict."""
+    scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope),
+              "fsmic": walk_course("fsmic", course, model, envelope.mass_kg)}
+    return {"course": course.to_json(), "mass_kg": envelope.mass_kg,
+            "controllers": {name: s.to_dict() for name, s in scores.items()},
+            "envelope_minus_fsmic": versus(scores["envelope"], scores["fsmic"], "envelope", "FSMIC")}

@@ -1,0 +1,68 @@
+"""The one controller factory of the bench: every walk (preview, comparison, course, session) gets its controller here.
+
+* ``table``: a given table (a proposal's, an edit's) on the four-state machine;
+* ``quasi-stiffness``: the model's table at one task (default the nominal 1.2 m/s level);
+* ``fsmic``: the hand-tuned benchmark table (:mod:`controller_core.fsmic`), one table for every task;
+* ``adaptive``: an envelope blended at the leg's own task estimate (:mod:`controller_core.adaptive`).
+
+Every table is checked against the safety limits again here, as the device does.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from controller_core.adaptive import AdaptiveController
+from controller_core.envelope import Envelope
+from controller_core.envelope_blend import EnvelopeBlender
+from controller_core.fsm import ImpedanceSchedule, StateMachineController
+from controller_core.fsmic import fsmic_table
+from controller_core.model import QuasiStiffnessModel
+from controller_core.table import ImpedanceTable
+from controller_core.task_estimator import TaskEstimator
+from device_bridge.sim.leg_model import LegGeometry
+
+CONTROLLERS: tuple[str, ...] = ("table", "quasi-stiffness", "fsmic", "adaptive")
+NOMINAL_TASK = (1.2, 0.0)
+DEFAULT_ENVELOPE_SPEEDS_MPS = tuple(np.linspace(0.6, 1.6, 5).round(3))
+DEFAULT_ENVELOPE_INCLINES_DEG = tuple(np.linspace(-10.0, 10.0, 5).round(3))
+
+
+def default_envelope(model: QuasiStiffnessModel, mass_kg: float) -> Envelope:
+    """The 5 × 5 envelope over 0.6–1.6 m/s × ±10° that course walks use when given none, nominal 1.2 m/s level."""
+    return model.propose_envelope(DEFAULT_ENVELOPE_SPEEDS_MPS, DEFAULT_ENVELOPE_INCLINES_DEG, mass_kg, NOMINAL_TASK)
+
+
+def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None = None,
+                    task: tuple[float, float] = NOMINAL_TASK, table: ImpedanceTable | None = None,
+                    envelope: Envelope | None = None, geometry: LegGeometry | None = None
+                    ) -> StateMachineController | AdaptiveController:
+    """A fresh controller named ``name`` for a patient of ``mass_kg``.
+
+    Args:
+        task: (speed m/s, incline deg) of the ``quasi-stiffness`` table.
+        table: the ``table`` controller's table.
+        envelope: the ``adaptive`` controller's envelope (default :func:`default_envelope`).
+        geometry: the leg's segments, which the ``adaptive`` controller's task estimator needs.
+
+    Raises:
+        ValueError: an unknown name, or what the name needs is missing.
+        SafetyLimitError: a table or envelope node fails the limits.
+    """
+    if name not in CONTROLLERS:
+        raise ValueError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLERS)}")
+    if name == "fsmic":
+        return StateMachineController(ImpedanceSchedule.from_table(fsmic_table(mass_kg)))
+    if name == "table":
+        if table is None:
+            raise ValueError("the table controller needs a table")
+        return StateMachineController(ImpedanceSchedule.from_table(table))
+    if model is None:
+        raise ValueError(f"the {name} controller needs a trained model")
+    if name == "quasi-stiffness":
+        return StateMachineController(ImpedanceSchedule.from_table(model.propose(task[0], task[1], mass_kg).table))
+    env = envelope or default_envelope(model, mass_kg)
+    geometry = geometry or LegGeometry()
+    return AdaptiveController(EnvelopeBlender(env.speeds_mps, env.inclines_deg, env.tables(), steps=env.neighbour_steps),
+                              TaskEstimator(geometry.thigh_m, geometry.shank_m),
+                              (env.nominal_speed_mps, env.nominal_incline_deg))
