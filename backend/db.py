@@ -38,7 +38,7 @@ def open_pool(path: str | Path, keep: int = 16) -> QueuePool:
 
     Why a pool: when the last connection to a WAL database closes, SQLite checkpoints the log and deletes it,
     with an fsync; a connection per request paid that and the pragmas on every request, most of a proposal's
-    server time (docs/results.md).
+    server time (``python -m benchmarks api``).
     """
     return QueuePool(lambda: connect(path), pool_size=keep, max_overflow=-1, reset_on_return="rollback")
 

@@ -9,8 +9,8 @@ flexing → SF at heel strike, when the load rises above its threshold. Every st
 transition before it) and a maximum time (the guard moves on to the next state, so a missed event cannot
 hold the leg in one state). An event counts only once its condition has held for ``event_hold_s``
 (20 ms by default): a load cell rings at heel strike and when a straight knee meets its end stop, and on the
-simulated bench a single low sample in mid-stance was enough to fire a false toe-off and put a loaded leg
-into swing flexion (docs/results.md).
+simulated bench a single low sample in mid-stance is enough to fire a false toe-off and put a loaded leg
+into swing flexion.
 
 Heel strike is recognised sooner, because a loaded leg on the weak swing impedance is the hazard (the 20 ms hold
 plus swing extension's minimum time kept a loaded leg in swing for 50–120 ms per stride): from either swing

@@ -16,8 +16,8 @@ speed) extrapolate with growing uncertainty instead of reverting to the mean; th
 differences between labs. ``C_lin`` is a fixed, broad prior variance of the trend (``linear_prior_var``,
 in units of the target's variance per scaled input²) rather than a fitted one: with four or five
 training tasks the marginal likelihood tends to shrink it to nearly zero and explain the trend as noise,
-and the prediction then reverts to the mean one step outside the data (leave-one-condition-out, the
-fitted C_lin gave worse feature errors on 8 of 9 features than the fixed broad prior; docs/results.md).
+and the prediction then reverts to the mean one step outside the data (the fixed prior is the one the
+leave-one-condition-out evaluation chose, ``quasitune evaluate``).
 A broad prior is the Gaussian-process form of an explicit linear mean with a vague prior on its
 coefficients (Rasmussen & Williams 2006, §2.7): the trend is set by the data, and its uncertainty widens
 the std away from the data. A task dimension that is constant in the training data (e.g. incline for

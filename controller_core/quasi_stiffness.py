@@ -32,7 +32,8 @@ as its phase span and R² over it.
 
 Swing targets: in swing the foot is off the ground and the able-bodied knee and ankle moments are inertial
 and braking (the hamstrings slowing the swinging shank), which a line in θ does not capture; on the simulated
-bench the least-squares swing lines do not carry a prosthetic shank through swing (docs/results.md). A caller
+bench the least-squares swing lines do not carry a prosthetic shank through swing (``quasitune simulate``
+with ``TableRules(swing_rule="least_squares")``). A caller
 can therefore give, per swing sub-phase, a fixed restoring k and a target θe (the model takes θe from its
 predicted swing features); :func:`fit_quasi_stiffness_joints` then uses that line, marks it ``swing_target``
 and reports its R² against the predicted moment, so the table still says how little of the able-bodied

@@ -42,7 +42,7 @@ from controller_core.fsm import SensorSample
 
 RAD_TO_DEG = 180.0 / math.pi
 # the estimate's resolution: the accuracy it holds on at least 90 % of strides on the bench's courses (±0.1 m/s,
-# ±1.5°, `quasitune compare --course mixed`, docs/results.md). Tasks closer than this cannot be told apart, so
+# ±1.5°, `quasitune compare --course mixed`). Tasks closer than this cannot be told apart, so
 # a task this close to an envelope's edge counts as inside it (not "clamped", not "beyond its edge").
 SPEED_RESOLUTION_MPS = 0.1
 INCLINE_RESOLUTION_DEG = 1.5

@@ -1,1 +1,2 @@
-"""Device bridge: CAN protocol, transports and the simulated prosthesis (not built yet; see issue 5)."""
+"""Device bridge: the CAN protocol, the leg's firmware and host link, transports, the simulated prosthesis (sim/) and the
+model on the bench (bench/)."""

@@ -110,8 +110,8 @@ def hip_height_mismatch_mm(ref: WalkingReference, geometry: LegGeometry, harmoni
     * ``pre_swing``: the most negative target minus touching height while the ipsilateral leg is in stance.
       Negative: the contralateral leg's loading response holds the hip that much lower, compressing the leg.
 
-    Both are properties of the bench at the task, the same for every controller; docs/results.md explains
-    what they do to the stance knee.
+    Both are properties of the bench at the task, the same for every controller (``max_hip_sink_m`` in
+    ``quasitune simulate --format json``).
     """
     thigh = thigh_angle_rad(ref, ref.incline_deg)
     height, h_ipsi = grid_hip_heights_m(ref, thigh, geometry)
