@@ -22,8 +22,8 @@ def freeze_long_lived_objects() -> None:
     they live as long as the process.
 
     A full collection walks every tracked object, and with the model loaded that stalls every request in flight
-    (``python -m benchmarks api`` shows the tail). ``gc.freeze()`` is the standard library's remedy for long-lived heaps; collecting first
-    keeps garbage from being frozen with them. Objects created later are collected as usual.
+    (``python -m benchmarks api`` shows the tail). ``gc.freeze()`` is the standard library's remedy for long-lived
+    heaps; collecting first keeps garbage from being frozen with them. Objects created later are collected as usual.
     """
     gc.collect()
     gc.freeze()
