@@ -24,8 +24,8 @@ def get_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str) -
 def store_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str, result: dict) -> dict:
     """Keep a freshly simulated preview (the first one wins if two requests raced) and return the stored one."""
     with write_transaction(conn):
-        conn.execute("INSERT OR IGNORE INTO proposal_previews (proposal_id, table_sha256, seconds, created_at, "
-                     "result_json) VALUES (?, ?, ?, ?, ?)",
+        conn.execute("INSERT INTO proposal_previews (proposal_id, table_sha256, seconds, created_at, result_json) "
+                     "VALUES (?, ?, ?, ?, ?) ON CONFLICT (proposal_id) DO NOTHING",
                      (proposal_id, table_sha256, float(result["seconds"]), utc_now(), json.dumps(result)))
     stored = get_preview(conn, proposal_id, table_sha256)
     assert stored is not None
@@ -46,9 +46,10 @@ def get_envelope_preview(conn: sqlite3.Connection, envelope_id: int, envelope_sh
 def store_envelope_preview(conn: sqlite3.Connection, envelope_id: int, envelope_sha256: str, result: dict) -> dict:
     """Keep a freshly simulated envelope preview (the first one wins a race) and return the stored one."""
     with write_transaction(conn):
-        conn.execute("INSERT OR IGNORE INTO envelope_previews (envelope_id, envelope_sha256, course, created_at, "
-                     "result_json) VALUES (?, ?, ?, ?, ?)", (envelope_id, envelope_sha256, result["course"]["name"],
-                                                              utc_now(), json.dumps(result, allow_nan=False)))
+        conn.execute("INSERT INTO envelope_previews (envelope_id, envelope_sha256, course, created_at, result_json) "
+                     "VALUES (?, ?, ?, ?, ?) ON CONFLICT (envelope_id) DO NOTHING",
+                     (envelope_id, envelope_sha256, result["course"]["name"], utc_now(),
+                      json.dumps(result, allow_nan=False)))
     stored = get_envelope_preview(conn, envelope_id, envelope_sha256)
     assert stored is not None
     return stored

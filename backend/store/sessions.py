@@ -104,9 +104,10 @@ SAMPLE_COLUMNS = ("seq", "t_s", "mode", "fsm_state", "knee_angle_rad", "knee_vel
 
 
 def add_samples(conn: sqlite3.Connection, session_id: int, rows: Iterable[tuple]) -> None:
-    """Append samples (tuples in :data:`SAMPLE_COLUMNS` order) to a recording session."""
-    sql = (f"INSERT OR IGNORE INTO session_samples (session_id, {', '.join(SAMPLE_COLUMNS)}) "
-           f"VALUES (?, {', '.join('?' * len(SAMPLE_COLUMNS))})")
+    """Append samples (tuples in :data:`SAMPLE_COLUMNS` order) to a recording session; a sample already stored
+    (the same sequence number, a retried batch) is kept as it was, anything else malformed is refused."""
+    sql = (f"INSERT INTO session_samples (session_id, {', '.join(SAMPLE_COLUMNS)}) "
+           f"VALUES (?, {', '.join('?' * len(SAMPLE_COLUMNS))}) ON CONFLICT (session_id, seq) DO NOTHING")
     with write_transaction(conn):
         conn.executemany(sql, ((session_id, *r) for r in rows))
 

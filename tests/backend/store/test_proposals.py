@@ -1,0 +1,46 @@
+"""Proposals in storage: stored as the device will run them, proved by their hash at every read."""
+
+from __future__ import annotations
+
+import pytest
+
+from backend.errors import ConflictError
+from backend.store import proposals
+from controller_core.content import canonical_json, content_sha256
+from device_bridge.as_run import as_run
+
+
+def test_a_proposal_is_stored_as_the_device_will_run_it(conn, prosthetist, patient, model):
+    proposal = model.propose(1.2, 0.0, 80.0)
+    out = proposals.create_from_model(conn, patient["id"], proposal, prosthetist)
+    row = proposals.get_row(conn, out["id"])
+    stored = proposals.stored_table(row)
+    assert stored == as_run(proposal.table).item and row["table_json"] == canonical_json(stored)
+    assert row["table_sha256"] == content_sha256(row["table_json"]) == out["table_sha256"]
+    assert out["status"] == "draft" and out["version"] == 1 and out["safety"]["ok"]
+    assert proposals.table_label("P-1", 1) in out["table_label"]
+
+
+def test_a_table_changed_in_storage_is_refused_at_read(conn, prosthetist, patient, model):
+    out = proposals.create_from_model(conn, patient["id"], model.propose(1.2, 0.0, 80.0), prosthetist)
+    conn.execute("DROP TRIGGER proposals_content_immutable")      # what a tampered file could hold
+    conn.execute("UPDATE proposals SET table_json = replace(table_json, '\"theta_e_deg\":', '\"theta_e_deg\": ') "
+                 "WHERE id = ?", (out["id"],))
+    conn.commit()
+    with pytest.raises(ConflictError, match="does not match its sha256"):
+        proposals.get_proposal(conn, out["id"])
+
+
+def test_an_edit_is_a_new_draft_with_its_parent_and_the_diff_names_each_change(conn, prosthetist, patient, model):
+    parent = proposals.create_from_model(conn, patient["id"], model.propose(1.2, 0.0, 80.0), prosthetist)
+    table = proposals.stored_table(proposals.get_row(conn, parent["id"]))
+    first = table.rows[0]
+    edited = table.model_copy(update={"rows": [first.model_copy(update={"k_Nm_per_rad": first.k_Nm_per_rad - 20.0}),
+                                               *table.rows[1:]]})
+    field = f"{first.joint}.{first.subphase}.k_Nm_per_rad"
+    changes = [{"field": field, "before": first.k_Nm_per_rad, "after": first.k_Nm_per_rad - 20.0}]
+    child = proposals.create_edit(conn, parent["id"], edited, changes, "firmer landing", prosthetist)
+    assert (child["parent_id"], child["source"], child["version"]) == (parent["id"], "edit", 2)
+    d = proposals.diff(conn, parent["id"], child["id"])
+    [change] = [c for c in d["changes"] if c["field"] == f"{first.joint}.{first.subphase}.k_Nm_per_rad"]
+    assert change["after"] - change["before"] == pytest.approx(-20.0, abs=1e-3)

@@ -1,0 +1,50 @@
+"""Passwords and tokens: what is stored never logs anyone in, and a bad hash never verifies."""
+
+from __future__ import annotations
+
+import pytest
+
+from backend.security import (
+    MAX_PASSWORD_LENGTH,
+    MIN_PASSWORD_LENGTH,
+    burn_password_check,
+    check_password_policy,
+    hash_password,
+    new_token,
+    token_digest,
+    verify_password,
+)
+
+
+def test_a_hash_verifies_its_password_only_and_is_salted():
+    stored = hash_password("correct horse battery")
+    assert stored.startswith("scrypt$16384$8$1$") and "correct" not in stored
+    assert verify_password("correct horse battery", stored)
+    assert not verify_password("correct horse batterz", stored)
+    assert hash_password("correct horse battery") != stored          # a fresh salt every time
+
+
+@pytest.mark.parametrize("stored", ["", "scrypt$1$2", "bcrypt$16384$8$1$AAAA$AAAA", "scrypt$x$8$1$AAAA$AAAA",
+                                    "scrypt$16384$8$1$not base64!$AAAA"])
+def test_a_malformed_or_foreign_hash_never_verifies(stored):
+    assert verify_password("anything at all", stored) is False
+
+
+def test_the_policy_names_the_bound_it_refuses():
+    check_password_policy("x" * MIN_PASSWORD_LENGTH)
+    with pytest.raises(ValueError, match=f"at least {MIN_PASSWORD_LENGTH}"):
+        check_password_policy("x" * (MIN_PASSWORD_LENGTH - 1))
+    with pytest.raises(ValueError, match=f"at most {MAX_PASSWORD_LENGTH}"):
+        check_password_policy("x" * (MAX_PASSWORD_LENGTH + 1))
+
+
+def test_tokens_are_fresh_and_only_their_digest_is_kept():
+    a, b = new_token(), new_token()
+    assert a != b and len(a) >= 40
+    assert token_digest(a) == token_digest(a) != token_digest(b)
+    assert len(token_digest(a)) == 64 and a not in token_digest(a)
+    assert token_digest("\udcff")        # a lone surrogate from a hostile header still digests, never raises
+
+
+def test_an_unknown_user_check_does_the_same_work_and_verifies_nothing():
+    assert burn_password_check("whatever password") is None
