@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from tests.device_bridge.test_envelope_transfer import frames_of
 
 from backend.schemas.envelopes import MAX_NODES
 from controller_core.fsm import SensorSample
@@ -15,7 +16,6 @@ from device_bridge.envelope_wire import EnvelopeReceiver, WireEnvelope
 from device_bridge.firmware import DeviceFirmware
 from device_bridge.protocol import AckResult, Command, Fault, Mode, ProtocolError, decode, encode
 from device_bridge.soak import soak
-from tests.device_bridge.test_envelope_transfer import frames_of
 from tests.device_bridge.test_firmware import feed, install, status
 from tests.helpers.device import pair, until
 
