@@ -12,7 +12,7 @@ from device_bridge.sim.video import VideoRecorder
 
 
 def test_only_an_mp4_or_a_folder_is_accepted(tmp_path):
-    with pytest.raises(ValueError, match="FILE.mp4 or a folder"):
+    with pytest.raises(ValueError, match=r"FILE\.mp4 or a folder"):
         VideoRecorder(tmp_path / "walk.gif")
     assert VideoRecorder(tmp_path / "frames").every == round(1000 / 30)
 
