@@ -1,0 +1,68 @@
+"""The session recorder: a device's samples buffered while it records, written in batches, nothing lost at the end."""
+
+from __future__ import annotations
+
+import pytest
+
+from backend.db import open_pool, pooled
+from backend.devices.recorder import SessionRecorder
+from backend.migrate import migrate
+from backend.store import devices, patients, sessions, users
+
+
+def _sample(seq: int) -> tuple:
+    return (seq, seq / 100.0, "active", 0, 0.1, 0.0, -5.0, 0.0, 0.0, 1.0, 700.0, -10.0, None, None, None, None, None)
+
+
+@pytest.fixture
+def recording(tmp_path):
+    path = tmp_path / "q.sqlite"
+    migrate(path)
+    pool = open_pool(path)
+    with pooled(pool) as conn:
+        made = users.create_user(conn, "pat", "prosthetist", "a long password")
+        actor = users.User(made["id"], "pat", "prosthetist")
+        patient = patients.create_patient(conn, {"code_name": "P-1", "body_mass_kg": 80.0, "height_m": 1.8,
+                                                 "side": "left", "k_level": 3, "notes": ""}, actor)
+        devices.register_device(conn, "leg", "simulated", "virtual", "a")
+        sid = sessions.start_session(conn, patient["id"], "leg", {"speed_mps": 1.2, "incline_deg": 0.0,
+                                                                  "body_mass_kg": 80.0},
+                                     {"proposal_id": None, "envelope_id": None, "table_version": None, "crc32": None},
+                                     actor)
+    recorder = SessionRecorder(pool)          # not started: flushes happen when the test says so
+    yield pool, recorder, sid
+    recorder.close()
+    pool.dispose()
+
+
+def test_only_a_recording_device_is_kept_and_end_writes_everything(recording):
+    pool, recorder, sid = recording
+    recorder.add("leg", _sample(0))                         # before begin: not recorded
+    recorder.begin("leg", sid)
+    assert recorder.session_of("leg") == sid and recorder.session_of("other") is None
+    for seq in range(1, 6):
+        recorder.add("leg", _sample(seq))
+    recorder.add("other", _sample(99))
+    recorder.note_status("leg", "active", (3, 0xABC))
+    recorder.note_status("leg", "active", (3, 0xABC))
+    recorder.note_status("other", "safe", None)
+    reports = recorder.end("leg")
+    assert reports == {("active", (3, 0xABC)): 2} and recorder.session_of("leg") is None
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == [1, 2, 3, 4, 5]
+    recorder.add("leg", _sample(6))                         # after end: not recorded
+    recorder.flush()
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == [1, 2, 3, 4, 5]
+
+
+def test_flushes_append_in_batches(recording):
+    pool, recorder, sid = recording
+    recorder.begin("leg", sid)
+    recorder.add("leg", _sample(1))
+    recorder.flush()
+    recorder.add("leg", _sample(2))
+    recorder.flush()
+    recorder.flush()                                         # nothing new: nothing written
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == [1, 2]

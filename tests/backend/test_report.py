@@ -1,0 +1,34 @@
+"""The session report's facts, in words a clinician reads."""
+
+from __future__ import annotations
+
+from backend.report import headline_words, local_time, report_facts
+
+SESSION = {"summary": {"samples": 1000, "duration_s": 10.0, "missing_samples": 0, "strides": 9, "strides_scored": 8,
+                       "cadence_steps_per_min": 104.0, "stride_time_s": 1.15, "reference_stride_time_s": 1.1,
+                       "headline": {"strides_scored": 8, "enough_strides": True, "min_strides": 5,
+                                    "knee_angle_rmse_deg": 6.04, "ankle_angle_rmse_deg": 10.2,
+                                    "against": "its own task"},
+                       "reference_kind": "measured"},
+           "task_words": "1.20 m/s, incline +0.0°", "device_id": "sim-leg-1", "envelope_id": None,
+           "table_label": "P-1 · table v2", "table_crc32": "00abc123", "table_version": 7,
+           "approval_override": "checked by hand in the parallel bars", "extrapolation_reason": None,
+           "started_at": "2026-01-01T10:00:00Z", "stopped_at": "2026-01-01T10:00:10Z", "started_by": "pat",
+           "course": None}
+PATIENT = {"code_name": "P-1", "body_mass_kg": 80.0, "side": "left"}
+
+
+def test_the_facts_say_what_ran_how_it_went_and_any_override():
+    facts = dict(report_facts(SESSION, PATIENT))
+    assert facts["Patient"] == "P-1 · 80.0 kg · left side"
+    assert facts["Table that ran"] == "P-1 · table v2 (CRC-32 00abc123, device version 7)"
+    assert "checked by hand" in facts["Bench override"] and "Extrapolated" not in facts
+    assert facts["Leg off its table"] == "never" and facts["Strides scored / walked"].startswith("8 / 9")
+    assert facts["Angle error per stride"].startswith("knee 6.0 deg, ankle 10.2 deg")
+
+
+def test_too_few_strides_are_said_so_and_times_read_locally():
+    few = {"strides_scored": 3, "enough_strides": False, "min_strides": 5}
+    assert headline_words(few) == "too few strides to judge (3 scored; at least 5 needed)"
+    assert headline_words(None) == "—" and local_time(None) == "—"
+    assert local_time("2026-01-01T10:00:00Z").startswith("2026-01-01")
