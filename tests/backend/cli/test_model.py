@@ -21,11 +21,15 @@ def test_the_entry_point_runs_as_a_module():
 def test_cli_predict_json_is_one_object(capsys):
     assert main(["predict", "--speed", "1.25", "--incline", "0", "--mass", "75", "--format", "json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    for key in ("task", "model", "extrapolation", "features", "curves", "table"):
-        assert key in d
-    f = d["features"][0]
-    assert set(f) >= {"joint", "quantity", "name", "phase", "value", "std", "unit"}
-    assert set(d["table"][0]) >= {"joint", "subphase", "k_Nm_per_rad", "theta_e_deg", "b_Nm_s_per_rad", "r2"}
+    assert d["task"] == {"speed_mps": 1.25, "incline_deg": 0.0, "mass_kg": 75.0} and d["extrapolation"] is False
+    assert len(d["model"]["data_sha256"]) == 64 and d["safety"] == {"ok": True, "violations": []}
+    assert [f["name"] for f in d["features"]][:3] == ["knee_heel_strike_angle", "knee_stance_flexion_peak",
+                                                       "knee_swing_flexion_peak"]
+    swing = next(f for f in d["features"] if f["name"] == "knee_swing_flexion_peak")
+    assert swing["unit"] == "deg" and 50.0 < swing["value"] < 75.0 and 0.6 < swing["phase"] < 0.8
+    assert len(d["curves"]["knee_angle_deg"]) == 101 and len(d["table"]) == 8
+    stance = [r for r in d["table"] if r["subphase"].startswith("stance")]
+    assert all(r["k_Nm_per_rad"] < 0 for r in stance)               # stance rows restore, never inject energy
 
 
 @pytest.mark.parametrize(("args", "names"), [(["--speed", "0"], "speed_mps"), (["--speed", "nan"], "speed_mps"),

@@ -173,7 +173,8 @@ def test_the_preview_walks_the_course_with_the_envelope_and_the_fsmic_once(api):
     assert env["estimation"]["strides_counted"] > 10 and "estimation" not in fsmic
     d = p["envelope_minus_fsmic"]["knee_angle_deg"]
     assert d["ci95"][0] <= d["rmse_difference"] <= d["ci95"][1]
-    assert isinstance(p["safety"], list)
+    assert [f["figure"] for f in p["safety"] if f["severity"] == "bad"] == []      # no fall, catch or loaded swing
+    assert all(f["message"] and f["unit"] and f["value"] is not None for f in p["safety"])
     again = api.client.get(f"/api/envelopes/{e['id']}/preview", headers=api.as_("viewer")).json()
     assert again["created_at"] == p["created_at"]                  # stored, not walked again
 

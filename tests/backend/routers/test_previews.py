@@ -26,7 +26,8 @@ def test_preview_walks_the_table_and_the_fsmic_once_and_keeps_it(api):
     vs = table["vs_fsmic"]
     assert vs["knee_angle_rmse_difference_deg"] == pytest.approx(
         table["knee_angle_rmse_deg"] - first["controllers"]["fsmic"]["knee_angle_rmse_deg"])
-    assert vs["knee_angle_verdict"] in {"learned lower", "FSMIC lower", "not resolved"}
+    lo, hi = vs["ankle_angle_rmse_difference_ci95_deg"]       # the FSMIC's fixed ankle is degrees off at 1.2 m/s
+    assert hi < 0.0 and vs["ankle_angle_verdict"] == "learned lower"
     assert table["heel_strikes_without_stance"] == 0 and table["heel_strike_to_stance_ms_median"] >= 5.0   # its hold
     assert table["loaded_swing_ms_max_stride"] >= table["loaded_swing_ms_per_stride"]
     assert len(first["phase_grid"]) == 101

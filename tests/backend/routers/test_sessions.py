@@ -25,7 +25,7 @@ def test_session_report_pdf(sim_api):
     assert r.content.startswith(b"%PDF") and len(r.content) > 5000
     assert f"session-{session['id']}.pdf" in r.headers["content-disposition"]
     stopped = c.get(f"/api/sessions/{session['id']}", headers=pro).json()
-    json.dumps(stopped)
+    assert json.loads(json.dumps(stopped, allow_nan=False)) == stopped      # plain JSON, no NaN, round-trips
     # 2.5 s is two strides or so: the headline says so instead of showing a figure to trust, here and in the PDF
     head = stopped["summary"]["headline"]
     assert head["strides_scored"] < 5 and not head["enough_strides"] and head["against"] == "the session's task"
