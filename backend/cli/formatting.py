@@ -1,4 +1,4 @@
-"""How command results are printed: the readable proposal table, flat key-value results, the comparison tables."""
+"""How command results are printed: the readable proposal table, flat key-value results, JSON files."""
 
 from __future__ import annotations
 
