@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tests.device_bridge.test_envelope_transfer import frames_of
 
 from backend.schemas.envelopes import MAX_NODES
 from controller_core.fsm import SensorSample
@@ -17,7 +16,7 @@ from device_bridge.firmware import DeviceFirmware
 from device_bridge.protocol import AckResult, Command, Fault, Mode, ProtocolError, decode, encode
 from device_bridge.soak import soak
 from tests.device_bridge.test_firmware import feed, install, status
-from tests.helpers.device import pair, until
+from tests.helpers.device import frames_of, pair, until
 
 
 def accepted_shapes() -> list[tuple[int, int]]:

@@ -15,6 +15,7 @@ from device_bridge.firmware import DeviceFirmware
 from device_bridge.protocol import AckResult, Mode, ProtocolError, decode, physical
 from device_bridge.soak import soak
 from tests.device_bridge.test_firmware import feed, heartbeat, install
+from tests.helpers.device import frames_of
 
 SPEEDS = [0.8, 1.2, 1.6]
 INCLINES = [-8.0, 0.0, 8.0]
@@ -23,13 +24,6 @@ INCLINES = [-8.0, 0.0, 8.0]
 @pytest.fixture(scope="module")
 def envelopes(model) -> list[Envelope]:
     return [model.propose_envelope(SPEEDS, INCLINES, m) for m in (70.0, 85.0)]
-
-
-def frames_of(env: Envelope, tid: int, version: int):
-    wire = WireEnvelope.from_envelope(env)
-    crc = wire.crc32()
-    return (envelope_begin_frame(tid, version, crc, wire.shape), wire.frames(tid),
-            envelope_commit_frame(tid, version, crc, wire.shape), crc)
 
 
 def with_node_table(env: Envelope, index: int, **row_update) -> Envelope:

@@ -8,7 +8,9 @@ from collections.abc import Callable
 
 import can
 
+from controller_core.envelope import Envelope
 from device_bridge.device_node import DeviceNode
+from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.firmware import FirmwareConfig
 from device_bridge.host import DeviceLink
 
@@ -23,12 +25,13 @@ def pair(config: FirmwareConfig | None = None, leg=None, **link_kwargs) -> tuple
     return node, link
 
 
-def until(predicate: Callable[[], bool], timeout_s: float = 5.0) -> None:
-    """Wait for ``predicate`` to hold; fail after ``timeout_s``."""
+def until(predicate: Callable[[], bool], timeout_s: float = 5.0, poll_s: float = 0.002) -> None:
+    """Wait for ``predicate`` to hold, asking every ``poll_s``; fail after ``timeout_s``. Poll slowly where a
+    simulated leg shares the interpreter with the test (it would otherwise be starved)."""
     deadline = time.monotonic() + timeout_s
     while not predicate():
         assert time.monotonic() < deadline, "condition not reached in time"
-        time.sleep(0.002)
+        time.sleep(poll_s)
 
 
 def assert_same_as_device(table, device) -> None:
@@ -37,3 +40,11 @@ def assert_same_as_device(table, device) -> None:
         d = device.row(r.joint, r.subphase)
         assert (r.k_Nm_per_rad, r.theta_e_deg, r.b_Nm_s_per_rad) == (d.k_Nm_per_rad, d.theta_e_deg, d.b_Nm_s_per_rad)
     assert table.thresholds == device.thresholds
+
+
+def frames_of(env: Envelope, tid: int, version: int):
+    """(begin, data frames, commit, CRC) of an envelope transfer, as the host sends them."""
+    wire = WireEnvelope.from_envelope(env)
+    crc = wire.crc32()
+    return (envelope_begin_frame(tid, version, crc, wire.shape), wire.frames(tid),
+            envelope_commit_frame(tid, version, crc, wire.shape), crc)

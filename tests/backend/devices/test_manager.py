@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from backend.db import open_pool
@@ -12,14 +10,7 @@ from backend.devices.specs import parse_device_spec
 from backend.errors import NotFoundError
 from backend.migrate import migrate
 from device_bridge.as_run import as_run
-
-
-def _until(condition, what: str, within_s: float = 15.0) -> None:
-    """Poll ``condition`` until it holds (the leg reports every 100 ms), failing after ``within_s``."""
-    deadline = time.monotonic() + within_s
-    while not condition():
-        assert time.monotonic() < deadline, f"{what} did not happen within {within_s} s"
-        time.sleep(0.05)
+from tests.helpers.device import until
 
 
 @pytest.fixture
@@ -37,7 +28,7 @@ def manager(tmp_path):
 def test_the_leg_comes_online_and_says_it_runs_no_table(manager):
     m, leg = manager
     assert m.ids() == [leg]
-    _until(lambda: m.online(m.get(leg)), "the leg's first status")
+    until(lambda: m.online(m.get(leg)), 15.0, 0.05)
     view = m.view(leg)
     assert view["kind"] == "simulated" and view["mode"] == "no_table" and view["active_crc32"] is None
     assert view["patient"] is None and view["bench_state"] is not None
@@ -47,8 +38,8 @@ def test_the_leg_comes_online_and_says_it_runs_no_table(manager):
 
 def test_a_pushed_table_is_read_back_by_its_crc_and_then_run(manager, model):
     m, leg = manager
-    _until(lambda: m.online(m.get(leg)), "the leg's first status")
+    until(lambda: m.online(m.get(leg)), 15.0, 0.05)
     table = model.propose(1.2, 0.0, 75.0).table
     result = m.push(leg, table, version=1)
     assert result.crc32 == as_run(table).wire_crc32 and result.version == 1
-    _until(lambda: m.view(leg)["active_crc32"] == f"{result.crc32:08x}", "the leg running the pushed table")
+    until(lambda: m.view(leg)["active_crc32"] == f"{result.crc32:08x}", 15.0, 0.05)   # at its next heel strike
