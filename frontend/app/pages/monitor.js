@@ -183,8 +183,12 @@ export async function monitorPage(view, deviceId, params) {
 
   async function command(name) {
     try {
-      status = await post(`/api/devices/${deviceId}/commands`, { command: name });
-      renderStatus(statusBox, status);
+      const answer = await post(`/api/devices/${deviceId}/commands`, { command: name });
+      // the device's own status stream is the truth: a reply made before the device answered must not undo it
+      if ((answer.last_heartbeat_unix_s ?? 0) >= (status.last_heartbeat_unix_s ?? 0)) {
+        status = answer;
+        renderStatus(statusBox, status);
+      }
       // a change of what the leg does is a caution, never a green "done"
       notice(name === "enter_safe_mode" ? "Safe mode requested: the leg goes passive and damped; the table does not run."
         : "Leaving safe mode: the leg runs its table again from the next heel strike.", "warn");
