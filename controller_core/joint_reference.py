@@ -101,6 +101,13 @@ class JointReference:
         self.covariance_floor = covariance_floor
         self.random_state = random_state
 
+    def check(self) -> None:
+        """Refuse settings the reference cannot use (ValueError naming the setting)."""
+        if self.reference_mode not in ("registered", "pooled"):
+            raise ValueError(f"reference_mode must be 'registered' or 'pooled', got {self.reference_mode!r}")
+        if not (isinstance(self.n_components, int) and self.n_components >= 1):
+            raise ValueError(f"n_components must be a positive integer, got {self.n_components!r}")
+
     def fit(self, reference: ReferenceSet, tasks: np.ndarray, landmarks: np.ndarray,
             incline: InclineChange | None) -> JointReference:
         """Fit the reference of every joint.
@@ -110,8 +117,7 @@ class JointReference:
             landmarks: (records, len(LANDMARKS)) each record's landmark phases.
             incline: the change a slope makes, learned from measured ramps (None: none).
         """
-        if self.reference_mode not in ("registered", "pooled"):
-            raise ValueError("reference_mode must be 'registered' or 'pooled'")
+        self.check()
         registered = self.reference_mode == "registered"
         self.trend_task_dims_ = [j for j in range(tasks.shape[1]) if np.ptp(tasks[:, j]) > 0] if registered else []
         self.canonical_landmarks_ = ordered_landmarks(landmarks.mean(axis=0))

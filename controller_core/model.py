@@ -76,6 +76,7 @@ class QuasiStiffnessModel:
         """
         self.table_rules_ = copy.deepcopy(self.table_rules or TableRules())
         self.table_rules_.check()
+        (self.joint_reference or JointReference()).check()   # every setting refused before the data is touched
         if "speed_mps" not in reference.task_names:
             raise ValueError("the reference set needs a 'speed_mps' task column")
         tasks = np.array([[r.task.get("speed_mps", np.nan), r.task.get("incline_deg", 0.0)] for r in reference.records],

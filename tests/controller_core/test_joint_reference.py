@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from controller_core.feature_model import FeatureModel
 from controller_core.joint_reference import JointReference
+from controller_core.model import QuasiStiffnessModel
 from controller_core.model_io import train
 from controller_core.reference import CHANNELS
 
@@ -43,7 +45,8 @@ def test_a_slope_widens_the_std_by_the_measured_change_uncertainty(model):
 
 
 def test_the_kmp_takes_its_cached_solve_only_for_its_own_fitted_means(reference):
-    pooled = train(reference, use_published=False, joint_reference=JointReference(reference_mode="pooled"))
+    pooled = train(reference, use_published=False, joint_reference=JointReference(reference_mode="pooled"),
+                   feature_model=FeatureModel(n_restarts=0))       # the reference is the subject: a quick feature fit
     jr = pooled.joint_reference_
     level = jr.at_task(np.array([1.0, 0.0]))
     assert level.fitted and level.kmp_mean("knee") is None
@@ -66,6 +69,8 @@ def test_between_subject_sd_is_linear_between_records_and_held_beyond(model):
     np.testing.assert_array_equal(jr.between_subject_sd(speeds[-1] + 1.0)["knee_angle"], jr.level_sd_["knee_angle"][-1])
 
 
-def test_an_unknown_reference_mode_is_refused(reference):
-    with pytest.raises(ValueError, match="reference_mode"):
-        train(reference, use_published=False, joint_reference=JointReference(reference_mode="nearest"))
+def test_unusable_settings_are_refused_before_the_data_is_touched():
+    with pytest.raises(ValueError, match="reference_mode must be 'registered' or 'pooled', got 'nearest'"):
+        QuasiStiffnessModel(joint_reference=JointReference(reference_mode="nearest")).fit(reference=None)
+    with pytest.raises(ValueError, match="n_components"):
+        QuasiStiffnessModel(joint_reference=JointReference(n_components=0)).fit(reference=None)

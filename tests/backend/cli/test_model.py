@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import subprocess
 import sys
@@ -67,10 +68,15 @@ def test_cli_train_on_standard_format_then_predict_with_it(capsys, reference, tm
 
 
 def test_cli_evaluate_writes_json(capsys, monkeypatch, reference, tmp_path):
+    from controller_core.feature_model import FeatureModel
+    from controller_core.joint_reference import JointReference
     from lab import evaluation
 
-    # three real conditions keep the leave-one-out short; the shipped five are the same code path
+    # three real conditions, single-start GPR fits and six mixture components keep the leave-one-out short; the
+    # shipped five and the default settings take the same code path
     monkeypatch.setattr(evaluation, "load_shipped_reference", lambda: reference.subset([0, 2, 4]))
+    monkeypatch.setattr(evaluation, "train", functools.partial(evaluation.train, feature_model=FeatureModel(n_restarts=0),
+                                                               joint_reference=JointReference(n_components=6)))
     assert main(["evaluate", "--out", str(tmp_path / "eval.json")]) == 0
     text = capsys.readouterr().out
     assert "Leave-one-condition-out curve RMSE" in text and "Leave-one-ramp-condition-out" in text
