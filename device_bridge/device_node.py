@@ -30,6 +30,7 @@ from typing import Protocol
 import can
 
 from controller_core.fsm import SensorSample
+from device_bridge.bus_threads import BusThreads
 from device_bridge.firmware import DeviceFirmware, FirmwareConfig, HeldTable
 from device_bridge.protocol import Mode
 
@@ -60,7 +61,7 @@ class Snapshot:
         return None if held is None else held.crc32
 
 
-class DeviceNode:
+class DeviceNode(BusThreads):
     """The simulated prosthesis on ``bus`` (see the module docstring)."""
 
     def __init__(self, bus: can.BusABC, leg: Leg | None = None, config: FirmwareConfig | None = None) -> None:
@@ -68,31 +69,13 @@ class DeviceNode:
         self.leg = leg
         self.firmware = DeviceFirmware(config, now_s=time.monotonic())
         self._lock = threading.Lock()
-        self._stop = threading.Event()
+        super().__init__([bus], join_timeout_s=2.0)
         self._threads = [threading.Thread(target=self._guarded, args=(self._control_loop,), name="device-control",
                                           daemon=True),
                          threading.Thread(target=self._guarded, args=(self._receive_loop,), name="device-receive",
                                           daemon=True)]
         self.overruns = 0
         self.errors = 0
-
-    def start(self) -> DeviceNode:
-        for t in self._threads:
-            t.start()
-        return self
-
-    def close(self) -> None:
-        self._stop.set()
-        for t in self._threads:
-            if t.is_alive():
-                t.join(timeout=2.0)
-        self.bus.shutdown()
-
-    def __enter__(self) -> DeviceNode:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def snapshot(self) -> Snapshot:
         with self._lock:

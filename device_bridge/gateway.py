@@ -12,8 +12,10 @@ import threading
 
 import can
 
+from device_bridge.bus_threads import BusThreads
 
-class Gateway:
+
+class Gateway(BusThreads):
     """Two threads, one per direction, copying frames from ``a`` to ``b`` and from ``b`` to ``a``.
 
     Attributes:
@@ -24,21 +26,9 @@ class Gateway:
         self.a, self.b = a, b
         self.forwarded = {"a_to_b": 0, "b_to_a": 0}
         self.dropped = 0
-        self._stop = threading.Event()
+        super().__init__([a, b])
         self._threads = [threading.Thread(target=self._pump, args=(a, b, "a_to_b"), daemon=True, name="gw-a-b"),
                          threading.Thread(target=self._pump, args=(b, a, "b_to_a"), daemon=True, name="gw-b-a")]
-
-    def start(self) -> Gateway:
-        for t in self._threads:
-            t.start()
-        return self
-
-    def close(self) -> None:
-        self._stop.set()
-        for t in self._threads:
-            t.join(timeout=1.0)
-        self.a.shutdown()
-        self.b.shutdown()
 
     def wait(self) -> None:
         """Block until :meth:`close` (or Ctrl-C in the caller)."""

@@ -29,6 +29,7 @@ import can
 
 from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
+from device_bridge.bus_threads import BusThreads
 from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.protocol import (
     FAULT_MASK,
@@ -203,7 +204,7 @@ class _Outgoing:
     kind: str
 
 
-class DeviceLink:
+class DeviceLink(BusThreads):
     """Host end of one device's CAN link (see the module docstring).
 
     Args:
@@ -232,28 +233,10 @@ class DeviceLink:
         self._push_lock = threading.Lock()
         self._transfer_id = 0
         self._heartbeat_paused = threading.Event()
-        self._stop = threading.Event()
+        super().__init__([bus])
         self._joiner = _TelemetryJoiner()
         self._threads = [threading.Thread(target=self._rx_loop, name="can-rx", daemon=True),
                          threading.Thread(target=self._heartbeat_loop, name="can-heartbeat", daemon=True)]
-
-    def start(self) -> DeviceLink:
-        for t in self._threads:
-            t.start()
-        return self
-
-    def close(self) -> None:
-        self._stop.set()
-        for t in self._threads:
-            if t.is_alive():
-                t.join(timeout=1.0)
-        self.bus.shutdown()
-
-    def __enter__(self) -> DeviceLink:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # ------------------------------------------------------------------------------------------ sending
 

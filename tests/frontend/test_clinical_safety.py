@@ -4,6 +4,8 @@ there is no data and what safe mode means."""
 
 from __future__ import annotations
 
+from playwright.sync_api import expect
+
 from tests.helpers.browser import ARTIFACTS, create_patient, create_patient_and_propose, next_frames, shot, sign_in
 from tests.helpers.browser import api_call as call
 
@@ -17,12 +19,13 @@ def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server
     page.fill(k_cell, "150")                        # energy-injecting: the knee collapses into flexion under load
     live = page.inner_text("#edit-live")
     assert "pushes the joint instead of resisting it" in live and "knee gives way into flexion" in live, live
-    assert page.locator("td[data-cell='knee.stance_flexion.k_Nm_per_rad'].out").count() == 1   # the cell touched
-    assert page.locator("#param-table td.out").count() == 1
+    expect(page.locator("td[data-cell='knee.stance_flexion.k_Nm_per_rad'].out")).to_have_count(1)   # the cell touched
+    expect(page.locator("#param-table td.out")).to_have_count(1)
     assert page.is_disabled("#edit-form button[type=submit]")
     shot(page, "09-live-limit")
     page.fill(k_cell, original)                     # back within the limits: the mark and the message go
-    assert page.locator("#param-table td.out").count() == 0 and page.inner_text("#edit-live") == ""
+    expect(page.locator("#param-table td.out")).to_have_count(0)
+    assert page.inner_text("#edit-live") == ""
     assert not page.is_disabled("#edit-form button[type=submit]")
 
     # a script skipping the page meets the same rule, and nothing is stored
@@ -118,7 +121,7 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     page.click("#stop-session")
     page.click("#stop-dialog-confirm")
     page.wait_for_selector("#session-summary")
-    assert page.locator("#off-table").count() == 1                          # the summary says it, before errors
+    expect(page.locator("#off-table")).to_have_count(1)                          # the summary says it, before errors
 
 
 def test_a_knee_too_soft_to_carry_the_patient_is_refused_as_typed_and_by_the_server(server, page):
@@ -202,7 +205,7 @@ def test_every_map_has_a_key_with_its_unit_darker_is_firmer_and_dots_never_hide_
     for q, words in (("theta_e_deg", "deg · darker = more flexed"), ("b_Nm_s_per_rad", "N·m·s/rad · darker = firmer")):
         page.check(f"input[name=quantity][value={q}]")
         assert page.evaluate(_MAP_JS, "map-knee-stance_flexion")["key"] == words
-    assert page.locator("svg.envelope-map .colour-key").count() == 8
+    expect(page.locator("svg.envelope-map .colour-key")).to_have_count(8)
     shot(page, "15-envelope-map-keys")
     # the node's table: held values flagged, the support floor named, damping said to be a default
     page.check("input[name=quantity][value=k_Nm_per_rad]")

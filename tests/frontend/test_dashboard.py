@@ -6,6 +6,7 @@ import math
 import re
 
 import pytest
+from playwright.sync_api import expect
 
 from tests.helpers.browser import canvas_ink, create_patient, create_patient_and_propose, shot, sign_in
 from tests.helpers.server import PASSWORD
@@ -30,19 +31,20 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     first_id = create_patient_and_propose(page, "P-100")
 
     # the proposal view: loops (SVG), curves (uPlot canvases), features, table, preview
-    assert page.locator("#loop-knee svg path.mean").count() == 1 and page.locator("#loop-ankle svg path.mean").count() == 1
-    assert page.locator("#loop-knee svg .band path").count() == 100          # ±1 SD band along the 101-point loop
-    assert page.locator("#loop-knee svg path.fit").count() == 4              # one fit line per sub-phase
+    expect(page.locator("#loop-knee svg path.mean")).to_have_count(1)
+    expect(page.locator("#loop-ankle svg path.mean")).to_have_count(1)
+    expect(page.locator("#loop-knee svg .band path")).to_have_count(100)          # ±1 SD band along the 101-point loop
+    expect(page.locator("#loop-knee svg path.fit")).to_have_count(4)              # one fit line per sub-phase
     assert page.locator("#loop-knee svg path.via").count() >= 2
     assert page.locator("#loop-knee svg path.ref").count() >= 5              # the measured reference conditions
     assert "0" in page.locator("#loop-knee svg .grid text").all_text_contents()  # axes labelled, zero included
     ink = canvas_ink(page, "#curves canvas")
     assert len(ink) == 4 and min(ink) > 500, ink
     assert page.locator("#features tbody tr").count() >= 6
-    assert page.locator("#param-table tbody tr").count() == 8
+    expect(page.locator("#param-table tbody tr")).to_have_count(8)
     assert page.evaluate("window.quasitune.proposalViewMs") > 0    # measured for the benchmark (the 1 s target is there)
     page.wait_for_selector("#preview-metrics", timeout=30_000)
-    assert page.locator("#preview-metrics tbody tr").count() == 6
+    expect(page.locator("#preview-metrics tbody tr")).to_have_count(6)
     # every RMSE says how sure it is: an interval per controller and the difference's verdict
     knee = page.locator("#preview-metrics tbody tr", has_text="knee angle RMSE").inner_text()
     assert re.search(r"\d+\.\d \[\d+\.\d, \d+\.\d\] deg", knee), knee
@@ -76,7 +78,8 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.fill("#edit-form input[name=comment]", "try too much")
     assert "knee stance flexion resistance (loading response): equilibrium angle = 150.00 deg is outside" in \
         page.inner_text("#edit-live")
-    assert page.locator("#param-table td.out").count() == 1 and page.is_disabled("#edit-form button[type=submit]")
+    expect(page.locator("#param-table td.out")).to_have_count(1)
+    assert page.is_disabled("#edit-form button[type=submit]")
     assert f"#/proposals/{first_id}" in page.url
 
     # typed but not saved: Approve would approve the stored values, so it waits (and says why) until saved or discarded
@@ -93,7 +96,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.fill("#edit-form input[name=comment]", "more knee flexion in early stance")
     page.click("#edit-form button[type=submit]")
     page.wait_for_selector("h1:has-text('P-100 · table v2')")
-    assert page.locator(".chips :text('edited from v1')").count() == 1        # one name: versions, never ids
+    expect(page.locator(".chips :text('edited from v1')")).to_have_count(1)        # one name: versions, never ids
     page.wait_for_selector("#diff td[title='knee.stance_flexion.theta_e_deg']:has-text('equilibrium angle')")
     assert page.inner_text("#diff td.changed").strip().startswith("12")
     shot(page, "03-edited-diff")
@@ -107,7 +110,8 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.wait_for_selector("#decision:has-text('approved by dana')")
     # a table goes only to its patient's leg: a leg worn by nobody is assigned in the push's own dialog (one step),
     # whose bench figures stand beside the button
-    assert page.locator("#push-figures tbody tr").count() == 5 and page.locator("#assign-device").count() == 0
+    expect(page.locator("#push-figures tbody tr")).to_have_count(5)      # drawn once the bench verdict is read
+    expect(page.locator("#assign-device")).to_have_count(0)
     assert "The push assigns it to P-100 first" in page.inner_text("#push-assignment")
     # the push names what it replaces, the assignment it makes, and needs the clinical precondition ticked
     page.click("#push-button")
@@ -116,7 +120,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     assert "worn by nobody: confirming assigns it to P-100, then pushes" in dialog
     assert page.is_disabled("#push-dialog-confirm")
     page.click("#push-dialog-cancel")                                      # cancelled: nothing sent or assigned
-    assert page.locator("#push-steps li").count() == 0
+    expect(page.locator("#push-steps li")).to_have_count(0)
     device = page.evaluate("""async () => (await fetch('/api/devices/sim-leg-1', {headers: {Authorization:
         'Bearer ' + sessionStorage.getItem('quasitune.token')}})).json()""")
     assert device["patient"] is None
@@ -146,7 +150,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     # viser has no login: its 3D view is off on a clinic server, and the page says why
     page.click("#viewer3d-toggle summary")
     page.wait_for_selector("#viewer3d-off:has-text('no login')")
-    assert page.locator("#viewer3d iframe").count() == 0
+    expect(page.locator("#viewer3d iframe")).to_have_count(0)
     assert "P-100 · table v2" in page.inner_text("#active-version")
     shot(page, "05-monitor")
     seen = page.evaluate("window.quasitune.monitor.samples")                # a few strides more, by the samples
@@ -178,8 +182,9 @@ def test_viewer_sees_no_approval_controls_and_the_server_refuses_them(server, br
     sign_in(page, server, "vic")
     page.goto(f"{server}/#/proposals/{pid}")
     page.wait_for_selector("#decision")
-    assert page.locator("#approve").count() == 0 and page.locator("#edit-form").count() == 0
-    assert page.locator("#param-table input").count() == 0                 # read-only table
+    expect(page.locator("#approve")).to_have_count(0)
+    expect(page.locator("#edit-form")).to_have_count(0)
+    expect(page.locator("#param-table input")).to_have_count(0)                 # read-only table
     assert "Only a prosthetist" in page.inner_text("#decision")
     status = page.evaluate(f"""async () => (await fetch('/api/proposals/{pid}/approve', {{method: 'POST',
         headers: {{'Content-Type': 'application/json', Authorization: 'Bearer ' +
@@ -299,7 +304,7 @@ def test_a_link_opened_in_a_new_tab_survives_sign_in_and_the_audit_view_lists_th
     pid = create_patient_and_propose(page, "P-700")
     # the decision shows the bench's safety figures at its top, beside Approve, once the preview has walked
     page.wait_for_selector("#decision-figures tbody tr", timeout=60_000)
-    assert page.locator("#decision-figures tbody tr").count() == 5
+    expect(page.locator("#decision-figures tbody tr")).to_have_count(5)
     assert "falls" in page.inner_text("#decision-figures")
     fresh = browser.new_context()            # a new tab's session: not signed in
     tab = fresh.new_page()

@@ -11,6 +11,7 @@ import time
 
 import httpx
 import pytest
+from playwright.sync_api import expect
 
 from tests.helpers.browser import ARTIFACTS, shot, sign_in, watch_errors
 from tests.helpers.server import PASSWORD
@@ -38,8 +39,8 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     view_ms = page.evaluate("window.quasitune.envelopeViewMs")
 
     # the maps: one per row, a cell per node, the measured conditions drawn, extrapolated nodes hatched
-    assert page.locator("#envelope-maps figure.map").count() == 8
-    assert page.locator("#map-knee-stance_flexion g.node").count() == 25
+    expect(page.locator("#envelope-maps figure.map")).to_have_count(8)
+    expect(page.locator("#map-knee-stance_flexion g.node")).to_have_count(25)
     assert page.locator("#map-knee-stance_flexion circle.measured").count() >= 3
     assert page.locator("#map-knee-stance_flexion rect.extrapolated").count() >= 1    # ±10° at 0.6 m/s lies outside
     assert "outside the walking data" in page.inner_text("#extrapolation")
@@ -47,8 +48,8 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     assert "(deg)" in page.text_content("#map-knee-stance_flexion .map-title")
     # safety figures first, then per-segment errors, once the bench has walked the course
     page.wait_for_selector("#preview-segments", timeout=120_000)
-    assert page.locator("#preview-safety").count() == 1
-    assert page.locator("#preview-segments tbody tr").count() == 8
+    expect(page.locator("#preview-safety")).to_have_count(1)
+    expect(page.locator("#preview-segments tbody tr")).to_have_count(8)
     assert re.search(r"within ±0\.1 m/s on \d+ %", page.inner_text("#preview-estimation"))
     shot(page, f"env-{size}-01-envelope")
 
@@ -56,7 +57,8 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.click("#map-knee-stance_flexion g.node[data-node='4,2']")          # 1.6 m/s, level
     page.wait_for_selector("h1:has-text('node at 1.60 m/s')")
     page.wait_for_selector("#loop-knee svg")
-    assert page.locator("#param-table tbody tr").count() == 8 and page.locator("#features tbody tr").count() > 4
+    expect(page.locator("#param-table tbody tr")).to_have_count(8)
+    assert page.locator("#features tbody tr").count() > 4
     shot(page, f"env-{size}-02-node")
     page.click("#back-to-envelope")
     page.wait_for_selector("#envelope-edit")
@@ -69,7 +71,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.fill("#edit-comment", "too much, on purpose")
     page.click("#envelope-edit button[type=submit]")
     page.wait_for_selector("#edit-error:has-text('nothing stored')")
-    assert page.locator("#edit-hold").count() == 0                          # a limit broke: nothing to hold
+    expect(page.locator("#edit-hold")).to_have_count(0)                          # a limit broke: nothing to hold
     page.select_option("#edit-field", "knee.stance_flexion.k_Nm_per_rad")
     page.select_option("#edit-how", "percent")
     page.fill("#edit-amount", "10")
@@ -78,7 +80,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.click("#edit-hold")
     page.wait_for_selector(f"h1:has-text('{code} · envelope v2')")
     page.wait_for_selector("#diff-table")
-    assert page.locator("#diff-table tbody tr").count() == 25                # one value at every node
+    expect(page.locator("#diff-table tbody tr")).to_have_count(25)                # one value at every node
     assert "held within a step" in page.inner_text("#guarded-note")
     # every value the rule moved is marked, with what was asked; the others changed by the 10 % asked
     held_rows = page.locator("#diff-table tbody tr.warn-row")
@@ -117,7 +119,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.wait_for_selector("#live-map circle.task-point[visibility=visible]", timeout=20_000)
     page.wait_for_function(
         "() => ['adaptive', 'partial', 'nominal'].includes(document.querySelector('#adaptive-state').dataset.state)")
-    assert page.locator("#active-values-table tbody tr").count() == 8
+    expect(page.locator("#active-values-table tbody tr")).to_have_count(8)
     assert "course mixed" in page.inner_text("#bench-task")
     seen = page.evaluate("window.quasitune.monitor.samples")                # three seconds more, by the samples
     page.wait_for_function("(n) => window.quasitune.monitor.samples > n", arg=seen + 300, timeout=20_000)
@@ -180,7 +182,7 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
     # two confident strides at the course's first task (its estimate), however slowly a loaded machine walks them
     page.wait_for_selector("#adaptive-state[data-state=clamped]", timeout=90_000)
     assert "CLAMPED AT THE ENVELOPE'S EDGE" in page.inner_text("#adaptive-state")
-    assert page.locator("#live-map circle.task-point[visibility=visible]").count() == 1
+    expect(page.locator("#live-map circle.task-point[visibility=visible]")).to_have_count(1)
     shot(page, "env-monitor-clamped")
     page.click("#enter-safe")
     page.wait_for_selector("#adaptive-state[data-state=safe]", timeout=10_000)
