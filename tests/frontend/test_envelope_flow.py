@@ -186,6 +186,7 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
     shot(page, "env-monitor-clamped")
     page.click("#enter-safe")
     page.wait_for_selector("#adaptive-state[data-state=safe]", timeout=10_000)
+    assert "null" not in page.inner_text("#session")                 # nothing but words while it records
     seen = page.evaluate("window.quasitune.monitor.samples")          # 40 samples later (four device status reports)
     page.wait_for_function("(n) => window.quasitune.monitor.samples >= n", arg=seen + 40, timeout=10_000)
     assert page.get_attribute("#adaptive-state", "data-state") == "safe"

@@ -4,6 +4,7 @@ at (artifacts/browser/screens/)."""
 
 from __future__ import annotations
 
+import re
 import time
 
 import pytest
@@ -65,6 +66,8 @@ def test_every_page_fits_the_screen_without_script_errors(server, browser, pages
             next_frames(page)   # charts draw on the next frames
             overflow = page.evaluate("document.documentElement.scrollWidth - window.innerWidth")
             assert overflow <= 0, f"{name} is {overflow}px wider than a {width} × {height} screen"
+            leaked = re.findall(r"\b(?:null|undefined|NaN)\b", page.inner_text("body"))
+            assert not leaked, f"{name} shows a programming value to people: {leaked}"
             page.screenshot(path=str(out / f"{name}-{width}x{height}.png"), full_page=True)
         assert not errors, errors
     finally:

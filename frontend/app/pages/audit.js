@@ -8,11 +8,19 @@ const ENTITIES = ["proposal", "envelope", "device", "session", "patient", "user"
 const LINKS = { proposal: (id) => `#/proposals/${id}`, envelope: (id) => `#/envelopes/${id}`,
   patient: (id) => `#/patients/${id}`, session: (id) => `#/sessions/${id}/report` };
 
+// a value as people read it: "—" for none, lists and objects spelled out (never JSON's null)
+function readable(v) {
+  if (v === null || v === undefined) return "—";
+  if (Array.isArray(v)) return `[${v.map(readable).join(", ")}]`;
+  if (typeof v === "object") return `{${Object.entries(v).map(([k, x]) => `${k}: ${readable(x)}`).join(", ")}}`;
+  return String(v);
+}
+
 // a stored value, short: scalars as they are, objects as "key: value" pairs (the full JSON on hover)
 function brief(value) {
   if (value === null || value === undefined) return "";
   if (typeof value !== "object") return String(value);
-  const text = Object.entries(value).map(([k, v]) => `${k}: ${typeof v === "object" && v !== null ? JSON.stringify(v) : v}`).join(" · ");
+  const text = Object.entries(value).map(([k, v]) => `${k}: ${readable(v)}`).join(" · ");
   return text.length > 220 ? `${text.slice(0, 220)}…` : text;
 }
 

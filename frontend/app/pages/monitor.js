@@ -282,7 +282,7 @@ async function renderSession(box, deviceId, patients, params) {
       s.course ? `walking the “${s.course}” course, ` : `at ${fmt(s.task.speed_mps, 2, "m/s")}, incline ${fmt(s.task.incline_deg, 1, "°")}, `,
       `for ${s.patient_code}, running ${s.table_label ?? "no table from this server"}`),
       h("p", { id: "walk-state", "aria-live": "polite" }),
-      canCommandOf() ? null : h("p", { class: "muted", id: "stop-session-note" }, "Only a prosthetist stops a recording."),
+      ...(canCommandOf() ? [] : [h("p", { class: "muted", id: "stop-session-note" }, "Only a prosthetist stops a recording.")]),
       error);
     document.getElementById("stop-slot")?.replaceChildren(canCommandOf() ? stop : "");   // in the bar beside the charts
     return;
