@@ -97,7 +97,8 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
             edited, changes = hold_to_neighbour_rule(parent, edited, changes)
     except (EditError, ValueError) as exc:
         raise InvalidError(str(exc).splitlines()[0]) from exc
-    violations = as_run(edited).violations
+    checked = as_run(edited)
+    violations = checked.violations
     if violations:
         neighbours_only = all(v.field.startswith("neighbours[") for v in violations)
         hint = (" Ask again holding those values within a step of their neighbours (“hold within a step”): each "
@@ -106,7 +107,7 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
                            "more than a step from a neighbouring task: " + "; ".join(violation_words(v) for v in violations)
                            + "." + hint, violations=[v.model_dump() for v in violations],
                            neighbour_rule_only=neighbours_only)
-    created = envelopes.create_edit(conn, envelope_id, edited, changes, body.comment, user)
+    created = envelopes.create_edit(conn, envelope_id, checked, changes, body.comment, user)
     return {**created, **_shown_with(conn, created["id"])}
 
 

@@ -79,11 +79,12 @@ def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Pros
                                     body.thresholds.model_dump(exclude_none=True) if body.thresholds else None)
     except (EditError, ValidationError) as exc:
         raise InvalidError(str(exc).splitlines()[0]) from exc
-    violations = as_run(table).violations
+    checked = as_run(table)
+    violations = checked.violations
     if violations:
         raise InvalidError("edit refused, nothing stored: " + "; ".join(v.message for v in violations),
                            violations=[v.model_dump() for v in violations])
-    created = proposals.create_edit(conn, proposal_id, table, changes, body.comment, user)
+    created = proposals.create_edit(conn, proposal_id, checked, changes, body.comment, user)
     return {**created, **_shown_with(conn, created["id"])}
 
 

@@ -164,11 +164,10 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
     return _public(meta, envelope, full=True, violations=violations)
 
 
-def create_edit(conn: sqlite3.Connection, parent_id: int, envelope: Envelope, changes: list[dict], comment: str,
+def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[Envelope], changes: list[dict], comment: str,
                 actor: User) -> dict:
-    """Store an edited envelope (already checked and found within every limit) as a new draft of the parent's
-    patient, rounded to the node quanta (what the device runs)."""
-    checked = as_run(envelope)
+    """Store an edited envelope as a new draft of the parent's patient, as the device runs it: ``checked`` is the
+    caller's :func:`~device_bridge.as_run.as_run` of the edit (checked and found within every limit, once)."""
     envelope = checked.item
     with write_transaction(conn):
         parent = get_row(conn, parent_id)

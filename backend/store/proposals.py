@@ -21,7 +21,7 @@ from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
 from controller_core.proposal import Proposal
 from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
-from device_bridge.as_run import as_run
+from device_bridge.as_run import AsRun, as_run
 
 LIMITS = SafetyLimits().model_dump()
 # display units of the table's values, for diffs
@@ -167,11 +167,10 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
         return insert_from_model(conn, patient_id, proposal, actor, extrapolation_reason)
 
 
-def create_edit(conn: sqlite3.Connection, parent_id: int, table: ParameterTable, changes: list[dict],
+def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[ParameterTable], changes: list[dict],
                 comment: str, actor: User) -> dict:
-    """Store ``table`` (already validated and limit-checked) as a new draft derived from ``parent_id``, rounded to
-    the wire's precision (what the device runs)."""
-    checked = as_run(table)
+    """Store an edited table as a new draft derived from ``parent_id``, as the device runs it: ``checked`` is the
+    caller's :func:`~device_bridge.as_run.as_run` of the edit (its check made once, by the caller that refuses)."""
     table, violations = checked.item, checked.violations
     with write_transaction(conn):
         parent = get_row(conn, parent_id)

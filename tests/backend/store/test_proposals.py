@@ -39,7 +39,8 @@ def test_an_edit_is_a_new_draft_with_its_parent_and_the_diff_names_each_change(c
                                                *table.rows[1:]]})
     field = f"{first.joint}.{first.subphase}.k_Nm_per_rad"
     changes = [{"field": field, "before": first.k_Nm_per_rad, "after": first.k_Nm_per_rad - 20.0}]
-    child = proposals.create_edit(conn, parent["id"], edited, changes, "firmer landing", prosthetist)
+    child = proposals.create_edit(conn, parent["id"], as_run(edited), changes, "firmer landing",
+                                  prosthetist)
     assert (child["parent_id"], child["source"], child["version"]) == (parent["id"], "edit", 2)
     d = proposals.diff(conn, parent["id"], child["id"])
     [change] = [c for c in d["changes"] if c["field"] == f"{first.joint}.{first.subphase}.k_Nm_per_rad"]
