@@ -32,6 +32,11 @@ _SELECT = ("SELECT e.*, cu.username AS created_by_name, du.username AS decided_b
            "LEFT JOIN envelopes pe ON pe.id = e.parent_id JOIN patients pa ON pa.id = e.patient_id")
 
 
+def _hex(crc32: int | None) -> str | None:
+    """A CRC-32 in the audit log as pushes and the device page show it (eight hex digits)."""
+    return None if crc32 is None else f"{crc32:08x}"
+
+
 def envelope_label(patient_code: str, version: int) -> str:
     """The one name an envelope has everywhere (page, device, monitor, report)."""
     return f"{patient_code} · envelope v{version}"
@@ -158,7 +163,7 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
         meta = _insert(conn, patient_id, None, checked, None, actor, extrapolation_reason)
         audit.record(conn, actor.id, actor.username, "envelope.create", "envelope", meta["id"],
                      after={"patient_id": patient_id, "version": meta["version"], "speeds_mps": envelope.speeds_mps,
-                            "inclines_deg": envelope.inclines_deg, "wire_crc32": meta["wire_crc32"],
+                            "inclines_deg": envelope.inclines_deg, "wire_crc32": _hex(meta["wire_crc32"]),
                             "safety_ok": not violations,
                             "extrapolation": meta["extrapolation"], "extrapolation_reason": extrapolation_reason})
     return _public(meta, envelope, full=True, violations=violations)
@@ -174,8 +179,8 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[Envelop
         meta = _insert(conn, parent["patient_id"], parent_id, checked, comment, actor, parent["extrapolation_reason"])
         audit.record(conn, actor.id, actor.username, "envelope.edit", "envelope", meta["id"],
                      before={"envelope_id": parent_id, "version": parent["version"],
-                             "wire_crc32": parent["wire_crc32"]},
-                     after={"version": meta["version"], "wire_crc32": meta["wire_crc32"], "comment": comment,
+                             "wire_crc32": _hex(parent["wire_crc32"])},
+                     after={"version": meta["version"], "wire_crc32": _hex(meta["wire_crc32"]), "comment": comment,
                             "changes": changes})
     return _public(meta, envelope, full=True, violations=checked.violations)
 
@@ -209,5 +214,5 @@ def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str
     with write_transaction(conn):
         row = get_row(conn, envelope_id)
         decide_once(conn, "envelope", row, status, comment, actor, lambda: as_run(stored_envelope(row)).violations,
-                    "the safety limits or the neighbour rule", {"wire_crc32": row["wire_crc32"]}, override_reason)
+                    "the safety limits or the neighbour rule", {"wire_crc32": _hex(row["wire_crc32"])}, override_reason)
         return get_envelope(conn, envelope_id)
