@@ -11,6 +11,7 @@ import time
 
 import httpx
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 from playwright.sync_api import expect
 
 from tests.helpers.browser import ARTIFACTS, shot, sign_in, watch_errors
@@ -155,6 +156,17 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     assert not errors, errors
 
 
+def wait_for_banner(page, server: str, token: str, state: str, timeout_ms: int) -> None:
+    """Wait for the adaptive banner to show ``state``; a timeout fails with what it shows and what the leg reports."""
+    try:
+        page.wait_for_selector(f"#adaptive-state[data-state={state}]", timeout=timeout_ms)
+    except PlaywrightTimeout:
+        leg = httpx.get(f"{server}/api/devices/sim-leg-1", headers={"Authorization": f"Bearer {token}"}).json()
+        pytest.fail(f"the banner never said {state!r} in {timeout_ms / 1e3:.0f} s; it shows "
+                    f"{page.get_attribute('#adaptive-state', 'data-state')!r}: {page.inner_text('#adaptive-state')!r}; "
+                    f"readout {page.inner_text('#adaptive-readout')!r}; the leg reports {leg!r}")
+
+
 def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_safe_mode(server, page):
     """An envelope that starts above the course's first task (1.0 m/s, level): the leg holds its edge rows, and the
     banner says so; safe mode overrides everything."""
@@ -180,7 +192,7 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
     page.select_option("#session-walk", "mixed")
     page.click("#start-session")
     # two confident strides at the course's first task (its estimate), however slowly a loaded machine walks them
-    page.wait_for_selector("#adaptive-state[data-state=clamped]", timeout=90_000)
+    wait_for_banner(page, server, token, "clamped", timeout_ms=90_000)
     assert "CLAMPED AT THE ENVELOPE'S EDGE" in page.inner_text("#adaptive-state")
     expect(page.locator("#live-map circle.task-point[visibility=visible]")).to_have_count(1)
     shot(page, "env-monitor-clamped")
