@@ -15,6 +15,7 @@ from playwright.sync_api import TimeoutError as PlaywrightTimeout
 from playwright.sync_api import expect
 
 from tests.helpers.browser import ARTIFACTS, shot, sign_in, watch_errors
+from tests.helpers.device import until
 from tests.helpers.server import PASSWORD
 
 VIEWPORTS = {"desktop": (1366, 900), "tablet": (820, 1180)}
@@ -186,11 +187,16 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
             "device_id": "sim-leg-1", "patient_ready": True, "replaces_proposal_id": current and current["proposal_id"],
             "replaces_envelope_id": current and current["envelope_id"],
             "override_reason": "clamping drill: the leg is held at the edge on purpose"}).raise_for_status()
+        # acknowledged is not yet running: the leg swaps at its next heel strike, and until it reports this envelope
+        # running it still runs the previous test's patient's, for which a session is refused
+        until(lambda: (c.get("/api/devices/sim-leg-1").json()["active_table"] or {}).get("envelope_id") == env["id"],
+              timeout_s=60, poll_s=0.25)
     sign_in(page, server, "dana")
     page.click("#nav-monitor")
     page.wait_for_selector("#adaptive:not([hidden]) #live-map")
     page.select_option("#session-walk", "mixed")
     page.click("#start-session")
+    page.wait_for_selector("#stop-session")
     # two confident strides at the course's first task (its estimate), however slowly a loaded machine walks them
     wait_for_banner(page, server, token, "clamped", timeout_ms=90_000)
     assert "CLAMPED AT THE ENVELOPE'S EDGE" in page.inner_text("#adaptive-state")
