@@ -3,14 +3,12 @@ its test on any console error the test did not provoke."""
 
 from __future__ import annotations
 
-import subprocess
-
 import pytest
 
 from backend.app import prepare_storage
 from backend.settings import Settings
 from tests.helpers.browser import CHROMIUM_ARGS, chromium_path, watch_errors
-from tests.helpers.server import add_user, start_server
+from tests.helpers.server import add_user, start_server, stop_server
 
 playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright is a dev dependency")
 
@@ -24,11 +22,7 @@ def server(tmp_path_factory):
     add_user(data, "ada", "admin")
     proc, base = start_server(data, device="sim")
     yield base
-    proc.terminate()
-    try:
-        proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
+    stop_server(proc)
 
 
 @pytest.fixture(scope="module")

@@ -64,9 +64,16 @@ def temporary_server(prefix: str, device: str = "none", user: str = "bench", vie
         try:
             yield base
         finally:
-            proc.terminate()
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:   # still finishing a long request: the error that matters is the caller's
-                proc.kill()
-                proc.wait(timeout=10)
+            stop_server(proc)
+
+
+def stop_server(proc: subprocess.Popen, grace_s: float = 3.0) -> None:
+    """SIGTERM, then SIGKILL after ``grace_s``: a bench walk still running for a request nobody waits for any more
+    (a preview a closed page asked for) holds the interpreter's exit until it ends, up to ten seconds; the tests
+    want none of its result, and a kill loses no acknowledged write (``test_serve``)."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=grace_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout=10)
