@@ -42,12 +42,22 @@ class AsRun(Generic[Item]):
 
 
 def as_run(item: Item, limits: SafetyLimits | None = None) -> AsRun[Item]:
-    """The device's view of a table or an envelope: its rounded values, their violations and the wire CRC."""
+    """The device's view of a table or an envelope: its rounded values, their violations and the wire CRC, from one
+    encoding and one decoding (an envelope's take milliseconds each, and every store, approval and push asks)."""
     envelope = isinstance(item, Envelope)
-    rounded = envelope_as_run(item) if envelope else table_as_run(item)
-    violations = check_envelope_as_run(item, limits) if envelope else check_as_run(item, limits)
+    wire: WireEnvelope | WireTable | None
     try:
-        crc: int | None = (WireEnvelope.from_envelope(item) if envelope else WireTable.from_table(item)).crc32()
-    except ValueError:   # a value no wire field carries: the violations name it
-        crc = None
-    return AsRun(item=rounded, violations=violations, wire_crc32=crc)
+        wire = WireEnvelope.from_envelope(item) if envelope else WireTable.from_table(item)
+    except ValueError:   # a value no wire field carries: the check names it
+        wire = None
+    try:
+        device = None if wire is None else wire.to_device() if envelope else wire.to_device_table()
+    except ValueError:   # a non-physical threshold: the check names it
+        device = None
+    if envelope:
+        rounded = item if device is None else envelope_as_run(item, device)
+        violations = check_envelope_as_run(item, limits, device=device)
+    else:
+        rounded = item if device is None else table_as_run(item, device)
+        violations = check_as_run(item, limits, device=device)
+    return AsRun(item=rounded, violations=violations, wire_crc32=None if wire is None else wire.crc32())

@@ -275,14 +275,15 @@ def envelope_commit_frame(transfer_id: int, version: int, crc32: int, shape: tup
                                       "version": version, "crc32": crc32})
 
 
-def envelope_as_run(envelope: Envelope) -> Envelope:
+def envelope_as_run(envelope: Envelope, device: DeviceEnvelope | None = None) -> Envelope:
     """The envelope rounded to the node quanta: axes, nominal task and every node's values bit for bit as the device
     runs them (each node's task is its axes' rounded values). Returned unchanged when a value does not fit the link
-    (:func:`check_envelope_as_run` reports it)."""
-    try:
-        device = WireEnvelope.from_envelope(envelope).to_device()
-    except ValueError:
-        return envelope
+    (:func:`check_envelope_as_run` reports it). ``device``: its decoded values, when the caller has them already."""
+    if device is None:
+        try:
+            device = WireEnvelope.from_envelope(envelope).to_device()
+        except ValueError:
+            return envelope
     n_i = len(device.inclines_deg)
     nodes = [node.model_copy(update={"speed_mps": device.speeds_mps[k // n_i],
                                      "incline_deg": device.inclines_deg[k % n_i],
@@ -294,15 +295,18 @@ def envelope_as_run(envelope: Envelope) -> Envelope:
 
 
 def check_envelope_as_run(envelope: Envelope, limits: SafetyLimits | None = None,
-                          steps: NeighbourSteps | None = None) -> list[LimitViolation]:
+                          steps: NeighbourSteps | None = None, device: DeviceEnvelope | None = None
+                          ) -> list[LimitViolation]:
     """Every violation of what the device will run: the envelope rounded to the node quanta, each node's limits and
-    the neighbour rule (the server's one check of an envelope, so it never approves what the device refuses)."""
-    try:
-        device = WireEnvelope.from_envelope(envelope).to_device()
-    except ValueDoesNotFitError as exc:
-        return check_envelope(envelope, limits, steps) or [
-            LimitViolation(field=exc.field, value=exc.value, low=exc.low, high=exc.high, message=str(exc))]
-    except ProtocolError as exc:
-        return [LimitViolation(field="envelope", value=float(len(envelope.nodes)), low=0.0, high=float(MAX_NODES),
-                               message=str(exc))]
+    the neighbour rule (the server's one check of an envelope, so it never approves what the device refuses).
+    ``device``: its decoded values, when the caller has them already."""
+    if device is None:
+        try:
+            device = WireEnvelope.from_envelope(envelope).to_device()
+        except ValueDoesNotFitError as exc:
+            return check_envelope(envelope, limits, steps) or [
+                LimitViolation(field=exc.field, value=exc.value, low=exc.low, high=exc.high, message=str(exc))]
+        except ProtocolError as exc:
+            return [LimitViolation(field="envelope", value=float(len(envelope.nodes)), low=0.0, high=float(MAX_NODES),
+                                   message=str(exc))]
     return check_grid(device.speeds_mps, device.inclines_deg, device.tables, steps or envelope.neighbour_steps, limits)

@@ -349,30 +349,34 @@ def with_device_values(table: ParameterTable, device: DeviceTable) -> ParameterT
     return table.model_copy(update={"rows": rows, "thresholds": device.thresholds})
 
 
-def as_run(table: ParameterTable) -> ParameterTable:
+def as_run(table: ParameterTable, device: DeviceTable | None = None) -> ParameterTable:
     """The table rounded to the wire's precision: bit for bit the values the device will run, so that what is
     checked, stored, shown and approved is what runs. A table with a value no wire field can carry is returned
-    unchanged (:func:`check_as_run` reports that value)."""
-    try:
-        device = WireTable.from_table(table).to_device_table()
-    except ValueError:
-        return table
+    unchanged (:func:`check_as_run` reports that value). ``device``: its decoded values, when the caller has them."""
+    if device is None:
+        try:
+            device = WireTable.from_table(table).to_device_table()
+        except ValueError:
+            return table
     return with_device_values(table, device)
 
 
 AS_RUN = "as the device will run it (rounded to the wire's precision): "
 
 
-def check_as_run(table: ParameterTable, limits: SafetyLimits | None = None) -> list[LimitViolation]:
+def check_as_run(table: ParameterTable, limits: SafetyLimits | None = None,
+                 device: DeviceTable | None = None) -> list[LimitViolation]:
     """Every safety violation of the values the device will run: the table rounded to the wire's quanta, which
     is what the firmware decodes and checks itself. A violation that only the rounding creates says so; a value
     that no wire field can carry is a violation too. The one check the server makes of a table (build, edit,
-    approval, push), so that the server never approves what the device would refuse."""
-    try:
-        device = WireTable.from_table(table).to_device_table()
-    except ValueDoesNotFitError as exc:   # the limits say it better when they are broken too (they lie inside)
-        return check_table(table, limits) or [
-            LimitViolation(field=exc.field, value=exc.value, low=exc.low, high=exc.high, message=str(exc))]
+    approval, push), so that the server never approves what the device would refuse. ``device``: its decoded
+    values, when the caller has them already."""
+    if device is None:
+        try:
+            device = WireTable.from_table(table).to_device_table()
+        except ValueDoesNotFitError as exc:   # the limits say it better when they are broken too (they lie inside)
+            return check_table(table, limits) or [
+                LimitViolation(field=exc.field, value=exc.value, low=exc.low, high=exc.high, message=str(exc))]
     found = check_table(device, limits)
     if not found:
         return []
