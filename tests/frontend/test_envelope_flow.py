@@ -96,6 +96,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
+    page.wait_for_selector("#push-assignment:has-text('sim-leg-1 is')")   # the push panel drawn: who wears the leg
     if page.locator("#assign-device").count():     # worn by the previous size's patient: changed deliberately first
         assert page.is_disabled("#push-button")
         page.click("#assign-device")
