@@ -23,6 +23,7 @@ import contextlib
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -69,6 +70,12 @@ class DeviceNode(BusThreads):
         self.leg = leg
         self.firmware = DeviceFirmware(config, now_s=time.monotonic())
         self._lock = threading.Lock()
+        # frames leave in the order the firmware made them (as from a firmware's one thread): each thread queues its
+        # frames while it holds the firmware, and whichever sends drains the queue in order. A status built before a
+        # push was staged must not reach the host after that push's acknowledgement (the host would take it as the
+        # device's word and record the push lost); sending under the firmware lock instead starved the receive loop.
+        self._outbox: deque[can.Message] = deque()
+        self._send_lock = threading.Lock()
         super().__init__([bus], join_timeout_s=2.0)
         self._threads = [threading.Thread(target=self._guarded, args=(self._control_loop,), name="device-control",
                                           daemon=True),
@@ -82,10 +89,13 @@ class DeviceNode(BusThreads):
             fw = self.firmware
             return Snapshot(fw.mode_, fw.active_, fw.staged_, fw.safe_mode_entered_s_, fw.last_heartbeat_s_)
 
-    def _send(self, frames: list[can.Message]) -> None:
-        for f in frames:
-            with contextlib.suppress(can.CanError):   # a full queue (host gone): lost, as on a real bus
-                self.bus.send(f)
+    def _send(self) -> None:
+        """Send every queued frame, oldest first."""
+        with self._send_lock:
+            while self._outbox:
+                f = self._outbox.popleft()
+                with contextlib.suppress(can.CanError):   # a full queue (host gone): lost, as on a real bus
+                    self.bus.send(f)
 
     def _guarded(self, loop: Callable[[], None]) -> None:
         """Run ``loop`` until closed; an error that escapes it is logged and counted, and the loop starts again."""
@@ -102,13 +112,12 @@ class DeviceNode(BusThreads):
         next_tick = time.monotonic()
         while not self._stop.is_set():
             now = time.monotonic()
-            out: list[can.Message] = []
             with self._lock:
                 ticks = 0
                 while next_tick <= now and ticks < MAX_CATCH_UP_TICKS:
                     sample = leg.sample() if leg is not None else None
                     knee, ankle, frames = fw.tick(sample, next_tick)
-                    out += frames
+                    self._outbox.extend(frames)
                     if leg is not None:
                         leg.step(knee, ankle)
                     next_tick += TICK_S
@@ -116,7 +125,7 @@ class DeviceNode(BusThreads):
                 if next_tick <= now:          # stalled beyond the catch-up budget: slip instead of racing
                     self.overruns += 1
                     next_tick = now + TICK_S
-            self._send(out)
+            self._send()
             self._stop.wait(max(0.0, next_tick + WAKE_S - TICK_S - time.monotonic()))
 
     def _receive_loop(self) -> None:
@@ -131,5 +140,5 @@ class DeviceNode(BusThreads):
             if msg is None:
                 continue
             with self._lock:
-                out = self.firmware.receive(msg, time.monotonic())
-            self._send(out)
+                self._outbox.extend(self.firmware.receive(msg, time.monotonic()))
+            self._send()

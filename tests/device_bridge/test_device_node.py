@@ -38,3 +38,66 @@ def test_a_node_running_behind_still_hears_the_heartbeat(tables):
     finally:
         link.close()
         node.close()
+
+
+
+class StandingLeg(SlowLeg):
+    """A standing leg whose physics costs nothing: the node streams telemetry and status as on a patient."""
+
+    def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None:
+        self.steps += 1
+
+
+class SlowSendBus:
+    """A virtual bus whose every send first waits half a millisecond for its transmit mailbox: wide windows for two
+    threads' frames to cross. Notes each frame as it goes onto the bus."""
+
+    def __init__(self, bus) -> None:
+        self.bus, self.sent = bus, []
+
+    def send(self, msg, timeout=None) -> None:
+        time.sleep(0.0005)            # the controller's transmit path, waiting for its mailbox (other threads run)
+        self.sent.append(msg)
+        self.bus.send(msg, timeout)
+
+    def __getattr__(self, name):
+        return getattr(self.bus, name)
+
+
+def test_frames_leave_in_the_order_the_firmware_made_them(tables):
+    """A status built before a push was staged must not reach the host after that push's acknowledgement (the host
+    would take the stale status as the device's word and record the push as lost): the control loop's frames and
+    the receive loop's answers leave in the order the firmware produced them, as from a firmware's one thread."""
+    import can
+
+    from device_bridge.device_node import DeviceNode
+    from device_bridge.host import DeviceLink
+
+    channel = "test-frame-order"
+    bus = SlowSendBus(can.Bus(interface="virtual", channel=channel))
+    node = DeviceNode(bus, leg=StandingLeg())
+    made = []
+    tick, receive = node.firmware.tick, node.firmware.receive
+
+    def noted_tick(*args):
+        knee, ankle, frames = tick(*args)
+        made.extend(frames)
+        return knee, ankle, frames
+
+    def noted_receive(*args):
+        frames = receive(*args)
+        made.extend(frames)
+        return frames
+
+    node.firmware.tick, node.firmware.receive = noted_tick, noted_receive     # both run holding the firmware
+    node.start()
+    link = DeviceLink(can.Bus(interface="virtual", channel=channel)).start()
+    try:
+        until(lambda: link.status is not None)
+        for version, table in enumerate(tables * 3, start=1):                # answers crossing the status stream
+            link.push(table, version=version)
+    finally:
+        link.close()
+        node.close()
+    assert len(bus.sent) > 12 and len(bus.sent) >= len(made) - 5      # six read-backs among the periodic frames
+    assert [id(m) for m in bus.sent] == [id(m) for m in made[:len(bus.sent)]], "frames left out of the firmware's order"
