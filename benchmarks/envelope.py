@@ -1,6 +1,7 @@
 """Envelope benchmark (``python -m benchmarks envelope``): a 25-node envelope proposed on a warm model, one blend at a
 task (what the leg does once per stride), one adaptive control tick, envelope pushes over a clean virtual bus, and
-envelope pushes through a faulty bus (mixed envelopes must be 0)."""
+envelope pushes through a faulty bus (mixed envelopes must be 0), and the device's view of the envelope (``as_run``:
+rounding, checks and CRC)."""
 
 from __future__ import annotations
 
@@ -80,6 +81,8 @@ def run(repeats: int = 50, pushes: int = 100, trials: int = 500) -> dict:
     env = model.propose_envelope(SPEEDS, INCLINES, 75.0)
     blender = EnvelopeBlender(env.speeds_mps, env.inclines_deg, env.tables())
     blend_us = timings(lambda: blender.at(*next(tasks)), 20000) * 1e6
+    from device_bridge.as_run import as_run
+    as_run_ms = timings(lambda: as_run(env), repeats) * 1e3     # what every store, approval and push asks of it
     envelopes = [model.propose_envelope(SPEEDS, INCLINES, m) for m in (60.0, 75.0, 90.0)]
     push_ms = _pushes(envelopes, pushes)
     faulty = soak(envelopes, trials, drop=0.1, corrupt=0.02, reorder=0.05, seed=0, push_timeout_s=4.0)
@@ -88,6 +91,7 @@ def run(repeats: int = 50, pushes: int = 100, trials: int = 500) -> dict:
         **_stats(envelope_ms, "ms", "propose_envelope"),
         **_stats(propose_ms, "ms", "propose_one_table_for_scale"),
         **_stats(blend_us, "us", "blend"),
+        **_stats(as_run_ms, "ms", "as_run"),
         **_adaptive_tick_us(blender, 5000),
         **_stats(push_ms, "ms", "envelope_push_clean_virtual_bus"),
         "envelope_pushes": pushes,
