@@ -46,6 +46,7 @@ from controller_core.task_estimator import TaskEstimator
 from device_bridge.envelope_wire import DeviceEnvelope, EnvelopeReceiver
 from device_bridge.protocol import (
     ROW_COUNT,
+    TELEMETRY_PERIOD_S,
     TEMPERATURE_UNKNOWN_RAW,
     AckResult,
     Command,
@@ -87,7 +88,7 @@ class FirmwareConfig:
     envelope_transfer_timeout_s: float = 3.0
     idle_switch_s: float = 2.0
     status_period_s: float = 0.1
-    telemetry_period_s: float = 0.01
+    telemetry_period_s: float = TELEMETRY_PERIOD_S
     safe_damping_knee: float = 8.0
     safe_damping_ankle: float = 4.0
     limits: SafetyLimits = DEFAULT_LIMITS

@@ -37,6 +37,7 @@ THRESHOLDS_B_INDEX = len(ROW_ORDER) + 1    # 9
 BODY_INDEX = len(ROW_ORDER) + 2            # 10: the body mass the table was built for (the support floor needs it)
 ROW_COUNT = len(ROW_ORDER) + 3             # 11 frames between begin and commit
 TRANSFER_IDS = 16                          # 4-bit transfer id
+TELEMETRY_PERIOD_S = 0.01                  # one telemetry sample every 10 ms (the DBC's TELEMETRY_GAIT comment)
 
 
 class ProtocolError(ValueError):

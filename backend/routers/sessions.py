@@ -23,7 +23,7 @@ from controller_core.session_regions import adaptive_summary, own_task_errors
 from controller_core.session_summary import device_times, session_strikes, summarize_session
 from controller_core.session_trend import session_trend
 from device_bridge.bench.task_reference import task_reference
-from device_bridge.protocol import Mode
+from device_bridge.protocol import TELEMETRY_PERIOD_S, Mode
 from device_bridge.sim.course import COURSES
 
 router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
@@ -89,7 +89,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
         reported = devices.stop_recording(session["device_id"])
     t = session["task"]
     cols = store.samples(conn, session_id)
-    times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]))
+    times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]), TELEMETRY_PERIOD_S)
     modes = np.asarray(cols["mode"], dtype=int)
     running = modes == Mode.ACTIVE
     knee, ankle, load = (np.asarray(cols[c]) for c in ("knee_angle_rad", "ankle_angle_rad", "load_N"))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from controller_core.session_summary import device_times, session_strikes, summarize_session
 from controller_core.walking_reference import level_walking_reference
@@ -39,8 +40,22 @@ def test_bursty_receive_times_do_not_split_strides_on_the_devices_clock():
     phase = (seq * 0.01 / 1.2) % 1.0
     load = np.where(phase < 0.6, 600.0, 0.0) + np.where(seq % 37 == 0, 40.0, 0.0)   # noise below the 10 % threshold
     received = 1000.0 + (seq // 25) * 0.25 + (seq % 25) * 1e-5
-    on_device = device_times(seq, received)
-    assert np.allclose(np.diff(on_device), 0.01, rtol=0.03)       # the mean rate, within a burst of the end
+    on_device = device_times(seq, received, 0.01)
+    assert np.allclose(np.diff(on_device), 0.01)
     strikes = session_strikes(on_device, load, 75.0)
-    assert len(strikes) == 9 and np.allclose(np.diff(on_device[strikes]), 1.2, rtol=0.03)
+    assert len(strikes) == 9 and np.allclose(np.diff(on_device[strikes]), 1.2)
     assert len(session_strikes(received, load, 75.0)) != 9        # the receive times miscount strides
+
+
+def test_a_short_session_whose_first_second_arrived_late_keeps_its_stride_time():
+    """Scripted telemetry (synthetic load, not gait data): 3 s of 1.1 s strides at 100 Hz; the server was busy as the
+    session began and got its first second of samples in one burst, a second late. A rate taken from the receive
+    times would make the strides 1.5 times shorter; the device's period keeps them."""
+    seq = np.arange(300) + 5000
+    load = np.where(((seq - 5000) * 0.01 / 1.1 + 0.7) % 1.0 < 0.6, 600.0, 0.0)
+    received = np.where(seq < 5100, 1001.0 + (seq - 5000) * 1e-5, 1000.0 + (seq - 5000) * 0.01)
+    on_device = device_times(seq, received, 0.01)
+    strikes = session_strikes(on_device, load, 75.0)
+    assert len(strikes) == 3 and np.allclose(np.diff(on_device[strikes]), 1.1, atol=0.011)   # ± one sample
+    with pytest.raises(ValueError, match="period_s"):
+        device_times(seq, received, 0.0)
