@@ -440,17 +440,19 @@ class DeviceFirmware:
         return int(self.controller_.state_) if self.mode_ == Mode.ACTIVE and self.controller_ is not None else 15
 
     def _status_frames(self) -> list[can.Message]:
+        """DEVICE_HEALTH then DEVICE_STATUS, made in the same instant: the host reads a status with the health sent
+        just before it, so a status made after a push was staged says so (pending_version)."""
         self._status_counter = (self._status_counter + 1) & 0xFF
         active = self.active_
         faults = self.faults_ | (Fault.NO_TABLE if active is None else Fault(0))
         return [
+            encode("DEVICE_HEALTH", {"fault_flags": int(faults), "temperature": TEMPERATURE_UNKNOWN_RAW,
+                                     "pending_version": self.staged_.version if self.staged_ else 0,
+                                     "rx_errors": min(self.rx_errors_, 0xFFFF)}),
             encode("DEVICE_STATUS", {"counter": self._status_counter, "mode": int(self.mode_),
                                      "fsm_state": self.fsm_state,
                                      "active_version": active.version if active else 0,
                                      "active_crc32": active.crc32 if active else 0}),
-            encode("DEVICE_HEALTH", {"fault_flags": int(faults), "temperature": TEMPERATURE_UNKNOWN_RAW,
-                                     "pending_version": self.staged_.version if self.staged_ else 0,
-                                     "rx_errors": min(self.rx_errors_, 0xFFFF)}),
         ]
 
     def _task_telemetry(self, seq: int) -> list[can.Message]:

@@ -81,3 +81,50 @@ def test_a_failing_callback_does_not_stop_the_link(tables):
     finally:
         link.close()
         node.close()
+
+
+def test_every_status_after_an_acknowledgement_says_what_the_device_has_staged(tables):
+    """A status is read with the health frame the device sent with it: one made after a push was staged says so.
+    (A status joined with the health of the cycle before said "nothing staged" for one status period after the
+    acknowledgement, and a second push confirming the old table could then pass the one-push-per-device check.)"""
+    import queue
+    import time
+    from dataclasses import replace
+
+    from tests.device_bridge.test_device_node import StandingLeg
+
+    class OneStep(StandingLeg):
+        """The foot comes down once, 0.3 s in, and the leg then stands loaded: one heel strike, none after it."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.t0 = time.monotonic()
+
+        def sample(self):
+            x = super().sample()
+            return x if x.time_s - self.t0 > 0.3 else replace(x, load_N=0.0)
+
+    # after its one heel strike the leg is walking for a minute: a staged table stays staged
+    node, link = pair(FirmwareConfig(idle_switch_s=60.0), leg=OneStep())
+    acked: list[float] = []
+
+    class NotedAcks(queue.Queue):
+        def put(self, item, block=True, timeout=None):
+            acked.append(time.monotonic())
+            super().put(item, block, timeout)
+
+    seen: list = []
+    link.on_status = seen.append
+    try:
+        link.push(tables[0], version=1)
+        until(lambda: link.status is not None and link.status.active_version == 1)
+        until(lambda: node.firmware.controller_ is not None and node.firmware.controller_.state_ == 0)  # stance
+        link._acks = NotedAcks()
+        link.push(tables[1], version=2)
+        ack_s = acked[-1]
+        until(lambda: sum(s.received_monotonic_s > ack_s for s in seen) >= 3)
+        after = [s for s in seen if s.received_monotonic_s > ack_s and s.active_version == 1]
+        assert after and all(s.pending_version == 2 for s in after), [s.pending_version for s in after]
+    finally:
+        link.close()
+        node.close()
