@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass
 
 KNEE_RANGE_DEG = (0.0, 120.0)
+SLIDES = '<joint name="hip_x" type="slide" axis="1 0 0"/><joint name="hip_z" type="slide" axis="0 0 1"/>'
 ANKLE_RANGE_DEG = (-30.0, 30.0)
 
 
@@ -120,7 +121,7 @@ def _floor(incline_deg: float, terrain: tuple[tuple[float, float], ...] = ()) ->
 
 
 def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: float = 0.001,
-               terrain: tuple[tuple[float, float], ...] = ()) -> str:
+               terrain: tuple[tuple[float, float], ...] = (), body_mass_kg: float | None = None) -> str:
     """The bench as an MJCF string (see the module docstring for bodies, joints and sensors); with ``terrain`` (a
     course's floor polyline) the floor follows it instead of the tilted plane (see :func:`_floor`)."""
     g = geometry
@@ -133,6 +134,16 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
     i_long = _rod_inertia(g.foot_mass_kg, foot_len)
     foot_inertia = f"{_rod_inertia(g.foot_mass_kg, 0.05):.6g} {i_long:.6g} {i_long:.6g}"
     floor = _floor(incline_deg, terrain)
+    if body_mass_kg is None:
+        hip_z = '<position name="hip_z_pos" joint="hip_z" kp="4000"/>\n    <velocity name="hip_z_vel" joint="hip_z" kv="600"/>'
+        kp_x, kv_x = 40000, 1200
+        pelvis_open, pelvis_close, slides = "", "", SLIDES
+    else:   # the rest of the body rides on the socket's vertical slide: its weight acts, its inertia counts
+        rest = max(body_mass_kg - g.moving_mass_kg, 1.0)
+        pelvis_open = (f'<body name="pelvis">{SLIDES}<geom name="trunk" type="sphere" pos="0 0 0.3" size="0.12" '
+                       f'mass="{rest:.6g}" rgba="0.6 0.6 0.6 0.3"/>')
+        pelvis_close, slides, hip_z = "</body>", "", ""
+        kp_x, kv_x = 400000, 20000
     return f"""
 <mujoco model="quasitune_hip_driven_bench">
   <compiler angle="radian" autolimits="true"/>
@@ -149,9 +160,9 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
   <worldbody>
     <light pos="0 -3 4" dir="0 0.6 -0.8"/>
     {floor}
+    {pelvis_open}
     <body name="socket">
-      <joint name="hip_x" type="slide" axis="1 0 0"/>
-      <joint name="hip_z" type="slide" axis="0 0 1"/>
+      {slides}
       <joint name="hip" type="hinge" axis="0 -1 0"/>
       <geom name="thigh" type="capsule" fromto="0 0 0 0 0 {-lt:.6f}" size="0.06" mass="{g.socket_mass_kg}"
             rgba="0.85 0.7 0.6 0.6"/>
@@ -180,12 +191,12 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
         </body>
       </body>
     </body>
+    {pelvis_close}
   </worldbody>
   <actuator>
-    <position name="hip_x_pos" joint="hip_x" kp="40000"/>
-    <velocity name="hip_x_vel" joint="hip_x" kv="1200"/>
-    <position name="hip_z_pos" joint="hip_z" kp="4000"/>
-    <velocity name="hip_z_vel" joint="hip_z" kv="600"/>
+    <position name="hip_x_pos" joint="hip_x" kp="{kp_x}"/>
+    <velocity name="hip_x_vel" joint="hip_x" kv="{kv_x}"/>
+    {hip_z}
     <motor name="hip_z_load" joint="hip_z" ctrlrange="-5000 5000"/>
     <position name="hip_pos" joint="hip" kp="6000"/>
     <velocity name="hip_vel" joint="hip" kv="150"/>

@@ -37,12 +37,20 @@ class SimulatedLeg:
     """
 
     def __init__(self, geometry: LegGeometry | None = None, incline_deg: float = 0.0, timestep_s: float = 0.001,
-                 terrain: Terrain | None = None) -> None:
+                 terrain: Terrain | None = None, body_mass_kg: float | None = None,
+                 stabiliser: tuple[float, float] = (0.1, 0.5)) -> None:
         if not (math.isfinite(incline_deg) and abs(incline_deg) <= 20.0):
             raise ValueError(f"incline_deg must be within ±20 deg, got {incline_deg!r}")
         self.geometry = geometry or LegGeometry()
         self.incline_deg = float(incline_deg)
-        xml = build_mjcf(self.geometry, incline_deg, timestep_s, () if terrain is None else terrain.polyline())
+        xml = build_mjcf(self.geometry, incline_deg, timestep_s, () if terrain is None else terrain.polyline(),
+                         body_mass_kg)
+        self.body_mass_kg = body_mass_kg
+        if body_mass_kg is not None:    # a weak spring to the reference height: stiffness (BW per 0.1 m), damping ratio
+            w = body_mass_kg * G_MPS2
+            self._k_stab = stabiliser[0] * w / 0.1
+            self._c_stab = 2.0 * stabiliser[1] * math.sqrt(self._k_stab * body_mass_kg)
+        self.support_N = 0.0
         self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
         self.timestep_s = float(self.model.opt.timestep)
@@ -57,7 +65,8 @@ class SimulatedLeg:
         self._floor = {i for i in range(m.ngeom) if m.geom(i).name.startswith("floor")}
         self._feet = {m.geom("heel").id, m.geom("toe").id}
         self._gravity_comp_N = self.geometry.moving_mass_kg * G_MPS2
-        self.vertical_stiffness_N_per_m = float(m.actuator("hip_z_pos").gainprm[0])
+        self.vertical_stiffness_N_per_m = (float(m.actuator("hip_z_pos").gainprm[0]) if body_mass_kg is None
+                                           else self._k_stab)
         self._tick = 0
         self._traj: BenchTrajectory | None = None
         self._force6 = np.zeros(6)   # scratch for mj_contactForce (called every tick in contact)
@@ -87,9 +96,14 @@ class SimulatedLeg:
         tr, c, a = self._traj, self.data.ctrl, self._a
         assert tr is not None
         c[a["hip_x_pos"]], c[a["hip_x_vel"]] = tr.x_m[i], tr.xd_m_s[i]
-        c[a["hip_z_pos"]], c[a["hip_z_vel"]] = tr.z_m[i], tr.zd_m_s[i]
         c[a["hip_pos"]], c[a["hip_vel"]] = tr.hip_rad[i], tr.hipd_rad_s[i]
-        c[a["hip_z_load"]] = self._gravity_comp_N - tr.load_N[i]
+        if self.body_mass_kg is None:
+            c[a["hip_z_pos"]], c[a["hip_z_vel"]] = tr.z_m[i], tr.zd_m_s[i]
+            c[a["hip_z_load"]] = self._gravity_comp_N - tr.load_N[i]
+            return
+        z, zd = self.data.qpos[self._q["hip_z"]], self.data.qvel[self._v["hip_z"]]
+        self.support_N = self._k_stab * (tr.z_m[i] - z) + self._c_stab * (tr.zd_m_s[i] - zd)
+        c[a["hip_z_load"]] = tr.contralateral_N[i] + self.support_N
 
     def sample(self) -> SensorSample:
         """The sensors as the controller reads them now."""
