@@ -176,6 +176,7 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
     xd = v * math.cos(alpha) - hdot * math.sin(alpha)
     zd = v * math.sin(alpha) + hdot * math.cos(alpha)
     load = np.interp(s, s_grid, ref.vgrf_bw) * mass_kg * G_MPS2
-    other = np.interp((s + 0.5) % 1.0, s_grid, ref.vgrf_bw) * mass_kg * G_MPS2   # the other leg: half a cycle on
+    share = 0.5 / float(np.mean(ref.vgrf_bw[:-1]))   # each leg carries half the weight over a stride, exactly
+    other = np.interp((s + 0.5) % 1.0, s_grid, ref.vgrf_bw) * share * mass_kg * G_MPS2   # the other leg
     return BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=th, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=dth / T,
                            load_N=load, height_m=h, stride_time_s=T, contralateral_N=other)

@@ -144,6 +144,8 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
                        f'mass="{rest:.6g}" rgba="0.6 0.6 0.6 0.3"/>')
         pelvis_close, slides, hip_z = "</body>", "", ""
         kp_x, kv_x = 400000, 20000
+    hip_act = ('<position name="hip_pos" joint="hip" kp="6000"/>\n    <velocity name="hip_vel" joint="hip" kv="150"/>'
+               if body_mass_kg is None else '<motor name="hip_torque" joint="hip" ctrlrange="-10000 10000"/>')
     return f"""
 <mujoco model="quasitune_hip_driven_bench">
   <compiler angle="radian" autolimits="true"/>
@@ -198,8 +200,7 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
     <velocity name="hip_x_vel" joint="hip_x" kv="{kv_x}"/>
     {hip_z}
     <motor name="hip_z_load" joint="hip_z" ctrlrange="-5000 5000"/>
-    <position name="hip_pos" joint="hip" kp="6000"/>
-    <velocity name="hip_vel" joint="hip" kv="150"/>
+    {hip_act}
     <motor name="knee" joint="knee" ctrlrange="-1000 1000"/>
     <motor name="ankle" joint="ankle" ctrlrange="-1000 1000"/>
   </actuator>

@@ -38,7 +38,9 @@ class SimulatedLeg:
 
     def __init__(self, geometry: LegGeometry | None = None, incline_deg: float = 0.0, timestep_s: float = 0.001,
                  terrain: Terrain | None = None, body_mass_kg: float | None = None,
-                 stabiliser: tuple[float, float] = (0.1, 0.5)) -> None:
+                 stabiliser: tuple[float, float] = (0.1, 0.5),
+                 hip_servo: tuple[float, float, float] = (6000.0, 150.0, 1e9),
+                 other_leg: tuple[float, float] = (20000.0, 1200.0)) -> None:
         if not (math.isfinite(incline_deg) and abs(incline_deg) <= 20.0):
             raise ValueError(f"incline_deg must be within ±20 deg, got {incline_deg!r}")
         self.geometry = geometry or LegGeometry()
@@ -51,6 +53,9 @@ class SimulatedLeg:
             self._k_stab = stabiliser[0] * w / 0.1
             self._c_stab = 2.0 * stabiliser[1] * math.sqrt(self._k_stab * body_mass_kg)
         self.support_N = 0.0
+        self.hip_servo = hip_servo
+        self.other_leg = other_leg
+        self.hip_torque_Nm = 0.0
         self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
         self.timestep_s = float(self.model.opt.timestep)
@@ -96,14 +101,23 @@ class SimulatedLeg:
         tr, c, a = self._traj, self.data.ctrl, self._a
         assert tr is not None
         c[a["hip_x_pos"]], c[a["hip_x_vel"]] = tr.x_m[i], tr.xd_m_s[i]
-        c[a["hip_pos"]], c[a["hip_vel"]] = tr.hip_rad[i], tr.hipd_rad_s[i]
         if self.body_mass_kg is None:
+            c[a["hip_pos"]], c[a["hip_vel"]] = tr.hip_rad[i], tr.hipd_rad_s[i]
             c[a["hip_z_pos"]], c[a["hip_z_vel"]] = tr.z_m[i], tr.zd_m_s[i]
             c[a["hip_z_load"]] = self._gravity_comp_N - tr.load_N[i]
             return
         z, zd = self.data.qpos[self._q["hip_z"]], self.data.qvel[self._v["hip_z"]]
-        self.support_N = self._k_stab * (tr.z_m[i] - z) + self._c_stab * (tr.zd_m_s[i] - zd)
-        c[a["hip_z_load"]] = tr.contralateral_N[i] + self.support_N
+        ez, ezd = tr.z_m[i] - z, tr.zd_m_s[i] - zd
+        self.support_N = self._k_stab * ez + self._c_stab * ezd
+        other = tr.contralateral_N[i]
+        if other > 0.0:   # the other foot is down: it also pushes harder the lower the hip (a leg spring), never pulls
+            push = max(-other, self.other_leg[0] * ez + self.other_leg[1] * ezd)
+            self.support_N += push
+        c[a["hip_z_load"]] = other + self.support_N
+        kp, kv, lim = self.hip_servo
+        th, thd = self.data.qpos[self._q["hip"]], self.data.qvel[self._v["hip"]]
+        self.hip_torque_Nm = max(-lim, min(lim, kp * (tr.hip_rad[i] - th) + kv * (tr.hipd_rad_s[i] - thd)))
+        c[a["hip_torque"]] = self.hip_torque_Nm
 
     def sample(self) -> SensorSample:
         """The sensors as the controller reads them now."""
