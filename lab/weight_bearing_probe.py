@@ -12,7 +12,7 @@ from device_bridge.sim.bench_trajectory import plan_bench_trajectory
 def walk(table, speed=1.2, mass=75.0, seconds=10.0, stab=(0.1, 0.5), hip=(6000.0, 150.0, 1e9), other=(20000.0, 1200.0)):
     ref = level_walking_reference(speed)
     leg = SimulatedLeg(body_mass_kg=mass, stabiliser=stab, hip_servo=hip, other_leg=other)
-    traj = plan_bench_trajectory(ref, leg.geometry, mass, seconds, leg.timestep_s)
+    traj = plan_bench_trajectory(ref, leg.geometry, mass, seconds, leg.timestep_s, own_leg=OWN)
     s0 = traj.phase[0]
     x = leg.reset(traj, float(np.interp(s0, ref.phase, ref.knee_angle_rad)), float(np.interp(s0, ref.phase, ref.ankle_angle_rad)))
     from controller_core.table import SafetyLimits
@@ -33,6 +33,8 @@ def walk(table, speed=1.2, mass=75.0, seconds=10.0, stab=(0.1, 0.5), hip=(6000.0
             "knee_max_deg": round(math.degrees(knee[k].max()), 1),
             "hip_torque_max_Nm": round(float(np.abs(ht[k]).max()), 0), "sf_time_frac": round(float(np.mean(st[k] == 0)), 3)}
 
+import os
+OWN = os.environ.get('OWN_LEG') == '1'
 m = load_default_model()
 t = m.propose(1.2, 0.0, 75.0).table
 def with_knee(table, sub, k):

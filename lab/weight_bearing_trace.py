@@ -13,7 +13,7 @@ def with_knee(table, sub, k):
 tab = t if len(sys.argv) < 2 else None
 ref = level_walking_reference(1.2); mass = 75.0
 leg = SimulatedLeg(body_mass_kg=mass, stabiliser=(0.1, 0.5), hip_servo=(800, 40, 120))
-traj = plan_bench_trajectory(ref, leg.geometry, mass, 6.0, leg.timestep_s)
+traj = plan_bench_trajectory(ref, leg.geometry, mass, 6.0, leg.timestep_s, own_leg=True)
 s0 = traj.phase[0]
 x = leg.reset(traj, float(np.interp(s0, ref.phase, ref.knee_angle_rad)), float(np.interp(s0, ref.phase, ref.ankle_angle_rad)))
 from controller_core.table import SafetyLimits

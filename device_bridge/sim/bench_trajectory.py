@@ -150,15 +150,29 @@ class BenchTrajectory:
     contralateral_N: np.ndarray | None = None
 
 
+def own_leg_hip_heights_m(ref: WalkingReference, thigh: np.ndarray, geometry: LegGeometry) -> np.ndarray:
+    """Hip height target (m) that the prosthesis's own reference leg defines: where it touches over its stance; over
+    its swing the other leg's touching height, shifted by a correction that runs linearly from the gap at toe-off to
+    the gap at the next heel strike, so the target is continuous and the foot meets the floor on time."""
+    s = ref.phase
+    h = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, geometry, ref.incline_deg)
+    to = ref.toe_off_phase
+    contra = np.interp((s - 0.5) % 1.0, s, h)
+    gap_off = float(np.interp(to, s, h) - np.interp((to - 0.5) % 1.0, s, h))
+    gap_on = float(h[0] - np.interp(0.5, s, h))
+    w = np.clip((s - to) / (1.0 - to), 0.0, 1.0)
+    return np.where(s <= to, h, contra + (1 - w) * gap_off + w * gap_on)
+
+
 def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float,
                           timestep_s: float = 0.001, start_phase: float = 0.85, harmonics: int = HARMONICS,
-                          t0_s: float = 0.0) -> BenchTrajectory:
+                          t0_s: float = 0.0, own_leg: bool = False) -> BenchTrajectory:
     """Sample the socket targets and load for ``seconds`` of walking at the reference's task, from time ``t0_s``
     (a later chunk of the same walk continues the earlier one exactly)."""
     incline = ref.incline_deg
     s_grid = ref.phase
     thigh = thigh_angle_rad(ref, incline)
-    height, _ = grid_hip_heights_m(ref, thigh, geometry)
+    height = own_leg_hip_heights_m(ref, thigh, geometry) if own_leg else grid_hip_heights_m(ref, thigh, geometry)[0]
     T = ref.stride_time_s
     n = round(seconds / timestep_s)
     t = t0_s + np.arange(n) * timestep_s
