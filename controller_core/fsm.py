@@ -164,7 +164,16 @@ class ImpedanceSchedule:
             SafetyLimitError: the table violates ``limits``; nothing is converted.
         """
         assert_safe(table, limits)
+        return cls._convert(table)
 
+    @classmethod
+    def from_table_unchecked(cls, table: ImpedanceTable) -> ImpedanceSchedule:
+        """Convert a table without the limit check: for bench studies of unsafe tables only (``quasitune simulate
+        --skip-limits``). The device and every product path use :meth:`from_table`."""
+        return cls._convert(table)
+
+    @classmethod
+    def _convert(cls, table: ImpedanceTable) -> ImpedanceSchedule:
         def per_state(joint: str, attr: str, scale: float = 1.0) -> tuple[float, float, float, float]:
             v = [float(getattr(table.row(joint, s), attr)) * scale for s in SUBPHASES]
             return (v[0], v[1], v[2], v[3])

@@ -27,8 +27,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         score = walk_course(args.controller, course, model, args.mass, task=task, video=args.video)
         emit(score.to_dict(), args.format)
         return 0
+    if args.table is not None:
+        return _simulate_table(args)
+    if args.skip_limits:
+        raise ValueError("--skip-limits applies to a table from a file: add --table FILE.json")
     if args.speed is None:
-        raise ValueError("simulate needs --speed (a fixed task) or --course NAME|FILE")
+        raise ValueError("simulate needs --speed (a fixed task), --table FILE.json or --course NAME|FILE")
     if args.controller == "adaptive":
         raise ValueError("the adaptive controller walks a course: add --course NAME|FILE")
     from device_bridge.bench.walks import simulate
@@ -63,6 +67,36 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+UNCHECKED = "UNCHECKED TABLE, bench study only: limits skipped, never for a device"
+
+
+def _simulate_table(args: argparse.Namespace) -> int:
+    """Walk a table read from a file at its own task (or --speed/--incline), limits checked as on the device unless
+    --skip-limits, which says so on every line it prints."""
+    from controller_core.table import check_table
+    from device_bridge.bench.table_file import read_table_file
+    from device_bridge.bench.walks import simulate
+
+    table = read_table_file(args.table)
+    task = table.provenance
+    speed = args.speed if args.speed is not None else task.speed_mps
+    incline = args.incline if args.speed is not None else task.incline_deg
+    model = load(args) if incline != 0.0 else None
+    score = simulate("table", speed, incline, args.seconds, table.body_mass_kg, model, record=args.record,
+                     video=args.video, table=table, skip_limits=args.skip_limits)
+    out = {"table_file": str(args.table), **score.to_dict(), "controller": "table"}
+    if args.skip_limits:
+        out = {"limits": UNCHECKED, **out, "limit_violations": [v.message for v in check_table(table)]}
+        if args.format == "json":
+            emit(out, "json")
+        else:
+            for k, v in out.items():
+                print(f"[{UNCHECKED}] {k:40s} {v}")
+        return 0
+    emit(out, args.format)
+    return 0
+
+
 def add_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
     task_args(p, speed_required=False)
@@ -75,6 +109,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.add_argument("--record", type=Path, default=None, help="save per-tick trajectories (.csv or .parquet)")
     p.add_argument("--video", type=Path, default=None, help="render headless (MUJOCO_GL=egl): FILE.mp4 or a folder")
+    p.add_argument("--table", type=Path, default=None,
+                   help="walk the table in FILE.json (the JSON of 'quasitune predict --format json' or of GET "
+                        "/api/proposals/{id}) at its own task; its patient mass is the walk's")
+    p.add_argument("--skip-limits", action="store_true",
+                   help="with --table: walk it even where it breaks the safety limits (bench studies only; every "
+                        "line of output says so, and nothing from it reaches a device)")
     p.set_defaults(func=cmd_simulate)
     p = sub.add_parser("compare", help="quasi-stiffness vs FSMIC over a task grid on the simulated bench")
     p.add_argument("--course", default=None, help="compare the adaptive envelope, the nominal table and the FSMIC "

@@ -35,8 +35,8 @@ def default_envelope(model: QuasiStiffnessModel, mass_kg: float) -> Envelope:
 
 def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None = None,
                     task: tuple[float, float] = NOMINAL_TASK, table: ImpedanceTable | None = None,
-                    envelope: Envelope | None = None, geometry: LegGeometry | None = None
-                    ) -> StateMachineController | AdaptiveController:
+                    envelope: Envelope | None = None, geometry: LegGeometry | None = None,
+                    skip_limits: bool = False) -> StateMachineController | AdaptiveController:
     """A fresh controller named ``name`` for a patient of ``mass_kg``.
 
     Args:
@@ -44,6 +44,8 @@ def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None
         table: the ``table`` controller's table.
         envelope: the ``adaptive`` controller's envelope (default :func:`default_envelope`).
         geometry: the leg's segments, which the ``adaptive`` controller's task estimator needs.
+        skip_limits: walk the ``table`` controller's table without the limit check (bench studies of unsafe tables
+            only: ``quasitune simulate --skip-limits``; no path from it reaches a device).
 
     Raises:
         ValueError: an unknown name, or what the name needs is missing.
@@ -56,6 +58,8 @@ def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None
     if name == "table":
         if table is None:
             raise ValueError("the table controller needs a table")
+        if skip_limits:
+            return StateMachineController(ImpedanceSchedule.from_table_unchecked(table))
         return StateMachineController(ImpedanceSchedule.from_table(table))
     if model is None:
         raise ValueError(f"the {name} controller needs a trained model")

@@ -1,23 +1,29 @@
-"""What the bench does with the socket: a human hip trajectory for the task, and the body-weight load.
+"""What the bench does at a task: the person's thigh angle, the path their hip would take, and their other leg's push.
 
-For a task the bench replays the able-bodied pattern of :class:`controller_core.walking_reference.WalkingReference`:
+For a task the bench replays the able-bodied pattern of :class:`controller_core.walking_reference.WalkingReference`.
+The socket's forward position and thigh angle are driven (the person walks); its height is free and carries the body
+(:mod:`device_bridge.sim.plant`, :mod:`device_bridge.sim.person`). The path below is where the hip *would* be if the
+prosthesis did what the reference leg does: the height the body sinks below it is what the prosthesis failed to carry.
 
 * **Thigh angle** φ(s) (rad, from vertical, flexion +) = hip flexion − c, where the constant c makes the
   reference foot flat on the (tilted) floor over mid-stance (15–40 % of the cycle): the foot's pitch is
   φ − knee + ankle, so c = mean(hip − knee + ankle) − incline. c absorbs the pelvic tilt the hip angle is
   measured from (about 5–7° in the shipped data).
-* **Hip height** h(s) above the floor (m, along the floor normal) = the height at which the reference leg
-  — this bench's segment lengths, the reference knee and ankle angles — touches the floor with its lowest
-  contact, taken from whichever leg is in stance (the contralateral leg is the same pattern half a cycle
-  later; in double support the lower of the two). The two legs disagree there, so a leg with the reference
-  angles would not land or push off on time: :func:`hip_height_mismatch_mm` says by how much.
-* **Forward motion**: the socket moves along the floor at the task speed (belt speed).
-* **Load**: the bench pushes the socket down with the reference vertical ground reaction force
-  (vgrf(s) × body weight) and carries the bench's own moving mass; a stiff servo holds the socket near
-  h(s), standing in for the contralateral leg when the prosthesis yields.
+* **Forward progression**: the hip moves along the floor at the task speed (belt speed), as on a treadmill.
+* **The hip's height over the prosthesis's stance** is the prosthesis's own reference leg's: the height at which the
+  reference leg, with the reference angles, touches the floor with its lowest contact, so a leg that does what
+  people's does lands on time and carries the body at the height people's does (:func:`hip_path_m`).
+* **Over its swing** the body rides on the other leg, whose push is the reference's: the height follows what the
+  reference vertical forces do to the body (integrated twice), shifted by a straight line to meet the stance path at
+  toe-off and at the next heel strike; where the reference leg would pass closer than :data:`SWING_CLEARANCE_M` to the
+  floor (a sagittal bench has no pelvic list) the hip rises by a smooth hike.
+* **The other leg's push**: the reference's contralateral vertical ground force (the ipsilateral one half a cycle on),
+  each leg's share scaled so that it carries exactly half the weight over a stride; over the prosthesis's swing,
+  whatever keeps the body on its path (the prosthesis carries nothing then, so this is the reference force plus any
+  hike).
 
-Both periodic signals are smoothed by keeping their first harmonics (the data are 101-point means; the
-stance-leg switch in h(s) has a corner), which also gives their velocities analytically.
+The periodic signals are smoothed by keeping their first :data:`HARMONICS` harmonics (the data are 101-point means and
+the stance-to-swing joins have corners), which also gives their derivatives analytically.
 """
 
 from __future__ import annotations
@@ -32,7 +38,10 @@ from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.leg_model import LegGeometry
 
 MID_STANCE = (0.15, 0.40)
-HARMONICS = 12   # harmonics kept when smoothing the periodic socket signals
+HARMONICS = 12              # harmonics kept when smoothing the periodic socket signals
+SWING_CLEARANCE_M = 0.015   # least swing-foot clearance of a leg with the reference angles (people: 1-2 cm)
+CLEARANCE_BLEND = 0.06      # phase over which that clearance is blended in after toe-off and out before heel strike
+HIKE_HALF_WIDTH = 0.12      # phase from a hike's top to where it has blended out
 
 
 def fourier_coefficients(values: np.ndarray, harmonics: int) -> tuple[np.ndarray, np.ndarray]:
@@ -46,13 +55,13 @@ def fourier_coefficients(values: np.ndarray, harmonics: int) -> tuple[np.ndarray
     return a, b
 
 
-def _eval_fourier(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Value and d/ds of the series at phases s."""
+def eval_fourier(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Value, d/ds and d²/ds² of the series at phases s."""
     k = np.arange(a.shape[0])
-    ang = 2.0 * np.pi * np.outer(s, k)
-    val = np.cos(ang) @ a + np.sin(ang) @ b
-    der = (-np.sin(ang) * (2.0 * np.pi * k)) @ a + (np.cos(ang) * (2.0 * np.pi * k)) @ b
-    return val, der
+    w = 2.0 * np.pi * k
+    ang = np.outer(s, w)
+    c, sn = np.cos(ang), np.sin(ang)
+    return c @ a + sn @ b, (-sn * w) @ a + (c * w) @ b, -(c * w * w) @ a - (sn * w * w) @ b
 
 
 def thigh_angle_rad(ref: WalkingReference, incline_deg: float) -> np.ndarray:
@@ -63,76 +72,114 @@ def thigh_angle_rad(ref: WalkingReference, incline_deg: float) -> np.ndarray:
     return ref.hip_angle_rad - c
 
 
-def stance_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
-                        incline_deg: float) -> np.ndarray:
-    """Hip height above the floor (m, along the normal) at which the leg's lowest contact touches it."""
+def contact_centres_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
+                      incline_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The heel and forefoot contact spheres' centres relative to the hip in floor coordinates: (along the floor,
+    along its normal), each (2, n) for (heel, forefoot), and the foot's pitch (rad, toe up +)."""
     g = geometry
     alpha = math.radians(incline_deg)
-    nx, nz = -math.sin(alpha), math.cos(alpha)
     shank = thigh - knee
     pitch = shank + ankle
     kx, kz = g.thigh_m * np.sin(thigh), -g.thigh_m * np.cos(thigh)
     ax, az = kx + g.shank_m * np.sin(shank), kz - g.shank_m * np.cos(shank)
     zc = -g.ankle_height_m + g.contact_radius_m
-    lowest = None
+    along, normal = [], []
     for xf in (-g.heel_back_m, g.toe_forward_m):
         px = ax + xf * np.cos(pitch) - zc * np.sin(pitch)
         pz = az + xf * np.sin(pitch) + zc * np.cos(pitch)
-        d = px * nx + pz * nz
-        lowest = d if lowest is None else np.minimum(lowest, d)
-    return g.contact_radius_m - lowest
+        along.append(px * math.cos(alpha) + pz * math.sin(alpha))
+        normal.append(-px * math.sin(alpha) + pz * math.cos(alpha))
+    return np.array(along), np.array(normal), pitch
 
 
-def grid_hip_heights_m(ref: WalkingReference, thigh: np.ndarray, geometry: LegGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """(hip height target, height at which the ipsilateral reference leg touches) on the reference grid (m)."""
-    s_grid = ref.phase
-    h_ipsi = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, geometry, ref.incline_deg)
-    stance = s_grid <= ref.toe_off_phase
-    h_own = np.where(stance, h_ipsi, np.inf)
-    contra_s = (s_grid - 0.5) % 1.0
-    h_contra = np.where(contra_s <= ref.toe_off_phase, np.interp(contra_s, s_grid, h_ipsi), np.inf)
-    height = np.minimum(h_own, h_contra)
-    if not np.all(np.isfinite(height)):
-        raise ValueError("the reference has a flight phase (no leg in stance): not a walking pattern")
-    return height, h_ipsi
+def touching_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
+                          incline_deg: float) -> np.ndarray:
+    """Hip height above the floor (m, along the normal) at which the leg's lowest contact touches it."""
+    _, normal, _ = contact_centres_m(thigh, knee, ankle, geometry, incline_deg)
+    return geometry.contact_radius_m - normal.min(axis=0)
 
 
-def hip_height_mismatch_mm(ref: WalkingReference, geometry: LegGeometry, harmonics: int = HARMONICS) -> dict[str, float]:
-    """How far the bench's hip height target is from where the ipsilateral reference leg touches the floor (mm).
+def other_leg_share_bw(ref: WalkingReference) -> np.ndarray:
+    """The other leg's vertical force on the reference grid (body weights): the reference force half a cycle on,
+    scaled so each leg carries exactly half the weight over a stride (the shipped means are 0.516-0.523)."""
+    share = 0.5 / float(np.mean(ref.vgrf_bw[:-1]))
+    return share * np.interp((ref.phase + 0.5) % 1.0, ref.phase, ref.vgrf_bw)
 
-    The target comes from whichever reference leg is in stance, and on this bench (rigid foot, segment lengths,
-    thigh-angle offset, sagittal plane only) the two legs disagree in double support. The bench then does not
-    let a leg with the reference angles land and push off on time:
 
-    * ``heel_strike``: target minus touching height at the reference heel strike (phase 0), after the same
-      smoothing as the bench's path. Positive: the hip is that much too high, and the foot has to reach down
-      (knee extending, ankle plantarflexing) to land.
-    * ``pre_swing``: the most negative target minus touching height while the ipsilateral leg is in stance.
-      Negative: the contralateral leg's loading response holds the hip that much lower, compressing the leg.
+def _swing_height_m(ref: WalkingReference, touch: np.ndarray) -> np.ndarray:
+    """The hip height over the whole stride: ``touch`` over the stance, over the swing what the reference forces do
+    to the body, joined by a straight line and lifted where the reference foot would pass too close (module
+    docstring)."""
+    s, to, T = ref.phase, ref.toe_off_phase, ref.stride_time_s
+    both = 0.5 / float(np.mean(ref.vgrf_bw[:-1])) * ref.vgrf_bw + other_leg_share_bw(ref)
+    acc = T * T * G_MPS2 * (both - 1.0)                     # d²z/ds² of the body under both legs' forces (m)
+    ds = np.diff(s)
+    vel = np.concatenate([[0.0], np.cumsum(0.5 * (acc[1:] + acc[:-1]) * ds)])
+    free = np.concatenate([[0.0], np.cumsum(0.5 * (vel[1:] + vel[:-1]) * ds)])
+    swing = s > to
+    z_to, z_hs = float(np.interp(to, s, touch)), float(touch[0])
+    free = free - float(np.interp(to, s, free))
+    base = free + z_to + (s - to) * (z_hs - free[-1] - z_to) / (1.0 - to)
+    ramp = np.clip(np.minimum(s - to, 1.0 - s) / CLEARANCE_BLEND, 0.0, 1.0)
+    short = np.where(swing, np.maximum(touch + SWING_CLEARANCE_M * ramp - base, 0.0), 0.0)
+    lift = np.zeros_like(s)
+    for i in np.flatnonzero(short > 0.0):   # a raised-cosine hike over each shortfall, as high as the shortfall
+        lift = np.maximum(lift, short[i] * 0.5 * (1.0 + np.cos(np.pi * np.clip((s - s[i]) / HIKE_HALF_WIDTH, -1, 1))))
+    return np.where(swing, base + lift * ramp, touch)   # no hike at toe-off and heel strike: the path joins there
 
-    Both are properties of the bench at the task, the same for every controller (``max_hip_sink_m`` in
-    ``quasitune simulate --format json``).
-    """
+
+def hip_path_m(ref: WalkingReference, geometry: LegGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """The hip path at the reference's task on its grid: (thigh angle rad, height above the floor along its normal
+    m), see the module docstring."""
     thigh = thigh_angle_rad(ref, ref.incline_deg)
-    height, h_ipsi = grid_hip_heights_m(ref, thigh, geometry)
-    a, b = fourier_coefficients(height, harmonics)
-    smooth, _ = _eval_fourier(a, b, ref.phase)
-    excess = smooth - h_ipsi
-    stance = ref.phase <= ref.toe_off_phase
-    return {"heel_strike": float(1000.0 * excess[0]), "pre_swing": float(1000.0 * excess[stance].min())}
+    touch = touching_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, geometry, ref.incline_deg)
+    return thigh, _swing_height_m(ref, touch)
+
+
+@dataclass(frozen=True)
+class TaskPattern:
+    """What the bench replays at one task: Fourier coefficients (a then b) of the thigh angle (rad) and the hip height
+    (m) on the phase, the other leg's share on the reference grid (body weights), toe-off (phase) and the stride time
+    (s)."""
+
+    thigh: np.ndarray
+    height: np.ndarray
+    other_bw: np.ndarray
+    toe_off_phase: float
+    stride_time_s: float
+
+
+def task_pattern_series(ref: WalkingReference, geometry: LegGeometry, harmonics: int = HARMONICS) -> TaskPattern:
+    """The bench's pattern at the reference's task (see :class:`TaskPattern`)."""
+    thigh, height = hip_path_m(ref, geometry)
+    return TaskPattern(thigh=np.concatenate(fourier_coefficients(thigh, harmonics)),
+                       height=np.concatenate(fourier_coefficients(height, harmonics)),
+                       other_bw=other_leg_share_bw(ref), toe_off_phase=ref.toe_off_phase,
+                       stride_time_s=ref.stride_time_s)
+
+
+def other_leg_push_N(phase: np.ndarray, toe_off: np.ndarray | float, share_bw: np.ndarray,
+                     height_accel_m_s2: np.ndarray, slope_rad: np.ndarray | float, mass_kg: float) -> np.ndarray:
+    """The other leg's vertical push per tick (N): its reference share (``share_bw``, body weights per tick) over the
+    prosthesis's stance; over its swing what keeps the body on its path (weight plus mass × the path's vertical
+    acceleration, from the height's acceleration along the floor normal)."""
+    carry = mass_kg * (G_MPS2 + height_accel_m_s2 * np.cos(slope_rad))
+    return np.where(phase > toe_off, np.maximum(carry, 0.0), share_bw * mass_kg * G_MPS2)
 
 
 @dataclass(frozen=True)
 class BenchTrajectory:
-    """Sampled socket trajectory and load for a whole run (arrays of one length, one row per tick).
+    """Sampled socket trajectory and the other leg's push for a whole run (arrays of one length, one row per tick).
 
     Attributes:
         time_s: tick times (s).
         phase: bench gait phase in [0, 1) (0 = reference heel strike).
-        x_m, z_m, hip_rad: socket targets in world coordinates (m, m, rad).
+        x_m, z_m, hip_rad: the hip's path and the thigh angle in world coordinates (m, m, rad).
         xd_m_s, zd_m_s, hipd_rad_s: their velocities.
-        load_N: downward push on the socket (N), the reference vertical GRF.
-        height_m: target hip height above the floor along its normal (m).
+        height_m: the path's height above the floor along its normal (m).
+        other_leg_N: the other leg's reference push (N, up).
+        other_foot_down: whether the other foot is on the floor (its reference force is positive).
+        stance: whether the prosthesis is in its reference stance (phase up to toe-off).
         stride_time_s: bench cycle time (s).
     """
 
@@ -144,53 +191,36 @@ class BenchTrajectory:
     xd_m_s: np.ndarray
     zd_m_s: np.ndarray
     hipd_rad_s: np.ndarray
-    load_N: np.ndarray
     height_m: np.ndarray
+    other_leg_N: np.ndarray
+    other_foot_down: np.ndarray
+    stance: np.ndarray
     stride_time_s: float
-    contralateral_N: np.ndarray | None = None
-
-
-def own_leg_hip_heights_m(ref: WalkingReference, thigh: np.ndarray, geometry: LegGeometry) -> np.ndarray:
-    """Hip height target (m) that the prosthesis's own reference leg defines: where it touches over its stance; over
-    its swing the other leg's touching height, shifted by a correction that runs linearly from the gap at toe-off to
-    the gap at the next heel strike, so the target is continuous and the foot meets the floor on time."""
-    s = ref.phase
-    h = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, geometry, ref.incline_deg)
-    to = ref.toe_off_phase
-    contra = np.interp((s - 0.5) % 1.0, s, h)
-    gap_off = float(np.interp(to, s, h) - np.interp((to - 0.5) % 1.0, s, h))
-    gap_on = float(h[0] - np.interp(0.5, s, h))
-    w = np.clip((s - to) / (1.0 - to), 0.0, 1.0)
-    return np.where(s <= to, h, contra + (1 - w) * gap_off + w * gap_on)
 
 
 def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float,
                           timestep_s: float = 0.001, start_phase: float = 0.85, harmonics: int = HARMONICS,
-                          t0_s: float = 0.0, own_leg: bool = False) -> BenchTrajectory:
-    """Sample the socket targets and load for ``seconds`` of walking at the reference's task, from time ``t0_s``
-    (a later chunk of the same walk continues the earlier one exactly)."""
-    incline = ref.incline_deg
-    s_grid = ref.phase
-    thigh = thigh_angle_rad(ref, incline)
-    height = own_leg_hip_heights_m(ref, thigh, geometry) if own_leg else grid_hip_heights_m(ref, thigh, geometry)[0]
+                          t0_s: float = 0.0) -> BenchTrajectory:
+    """Sample the socket's path and the other leg's push for ``seconds`` of walking at the reference's task, from
+    time ``t0_s`` (a later chunk of the same walk continues the earlier one exactly)."""
+    pattern = task_pattern_series(ref, geometry, harmonics)
+    h2 = pattern.thigh.shape[0] // 2
     T = ref.stride_time_s
     n = round(seconds / timestep_s)
     t = t0_s + np.arange(n) * timestep_s
     s = (start_phase + t / T) % 1.0
-    a_h, b_h = fourier_coefficients(height, harmonics)
-    a_t, b_t = fourier_coefficients(thigh, harmonics)
-    h, dh = _eval_fourier(a_h, b_h, s)
-    th, dth = _eval_fourier(a_t, b_t, s)
-    alpha = math.radians(incline)
+    th, dth, _ = eval_fourier(pattern.thigh[:h2], pattern.thigh[h2:], s)
+    h, dh, ddh = eval_fourier(pattern.height[:h2], pattern.height[h2:], s)
+    alpha = math.radians(ref.incline_deg)
     v = ref.speed_mps
     u = v * t
     x = u * math.cos(alpha) - h * math.sin(alpha)
     z = u * math.sin(alpha) + h * math.cos(alpha)
-    hdot = dh / T
-    xd = v * math.cos(alpha) - hdot * math.sin(alpha)
-    zd = v * math.sin(alpha) + hdot * math.cos(alpha)
-    load = np.interp(s, s_grid, ref.vgrf_bw) * mass_kg * G_MPS2
-    share = 0.5 / float(np.mean(ref.vgrf_bw[:-1]))   # each leg carries half the weight over a stride, exactly
-    other = np.interp((s + 0.5) % 1.0, s_grid, ref.vgrf_bw) * share * mass_kg * G_MPS2   # the other leg
+    hd = dh / T
+    xd = v * math.cos(alpha) - hd * math.sin(alpha)
+    zd = v * math.sin(alpha) + hd * math.cos(alpha)
+    share = np.interp(s, ref.phase, pattern.other_bw)
+    other = other_leg_push_N(s, ref.toe_off_phase, share, ddh / (T * T), alpha, mass_kg)
     return BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=th, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=dth / T,
-                           load_N=load, height_m=h, stride_time_s=T, contralateral_N=other)
+                           height_m=h, other_leg_N=other, other_foot_down=(share > 0.0) | (s > ref.toe_off_phase),
+                           stance=s <= ref.toe_off_phase, stride_time_s=T)

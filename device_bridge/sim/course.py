@@ -8,10 +8,10 @@ meets each ramp when the schedule says. The floor's profile is sampled every ``T
 of straight pieces (:meth:`Terrain.polyline`).
 
 :func:`plan_course_trajectory` gives the socket the able-bodied pattern of the current task at every tick
-(:mod:`device_bridge.sim.bench_trajectory`'s thigh angle, hip height and load, per task, blended in time), with the
-phase advancing at the current task's cadence, placed on the terrain: hip = floor point at u(t) + h(s) × the floor's
-normal there. Each tick also carries the true task, which scoring uses (each stride against the reference at its
-own task).
+(:mod:`device_bridge.sim.bench_trajectory`'s thigh angle, hip path and the other leg's push, per task, blended in
+time), with the phase advancing at the current task's cadence, placed on the terrain: hip = floor point at u(t) +
+h(s) × the floor's normal there. Each tick also carries the true task, which scoring uses (each stride against the
+reference at its own task).
 
 Named courses (``COURSES``): ``speed`` (level: 1.0 → 0.85 → 1.6 → 1.0 m/s), ``terrain`` (1.0 m/s: level →
 ramp up +8° → level → ramp down −8° → level) and ``mixed`` (both). A course file is JSON:
@@ -29,15 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from controller_core.task import validate_task
-from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference, sloped_walking_reference
-from device_bridge.sim.bench_trajectory import (
-    HARMONICS,
-    BenchTrajectory,
-    fourier_coefficients,
-    grid_hip_heights_m,
-    thigh_angle_rad,
-)
+from device_bridge.sim.bench_trajectory import BenchTrajectory, other_leg_push_N, task_pattern_series
 from device_bridge.sim.leg_model import LegGeometry
 
 TERRAIN_STEP_M = 0.02
@@ -179,16 +172,13 @@ class CourseTrajectory:
 
 
 @lru_cache(maxsize=4096)
-def _pattern(speed_mps: float, incline_deg: float, body_height_m: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """At a task: Fourier coefficients of thigh angle and hip height, the vertical load on the reference's phase
-    grid (body weights) and the stride time (s)."""
+def _pattern(speed_mps: float, incline_deg: float, body_height_m: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """At a task: the Fourier coefficients of thigh angle and hip height (one row), the other leg's
+    share on LOAD_GRID (body weights), toe-off (phase) and the stride time (s)."""
     ref = task_pattern(speed_mps, incline_deg)
-    geometry = LegGeometry(body_height_m=body_height_m)
-    thigh = thigh_angle_rad(ref, incline_deg)
-    height, _ = grid_hip_heights_m(ref, thigh, geometry)
-    a_t, b_t = fourier_coefficients(thigh, HARMONICS)
-    a_h, b_h = fourier_coefficients(height, HARMONICS)
-    return np.concatenate([a_t, b_t, a_h, b_h]), np.interp(LOAD_GRID, ref.phase, ref.vgrf_bw), ref.stride_time_s
+    p = task_pattern_series(ref, LegGeometry(body_height_m=body_height_m))
+    return (np.concatenate([p.thigh, p.height]), np.interp(LOAD_GRID, ref.phase, p.other_bw),
+            p.toe_off_phase, p.stride_time_s)
 
 
 @lru_cache(maxsize=2048)
@@ -200,16 +190,17 @@ def task_pattern(speed_mps: float, incline_deg: float) -> WalkingReference:
     return ref
 
 
-def _series(coef: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Value and d/ds of per-tick Fourier series: ``coef`` (n, 2K) as (a, b), phases ``s`` (n,)."""
+def _series(coef: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Value, d/ds and d²/ds² of per-tick Fourier series: ``coef`` (n, 2K) as (a, b), phases ``s`` (n,)."""
     h = coef.shape[1] // 2
-    k = np.arange(h)
-    ang = 2.0 * np.pi * s[:, None] * k[None]
+    w = 2.0 * np.pi * np.arange(h)
+    ang = s[:, None] * w[None]
     c, sn = np.cos(ang), np.sin(ang)
     a, b = coef[:, :h], coef[:, h:]
     val = np.einsum("nk,nk->n", c, a) + np.einsum("nk,nk->n", sn, b)
-    der = np.einsum("nk,nk->n", -sn * (2.0 * np.pi * k), a) + np.einsum("nk,nk->n", c * (2.0 * np.pi * k), b)
-    return val, der
+    der = np.einsum("nk,nk->n", -sn * w, a) + np.einsum("nk,nk->n", c * w, b)
+    der2 = -np.einsum("nk,nk->n", c * w * w, a) - np.einsum("nk,nk->n", sn * w * w, b)
+    return val, der, der2
 
 
 def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float, timestep_s: float = 0.001,
@@ -224,27 +215,29 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
             for v, g in zip(v_knots, g_knots, strict=True)]
     coef_knots = np.array([p[0] for p in pats])
     load_knots = np.array([p[1] for p in pats])
-    period_knots = np.array([p[2] for p in pats])
+    toe_off_knots = np.array([p[2] for p in pats])
+    period_knots = np.array([p[3] for p in pats])
     pos = t / TASK_SAMPLE_S
     i0 = np.minimum(pos.astype(int), len(t_knots) - 2)
     w = pos - i0
     coef = coef_knots[i0] * (1.0 - w[:, None]) + coef_knots[i0 + 1] * w[:, None]
     period = period_knots[i0] * (1.0 - w) + period_knots[i0 + 1] * w
+    toe_off = toe_off_knots[i0] * (1.0 - w) + toe_off_knots[i0 + 1] * w
     speed, incline = course.task_at(t)
     s = (start_phase + np.concatenate([[0.0], np.cumsum(timestep_s / period[:-1])])) % 1.0
     half = coef.shape[1] // 2
-    thigh, dthigh = _series(coef[:, :half], s)
-    height, dheight = _series(coef[:, half:], s)
+    thigh, dthigh, _ = _series(coef[:, :half], s)
+    height, dheight, ddheight = _series(coef[:, half:], s)
     # d/dt at a fixed phase, from the pattern's change with the task (the coefficients are linear between knots)
     coef_rate = (coef_knots[i0 + 1] - coef_knots[i0]) / TASK_SAMPLE_S
-    thigh_t, _ = _series(coef_rate[:, :half], s)
-    height_t, _ = _series(coef_rate[:, half:], s)
-    # the load as the fixed-task bench applies it: linear on the phase grid (no ringing at heel strike)
+    thigh_t, _, _ = _series(coef_rate[:, :half], s)
+    height_t, _, _ = _series(coef_rate[:, half:], s)
+    # the other leg's share as the fixed-task bench has it: linear on the phase grid
     g = s * (LOAD_GRID.size - 1)
     j = np.minimum(g.astype(int), LOAD_GRID.size - 2)
     f = g - j
     at_knot = [load_knots[i, j] * (1.0 - f) + load_knots[i, j + 1] * f for i in (i0, i0 + 1)]
-    vgrf = at_knot[0] * (1.0 - w) + at_knot[1] * w
+    share = at_knot[0] * (1.0 - w) + at_knot[1] * w
     # the floor: its slope at the arc length walked by time t is the incline at t
     gamma = np.radians(incline)
     floor_x = np.concatenate([[0.0], np.cumsum(np.cos(gamma[:-1]) * speed[:-1] * timestep_s)])
@@ -257,8 +250,10 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
     gamma_rate = np.gradient(gamma, timestep_s)
     xd = speed * np.cos(gamma) + hdot * nx - height * np.cos(gamma) * gamma_rate
     zd = speed * np.sin(gamma) + hdot * nz - height * np.sin(gamma) * gamma_rate
+    other = other_leg_push_N(s, toe_off, share, ddheight / (period * period), gamma, mass_kg)
     bench = BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=thigh, xd_m_s=xd, zd_m_s=zd,
-                            hipd_rad_s=dthigh / period + thigh_t, load_N=vgrf * mass_kg * G_MPS2, height_m=height,
+                            hipd_rad_s=dthigh / period + thigh_t, height_m=height, other_leg_N=other,
+                            other_foot_down=(share > 0.0) | (s > toe_off), stance=s <= toe_off,
                             stride_time_s=float(np.mean(period)))
     # terrain: the floor line, continued at its first and last slopes 2 m behind the start and 3 m beyond the end
     grid = np.arange(-2.0, floor_x[-1] + 3.0, TERRAIN_STEP_M)

@@ -8,7 +8,8 @@
   pattern at that task (the same one the bench replays: level data plus the measured ramp trend);
 * per channel: the mean of those per-stride RMSEs with a 95 % interval (strides resampled with replacement), and the
   same per course segment (a stride belongs to the segment its middle falls in);
-* safety as on a fixed-task walk: falls, toe catches, the longest loaded-swing time in any stride;
+* safety as on a fixed-task walk: falls, toe catches, the longest loaded-swing time in any stride, and how well the
+  prosthesis carried the body (sink, the person's compensation, stance knee flexion);
 * with the adaptive controller's per-stride decisions: how often the leg's task estimate was within ±0.1 m/s and
   ±1.5° of the true task of the stride it described, not counting the first ``skip_after_change`` strides after
   each change.
@@ -39,8 +40,16 @@ from controller_core.gait_metrics import (
 from controller_core.units import G_MPS2
 from device_bridge.sim.course import Course, CourseTrajectory, plan_course_trajectory, task_pattern
 from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.person import Person
 from device_bridge.sim.plant import SimulatedLeg
-from device_bridge.sim.simulate import StepController, WalkLog, stance_entry_metrics, walk_loop
+from device_bridge.sim.simulate import (
+    StepController,
+    WalkLog,
+    carrying_figures,
+    fall_mask,
+    stance_entry_metrics,
+    walk_loop,
+)
 
 SPEED_TOLERANCE_MPS = 0.1
 INCLINE_TOLERANCE_DEG = 1.5
@@ -52,7 +61,7 @@ def course_leg(course: Course, mass_kg: float, geometry: LegGeometry | None = No
     at the first segment's task."""
     geometry = geometry or LegGeometry()
     traj = plan_course_trajectory(course, geometry, mass_kg)
-    leg = SimulatedLeg(geometry, timestep_s=0.001, terrain=traj.terrain)
+    leg = SimulatedLeg(geometry, timestep_s=0.001, terrain=traj.terrain, person=Person(mass_kg))
     first = course.segments[0]
     ref = task_pattern(first.speed_mps, first.incline_deg)
     s0 = float(traj.bench.phase[0])
@@ -185,17 +194,16 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
                         for v, g in zip(traj.speed_mps[::100], traj.incline_deg[::100], strict=True)])
     toe_off_tick = np.repeat(toe_off, 100)[: phase.shape[0]]
     mid_swing = (phase > toe_off_tick + 0.08) & (phase < 0.92)
-    sank = c["hip_height_error_m"] < -log.extras["fall_sink_m"]
-    buckled = (c["knee_angle_rad"] >= math.radians(100.0)) & (c["load_N"] > 0.5 * weight)
     gap = round(0.2 / dt)
     states = c["state"].astype(int)
     after = c["time_s"] >= settle_s
     summary: dict[str, object] = {
         "course": course.name, "course_seconds": course.duration_s, "mass_kg": mass,
         **_channel_summary(per_stride, everything, rng),
-        "falls": episodes((sank | buckled) & after, gap),
+        "falls": episodes(fall_mask(c, weight) & after, gap),
         "toe_catches": episodes(mid_swing & (c["contact_N"] > 0.02 * weight) & after, gap),
         **stance_entry_metrics(states, c["load_N"], strikes, weight, dt),
+        **carrying_figures(c, strikes, dt, weight, settle_s),
         "time_in_state_s": {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)},
         "guard_transitions": log.guard_transitions,
         "torque_saturation_fraction": log.saturated_ticks / max(c["time_s"].shape[0], 1),

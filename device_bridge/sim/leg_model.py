@@ -9,8 +9,11 @@ down an 8° ramp at about 0.13 m/s (soft-contact slip), which a shoe on a ramp d
 
 Bodies:
 
-* ``socket`` — residual thigh and socket, driven by the bench along three joints: ``hip_x`` and ``hip_z``
-  (slides, m) and ``hip`` (hinge, rad, flexion +: the knee moves forward).
+* ``pelvis`` — the rest of the body (body mass less everything below the hip joint), on two slides: ``hip_x``
+  (m, driven along the person's path: the walk's progression) and ``hip_z`` (m, free: the body's weight acts on
+  it, the prosthesis and the person's other leg hold it up; :mod:`device_bridge.sim.person`).
+* ``socket`` — residual thigh and socket on the ``hip`` hinge (rad, flexion +: the knee moves forward), turned by
+  the person's hip (:class:`device_bridge.sim.person.Person`).
 * ``shank`` — knee actuator, frame and pylon; ``knee`` hinge (rad, flexion +), range 0–120°.
 * ``load_cell`` — welded to the bottom of the shank with its sensing site at the ankle axis: a six-axis
   load cell between pylon and foot (the ankle actuator sits on the shank above it); its force and torque
@@ -32,7 +35,7 @@ import math
 from dataclasses import dataclass
 
 KNEE_RANGE_DEG = (0.0, 120.0)
-SLIDES = '<joint name="hip_x" type="slide" axis="1 0 0"/><joint name="hip_z" type="slide" axis="0 0 1"/>'
+FOREFOOT_ROCKER = 0.75   # metatarsal heads, as a fraction of foot length from the back of the heel
 ANKLE_RANGE_DEG = (-30.0, 30.0)
 
 
@@ -82,8 +85,11 @@ class LegGeometry:
 
     @property
     def toe_forward_m(self) -> float:
-        """Toe contact centre ahead of the ankle axis (m): foot length less the heel part."""
-        return 0.152 * self.body_height_m - self.heel_back_m - self.contact_radius_m
+        """Forefoot contact centre ahead of the ankle axis (m): the rocker at the metatarsal heads, 75 % of the foot
+        length (Winter: 0.152 × height) from the back of the heel; the toes bend beyond it and carry little, and a
+        prosthetic foot's keel rolls over the same point. A rigid foot touching at the toe tip would lengthen the
+        lever the ankle must hold the body on by about half."""
+        return FOREFOOT_ROCKER * 0.152 * self.body_height_m - self.heel_back_m - self.contact_radius_m
 
     @property
     def prosthesis_mass_kg(self) -> float:
@@ -121,9 +127,11 @@ def _floor(incline_deg: float, terrain: tuple[tuple[float, float], ...] = ()) ->
 
 
 def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: float = 0.001,
-               terrain: tuple[tuple[float, float], ...] = (), body_mass_kg: float | None = None) -> str:
+               terrain: tuple[tuple[float, float], ...] = (), body_mass_kg: float = 75.0,
+               progression: tuple[float, float] = (20000.0, 2300.0)) -> str:
     """The bench as an MJCF string (see the module docstring for bodies, joints and sensors); with ``terrain`` (a
-    course's floor polyline) the floor follows it instead of the tilted plane (see :func:`_floor`)."""
+    course's floor polyline) the floor follows it instead of the tilted plane (see :func:`_floor`). The body rides on
+    the socket (``body_mass_kg``), driven forward by a servo of ``progression`` (stiffness N/m, damping N·s/m)."""
     g = geometry
     lt, ls, ha = g.thigh_m, g.shank_m, g.ankle_height_m
     r, heel, toe = g.contact_radius_m, g.heel_back_m, g.toe_forward_m
@@ -134,18 +142,10 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
     i_long = _rod_inertia(g.foot_mass_kg, foot_len)
     foot_inertia = f"{_rod_inertia(g.foot_mass_kg, 0.05):.6g} {i_long:.6g} {i_long:.6g}"
     floor = _floor(incline_deg, terrain)
-    if body_mass_kg is None:
-        hip_z = '<position name="hip_z_pos" joint="hip_z" kp="4000"/>\n    <velocity name="hip_z_vel" joint="hip_z" kv="600"/>'
-        kp_x, kv_x = 40000, 1200
-        pelvis_open, pelvis_close, slides = "", "", SLIDES
-    else:   # the rest of the body rides on the socket's vertical slide: its weight acts, its inertia counts
-        rest = max(body_mass_kg - g.moving_mass_kg, 1.0)
-        pelvis_open = (f'<body name="pelvis">{SLIDES}<geom name="trunk" type="sphere" pos="0 0 0.3" size="0.12" '
-                       f'mass="{rest:.6g}" rgba="0.6 0.6 0.6 0.3"/>')
-        pelvis_close, slides, hip_z = "</body>", "", ""
-        kp_x, kv_x = 400000, 20000
-    hip_act = ('<position name="hip_pos" joint="hip" kp="6000"/>\n    <velocity name="hip_vel" joint="hip" kv="150"/>'
-               if body_mass_kg is None else '<motor name="hip_torque" joint="hip" ctrlrange="-10000 10000"/>')
+    rest = body_mass_kg - g.moving_mass_kg
+    if not (math.isfinite(rest) and rest > 0.0):
+        raise ValueError(f"body_mass_kg must exceed the bench's moving mass ({g.moving_mass_kg:g} kg), "
+                         f"got {body_mass_kg!r}")
     return f"""
 <mujoco model="quasitune_hip_driven_bench">
   <compiler angle="radian" autolimits="true"/>
@@ -162,9 +162,11 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
   <worldbody>
     <light pos="0 -3 4" dir="0 0.6 -0.8"/>
     {floor}
-    {pelvis_open}
+    <body name="pelvis">
+      <joint name="hip_x" type="slide" axis="1 0 0"/>
+      <joint name="hip_z" type="slide" axis="0 0 1"/>
+      <geom name="trunk" type="sphere" pos="0 0 0.3" size="0.12" mass="{rest:.6g}" rgba="0.6 0.6 0.6 0.3"/>
     <body name="socket">
-      {slides}
       <joint name="hip" type="hinge" axis="0 -1 0"/>
       <geom name="thigh" type="capsule" fromto="0 0 0 0 0 {-lt:.6f}" size="0.06" mass="{g.socket_mass_kg}"
             rgba="0.85 0.7 0.6 0.6"/>
@@ -193,14 +195,13 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
         </body>
       </body>
     </body>
-    {pelvis_close}
+    </body>
   </worldbody>
   <actuator>
-    <position name="hip_x_pos" joint="hip_x" kp="{kp_x}"/>
-    <velocity name="hip_x_vel" joint="hip_x" kv="{kv_x}"/>
-    {hip_z}
-    <motor name="hip_z_load" joint="hip_z" ctrlrange="-5000 5000"/>
-    {hip_act}
+    <position name="hip_x_pos" joint="hip_x" kp="{progression[0]:g}"/>
+    <velocity name="hip_x_vel" joint="hip_x" kv="{progression[1]:g}"/>
+    <motor name="hip_z_push" joint="hip_z" ctrlrange="-50000 50000"/>
+    <motor name="hip_torque" joint="hip" ctrlrange="-10000 10000"/>
     <motor name="knee" joint="knee" ctrlrange="-1000 1000"/>
     <motor name="ankle" joint="ankle" ctrlrange="-1000 1000"/>
   </actuator>

@@ -1,12 +1,12 @@
 """The simulated leg: the MuJoCo bench behind a sensor-in, torque-out interface.
 
-:class:`SimulatedLeg` owns one MuJoCo model and data. Each :meth:`SimulatedLeg.step` applies the bench's
-socket targets for the tick, the commanded knee and ankle torques (N·m), advances the physics by one
-timestep and returns the sensor sample the controller reads next. Everything the firmware would see comes
-from the model's sensors (joint encoders, the six-axis load cell above the ankle; the socket's angle from the
-vertical and its rate, which an IMU on the socket gives, read from the socket's hinge), converted to the
-controller's conventions: load positive in compression, sagittal moment positive in the dorsiflexion
-direction.
+:class:`SimulatedLeg` owns one MuJoCo model and data. Each :meth:`SimulatedLeg.step` applies what the person does
+this tick (:class:`device_bridge.sim.person.Person`: progression, hip torque, the other leg's push) and the commanded
+knee and ankle torques (N·m), advances the physics by one timestep and returns the sensor sample the controller reads
+next. Everything the firmware would see comes from the model's sensors (joint encoders, the six-axis load cell above
+the ankle; the socket's angle from the vertical and its rate, which an IMU on the socket gives, read from the socket's
+hinge), converted to the controller's conventions: load positive in compression, sagittal moment positive in the
+dorsiflexion direction.
 """
 
 from __future__ import annotations
@@ -17,45 +17,40 @@ import mujoco
 import numpy as np
 
 from controller_core.fsm import SensorSample
-from controller_core.units import G_MPS2
 from device_bridge.sim.bench_trajectory import BenchTrajectory
 from device_bridge.sim.course import Terrain
 from device_bridge.sim.leg_model import LegGeometry, build_mjcf
+from device_bridge.sim.person import Person
 
 
 class SimulatedLeg:
-    """A hip-driven knee-ankle prosthesis on a (tilted) floor, stepped at the model timestep.
+    """A knee-ankle prosthesis carrying a body on a (tilted) floor, stepped at the model timestep.
 
     Args:
         geometry: segment lengths and masses.
         incline_deg: floor incline (deg, + uphill); ignored with ``terrain``.
-        terrain: a course's floor profile instead of the tilted plane.
         timestep_s: physics and control period (s); 0.001 for the 1 kHz controller.
+        terrain: a course's floor profile instead of the tilted plane.
+        person: the person around the prosthesis (their mass, hip and other leg); default a 75 kg
+            :class:`device_bridge.sim.person.Person`.
 
     Attributes:
         model, data: the MuJoCo model and data (read-only use outside this class).
+        support_N: what the person added this tick beyond the other leg's reference share (N, up +): their
+            compensation for what the prosthesis did not carry.
+        hip_torque_Nm: the person's hip torque this tick (N·m).
     """
 
     def __init__(self, geometry: LegGeometry | None = None, incline_deg: float = 0.0, timestep_s: float = 0.001,
-                 terrain: Terrain | None = None, body_mass_kg: float | None = None,
-                 stabiliser: tuple[float, float] = (0.1, 0.5),
-                 hip_servo: tuple[float, float, float] = (6000.0, 150.0, 1e9),
-                 other_leg: tuple[float, float] = (20000.0, 1200.0)) -> None:
+                 terrain: Terrain | None = None, person: Person | None = None) -> None:
         if not (math.isfinite(incline_deg) and abs(incline_deg) <= 20.0):
             raise ValueError(f"incline_deg must be within ±20 deg, got {incline_deg!r}")
         self.geometry = geometry or LegGeometry()
+        self.person = person or Person(75.0)
         self.incline_deg = float(incline_deg)
         xml = build_mjcf(self.geometry, incline_deg, timestep_s, () if terrain is None else terrain.polyline(),
-                         body_mass_kg)
-        self.body_mass_kg = body_mass_kg
-        if body_mass_kg is not None:    # a weak spring to the reference height: stiffness (BW per 0.1 m), damping ratio
-            w = body_mass_kg * G_MPS2
-            self._k_stab = stabiliser[0] * w / 0.1
-            self._c_stab = 2.0 * stabiliser[1] * math.sqrt(self._k_stab * body_mass_kg)
-        self.support_N = 0.0
-        self.hip_servo = hip_servo
-        self.other_leg = other_leg
-        self.hip_torque_Nm = 0.0
+                         self.person.mass_kg, (self.person.progression_stiffness_N_per_m,
+                                               self.person.progression_damping_N_s_per_m))
         self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
         self.timestep_s = float(self.model.opt.timestep)
@@ -69,9 +64,8 @@ class SimulatedLeg:
         self._s_force, self._s_torque = adr["load_cell_force"], adr["load_cell_torque"]
         self._floor = {i for i in range(m.ngeom) if m.geom(i).name.startswith("floor")}
         self._feet = {m.geom("heel").id, m.geom("toe").id}
-        self._gravity_comp_N = self.geometry.moving_mass_kg * G_MPS2
-        self.vertical_stiffness_N_per_m = (float(m.actuator("hip_z_pos").gainprm[0]) if body_mass_kg is None
-                                           else self._k_stab)
+        self.support_N = 0.0
+        self.hip_torque_Nm = 0.0
         self._tick = 0
         self._traj: BenchTrajectory | None = None
         self._force6 = np.zeros(6)   # scratch for mj_contactForce (called every tick in contact)
@@ -98,25 +92,16 @@ class SimulatedLeg:
         self._tick = -1   # step() applies the new chunk's first sample next
 
     def _apply_bench(self, i: int) -> None:
-        tr, c, a = self._traj, self.data.ctrl, self._a
+        """The person at tick ``i``: the walk's progression, the hip's torque on the thigh, the other leg's push
+        (its reference share plus the person's compensation, :class:`device_bridge.sim.person.Person`)."""
+        tr, c, a, q, v = self._traj, self.data.ctrl, self._a, self.data.qpos, self.data.qvel
         assert tr is not None
         c[a["hip_x_pos"]], c[a["hip_x_vel"]] = tr.x_m[i], tr.xd_m_s[i]
-        if self.body_mass_kg is None:
-            c[a["hip_pos"]], c[a["hip_vel"]] = tr.hip_rad[i], tr.hipd_rad_s[i]
-            c[a["hip_z_pos"]], c[a["hip_z_vel"]] = tr.z_m[i], tr.zd_m_s[i]
-            c[a["hip_z_load"]] = self._gravity_comp_N - tr.load_N[i]
-            return
-        z, zd = self.data.qpos[self._q["hip_z"]], self.data.qvel[self._v["hip_z"]]
-        ez, ezd = tr.z_m[i] - z, tr.zd_m_s[i] - zd
-        self.support_N = self._k_stab * ez + self._c_stab * ezd
-        other = tr.contralateral_N[i]
-        if other > 0.0:   # the other foot is down: it also pushes harder the lower the hip (a leg spring), never pulls
-            push = max(-other, self.other_leg[0] * ez + self.other_leg[1] * ezd)
-            self.support_N += push
-        c[a["hip_z_load"]] = other + self.support_N
-        kp, kv, lim = self.hip_servo
-        th, thd = self.data.qpos[self._q["hip"]], self.data.qvel[self._v["hip"]]
-        self.hip_torque_Nm = max(-lim, min(lim, kp * (tr.hip_rad[i] - th) + kv * (tr.hipd_rad_s[i] - thd)))
+        self.support_N = self.person.compensation_N(tr.z_m[i] - q[self._q["hip_z"]], tr.zd_m_s[i] - v[self._v["hip_z"]],
+                                                    bool(tr.other_foot_down[i]), float(tr.other_leg_N[i]))
+        c[a["hip_z_push"]] = tr.other_leg_N[i] + self.support_N
+        self.hip_torque_Nm = self.person.hip_torque_Nm(tr.hip_rad[i] - q[self._q["hip"]],
+                                                       tr.hipd_rad_s[i] - v[self._v["hip"]], self.data.ncon > 0)
         c[a["hip_torque"]] = self.hip_torque_Nm
 
     def sample(self) -> SensorSample:

@@ -10,9 +10,15 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
   resampled with replacement, :func:`controller_core.gait_metrics.bootstrap_rmse`) that says how much the number
   depends on which strides were walked; it says nothing about the bench's own assumptions; and the mean of the
   strides' own RMSEs (``*_per_stride_rmse_*``), which errors that differ from stride to stride cannot cancel;
-* ``falls``: episodes in which the bench had to carry more than half the body weight — the socket sank so far
-  below its target height that the vertical servo's spring force exceeds 0.5 × body weight (a person whose
-  leg gives way like that falls) — or the knee reached 100° while loaded above half body weight (buckling);
+* the prosthesis carrying the body (:mod:`device_bridge.sim.person`): ``hip_sink_max_mm``, the largest drop of the
+  hip below its path while the prosthesis is in its reference stance; ``support_deficit_max_bw``, the largest
+  vertical force (mean over 50 ms, body weights) the person added beyond their other leg's reference share — their
+  compensation for what the prosthesis did not carry; ``stance_knee_flexion_peak_deg``, the knee's largest flexion
+  from heel strike to mid-stance (30 % of the stride on), the mean over strides, with the largest stride's
+  (``_max_deg``) and the reference's at the task;
+* ``falls``: episodes a person could not recover from: the hip more than :data:`FALL_SINK_M` below its path (about a
+  sixth of the leg's length: the other leg cannot catch that in a step), or the knee beyond :data:`FALL_KNEE_DEG`
+  while the leg carries more than half the body weight (a knee buckling under the body);
 * ``toe_catches``: episodes of foot contact in mid-swing (bench phase between toe-off + 8 % and 92 %), the
   stumbles a person would feel;
 * how late the machine noticed each heel strike: ``heel_strike_to_stance_ms_median`` and ``_max`` run from
@@ -24,9 +30,6 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
   such time in any one stride of the walk;
 * time in each state, guard-forced transitions, torque saturation, real-time factor (simulated seconds per
   wall-clock second of the loop);
-* ``bench_hip_height_mismatch_mm``: how far the bench's hip path is, at heel strike and in pre-swing, from
-  where a leg with the reference angles touches the floor (a property of the bench at the task, the same for
-  every controller; :func:`device_bridge.sim.bench_trajectory.hip_height_mismatch_mm`).
 """
 
 from __future__ import annotations
@@ -51,15 +54,20 @@ from controller_core.gait_metrics import (
 )
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
-from device_bridge.sim.bench_trajectory import BenchTrajectory, hip_height_mismatch_mm, plan_bench_trajectory
+from device_bridge.sim.bench_trajectory import BenchTrajectory, plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.person import Person
 from device_bridge.sim.plant import SimulatedLeg
 
 STANCE_ENTRY_LEAD_S = 0.1  # an entry into stance up to this long before the foot touches counts for that strike
+FALL_SINK_M = 0.15         # the hip this far below its path: a fall
+FALL_KNEE_DEG = 60.0       # the knee beyond this while carrying more than half the body weight: a fall
+SUPPORT_WINDOW_S = 0.05    # the person's compensation is read as its mean over this window
+LOADING_WINDOW = 0.3       # stance knee flexion is looked for from heel strike to this fraction of the stride on
 
 LOG_CHANNELS = ("time_s", "bench_phase", "state", "knee_angle_rad", "knee_velocity_rad_s", "ankle_angle_rad",
                 "ankle_velocity_rad_s", "knee_torque_Nm", "ankle_torque_Nm", "load_N", "ankle_moment_Nm",
-                "contact_N", "hip_height_error_m")
+                "contact_N", "hip_height_error_m", "support_N", "bench_stance")
 
 
 @dataclass
@@ -88,7 +96,8 @@ class WalkLog:
             "ankle_velocity_deg_s": np.degrees(c["ankle_velocity_rad_s"]),
             "knee_torque_Nm": c["knee_torque_Nm"], "ankle_torque_Nm": c["ankle_torque_Nm"],
             "load_N": c["load_N"], "ankle_moment_Nm": c["ankle_moment_Nm"], "contact_N": c["contact_N"],
-            "hip_height_error_m": c["hip_height_error_m"],
+            "hip_height_error_m": c["hip_height_error_m"], "support_N": c["support_N"],
+            "bench_stance": c["bench_stance"].astype(bool),
         })
 
 
@@ -116,7 +125,7 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
     """
     if not (math.isfinite(seconds) and 0.0 < seconds <= 600.0):
         raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")
-    leg = SimulatedLeg(geometry, reference.incline_deg)
+    leg = SimulatedLeg(geometry, reference.incline_deg, person=Person(mass_kg))
     traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, seconds, leg.timestep_s)
     s0 = traj.phase[0]
     knee0 = float(np.interp(s0, reference.phase, reference.knee_angle_rad))
@@ -125,7 +134,6 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
     n = traj.time_s.shape[0]
     log = walk_loop(controller, leg, traj, (knee0, ankle0), (np.full(n, -math.sin(alpha)), np.full(n, math.cos(alpha))),
                     mass_kg, frame_callback, frame_every)
-    log.extras["hip_height_mismatch_mm"] = hip_height_mismatch_mm(reference, leg.geometry)
     return log
 
 
@@ -135,7 +143,7 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
     """The 1 kHz loop: bench targets → physics → sensors → controller → torques, logged every tick.
 
     ``normals`` (x, z per tick) is the floor's normal under the socket: the socket's error along it is the
-    ``hip_height_error_m`` the fall criterion reads.
+    ``hip_height_error_m`` (actual − path, m: negative when the hip has sunk) the sink and the falls read.
     """
     x: SensorSample = leg.reset(traj, *start_angles_rad)
     controller.reset()
@@ -145,7 +153,8 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
     t_col, st_col = log["time_s"], log["state"]
     kq, kv, aq, av = log["knee_angle_rad"], log["knee_velocity_rad_s"], log["ankle_angle_rad"], log["ankle_velocity_rad_s"]
     kt, at, ld, am = log["knee_torque_Nm"], log["ankle_torque_Nm"], log["load_N"], log["ankle_moment_Nm"]
-    cn, he = log["contact_N"], log["hip_height_error_m"]
+    cn, he, sp = log["contact_N"], log["hip_height_error_m"], log["support_N"]
+    log["bench_stance"][:] = traj.stance
     tx, tz = traj.x_m, traj.z_m
     nx, nz = normals
     saturated = 0
@@ -159,6 +168,7 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
         cn[i] = leg.foot_contact_force() if leg.data.ncon else 0.0
         hx, hz = leg.hip_position_m()
         he[i] = nx[i] * (hx - tx[i]) + nz[i] * (hz - tz[i])
+        sp[i] = leg.support_N
         saturated += cmd.saturated
         if frame_callback is not None and frame_every and i % frame_every == 0:
             frame_callback(leg)
@@ -167,8 +177,7 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
     return WalkLog(channels=log, timestep_s=leg.timestep_s, mass_kg=mass_kg, wall_time_s=wall,
                    saturated_ticks=saturated, guard_transitions=controller.guard_transitions_,
                    transitions=controller.transitions_,
-                   extras={"stride_time_s": traj.stride_time_s,
-                           "fall_sink_m": 0.5 * mass_kg * G_MPS2 / leg.vertical_stiffness_N_per_m})
+                   extras={"stride_time_s": traj.stride_time_s})
 
 
 def stance_entry_metrics(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, weight_N: float,
@@ -191,6 +200,38 @@ def stance_entry_metrics(states: np.ndarray, load_N: np.ndarray, strikes: np.nda
         1000.0 * dt * float(per_stride.sum()) / per_stride.shape[0],
         1000.0 * dt * float(per_stride.max()),
     ), strict=True))
+
+
+def fall_mask(c: dict[str, np.ndarray], weight_N: float) -> np.ndarray:
+    """Ticks a person could not recover from (module docstring: the hip sunk past FALL_SINK_M, or a knee beyond
+    FALL_KNEE_DEG under more than half the body weight)."""
+    sank = c["hip_height_error_m"] < -FALL_SINK_M
+    buckled = (c["knee_angle_rad"] >= math.radians(FALL_KNEE_DEG)) & (c["load_N"] > 0.5 * weight_N)
+    return sank | buckled
+
+
+def carrying_figures(c: dict[str, np.ndarray], strikes: np.ndarray, dt: float, weight_N: float,
+                     settle_s: float) -> dict[str, float | None]:
+    """How well the prosthesis carried the body after ``settle_s`` (module docstring): sink (mm), the person's
+    compensation (body weights) and the stance knee flexion (deg; None without a whole stride)."""
+    after = c["time_s"] >= settle_s
+    stance = after & c["bench_stance"].astype(bool)
+    sink = float(max(0.0, -np.min(c["hip_height_error_m"][stance]))) if stance.any() else 0.0
+    width = max(round(SUPPORT_WINDOW_S / dt), 1)
+    support = np.convolve(c["support_N"], np.ones(width) / width, mode="same")[after]
+    peaks = []
+    for a, b in itertools.pairwise(strikes):
+        peaks.append(math.degrees(float(np.max(c["knee_angle_rad"][a:a + max(round(LOADING_WINDOW * (b - a)), 1)]))))
+    return {"hip_sink_max_mm": 1000.0 * sink,
+            "support_deficit_max_bw": float(max(0.0, support.max())) / weight_N if support.size else 0.0,
+            "stance_knee_flexion_peak_deg": float(np.mean(peaks)) if peaks else None,
+            "stance_knee_flexion_peak_max_deg": float(np.max(peaks)) if peaks else None}
+
+
+def reference_stance_knee_peak_deg(reference: WalkingReference) -> float:
+    """The reference knee's largest flexion from heel strike to LOADING_WINDOW of the stride (deg)."""
+    early = reference.phase <= LOADING_WINDOW
+    return math.degrees(float(np.max(reference.knee_angle_rad[early])))
 
 
 @dataclass(frozen=True)
@@ -224,8 +265,6 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     phase = c["bench_phase"]
     mid_swing = (phase > reference.toe_off_phase + 0.08) & (phase < 0.92)
     toe_catch = mid_swing & (c["contact_N"] > 0.02 * weight)
-    sank = c["hip_height_error_m"] < -log.extras["fall_sink_m"]
-    buckled = (c["knee_angle_rad"] >= math.radians(100.0)) & (c["load_N"] > 0.5 * weight)
     gap = round(0.2 / dt)
     states = c["state"].astype(int)
     time_in_state = {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)}
@@ -235,7 +274,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
         "speed_mps": reference.speed_mps, "incline_deg": reference.incline_deg, "mass_kg": mass,
         "seconds": seconds,
         "strides": n_strides,
-        "falls": episodes(sank | buckled, gap),
+        "falls": episodes(fall_mask(c, weight), gap),
         "toe_catches": episodes(toe_catch, gap),
         **errors,
         "stride_time_s": float(np.mean(stride_times)) if stride_times.size else None,
@@ -246,8 +285,8 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
         "transitions": log.transitions,
         "guard_transitions": log.guard_transitions,
         "torque_saturation_fraction": log.saturated_ticks / max(c["time_s"].shape[0], 1),
-        "max_hip_sink_m": float(max(0.0, -np.min(c["hip_height_error_m"]))),
-        "bench_hip_height_mismatch_mm": log.extras.get("hip_height_mismatch_mm"),
+        **carrying_figures(c, strikes, dt, weight, settle_s),
+        "reference_stance_knee_flexion_peak_deg": reference_stance_knee_peak_deg(reference),
         "real_time_factor": seconds / log.wall_time_s if log.wall_time_s > 0 else None,
         "reference_source": reference.source,
         "reference_kind": reference.kind,

@@ -27,6 +27,7 @@ from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import plan_bench_trajectory
 from device_bridge.sim.course import Course, CourseTrajectory
 from device_bridge.sim.course_walk import course_leg
+from device_bridge.sim.person import Person
 from device_bridge.sim.plant import SimulatedLeg
 
 CHUNK_S = 10.0
@@ -106,7 +107,7 @@ class SimWalker:
         """Start walking at the reference's task (restarts from late swing if already walking)."""
         if not (np.isfinite(mass_kg) and 20.0 <= mass_kg <= 200.0):
             raise ValueError(f"mass_kg must be within [20, 200] kg, got {mass_kg!r}")
-        leg = SimulatedLeg(incline_deg=reference.incline_deg)
+        leg = SimulatedLeg(incline_deg=reference.incline_deg, person=Person(mass_kg))
         traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, CHUNK_S, leg.timestep_s)
         s0 = traj.phase[0]
         sample = leg.reset(traj, float(np.interp(s0, reference.phase, reference.knee_angle_rad)),

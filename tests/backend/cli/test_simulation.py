@@ -52,3 +52,29 @@ def test_cli_walks_a_course_file_with_the_adaptive_leg_and_refuses_a_bad_course(
     assert "unknown course" in capsys.readouterr().err
     assert main(["simulate", "--speed", "1.2", "--controller", "adaptive"]) == 2
     assert "course" in capsys.readouterr().err
+
+
+def test_cli_walks_a_table_from_a_file_and_an_unsafe_one_only_marked_as_a_bench_study(capsys, tmp_path, model):
+    body = model.propose(1.2, 0.0, 75.0).to_dict()
+    good = tmp_path / "table.json"
+    good.write_text(json.dumps(body))
+    assert main(["simulate", "--table", str(good), "--seconds", "4", "--format", "json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["controller"] == "table" and out["speed_mps"] == 1.2 and out["mass_kg"] == 75.0
+    for key in ("hip_sink_max_mm", "support_deficit_max_bw", "stance_knee_flexion_peak_deg", "falls"):
+        assert key in out
+    for row in body["table"]:
+        if row["joint"] == "knee" and row["subphase"].startswith("stance"):
+            row["k_Nm_per_rad"] = -1.0
+    soft = tmp_path / "soft.json"
+    soft.write_text(json.dumps(body))
+    assert main(["simulate", "--table", str(soft), "--seconds", "2"]) == 2       # limits as on the device
+    assert "stance support floor" in capsys.readouterr().err
+    assert main(["simulate", "--table", str(soft), "--seconds", "2", "--skip-limits"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines and all(line.startswith("[UNCHECKED TABLE, bench study only") for line in lines)
+    assert main(["simulate", "--table", str(soft), "--seconds", "2", "--skip-limits", "--format", "json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["limits"].startswith("UNCHECKED") and any("support floor" in v for v in out["limit_violations"])
+    assert main(["simulate", "--speed", "1.2", "--skip-limits"]) == 2
+    assert "--table" in capsys.readouterr().err

@@ -21,3 +21,29 @@ def test_a_given_table_walks_as_the_model_table_at_its_task(model, tmp_path):
 def test_a_bad_task_is_refused_before_walking(model):
     with pytest.raises(ValueError, match="speed"):
         simulate("fsmic", -1.0, 0.0, seconds=1.0)
+
+
+def _knee(table, **k_by_subphase):
+    return table.model_copy(update={"rows": [
+        r.model_copy(update={"k_Nm_per_rad": k_by_subphase[r.subphase]})
+        if r.joint == "knee" and r.subphase in k_by_subphase else r for r in table.rows]})
+
+
+def test_a_knee_with_no_stance_support_lets_the_body_fall_where_the_learned_table_carries_it(model):
+    table = model.propose(1.2, 0.0, 75.0).table
+    soft = _knee(table, stance_flexion=-1.0, stance_extension=-1.0)
+    limp = simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=soft, skip_limits=True).summary
+    assert limp["falls"] >= 1 or limp["hip_sink_max_mm"] >= 50.0       # the bench is not blind in stance
+    carried = simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=table).summary
+    assert carried["falls"] == 0 and carried["hip_sink_max_mm"] < limp["hip_sink_max_mm"] - 30.0
+    with pytest.raises(ValueError, match="stance support floor"):    # and the unsafe table needs skip_limits
+        simulate("table", 1.2, 0.0, seconds=1.0, mass_kg=75.0, table=soft)
+
+
+def test_the_stance_knee_flexes_more_on_a_softer_stance_flexion_row():
+    from controller_core.fsmic import fsmic_table
+
+    base = fsmic_table(75.0)   # its stance-flexion row holds through the loading response
+    peaks = {k: simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=_knee(base, stance_flexion=k),
+                         skip_limits=True).summary["stance_knee_flexion_peak_deg"] for k in (-50.0, -300.0)}
+    assert peaks[-50.0] >= peaks[-300.0] + 3.0

@@ -1,18 +1,21 @@
-"""The bench's planned hip path and foot placement."""
+"""The bench's hip path, thigh angle and the other leg's push at a task."""
 
 from __future__ import annotations
 
-import dataclasses
+import math
 
 import numpy as np
 import pytest
 
 from controller_core.walking_reference import level_walking_reference
+from device_bridge.bench.task_reference import task_reference
 from device_bridge.sim.bench_trajectory import (
-    hip_height_mismatch_mm,
+    SWING_CLEARANCE_M,
+    hip_path_m,
+    other_leg_share_bw,
     plan_bench_trajectory,
-    stance_hip_height_m,
     thigh_angle_rad,
+    touching_hip_height_m,
 )
 from device_bridge.sim.leg_model import LegGeometry
 
@@ -24,28 +27,52 @@ def test_bench_puts_the_reference_foot_flat_and_on_the_floor_in_mid_stance():
     mid = (ref.phase >= 0.15) & (ref.phase <= 0.40)
     pitch = thigh - ref.knee_angle_rad + ref.ankle_angle_rad
     assert abs(np.mean(pitch[mid])) < 1e-9                      # flat on average, by construction
-    h = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, g, 0.0)
+    h = touching_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, g, 0.0)
     leg = g.thigh_m + g.shank_m + g.ankle_height_m
     assert np.all(h[mid] < leg) and np.all(h[mid] > 0.85 * leg)   # a bent stance leg, never longer than straight
-    traj = plan_bench_trajectory(ref, g, 75.0, 2.0)
-    assert traj.x_m[-1] - traj.x_m[0] == pytest.approx(1.2 * (2.0 - 0.001), rel=1e-6)   # belt speed
-    assert traj.load_N.max() == pytest.approx(ref.vgrf_bw.max() * 75.0 * 9.81, rel=0.05)
 
 
-def test_hip_height_mismatch_is_zero_when_both_legs_agree_and_measures_the_plan_otherwise():
-    # synthetic gait, said so: a leg frozen at one posture touches the floor at one height all cycle long,
-    # so the two legs agree in double support and the bench's path meets the touching height everywhere
-    ref = level_walking_reference(1.2)
-    frozen = dataclasses.replace(ref, hip_angle_rad=np.full_like(ref.phase, 0.2),
-                                 knee_angle_rad=np.full_like(ref.phase, 0.1), ankle_angle_rad=np.zeros_like(ref.phase))
+@pytest.mark.parametrize(("speed", "incline"), [(0.84, 0.0), (1.2, 0.0), (1.95, 0.0), (1.2, 10.0), (1.2, -10.0)])
+def test_the_path_is_the_reference_legs_own_in_stance_and_clears_its_foot_in_swing(speed, incline):
+    ref = task_reference(speed, incline, None, 75.0)
     g = LegGeometry()
-    agree = hip_height_mismatch_mm(frozen, g)
-    assert agree["heel_strike"] == pytest.approx(0.0, abs=1e-6) and agree["pre_swing"] == pytest.approx(0.0, abs=1e-6)
-    # the shipped curves: the two legs disagree in double support, so the hip is too high when the foot should
-    # land and too low in pre-swing (docs/results.md); the heel-strike figure is the planned path's own
-    real = hip_height_mismatch_mm(ref, g)
-    assert real["heel_strike"] > 5.0 and real["pre_swing"] < -20.0
-    traj = plan_bench_trajectory(ref, g, 75.0, 0.01, start_phase=0.0)
-    thigh = thigh_angle_rad(ref, 0.0)
-    touch = stance_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, g, 0.0)
-    assert real["heel_strike"] == pytest.approx(1000.0 * (traj.height_m[0] - touch[0]), abs=1e-6)
+    thigh, height = hip_path_m(ref, g)
+    touch = touching_hip_height_m(thigh, ref.knee_angle_rad, ref.ankle_angle_rad, g, incline)
+    stance = ref.phase <= ref.toe_off_phase
+    np.testing.assert_allclose(height[stance], touch[stance], atol=1e-12)   # the reference leg carries the hip
+    mid_swing = (ref.phase > ref.toe_off_phase + 0.06) & (ref.phase < 0.94)
+    assert np.all(height[mid_swing] - touch[mid_swing] >= SWING_CLEARANCE_M - 1e-9)   # and its foot clears
+    assert abs(height[-1] - height[0]) < 1e-12                                   # one stride joins the next
+
+
+def test_the_hip_moves_at_belt_speed_along_the_floor():
+    ref = level_walking_reference(1.2)
+    traj = plan_bench_trajectory(ref, LegGeometry(), 75.0, 3 * ref.stride_time_s, timestep_s=0.001, start_phase=0.0)
+    np.testing.assert_allclose(traj.xd_m_s, 1.2, atol=1e-9)
+
+
+def test_the_other_leg_carries_half_the_weight_and_the_body_over_the_swing():
+    ref = level_walking_reference(1.2)
+    share = other_leg_share_bw(ref)
+    assert float(np.mean(share[:-1])) == pytest.approx(0.5, abs=1e-12)
+    mass = 75.0
+    traj = plan_bench_trajectory(ref, LegGeometry(), mass, ref.stride_time_s, start_phase=0.0)
+    w = mass * 9.81
+    stance = traj.stance
+    np.testing.assert_allclose(traj.other_leg_N[stance], np.interp(traj.phase[stance], ref.phase, share) * w,
+                               rtol=1e-9)
+    # over the swing the other leg keeps the body on its path: the push is the weight plus mass × the path's
+    # vertical acceleration, which over the swing averages to the change of the path's vertical speed
+    swing = ~stance
+    dt = 0.001
+    mean_push = float(np.mean(traj.other_leg_N[swing])) - w
+    dv = (traj.zd_m_s[swing][-1] - traj.zd_m_s[swing][0]) / (np.count_nonzero(swing) * dt)
+    assert mean_push == pytest.approx(mass * dv, abs=0.02 * w)
+    assert np.all(traj.other_leg_N >= 0.0) and traj.other_foot_down[swing].all()
+
+
+def test_on_a_slope_the_path_follows_the_floor():
+    ref = task_reference(1.2, 10.0, None, 75.0)
+    traj = plan_bench_trajectory(ref, LegGeometry(), 75.0, 2.0, start_phase=0.0)
+    climb = (traj.z_m[-1] - traj.z_m[0]) / (traj.x_m[-1] - traj.x_m[0])
+    assert math.degrees(math.atan(climb)) == pytest.approx(10.0, abs=1.0)
