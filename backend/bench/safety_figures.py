@@ -5,12 +5,18 @@ weak swing impedance. These figures are not scores: each one is flagged on its o
 
 Bounds (and why):
 
-* falls: any fall (the bench carried half the body weight, or the loaded knee buckled).
+* falls: any fall (the hip sank more than 150 mm below where a person's would be, or the knee buckled past 60° under
+  more than half the body weight: ``device_bridge.sim.simulate``).
 * toe catches: any foot contact in mid-swing (a stumble the patient would feel).
 * heel strikes never reaching stance: the leg stayed on swing impedance through a whole loading response.
 * loaded swing: more than 20 ms in any one stride on a swing row with more than ½ body weight on the leg (the
   bound of the heel-strike safety target); flagged as a warning, and as bad from 50 ms. Previews stored before
   the longest stride was measured are judged on the mean per stride.
+* the body carried (warnings: the walk goes on, but not as people's does): the hip sinking more than 50 mm below its
+  path in stance (people's hips rise and fall about 40 mm over a stride, and the bench's own residual with the
+  reference's angles is under 60 mm above, 20 mm below it); the person adding more than 1.5 body weights
+  through their other leg (the bench's own residual is under 1.1); the knee flexing beyond 40° under the body in early
+  stance (people: about 20°).
 * foot contact → stance, longest: more than 50 ms (about a third of the loading response at 1.2 m/s), or more than
   20 ms later than the FSMIC's on the same walk.
 """
@@ -26,6 +32,9 @@ LOADED_SWING_WARN_MS = 20.0
 LOADED_SWING_BAD_MS = 50.0
 STANCE_ENTRY_MAX_MS = 50.0
 STANCE_ENTRY_BEHIND_FSMIC_MS = 20.0
+HIP_SINK_WARN_MM = 50.0
+SUPPORT_DEFICIT_WARN_BW = 1.5
+STANCE_KNEE_WARN_DEG = 40.0
 
 
 def _flag(figure: str, severity: Severity, value: float | int, fsmic: float | int | None, unit: str,
@@ -66,6 +75,7 @@ def safety_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) -> li
         flags.append(_flag(key, "bad" if loaded > LOADED_SWING_BAD_MS else "warn", loaded, fsmic.get(key), "ms",
                            f"up to {loaded:.0f} ms {which} on the weak swing settings with more than half the body "
                            f"weight on the leg (bound {LOADED_SWING_WARN_MS:.0f} ms)"))
+    flags.extend(_carrying_flags(table, fsmic))
     entry = table.get("heel_strike_to_stance_ms_max")
     fsmic_entry = fsmic.get("heel_strike_to_stance_ms_max")
     if entry is not None:
@@ -78,10 +88,37 @@ def safety_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) -> li
     return sorted(flags, key=lambda f: f["severity"] != "bad")
 
 
+def _carrying_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) -> list[dict[str, object]]:
+    """Warnings on how well the leg carried the body (previews stored before the bench carried it have none)."""
+    out = []
+    sink = table.get("hip_sink_max_mm")
+    if sink is not None and float(sink) > HIP_SINK_WARN_MM:
+        out.append(_flag("hip_sink_max_mm", "warn", float(sink), fsmic.get("hip_sink_max_mm"), "mm",
+                         f"the hip sank up to {float(sink):.0f} mm below where a person's would be in stance: the leg "
+                         f"does not carry the body as people's does (bound {HIP_SINK_WARN_MM:.0f} mm)"))
+    deficit = table.get("support_deficit_max_bw")
+    if deficit is not None and float(deficit) > SUPPORT_DEFICIT_WARN_BW:
+        out.append(_flag("support_deficit_max_bw", "warn", float(deficit), fsmic.get("support_deficit_max_bw"), "BW",
+                         f"the person had to push up to {float(deficit):.1f} body weights through their other leg "
+                         f"beyond its usual share (bound {SUPPORT_DEFICIT_WARN_BW:.1f})"))
+    knee = table.get("stance_knee_flexion_peak_max_deg")
+    if knee is not None and float(knee) > STANCE_KNEE_WARN_DEG:
+        people = table.get("reference_stance_knee_flexion_peak_deg")
+        said = f"; people: {float(people):.0f}°" if people is not None else ""
+        out.append(_flag("stance_knee_flexion_peak_max_deg", "warn", float(knee),
+                         fsmic.get("stance_knee_flexion_peak_max_deg"), "deg",
+                         f"the knee flexed up to {float(knee):.0f}° under the body in early stance{said} "
+                         f"(bound {STANCE_KNEE_WARN_DEG:.0f}°)"))
+    return out
+
+
 _FIGURES = (("falls", "falls", "falls"), ("toe_catches", "toe catches in mid-swing", "catches"),
             ("heel_strikes_without_stance", "strides that never reached stance", "strides"),
             ("loaded_swing_ms_max_stride", "loaded swing, longest in a stride", "ms"),
-            ("heel_strike_to_stance_ms_max", "foot contact → stance settings, longest", "ms"))
+            ("heel_strike_to_stance_ms_max", "foot contact → stance settings, longest", "ms"),
+            ("hip_sink_max_mm", "hip sink below a person's in stance, largest", "mm"),
+            ("support_deficit_max_bw", "extra push from the other leg, largest", "BW"),
+            ("stance_knee_flexion_peak_max_deg", "knee flexion under the body in early stance, largest", "deg"))
 
 
 def safety_figures(table: Mapping[str, object], fsmic: Mapping[str, object]) -> list[dict[str, object]]:

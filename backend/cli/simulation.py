@@ -1,4 +1,5 @@
-"""Simulated-bench commands: ``simulate`` (one walk) and ``compare`` (learned table against the FSMIC)."""
+"""Simulated-bench commands: ``simulate`` (one walk), ``compare`` (learned table against the FSMIC) and ``calibrate``
+(the bench against the people it imitates)."""
 
 from __future__ import annotations
 
@@ -67,6 +68,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from lab.bench_calibration import calibrate, format_calibration
+
+    rows = calibrate(tuple(args.speeds), tuple(args.inclines), args.mass, args.seconds)
+    print(format_calibration(rows))
+    if args.out is not None:
+        write_json(args.out, rows)
+    return 0
+
+
 UNCHECKED = "UNCHECKED TABLE, bench study only: limits skipped, never for a device"
 
 
@@ -127,3 +138,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
     p.set_defaults(func=cmd_compare)
+    p = sub.add_parser("calibrate", help="walk the reference's own joint angles on the bench over a task grid: how far "
+                                         "the body strays from where people's is")
+    p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])
+    p.add_argument("--inclines", type=float, nargs="+", default=[0.0, 5.0])
+    p.add_argument("--seconds", type=float, default=8.0)
+    p.add_argument("--mass", type=float, default=75.0)
+    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
+    p.set_defaults(func=cmd_calibrate)

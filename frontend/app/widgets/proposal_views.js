@@ -151,8 +151,18 @@ export function safetyFigures(flags, t, f, what = "This table") {
         (run) => `${fmt(run.loaded_swing_ms_per_stride, 0)} / ${fmt(run.loaded_swing_ms_max_stride, 0)} ms`,
         "longest ≤ 20 ms"),
       row("foot contact → stance settings, median / longest", "heel_strike_to_stance_ms_max", entry,
-        "longest ≤ 50 ms, not 20 ms behind the FSMIC")],
+        "longest ≤ 50 ms, not 20 ms behind the FSMIC"),
+      row("hip sink below a person's in stance, largest", "hip_sink_max_mm", (run) => fmt(run.hip_sink_max_mm, 0, "mm"),
+        "≤ 50 mm"),
+      row("extra push from the other leg, largest", "support_deficit_max_bw",
+        (run) => fmt(run.support_deficit_max_bw, 1, "body weights"), "≤ 1.5 body weights"),
+      row("knee flexion under the body in early stance: mean / largest stride", "stance_knee_flexion_peak_max_deg",
+        (run) => (run.stance_knee_flexion_peak_deg === undefined || run.stance_knee_flexion_peak_deg === null ? "—"
+          : `${fmt(run.stance_knee_flexion_peak_deg, 0)} / ${fmt(run.stance_knee_flexion_peak_max_deg, 0)}°`),
+        t.reference_stance_knee_flexion_peak_deg === undefined ? "largest ≤ 40°"
+          : `largest ≤ 40° (people: ${fmt(t.reference_stance_knee_flexion_peak_deg, 0)}°)`)],
     { id: "preview-safety-table" }),
-    h("p", { class: "muted small" }, "Safety figures are not scores: how often the foot caught or the leg gave way, and how ",
-      "long a loaded leg stayed on the weak swing settings after the foot touched down."));
+    h("p", { class: "muted small" }, "Safety figures are not scores: how often the foot caught or the leg gave way, how ",
+      "long a loaded leg stayed on the weak swing settings after the foot touched down, and how well the leg carried the ",
+      "body (the bench's body rides on the leg; the person's other leg and hip add what it does not carry)."));
 }

@@ -54,3 +54,17 @@ def test_bad_flags_come_first_and_a_walk_without_strides_is_not_called_safe():
     assert [f["severity"] for f in flags] == ["bad", "warn"]
     none = {**SAFE, "strides": 0, "heel_strikes_without_stance": None, "heel_strike_to_stance_ms_max": None}
     assert figures(safety_flags(none, SAFE)) == {"strides": "bad"}
+
+
+def test_a_leg_that_does_not_carry_the_body_is_warned_about_in_a_prosthetists_words():
+    carried = {**SAFE, "hip_sink_max_mm": 30.0, "support_deficit_max_bw": 0.8, "stance_knee_flexion_peak_max_deg": 22.0,
+               "reference_stance_knee_flexion_peak_deg": 19.0}
+    assert safety_flags(carried, SAFE) == []
+    sinking = {**carried, "hip_sink_max_mm": 92.0, "support_deficit_max_bw": 2.3, "stance_knee_flexion_peak_max_deg": 46.0}
+    flags = safety_flags(sinking, carried)
+    assert figures(flags) == {"hip_sink_max_mm": "warn", "support_deficit_max_bw": "warn",
+                              "stance_knee_flexion_peak_max_deg": "warn"}    # warnings: the decision can go on
+    words = {f["figure"]: f["message"] for f in flags}
+    assert "92 mm" in words["hip_sink_max_mm"] and "2.3 body weights" in words["support_deficit_max_bw"]
+    assert "46°" in words["stance_knee_flexion_peak_max_deg"] and "people: 19°" in words["stance_knee_flexion_peak_max_deg"]
+    assert next(f for f in flags if f["figure"] == "hip_sink_max_mm")["fsmic_value"] == 30.0
