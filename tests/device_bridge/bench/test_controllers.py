@@ -41,3 +41,13 @@ def test_an_unsafe_table_is_refused_as_the_device_refuses_it(model):
     bad = table.model_copy(update={"rows": [row.model_copy(update={"k_Nm_per_rad": 50.0}), *table.rows[1:]]})
     with pytest.raises(SafetyLimitError):
         make_controller("table", 75.0, table=bad)
+
+
+def test_only_the_benchs_table_controller_converts_a_table_without_its_limits():
+    """``--skip-limits`` is for bench studies: no product path (device, firmware, API, pushes) converts unchecked."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3]
+    users = sorted(str(p.relative_to(root)) for folder in ("backend", "device_bridge", "controller_core")
+                   for p in (root / folder).rglob("*.py") if "from_table_unchecked" in p.read_text())
+    assert users == ["controller_core/fsm.py", "device_bridge/bench/controllers.py"]
