@@ -72,7 +72,7 @@ def thigh_angle_rad(ref: WalkingReference, incline_deg: float) -> np.ndarray:
     return ref.hip_angle_rad - c
 
 
-def contact_centres_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
+def _contact_centres_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
                       incline_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The heel and forefoot contact spheres' centres relative to the hip in floor coordinates: (along the floor,
     along its normal), each (2, n) for (heel, forefoot), and the foot's pitch (rad, toe up +)."""
@@ -95,7 +95,7 @@ def contact_centres_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, ge
 def touching_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
                           incline_deg: float) -> np.ndarray:
     """Hip height above the floor (m, along the normal) at which the leg's lowest contact touches it."""
-    _, normal, _ = contact_centres_m(thigh, knee, ankle, geometry, incline_deg)
+    _, normal, _ = _contact_centres_m(thigh, knee, ankle, geometry, incline_deg)
     return geometry.contact_radius_m - normal.min(axis=0)
 
 

@@ -9,9 +9,9 @@ down an 8° ramp at about 0.13 m/s (soft-contact slip), which a shoe on a ramp d
 
 Bodies:
 
-* ``pelvis`` — the rest of the body (body mass less everything below the hip joint), on two slides: ``hip_x``
-  (m, driven along the person's path: the walk's progression) and ``hip_z`` (m, free: the body's weight acts on
-  it, the prosthesis and the person's other leg hold it up; :mod:`device_bridge.sim.person`).
+* ``pelvis`` — the rest of the body (body mass less the socket and prosthesis), on two slides: ``hip_x`` (m, driven
+  forward at belt speed by the person's progression servo) and ``hip_z`` (m, free: the body's weight acts on it, the
+  prosthesis and the person's other leg hold it up; :mod:`device_bridge.sim.person`).
 * ``socket`` — residual thigh and socket on the ``hip`` hinge (rad, flexion +: the knee moves forward), turned by
   the person's hip (:class:`device_bridge.sim.person.Person`).
 * ``shank`` — knee actuator, frame and pylon; ``knee`` hinge (rad, flexion +), range 0–120°.
