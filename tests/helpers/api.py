@@ -132,8 +132,11 @@ def push_body(api: Api, device: str = DEVICE) -> dict:
             "replaces_envelope_id": None if current is None else current["envelope_id"], "patient_ready": True}
 
 
-def push_to_leg(api: Api, proposal: dict, device: str = DEVICE):
-    """Assign the device to the proposal's patient and push the proposal, confirmed; returns the response."""
+def push_to_leg(api: Api, proposal: dict, device: str = DEVICE, override_reason: str | None = None):
+    """Assign the device to the proposal's patient and push the proposal, confirmed (with ``override_reason`` where
+    its bench preview is not clean); returns the response."""
     assign(api, proposal["patient_id"], device)
-    return api.client.post(f"/api/proposals/{proposal['id']}/push", headers=api.as_("prosthetist"),
-                           json=push_body(api, device))
+    body = push_body(api, device)
+    if override_reason is not None:
+        body["override_reason"] = override_reason
+    return api.client.post(f"/api/proposals/{proposal['id']}/push", headers=api.as_("prosthetist"), json=body)

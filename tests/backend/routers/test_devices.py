@@ -8,6 +8,7 @@ from starlette.websockets import WebSocketDisconnect
 from device_bridge.protocol import WireTable
 from tests.helpers.api import (
     DEVICE,
+    FIXTURE_OVERRIDE,
     approved_proposal,
     assign,
     push_body,
@@ -115,8 +116,10 @@ def test_a_table_goes_only_to_the_leg_of_its_patient_and_a_session_records_that_
     c, pro = api.client, api.as_("prosthetist")
     heavy, light = api.new_patient("P-190", 190.0), api.new_patient("P-045", 45.0)
     heavy_table = api.propose(heavy["id"])
-    walk_preview(api, heavy_table["id"])   # approval rests on the bench
-    c.post(f"/api/proposals/{heavy_table['id']}/approve", headers=pro, json={"comment": "ok"})
+    walk_preview(api, heavy_table["id"])   # approval rests on the bench (a 190 kg body sinks on it: overridden here)
+    r = c.post(f"/api/proposals/{heavy_table['id']}/approve", headers=pro,
+               json={"comment": "ok", "override_reason": FIXTURE_OVERRIDE})
+    assert r.status_code == 200, r.text
     assign(api, light["id"])
     r = c.post(f"/api/proposals/{heavy_table['id']}/push", headers=pro, json=push_body(api))
     assert r.status_code == 409
@@ -125,7 +128,7 @@ def test_a_table_goes_only_to_the_leg_of_its_patient_and_a_session_records_that_
     r = c.post(f"/api/patients/{heavy['id']}/sessions", headers=pro, json={"device_id": DEVICE, "speed_mps": 1.0})
     assert r.status_code == 409 and "assigned to P-045" in r.json()["detail"]
     # the heavy patient's table on the leg, then the device handed to the light one: no session until theirs
-    assert push_to_leg(api, heavy_table).status_code == 201
+    assert push_to_leg(api, heavy_table, override_reason=FIXTURE_OVERRIDE).status_code == 201
     assign(api, light["id"])
     r = c.post(f"/api/patients/{light['id']}/sessions", headers=pro, json={"device_id": DEVICE, "speed_mps": 1.0})
     assert r.status_code == 409 and "P-190 · table v1, another patient's table" in r.json()["detail"]
