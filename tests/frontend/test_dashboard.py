@@ -110,7 +110,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.wait_for_selector("#decision:has-text('approved by dana')")
     # a table goes only to its patient's leg: a leg worn by nobody is assigned in the push's own dialog (one step),
     # whose bench figures stand beside the button
-    expect(page.locator("#push-figures tbody tr")).to_have_count(5)      # drawn once the bench verdict is read
+    expect(page.locator("#push-figures tbody tr")).to_have_count(8)      # drawn once the bench verdict is read
     expect(page.locator("#assign-device")).to_have_count(0)
     assert "The push assigns it to P-100 first" in page.inner_text("#push-assignment")
     # the push names what it replaces, the assignment it makes, and needs the clinical precondition ticked
@@ -304,8 +304,10 @@ def test_a_link_opened_in_a_new_tab_survives_sign_in_and_the_audit_view_lists_th
     pid = create_patient_and_propose(page, "P-700")
     # the decision shows the bench's safety figures at its top, beside Approve, once the preview has walked
     page.wait_for_selector("#decision-figures tbody tr", timeout=60_000)
-    expect(page.locator("#decision-figures tbody tr")).to_have_count(5)
+    expect(page.locator("#decision-figures tbody tr")).to_have_count(8)   # incl. how the leg carried the body
     assert "falls" in page.inner_text("#decision-figures")
+    assert "hip sink below a person's in stance" in page.inner_text("#decision-figures")
+    assert page.locator("#decision-figures tr[data-figure=support_deficit_max_bw] td").nth(1).inner_text().endswith("BW")
     fresh = browser.new_context()            # a new tab's session: not signed in
     tab = fresh.new_page()
     try:

@@ -94,6 +94,11 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
 
     # approve with a reason, assign the leg, push with the clinical precondition ticked
     page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
+    page.wait_for_selector("#decision-bench:not(:has-text('has not finished'))")
+    unsafe = "unsafe figure" in page.inner_text("#decision-bench")
+    if unsafe:   # the course preview fell (the learned tables give way at 1.6 m/s: docs/results.md): a written reason
+        assert page.is_disabled("#approve")
+        page.fill("#override-reason", "course preview reviewed: falls on the 1.6 m/s segment; clinic walks stay slower")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
     page.wait_for_selector("#push-assignment:has-text('sim-leg-1 is')")   # the push panel drawn: who wears the leg
@@ -107,6 +112,9 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
         page.click("#push-button")
         assert f"confirming assigns it to {code}" in page.inner_text("#push-dialog")
     assert "adapts over 0.6–1.6 m/s" in page.inner_text("#push-dialog")
+    assert ("UNSAFE" in page.inner_text("#push-dialog")) == unsafe          # the dialog says what the bench said
+    if unsafe:
+        page.fill("#push-dialog-reason", "course preview reviewed: falls on the 1.6 m/s segment; clinic walks stay slower")
     page.check("#push-dialog-ready")
     page.click("#push-dialog-confirm")
     page.wait_for_selector(f"#push-steps li.done:has-text('active on sim-leg-1: {code} · envelope v2')", timeout=30_000)
