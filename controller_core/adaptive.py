@@ -16,7 +16,6 @@ command; the per-stride history is kept for telemetry and scoring.
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Literal
@@ -29,6 +28,7 @@ from controller_core.task_estimator import (
     TaskEstimate,
     TaskEstimator,
 )
+from controller_core.units import require_positive
 
 AdaptiveMode = Literal["nominal", "partial", "adaptive", "clamped"]
 
@@ -96,10 +96,7 @@ class AdaptiveController:
     decisions_: deque[StrideDecision] = field(init=False)
 
     def __post_init__(self) -> None:
-        for name in ("max_speed_step_mps", "max_incline_step_deg"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        require_positive(self, ("max_speed_step_mps", "max_incline_step_deg"))
         if not (isinstance(self.history_strides, int) and self.history_strides >= 1):
             raise ValueError(f"history_strides must be a positive integer, got {self.history_strides!r}")
         self.decisions_ = deque(maxlen=self.history_strides)

@@ -39,6 +39,7 @@ from collections import deque
 from dataclasses import dataclass, field
 
 from controller_core.fsm import SensorSample
+from controller_core.units import require_positive
 
 RAD_TO_DEG = 180.0 / math.pi
 # the estimate's resolution: the accuracy it holds on at least 90 % of strides on the bench's courses (±0.1 m/s,
@@ -127,11 +128,8 @@ class TaskEstimator:
     _last_flat_s: float = field(init=False, default=-math.inf)
 
     def __post_init__(self) -> None:
-        for name in ("thigh_length_m", "shank_length_m", "flat_rate_rad_s", "min_flat_s", "full_quality_flat_s",
-                     "fit_scale_m", "pitch_scale_deg", "gap_tolerance_s"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {v!r}")
+        require_positive(self, ("thigh_length_m", "shank_length_m", "flat_rate_rad_s", "min_flat_s",
+                                "full_quality_flat_s", "fit_scale_m", "pitch_scale_deg", "gap_tolerance_s"))
         if not (isinstance(self.smoothing_strides, int) and 1 <= self.smoothing_strides <= 10):
             raise ValueError(f"smoothing_strides must be an integer in [1, 10], got {self.smoothing_strides!r}")
         if not 0.0 < self.confidence_threshold <= 1.0:

@@ -34,6 +34,8 @@ import itertools
 import math
 from dataclasses import dataclass
 
+from controller_core.units import require_positive
+
 KNEE_RANGE_DEG = (0.0, 120.0)
 FOREFOOT_ROCKER = 0.75   # metatarsal heads, as a fraction of foot length from the back of the heel
 ANKLE_RANGE_DEG = (-30.0, 30.0)
@@ -64,9 +66,7 @@ class LegGeometry:
     armature_kg_m2: float = 0.03
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        require_positive(self)
 
     @property
     def thigh_m(self) -> float:

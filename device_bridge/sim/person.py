@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from controller_core.units import G_MPS2
+from controller_core.units import G_MPS2, require_positive
 
 
 @dataclass(frozen=True)
@@ -57,9 +57,7 @@ class Person:
     progression_damping_N_s_per_m: float = 2300.0
 
     def __post_init__(self) -> None:
-        for name, value in vars(self).items():
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        require_positive(self)
 
     @property
     def weight_N(self) -> float:
