@@ -72,10 +72,10 @@ def thigh_angle_rad(ref: WalkingReference, incline_deg: float) -> np.ndarray:
     return ref.hip_angle_rad - c
 
 
-def _contact_centres_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
-                      incline_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The heel and forefoot contact spheres' centres relative to the hip in floor coordinates: (along the floor,
-    along its normal), each (2, n) for (heel, forefoot), and the foot's pitch (rad, toe up +)."""
+def touching_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
+                          incline_deg: float) -> np.ndarray:
+    """Hip height above the floor (m, along the normal) at which the leg's lowest contact (heel or forefoot sphere)
+    touches it."""
     g = geometry
     alpha = math.radians(incline_deg)
     shank = thigh - knee
@@ -83,27 +83,25 @@ def _contact_centres_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, g
     kx, kz = g.thigh_m * np.sin(thigh), -g.thigh_m * np.cos(thigh)
     ax, az = kx + g.shank_m * np.sin(shank), kz - g.shank_m * np.cos(shank)
     zc = -g.ankle_height_m + g.contact_radius_m
-    along, normal = [], []
+    lowest = None
     for xf in (-g.heel_back_m, g.toe_forward_m):
         px = ax + xf * np.cos(pitch) - zc * np.sin(pitch)
         pz = az + xf * np.sin(pitch) + zc * np.cos(pitch)
-        along.append(px * math.cos(alpha) + pz * math.sin(alpha))
-        normal.append(-px * math.sin(alpha) + pz * math.cos(alpha))
-    return np.array(along), np.array(normal), pitch
+        normal = -px * math.sin(alpha) + pz * math.cos(alpha)
+        lowest = normal if lowest is None else np.minimum(lowest, normal)
+    return g.contact_radius_m - lowest
 
 
-def touching_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
-                          incline_deg: float) -> np.ndarray:
-    """Hip height above the floor (m, along the normal) at which the leg's lowest contact touches it."""
-    _, normal, _ = _contact_centres_m(thigh, knee, ankle, geometry, incline_deg)
-    return geometry.contact_radius_m - normal.min(axis=0)
+def _leg_share(ref: WalkingReference) -> float:
+    """The factor that makes one leg's reference force carry exactly half the weight over a stride (the shipped
+    means are 0.516-0.523 body weights)."""
+    return 0.5 / float(np.mean(ref.vgrf_bw[:-1]))
 
 
 def other_leg_share_bw(ref: WalkingReference) -> np.ndarray:
     """The other leg's vertical force on the reference grid (body weights): the reference force half a cycle on,
-    scaled so each leg carries exactly half the weight over a stride (the shipped means are 0.516-0.523)."""
-    share = 0.5 / float(np.mean(ref.vgrf_bw[:-1]))
-    return share * np.interp((ref.phase + 0.5) % 1.0, ref.phase, ref.vgrf_bw)
+    scaled so each leg carries exactly half the weight over a stride."""
+    return _leg_share(ref) * np.interp((ref.phase + 0.5) % 1.0, ref.phase, ref.vgrf_bw)
 
 
 def _swing_height_m(ref: WalkingReference, touch: np.ndarray) -> np.ndarray:
@@ -111,7 +109,7 @@ def _swing_height_m(ref: WalkingReference, touch: np.ndarray) -> np.ndarray:
     to the body, joined by a straight line and lifted where the reference foot would pass too close (module
     docstring)."""
     s, to, T = ref.phase, ref.toe_off_phase, ref.stride_time_s
-    both = 0.5 / float(np.mean(ref.vgrf_bw[:-1])) * ref.vgrf_bw + other_leg_share_bw(ref)
+    both = _leg_share(ref) * ref.vgrf_bw + other_leg_share_bw(ref)
     acc = T * T * G_MPS2 * (both - 1.0)                     # d²z/ds² of the body under both legs' forces (m)
     ds = np.diff(s)
     vel = np.concatenate([[0.0], np.cumsum(0.5 * (acc[1:] + acc[:-1]) * ds)])
@@ -159,12 +157,15 @@ def task_pattern_series(ref: WalkingReference, geometry: LegGeometry, harmonics:
 
 
 def other_leg_push_N(phase: np.ndarray, toe_off: np.ndarray | float, share_bw: np.ndarray,
-                     height_accel_m_s2: np.ndarray, slope_rad: np.ndarray | float, mass_kg: float) -> np.ndarray:
-    """The other leg's vertical push per tick (N): its reference share (``share_bw``, body weights per tick) over the
-    prosthesis's stance; over its swing what keeps the body on its path (weight plus mass × the path's vertical
-    acceleration, from the height's acceleration along the floor normal)."""
+                     height_accel_m_s2: np.ndarray, slope_rad: np.ndarray | float, mass_kg: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The other leg per tick: its vertical push (N) and whether its foot is down. The push is its reference share
+    (``share_bw``, body weights per tick) over the prosthesis's stance; over its swing, when the other foot carries
+    the body, what keeps the body on its path (weight plus mass × the path's vertical acceleration, from the height's
+    acceleration along the floor normal)."""
+    swing = phase > toe_off
     carry = mass_kg * (G_MPS2 + height_accel_m_s2 * np.cos(slope_rad))
-    return np.where(phase > toe_off, np.maximum(carry, 0.0), share_bw * mass_kg * G_MPS2)
+    return np.where(swing, np.maximum(carry, 0.0), share_bw * mass_kg * G_MPS2), (share_bw > 0.0) | swing
 
 
 @dataclass(frozen=True)
@@ -220,7 +221,7 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
     xd = v * math.cos(alpha) - hd * math.sin(alpha)
     zd = v * math.sin(alpha) + hd * math.cos(alpha)
     share = np.interp(s, ref.phase, pattern.other_bw)
-    other = other_leg_push_N(s, ref.toe_off_phase, share, ddh / (T * T), alpha, mass_kg)
+    other, foot_down = other_leg_push_N(s, ref.toe_off_phase, share, ddh / (T * T), alpha, mass_kg)
     return BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=th, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=dth / T,
-                           height_m=h, other_leg_N=other, other_foot_down=(share > 0.0) | (s > ref.toe_off_phase),
+                           height_m=h, other_leg_N=other, other_foot_down=foot_down,
                            stance=s <= ref.toe_off_phase, stride_time_s=T)

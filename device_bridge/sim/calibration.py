@@ -22,10 +22,10 @@ from device_bridge.sim.bench_trajectory import plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.person import Person
 from device_bridge.sim.plant import SimulatedLeg
-from device_bridge.sim.simulate import SUPPORT_WINDOW_S
+from device_bridge.sim.simulate import windowed_support_N
 
 HIP_TOLERANCE_MM = 60.0          # the hip within this of its path over the stance, at every task of the compare grid
-DEFICIT_TOLERANCE_BW = 1.0       # the person's largest compensation (mean over SUPPORT_WINDOW_S) within this
+DEFICIT_TOLERANCE_BW = 1.0       # the person's largest compensation (a 50 ms mean, as walks read it) within this
 DEFICIT_MEAN_TOLERANCE_BW = 0.2   # and its mean over the stance within this
 JOINT_STIFFNESS_NM_PER_RAD = 600.0
 JOINT_DAMPING_NM_S_PER_RAD = 15.0
@@ -58,8 +58,7 @@ def calibration_walk(reference: WalkingReference, mass_kg: float = 75.0, seconds
     after = traj.time_s >= settle_s
     stance = after & traj.stance
     error *= math.cos(math.radians(reference.incline_deg))   # along the floor's normal
-    width = max(round(SUPPORT_WINDOW_S / leg.timestep_s), 1)
-    smooth = np.convolve(support, np.ones(width) / width, mode="same")[after]
+    smooth = windowed_support_N(support, leg.timestep_s)[after]
     return {"speed_mps": reference.speed_mps, "incline_deg": reference.incline_deg,
             "hip_error_stance_min_mm": 1000.0 * float(error[stance].min()),
             "hip_error_stance_max_mm": 1000.0 * float(error[stance].max()),

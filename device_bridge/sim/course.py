@@ -190,8 +190,9 @@ def task_pattern(speed_mps: float, incline_deg: float) -> WalkingReference:
     return ref
 
 
-def _series(coef: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Value, d/ds and d²/ds² of per-tick Fourier series: ``coef`` (n, 2K) as (a, b), phases ``s`` (n,)."""
+def _series(coef: np.ndarray, s: np.ndarray, second: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Value, d/ds and (with ``second``) d²/ds² of per-tick Fourier series: ``coef`` (n, 2K) as (a, b), phases
+    ``s`` (n,)."""
     h = coef.shape[1] // 2
     w = 2.0 * np.pi * np.arange(h)
     ang = s[:, None] * w[None]
@@ -199,6 +200,8 @@ def _series(coef: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
     a, b = coef[:, :h], coef[:, h:]
     val = np.einsum("nk,nk->n", c, a) + np.einsum("nk,nk->n", sn, b)
     der = np.einsum("nk,nk->n", -sn * w, a) + np.einsum("nk,nk->n", c * w, b)
+    if not second:
+        return val, der, None
     der2 = -np.einsum("nk,nk->n", c * w * w, a) - np.einsum("nk,nk->n", sn * w * w, b)
     return val, der, der2
 
@@ -227,7 +230,7 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
     s = (start_phase + np.concatenate([[0.0], np.cumsum(timestep_s / period[:-1])])) % 1.0
     half = coef.shape[1] // 2
     thigh, dthigh, _ = _series(coef[:, :half], s)
-    height, dheight, ddheight = _series(coef[:, half:], s)
+    height, dheight, ddheight = _series(coef[:, half:], s, second=True)
     # d/dt at a fixed phase, from the pattern's change with the task (the coefficients are linear between knots)
     coef_rate = (coef_knots[i0 + 1] - coef_knots[i0]) / TASK_SAMPLE_S
     thigh_t, _, _ = _series(coef_rate[:, :half], s)
@@ -250,10 +253,10 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
     gamma_rate = np.gradient(gamma, timestep_s)
     xd = speed * np.cos(gamma) + hdot * nx - height * np.cos(gamma) * gamma_rate
     zd = speed * np.sin(gamma) + hdot * nz - height * np.sin(gamma) * gamma_rate
-    other = other_leg_push_N(s, toe_off, share, ddheight / (period * period), gamma, mass_kg)
+    other, foot_down = other_leg_push_N(s, toe_off, share, ddheight / (period * period), gamma, mass_kg)
     bench = BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=thigh, xd_m_s=xd, zd_m_s=zd,
                             hipd_rad_s=dthigh / period + thigh_t, height_m=height, other_leg_N=other,
-                            other_foot_down=(share > 0.0) | (s > toe_off), stance=s <= toe_off,
+                            other_foot_down=foot_down, stance=s <= toe_off,
                             stride_time_s=float(np.mean(period)))
     # terrain: the floor line, continued at its first and last slopes 2 m behind the start and 3 m beyond the end
     grid = np.arange(-2.0, floor_x[-1] + 3.0, TERRAIN_STEP_M)

@@ -210,6 +210,12 @@ def fall_mask(c: dict[str, np.ndarray], weight_N: float) -> np.ndarray:
     return sank | buckled
 
 
+def windowed_support_N(support_N: np.ndarray, dt: float) -> np.ndarray:
+    """The person's compensation per tick as it is read: its mean over SUPPORT_WINDOW_S around each tick (N)."""
+    width = max(round(SUPPORT_WINDOW_S / dt), 1)
+    return np.convolve(support_N, np.ones(width) / width, mode="same")
+
+
 def carrying_figures(c: dict[str, np.ndarray], strikes: np.ndarray, dt: float, weight_N: float,
                      settle_s: float) -> dict[str, float | None]:
     """How well the prosthesis carried the body after ``settle_s`` (module docstring): sink (mm), the person's
@@ -217,8 +223,7 @@ def carrying_figures(c: dict[str, np.ndarray], strikes: np.ndarray, dt: float, w
     after = c["time_s"] >= settle_s
     stance = after & c["bench_stance"].astype(bool)
     sink = float(max(0.0, -np.min(c["hip_height_error_m"][stance]))) if stance.any() else 0.0
-    width = max(round(SUPPORT_WINDOW_S / dt), 1)
-    support = np.convolve(c["support_N"], np.ones(width) / width, mode="same")[after]
+    support = windowed_support_N(c["support_N"], dt)[after]
     peaks = []
     for a, b in itertools.pairwise(strikes):
         peaks.append(math.degrees(float(np.max(c["knee_angle_rad"][a:a + max(round(LOADING_WINDOW * (b - a)), 1)]))))
