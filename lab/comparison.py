@@ -9,6 +9,7 @@ from controller_core.gait_metrics import GAIT_CHANNELS, difference_keys
 from controller_core.model import QuasiStiffnessModel
 from device_bridge.bench.versus import against_fsmic
 from device_bridge.bench.walks import simulate
+from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import WalkScore
 
 COMPARE_SPEEDS_MPS: tuple[float, ...] = (0.84, 1.2, 1.49, 1.95)
@@ -16,9 +17,10 @@ COMPARED: tuple[str, ...] = ("quasi-stiffness", "fsmic")
 
 
 def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_SPEEDS_MPS,
-            inclines_deg: tuple[float, ...] = (0.0,), seconds: float = 20.0, mass_kg: float = 75.0
-            ) -> list[tuple[WalkScore, str]]:
-    """Both controllers over the task grid; returns (score, controller) pairs in grid order.
+            inclines_deg: tuple[float, ...] = (0.0,), seconds: float = 20.0, mass_kg: float = 75.0,
+            geometry: LegGeometry | None = None) -> list[tuple[WalkScore, str]]:
+    """Both controllers over the task grid on the leg ``geometry`` (default the nominal bench); returns (score,
+    controller) pairs in grid order.
 
     Each learned walk's summary also carries ``vs_fsmic`` (:func:`device_bridge.bench.versus.against_fsmic`): how its
     RMSEs differ from the FSMIC's at the same task, and whether the strides walked resolve the difference.
@@ -26,7 +28,8 @@ def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_
     out = []
     for incline in inclines_deg:
         for speed in speeds_mps:
-            pair = {name: simulate(name, speed, incline, seconds, mass_kg, model) for name in COMPARED}
+            pair = {name: simulate(name, speed, incline, seconds, mass_kg, model, geometry=geometry)
+                    for name in COMPARED}
             pair["quasi-stiffness"].summary["vs_fsmic"] = against_fsmic(pair["quasi-stiffness"], pair["fsmic"])
             out.extend((pair[name], name) for name in COMPARED)
     return out

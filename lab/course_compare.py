@@ -14,17 +14,19 @@ from device_bridge.bench.controllers import default_envelope
 from device_bridge.bench.versus import versus
 from device_bridge.bench.walks import walk_course
 from device_bridge.sim.course import Course
+from device_bridge.sim.leg_model import LegGeometry
 from lab.comparison import cell
 
 COURSE_CONTROLLERS: tuple[str, ...] = ("adaptive", "quasi-stiffness", "fsmic")
 
 
 def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 75.0,
-                   envelope: Envelope | None = None) -> dict[str, object]:
-    """All three controllers over the course, and the adaptive one's per-stride errors against each other's."""
+                   envelope: Envelope | None = None, geometry: LegGeometry | None = None) -> dict[str, object]:
+    """All three controllers over the course on the leg ``geometry`` (default the nominal bench), and the adaptive
+    one's per-stride errors against each other's."""
     env = envelope or default_envelope(model, mass_kg)
-    scores = {name: walk_course(name, course, model, mass_kg, env) for name in COURSE_CONTROLLERS}
-    return {"course": course.to_json(),
+    scores = {name: walk_course(name, course, model, mass_kg, env, geometry=geometry) for name in COURSE_CONTROLLERS}
+    return {"course": course.to_json(), "leg": (geometry or LegGeometry()).name,
             "envelope": {"speeds_mps": env.speeds_mps, "inclines_deg": env.inclines_deg,
                          "wire_crc32": as_run(env).wire_crc32,
                          "nominal": [env.nominal_speed_mps, env.nominal_incline_deg]},

@@ -23,19 +23,22 @@ from device_bridge.sim.video import VideoRecorder
 
 def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, seconds: float = 20.0,
              mass_kg: float = 75.0, model: QuasiStiffnessModel | None = None, record: Path | None = None,
-             video: Path | None = None, table: ImpedanceTable | None = None, skip_limits: bool = False) -> WalkScore:
+             video: Path | None = None, table: ImpedanceTable | None = None, skip_limits: bool = False,
+             geometry: LegGeometry | None = None) -> WalkScore:
     """Walk one controller at one task (``quasi-stiffness``: the model's table at that task; ``table``: the given
-    table, with ``skip_limits`` unchecked for bench studies); optionally save the trajectories (.csv or .parquet)
-    and a video."""
+    table, with ``skip_limits`` unchecked for bench studies) on the leg ``geometry`` (default the nominal bench);
+    optionally save the trajectories (.csv or .parquet) and a video."""
     validate_task(speed_mps, incline_deg, mass_kg)
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
     ctrl = make_controller(controller, mass_kg, model, (speed_mps, incline_deg), table=table, skip_limits=skip_limits)
     recorder = VideoRecorder(video) if video is not None else None
-    log = run_walk(ctrl, ref, mass_kg, seconds, frame_callback=recorder, frame_every=recorder.every if recorder else 0)
+    log = run_walk(ctrl, ref, mass_kg, seconds, geometry, frame_callback=recorder,
+                   frame_every=recorder.every if recorder else 0)
     if recorder is not None:
         recorder.close()
     score = score_walk(log, ref)
     score.summary["controller"] = controller
+    score.summary["leg"] = (geometry or LegGeometry()).name
     if record is not None:
         frame = log.to_frame()
         if record.suffix == ".parquet":
@@ -50,9 +53,10 @@ def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, second
 
 def walk_course(controller: str, course: Course, model: QuasiStiffnessModel | None, mass_kg: float = 75.0,
                 envelope: Envelope | None = None, task: tuple[float, float] = NOMINAL_TASK,
-                video: Path | None = None) -> CourseScore:
-    """Walk one controller over the course and score it (the adaptive one also for its task estimates)."""
-    geometry = LegGeometry()
+                video: Path | None = None, geometry: LegGeometry | None = None) -> CourseScore:
+    """Walk one controller over the course on the leg ``geometry`` (default the nominal bench) and score it (the
+    adaptive one also for its task estimates)."""
+    geometry = geometry or LegGeometry()
     ctrl = make_controller(controller, mass_kg, model, task, envelope=envelope, geometry=geometry)
     recorder = VideoRecorder(video) if video is not None else None
     log, traj = run_course(ctrl, course, mass_kg, geometry, frame_callback=recorder,
@@ -61,6 +65,7 @@ def walk_course(controller: str, course: Course, model: QuasiStiffnessModel | No
         recorder.close()
     score = score_course(log, traj, course, getattr(ctrl, "decisions_", None))
     score.summary["controller"] = controller
+    score.summary["leg"] = geometry.name
     if controller == "quasi-stiffness":
         score.summary["table_task"] = {"speed_mps": task[0], "incline_deg": task[1]}
     if video is not None:

@@ -25,7 +25,9 @@ and shank frame (2.9 kg), ankle actuator on the lower shank (1.6 kg) and foot (0
 from Winter's anthropometric proportions of body height (thigh 0.245 H, shank 0.246 H, foot length 0.152 H,
 ankle height 0.039 H: Winter DA, Biomechanics and Motor Control of Human Movement, 4th ed., 2009, Table 4.1).
 Each joint has an armature standing for the reflected inertia of a geared actuator (an assumption of
-0.03 kg·m², of the order of belt/screw drives on such legs).
+0.03 kg·m², of the order of belt/screw drives on such legs), a small viscous damping (0.05 N·m·s/rad) and no
+Coulomb friction by default; a leg file (:mod:`device_bridge.sim.leg_file`) sets each per joint for a leg that is not
+the nominal one.
 """
 
 from __future__ import annotations
@@ -53,7 +55,11 @@ class LegGeometry:
         foot_mass_kg: foot (kg).
         contact_radius_m: radius of the heel and toe contact spheres (m).
         heel_back_m: heel contact centre behind the ankle axis (m).
-        armature_kg_m2: reflected actuator inertia at knee and ankle (kg·m²).
+        knee_armature_kg_m2, ankle_armature_kg_m2: reflected actuator inertia per joint (kg·m²).
+        knee_friction_Nm, ankle_friction_Nm: Coulomb friction per joint (N·m; MuJoCo's ``frictionloss``), ≥ 0.
+        knee_damping_Nm_s_per_rad, ankle_damping_Nm_s_per_rad: viscous damping per joint on top of the controller's
+            b (N·m·s/rad), ≥ 0.
+        name: what the leg is called in outputs.
     """
 
     body_height_m: float = 1.75
@@ -63,10 +69,20 @@ class LegGeometry:
     foot_mass_kg: float = 0.9
     contact_radius_m: float = 0.02
     heel_back_m: float = 0.05
-    armature_kg_m2: float = 0.03
+    knee_armature_kg_m2: float = 0.03
+    ankle_armature_kg_m2: float = 0.03
+    knee_friction_Nm: float = 0.0
+    ankle_friction_Nm: float = 0.0
+    knee_damping_Nm_s_per_rad: float = 0.05
+    ankle_damping_Nm_s_per_rad: float = 0.05
+    name: str = "nominal"
 
     def __post_init__(self) -> None:
-        require_positive(self)
+        require_positive(self, POSITIVE_FIELDS)
+        for field in NON_NEGATIVE_FIELDS:
+            v = getattr(self, field)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{field} must be a finite number ≥ 0, got {v!r}")
 
     @property
     def thigh_m(self) -> float:
@@ -100,6 +116,12 @@ class LegGeometry:
     def moving_mass_kg(self) -> float:
         """Everything the bench moves (kg)."""
         return self.socket_mass_kg + self.prosthesis_mass_kg
+
+
+NON_NEGATIVE_FIELDS = ("knee_friction_Nm", "ankle_friction_Nm", "knee_damping_Nm_s_per_rad",
+                       "ankle_damping_Nm_s_per_rad")
+POSITIVE_FIELDS = ("body_height_m", "socket_mass_kg", "shank_mass_kg", "ankle_unit_mass_kg", "foot_mass_kg",
+                   "contact_radius_m", "heel_back_m", "knee_armature_kg_m2", "ankle_armature_kg_m2")
 
 
 def _rod_inertia(mass: float, length: float) -> float:
@@ -172,7 +194,8 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
             rgba="0.85 0.7 0.6 0.6"/>
       <body name="shank" pos="0 0 {-lt:.6f}">
         <joint name="knee" type="hinge" axis="0 1 0" range="{KNEE_RANGE_DEG[0] * deg:.9f} {KNEE_RANGE_DEG[1] * deg:.9f}"
-               armature="{g.armature_kg_m2}" damping="0.05" solreflimit="0.004 1"/>
+               armature="{g.knee_armature_kg_m2}" damping="{g.knee_damping_Nm_s_per_rad}"
+               frictionloss="{g.knee_friction_Nm}" solreflimit="0.004 1"/>
         <geom name="shank" type="capsule" fromto="0 0 0 0 0 {-(ls - lc_len):.6f}" size="0.035" mass="{g.shank_mass_kg}"/>
         <geom name="ankle_unit" type="capsule" fromto="0 0 {-ls + 0.03:.6f} 0 0 {-ls + lc_len:.6f}" size="0.04"
               mass="{g.ankle_unit_mass_kg}" rgba="0.25 0.3 0.4 1"/>
@@ -183,7 +206,8 @@ def build_mjcf(geometry: LegGeometry, incline_deg: float = 0.0, timestep_s: floa
           <body name="foot">
             <joint name="ankle" type="hinge" axis="0 -1 0"
                    range="{ANKLE_RANGE_DEG[0] * deg:.9f} {ANKLE_RANGE_DEG[1] * deg:.9f}"
-                   armature="{g.armature_kg_m2}" damping="0.05" solreflimit="0.004 1"/>
+                   armature="{g.ankle_armature_kg_m2}" damping="{g.ankle_damping_Nm_s_per_rad}"
+               frictionloss="{g.ankle_friction_Nm}" solreflimit="0.004 1"/>
             <inertial pos="{(toe - heel) / 3:.6f} 0 {zc:.6f}" mass="{g.foot_mass_kg}" diaginertia="{foot_inertia}"/>
             <geom name="sole" type="capsule" fromto="{-heel:.6f} 0 {zc:.6f} {toe:.6f} 0 {zc:.6f}" size="{r * 0.9:.6f}"
                   mass="0" rgba="0.2 0.2 0.2 1"/>
