@@ -82,6 +82,16 @@ def _locate(axis: tuple[float, ...], x: float) -> tuple[int, float, float, bool]
     return i, (x - axis[i]) / (axis[i + 1] - axis[i]), x, clamped
 
 
+def node_weights(speeds_mps: Sequence[float], inclines_deg: Sequence[float], speed_mps: float, incline_deg: float
+                 ) -> list[tuple[int, int, float]]:
+    """The bilinear weights of a task on the grid's nodes, as the leg blends them: (speed index, incline index,
+    weight) for the up to four nodes around the task (clamped at the grid's edge), weights summing to 1."""
+    i, wi, _, _ = _locate(tuple(speeds_mps), speed_mps)
+    j, wj, _, _ = _locate(tuple(inclines_deg), incline_deg)
+    out = [(i + di, j + dj, (wi if di else 1.0 - wi) * (wj if dj else 1.0 - wj)) for di in (0, 1) for dj in (0, 1)]
+    return [(a, b, w) for a, b, w in out if w > 0.0]
+
+
 class EnvelopeBlender:
     """Blends per-node schedules bilinearly over speed × incline (nodes speed-major).
 

@@ -39,7 +39,7 @@ class ParameterRow(_Strict):
     r2: float | None = Field(default=None, description="R² of the linear fit (None when edited by hand)")
     guarded: bool = Field(default=False, description="the plain least-squares line was not used (see fit_method)")
     fit_method: Literal["least_squares", "extension_window", "range_guard", "passivity_guard", "swing_target",
-                        "manual", "literature", "neighbour_guard", "support_floor"] = Field(
+                        "manual", "literature", "neighbour_guard", "support_floor", "refined"] = Field(
         default="least_squares",
         description="least_squares: τ = kθ + c; extension_window: the same line fitted over the knee's stance "
                     "extension only (stance-flexion peak to the knee's late-stance minimum), leaving out the "
@@ -50,7 +50,8 @@ class ParameterRow(_Strict):
                     "literature: a published table; neighbour_guard: moved into the envelope's step from its neighbours "
                     "(see controller_core.envelope); support_floor: the knee's stance-flexion line was softer than the "
                     "stance support floor (the person does positive work here, which a spring cannot), so the row "
-                    "holds the floor and θe is re-fitted")
+                    "holds the floor and θe is re-fitted; refined: moved by a refinement from the leg's own strides "
+                    "(the version's evidence says from what and why)")
 
 
 class Thresholds(_Strict):
@@ -78,7 +79,7 @@ class Provenance(_Strict):
     incline_deg: float
     patient_mass_kg: float
     extrapolation: bool
-    source: Literal["model", "edit", "literature"] = "model"
+    source: Literal["model", "edit", "literature", "refinement"] = "model"
 
 
 class ParameterTable(_Strict):

@@ -19,8 +19,10 @@ class EditError(ValueError):
 
 
 def edit_table(table: ParameterTable, rows: Sequence[Mapping[str, object]] = (),
-               thresholds: Mapping[str, float] | None = None) -> tuple[ParameterTable, list[dict]]:
-    """Apply cell edits.
+               thresholds: Mapping[str, float] | None = None, method: str = "manual", source: str = "edit"
+               ) -> tuple[ParameterTable, list[dict]]:
+    """Apply cell edits (``method``/``source``: what a re-fitted row and the table then say; ``refined``/``refinement``
+    for a refinement from walking).
 
     Args:
         table: the table edited (not modified).
@@ -56,7 +58,7 @@ def edit_table(table: ParameterTable, rows: Sequence[Mapping[str, object]] = (),
         refit = "k_Nm_per_rad" in values or "theta_e_deg" in values
         update = old.model_dump() | values
         if refit:
-            update |= {"fit_method": "manual", "r2": None, "guarded": False}
+            update |= {"fit_method": method, "r2": None, "guarded": False}
         new_rows[key] = ParameterRow.model_validate(update)
     th = table.thresholds.model_dump()
     for name, value in (thresholds or {}).items():
@@ -69,5 +71,5 @@ def edit_table(table: ParameterTable, rows: Sequence[Mapping[str, object]] = (),
         raise EditError("the edit changes nothing: every value given equals the current one")
     new = ParameterTable(rows=[new_rows[(r.joint, r.subphase)] for r in table.rows],
                          thresholds=Thresholds.model_validate(th),
-                         provenance=table.provenance.model_copy(update={"source": "edit"}))
+                         provenance=table.provenance.model_copy(update={"source": source}))
     return new, changes

@@ -72,6 +72,7 @@ export const FIT_METHOD_WORDS = {
   swing_target: "set from the swing target", manual: "edited by hand", literature: "published value",
   neighbour_guard: "held within a step of its envelope neighbours",
   support_floor: "held at the stance support floor",
+  refined: "refined from the patient's own strides",
 };
 const THRESHOLD_WORDS = {
   sf_to_se_ankle_moment_Nm: "stance extension begins: ankle moment below",

@@ -20,6 +20,7 @@ const FIT_METHOD_HELP = {
   literature: "published table",
   neighbour_guard: "an envelope node: the fitted value differed from a neighbouring node's by more than the envelope's step per cell, so it was moved the least into that step",
   support_floor: "the person does positive work here (the knee extends under load, which a spring cannot); the leg holds the knee firm instead: k at the stance support floor, θe re-fitted",
+  refined: "moved by a refinement from the patient's own strides: the version's evidence says from what and why",
 };
 
 // How each field is shown: scale from SI to the shown unit, the unit, and digits. Loads are % body weight in the
@@ -125,7 +126,7 @@ export function parameterTable(p, canEdit) {
     return r.fit_method === "swing_target" ? chip(words) : r.guarded ? chip(words, "warn") : words;
   };
   // R² says how well a fitted line explains the loop; a swing target or a hand edit is not a fit
-  const r2 = (r) => r.r2 === null || ["swing_target", "manual", "literature"].includes(r.fit_method)
+  const r2 = (r) => r.r2 === null || ["swing_target", "manual", "literature", "refined"].includes(r.fit_method)
     ? h("span", { title: r.r2 === null ? "" : `not a fit (a line through the swing moment would explain R² = ${fmt(r.r2, 2)})` }, "—")
     : r.weak_fit ? h("span", { class: "weak-fit", title: `R² below ${WEAK_FIT_R2}: the line explains less than half of the `
       + "moment in this phase; read k and θe as a rough summary" }, `${fmt(r.r2, 2)} `, chip("weak fit", "warn"))

@@ -1,0 +1,122 @@
+"""The refinement step. The "legs" here are synthetic: made-up linear responses of the features to the table's values,
+so the right answer is known; the envelope is the model's."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller_core.envelope import check_envelope, nearest_node
+from controller_core.features import FEATURES_BY_NAME
+from controller_core.proposal import FeaturePrediction
+from controller_core.refine import PARAMETERS, RefineRules, node_step, refine_envelope, refine_node
+from controller_core.refine_evidence import QUANTITIES, gather_evidence
+from controller_core.stride_features import MeasuredStride
+from controller_core.table import check_table, support_floor_Nm_per_rad
+
+TARGETS = {"knee_stance_flexion_peak": (0.15, 18.0), "knee_swing_flexion_peak": (0.72, 62.0),
+           "ankle_plantarflexion_peak": (0.64, -16.0)}
+SPEEDS, INCLINES = [0.6, 1.0, 1.4], [-5.0, 0.0, 5.0]
+
+
+def targets_at(speed_mps: float, incline_deg: float) -> dict[str, FeaturePrediction]:
+    return {name: FeaturePrediction(FEATURES_BY_NAME[name], p, 0.01, math.radians(v), 0.03, False)
+            for name, (p, v) in TARGETS.items()}
+
+
+def synthetic_leg(table, n: int = 20, speed: float = 1.0, incline: float = 0.0, swing_gain: float = 0.7,
+                  swing_offset_deg: float = -12.0, stance_peak_deg: float | None = None, seed: int = 0):
+    """Strides of a made-up leg: the swing knee peaks at swing_gain × (swing-flexion θe) + offset, with 1° of noise;
+    the other features on target unless given."""
+    rng = np.random.default_rng(seed)
+    theta = table.row("knee", "swing_flexion").theta_e_deg
+    out = []
+    for _ in range(n):
+        feats = {name: (p, math.radians(v)) for name, (p, v) in TARGETS.items()}
+        feats["knee_swing_flexion_peak"] = (0.72, math.radians(swing_gain * theta + swing_offset_deg
+                                                               + rng.normal(0, 1.0)))
+        if stance_peak_deg is not None:
+            feats["knee_stance_flexion_peak"] = (0.15, math.radians(stance_peak_deg + rng.normal(0, 1.0)))
+        out.append(MeasuredStride(speed, incline, feats, toe_off_phase=0.61))
+    return out
+
+
+def node_evidence(table, **leg):
+    ev = gather_evidence(synthetic_leg(table, **leg), SPEEDS, INCLINES, targets_at)
+    return next(e for e in ev if e.node == (1, 1))
+
+
+def swing_error(table, **leg) -> float:
+    return node_evidence(table, **leg).quantities["knee_swing_flexion_peak_deg"].error
+
+
+def test_the_step_moves_a_feature_towards_its_target_on_a_synthetic_sensitivity(model):
+    table = model.propose(1.0, 0.0, 75.0).table
+    ev = node_evidence(table, swing_offset_deg=-20.0)
+    assert ev.quantities["knee_swing_flexion_peak_deg"].error < -2.0
+    J = np.zeros((len(QUANTITIES), len(PARAMETERS)))
+    J[1, 2] = 0.7                                             # the made-up leg's own gain of swing peak on swing θe
+    delta = node_step(ev, table, RefineRules(), J)
+    assert delta[2] > 0.0 and np.count_nonzero(delta) == 1   # only the swing-flexion θe, and upwards
+
+
+def test_rounds_converge_and_a_second_round_changes_less_than_the_first(model):
+    table = model.propose(1.0, 0.0, 75.0).table
+    offset = 62.0 - 0.7 * table.row("knee", "swing_flexion").theta_e_deg - 7.0     # 7° short to start with
+    errors, steps = [swing_error(table, swing_offset_deg=offset)], []
+    for k in range(3):
+        r = refine_node(table, node_evidence(table, swing_offset_deg=offset, seed=k), RefineRules())
+        moved = [c for c in r.changes if c["field"] == "knee.swing_flexion.theta_e_deg"]
+        if not moved:
+            break
+        steps.append(abs(moved[0]["after"] - moved[0]["before"]))
+        assert steps[-1] <= RefineRules().theta_step_deg + 1e-9
+        table = r.table
+        errors.append(swing_error(table, swing_offset_deg=offset, seed=k + 10))
+        assert check_table(table) == []
+    assert abs(errors[-1]) < abs(errors[0]) and len(steps) >= 2 and steps[1] < steps[0]
+
+
+def test_a_leg_that_meets_its_targets_changes_nothing(model):
+    table = model.propose(1.0, 0.0, 75.0).table
+    theta = table.row("knee", "swing_flexion").theta_e_deg
+    r = refine_node(table, node_evidence(table, swing_gain=1.0, swing_offset_deg=62.0 - theta + 0.5), RefineRules())
+    assert r.changes == [] and "within tolerance" in r.left_alone
+
+
+def test_a_step_that_would_soften_the_stance_knee_below_the_support_floor_is_held_at_it(model):
+    table = model.propose(1.0, 0.0, 75.0).table
+    floor = support_floor_Nm_per_rad(75.0)
+    r = refine_node(table, node_evidence(table, swing_gain=1.0, swing_offset_deg=0.0, stance_peak_deg=2.0),
+                    RefineRules(k_step_fraction=0.9, theta_step_deg=30.0))
+    row = r.table.row("knee", "stance_flexion")
+    assert row.k_Nm_per_rad <= floor + 1e-9 and row.fit_method == "refined"
+    assert 0.0 <= row.theta_e_deg <= 120.0 and check_table(r.table) == []
+
+
+def test_an_envelope_changes_where_it_was_walked_and_keeps_every_limit_and_the_neighbour_rule(model):
+    env = model.propose_envelope([0.6, 0.85, 1.1, 1.35, 1.6], [-10.0, -5.0, 0.0, 5.0, 10.0], 75.0, (1.1, 0.0))
+    i, j = nearest_node(env.speeds_mps, env.inclines_deg, 1.1, 0.0)
+    node = env.node(i, j)
+    strides = synthetic_leg(node.table, n=30, speed=1.1, incline=0.0, swing_offset_deg=-25.0)
+    evidence = gather_evidence(strides, env.speeds_mps, env.inclines_deg, targets_at)
+    result = refine_envelope(env, evidence)
+    assert check_envelope(result.envelope) == []
+    walked = {tuple(c["node"]) for c in result.changes if c["walked"]}
+    assert walked == {(i, j)}
+    for c in result.changes:   # a node no stride reached moves only to hold the neighbour rule, and says so
+        if not c["walked"]:
+            assert "held_from" in c or c["why"] == "moved only to hold the neighbour rule"
+    assert any("swing knee flexion" in c["why"] and "short" in c["why"] for c in result.changes)
+    summary = {tuple(n["node"]): n for n in result.nodes}
+    assert summary[(0, 0)]["left_alone"].startswith("no strides")
+    assert env.node(i, j).table.row("knee", "swing_flexion").fit_method != "refined"   # the original is untouched
+
+
+def test_bad_rules_are_refused():
+    with pytest.raises(ValueError, match="theta_step_deg"):
+        RefineRules(theta_step_deg=-1.0)
+    with pytest.raises(ValueError, match="k_step_fraction"):
+        RefineRules(k_step_fraction=1.5)
