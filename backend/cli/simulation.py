@@ -16,7 +16,17 @@ def _course(args: argparse.Namespace):
     return load_course(args.course)   # ValueError (unknown name, bad file) is reported by main()
 
 
+def _leg(args: argparse.Namespace):
+    """The bench leg of ``--leg FILE`` (or a repository leg's name), None for the nominal bench."""
+    if getattr(args, "leg", None) is None:
+        return None
+    from device_bridge.sim.leg_file import load_leg
+
+    return load_leg(args.leg)   # ValueError names the file, the field and the reason
+
+
 def cmd_simulate(args: argparse.Namespace) -> int:
+    geometry = _leg(args)
     if args.course is not None:
         from device_bridge.bench.controllers import NOMINAL_TASK
         from device_bridge.bench.walks import walk_course
@@ -25,7 +35,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         task = (args.speed if args.speed is not None else NOMINAL_TASK[0],
                 args.incline if args.speed is not None else NOMINAL_TASK[1])
         model = load(args) if args.controller != "fsmic" else None
-        score = walk_course(args.controller, course, model, args.mass, task=task, video=args.video)
+        score = walk_course(args.controller, course, model, args.mass, task=task, video=args.video, geometry=geometry)
         emit(score.to_dict(), args.format)
         return 0
     if args.table is not None:
@@ -40,7 +50,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
     model = load(args) if args.controller == "quasi-stiffness" or args.incline != 0.0 else None
     score = simulate(args.controller, args.speed, args.incline, args.seconds, args.mass, model,
-                     record=args.record, video=args.video)
+                     record=args.record, video=args.video, geometry=geometry)
     emit(score.to_dict(), args.format)
     return 0
 
@@ -49,14 +59,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.course is not None:
         from lab.course_compare import compare_course, format_course_compare
 
-        result = compare_course(load(args), _course(args), args.mass)
+        result = compare_course(load(args), _course(args), args.mass, geometry=_leg(args))
         print(format_course_compare(result))
         if args.out:
             write_json(args.out, result)
         return 0
     from lab.comparison import compare, format_compare, plot_compare
 
-    results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass)
+    results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass, _leg(args))
     rows = [score.to_dict() for score, _ in results]
     print(format_compare(rows))
     if args.out:
@@ -78,6 +88,22 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_refine(args: argparse.Namespace) -> int:
+    from device_bridge.bench.refine_walks import refine_on_bench
+    from device_bridge.sim.course import load_course
+    from device_bridge.sim.leg_model import LegGeometry
+    from lab.refine_report import format_refine
+
+    if not (0.0 < args.seconds_per_round <= 600.0):
+        raise ValueError(f"--seconds-per-round must be in (0, 600] s, got {args.seconds_per_round!r}")
+    result = refine_on_bench(load(args), _leg(args) or LegGeometry(), load_course(args.train_course),
+                             load_course(args.eval_course), args.rounds, args.seconds_per_round, args.mass)
+    print(format_refine(result))
+    if args.out is not None:
+        write_json(args.out, result)
+    return 0
+
+
 UNCHECKED = "UNCHECKED TABLE, bench study only: limits skipped, never for a device"
 
 
@@ -94,7 +120,7 @@ def _simulate_table(args: argparse.Namespace) -> int:
     incline = args.incline if args.speed is not None else task.incline_deg
     model = load(args) if incline != 0.0 else None
     score = simulate("table", speed, incline, args.seconds, table.body_mass_kg, model, record=args.record,
-                     video=args.video, table=table, skip_limits=args.skip_limits)
+                     video=args.video, table=table, skip_limits=args.skip_limits, geometry=_leg(args))
     out = {"table_file": str(args.table), **score.to_dict(), "controller": "table"}
     if args.skip_limits:
         out = {"limits": UNCHECKED, **out, "limit_violations": [v.message for v in check_table(table)]}
@@ -106,6 +132,10 @@ def _simulate_table(args: argparse.Namespace) -> int:
         return 0
     emit(out, args.format)
     return 0
+
+
+LEG_HELP = ("the simulated leg and person: a leg file (JSON; fields in device_bridge/sim/leg_file.py) or a repository "
+            "leg's name (stiff_geared, heavy_foot, short_person); default the nominal bench")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:
@@ -126,6 +156,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--skip-limits", action="store_true",
                    help="with --table: walk it even where it breaks the safety limits (bench studies only; every "
                         "line of output says so, and nothing from it reaches a device)")
+    p.add_argument("--leg", default=None, help=LEG_HELP)
     p.set_defaults(func=cmd_simulate)
     p = sub.add_parser("compare", help="quasi-stiffness vs FSMIC over a task grid on the simulated bench")
     p.add_argument("--course", default=None, help="compare the adaptive envelope, the nominal table and the FSMIC "
@@ -137,7 +168,20 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", type=Path, default=None)
     p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
+    p.add_argument("--leg", default=None, help=LEG_HELP)
     p.set_defaults(func=cmd_compare)
+    p = sub.add_parser("refine", help="the refinement loop on the bench: a leg walks a course with the envelope, the "
+                                      "envelope is refined from its strides, repeated; then an evaluation course with "
+                                      "the original envelope, the refined one and the FSMIC")
+    p.add_argument("--leg", default=None, help=LEG_HELP)
+    p.add_argument("--train-course", default="mixed", help="course walked each round (name or JSON file)")
+    p.add_argument("--eval-course", default="terrain", help="course of the evaluation, not used for training")
+    p.add_argument("--rounds", type=int, default=2, help="refinement rounds, 1-10")
+    p.add_argument("--seconds-per-round", type=float, default=120.0, help="walking per round (s), (0, 600]")
+    p.add_argument("--mass", type=float, default=75.0)
+    p.add_argument("--model", type=Path, default=None)
+    p.add_argument("--out", type=Path, default=None, help="write the JSON here")
+    p.set_defaults(func=cmd_refine)
     p = sub.add_parser("calibrate", help="walk the reference's own joint angles on the bench over a task grid: how far "
                                          "the body strays from where people's is")
     p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])

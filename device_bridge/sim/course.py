@@ -78,6 +78,24 @@ class Course:
     def duration_s(self) -> float:
         return float(sum(s.duration_s for s in self.segments))
 
+    def lasting(self, seconds: float) -> Course:
+        """The course walked for ``seconds`` (s): cut short, or walked again from its start (a repeat begins with a
+        transition back to the first task), its last piece dropped if shorter than a transition."""
+        if not (math.isfinite(seconds) and 0.0 < seconds <= MAX_COURSE_S):
+            raise ValueError(f"seconds must be in (0, {MAX_COURSE_S:g}], got {seconds!r}")
+        out: list[Segment] = []
+        left = seconds
+        k = 0
+        while left > 1e-9:
+            seg = self.segments[k % len(self.segments)]
+            take = min(seg.duration_s, left)
+            if out and take < self.transition_s:
+                break
+            out.append(Segment(take, seg.speed_mps, seg.incline_deg))
+            left -= take
+            k += 1
+        return Course(f"{self.name} ({seconds:g} s)", tuple(out), self.transition_s)
+
     @property
     def change_times_s(self) -> tuple[float, ...]:
         """When each change (transition) starts (s): every segment start but the first."""

@@ -54,3 +54,15 @@ def test_courses_come_by_name_or_from_a_file(tmp_path):
     path.write_text('{"segments": [{"duration_s": 5}]}')
     with pytest.raises(ValueError, match="course file"):
         load_course(path)
+
+
+def test_a_course_walked_for_a_given_time_is_cut_short_or_walked_again():
+    mixed = load_course("mixed")
+    short = mixed.lasting(30.0)
+    assert short.duration_s == pytest.approx(30.0) and short.segments[:2] == mixed.segments[:2]
+    longer = mixed.lasting(mixed.duration_s + 20.0)
+    assert longer.duration_s == pytest.approx(mixed.duration_s + 20.0)
+    assert longer.segments[len(mixed.segments)].speed_mps == mixed.segments[0].speed_mps
+    assert mixed.lasting(11.0).segments == (mixed.segments[0],)   # a last piece shorter than a transition is dropped
+    with pytest.raises(ValueError, match="seconds"):
+        mixed.lasting(-1.0)

@@ -1,0 +1,178 @@
+"""The refinement loop on the bench (``quasitune refine``): a leg that is not the model's walks a course with the
+envelope, the envelope is refined from those strides, again, then an evaluation course is walked with the original
+envelope, the refined one and the FSMIC.
+
+The strides are read as a real leg's session is: heel strikes from the pylon load (10 % of body weight after 150 ms
+below it, :func:`controller_core.session_summary.session_strikes`), each stride's task the leg's own estimate (the
+estimate the adaptive machine made at the heel strike that closed the stride), the features from its own joint angles
+and torques. The bench's true task is used only to score the evaluation, as every course walk is.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from controller_core.adaptive import StrideDecision
+from controller_core.envelope import Envelope
+from controller_core.gait_metrics import channel_strides, gait_channels
+from controller_core.model import QuasiStiffnessModel
+from controller_core.proposal import FeaturePrediction
+from controller_core.refine import EnvelopeRefinement, RefineRules, refine_envelope
+from controller_core.refine_evidence import QUANTITIES, gather_evidence
+from controller_core.session_summary import session_strikes
+from controller_core.stride_features import MeasuredStride, measure_strides, toe_off_phases
+from controller_core.units import G_MPS2
+from device_bridge.bench.controllers import default_envelope, make_controller
+from device_bridge.bench.versus import versus
+from device_bridge.sim.course import Course
+from device_bridge.sim.course_walk import CourseScore, run_course, score_course
+from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.simulate import WalkLog
+
+DECISION_MATCH_S = 0.3   # a load-based heel strike and the machine's own (at a higher load) within this are one strike
+
+
+def stride_tasks(log: WalkLog, strikes: np.ndarray, decisions: Sequence[StrideDecision]
+                 ) -> list[tuple[float, float] | None]:
+    """Per stride (between consecutive ``strikes``), the leg's own estimate of its task: the estimate made at the heel
+    strike that closed it; None where there was none (no confident stride yet, or no matching heel strike)."""
+    times = np.array([d.time_s for d in decisions]) if decisions else np.zeros(0)
+    t = log.channels["time_s"]
+    out: list[tuple[float, float] | None] = []
+    for _, b in itertools.pairwise(strikes):
+        if times.size == 0:
+            out.append(None)
+            continue
+        k = int(np.argmin(np.abs(times - t[b])))
+        est = decisions[k].estimate
+        ok = (abs(times[k] - t[b]) <= DECISION_MATCH_S and est is not None and math.isfinite(est.speed_mps)
+              and math.isfinite(est.incline_deg))
+        out.append((float(est.speed_mps), float(est.incline_deg)) if ok else None)   # type: ignore[union-attr]
+    return out
+
+
+def measured_strides(log: WalkLog, decisions: Sequence[StrideDecision], settle_s: float = 2.0
+                     ) -> tuple[list[MeasuredStride], dict[str, int], int]:
+    """The walk's strides after ``settle_s`` as the leg records them: (measured strides with their estimated tasks,
+    per feature the strides without it, strides in all)."""
+    c, mass = log.channels, log.mass_kg
+    strikes = session_strikes(c["time_s"], c["load_N"], mass)
+    strikes = strikes[c["time_s"][strikes] >= settle_s] if strikes.size else strikes
+    if strikes.size < 2:
+        return [], {}, 0
+    measured = gait_channels(c["knee_angle_rad"], c["ankle_angle_rad"], c["knee_torque_Nm"], c["ankle_torque_Nm"],
+                             mass)
+    tasks = stride_tasks(log, strikes, decisions)
+    toe = toe_off_phases(c["load_N"], strikes, 0.1 * mass * G_MPS2)
+    strides, not_found = measure_strides(channel_strides(measured, strikes), tasks, toe)
+    return strides, not_found, len(tasks)
+
+
+def targets_function(model: QuasiStiffnessModel) -> Callable[[float, float], dict[str, FeaturePrediction]]:
+    """The model's feature predictions at a task, by name, cached on a 0.05 m/s × 0.5° lattice (strides this close
+    share one target; the predictions change far less than the features' tolerances over it)."""
+    cache: dict[tuple[float, float], dict[str, FeaturePrediction]] = {}
+
+    def at(speed_mps: float, incline_deg: float) -> dict[str, FeaturePrediction]:
+        key = (round(round(speed_mps / 0.05) * 0.05, 3), round(round(incline_deg / 0.5) * 0.5, 2))
+        if key not in cache:
+            cache[key] = {f.spec.name: f for f in model.predict_features(*key)}
+        return cache[key]
+
+    return at
+
+
+def feature_abs_errors(strides: Sequence[MeasuredStride], targets_at: Callable[[float, float], dict]
+                       ) -> dict[str, float | None]:
+    """Per controlled quantity (unit in the key), the mean absolute error of the strides against their targets."""
+    out: dict[str, float | None] = {}
+    for q in QUANTITIES:
+        errs = [abs(q.display(*s.features[q.feature]) - q.display(t.phase, t.value))
+                for s in strides if q.feature in s.features
+                for t in (targets_at(s.speed_mps, s.incline_deg)[q.feature],)]
+        out[q.key] = round(float(np.mean(errs)), 3) if errs else None
+    return out
+
+
+def walk_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course, geometry: LegGeometry,
+                  controller: str = "adaptive") -> tuple[CourseScore, list[MeasuredStride], dict[str, int], int]:
+    """Walk the course with the envelope (or the FSMIC) on the leg: the score and the strides as the leg records them."""
+    ctrl = make_controller(controller, envelope.mass_kg, model, envelope=envelope, geometry=geometry)
+    log, traj = run_course(ctrl, course, envelope.mass_kg, geometry)
+    decisions = getattr(ctrl, "decisions_", None)
+    score = score_course(log, traj, course, decisions)
+    if decisions is None:   # the FSMIC estimates nothing: its strides are judged at the bench's true task
+        strikes = session_strikes(log.channels["time_s"], log.channels["load_N"], envelope.mass_kg)
+        strikes = strikes[log.channels["time_s"][strikes] >= 2.0]
+        tasks = [(float(traj.speed_mps[a:b].mean()), float(traj.incline_deg[a:b].mean()))
+                 for a, b in itertools.pairwise(strikes)]
+        measured = gait_channels(log.channels["knee_angle_rad"], log.channels["ankle_angle_rad"],
+                                 log.channels["knee_torque_Nm"], log.channels["ankle_torque_Nm"], envelope.mass_kg)
+        strides, not_found = measure_strides(channel_strides(measured, strikes), tasks) if len(tasks) else ([], {})
+        return score, strides, not_found, len(tasks)
+    strides, not_found, total = measured_strides(log, decisions)
+    return score, strides, not_found, total
+
+
+def _evaluation(score: CourseScore, strides: Sequence[MeasuredStride], targets_at) -> dict[str, object]:
+    s = score.summary
+    errors = feature_abs_errors(strides, targets_at)
+    return {"falls": s["falls"], "toe_catches": s["toe_catches"],
+            "loaded_swing_ms_max_stride": s.get("loaded_swing_ms_max_stride"),
+            "knee_angle_rmse_deg": s.get("knee_angle_rmse_deg"), "ankle_angle_rmse_deg": s.get("ankle_angle_rmse_deg"),
+            "knee_angle_rmse_ci95_deg": s.get("knee_angle_rmse_ci95_deg"),
+            "ankle_angle_rmse_ci95_deg": s.get("ankle_angle_rmse_ci95_deg"),
+            "hip_sink_max_mm": s.get("hip_sink_max_mm"), "strides": s.get("strides"),
+            "feature_abs_error": errors,
+            "feature_mean_abs_error": _mean_error(errors)}
+
+
+def _mean_error(errors: dict[str, float | None]) -> float | None:
+    """The mean over the controlled quantities of their mean absolute errors (deg and % cycle alike, each against its
+    own 2-unit tolerance, so they weigh the same)."""
+    vals = [v for v in errors.values() if v is not None]
+    return round(float(np.mean(vals)), 3) if vals else None
+
+
+def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Course, evaluate: Course, rounds: int = 2,
+                    seconds_per_round: float = 120.0, mass_kg: float = 75.0, envelope: Envelope | None = None,
+                    rules: RefineRules | None = None) -> dict[str, object]:
+    """The loop (module docstring). Returns the JSON of ``quasitune refine``: ``rounds``, ``evaluation`` (``original``,
+    ``refined``, ``fsmic``) and ``refined_minus_original``, plus the refined envelope."""
+    if not (isinstance(rounds, int) and 1 <= rounds <= 10):
+        raise ValueError(f"rounds must be a whole number from 1 to 10, got {rounds!r}")
+    original = envelope or default_envelope(model, mass_kg)
+    targets_at = targets_function(model)
+    course = train.lasting(seconds_per_round)
+    current = original
+    out_rounds = []
+    refinement: EnvelopeRefinement | None = None
+    for k in range(rounds):
+        score, strides, not_found, total = walk_envelope(current, model, course, geometry)
+        evidence = gather_evidence(strides, current.speeds_mps, current.inclines_deg, targets_at)
+        refinement = refine_envelope(current, evidence, rules, refinement.nodes if refinement else None)
+        out_rounds.append({
+            "round": k + 1, "course": course.name, "strides": total, "strides_used": len(strides),
+            "strides_without_feature": not_found, "falls": score.summary["falls"],
+            "toe_catches": score.summary["toe_catches"],
+            "feature_abs_error": feature_abs_errors(strides, targets_at),
+            "nodes_changed": sorted({tuple(c["node"]) for c in refinement.changes}),
+            "changes": [{**c, "before": round(c["before"], 4), "after": round(c["after"], 4)}
+                        for c in refinement.changes],
+            "nodes": [n for n in refinement.nodes if n["strides"]],
+        })
+        current = refinement.envelope
+    walks = {name: walk_envelope(env, model, evaluate, geometry, controller)
+             for name, env, controller in (("original", original, "adaptive"), ("refined", current, "adaptive"),
+                                           ("fsmic", original, "fsmic"))}
+    diff = versus(walks["refined"][0], walks["original"][0], "refined", "original")
+    return {"leg": geometry.name, "mass_kg": mass_kg, "train_course": course.to_json(),
+            "eval_course": evaluate.to_json(), "rounds": out_rounds,
+            "evaluation": {name: _evaluation(w[0], w[1], targets_at) for name, w in walks.items()},
+            "refined_minus_original": {ch: {"difference": d["rmse_difference"], "ci95": d["ci95"],
+                                            "verdict": d["verdict"]} for ch, d in diff.items()},
+            "refined_envelope": current.to_json()}
