@@ -37,6 +37,7 @@ from backend.routers import (
     proposals,
     pushes,
     reference,
+    refinements,
     sessions,
     users,
 )
@@ -129,7 +130,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         return JSONResponse({"detail": exc.message, **exc.extra}, status_code=exc.status, headers=headers)
 
     for router in (health.router, auth.router, users.router, patients.router, proposals.router, envelopes.router,
-                   previews.router, reference.router, pushes.router, sessions.router, devices.router, audit.router):
+                   previews.router, reference.router, pushes.router, sessions.router, devices.router, audit.router,
+                   refinements.router):
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)

@@ -27,6 +27,7 @@ import numpy as np
 from scipy import stats
 
 from controller_core.envelope_blend import node_weights
+from controller_core.model import QuasiStiffnessModel
 from controller_core.proposal import FeaturePrediction
 from controller_core.stride_features import MeasuredStride
 
@@ -143,7 +144,8 @@ def judge(key: str, values: np.ndarray, targets: np.ndarray, weights: np.ndarray
 def gather_evidence(strides: Sequence[MeasuredStride], speeds_mps: Sequence[float], inclines_deg: Sequence[float],
                     targets_at: Callable[[float, float], dict[str, FeaturePrediction]],
                     ) -> list[NodeEvidence]:
-    """Per node of the grid (speed-major), the evidence of the strides (module docstring).
+    """Per node of the grid (speed-major), the evidence of the strides (module docstring); a grid of one node (one
+    table, at its task) takes every stride at full weight.
 
     Args:
         strides: measured strides with their tasks (strides without a finite task are left out).
@@ -155,8 +157,9 @@ def gather_evidence(strides: Sequence[MeasuredStride], speeds_mps: Sequence[floa
         if not (math.isfinite(s.speed_mps) and math.isfinite(s.incline_deg)):
             continue
         targets = targets_at(s.speed_mps, s.incline_deg)
-        rows += [(i, j, w, s, targets) for i, j, w in node_weights(speeds_mps, inclines_deg, s.speed_mps,
-                                                                   s.incline_deg)]
+        weights = ([(0, 0, 1.0)] if shape == (1, 1)    # one table: every stride is its evidence
+                   else node_weights(speeds_mps, inclines_deg, s.speed_mps, s.incline_deg))
+        rows += [(i, j, w, s, targets) for i, j, w in weights]
     out = []
     for i in range(shape[0]):
         for j in range(shape[1]):
@@ -179,4 +182,30 @@ def gather_evidence(strides: Sequence[MeasuredStride], speeds_mps: Sequence[floa
                 measured["toe_off_pct"] = 100.0 * float(np.sum(tw * np.array([t[1] for t in toe])) / tw.sum())
             out.append(NodeEvidence((i, j), float(speeds_mps[i]), float(inclines_deg[j]), len(mine),
                                     float(sum(w for w, _, _ in mine)), quantities, measured))
+    return out
+
+
+def model_targets(model: QuasiStiffnessModel) -> Callable[[float, float], dict[str, FeaturePrediction]]:
+    """The model's feature predictions at a task, by name, cached on a 0.05 m/s × 0.5° lattice (strides this close
+    share one target; the predictions change far less than the features' tolerances over it)."""
+    cache: dict[tuple[float, float], dict[str, FeaturePrediction]] = {}
+
+    def at(speed_mps: float, incline_deg: float) -> dict[str, FeaturePrediction]:
+        key = (round(round(speed_mps / 0.05) * 0.05, 3), round(round(incline_deg / 0.5) * 0.5, 2))
+        if key not in cache:
+            cache[key] = {f.spec.name: f for f in model.predict_features(*key)}
+        return cache[key]
+
+    return at
+
+
+def feature_abs_errors(strides: Sequence[MeasuredStride],
+                       targets_at: Callable[[float, float], dict[str, FeaturePrediction]]) -> dict[str, float | None]:
+    """Per controlled quantity (unit in the key), the mean absolute error of the strides against their targets."""
+    out: dict[str, float | None] = {}
+    for q in QUANTITIES:
+        errs = [abs(q.display(*s.features[q.feature]) - q.display(t.phase, t.value))
+                for s in strides if q.feature in s.features
+                for t in (targets_at(s.speed_mps, s.incline_deg)[q.feature],)]
+        out[q.key] = round(float(np.mean(errs)), 3) if errs else None
     return out

@@ -16,6 +16,7 @@ from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest, TrendDay
+from backend.session_strides import stride_tasks
 from backend.store import devices as devices_store
 from backend.store import envelopes, patients
 from backend.store import sessions as store
@@ -106,9 +107,9 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
         summary["adaptive"] = adaptive_summary(
             times, knee, ankle, strikes, _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]),
             cols["adaptive_mode"], envelope.speeds_mps, envelope.inclines_deg, reference_at, running_table=running)
-    stride_tasks, against = _stride_tasks(session, summary, times, strikes)
+    tasks, against = stride_tasks(session, summary, times, strikes)
     summary["headline"] = own_task_errors(
-        knee, ankle, strikes, stride_tasks, reference_at, against,
+        knee, ankle, strikes, tasks, reference_at, against,
         scored=[bool(running[a:b + 1].all()) for a, b in itertools.pairwise(strikes)])
     period = summary["sample_period_s"] or 0.0
     summary["mode_s"] = {m.name.lower(): round(float(np.count_nonzero(modes == m)) * period, 3) for m in Mode}
@@ -117,23 +118,6 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
     summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
     store.stop_session(conn, session_id, summary, user)
     return store.get_session(conn, session_id)
-
-
-def _stride_tasks(session: dict, summary: dict, times: np.ndarray, strikes: np.ndarray
-                  ) -> tuple[list[tuple[float, float] | None], str]:
-    """Each stride's own task and where it comes from: on a bench course, the course's task at the stride (the truth);
-    with an envelope, the leg's own estimate; otherwise the session's task."""
-    if session["course"] in COURSES and times.size:
-        mid = np.array([0.5 * (times[a] + times[b]) for a, b in itertools.pairwise(strikes)]) - times[0]
-        speed, incline = COURSES[session["course"]].task_at(mid)
-        return ([(float(v), float(g)) for v, g in zip(speed, incline, strict=True)],
-                f"each stride's own task on the '{session['course']}' course")
-    adaptive = summary.get("adaptive")
-    if adaptive:
-        return ([None if x is None else (x[0], x[1]) for x in adaptive["stride_tasks"]],
-                "each stride's task as the leg estimated it")
-    t = session["task"]
-    return [(t["speed_mps"], t["incline_deg"])] * max(int(strikes.size) - 1, 0), "the session's task"
 
 
 def _floats(values: list) -> np.ndarray:

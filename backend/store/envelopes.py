@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from collections.abc import Callable
 
 from backend.clinical_words import field_words
 from backend.db import utc_now, write_transaction
@@ -170,18 +171,22 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
 
 
 def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[Envelope], changes: list[dict], comment: str,
-                actor: User) -> dict:
+                actor: User, action: str = "envelope.edit",
+                also: Callable[[sqlite3.Connection, dict], dict] | None = None) -> dict:
     """Store an edited envelope as a new draft of the parent's patient, as the device runs it: ``checked`` is the
-    caller's :func:`~device_bridge.as_run.as_run` of the edit (checked and found within every limit, once)."""
+    caller's :func:`~device_bridge.as_run.as_run` of the edit (checked and found within every limit, once).
+    ``action``: what the audit calls it (a refinement is ``envelope.refine``); ``also``: run in the same transaction
+    with the new version's metadata (e.g. store the refinement's evidence), its result added to the audit entry."""
     envelope = checked.item
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
         meta = _insert(conn, parent["patient_id"], parent_id, checked, comment, actor, parent["extrapolation_reason"])
-        audit.record(conn, actor.id, actor.username, "envelope.edit", "envelope", meta["id"],
+        extra = also(conn, meta) if also is not None else {}
+        audit.record(conn, actor.id, actor.username, action, "envelope", meta["id"],
                      before={"envelope_id": parent_id, "version": parent["version"],
                              "wire_crc32": _hex(parent["wire_crc32"])},
                      after={"version": meta["version"], "wire_crc32": _hex(meta["wire_crc32"]), "comment": comment,
-                            "changes": changes})
+                            "changes": changes, **extra})
     return _public(meta, envelope, full=True, violations=checked.violations)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from collections.abc import Callable
 
 import numpy as np
 from pydantic_core import to_json
@@ -168,9 +169,12 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
 
 
 def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[ParameterTable], changes: list[dict],
-                comment: str, actor: User) -> dict:
+                comment: str, actor: User, action: str = "proposal.edit",
+                also: Callable[[sqlite3.Connection, dict], dict] | None = None) -> dict:
     """Store an edited table as a new draft derived from ``parent_id``, as the device runs it: ``checked`` is the
-    caller's :func:`~device_bridge.as_run.as_run` of the edit (its check made once, by the caller that refuses)."""
+    caller's :func:`~device_bridge.as_run.as_run` of the edit (its check made once, by the caller that refuses).
+    ``action``: what the audit calls it (a refinement is ``proposal.refine``); ``also``: run in the same transaction
+    with the new version's metadata (e.g. store the refinement's evidence), its result added to the audit entry."""
     table, violations = checked.item, checked.violations
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
@@ -180,12 +184,13 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[Paramet
                        parent["model_json"], table, comment, actor, violations, parent["extrapolation_reason"])
         out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
         pid = meta["id"]
-        audit.record(conn, actor.id, actor.username, "proposal.edit", "proposal", pid,
+        extra = also(conn, meta) if also is not None else {}
+        audit.record(conn, actor.id, actor.username, action, "proposal", pid,
                      before={"proposal_id": parent_id, "version": parent["version"],
                              "table_sha256": parent["table_sha256"],
                              **{c["field"]: c["before"] for c in changes}},
                      after={"version": out["version"], "table_sha256": out["table_sha256"], "comment": comment,
-                            **{c["field"]: c["after"] for c in changes}})
+                            **{c["field"]: c["after"] for c in changes}, **extra})
     return out
 
 

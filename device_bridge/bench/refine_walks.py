@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -20,9 +20,8 @@ from controller_core.adaptive import StrideDecision
 from controller_core.envelope import Envelope
 from controller_core.gait_metrics import channel_strides, gait_channels
 from controller_core.model import QuasiStiffnessModel
-from controller_core.proposal import FeaturePrediction
 from controller_core.refine import EnvelopeRefinement, RefineRules, refine_envelope
-from controller_core.refine_evidence import QUANTITIES, gather_evidence
+from controller_core.refine_evidence import feature_abs_errors, gather_evidence, model_targets
 from controller_core.session_summary import session_strikes
 from controller_core.stride_features import MeasuredStride, measure_strides, toe_off_phases
 from controller_core.units import G_MPS2
@@ -70,32 +69,6 @@ def measured_strides(log: WalkLog, decisions: Sequence[StrideDecision], settle_s
     toe = toe_off_phases(c["load_N"], strikes, 0.1 * mass * G_MPS2)
     strides, not_found = measure_strides(channel_strides(measured, strikes), tasks, toe)
     return strides, not_found, len(tasks)
-
-
-def targets_function(model: QuasiStiffnessModel) -> Callable[[float, float], dict[str, FeaturePrediction]]:
-    """The model's feature predictions at a task, by name, cached on a 0.05 m/s × 0.5° lattice (strides this close
-    share one target; the predictions change far less than the features' tolerances over it)."""
-    cache: dict[tuple[float, float], dict[str, FeaturePrediction]] = {}
-
-    def at(speed_mps: float, incline_deg: float) -> dict[str, FeaturePrediction]:
-        key = (round(round(speed_mps / 0.05) * 0.05, 3), round(round(incline_deg / 0.5) * 0.5, 2))
-        if key not in cache:
-            cache[key] = {f.spec.name: f for f in model.predict_features(*key)}
-        return cache[key]
-
-    return at
-
-
-def feature_abs_errors(strides: Sequence[MeasuredStride], targets_at: Callable[[float, float], dict]
-                       ) -> dict[str, float | None]:
-    """Per controlled quantity (unit in the key), the mean absolute error of the strides against their targets."""
-    out: dict[str, float | None] = {}
-    for q in QUANTITIES:
-        errs = [abs(q.display(*s.features[q.feature]) - q.display(t.phase, t.value))
-                for s in strides if q.feature in s.features
-                for t in (targets_at(s.speed_mps, s.incline_deg)[q.feature],)]
-        out[q.key] = round(float(np.mean(errs)), 3) if errs else None
-    return out
 
 
 def walk_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course, geometry: LegGeometry,
@@ -146,7 +119,7 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
     if not (isinstance(rounds, int) and 1 <= rounds <= 10):
         raise ValueError(f"rounds must be a whole number from 1 to 10, got {rounds!r}")
     original = envelope or default_envelope(model, mass_kg)
-    targets_at = targets_function(model)
+    targets_at = model_targets(model)
     course = train.lasting(seconds_per_round)
     current = original
     out_rounds = []

@@ -1,0 +1,154 @@
+"""Refinement from walking, for the API: stopped sessions on an approved version → a refined draft version.
+
+The sessions must be this version's (the leg reported running exactly it) and this patient's, stopped, and have run
+the version for at least one whole stride; their strides are read as the session report reads them
+(:mod:`backend.session_strides`), judged per node against the model's targets at each stride's task
+(:mod:`controller_core.refine_evidence`) and stepped (:mod:`controller_core.refine`). The result is a new draft derived
+from the approved version, stored with its evidence in the same transaction, audited as ``envelope.refine`` or
+``proposal.refine``, and decided like any version: nothing reaches the leg without approval. A refinement that would
+change nothing, or that has nothing to learn from, is refused with why and stores nothing.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from dataclasses import asdict
+
+from backend.errors import ConflictError, InvalidError
+from backend.session_strides import session_strides
+from backend.store import envelopes, proposals, refinements
+from backend.store import sessions as sessions_store
+from backend.store.users import User
+from controller_core.model import QuasiStiffnessModel
+from controller_core.refine import RefineRules, refine_envelope, refine_node
+from controller_core.refine_evidence import (
+    MIN_CONSISTENT_STRIDES,
+    QUANTITIES,
+    feature_abs_errors,
+    gather_evidence,
+    model_targets,
+)
+from controller_core.stride_features import MeasuredStride
+from device_bridge.as_run import as_run
+
+SENSITIVITY = ("the sub-phase spring read at the node's own measured strides (controller_core.refine): an equilibrium "
+               "angle moves its peak one for one, a stiffness scales the peak's distance from it and its timing")
+
+
+def _sessions(conn: sqlite3.Connection, kind: str, version_id: int, patient_id: int, session_ids: list[int]
+              ) -> list[dict]:
+    """The sessions, each checked to be this version's and this patient's, stopped (refusals say which and why)."""
+    label = {"envelope": "this envelope", "proposal": "this table"}[kind]
+    out = []
+    for sid in dict.fromkeys(session_ids):
+        s = sessions_store.get_session(conn, sid)   # 404 for an unknown id
+        if s["patient_id"] != patient_id:
+            raise InvalidError(f"session {sid} records patient {s['patient_code']}, not the patient of {label}: a "
+                               "refinement learns from the patient's own strides only")
+        ran = s["envelope_id"] if kind == "envelope" else s["proposal_id"]
+        if ran != version_id:
+            on = s["table_label"] or "no table of ours"
+            raise InvalidError(f"session {sid} ran {on}, not {label}: refine the version the strides were walked with")
+        if s["status"] != "stopped":
+            raise ConflictError(f"session {sid} is still recording: stop it first")
+        out.append(s)
+    return out
+
+
+def _strides(conn: sqlite3.Connection, sessions: list[dict]) -> tuple[list[MeasuredStride], dict]:
+    """Every session's measured strides, and what was counted along the way (refuses a session that never ran)."""
+    strides: list[MeasuredStride] = []
+    total = on_table = 0
+    not_found: dict[str, int] = {}
+    for s in sessions:
+        got = session_strides(conn, s)
+        if got.total and not got.on_table:
+            raise InvalidError(f"session {s['id']} never ran its version for a whole stride (safe mode or no table "
+                               "all along): its strides say nothing about the version")
+        strides += got.strides
+        total += got.total
+        on_table += got.on_table
+        for k, v in got.not_found.items():
+            not_found[k] = not_found.get(k, 0) + v
+    if not strides:
+        raise InvalidError(f"no strides to learn from in sessions {[s['id'] for s in sessions]}: {total} stride(s) "
+                           f"in all, {on_table} on the version, none with a task to compare with")
+    return strides, {"strides": total, "strides_on_version": on_table, "strides_used": len(strides),
+                     "strides_without_feature": {k: v for k, v in not_found.items() if v}}
+
+
+def _evidence(counted: dict, strides: list[MeasuredStride], targets, nodes: list[dict], changes: list[dict],
+              session_ids: list[int], rules: RefineRules) -> dict:
+    return {**counted, "session_ids": session_ids, "feature_abs_error": feature_abs_errors(strides, targets),
+            "quantities": {q.key: {"label": q.label, "tolerance": q.tolerance,
+                                   "unit": "deg" if q.part == "value" else "% gait cycle"} for q in QUANTITIES},
+            "nodes": nodes, "changes": changes, "nodes_changed": sorted({tuple(c["node"]) for c in changes}),
+            "sensitivity": SENSITIVITY,
+            "rules": {**{k: v for k, v in asdict(rules).items() if k != "limits"},
+                      "min_consistent_strides": MIN_CONSISTENT_STRIDES}}
+
+
+def _nothing(nodes: list[dict]) -> InvalidError:
+    why = sorted({n["left_alone"] for n in nodes if n["strides"] and n.get("left_alone")})
+    return InvalidError("nothing to refine, nothing stored: " + ("; ".join(why) if why else "no node was walked"),
+                        nodes=nodes)
+
+
+def refine_envelope_version(conn: sqlite3.Connection, envelope_id: int, session_ids: list[int], comment: str,
+                            actor: User, model: QuasiStiffnessModel) -> dict:
+    """A refined draft of an approved envelope from its sessions (module docstring); returns the refinement."""
+    row = envelopes.get_row(conn, envelope_id)
+    if row["status"] != "approved":
+        raise ConflictError(f"envelope {envelope_id} is {row['status']}: a refinement derives from the approved "
+                            "version the leg walked")
+    parent = envelopes.stored_envelope(row)
+    sessions = _sessions(conn, "envelope", envelope_id, row["patient_id"], session_ids)
+    strides, counted = _strides(conn, sessions)
+    targets = model_targets(model)
+    evidence = gather_evidence(strides, parent.speeds_mps, parent.inclines_deg, targets)
+    before = refinements.of_version(conn, "envelope", envelope_id)
+    rules = RefineRules()
+    result = refine_envelope(parent, evidence, rules, before["nodes"] if before else None)
+    if not result.changes:
+        raise _nothing(result.nodes)
+    checked = as_run(result.envelope)
+    if checked.violations:   # not reached by construction; refused rather than stored
+        raise InvalidError("the refined envelope breaks a limit, nothing stored: " + "; ".join(
+            v.message for v in checked.violations))
+    body = _evidence(counted, strides, targets, result.nodes, result.changes, [s["id"] for s in sessions], rules)
+    created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
+                                    refinements.recorder("envelope", envelope_id, body["session_ids"], body, actor))
+    return {**refinements.of_version(conn, "envelope", created["id"]), "version": created}
+
+
+def refine_proposal_version(conn: sqlite3.Connection, proposal_id: int, session_ids: list[int], comment: str,
+                            actor: User, model: QuasiStiffnessModel) -> dict:
+    """A refined draft of an approved table from its sessions: the table is one node at its task, every stride its
+    evidence; returns the refinement."""
+    row = proposals.get_row(conn, proposal_id)
+    if row["status"] != "approved":
+        raise ConflictError(f"table {proposal_id} is {row['status']}: a refinement derives from the approved version "
+                            "the leg walked")
+    table = proposals.stored_table(row)
+    sessions = _sessions(conn, "proposal", proposal_id, row["patient_id"], session_ids)
+    strides, counted = _strides(conn, sessions)
+    targets = model_targets(model)
+    [evidence] = gather_evidence(strides, [row["speed_mps"]], [row["incline_deg"]], targets)
+    before = refinements.of_version(conn, "proposal", proposal_id)
+    rules = RefineRules()
+    result = refine_node(table, evidence, rules, previous=before["nodes"][0] if before else None)
+    node = {**evidence.to_json(), "changed": bool(result.changes), "left_alone": result.left_alone}
+    for key, q in node["quantities"].items():
+        q["expected_error"] = None if key not in result.expected_error else round(result.expected_error[key], 3)
+    if not result.changes:
+        raise _nothing([node])
+    checked = as_run(result.table)
+    if checked.violations:
+        raise InvalidError("the refined table breaks a limit, nothing stored: " + "; ".join(
+            v.message for v in checked.violations))
+    changes = [{"node": [0, 0], "speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"], "walked": True,
+                **c} for c in result.changes]
+    body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules)
+    created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
+                                    refinements.recorder("proposal", proposal_id, body["session_ids"], body, actor))
+    return {**refinements.of_version(conn, "proposal", created["id"]), "version": created}

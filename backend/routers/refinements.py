@@ -1,0 +1,67 @@
+"""Refinements from walking: a refined draft of an approved envelope or table from the patient's sessions on it."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, status
+
+from backend.deps import Conn, CurrentUser, Model, Prosthetist
+from backend.errors import InvalidError, NotFoundError
+from backend.refinement import refine_envelope_version, refine_proposal_version
+from backend.schemas.common import IdPath
+from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
+from backend.schemas.refinements import RefinementOut, RefinementRequest
+from backend.store import envelopes, proposals, refinements
+
+router = APIRouter(prefix="/api", tags=["refinements"], responses=UNAUTHORIZED)
+
+
+def _ids(body: RefinementRequest) -> list[int]:
+    try:
+        return body.ids()
+    except ValueError as e:
+        raise InvalidError(str(e)) from e
+
+
+@router.post("/envelopes/{envelope_id}/refinements", response_model=RefinementOut,
+             status_code=status.HTTP_201_CREATED, responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT, **UNAVAILABLE})
+def refine_envelope(envelope_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
+    """Refine an approved envelope from the patient's stopped sessions on it (prosthetist): each stride's features
+    against the model's targets at the leg's own estimate of its task, gathered per node by the leg's blend weights,
+    a damped step of the rows where the strides agree. The result is a new draft (diff, edit, preview, approve or
+    reject, push as any), stored with its evidence and audited. Refused with why, storing nothing: sessions of another
+    patient or version, still recording, in safe mode all along, no strides, nothing to change."""
+    return refine_envelope_version(conn, envelope_id, _ids(body), body.comment, user, model)
+
+
+@router.post("/proposals/{proposal_id}/refinements", response_model=RefinementOut,
+             status_code=status.HTTP_201_CREATED, responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT, **UNAVAILABLE})
+def refine_proposal(proposal_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
+    """Refine an approved table from the patient's stopped sessions on it (prosthetist), as an envelope's node at the
+    table's task; the same rules and refusals."""
+    return refine_proposal_version(conn, proposal_id, _ids(body), body.comment, user, model)
+
+
+@router.get("/refinements/{refinement_id}", response_model=RefinementOut, responses=NOT_FOUND)
+def get_refinement(refinement_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    """A refinement: its evidence per node, its changes and where it came from."""
+    return refinements.get_refinement(conn, refinement_id)
+
+
+@router.get("/envelopes/{envelope_id}/refinement", response_model=RefinementOut, responses=NOT_FOUND)
+def refinement_of_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    """The refinement that made this envelope (404 when it was not made by one)."""
+    envelopes.get_row(conn, envelope_id)
+    found = refinements.of_version(conn, "envelope", envelope_id)
+    if found is None:
+        raise NotFoundError(f"envelope {envelope_id} was not made by a refinement")
+    return found
+
+
+@router.get("/proposals/{proposal_id}/refinement", response_model=RefinementOut, responses=NOT_FOUND)
+def refinement_of_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
+    """The refinement that made this table (404 when it was not made by one)."""
+    proposals.get_row(conn, proposal_id)
+    found = refinements.of_version(conn, "proposal", proposal_id)
+    if found is None:
+        raise NotFoundError(f"table {proposal_id} was not made by a refinement")
+    return found
