@@ -81,7 +81,7 @@ def walked(api, model):
 
 
 def test_a_refinement_is_a_draft_with_its_evidence_that_moves_the_short_swing_up(api, walked):
-    patient, table, sid = walked
+    _, table, sid = walked
     c, pro = api.client, api.as_("prosthetist")
     versions = api.count("proposals")
     r = c.post(f"/api/proposals/{table['id']}/refinements", headers=pro,
@@ -111,7 +111,7 @@ def test_a_refinement_is_a_draft_with_its_evidence_that_moves_the_short_swing_up
 
 
 def test_a_refined_draft_cannot_reach_the_leg_without_approval(api, walked):
-    patient, table, sid = walked
+    _, table, sid = walked
     c, pro = api.client, api.as_("prosthetist")
     ref = c.post(f"/api/proposals/{table['id']}/refinements", headers=pro,
                  json={"session_ids": [sid], "comment": "refine"}).json()

@@ -44,7 +44,7 @@ def test_the_repository_legs_load_by_name_and_by_path(tmp_path):
     bad.write_text("{not json")
     with pytest.raises(ValueError, match="not JSON"):
         load_leg(bad)
-    with pytest.raises(ValueError, match="the repository's legs: .*stiff_geared"):
+    with pytest.raises(ValueError, match=r"the repository's legs: .*stiff_geared"):
         load_leg(tmp_path / "missing.json")
     good = tmp_path / "light.json"
     good.write_text(json.dumps({"foot_mass_kg": 0.5}))
