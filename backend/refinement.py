@@ -30,6 +30,32 @@ from controller_core.refine_evidence import (
 )
 from controller_core.stride_features import MeasuredStride
 from device_bridge.as_run import as_run
+from device_bridge.bench.refine_walks import bench_feature_errors
+
+BENCH_NODES = 6          # changed nodes the bench walks for the expected change (the most walked first)
+BENCH_SECONDS = 12.0
+
+
+def _bench_expectation(nodes: list[dict], before: list, after: list, mass_kg: float, model: QuasiStiffnessModel
+                       ) -> None:
+    """Per changed node (at most :data:`BENCH_NODES`, most walked first), what the bench expects: the node's old and
+    new rows walked at its task (``BENCH_SECONDS``), the controlled quantities' mean errors with the same feature
+    definitions; added to each node's summary as ``bench`` (the bench is not the patient: read the change, after −
+    before, more than either figure)."""
+    changed = sorted((k for k, n in enumerate(nodes) if n["changed"] and n["strides"]),
+                     key=lambda k: -nodes[k]["stride_weight"])
+    for rank, k in enumerate(changed):
+        n = nodes[k]
+        if rank >= BENCH_NODES:
+            n["bench"] = {"walked": False, "why": f"the bench walks the {BENCH_NODES} most walked changed nodes"}
+            continue
+        old = bench_feature_errors(before[k], n["speed_mps"], n["incline_deg"], mass_kg, model, BENCH_SECONDS)
+        new = bench_feature_errors(after[k], n["speed_mps"], n["incline_deg"], mass_kg, model, BENCH_SECONDS)
+        n["bench"] = {"walked": True, "seconds": BENCH_SECONDS, "before": old["error"], "after": new["error"],
+                      "falls_before": old["falls"], "falls_after": new["falls"],
+                      "change": {q: None if old["error"][q] is None or new["error"][q] is None
+                                 else round(new["error"][q] - old["error"][q], 3) for q in old["error"]}}
+
 
 SENSITIVITY = ("the sub-phase spring read at the node's own measured strides (controller_core.refine): an equilibrium "
                "angle moves its peak one for one, a stiffness scales the peak's distance from it and its timing")
@@ -115,6 +141,7 @@ def refine_envelope_version(conn: sqlite3.Connection, envelope_id: int, session_
     if checked.violations:   # not reached by construction; refused rather than stored
         raise InvalidError("the refined envelope breaks a limit, nothing stored: " + "; ".join(
             v.message for v in checked.violations))
+    _bench_expectation(result.nodes, parent.tables(), result.envelope.tables(), parent.mass_kg, model)
     body = _evidence(counted, strides, targets, result.nodes, result.changes, [s["id"] for s in sessions], rules)
     created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
                                     refinements.recorder("envelope", envelope_id, body["session_ids"], body, actor))
@@ -148,6 +175,8 @@ def refine_proposal_version(conn: sqlite3.Connection, proposal_id: int, session_
             v.message for v in checked.violations))
     changes = [{"node": [0, 0], "speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"], "walked": True,
                 **c} for c in result.changes]
+    node["stride_weight"] = evidence.weight
+    _bench_expectation([node], [table], [result.table], row["body_mass_kg"], model)
     body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules)
     created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
                                     refinements.recorder("proposal", proposal_id, body["session_ids"], body, actor))

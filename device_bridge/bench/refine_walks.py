@@ -18,19 +18,21 @@ import numpy as np
 
 from controller_core.adaptive import StrideDecision
 from controller_core.envelope import Envelope
-from controller_core.gait_metrics import channel_strides, gait_channels
+from controller_core.gait_metrics import channel_strides, episodes, gait_channels
 from controller_core.model import QuasiStiffnessModel
 from controller_core.refine import EnvelopeRefinement, RefineRules, refine_envelope
-from controller_core.refine_evidence import feature_abs_errors, gather_evidence, model_targets
+from controller_core.refine_evidence import QUANTITIES, feature_abs_errors, gather_evidence, model_targets
 from controller_core.session_summary import session_strikes
 from controller_core.stride_features import MeasuredStride, measure_strides, toe_off_phases
+from controller_core.table import ParameterTable
 from controller_core.units import G_MPS2
 from device_bridge.bench.controllers import default_envelope, make_controller
+from device_bridge.bench.task_reference import task_reference
 from device_bridge.bench.versus import versus
 from device_bridge.sim.course import Course
 from device_bridge.sim.course_walk import CourseScore, run_course, score_course
 from device_bridge.sim.leg_model import LegGeometry
-from device_bridge.sim.simulate import WalkLog
+from device_bridge.sim.simulate import WalkLog, fall_mask, run_walk
 
 DECISION_MATCH_S = 0.3   # a load-based heel strike and the machine's own (at a higher load) within this are one strike
 
@@ -89,6 +91,32 @@ def walk_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course
         return score, strides, not_found, len(tasks)
     strides, not_found, total = measured_strides(log, decisions)
     return score, strides, not_found, total
+
+
+def bench_feature_errors(table: ParameterTable, speed_mps: float, incline_deg: float, mass_kg: float,
+                         model: QuasiStiffnessModel, seconds: float = 12.0, geometry: LegGeometry | None = None
+                         ) -> dict[str, object]:
+    """What the bench expects of a table at a task: walked ``seconds`` on the leg ``geometry``, its strides read as a
+    session's (after 2 s) and each controlled quantity's mean error against the model's target (measured − target,
+    the quantity's unit), with the walk's falls. The same feature definitions as the leg's own strides."""
+    ref = task_reference(speed_mps, incline_deg, model, mass_kg)
+    log = run_walk(make_controller("table", mass_kg, table=table), ref, mass_kg, seconds, geometry)
+    c = log.channels
+    strikes = session_strikes(c["time_s"], c["load_N"], mass_kg)
+    strikes = strikes[c["time_s"][strikes] >= 2.0] if strikes.size else strikes
+    measured = gait_channels(c["knee_angle_rad"], c["ankle_angle_rad"], c["knee_torque_Nm"], c["ankle_torque_Nm"],
+                             mass_kg)
+    tasks = [(speed_mps, incline_deg)] * max(int(strikes.size) - 1, 0)
+    strides, _ = measure_strides(channel_strides(measured, strikes), tasks) if tasks else ([], {})
+    targets = model_targets(model)
+    errors: dict[str, float | None] = {}
+    for q in QUANTITIES:
+        errs = [q.display(*s.features[q.feature]) - q.display(t.phase, t.value) for s in strides
+                if q.feature in s.features for t in (targets(s.speed_mps, s.incline_deg)[q.feature],)]
+        errors[q.key] = round(float(np.mean(errs)), 3) if errs else None
+    return {"strides": len(strides), "falls": int(episodes(fall_mask(c, mass_kg * G_MPS2) & (c["time_s"] >= 2.0),
+                                                             round(0.2 / log.timestep_s))),
+            "error": errors, "seconds": seconds}
 
 
 def _evaluation(score: CourseScore, strides: Sequence[MeasuredStride], targets_at) -> dict[str, object]:

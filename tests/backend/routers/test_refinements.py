@@ -92,6 +92,8 @@ def test_a_refinement_is_a_draft_with_its_evidence_that_moves_the_short_swing_up
     node = ref["nodes"][0]
     swing = node["quantities"]["knee_swing_flexion_peak_deg"]
     assert swing["act"] and swing["error"] < -2.0 and swing["ci95"][1] < 0.0 and swing["expected_error"] > swing["error"]
+    bench = node["bench"]   # the bench walked the old and the new rows at the node's task, same feature definitions
+    assert bench["walked"] and set(bench["after"]) == set(node["quantities"]) and bench["falls_after"] >= 0
     theta = [ch for ch in ref["changes"] if ch["field"] == "knee.swing_flexion.theta_e_deg"]
     assert theta and theta[0]["after"] > theta[0]["before"] and "swing knee flexion" in theta[0]["why"]
     assert "short" in theta[0]["why"]
