@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, status
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
-from backend.errors import InvalidError, NotFoundError
+from backend.errors import InvalidError
 from backend.refinement import refine_envelope_version, refine_proposal_version
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
@@ -47,21 +47,15 @@ def get_refinement(refinement_id: IdPath, conn: Conn, _user: CurrentUser) -> dic
     return refinements.get_refinement(conn, refinement_id)
 
 
-@router.get("/envelopes/{envelope_id}/refinement", response_model=RefinementOut, responses=NOT_FOUND)
-def refinement_of_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
-    """The refinement that made this envelope (404 when it was not made by one)."""
+@router.get("/envelopes/{envelope_id}/refinement", response_model=RefinementOut | None, responses=NOT_FOUND)
+def refinement_of_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict | None:
+    """The refinement that made this envelope, or null when it was not made by one (404: no such envelope)."""
     envelopes.get_row(conn, envelope_id)
-    found = refinements.of_version(conn, "envelope", envelope_id)
-    if found is None:
-        raise NotFoundError(f"envelope {envelope_id} was not made by a refinement")
-    return found
+    return refinements.of_version(conn, "envelope", envelope_id)
 
 
-@router.get("/proposals/{proposal_id}/refinement", response_model=RefinementOut, responses=NOT_FOUND)
-def refinement_of_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
-    """The refinement that made this table (404 when it was not made by one)."""
+@router.get("/proposals/{proposal_id}/refinement", response_model=RefinementOut | None, responses=NOT_FOUND)
+def refinement_of_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict | None:
+    """The refinement that made this table, or null when it was not made by one (404: no such table)."""
     proposals.get_row(conn, proposal_id)
-    found = refinements.of_version(conn, "proposal", proposal_id)
-    if found is None:
-        raise NotFoundError(f"table {proposal_id} was not made by a refinement")
-    return found
+    return refinements.of_version(conn, "proposal", proposal_id)

@@ -7,6 +7,7 @@ import { app, onLeave } from "../state.js";
 import { envelopeMap, nodeGrid } from "../widgets/envelope_map.js";
 import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
+import { renderRefine } from "../widgets/refine_panel.js";
 import { safetyFigures } from "../widgets/proposal_views.js";
 import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
@@ -108,14 +109,17 @@ export async function envelopePage(view, id, params) {
   };
   const decisionBox = h("section", { class: "card", id: "decision" });
   const pushBox = h("section", { class: "card", id: "push" });
+  const refineBox = h("section", { class: "card", id: "refine" });
   const previewBox = h("section", { class: "card", id: "preview" }, h("h2", {}, "Simulated preview: the varying-task course"),
     h("p", { class: "muted", id: "preview-status" }, "Walking the course with this envelope and with the FSMIC on the simulated bench (about ten seconds, once)…"));
   view.replaceChildren(...head,
     h("section", { class: "card" }, h("h2", {}, "Maps over speed × incline"), picker, maps, mapNote,
       guarded.length ? h("p", { class: "small", id: "guarded-note" }, `${guarded.length} node(s) have values held within a step of `,
         "their neighbours (the neighbour rule keeps every blend between two safe nodes safe); their tables say which.") : null),
-    decisionBox, pushBox, editCard(e, canDecide), h("section", { class: "card", id: "versions" }), previewBox);
+    decisionBox, pushBox, refineBox, editCard(e, canDecide), h("section", { class: "card", id: "versions" }), previewBox);
   draw(quantity);
+  renderRefine(refineBox, { kind: "envelope", item: e, canRefine: canDecide,
+    grid: { speeds: e.speeds_mps, inclines: e.inclines_deg } });
   renderDecision(decisionBox, { item: e, name: e.envelope_label, path: `/api/envelopes/${e.id}`, canDecide,
     reload: () => envelopePage(document.getElementById("view"), e.id) });
   renderPush(pushBox, { item: e, kind: "envelope", name: e.envelope_label, canPush: canDecide, patient,

@@ -7,6 +7,7 @@ import { drawCurves, drawLoops, explainVias, featureTable, reference, safetyFigu
 import { parameterTable, tableView } from "../widgets/parameter_table.js";
 import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
+import { renderRefine } from "../widgets/refine_panel.js";
 import { chip, extrapolationChip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, momentScale, momentToggle, momentUnit, momentView,
   referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
@@ -54,6 +55,7 @@ export async function proposalPage(view, id) {
   const previewBox = h("section", { class: "card", id: "preview" }, h("h2", {}, "Simulated preview: this table vs the FSMIC"),
     h("p", { class: "muted", id: "preview-status" }, "Walking both controllers on the simulated bench…"));
 
+  const refineBox = h("section", { class: "card", id: "refine" });
   view.replaceChildren(...head,
     h("section", { class: "card" }, h("div", { class: "inline" }, h("h2", {}, "Torque-angle loops"),
       momentToggle(mass, () => proposalPage(document.getElementById("view"), p.id))), loops, loopLegend,
@@ -67,8 +69,9 @@ export async function proposalPage(view, id) {
       h("p", { class: "muted small" }, "Dotted lines: sub-phase boundaries (stance flexion | stance extension | swing flexion | swing extension).")),
     h("section", { class: "card" }, h("h2", {}, "Predicted features (GPR, ±1 SD)"), featureTable(p)),
     h("section", { class: "card", id: "table-card" }, parameterTable(p, canDecide)),
-    decisionBox, pushBox, h("section", { class: "card", id: "versions" }), previewBox);
+    decisionBox, pushBox, refineBox, h("section", { class: "card", id: "versions" }), previewBox);
 
+  renderRefine(refineBox, { kind: "proposal", item: p, canRefine: canDecide });
   drawLoops(p, ref, atTask);
   explainVias(p, document.getElementById("via-note"));
   drawCurves(p, atTask, curveBox);

@@ -1,7 +1,9 @@
 // The printable session report (Print → the browser's PDF, or the server's PDF export).
-import { get, token } from "../api.js";
+import { get, post, token } from "../api.js";
 import { phaseChart } from "../widgets/charts.js";
 import { headline, offTable } from "../widgets/session_views.js";
+import { app } from "../state.js";
+import { refinementView } from "../widgets/refine_panel.js";
 import { chip, fmt, h, notice, referenceLabel, table, when } from "../ui.js";
 
 const MIN_STRIDES = 5;   // the server's (controller_core.session_regions.MIN_STRIDES_TO_JUDGE): fewer are too few to judge
@@ -60,6 +62,7 @@ export async function reportPage(view, id) {
     h("p", { class: "muted small", id: "report-reference" }, `Reference: ${referenceLabel(m)} (${m.reference_source})${m.reference_extrapolation ? " (extrapolated)" : ""}. `,
       "Strides between heel strikes (load above 10 % of body weight), averaged on the gait-cycle grid."),
     m.adaptive ? adaptiveSection(m.adaptive) : null,
+    refineSection(s, m),
     h("h2", {}, "Joint trajectories against the reference"), charts].filter(Boolean));   // no "null" text nodes
   const x = m.phase_grid.map((p) => p * 100);
   for (const [key, label, , unit] of CHANNELS) {
@@ -107,4 +110,32 @@ function adaptiveSection(a) {
       cellTable("report-errors-by-task", "Knee / ankle angle RMSE per stride (deg), each stride at its estimated task", errCell)),
     h("p", { class: "muted small" }, "A region is the set of tasks nearer to its node than to any other. Errors by task: ",
       `${a.errors_reference}; where the estimate is wrong the reference is too, so read them with the estimate's accuracy.`));
+}
+
+
+// "Refine from walking" with this session's strides: a new draft of the version it ran, decided like any
+function refineSection(s, m) {
+  if (app.me?.role !== "prosthetist" || s.table_label === null) return null;
+  const kind = s.envelope_id !== null ? "envelope" : "proposal";
+  const id = s.envelope_id ?? s.proposal_id;
+  const comment = h("input", { id: "report-refine-comment", required: true, size: 40, maxlength: 2000, "aria-label": "Why" });
+  const out = h("div", { id: "report-refine-result" });
+  const form = h("form", { id: "report-refine", class: "no-print" },
+    h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment),
+      h("button", { type: "submit" }, `Refine ${s.table_label} from these strides`)),
+    h("p", { class: "muted small" }, "The strides of this session against the model's targets at each stride's task; where they agree, the ",
+      "rows move a damped step towards the targets in a new draft (never a push). Several sessions: the version's own page."), out);
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    out.replaceChildren(h("p", { class: "muted" }, "Reading the strides and walking the changed nodes on the bench…"));
+    try {
+      const r = await post(`/api/${kind}s/${id}/refinements`, { session_ids: [s.id], comment: comment.value });
+      const made = kind === "envelope" ? r.envelope_id : r.proposal_id;
+      out.replaceChildren(h("p", {}, h("a", { href: `#/${kind}s/${made}` }, `Open the refined draft v${r.version.version}`)),
+        refinementView(r, m.adaptive ? { speeds: m.adaptive.speeds_mps, inclines: m.adaptive.inclines_deg } : {}));
+    } catch (err) {
+      out.replaceChildren(h("p", { class: "error", role: "alert" }, err.message));
+    }
+  });
+  return h("section", { id: "report-refine-section" }, h("h2", { class: "no-print" }, "Refine from walking"), form);
 }

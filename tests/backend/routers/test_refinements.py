@@ -1,63 +1,25 @@
 """Refinements from walking through the API.
 
-The sessions here are recorded offline: the bench walks the approved table (faster than real time) and its samples are
-stored as a leg's telemetry at the device's 100 Hz. Where a test needs a leg whose swing knee flexes consistently
-short, the recorded knee angle is scaled down after toe-off: a synthetic change, said where it is made.
+The sessions here are recorded offline (tests/helpers/sessions.py): the bench walks the approved table and its samples
+are stored as a leg's telemetry. Where a test needs a leg whose swing knee flexes consistently short, the recorded knee
+angle is scaled down after toe-off (``swing_scale``): a synthetic change.
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
-from backend.store import devices as devices_store
-from backend.store import proposals as proposals_store
-from backend.store import sessions as sessions_store
-from backend.store.users import User
-from controller_core.fsm import ImpedanceSchedule, StateMachineController
-from controller_core.table import ParameterTable
-from device_bridge.bench.task_reference import task_reference
 from device_bridge.protocol import Mode
-from device_bridge.sim.simulate import run_walk
 from tests.helpers.api import walk_preview
-
-DEVICE = "bench-leg"
-
-
-def _samples(t: ParameterTable, table: dict, model, mass: float, seconds: float, swing_scale: float = 1.0,
-             mode: Mode = Mode.ACTIVE) -> list[tuple]:
-    task = table["task"]
-    ref = task_reference(task["speed_mps"], task["incline_deg"], model, mass)
-    log = run_walk(StateMachineController(ImpedanceSchedule.from_table(t)), ref, mass, seconds)
-    c = log.channels
-    idx = np.arange(0, c["time_s"].size, 10)             # the device's 10 ms telemetry period
-    knee = c["knee_angle_rad"][idx].copy()
-    if swing_scale != 1.0:   # synthetic: the knee flexes less once the foot is off the ground
-        swing = c["load_N"][idx] < 0.1 * mass * 9.81
-        knee[swing] *= swing_scale
-    return [(k, float(c["time_s"][i]), int(mode), int(c["state"][i]), float(knee[k]),
-             float(c["knee_velocity_rad_s"][i]), float(c["knee_torque_Nm"][i]), float(c["ankle_angle_rad"][i]),
-             float(c["ankle_velocity_rad_s"][i]), float(c["ankle_torque_Nm"][i]), float(c["load_N"][i]),
-             float(c["ankle_moment_Nm"][i]), None, None, None, None, None) for k, i in enumerate(idx)]
+from tests.helpers.sessions import BENCH_DEVICE as DEVICE
+from tests.helpers.sessions import record_offline
 
 
 def recorded_session(api, model, patient: dict, table: dict, seconds: float = 25.0, **walk) -> int:
     """A stopped session of the patient on the approved table, its samples from the bench walked offline."""
-    conn = api.db()
-    try:
-        if conn.execute("SELECT 1 FROM devices WHERE id = ?", (DEVICE,)).fetchone() is None:
-            devices_store.register_device(conn, DEVICE, "can", "virtual", "bench")
-        user = User(id=1, username="prosthetist", role="prosthetist")
-        task = {**{k: table["task"][k] for k in ("speed_mps", "incline_deg")}, "body_mass_kg": patient["body_mass_kg"]}
-        sid = sessions_store.start_session(conn, patient["id"], DEVICE, task,
-                                           {"proposal_id": table["id"], "envelope_id": None, "table_version": 1,
-                                            "crc32": 1}, user)
-        stored = proposals_store.stored_table(proposals_store.get_row(conn, table["id"]))
-        sessions_store.add_samples(conn, sid, _samples(stored, table, model, patient["body_mass_kg"], seconds, **walk))
-    finally:
-        conn.close()
+    sid = record_offline(api.data_dir / "quasitune.sqlite", model, patient, table["id"], seconds, **walk)
     r = api.client.post(f"/api/sessions/{sid}/stop", headers=api.as_("prosthetist"))
     assert r.status_code == 200, r.text
     return sid
@@ -106,7 +68,8 @@ def test_a_refinement_is_a_draft_with_its_evidence_that_moves_the_short_swing_up
     diff = c.get(f"/api/proposals/{table['id']}/diff/{new['id']}", headers=pro).json()
     assert any(d["field"] == "knee.swing_flexion.theta_e_deg" for d in diff["changes"])
     assert c.get(f"/api/proposals/{new['id']}/refinement", headers=pro).json()["id"] == ref["id"]
-    assert c.get(f"/api/proposals/{table['id']}/refinement", headers=pro).status_code == 404
+    assert c.get(f"/api/proposals/{table['id']}/refinement", headers=pro).json() is None   # not made by one
+    assert c.get("/api/proposals/987654/refinement", headers=pro).status_code == 404
     entries = c.get("/api/audit", headers=api.as_("admin"), params={"entity": "proposal"}).json()["items"]
     refine = [e for e in entries if e["action"] == "proposal.refine"]
     assert len(refine) == 1 and refine[0]["entity_id"] == new["id"]
