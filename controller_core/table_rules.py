@@ -23,8 +23,9 @@ JOINT_RANGE_RAD = {"knee": (0.0, math.radians(120.0)), "ankle": (math.radians(-3
 # Damping is not learned (the fit is τ = kθ + c): editable defaults per kg body mass, of the order of published
 # finite-state impedance values for adults. The knee's swing values brake the swinging shank (late-swing 0.06 ≈ the
 # Open Source Leg example's 3.816 N·m·s/rad for 60 kg; early swing 0.03, chosen on the simulated bench).
+# per kg; the knee's swing extension is damped near critically (TableRules: swing_knee_stiffness_Nm_per_rad_per_kg)
 DEFAULT_DAMPING_NMS_PER_RAD_PER_KG = {
-    "knee": {"stance_flexion": 0.04, "stance_extension": 0.04, "swing_flexion": 0.03, "swing_extension": 0.06},
+    "knee": {"stance_flexion": 0.04, "stance_extension": 0.04, "swing_flexion": 0.03, "swing_extension": 0.13},
     "ankle": {"stance_flexion": 0.04, "stance_extension": 0.04, "swing_flexion": 0.01, "swing_extension": 0.02},
 }
 SWING_RULES: tuple[str, ...] = ("target", "least_squares")
@@ -67,7 +68,15 @@ class TableRules:
             at its predicted swing dorsiflexion plus ``swing_ankle_clearance_deg``); ``"least_squares"``: fitted
             like the stance rows (the literal framework, which falls on the simulated bench).
         swing_knee_stiffness_Nm_per_rad_per_kg: (swing flexion, swing extension) knee stiffness magnitudes per kg
-            under the target rule: 0.66 and 0.25, about the Open Source Leg example's 39.7 and 15.9 N·m/rad for 60 kg.
+            under the target rule. Swing flexion 0.66, about the Open Source Leg example's 39.7 N·m/rad for 60 kg.
+            Swing extension 0.8, with damping 0.13 N·m·s/rad per kg (:data:`DEFAULT_DAMPING_NMS_PER_RAD_PER_KG`): the
+            knee, extending at about 300 °/s in terminal swing, comes to rest at its predicted heel-strike angle instead
+            of striking its extension stop, as a microprocessor knee's terminal-swing extension damping does; the
+            damping is about critical for the shank, foot and actuator about the knee (b ≈ 2√(|k|·I), I ≈ 0.3 kg·m² at
+            75 kg). With the example's 0.25 and 0.06 the knee hit full extension on every other stride; a straight knee
+            under a thigh still flexed 27° reaches about 15 mm less far down than one flexed 5°, so that foot landed
+            100–200 ms late, the next swing started late and landed early on a flexed knee, and the walk alternated
+            between a straight and a crouched stride (the simulated bench, 0.84–1.95 m/s).
         swing_ankle_stiffness_Nm_per_rad_per_kg: ankle swing stiffness magnitude per kg (target rule).
         swing_ankle_clearance_deg: dorsiflexion added to the ankle's predicted swing angle (deg). On the bench's foot
             the able-bodied swing angles leave −8 to +2 mm of toe clearance where people keep about 13 mm (Winter
@@ -80,7 +89,7 @@ class TableRules:
                  min_restoring_stiffness_Nm_per_rad_per_kg: float = 0.25,
                  knee_support_floor_Nm_per_rad_per_kg: float = DEFAULT_LIMITS.knee_stance_support_Nm_per_rad_per_kg,
                  knee_extension_window: bool = False, swing_rule: str = "target",
-                 swing_knee_stiffness_Nm_per_rad_per_kg: tuple[float, float] = (0.66, 0.25),
+                 swing_knee_stiffness_Nm_per_rad_per_kg: tuple[float, float] = (0.66, 0.8),
                  swing_ankle_stiffness_Nm_per_rad_per_kg: float = 0.25, swing_ankle_clearance_deg: float = 5.0,
                  damping_Nms_per_rad_per_kg: dict[str, dict[str, float]] | None = None) -> None:
         self.load_fractions = load_fractions

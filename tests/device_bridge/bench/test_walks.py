@@ -35,7 +35,12 @@ def test_a_knee_with_no_stance_support_lets_the_body_fall_where_the_learned_tabl
     limp = simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=soft, skip_limits=True).summary
     assert limp["falls"] >= 1 or limp["hip_sink_max_mm"] >= 50.0       # the bench is not blind in stance
     carried = simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=table).summary
-    assert carried["falls"] == 0 and carried["hip_sink_max_mm"] < limp["hip_sink_max_mm"] - 30.0
+    assert carried["falls"] == 0
+    # after the first step the person carries a straight-landing limp knee on their hip and other leg, and it shows:
+    # the hip lower, more of the person's push, the loaded knee further flexed (docs/results.md)
+    assert carried["hip_sink_max_mm"] < limp["hip_sink_max_mm"]
+    assert carried["support_deficit_max_bw"] < limp["support_deficit_max_bw"]
+    assert carried["stance_knee_flexion_peak_max_deg"] < limp["stance_knee_flexion_peak_max_deg"]
     with pytest.raises(ValueError, match="stance support floor"):    # and the unsafe table needs skip_limits
         simulate("table", 1.2, 0.0, seconds=1.0, mass_kg=75.0, table=soft)
 
