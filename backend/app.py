@@ -46,6 +46,8 @@ from backend.settings import Settings
 from backend.throttle import LoginThrottle
 from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
+from device_bridge.sim.leg_file import load_leg
+from device_bridge.sim.leg_model import LegGeometry
 
 
 def _field(loc: tuple) -> str:
@@ -107,7 +109,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.db = open_pool(settings.db_path)
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
-    app.state.devices = DeviceManager(app.state.db, [spec] if spec else []).start()
+    app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
+    app.state.devices = DeviceManager(app.state.db, [spec] if spec else [], app.state.bench_leg).start()
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)

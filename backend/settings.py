@@ -35,6 +35,8 @@ class Settings:
         device: ``sim`` (the simulated leg on an in-process virtual CAN bus), ``none``, or ``INTERFACE:CHANNEL``
             for a python-can bus to a real leg (``socketcan:can0``). ``quasitune serve`` defaults to ``sim``.
         frontend_dir: the dashboard (``index.html``, ``app/``) and its npm packages (``node_modules/``).
+        bench_leg: a leg file (``device_bridge/sim/legs/*.json`` or a path) for the simulated leg and the bench
+            previews; None: the nominal bench.
         viewer3d: also serve viser's 3D view of each leg on a loopback port. Off by default: viser has no login,
             so anyone on this machine could watch the live telemetry there; the dashboard's own leg view comes
             through the signed-in telemetry stream instead.
@@ -52,6 +54,7 @@ class Settings:
     device: str = "none"
     frontend_dir: Path = field(default_factory=default_frontend_dir)
     viewer3d: bool = False
+    bench_leg: Path | None = None
     trusted_proxies: tuple[str, ...] = ()
     request_threads: int = 2
 

@@ -18,13 +18,15 @@ from device_bridge.bench.task_reference import task_reference
 from device_bridge.bench.versus import against_fsmic, versus
 from device_bridge.bench.walks import walk_course
 from device_bridge.sim.course import Course
+from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import run_walk, score_walk
 
 PREVIEW_COURSE = "mixed"
 
 
 def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, mass_kg: float,
-                  model: QuasiStiffnessModel | None = None, seconds: float = 10.0) -> dict[str, object]:
+                  model: QuasiStiffnessModel | None = None, seconds: float = 10.0,
+                  geometry: LegGeometry | None = None) -> dict[str, object]:
     """Walk a given (e.g. proposed or edited) table and the FSMIC benchmark on the bench at a task.
 
     Returns JSON-ready data: ``phase_grid`` (101 points), ``reference_curves`` and, per controller (``table``,
@@ -39,22 +41,24 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
 
     validate_task(speed_mps, incline_deg, mass_kg)
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
-    scores = {name: score_walk(run_walk(make_controller(name, mass_kg, table=table), ref, mass_kg, seconds), ref)
-              for name in ("table", "fsmic")}
+    scores = {name: score_walk(run_walk(make_controller(name, mass_kg, table=table), ref, mass_kg, seconds, geometry),
+                               ref) for name in ("table", "fsmic")}
     controllers: dict[str, object] = {name: {**score.summary, "mean_curves": rounded(score.mean_curves)}
                                       for name, score in scores.items()}
     controllers["table"]["vs_fsmic"] = against_fsmic(scores["table"], scores["fsmic"])
-    return {"seconds": seconds, "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
+    leg = (geometry or LegGeometry()).name
+    return {"seconds": seconds, "leg": leg, "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
             "reference_curves": rounded(reference_curves(ref)), "controllers": controllers}
 
 
-def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course) -> dict[str, object]:
+def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course,
+                     geometry: LegGeometry | None = None) -> dict[str, object]:
     """The envelope's preview for its page: the course walked with the envelope (the leg estimating its task and
     adapting) and with the FSMIC, at the envelope's body mass. Per controller its summary (safety figures, errors by
     segment, estimation accuracy for the envelope); ``envelope_minus_fsmic``: per channel the mean per-stride RMSE
     difference with its 95 % interval and verdict."""
-    scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope),
-              "fsmic": walk_course("fsmic", course, model, envelope.mass_kg)}
-    return {"course": course.to_json(), "mass_kg": envelope.mass_kg,
+    scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope, geometry=geometry),
+              "fsmic": walk_course("fsmic", course, model, envelope.mass_kg, geometry=geometry)}
+    return {"course": course.to_json(), "mass_kg": envelope.mass_kg, "leg": (geometry or LegGeometry()).name,
             "controllers": {name: s.to_dict() for name, s in scores.items()},
             "envelope_minus_fsmic": versus(scores["envelope"], scores["fsmic"], "envelope", "FSMIC")}

@@ -46,6 +46,17 @@ def _port(text: str) -> int:
     return port
 
 
+def _bench_leg(leg: str | None) -> Path | None:
+    """The leg file of ``--leg`` (a path or a repository leg's name), checked before the server starts."""
+    if leg is None:
+        return None
+    from device_bridge.sim.leg_file import LEGS_DIR, load_leg
+
+    load_leg(leg)   # ValueError names the file, the field and the reason
+    path = Path(leg)
+    return path if path.exists() else LEGS_DIR / f"{leg}.json"
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     from backend.devices import parse_device_spec
     from backend.serve import serve
@@ -53,7 +64,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     device = args.device or os.environ.get("QUASITUNE_DEVICE") or "sim"
     parse_device_spec(device)   # refuse a bad spec before anything starts
     proxies = tuple(args.trusted_proxy or os.environ.get("QUASITUNE_TRUSTED_PROXIES", "").replace(",", " ").split())
-    return serve(dataclasses.replace(_settings(args), device=device, viewer3d=args.viewer3d, trusted_proxies=proxies),
+    return serve(dataclasses.replace(_settings(args), device=device, viewer3d=args.viewer3d,
+                                     bench_leg=_bench_leg(args.leg), trusted_proxies=proxies),
                  host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user)
 
 
@@ -174,6 +186,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--trusted-proxy", action="append", default=None, metavar="ADDRESS",
                    help="a reverse proxy whose X-Forwarded-For is believed (repeatable; default "
                         "$QUASITUNE_TRUSTED_PROXIES, comma-separated, else none)")
+    p.add_argument("--leg", default=None,
+                   help="the simulated leg and person for the simulated device and the bench previews: a leg file "
+                        "(device_bridge/sim/leg_file.py) or a repository leg's name; default the nominal bench")
     p.add_argument("--viewer3d", action="store_true",
                    help="also serve viser's 3D view of the leg on a loopback port; viser has no login, so anyone on "
                         "this machine can watch it: only for an engineer's single-user bench")

@@ -37,6 +37,7 @@ from device_bridge.device_node import DeviceNode
 from device_bridge.host import DeviceLink, DeviceStatus, PushResult, TelemetrySample
 from device_bridge.protocol import Command, Fault
 from device_bridge.sim.course import Course
+from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.walker import SimWalker
 
 ONLINE_WITHIN_S = 1.0        # a device whose status is older than this is offline
@@ -62,9 +63,10 @@ class ManagedDevice:
 class DeviceManager:
     """Opens a link per spec on :meth:`start`; :meth:`close` ends them and the recorder."""
 
-    def __init__(self, db: QueuePool, specs: list[DeviceSpec]) -> None:
+    def __init__(self, db: QueuePool, specs: list[DeviceSpec], bench_leg: LegGeometry | None = None) -> None:
         self.db = db
         self._specs = specs
+        self._bench_leg = bench_leg   # the simulated leg's leg and person (None: the nominal bench)
         self._devices: dict[str, ManagedDevice] = {}
         self.recorder = SessionRecorder(db)
 
@@ -76,7 +78,7 @@ class DeviceManager:
         for spec in self._specs:
             dev = ManagedDevice(spec=spec)
             if spec.kind == "simulated":
-                dev.walker = SimWalker()
+                dev.walker = SimWalker(self._bench_leg)
                 dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker).start()
             dev.link = DeviceLink(can.Bus(interface=spec.interface, channel=spec.channel),
                                   on_status=lambda s, d=dev: self._on_status(d, s),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sqlite3
 import threading
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 
 from backend.bench.preview import PREVIEW_COURSE, preview_envelope, preview_table
 from backend.bench.safety_figures import safety_flags
@@ -19,6 +19,7 @@ from backend.threads import run_waiting
 from controller_core.model import QuasiStiffnessModel
 from device_bridge.as_run import as_run
 from device_bridge.sim.course import COURSES
+from device_bridge.sim.leg_model import LegGeometry
 
 router = APIRouter(prefix="/api", tags=["previews"], responses=UNAUTHORIZED)
 
@@ -31,15 +32,15 @@ _COURSE_PREVIEW = threading.Lock()
 
 @router.get("/proposals/{proposal_id}/preview", response_model=PreviewOut,
             responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-async def get_preview(proposal_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
+async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, _user: CurrentUser, model: Model) -> dict:
     """Walk this proposal's table and the FSMIC benchmark for 10 s each on the simulated bench at the proposal's
     task (computed on first request, about a second, then stored: a proposal never changes). Falls, strides and
     joint RMSE against the able-bodied reference, and the stride-averaged trajectories; ``safety`` flags the
     table's safety figures (falls, toe catches, time on swing settings under load) on their own bounds."""
-    return await run_waiting(_table_preview, proposal_id, conn, model)
+    return await run_waiting(_table_preview, proposal_id, conn, model, request.app.state.bench_leg)
 
 
-def _table_preview(proposal_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel) -> dict:
+def _table_preview(proposal_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel, leg: LegGeometry) -> dict:
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
     if stored is None:
@@ -47,7 +48,7 @@ def _table_preview(proposal_id: int, conn: sqlite3.Connection, model: QuasiStiff
         _refuse_unsafe(checked.violations, f"proposal {proposal_id}")
         table = checked.item
         result = preview_table(table, row["speed_mps"], row["incline_deg"], row["body_mass_kg"], model,
-                               PREVIEW_SECONDS)
+                               PREVIEW_SECONDS, leg)
         stored = previews.store_preview(conn, proposal_id, row["table_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["table"], runs["fsmic"])}
@@ -55,15 +56,17 @@ def _table_preview(proposal_id: int, conn: sqlite3.Connection, model: QuasiStiff
 
 @router.get("/envelopes/{envelope_id}/preview", response_model=EnvelopePreviewOut,
             responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-async def get_envelope_preview(envelope_id: IdPath, conn: Conn, _user: CurrentUser, model: Model) -> dict:
+async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn, _user: CurrentUser,
+                               model: Model) -> dict:
     """Walk the bench's ``mixed`` course (speed changes, ramps up and down ±8°) with this envelope, the leg estimating
     its task and adapting, and with the FSMIC (computed on first request, about ten seconds, then stored). Safety
     figures (``safety``: flags on their own bounds), errors per segment against the reference at each stride's true
     task, the leg's estimation accuracy, and the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
-    return await run_waiting(_envelope_preview, envelope_id, conn, model)
+    return await run_waiting(_envelope_preview, envelope_id, conn, model, request.app.state.bench_leg)
 
 
-def _envelope_preview(envelope_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel) -> dict:
+def _envelope_preview(envelope_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel, leg: LegGeometry
+                      ) -> dict:
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
     if stored is None:
@@ -73,7 +76,7 @@ def _envelope_preview(envelope_id: int, conn: sqlite3.Connection, model: QuasiSt
                 checked = as_run(envelopes.stored_envelope(row))
                 _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
                 envelope = checked.item
-                result = preview_envelope(envelope, model, COURSES[PREVIEW_COURSE])
+                result = preview_envelope(envelope, model, COURSES[PREVIEW_COURSE], leg)
                 stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["envelope"], runs["fsmic"])}

@@ -44,6 +44,8 @@ class PreviewOut(BaseModel):
     table_sha256: str = Field(description="the table that was simulated")
     created_at: str
     seconds: float = Field(description="simulated walking time per controller (s)")
+    leg: str | None = Field(default=None, description="the simulated leg and person walked (a leg file's name, or "
+                                                      "'nominal'; None: walked before legs were named)")
     phase_grid: list[float]
     reference_curves: dict[str, list[float]] = Field(description="able-bodied reference at the task (deg, N·m/kg)")
     controllers: dict[Literal["table", "fsmic"], ControllerPreview] = Field(
@@ -69,6 +71,8 @@ class EnvelopePreviewOut(BaseModel):
     created_at: str
     course: dict = Field(description="the course walked: segments of duration_s, speed_mps, incline_deg")
     mass_kg: float
+    leg: str | None = Field(default=None, description="the simulated leg and person walked (a leg file's name, or "
+                                                      "'nominal'; None: walked before legs were named)")
     controllers: dict[Literal["envelope", "fsmic"], CourseControllerPreview] = Field(
         description="envelope: the leg estimating its task and adapting inside this envelope; fsmic: the benchmark")
     envelope_minus_fsmic: dict[str, CourseDifference]

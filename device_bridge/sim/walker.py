@@ -27,6 +27,7 @@ from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.bench_trajectory import plan_bench_trajectory
 from device_bridge.sim.course import Course, CourseTrajectory
 from device_bridge.sim.course_walk import course_leg
+from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.person import Person
 from device_bridge.sim.plant import SimulatedLeg
 
@@ -41,7 +42,8 @@ STANDING_SWAY_ANKLE_DEG, STANDING_SWAY_LOAD_FRACTION = 0.5, 0.05
 class SimWalker:
     """A bench that walks on request (thread-safe start/stop; stepping from one thread)."""
 
-    def __init__(self) -> None:
+    def __init__(self, geometry: LegGeometry | None = None) -> None:
+        self.geometry = geometry or LegGeometry()   # the leg and person walked (a leg file's, or the nominal bench)
         self._lock = threading.Lock()
         self._leg: SimulatedLeg | None = None
         self._ref: WalkingReference | None = None
@@ -107,7 +109,7 @@ class SimWalker:
         """Start walking at the reference's task (restarts from late swing if already walking)."""
         if not (np.isfinite(mass_kg) and 20.0 <= mass_kg <= 200.0):
             raise ValueError(f"mass_kg must be within [20, 200] kg, got {mass_kg!r}")
-        leg = SimulatedLeg(incline_deg=reference.incline_deg, person=Person(mass_kg))
+        leg = SimulatedLeg(self.geometry, incline_deg=reference.incline_deg, person=Person(mass_kg))
         traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, CHUNK_S, leg.timestep_s)
         s0 = traj.phase[0]
         sample = leg.reset(traj, float(np.interp(s0, reference.phase, reference.knee_angle_rad)),
@@ -122,7 +124,7 @@ class SimWalker:
         """Walk ``course`` once from late swing at its first task, on its floor; walking stops at its end."""
         if not (np.isfinite(mass_kg) and 20.0 <= mass_kg <= 200.0):
             raise ValueError(f"mass_kg must be within [20, 200] kg, got {mass_kg!r}")
-        traj, leg, angles = course_leg(course, mass_kg)
+        traj, leg, angles = course_leg(course, mass_kg, self.geometry)
         sample = leg.reset(traj.bench, *angles)
         with self._lock:
             self._standing_kg = None

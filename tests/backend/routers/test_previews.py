@@ -54,3 +54,16 @@ def test_preview_made_from_another_table_is_refused(api):
         conn.commit()
     r = c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer)
     assert r.status_code == 409 and "another table" in r.json()["detail"]
+
+
+def test_a_server_started_with_a_leg_file_previews_on_that_leg(tmp_path, model):
+    from device_bridge.sim.leg_file import LEGS_DIR
+    from tests.helpers.api import make_api
+
+    api, client = make_api(tmp_path, lambda: model, bench_leg=LEGS_DIR / "short_person.json")
+    with client:
+        patient = api.new_patient()
+        prop = api.propose(patient["id"])
+        r = client.get(f"/api/proposals/{prop['id']}/preview", headers=api.as_("viewer"))
+        assert r.status_code == 200, r.text
+        assert r.json()["leg"] == "short person (1.58 m)"

@@ -96,3 +96,16 @@ def test_the_readings_keep_one_clock_from_standing_to_walking_and_back():
     times.append(walker.sample().time_s)
     steps = np.diff(times)
     assert np.all(steps > 0) and np.allclose(steps, 0.001, atol=1e-6)
+
+
+def test_the_simulated_device_walks_the_leg_it_is_given():
+    from device_bridge.sim.leg_file import load_leg
+
+    leg = load_leg("heavy_foot")
+    walker = SimWalker(leg)
+    walker.start(level_walking_reference(1.2), 75.0)
+    plant = walker._leg
+    assert plant is not None and plant.geometry == leg
+    assert plant.model.body("foot").mass[0] == pytest.approx(leg.foot_mass_kg)
+    walker.start_course(Course("short", (Segment(4.0, 1.0, 0.0),)), 75.0)
+    assert walker._leg.geometry == leg
