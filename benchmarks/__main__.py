@@ -1,4 +1,4 @@
-"""``python -m benchmarks {model,api,device,envelope,ui} [options]``: run one benchmark and print its figures as JSON."""
+"""``python -m benchmarks {model,api,device,envelope,refine,ui} [options]``: one benchmark, its figures as JSON."""
 
 from __future__ import annotations
 
@@ -22,6 +22,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=50, help="envelopes proposed")
     p.add_argument("--pushes", type=int, default=100, help="envelope pushes over a clean virtual bus")
     p.add_argument("--trials", type=int, default=500, help="envelope pushes through a faulty bus")
+    p = sub.add_parser("refine", help="a 5 × 5 envelope refined from 120 s of recorded strides (target ≤ 2 s)")
+    p.add_argument("--repeats", type=int, default=10)
+    p.add_argument("--seconds", type=float, default=120.0, help="walking recorded once, before the timing (s)")
     p = sub.add_parser("ui", help="dashboard in Chromium: proposal view time to interactive, live-monitor fps")
     p.add_argument("--repeats", type=int, default=20, help="proposals requested through the page")
     p.add_argument("--monitor-seconds", type=float, default=5.0, help="live monitor measured for this long (s)")
@@ -34,6 +37,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.api import run
 
         result = run(args.clients, args.seconds)
+    elif args.name == "refine":
+        from benchmarks.refine import run
+
+        result = run(args.repeats, args.seconds)
     elif args.name == "envelope":
         from benchmarks.envelope import run
 

@@ -78,3 +78,35 @@ def test_cli_walks_a_table_from_a_file_and_an_unsafe_one_only_marked_as_a_bench_
     assert out["limits"].startswith("UNCHECKED") and any("support floor" in v for v in out["limit_violations"])
     assert main(["simulate", "--speed", "1.2", "--skip-limits"]) == 2
     assert "--table" in capsys.readouterr().err
+
+
+def test_cli_refine_walks_refines_and_evaluates_on_a_leg_and_writes_the_contract(capsys, tmp_path):
+    from controller_core.envelope import Envelope
+    from device_bridge.as_run import as_run
+
+    train, evaluate, out = tmp_path / "train.json", tmp_path / "eval.json", tmp_path / "refine.json"
+    train.write_text(json.dumps({"name": "level", "transition_s": 1.0, "segments": [
+        {"duration_s": 30, "speed_mps": 1.2, "incline_deg": 0}]}))
+    evaluate.write_text(json.dumps({"name": "short", "transition_s": 1.0, "segments": [
+        {"duration_s": 6, "speed_mps": 1.0, "incline_deg": 0}, {"duration_s": 6, "speed_mps": 1.2, "incline_deg": 3}]}))
+    assert main(["refine", "--leg", "heavy_foot", "--train-course", str(train), "--eval-course", str(evaluate),
+                 "--rounds", "2", "--seconds-per-round", "20", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "Leg: heavy powered ankle and foot" in text and "| refined |" in text and "Refined minus original" in text
+    result = json.loads(out.read_text())
+    assert [r["round"] for r in result["rounds"]] == [1, 2]
+    for r in result["rounds"]:
+        assert r["strides"] >= r["strides_used"] >= 0 and isinstance(r["nodes_changed"], list)
+        assert all(set(c) >= {"node", "field", "before", "after", "why"} for c in r["changes"])
+    for name in ("original", "refined", "fsmic"):
+        e = result["evaluation"][name]
+        assert {"falls", "toe_catches", "loaded_swing_ms_max_stride", "knee_angle_rmse_deg", "ankle_angle_rmse_deg",
+                "feature_abs_error"} <= set(e)
+        assert "knee_swing_flexion_peak_deg" in e["feature_abs_error"]
+    for ch in ("knee_angle_deg", "ankle_angle_deg", "knee_moment_Nm_per_kg", "ankle_moment_Nm_per_kg"):
+        d = result["refined_minus_original"][ch]
+        assert d["verdict"] in ("refined lower", "original lower", "not resolved", None)
+    # whatever the rounds did, the refined envelope is one the device would run
+    assert as_run(Envelope.from_json(result["refined_envelope"])).violations == []
+    assert main(["refine", "--rounds", "0", "--seconds-per-round", "10"]) == 2
+    assert "rounds" in capsys.readouterr().err
