@@ -81,7 +81,7 @@ def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
 def prepare_storage(settings: Settings) -> None:
     """Create the data directory and bring its database up to date."""
     settings.data_dir.mkdir(parents=True, exist_ok=True)
-    migrate(settings.db_path)
+    migrate(settings.db_path, settings.migrations_dir)
 
 
 def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None) -> FastAPI:
@@ -105,7 +105,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
                               "proposals with uncertainty, approval, audit. Angles in deg, moments in N·m or "
                               "N·m/kg, stiffness in N·m/rad — the unit is in every field name.")
     app.state.settings = settings
-    app.state.login_throttle = LoginThrottle()
+    app.state.login_throttle = LoginThrottle(settings.login_per_user_per_minute, settings.login_per_address_per_minute,
+                                             settings.login_per_user_anywhere_per_minute)
     app.state.db = open_pool(settings.db_path)
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
@@ -145,17 +146,10 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
 
 
 def app_from_environment() -> FastAPI:
-    """The app configured from the environment, for running under uvicorn directly (``--factory``), e.g. as
-    several workers behind a reverse proxy: ``QUASITUNE_DATA_DIR``, ``QUASITUNE_MODEL_DIR`` and
-    ``QUASITUNE_DEVICE`` (default ``none``: a device lives in exactly one process)."""
-    import os
-    from pathlib import Path
-
-    from backend.settings import default_data_dir
-
-    model_dir = os.environ.get("QUASITUNE_MODEL_DIR")
-    return create_app(Settings(data_dir=default_data_dir(), model_dir=Path(model_dir) if model_dir else None,
-                               device=os.environ.get("QUASITUNE_DEVICE", "none")))
+    """The app configured from the environment (:class:`backend.settings.Settings`, ``QUASITUNE_*``), for running under
+    uvicorn directly (``--factory``), e.g. as several workers behind a reverse proxy; its device defaults to ``none``:
+    a device lives in exactly one process."""
+    return create_app(Settings())
 
 
 def _openapi(app: FastAPI) -> dict:

@@ -8,16 +8,16 @@ recorded migration whose file changed since it was applied is refused (its sha25
 from __future__ import annotations
 
 import hashlib
-import os
 import re
 import sqlite3
 from dataclasses import dataclass
 from pathlib import Path
 
 from backend.db import connect, utc_now, write_transaction
+from backend.settings import default_migrations_dir
 
-# the repository's migrations/ (an installed, non-editable copy is pointed at it with QUASITUNE_MIGRATIONS_DIR)
-MIGRATIONS_DIR = Path(os.environ.get("QUASITUNE_MIGRATIONS_DIR") or Path(__file__).resolve().parents[1] / "migrations")
+# the repository's migrations/ (Settings.migrations_dir, QUASITUNE_MIGRATIONS_DIR, names another copy)
+MIGRATIONS_DIR = default_migrations_dir()
 _NAME = re.compile(r"^(\d{4})_[a-z0-9_]+\.sql$")
 
 

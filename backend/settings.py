@@ -1,63 +1,95 @@
-"""Server settings: where the data lives and how long a login lasts."""
+"""The server's settings, in one place: every knob, read from ``QUASITUNE_*`` environment variables (pydantic-settings)
+and overridden by the command line, which passes its flags as keyword arguments (they win over the environment).
+
+``QUASITUNE_CACHE_DIR`` (where the trained default model is cached) is read by ``controller_core.model_io`` itself:
+the model layer sits below the backend and is used without a server.
+"""
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
+
+from pydantic import Field, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 DB_FILE = "quasitune.sqlite"
+REPOSITORY = Path(__file__).resolve().parents[1]
 
 
 def default_frontend_dir() -> Path:
-    """The dashboard: ``$QUASITUNE_FRONTEND_DIR``, else the repository's ``frontend/`` (editable install)."""
-    if os.environ.get("QUASITUNE_FRONTEND_DIR"):
-        return Path(os.environ["QUASITUNE_FRONTEND_DIR"])
-    return Path(__file__).resolve().parents[1] / "frontend"
+    """The repository's ``frontend/`` (an editable install; another copy is named with ``QUASITUNE_FRONTEND_DIR``)."""
+    return REPOSITORY / "frontend"
+
+
+def default_migrations_dir() -> Path:
+    """The repository's ``migrations/`` (another copy is named with ``QUASITUNE_MIGRATIONS_DIR``)."""
+    return REPOSITORY / "migrations"
 
 
 def default_data_dir() -> Path:
-    """Per-user data directory: ``$QUASITUNE_DATA_DIR``, else ``$XDG_DATA_HOME/quasitune``, else
+    """The per-user data directory when ``QUASITUNE_DATA_DIR`` names none: ``$XDG_DATA_HOME/quasitune``, else
     ``~/.local/share/quasitune``."""
-    if os.environ.get("QUASITUNE_DATA_DIR"):
-        return Path(os.environ["QUASITUNE_DATA_DIR"])
     base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
     return Path(base) / "quasitune"
 
 
-@dataclass(frozen=True)
-class Settings:
-    """Args:
+class Settings(BaseSettings):
+    """Every field is also ``QUASITUNE_<FIELD>`` in the environment (``QUASITUNE_DATA_DIR``, ``QUASITUNE_DEVICE`` …).
+
+    Args:
         data_dir: holds the SQLite file (created if missing).
         token_ttl_s: bearer-token lifetime (s).
         model_dir: a model from ``quasitune train``; None = the default model (shipped data).
         model_wait_s: how long a request waits for the model while it loads at start-up before a 503.
         device: ``sim`` (the simulated leg on an in-process virtual CAN bus), ``none``, or ``INTERFACE:CHANNEL``
-            for a python-can bus to a real leg (``socketcan:can0``). ``quasitune serve`` defaults to ``sim``.
+            for a python-can bus to a real leg (``socketcan:can0``). ``quasitune serve`` uses ``sim`` when neither
+            its flag nor the environment names one; the app factory (several workers) ``none``.
         frontend_dir: the dashboard (``index.html``, ``app/``) and its npm packages (``node_modules/``).
+        migrations_dir: the schema migrations applied at start-up.
         bench_leg: a leg file (``device_bridge/sim/legs/*.json`` or a path) for the simulated leg and the bench
             previews; None: the nominal bench.
         viewer3d: also serve viser's 3D view of each leg on a loopback port. Off by default: viser has no login,
             so anyone on this machine could watch the live telemetry there; the dashboard's own leg view comes
             through the signed-in telemetry stream instead.
         trusted_proxies: addresses of reverse proxies whose ``X-Forwarded-For`` / ``X-Forwarded-Proto`` are believed
-            (uvicorn's ``forwarded_allow_ips``). None by default: every other client could otherwise claim any
-            address and dodge, or aim, the sign-in throttle.
+            (uvicorn's ``forwarded_allow_ips``; in the environment comma- or space-separated). None by default: every
+            other client could otherwise claim any address and dodge, or aim, the sign-in throttle.
         request_threads: request handlers run at once in worker threads. The process is bound by one interpreter
             lock: more threads add no throughput and starve the event loop that streams live telemetry.
+        login_per_user_per_minute, login_per_address_per_minute, login_per_user_anywhere_per_minute: failed
+            sign-ins allowed per minute for one user name from one address, from one address, and for one user name
+            from anywhere (:class:`backend.throttle.LoginThrottle`).
     """
 
-    data_dir: Path
-    token_ttl_s: int = 8 * 3600
+    model_config = SettingsConfigDict(env_prefix="QUASITUNE_", frozen=True, extra="forbid")
+
+    data_dir: Path = Field(default_factory=default_data_dir)
+    token_ttl_s: int = Field(default=8 * 3600, gt=0)
     model_dir: Path | None = None
-    model_wait_s: float = 30.0
+    model_wait_s: float = Field(default=30.0, gt=0)
     device: str = "none"
-    frontend_dir: Path = field(default_factory=default_frontend_dir)
-    viewer3d: bool = False
+    frontend_dir: Path = Field(default_factory=default_frontend_dir)
+    migrations_dir: Path = Field(default_factory=default_migrations_dir)
     bench_leg: Path | None = None
-    trusted_proxies: tuple[str, ...] = ()
-    request_threads: int = 2
+    viewer3d: bool = False
+    trusted_proxies: Annotated[tuple[str, ...], NoDecode] = ()
+    request_threads: int = Field(default=2, ge=1, le=64)
+    login_per_user_per_minute: int = Field(default=5, ge=1)
+    login_per_address_per_minute: int = Field(default=20, ge=1)
+    login_per_user_anywhere_per_minute: int = Field(default=100, ge=1)
+
+    @field_validator("trusted_proxies", mode="before")
+    @classmethod
+    def _split_addresses(cls, value: object) -> object:
+        """``"10.0.0.2, 10.0.0.3"`` from the environment becomes ``("10.0.0.2", "10.0.0.3")``."""
+        return tuple(value.replace(",", " ").split()) if isinstance(value, str) else value
 
     @property
     def db_path(self) -> Path:
         return self.data_dir / DB_FILE
+
+    def given(self, name: str) -> bool:
+        """Whether ``name`` was set by the environment or the command line rather than left at its default."""
+        return name in self.model_fields_set

@@ -3,21 +3,21 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import os
 import sqlite3
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from backend.settings import Settings, default_data_dir
+from backend.settings import Settings
 
 DATA_DIR_HELP = "data directory holding quasitune.sqlite (default: $QUASITUNE_DATA_DIR or ~/.local/share/quasitune)"
 
 
-def _settings(args: argparse.Namespace) -> Settings:
-    return Settings(data_dir=args.data_dir or default_data_dir(), model_dir=getattr(args, "model", None))
+def _settings(args: argparse.Namespace, **flags: object) -> Settings:
+    """The one Settings: the environment's values, the command line's flags (those given) over them."""
+    given = {"data_dir": args.data_dir, "model_dir": getattr(args, "model", None), **flags}
+    return Settings(**{name: value for name, value in given.items() if value is not None})
 
 
 @contextmanager
@@ -28,7 +28,7 @@ def _database(args: argparse.Namespace) -> Iterator[tuple[Settings, sqlite3.Conn
 
     settings = _settings(args)
     settings.data_dir.mkdir(parents=True, exist_ok=True)
-    migrate(settings.db_path)
+    migrate(settings.db_path, settings.migrations_dir)
     conn = connect(settings.db_path)
     try:
         yield settings, conn
@@ -61,12 +61,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from backend.devices import parse_device_spec
     from backend.serve import serve
 
-    device = args.device or os.environ.get("QUASITUNE_DEVICE") or "sim"
-    parse_device_spec(device)   # refuse a bad spec before anything starts
-    proxies = tuple(args.trusted_proxy or os.environ.get("QUASITUNE_TRUSTED_PROXIES", "").replace(",", " ").split())
-    return serve(dataclasses.replace(_settings(args), device=device, viewer3d=args.viewer3d,
-                                     bench_leg=_bench_leg(args.leg), trusted_proxies=proxies),
-                 host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user)
+    settings = _settings(args, device=args.device, viewer3d=args.viewer3d or None, bench_leg=_bench_leg(args.leg),
+                         trusted_proxies=tuple(args.trusted_proxy) if args.trusted_proxy else None)
+    if not settings.given("device"):
+        settings = settings.model_copy(update={"device": "sim"})   # serve's own default: the simulated leg
+    parse_device_spec(settings.device)   # refuse a bad spec before anything starts
+    return serve(settings, host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user)
 
 
 def _read_password() -> str:
