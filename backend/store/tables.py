@@ -1,0 +1,309 @@
+"""The database's tables, defined once (SQLAlchemy Core metadata): columns, keys, checks and indexes.
+
+This is the schema the shipped migrations build, column for column (``tests/backend/store/test_tables.py`` compares it
+with a database they made, through Alembic's own comparison and the reflected checks). What metadata cannot say lives
+with the migrations: the triggers that keep versions, decisions, pushes, sessions and the audit log immutable.
+
+Checks that need SQLite's JSON functions apply on SQLite only (``ddl_if``); the user-name collation is SQLite's
+``NOCASE``. Times are ISO-8601 text (``backend.db.utc_now``), flags 0/1 integers, angles and speeds SI floats.
+"""
+
+from __future__ import annotations
+
+from sqlalchemy import (
+    BigInteger,
+    CheckConstraint,
+    Column,
+    Double,
+    ForeignKey,
+    Index,
+    Integer,
+    MetaData,
+    PrimaryKeyConstraint,
+    Table,
+    Text,
+    UniqueConstraint,
+    text,
+)
+from sqlalchemy.dialects.sqlite import REAL
+
+metadata = MetaData()
+
+_Float = Double().with_variant(REAL(), "sqlite")            # SI floats, 8 bytes on every database (SQLite's REAL)
+_Crc32 = Integer().with_variant(BigInteger(), "postgresql")  # 0 … 2³²−1 does not fit a signed 32-bit integer
+
+
+def _json_check(column: str) -> CheckConstraint:
+    """The column holds valid JSON (SQLite's ``json_valid``; on a server database the application writes it)."""
+    return CheckConstraint(f"json_valid({column})").ddl_if(dialect="sqlite")
+
+
+def _flag(name: str) -> CheckConstraint:
+    return CheckConstraint(f"{name} IN (0, 1)")
+
+
+users = Table(
+    "users", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("username", Text().with_variant(Text(collation="NOCASE"), "sqlite"), nullable=False, unique=True),
+    Column("role", Text, nullable=False),
+    Column("password_hash", Text, nullable=False),
+    Column("created_at", Text, nullable=False),
+    Column("disabled", Integer, nullable=False, server_default="0"),
+    Column("must_change_password", Integer, nullable=False, server_default="0"),
+    Column("password_changed_at", Text),
+    CheckConstraint("length(username) BETWEEN 1 AND 64"),
+    CheckConstraint("role IN ('prosthetist', 'viewer', 'admin')"),
+    _flag("disabled"), _flag("must_change_password"),
+)
+
+tokens = Table(
+    "tokens", metadata,
+    Column("token_sha256", Text, primary_key=True),
+    Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
+    Column("issued_at", Text, nullable=False),
+    Column("expires_at_unix", _Float, nullable=False),
+    Index("tokens_by_expiry", "expires_at_unix"),
+)
+
+patients = Table(
+    "patients", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("code_name", Text, nullable=False, unique=True),
+    Column("body_mass_kg", _Float, nullable=False),
+    Column("height_m", _Float),
+    Column("side", Text, nullable=False),
+    Column("k_level", Integer),
+    Column("notes", Text, nullable=False, server_default=text("''")),
+    Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
+    Column("created_at", Text, nullable=False),
+    Column("updated_at", Text, nullable=False),
+    CheckConstraint("length(code_name) BETWEEN 1 AND 64"),
+    CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),
+    CheckConstraint("height_m IS NULL OR height_m BETWEEN 0.5 AND 2.5"),
+    CheckConstraint("side IN ('left', 'right')"),
+    CheckConstraint("k_level IS NULL OR k_level BETWEEN 0 AND 4"),
+    CheckConstraint("length(notes) <= 4000"),
+)
+
+
+def _version_columns(kind: str) -> list:
+    """What a table version and an envelope version share: patient, lineage, authorship and the decision."""
+    return [
+        Column("id", Integer, primary_key=True),
+        Column("patient_id", Integer, ForeignKey("patients.id"), nullable=False),
+        Column("version", Integer, nullable=False),
+        Column("parent_id", Integer, ForeignKey(f"{kind}.id")),
+        Column("source", Text, nullable=False),
+    ]
+
+
+def _decision_columns() -> list:
+    return [
+        Column("edit_comment", Text),
+        Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
+        Column("created_at", Text, nullable=False),
+        Column("status", Text, nullable=False, server_default="draft"),
+        Column("decided_by", Integer, ForeignKey("users.id")),
+        Column("decided_at", Text),
+        Column("decision_comment", Text),
+        Column("decision_override", Text),
+        Column("extrapolation_reason", Text),
+    ]
+
+
+def _version_checks() -> list:
+    return [
+        CheckConstraint("version >= 1"),
+        CheckConstraint("source IN ('model', 'edit')"),
+        CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),
+        _flag("extrapolation"), _flag("safety_ok"),
+        CheckConstraint("status IN ('draft', 'approved', 'rejected')"),
+        UniqueConstraint("patient_id", "version"),
+    ]
+
+
+proposals = Table(
+    "proposals", metadata,
+    *_version_columns("proposals"),
+    Column("speed_mps", _Float, nullable=False),
+    Column("incline_deg", _Float, nullable=False),
+    Column("body_mass_kg", _Float, nullable=False),
+    Column("extrapolation", Integer, nullable=False),
+    Column("safety_ok", Integer, nullable=False),
+    Column("model_json", Text, nullable=False),
+    Column("table_json", Text, nullable=False),
+    Column("table_sha256", Text, nullable=False),
+    *_decision_columns(),
+    CheckConstraint("speed_mps > 0 AND speed_mps <= 3"),
+    CheckConstraint("incline_deg BETWEEN -20 AND 20"),
+    *_version_checks(),
+    Index("proposals_by_patient", "patient_id", "version"),
+)
+
+envelopes = Table(
+    "envelopes", metadata,
+    *_version_columns("envelopes"),
+    Column("body_mass_kg", _Float, nullable=False),
+    Column("n_speeds", Integer, nullable=False),
+    Column("n_inclines", Integer, nullable=False),
+    Column("extrapolation", Integer, nullable=False),
+    Column("safety_ok", Integer, nullable=False),
+    Column("envelope_json", Text, nullable=False),
+    Column("envelope_sha256", Text, nullable=False),
+    Column("wire_crc32", _Crc32),
+    *_decision_columns(),
+    CheckConstraint("n_speeds BETWEEN 2 AND 15"),
+    CheckConstraint("n_inclines BETWEEN 2 AND 15"),
+    *_version_checks(),
+    Index("envelopes_by_patient", "patient_id", "version"),
+)
+
+audit_log = Table(
+    "audit_log", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("at", Text, nullable=False),
+    Column("actor_id", Integer, ForeignKey("users.id")),
+    Column("actor_name", Text, nullable=False),
+    Column("action", Text, nullable=False),
+    Column("entity", Text, nullable=False),
+    Column("entity_id", Integer),
+    Column("before_json", Text),
+    Column("after_json", Text),
+    Index("audit_by_entity", "entity", "entity_id"),
+)
+
+devices = Table(
+    "devices", metadata,
+    Column("id", Text, primary_key=True),
+    Column("kind", Text, nullable=False),
+    Column("interface", Text, nullable=False),
+    Column("channel", Text, nullable=False),
+    Column("registered_at", Text, nullable=False),
+    Column("patient_id", Integer, ForeignKey("patients.id")),
+    Column("assigned_by", Integer, ForeignKey("users.id")),
+    Column("assigned_at", Text),
+    Column("last_wire_version", Integer, nullable=False, server_default="0"),
+    CheckConstraint("length(id) BETWEEN 1 AND 64"),
+    CheckConstraint("kind IN ('simulated', 'can')"),
+    CheckConstraint("last_wire_version BETWEEN 0 AND 65535"),
+)
+
+walking_sessions = Table(
+    "walking_sessions", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("patient_id", Integer, ForeignKey("patients.id"), nullable=False),
+    Column("device_id", Text, ForeignKey("devices.id"), nullable=False),
+    Column("proposal_id", Integer, ForeignKey("proposals.id")),
+    Column("table_version", Integer),
+    Column("table_crc32", _Crc32),
+    Column("speed_mps", _Float, nullable=False),
+    Column("incline_deg", _Float, nullable=False),
+    Column("body_mass_kg", _Float, nullable=False),
+    Column("status", Text, nullable=False),
+    Column("started_by", Integer, ForeignKey("users.id"), nullable=False),
+    Column("started_at", Text, nullable=False),
+    Column("stopped_by", Integer, ForeignKey("users.id")),
+    Column("stopped_at", Text),
+    Column("summary_json", Text),
+    Column("envelope_id", Integer, ForeignKey("envelopes.id")),
+    Column("course", Text),
+    CheckConstraint("speed_mps > 0 AND speed_mps <= 3"),
+    CheckConstraint("incline_deg BETWEEN -20 AND 20"),
+    CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),
+    CheckConstraint("status IN ('recording', 'stopped')"),
+    Index("sessions_by_patient", "patient_id", "id"),
+    # one recording session per device: the recorder's guarantee, held by the database
+    Index("one_recording_session_per_device", "device_id", unique=True,
+          sqlite_where=Column("status") == "recording", postgresql_where=Column("status") == "recording"),
+)
+
+session_samples = Table(
+    "session_samples", metadata,
+    Column("session_id", Integer, ForeignKey("walking_sessions.id"), nullable=False),
+    Column("seq", Integer, nullable=False),
+    Column("t_s", _Float, nullable=False),
+    Column("mode", Integer, nullable=False),
+    Column("fsm_state", Integer),
+    Column("knee_angle_rad", _Float, nullable=False),
+    Column("knee_velocity_rad_s", _Float, nullable=False),
+    Column("knee_torque_Nm", _Float, nullable=False),
+    Column("ankle_angle_rad", _Float, nullable=False),
+    Column("ankle_velocity_rad_s", _Float, nullable=False),
+    Column("ankle_torque_Nm", _Float, nullable=False),
+    Column("load_N", _Float, nullable=False),
+    Column("ankle_moment_Nm", _Float, nullable=False),
+    Column("estimated_speed_mps", _Float),
+    Column("estimated_incline_deg", _Float),
+    Column("running_speed_mps", _Float),
+    Column("running_incline_deg", _Float),
+    Column("adaptive_mode", Text),
+    CheckConstraint("adaptive_mode IS NULL OR adaptive_mode IN ('nominal', 'partial', 'adaptive', 'clamped', "
+                    "'unknown')"),
+    PrimaryKeyConstraint("session_id", "seq"),
+    sqlite_with_rowid=False,
+)
+
+proposal_previews = Table(
+    "proposal_previews", metadata,
+    Column("proposal_id", Integer, ForeignKey("proposals.id"), primary_key=True, autoincrement=False),
+    Column("table_sha256", Text, nullable=False),
+    Column("seconds", _Float, nullable=False),
+    Column("created_at", Text, nullable=False),
+    Column("result_json", Text, nullable=False),
+    CheckConstraint("length(table_sha256) = 64"),
+    CheckConstraint("seconds > 0"),
+    _json_check("result_json"),
+)
+
+envelope_previews = Table(
+    "envelope_previews", metadata,
+    Column("envelope_id", Integer, ForeignKey("envelopes.id"), primary_key=True, autoincrement=False),
+    Column("envelope_sha256", Text, nullable=False),
+    Column("course", Text, nullable=False),
+    Column("created_at", Text, nullable=False),
+    Column("result_json", Text, nullable=False),
+    CheckConstraint("length(envelope_sha256) = 64"),
+    _json_check("result_json"),
+)
+
+pushes = Table(
+    "pushes", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("proposal_id", Integer, ForeignKey("proposals.id")),
+    Column("envelope_id", Integer, ForeignKey("envelopes.id")),
+    Column("device_id", Text, ForeignKey("devices.id"), nullable=False),
+    Column("table_version", Integer, nullable=False),
+    Column("crc32", _Crc32, nullable=False),
+    Column("status", Text, nullable=False),
+    Column("requested_by", Integer, ForeignKey("users.id"), nullable=False),
+    Column("requested_at", Text, nullable=False),
+    Column("acknowledged_at", Text),
+    Column("active_at", Text),
+    Column("ended_at", Text),
+    Column("attempts", Integer),
+    Column("elapsed_ms", _Float),
+    Column("error", Text),
+    Column("override_reason", Text),
+    CheckConstraint("table_version BETWEEN 1 AND 65535"),
+    CheckConstraint("crc32 BETWEEN 0 AND 4294967295"),
+    CheckConstraint("status IN ('sending', 'unconfirmed', 'acknowledged', 'active', 'failed', 'superseded', 'lost')"),
+    CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
+    Index("pushes_by_proposal", "proposal_id"),
+    Index("pushes_by_envelope", "envelope_id"),
+    Index("pushes_by_device", "device_id", "status"),
+)
+
+refinements = Table(
+    "refinements", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("envelope_id", Integer, ForeignKey("envelopes.id"), unique=True),
+    Column("proposal_id", Integer, ForeignKey("proposals.id"), unique=True),
+    Column("parent_id", Integer, nullable=False),
+    Column("session_ids_json", Text, nullable=False),
+    Column("evidence_json", Text, nullable=False),
+    Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
+    Column("created_at", Text, nullable=False),
+    _json_check("session_ids_json"), _json_check("evidence_json"),
+    CheckConstraint("(envelope_id IS NULL) <> (proposal_id IS NULL)"),
+)
