@@ -1,108 +1,139 @@
-"""Apply the numbered SQL files in ``migrations/`` once each, in order, recording them in ``schema_version``.
+"""Bring a database to the newest schema with Alembic (revisions in ``migrations/versions/``).
 
-Safe when two processes start at once: each migration runs in a ``BEGIN IMMEDIATE`` transaction that first
-re-reads ``schema_version``, so the second process waits for the first and then finds the work done. A
-recorded migration whose file changed since it was applied is refused (its sha256 no longer matches).
+* Run once before the API starts: ``quasitune db upgrade``; ``quasitune serve`` and ``create_app`` on the embedded
+  SQLite file do it themselves. Processes starting at once queue on an exclusive lock of a file beside the database
+  (``fcntl``), so one upgrades and the others find the work done.
+* On SQLite the whole upgrade is one transaction (``BEGIN IMMEDIATE``; SQLite's DDL is transactional): a revision that
+  fails leaves nothing behind.
+* A database made by the hand-written migrations 0001-0012 (``schema_version`` holding all twelve, each file's sha256
+  as shipped in ``migrations/before_alembic/``) is the baseline's schema: it is stamped at revision ``0012`` in the
+  same transaction that drops ``schema_version``, every row kept. One made by an older release, or whose migrations
+  differ from the shipped ones, is refused with what to do.
 """
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
-import re
-import sqlite3
-from dataclasses import dataclass
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-from backend.db import connect, utc_now, write_transaction
+from alembic import command
+from alembic.config import Config
+from alembic.runtime.migration import MigrationContext
+from alembic.script import ScriptDirectory
+from sqlalchemy import Connection, Engine, create_engine, event, inspect, text
+
+from backend.db import BUSY_TIMEOUT_MS, connect
 from backend.settings import default_migrations_dir
 
-# the repository's migrations/ (Settings.migrations_dir, QUASITUNE_MIGRATIONS_DIR, names another copy)
 MIGRATIONS_DIR = default_migrations_dir()
-_NAME = re.compile(r"^(\d{4})_[a-z0-9_]+\.sql$")
+BASELINE = "0012"            # the revision equal to what the hand-written migrations built
+LEGACY_DIR_NAME = "before_alembic"
 
 
 class MigrationError(RuntimeError):
-    """The migrations on disk and those recorded in the database disagree."""
+    """The database's schema history and this QuasiTune's revisions disagree."""
 
 
-@dataclass(frozen=True)
-class Migration:
-    version: int
-    name: str
-    sql: str
+def sqlite_engine(db_path: str | Path) -> Engine:
+    """An engine on the SQLite file whose transactions begin with ``BEGIN IMMEDIATE`` (SQLAlchemy's documented recipe:
+    the driver's own transaction handling off, SQLAlchemy's ``begin`` emitting the statement)."""
+    engine = create_engine(f"sqlite:///{db_path}", connect_args={"timeout": BUSY_TIMEOUT_MS / 1000})
 
-    @property
-    def sha256(self) -> str:
-        return hashlib.sha256(self.sql.encode()).hexdigest()
+    @event.listens_for(engine, "connect")
+    def _no_driver_transactions(dbapi_connection, _record) -> None:
+        dbapi_connection.isolation_level = None
 
+    @event.listens_for(engine, "begin")
+    def _begin_immediate(conn: Connection) -> None:
+        conn.exec_driver_sql("BEGIN IMMEDIATE")
 
-def discover(directory: Path = MIGRATIONS_DIR) -> list[Migration]:
-    """Migrations in ``directory`` sorted by number; numbers must be unique and start at 1 without gaps."""
-    found = []
-    for path in sorted(directory.glob("*.sql")):
-        m = _NAME.match(path.name)
-        if not m:
-            raise MigrationError(f"migration file name {path.name!r} is not NNNN_name.sql")
-        found.append(Migration(int(m.group(1)), path.name, path.read_text(encoding="utf-8")))
-    numbers = [m.version for m in found]
-    if numbers != list(range(1, len(found) + 1)):
-        raise MigrationError(f"migration numbers must run 1, 2, 3 … without gaps; found {numbers}")
-    return found
+    return engine
 
 
-def statements(sql: str) -> list[str]:
-    """Split a script into complete statements (trigger bodies with inner ``;`` stay whole)."""
-    out, buf = [], ""
-    for line in sql.splitlines(keepends=True):
-        stripped = line.strip()
-        if not buf and (not stripped or stripped.startswith("--")):
-            continue
-        buf += line
-        if sqlite3.complete_statement(buf):
-            out.append(buf.strip())
-            buf = ""
-    if buf.strip():
-        raise MigrationError(f"incomplete SQL statement at the end of a migration: {buf.strip()[:80]!r}")
-    return out
+def alembic_config(directory: Path = MIGRATIONS_DIR) -> Config:
+    """Alembic's configuration for the revisions in ``directory`` (no ``alembic.ini`` needed)."""
+    if not (directory / "env.py").is_file():
+        raise MigrationError(f"migrations folder {directory} not found (no env.py); set QUASITUNE_MIGRATIONS_DIR")
+    cfg = Config()
+    cfg.set_main_option("script_location", str(directory))
+    return cfg
 
 
-def _applied(conn: sqlite3.Connection) -> dict[int, str]:
-    return {r["version"]: r["sha256"] for r in conn.execute("SELECT version, sha256 FROM schema_version")}
+def head(directory: Path = MIGRATIONS_DIR) -> str:
+    """The newest revision in ``directory``."""
+    heads = ScriptDirectory.from_config(alembic_config(directory)).get_heads()
+    if len(heads) != 1:
+        raise MigrationError(f"the revisions in {directory} have {len(heads)} heads; merge them into one")
+    return heads[0]
 
 
-def migrate(db_path: str | Path, directory: Path = MIGRATIONS_DIR) -> list[int]:
-    """Bring the database at ``db_path`` up to date; returns the versions applied by this call."""
-    if not directory.is_dir():
-        raise MigrationError(f"migrations folder {directory} not found; set QUASITUNE_MIGRATIONS_DIR")
-    migrations = discover(directory)
-    conn = connect(db_path)
-    try:
-        conn.execute("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER PRIMARY KEY, name TEXT NOT NULL, "
-                     "sha256 TEXT NOT NULL, applied_at TEXT NOT NULL)")
-        done: list[int] = []
-        for mig in migrations:
-            with write_transaction(conn):
-                applied = _applied(conn)
-                if mig.version in applied:
-                    if applied[mig.version] != mig.sha256:
-                        raise MigrationError(f"migration {mig.name} changed after it was applied; add a new "
-                                             "migration instead of editing a shipped one")
-                    continue
-                for stmt in statements(mig.sql):
-                    conn.execute(stmt)
-                conn.execute("INSERT INTO schema_version (version, name, sha256, applied_at) VALUES (?, ?, ?, ?)",
-                             (mig.version, mig.name, mig.sha256, utc_now()))
-                done.append(mig.version)
-        unknown = sorted(set(_applied(conn)) - {m.version for m in migrations})
-        if unknown:
-            raise MigrationError(f"the database has schema versions {unknown} that this QuasiTune does not know; "
-                                 "it was written by a newer version")
-        return done
-    finally:
-        conn.close()
+@contextmanager
+def _exclusive(db_path: Path) -> Iterator[None]:
+    """One migrating process at a time for this database file."""
+    with open(db_path.with_name(db_path.name + ".migrate-lock"), "a+") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
 
 
-def schema_version(conn: sqlite3.Connection) -> int:
-    """Highest applied migration number (0 for an empty database)."""
-    row = conn.execute("SELECT max(version) AS v FROM schema_version").fetchone()
-    return int(row["v"] or 0)
+def _legacy_sha256s(directory: Path) -> dict[int, str]:
+    legacy = directory / LEGACY_DIR_NAME
+    return {int(p.name[:4]): hashlib.sha256(p.read_text(encoding="utf-8").encode()).hexdigest()
+            for p in sorted(legacy.glob("*.sql"))}
+
+
+def _stamp_legacy(conn: Connection, directory: Path) -> bool:
+    """Stamp a database of the hand-written migrations at the baseline (module docstring); False if it is not one."""
+    if "schema_version" not in inspect(conn).get_table_names():
+        return False
+    recorded = {int(v): s for v, s in conn.execute(text("SELECT version, sha256 FROM schema_version"))}
+    shipped = _legacy_sha256s(directory)
+    if set(recorded) != set(shipped):
+        missing = sorted(set(shipped) - set(recorded))
+        raise MigrationError(f"this database has the hand-written schema versions {sorted(recorded)}, not 1-"
+                             f"{max(shipped)}: open it once with QuasiTune 0.1 (which applies {missing}), then here")
+    changed = sorted(v for v in shipped if recorded[v] != shipped[v])
+    if changed:
+        raise MigrationError(f"this database's migrations {changed} differ from the ones QuasiTune shipped; its schema "
+                             "is not the baseline's, and it is not upgraded")
+    conn.execute(text("DROP TABLE schema_version"))
+    MigrationContext.configure(conn).stamp(ScriptDirectory.from_config(alembic_config(directory)), BASELINE)
+    return True
+
+
+def migrate(db_path: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
+    """Bring the SQLite database at ``db_path`` (created if missing) to the newest revision; returns the revisions
+    applied by this call, oldest first (a stamped baseline is not among them: nothing was applied)."""
+    db_path = Path(db_path)
+    cfg = alembic_config(directory)
+    script = ScriptDirectory.from_config(cfg)
+    with _exclusive(db_path):
+        connect(db_path).close()              # the file in WAL mode with the project's pragmas, as the app opens it
+        engine = sqlite_engine(db_path)
+        try:
+            with engine.begin() as conn:
+                _stamp_legacy(conn, directory)
+            with engine.connect() as conn:
+                before = MigrationContext.configure(conn).get_current_revision()
+                cfg.attributes["connection"] = conn
+                command.upgrade(cfg, "head")
+                conn.commit()
+                after = MigrationContext.configure(conn).get_current_revision()
+        finally:
+            engine.dispose()
+    if after is None or script.get_revision(after) is None:
+        raise MigrationError(f"the database is at revision {after!r}, which this QuasiTune does not know: it was "
+                             "written by a newer version")
+    chain = [rev.revision for rev in script.iterate_revisions(after, before)]
+    return list(reversed(chain))
+
+
+def schema_version(conn) -> int:
+    """The database's revision as a number (revisions are numbered ``NNNN``; 0 for an empty database)."""
+    row = conn.execute("SELECT version_num FROM alembic_version").fetchone()
+    return int(row[0]) if row else 0

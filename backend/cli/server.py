@@ -154,6 +154,18 @@ def cmd_users_list(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_db_upgrade(args: argparse.Namespace) -> int:
+    """Run the migrations once, before any API instance starts (``serve`` on the embedded SQLite file also does)."""
+    from backend.migrate import head, migrate
+
+    settings = _settings(args)
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    applied = migrate(settings.db_path, settings.migrations_dir)
+    done = ", ".join(applied) if applied else "nothing to apply"
+    print(f"{settings.db_path}: {done}; at revision {head(settings.migrations_dir)}")
+    return 0
+
+
 def cmd_bridge(args: argparse.Namespace) -> int:
     from device_bridge.buses import open_bus
     from device_bridge.gateway import Gateway
@@ -198,6 +210,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--to", default="udp_multicast:239.74.163.2",
                    help="the bus 'quasitune serve --device' uses (default udp_multicast:239.74.163.2)")
     p.set_defaults(func=cmd_bridge)
+    p = sub.add_parser("db", help="the database's schema")
+    db_sub = p.add_subparsers(dest="db_command", required=True)
+    p = db_sub.add_parser("upgrade", help="bring the database to the newest schema (Alembic), once, before the API "
+                                          "instances start; a database of QuasiTune 0.1 is taken over in place")
+    p.add_argument("--data-dir", type=Path, default=None, help=DATA_DIR_HELP)
+    p.set_defaults(func=cmd_db_upgrade)
     p = sub.add_parser("users", help="manage users")
     users_sub = p.add_subparsers(dest="users_command", required=True)
     p = users_sub.add_parser("add", help="add a user (password from a prompt, or one line of stdin)")

@@ -39,7 +39,7 @@ def test_defaults_are_the_embedded_ones():
     s = Settings(data_dir=Path("/tmp/x"))
     assert s.db_path == Path("/tmp/x") / DB_FILE and s.device == "none" and not s.viewer3d
     assert s.token_ttl_s == 8 * 3600 and s.request_threads == 2 and s.trusted_proxies == ()
-    assert (s.migrations_dir / "0001_initial.sql").exists() and not s.given("device")
+    assert (s.migrations_dir / "env.py").exists() and not s.given("device")
 
 
 def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeypatch, tmp_path):

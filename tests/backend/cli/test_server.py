@@ -62,3 +62,13 @@ def test_serve_refuses_a_bad_device_before_starting(capsys, tmp_path):
     assert main(["serve", "--device", "carrier-pigeon:1", "--data-dir", str(tmp_path)]) == 2
     assert "device must be 'sim', 'none' or INTERFACE:CHANNEL" in capsys.readouterr().err
     assert not (tmp_path / "quasitune.sqlite").exists()          # nothing was started or created
+
+
+def test_db_upgrade_runs_the_migrations_once_and_says_where_the_database_stands(capsys, tmp_path):
+    from backend.migrate import head
+
+    assert main(["db", "upgrade", "--data-dir", str(tmp_path)]) == 0
+    first = capsys.readouterr().out
+    assert f"quasitune.sqlite: {head()}" in first and f"at revision {head()}" in first
+    assert main(["db", "upgrade", "--data-dir", str(tmp_path)]) == 0
+    assert "nothing to apply" in capsys.readouterr().out
