@@ -87,10 +87,10 @@ def _legacy_sha256s(directory: Path) -> dict[int, str]:
             for p in sorted(legacy.glob("*.sql"))}
 
 
-def _stamp_legacy(conn: Connection, directory: Path) -> bool:
-    """Stamp a database of the hand-written migrations at the baseline (module docstring); False if it is not one."""
+def _stamp_legacy(conn: Connection, directory: Path, script: ScriptDirectory) -> None:
+    """Stamp a database of the hand-written migrations at the baseline (module docstring); others are left alone."""
     if "schema_version" not in inspect(conn).get_table_names():
-        return False
+        return
     recorded = {int(v): s for v, s in conn.execute(text("SELECT version, sha256 FROM schema_version"))}
     shipped = _legacy_sha256s(directory)
     if set(recorded) != set(shipped):
@@ -102,8 +102,7 @@ def _stamp_legacy(conn: Connection, directory: Path) -> bool:
         raise MigrationError(f"this database's migrations {changed} differ from the ones QuasiTune shipped; its schema "
                              "is not the baseline's, and it is not upgraded")
     conn.execute(text("DROP TABLE schema_version"))
-    MigrationContext.configure(conn).stamp(ScriptDirectory.from_config(alembic_config(directory)), BASELINE)
-    return True
+    MigrationContext.configure(conn).stamp(script, BASELINE)
 
 
 def migrate(db_path: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
@@ -117,7 +116,7 @@ def migrate(db_path: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
         engine = sqlite_engine(db_path)
         try:
             with engine.begin() as conn:
-                _stamp_legacy(conn, directory)
+                _stamp_legacy(conn, directory, script)
             with engine.connect() as conn:
                 before = MigrationContext.configure(conn).get_current_revision()
                 cfg.attributes["connection"] = conn

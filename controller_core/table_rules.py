@@ -21,9 +21,9 @@ from controller_core.units import body_weight_N
 
 JOINT_RANGE_RAD = {"knee": (0.0, math.radians(120.0)), "ankle": (math.radians(-30.0), math.radians(30.0))}
 # Damping is not learned (the fit is τ = kθ + c): editable defaults per kg body mass, of the order of published
-# finite-state impedance values for adults. The knee's swing values brake the swinging shank (late-swing 0.06 ≈ the
-# Open Source Leg example's 3.816 N·m·s/rad for 60 kg; early swing 0.03, chosen on the simulated bench).
-# per kg; the knee's swing extension is damped near critically (TableRules: swing_knee_stiffness_Nm_per_rad_per_kg)
+# finite-state impedance values for adults. The knee's swing values brake the swinging shank: early swing 0.03, chosen
+# on the simulated bench; late swing 0.13, about critical with its stiffness (TableRules,
+# swing_knee_stiffness_Nm_per_rad_per_kg, says why; the Open Source Leg example's 3.816 N·m·s/rad for 60 kg is 0.06).
 DEFAULT_DAMPING_NMS_PER_RAD_PER_KG = {
     "knee": {"stance_flexion": 0.04, "stance_extension": 0.04, "swing_flexion": 0.03, "swing_extension": 0.13},
     "ankle": {"stance_flexion": 0.04, "stance_extension": 0.04, "swing_flexion": 0.01, "swing_extension": 0.02},

@@ -47,14 +47,13 @@ def _port(text: str) -> int:
 
 
 def _bench_leg(leg: str | None) -> Path | None:
-    """The leg file of ``--leg`` (a path or a repository leg's name), checked before the server starts."""
+    """``--leg`` (a path or a repository leg's name, as ``load_leg`` reads it), checked before the server starts."""
     if leg is None:
         return None
-    from device_bridge.sim.leg_file import LEGS_DIR, load_leg
+    from device_bridge.sim.leg_file import load_leg
 
     load_leg(leg)   # ValueError names the file, the field and the reason
-    path = Path(leg)
-    return path if path.exists() else LEGS_DIR / f"{leg}.json"
+    return Path(leg)
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
