@@ -19,12 +19,12 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
-from backend.db import open_pool
+from backend.db import open_engine
 from backend.devices import DeviceManager, parse_device_spec
 from backend.errors import DomainError
 from backend.frontend import mount_frontend
 from backend.headers import RefuseAnonymousWrites, add_security_headers, mount_docs
-from backend.migrate import migrate
+from backend.migrate import migrate, require_current
 from backend.model_service import ModelService
 from backend.routers import (
     audit,
@@ -79,7 +79,12 @@ def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
 
 
 def prepare_storage(settings: Settings) -> None:
-    """Create the data directory and bring its database up to date."""
+    """The embedded SQLite file: create the data directory and bring the database up to date. A server database:
+    refuse to start unless it is already at this QuasiTune's revision (``quasitune db upgrade`` migrates it, once,
+    before the instances start)."""
+    if settings.database_url is not None:
+        require_current(settings.database_url, settings.migrations_dir)
+        return
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     migrate(settings.db_path, settings.migrations_dir)
 
@@ -107,7 +112,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.settings = settings
     app.state.login_throttle = LoginThrottle(settings.login_per_user_per_minute, settings.login_per_address_per_minute,
                                              settings.login_per_user_anywhere_per_minute)
-    app.state.db = open_pool(settings.db_path)
+    app.state.db = open_engine(settings.database)
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()

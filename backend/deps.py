@@ -6,12 +6,12 @@ hop per dependency would only add to.
 
 from __future__ import annotations
 
-import sqlite3
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
+from sqlalchemy import Connection
 
 from backend.db import pooled
 from backend.model_service import ModelService
@@ -27,13 +27,13 @@ async def get_settings(request: Request) -> Settings:
     return request.app.state.settings
 
 
-async def get_conn(request: Request) -> AsyncIterator[sqlite3.Connection]:
+async def get_conn(request: Request) -> AsyncIterator[Connection]:
     """A connection for this request alone, back in the pool once the answer has been sent."""
     with pooled(request.app.state.db) as conn:
         yield conn
 
 
-Conn = Annotated[sqlite3.Connection, Depends(get_conn)]
+Conn = Annotated[Connection, Depends(get_conn)]
 
 
 def _unauthorized(message: str) -> HTTPException:

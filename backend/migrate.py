@@ -1,10 +1,12 @@
 """Bring a database to the newest schema with Alembic (revisions in ``migrations/versions/``).
 
 * Run once before the API starts: ``quasitune db upgrade``; ``quasitune serve`` and ``create_app`` on the embedded
-  SQLite file do it themselves. Processes starting at once queue on an exclusive lock of a file beside the database
-  (``fcntl``), so one upgrades and the others find the work done.
-* On SQLite the whole upgrade is one transaction (``BEGIN IMMEDIATE``; SQLite's DDL is transactional): a revision that
-  fails leaves nothing behind.
+  SQLite file do it themselves. On PostgreSQL the API instances do not migrate: they refuse to start on a database
+  that is not at this QuasiTune's revision (:func:`require_current`), so the one-shot migration runs first.
+* The whole upgrade is one transaction (``BEGIN IMMEDIATE`` on SQLite; DDL is transactional on both databases): a
+  revision that fails leaves nothing behind. Processes migrating at once queue: on SQLite on an exclusive lock of a
+  file beside the database (``fcntl``), on PostgreSQL on a transaction-level advisory lock; one upgrades and the others
+  find the work done.
 * A database made by the hand-written migrations 0001-0012 (``schema_version`` holding all twelve, each file's sha256
   as shipped in ``migrations/before_alembic/``) is the baseline's schema: it is stamped at revision ``0012`` in the
   same transaction that drops ``schema_version``, every row kept. One made by an older release, or whose migrations
@@ -25,11 +27,12 @@ from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 from sqlalchemy import Connection, Engine, create_engine, event, inspect, text
 
-from backend.db import BUSY_TIMEOUT_MS, connect
+from backend.db import BUSY_TIMEOUT_MS, connect, database_url, is_sqlite, open_engine
 from backend.settings import default_migrations_dir
 
 MIGRATIONS_DIR = default_migrations_dir()
 BASELINE = "0012"            # the revision equal to what the hand-written migrations built
+ADVISORY_LOCK_KEY = 0x5155_4D49   # "QUMI": PostgreSQL's advisory lock id held by the migrating process
 LEGACY_DIR_NAME = "before_alembic"
 
 
@@ -105,24 +108,30 @@ def _stamp_legacy(conn: Connection, directory: Path, script: ScriptDirectory) ->
     MigrationContext.configure(conn).stamp(script, BASELINE)
 
 
-def migrate(db_path: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
-    """Bring the SQLite database at ``db_path`` (created if missing) to the newest revision; returns the revisions
-    applied by this call, oldest first (a stamped baseline is not among them: nothing was applied)."""
-    db_path = Path(db_path)
+def migrate(target: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
+    """Bring the database at ``target`` (an SQLite file, created if missing, or a URL) to the newest revision;
+    returns the revisions applied by this call, oldest first (a stamped baseline is not among them: nothing was
+    applied)."""
     cfg = alembic_config(directory)
     script = ScriptDirectory.from_config(cfg)
-    with _exclusive(db_path):
-        connect(db_path).close()              # the file in WAL mode with the project's pragmas, as the app opens it
-        engine = sqlite_engine(db_path)
+    if is_sqlite(target):
+        db_path = Path(target) if "://" not in str(target) else Path(str(target).split(":///", 1)[1])
+        with _exclusive(db_path):
+            connect(db_path).close()          # the file in WAL mode with the project's pragmas, as the app opens it
+            engine = sqlite_engine(db_path)
+            try:
+                before, after = _upgrade(engine, cfg, directory, script)
+            finally:
+                engine.dispose()
+    else:
+        engine = create_engine(database_url(target))
+
+        @event.listens_for(engine, "begin")
+        def _one_migrator(conn: Connection) -> None:   # held to the transaction's end: migrators queue here
+            conn.exec_driver_sql(f"SELECT pg_advisory_xact_lock({ADVISORY_LOCK_KEY})")
+
         try:
-            with engine.begin() as conn:
-                _stamp_legacy(conn, directory, script)
-            with engine.connect() as conn:
-                before = MigrationContext.configure(conn).get_current_revision()
-                cfg.attributes["connection"] = conn
-                command.upgrade(cfg, "head")
-                conn.commit()
-                after = MigrationContext.configure(conn).get_current_revision()
+            before, after = _upgrade(engine, cfg, directory, script)
         finally:
             engine.dispose()
     if after is None or script.get_revision(after) is None:
@@ -132,7 +141,36 @@ def migrate(db_path: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
     return list(reversed(chain))
 
 
-def schema_version(conn) -> int:
+def _upgrade(engine: Engine, cfg: Config, directory: Path, script: ScriptDirectory) -> tuple[str | None, str | None]:
+    """(revision before, revision after) of one upgrade to head, in one transaction."""
+    with engine.begin() as conn:
+        _stamp_legacy(conn, directory, script)
+    with engine.connect() as conn:
+        before = MigrationContext.configure(conn).get_current_revision()
+        cfg.attributes["connection"] = conn
+        command.upgrade(cfg, "head")
+        conn.commit()
+        after = MigrationContext.configure(conn).get_current_revision()
+    return before, after
+
+
+def require_current(target: str | Path, directory: Path = MIGRATIONS_DIR) -> None:
+    """Refuse (MigrationError, saying what to run) a database that is not at this QuasiTune's newest revision: an API
+    instance on a server database never migrates it itself."""
+    engine = open_engine(target, pooled=False)
+    try:
+        with engine.connect() as conn:
+            current = MigrationContext.configure(conn).get_current_revision()
+    finally:
+        engine.dispose()
+    newest = head(directory)
+    if current != newest:
+        raise MigrationError(f"the database is at revision {current or 'none (empty)'}, this QuasiTune needs {newest}: "
+                             "run 'quasitune db upgrade' once (the one-shot migration service in docker-compose.yml) "
+                             "before starting the API instances")
+
+
+def schema_version(conn: Connection) -> int:
     """The database's revision as a number (revisions are numbered ``NNNN``; 0 for an empty database)."""
-    row = conn.execute("SELECT version_num FROM alembic_version").fetchone()
-    return int(row[0]) if row else 0
+    current = MigrationContext.configure(conn).get_current_revision()
+    return int(current) if current else 0

@@ -11,8 +11,9 @@ change nothing, or that has nothing to learn from, is refused with why and store
 
 from __future__ import annotations
 
-import sqlite3
 from dataclasses import asdict
+
+from sqlalchemy import Connection
 
 from backend.errors import ConflictError, InvalidError
 from backend.session_strides import session_strides
@@ -61,7 +62,7 @@ SENSITIVITY = ("the sub-phase spring read at the node's own measured strides (co
                "angle moves its peak one for one, a stiffness scales the peak's distance from it and its timing")
 
 
-def _sessions(conn: sqlite3.Connection, kind: str, version_id: int, patient_id: int, session_ids: list[int]
+def _sessions(conn: Connection, kind: str, version_id: int, patient_id: int, session_ids: list[int]
               ) -> list[dict]:
     """The sessions, each checked to be this version's and this patient's, stopped (refusals say which and why)."""
     label = {"envelope": "this envelope", "proposal": "this table"}[kind]
@@ -81,7 +82,7 @@ def _sessions(conn: sqlite3.Connection, kind: str, version_id: int, patient_id: 
     return out
 
 
-def _strides(conn: sqlite3.Connection, sessions: list[dict]) -> tuple[list[MeasuredStride], dict]:
+def _strides(conn: Connection, sessions: list[dict]) -> tuple[list[MeasuredStride], dict]:
     """Every session's measured strides, and what was counted along the way (refuses a session that never ran)."""
     strides: list[MeasuredStride] = []
     total = on_table = 0
@@ -120,7 +121,7 @@ def _nothing(nodes: list[dict]) -> InvalidError:
                         nodes=nodes)
 
 
-def refine_envelope_version(conn: sqlite3.Connection, envelope_id: int, session_ids: list[int], comment: str,
+def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: list[int], comment: str,
                             actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved envelope from its sessions (module docstring); returns the refinement."""
     row = envelopes.get_row(conn, envelope_id)
@@ -148,7 +149,7 @@ def refine_envelope_version(conn: sqlite3.Connection, envelope_id: int, session_
     return {**refinements.of_version(conn, "envelope", created["id"]), "version": created}
 
 
-def refine_proposal_version(conn: sqlite3.Connection, proposal_id: int, session_ids: list[int], comment: str,
+def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: list[int], comment: str,
                             actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved table from its sessions: the table is one node at its task, every stride its
     evidence; returns the refinement."""

@@ -13,7 +13,7 @@ from backend.app import create_app
 from backend.db import connect
 from backend.errors import ConflictError
 from backend.settings import Settings
-from backend.store.users import create_user
+from backend.store.users import create_user, list_users
 
 BOOTSTRAP_USER = "prosthetist"
 
@@ -21,9 +21,9 @@ BOOTSTRAP_USER = "prosthetist"
 def bootstrap_user(settings: Settings) -> str | None:
     """On a database with no users, create ``prosthetist`` with a random one-time password (changed at the first
     sign-in, like an initial admin password) and return it to print once; None when users exist."""
-    conn = connect(settings.db_path)
+    conn = connect(settings.database)
     try:
-        if conn.execute("SELECT 1 FROM users LIMIT 1").fetchone():
+        if list_users(conn):
             return None
         password = secrets.token_urlsafe(12)
         try:
@@ -73,7 +73,7 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
     shown = f"[{real_host}]" if ":" in real_host else real_host
     print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
     print(f"  dashboard: http://{shown}:{real_port}/   API docs: http://{shown}:{real_port}/docs", flush=True)
-    print(f"  database: {settings.db_path}", flush=True)
+    print(f"  database: {settings.database_shown}", flush=True)
     if password:
         print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
               "  (shown once, and one-time: sign in and choose your own password before anything else; add "

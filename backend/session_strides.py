@@ -9,10 +9,10 @@ run its table for the whole of (safe mode, no table): counted, never scored or l
 from __future__ import annotations
 
 import itertools
-import sqlite3
 from dataclasses import dataclass
 
 import numpy as np
+from sqlalchemy import Connection
 
 from backend.store import sessions as store
 from controller_core.gait_metrics import channel_strides, gait_channels
@@ -52,7 +52,7 @@ class SessionStrides:
     tasks_from: str
 
 
-def session_strides(conn: sqlite3.Connection, session: dict) -> SessionStrides:
+def session_strides(conn: Connection, session: dict) -> SessionStrides:
     """Read a stopped session's samples and measure its strides (module docstring)."""
     cols = store.samples(conn, session["id"])
     mass = session["task"]["body_mass_kg"]

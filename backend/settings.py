@@ -39,7 +39,10 @@ class Settings(BaseSettings):
     """Every field is also ``QUASITUNE_<FIELD>`` in the environment (``QUASITUNE_DATA_DIR``, ``QUASITUNE_DEVICE`` …).
 
     Args:
-        data_dir: holds the SQLite file (created if missing).
+        data_dir: holds the SQLite file (created if missing), the embedded default database.
+        database_url: a server database instead of the SQLite file: ``postgresql://USER:PASSWORD@HOST:PORT/NAME``
+            (psycopg 3 whatever driver is named). For several API instances on more than one machine; migrated once
+            by ``quasitune db upgrade`` before they start. None (default): the SQLite file in ``data_dir``.
         token_ttl_s: bearer-token lifetime (s).
         model_dir: a model from ``quasitune train``; None = the default model (shipped data).
         model_wait_s: how long a request waits for the model while it loads at start-up before a 503.
@@ -66,6 +69,7 @@ class Settings(BaseSettings):
     model_config = SettingsConfigDict(env_prefix="QUASITUNE_", frozen=True, extra="forbid")
 
     data_dir: Path = Field(default_factory=default_data_dir)
+    database_url: str | None = None
     token_ttl_s: int = Field(default=8 * 3600, gt=0)
     model_dir: Path | None = None
     model_wait_s: float = Field(default=30.0, gt=0)
@@ -86,9 +90,36 @@ class Settings(BaseSettings):
         """``"10.0.0.2, 10.0.0.3"`` from the environment becomes ``("10.0.0.2", "10.0.0.3")``."""
         return tuple(value.replace(",", " ").split()) if isinstance(value, str) else value
 
+    @field_validator("database_url")
+    @classmethod
+    def _known_database(cls, value: str | None) -> str | None:
+        """Only SQLite and PostgreSQL URLs (ValueError naming the database otherwise)."""
+        if value is None or not value.strip():
+            return None
+        from backend.db import database_url
+
+        if "://" not in value:
+            raise ValueError("database_url must be a URL such as postgresql://USER:PASSWORD@HOST:5432/quasitune")
+        return database_url(value)
+
     @property
     def db_path(self) -> Path:
+        """The embedded SQLite file (used when :attr:`database_url` names no server database)."""
         return self.data_dir / DB_FILE
+
+    @property
+    def database(self) -> str | Path:
+        """What the store opens: :attr:`database_url`, else the SQLite file."""
+        return self.database_url or self.db_path
+
+    @property
+    def database_shown(self) -> str:
+        """The database as logs and messages name it (a URL's password hidden)."""
+        if self.database_url is None:
+            return str(self.db_path)
+        from sqlalchemy.engine import make_url
+
+        return make_url(self.database_url).render_as_string(hide_password=True)
 
     def given(self, name: str) -> bool:
         """Whether ``name`` was set by the environment or the command line rather than left at its default."""

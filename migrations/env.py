@@ -27,7 +27,9 @@ def run_migrations_online() -> None:
         return
     from backend.settings import Settings
 
-    engine = create_engine(f"sqlite:///{Settings().db_path}")
+    from backend.db import database_url
+
+    engine = create_engine(database_url(Settings().database))
     with engine.connect() as connection:
         _run(connection)
 

@@ -24,6 +24,35 @@ def model():
     return load_default_model()
 
 
+@pytest.fixture(scope="session")
+def postgres():
+    """A PostgreSQL server of the test run's own (tests/helpers/postgres.py), started when a test first needs it."""
+    from tests.helpers.postgres import PostgresServer
+
+    server = PostgresServer()
+    try:
+        server.start()
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def database(request, tmp_path):
+    """An empty database at the newest revision, once on each database QuasiTune runs on: an SQLite file's path, or
+    a PostgreSQL URL (a database of this test's own on the run's server, dropped afterwards)."""
+    from backend.migrate import migrate
+
+    if request.param == "sqlite":
+        path = tmp_path / "store.sqlite"
+        migrate(path)
+        yield path
+        return
+    with request.getfixturevalue("postgres").new_database() as url:
+        migrate(url)
+        yield url
+
+
 @pytest.fixture
 def sim_api(tmp_path, model):
     """In-process API with the simulated leg on a virtual bus (device ``sim-leg-1``), one signed-in user per role."""

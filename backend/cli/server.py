@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import sqlite3
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from sqlalchemy import Connection
 
 from backend.settings import Settings
 
@@ -21,15 +22,16 @@ def _settings(args: argparse.Namespace, **flags: object) -> Settings:
 
 
 @contextmanager
-def _database(args: argparse.Namespace) -> Iterator[tuple[Settings, sqlite3.Connection]]:
+def _database(args: argparse.Namespace) -> Iterator[tuple[Settings, Connection]]:
     """The settings and a connection to their database, migrated first (created if missing)."""
     from backend.db import connect
     from backend.migrate import migrate
 
     settings = _settings(args)
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    migrate(settings.db_path, settings.migrations_dir)
-    conn = connect(settings.db_path)
+    if settings.database_url is None:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+    migrate(settings.database, settings.migrations_dir)
+    conn = connect(settings.database)
     try:
         yield settings, conn
     finally:
@@ -97,12 +99,12 @@ def cmd_users_add(args: argparse.Namespace) -> int:
                                must_change_password=args.one_time)
         except ConflictError as exc:
             raise ValueError(exc.message) from None
-    print(f"user {user['username']} ({user['role']}) added to {settings.db_path}"
+    print(f"user {user['username']} ({user['role']}) added to {settings.database_shown}"
           + (": the password must be changed at the first sign-in" if args.one_time else ""))
     return 0
 
 
-def _user_id(conn: sqlite3.Connection, name: str) -> int:
+def _user_id(conn: Connection, name: str) -> int:
     from backend.errors import NotFoundError
     from backend.store.users import id_of
 
@@ -158,10 +160,11 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
     from backend.migrate import head, migrate
 
     settings = _settings(args)
-    settings.data_dir.mkdir(parents=True, exist_ok=True)
-    applied = migrate(settings.db_path, settings.migrations_dir)
+    if settings.database_url is None:
+        settings.data_dir.mkdir(parents=True, exist_ok=True)
+    applied = migrate(settings.database, settings.migrations_dir)
     done = ", ".join(applied) if applied else "nothing to apply"
-    print(f"{settings.db_path}: {done}; at revision {head(settings.migrations_dir)}")
+    print(f"{settings.database_shown}: {done}; at revision {head(settings.migrations_dir)}")
     return 0
 
 

@@ -14,13 +14,13 @@ one step.
 from __future__ import annotations
 
 import contextlib
-import sqlite3
 import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import can
+from sqlalchemy import Connection
 from sqlalchemy.pool import QueuePool
 
 from backend.db import pooled
@@ -126,7 +126,7 @@ class DeviceManager:
     def online(self, dev: ManagedDevice) -> bool:
         return dev.status is not None and time.monotonic() - dev.status.received_monotonic_s <= ONLINE_WITHIN_S
 
-    def _table(self, conn: sqlite3.Connection, dev: ManagedDevice, version: int | None,
+    def _table(self, conn: Connection, dev: ManagedDevice, version: int | None,
                crc32: int | None) -> dict | None:
         """Which table or envelope (patient, version, task) a version the device reports is; pushes never change."""
         if version is None:
@@ -174,7 +174,7 @@ class DeviceManager:
             "recording_session_id": self.recorder.session_of(device_id),
         }
 
-    def on_leg(self, conn: sqlite3.Connection, device_id: str, running_only: bool = False) -> dict:
+    def on_leg(self, conn: Connection, device_id: str, running_only: bool = False) -> dict:
         """What the device reports it runs (``running_only``) or will run from its next heel strike, as its last
         status says (with a CRC this process read back since then): ``push`` (ours, or None), ``version`` and
         ``crc32`` as reported, ``mode``, and ``words`` for people ("P-001 · envelope v3", "no table", "a table this

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import sqlite3
 from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Path, Response, status
+from sqlalchemy import Connection
 
 from backend.clinical_words import violation_words
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
@@ -65,7 +65,7 @@ def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     return {**envelopes.get_envelope(conn, envelope_id), **_shown_with(conn, envelope_id)}
 
 
-def _shown_with(conn: sqlite3.Connection, envelope_id: int) -> dict:
+def _shown_with(conn: Connection, envelope_id: int) -> dict:
     """What the page shows beside the version: where it runs, and the bench's verdict on exactly its content."""
     return {"deployment": pushes.deployment_state(conn, ("envelope", envelope_id)),
             "bench": bench_verdict.verdict(conn, "envelope", envelopes.get_row(conn, envelope_id))}

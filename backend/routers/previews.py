@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import sqlite3
 import threading
 
 from fastapi import APIRouter, Request
+from sqlalchemy import Connection
 
 from backend.bench.preview import PREVIEW_COURSE, preview_envelope, preview_table
 from backend.bench.safety_figures import safety_flags
@@ -40,7 +40,7 @@ async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, _user: 
     return await run_waiting(_table_preview, proposal_id, conn, model, request.app.state.bench_leg)
 
 
-def _table_preview(proposal_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel, leg: LegGeometry) -> dict:
+def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry) -> dict:
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
     if stored is None:
@@ -65,7 +65,7 @@ async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn
     return await run_waiting(_envelope_preview, envelope_id, conn, model, request.app.state.bench_leg)
 
 
-def _envelope_preview(envelope_id: int, conn: sqlite3.Connection, model: QuasiStiffnessModel, leg: LegGeometry
+def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry
                       ) -> dict:
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import sqlite3
-
 from fastapi import APIRouter, Response, status
 from pydantic import ValidationError
+from sqlalchemy import Connection
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
@@ -61,7 +60,7 @@ def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     return {**proposals.get_proposal(conn, proposal_id), **_shown_with(conn, proposal_id)}
 
 
-def _shown_with(conn: sqlite3.Connection, proposal_id: int) -> dict:
+def _shown_with(conn: Connection, proposal_id: int) -> dict:
     """What the page shows beside the version: where it runs, and the bench's verdict on exactly its content."""
     return {"deployment": pushes.deployment_state(conn, ("proposal", proposal_id)),
             "bench": bench_verdict.verdict(conn, "proposal", proposals.get_row(conn, proposal_id))}

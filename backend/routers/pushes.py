@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import sqlite3
 import time
 from collections.abc import Callable
 
 from fastapi import APIRouter, Request, status
+from sqlalchemy import Connection, RowMapping
 
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
@@ -41,7 +41,7 @@ async def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: C
     return await run_waiting(_push_table, proposal_id, body, request.app.state.devices, conn, user)
 
 
-def _push_table(proposal_id: int, body: PushRequest, devices: DeviceManager, conn: sqlite3.Connection,
+def _push_table(proposal_id: int, body: PushRequest, devices: DeviceManager, conn: Connection,
                 user: User) -> dict:
     row = proposals.get_row(conn, proposal_id)
     table = proposals.stored_table(row)
@@ -61,7 +61,7 @@ async def push_envelope(envelope_id: IdPath, body: PushRequest, request: Request
     return await run_waiting(_push_envelope, envelope_id, body, request.app.state.devices, conn, user)
 
 
-def _push_envelope(envelope_id: int, body: PushRequest, devices: DeviceManager, conn: sqlite3.Connection,
+def _push_envelope(envelope_id: int, body: PushRequest, devices: DeviceManager, conn: Connection,
                    user: User) -> dict:
     row = envelopes.get_row(conn, envelope_id)
     envelope = envelopes.stored_envelope(row)
@@ -70,8 +70,8 @@ def _push_envelope(envelope_id: int, body: PushRequest, devices: DeviceManager, 
                  lambda version: devices.push_envelope(body.device_id, envelope, version))
 
 
-def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed,
-          row: sqlite3.Row, violations: list, crc: int | None, send: Callable[[int], PushResult]) -> dict:
+def _push(conn: Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed,
+          row: RowMapping, violations: list, crc: int | None, send: Callable[[int], PushResult]) -> dict:
     """The checks every push passes, in order, then record → send → finish, one push at a time per device (what the
     leg runs is checked inside that turn, so two pushes confirming the same table cannot both go). Nothing is sent
     when a check fails."""
@@ -115,7 +115,7 @@ def _push(conn: sqlite3.Connection, devices: DeviceManager, user: User, body: Pu
     return store.get_push(conn, push_id)
 
 
-def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, what: str,
+def _check_patient(conn: Connection, row: RowMapping, device_id: str, what: str,
                    override_reason: str | None) -> bool:
     """The device is assigned to the row's patient, who still weighs (within 5 %) what the table or envelope was
     made for, or the prosthetist wrote why it goes anyway; returns whether that reason was needed."""
@@ -138,7 +138,7 @@ def _check_patient(conn: sqlite3.Connection, row: sqlite3.Row, device_id: str, w
                         "(at least 20 characters, audited). Nothing was sent")
 
 
-def _check_replaces(conn: sqlite3.Connection, devices: DeviceManager, body: PushRequest) -> None:
+def _check_replaces(conn: Connection, devices: DeviceManager, body: PushRequest) -> None:
     """What the caller confirmed replacing is what the device reports running (or about to run) now."""
     leg = devices.on_leg(conn, body.device_id)
     current = leg["push"]

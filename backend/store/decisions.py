@@ -2,23 +2,30 @@
 
 from __future__ import annotations
 
-import sqlite3
 from collections.abc import Callable
+
+from sqlalchemy import Connection, RowMapping, Select, Table, func, select, update
 
 from backend.db import utc_now
 from backend.errors import ConflictError
 from backend.store import audit
 from backend.store.bench_verdict import require_bench
+from backend.store.tables import envelopes, proposals
 from backend.store.users import User
 from controller_core.table import LimitViolation
 
-_TABLES = {"proposal": "proposals", "envelope": "envelopes"}
+TABLES: dict[str, Table] = {"proposal": proposals, "envelope": envelopes}
 
 
-def decide_once(conn: sqlite3.Connection, entity: str, row: sqlite3.Row, status: str, comment: str, actor: User,
+def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, comment: str, actor: User,
                 recheck: Callable[[], list[LimitViolation]], checked_against: str, audit_after: dict,
                 override_reason: str | None = None) -> None:
     """Record the decision on draft ``row`` (inside the caller's write transaction) and audit it.
+
+    Taken once even when two servers decide the same version at the same moment: the update changes the row only
+    while it is still a draft, and the database lets one such update through at a time (SQLite's write lock; on
+    PostgreSQL the row lock the first update holds until its commit, after which the second finds no draft and
+    changes nothing). An update that changed nothing is refused here, so the loser writes no decision and no audit.
 
     Args:
         entity: ``proposal`` or ``envelope``.
@@ -45,9 +52,13 @@ def decide_once(conn: sqlite3.Connection, entity: str, row: sqlite3.Row, status:
                                 violations=[v.model_dump() for v in violations])
         verdict, override = require_bench(conn, entity, row, override_reason, "approved")   # type: ignore[arg-type]
         bench = verdict["status"]
-    conn.execute(f"UPDATE {_TABLES[entity]} SET status = ?, decided_by = ?, decided_at = ?, decision_comment = ?, "
-                 "decision_override = ? WHERE id = ? AND status = 'draft'",
-                 (status, actor.id, utc_now(), comment, override, row["id"]))
+    table = TABLES[entity]
+    taken = conn.execute(update(table).where(table.c.id == row["id"], table.c.status == "draft").values(
+        status=status, decided_by=actor.id, decided_at=utc_now(), decision_comment=comment,
+        decision_override=override))
+    if taken.rowcount != 1:
+        raise ConflictError(f"{entity} {row['id']} was decided by someone else a moment ago; reload it to see the "
+                            "decision")
     audit.record(conn, actor.id, actor.username, f"{entity}.{'approve' if status == 'approved' else 'reject'}",
                  entity, row["id"], before={"status": "draft"}, after={
                      "status": status, "comment": comment, **audit_after,
@@ -59,18 +70,26 @@ VERSION_COLUMNS = ("id", "patient_id", "version", "parent_id", "source", "status
                    "decided_at", "decision_comment", "decision_override", "safety_ok")
 
 
-def summary_select(select: str, alias: str, columns: str) -> str:
-    """``select`` (``SELECT {alias}.*, …``) reading only the shared version columns and ``columns``, not the
-    stored bodies."""
-    shared = ", ".join(f"{alias}.{c}" for c in VERSION_COLUMNS)
-    return select.replace(f"SELECT {alias}.*,", f"SELECT {shared}, {columns},", 1)
+def summary_columns(table: Table) -> list:
+    """The shared version columns of ``table`` (not the stored bodies)."""
+    return [table.c[c] for c in VERSION_COLUMNS]
 
 
-def version_page(conn: sqlite3.Connection, entity: str, select: str, alias: str, patient_id: int, limit: int,
-                 before_version: int | None) -> tuple[list[sqlite3.Row], int]:
+def version_page(conn: Connection, entity: str, query: Select, patient_id: int, limit: int,
+                 before_version: int | None) -> tuple[list[RowMapping], int]:
     """One page of a patient's versions, newest first (older than ``before_version``), and how many in all."""
-    table = _TABLES[entity]
-    total = conn.execute(f"SELECT count(*) FROM {table} WHERE patient_id = ?", (patient_id,)).fetchone()[0]
-    rows = conn.execute(select + f" WHERE {alias}.patient_id = ? AND {alias}.version < ? ORDER BY {alias}.version "
-                        "DESC LIMIT ?", (patient_id, before_version or 2**62, limit)).fetchall()
-    return rows, total
+    table = TABLES[entity]
+    total = conn.execute(select(func.count()).select_from(table).where(table.c.patient_id == patient_id)).scalar_one()
+    query = query.where(table.c.patient_id == patient_id)
+    if before_version is not None:
+        query = query.where(table.c.version < before_version)
+    rows = conn.execute(query.order_by(table.c.version.desc()).limit(limit)).mappings().all()
+    return list(rows), total
+
+
+def next_version(conn: Connection, entity: str, patient_id: int) -> int:
+    """The patient's next version number of ``entity`` (inside a write transaction that holds the patient's row:
+    :func:`backend.store.patients.lock_patient`)."""
+    table = TABLES[entity]
+    return int(conn.execute(select(func.coalesce(func.max(table.c.version), 0) + 1)
+                            .where(table.c.patient_id == patient_id)).scalar_one())

@@ -1,6 +1,6 @@
 """Envelope versions: created from the model for a patient, then approved or rejected once.
 
-Like a proposal, an envelope's content is immutable (SQLite triggers refuse any change, migration 0006), its
+Like a proposal, an envelope's content is immutable (triggers refuse any change, the baseline revision), its
 decision is taken at most once, and versions are numbered per patient. What is stored is the Envelope JSON with its
 sha256 (:mod:`controller_core.content`) and the wire CRC-32 the device will read back; every read re-validates it,
 checks its sha256, and re-runs the device-side check (every node's
@@ -11,15 +11,18 @@ accept.
 from __future__ import annotations
 
 import json
-import sqlite3
 from collections.abc import Callable
+
+from sqlalchemy import JSON, Connection, RowMapping, cast, insert, select
 
 from backend.clinical_words import field_words
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
-from backend.store.decisions import decide_once, summary_select, version_page
+from backend.store.decisions import decide_once, next_version, summary_columns, version_page
+from backend.store.patients import lock_patient
 from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
+from backend.store.tables import envelopes, patients, users
 from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
@@ -27,10 +30,24 @@ from controller_core.table import LimitViolation, display_rows
 from device_bridge.as_run import AsRun, as_run
 
 _UNITS = ROW_UNITS | THRESHOLD_UNITS
-_SELECT = ("SELECT e.*, cu.username AS created_by_name, du.username AS decided_by_name, "
-           "pe.version AS parent_version, pa.code_name AS patient_code FROM envelopes e "
-           "JOIN users cu ON cu.id = e.created_by LEFT JOIN users du ON du.id = e.decided_by "
-           "LEFT JOIN envelopes pe ON pe.id = e.parent_id JOIN patients pa ON pa.id = e.patient_id")
+_e, _cu, _du, _pe = envelopes, users.alias("cu"), users.alias("du"), envelopes.alias("pe")
+
+
+def _select(*columns):
+    """``columns`` of envelopes with who created and decided it, its parent's version and its patient's code name."""
+    return (select(*columns, _cu.c.username.label("created_by_name"), _du.c.username.label("decided_by_name"),
+                   _pe.c.version.label("parent_version"), patients.c.code_name.label("patient_code"))
+            .select_from(_e.join(_cu, _cu.c.id == _e.c.created_by).outerjoin(_du, _du.c.id == _e.c.decided_by)
+                         .outerjoin(_pe, _pe.c.id == _e.c.parent_id).join(patients, patients.c.id == _e.c.patient_id)))
+
+
+_SELECT = _select(_e)
+
+
+def json_field(column, key: str):
+    """One top-level field of a JSON text column, read by the database (SQLite's ``json_extract``, PostgreSQL's
+    ``->``): the summaries show an envelope's axes without loading its nodes."""
+    return cast(column, JSON)[key]
 
 
 def _hex(crc32: int | None) -> str | None:
@@ -43,7 +60,7 @@ def envelope_label(patient_code: str, version: int) -> str:
     return f"{patient_code} · envelope v{version}"
 
 
-def stored_envelope(row: sqlite3.Row) -> Envelope:
+def stored_envelope(row: RowMapping) -> Envelope:
     """The envelope, re-validated from storage and checked against its recorded sha256."""
     if content_sha256(row["envelope_json"]) != row["envelope_sha256"]:
         raise ConflictError(f"envelope {row['id']}: stored content does not match its sha256; refusing to use it")
@@ -53,7 +70,7 @@ def stored_envelope(row: sqlite3.Row) -> Envelope:
         raise ConflictError(f"envelope {row['id']}: {str(exc).splitlines()[0]}; refusing to use it") from exc
 
 
-def _meta(row: sqlite3.Row) -> dict:
+def _meta(row: RowMapping) -> dict:
     return {
         "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
         "parent_version": row["parent_version"], "envelope_label": envelope_label(row["patient_code"], row["version"]),
@@ -84,7 +101,7 @@ def _public(meta: dict, envelope: Envelope, full: bool, violations: list[LimitVi
     return out
 
 
-def node_view(row: sqlite3.Row, envelope: Envelope, i: int, j: int) -> dict:
+def node_view(row: RowMapping, envelope: Envelope, i: int, j: int) -> dict:
     """One node as the proposal page shows a table: its stored table (guarded and edited as approved) and its check;
     the caller adds the model's curves, features and via-points at its task."""
     n_s, n_i = envelope.shape
@@ -102,56 +119,53 @@ def node_view(row: sqlite3.Row, envelope: Envelope, i: int, j: int) -> dict:
             "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]}}
 
 
-def get_row(conn: sqlite3.Connection, envelope_id: int) -> sqlite3.Row:
-    row = conn.execute(_SELECT + " WHERE e.id = ?", (envelope_id,)).fetchone()
+def get_row(conn: Connection, envelope_id: int) -> RowMapping:
+    row = conn.execute(_SELECT.where(_e.c.id == envelope_id)).mappings().first()
     if row is None:
         raise NotFoundError(f"envelope {envelope_id} not found")
     return row
 
 
-def get_envelope(conn: sqlite3.Connection, envelope_id: int, full: bool = True) -> dict:
+def get_envelope(conn: Connection, envelope_id: int, full: bool = True) -> dict:
     row = get_row(conn, envelope_id)
     return _public(_meta(row), stored_envelope(row), full)
 
 
-_SUMMARY_SELECT = summary_select(_SELECT, "e", "e.body_mass_kg, e.n_speeds, e.n_inclines, e.extrapolation, "
-                                                "e.extrapolation_reason, "
-                                                "e.wire_crc32, e.envelope_sha256, json_extract(e.envelope_json, "
-                                                "'$.speeds_mps') AS speeds_json, json_extract(e.envelope_json, "
-                                                "'$.inclines_deg') AS inclines_json")
+_SUMMARY_SELECT = _select(*summary_columns(_e), _e.c.body_mass_kg, _e.c.n_speeds, _e.c.n_inclines, _e.c.extrapolation,
+                          _e.c.extrapolation_reason, _e.c.wire_crc32, _e.c.envelope_sha256,
+                          json_field(_e.c.envelope_json, "speeds_mps").label("speeds_mps"),
+                          json_field(_e.c.envelope_json, "inclines_deg").label("inclines_deg"))
 
 
-def list_envelopes(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
+def list_envelopes(conn: Connection, patient_id: int, limit: int = 50,
                    before_version: int | None = None) -> tuple[list[dict], int]:
     """One page of summaries, newest version first (metadata and axes: the nodes and the live device-side check are
     the full version's, on its own endpoint), and how many versions the patient has in all."""
-    rows, total = version_page(conn, "envelope", _SUMMARY_SELECT, "e", patient_id, limit, before_version)
-    return [{**_meta(r), "speeds_mps": json.loads(r["speeds_json"]), "inclines_deg": json.loads(r["inclines_json"]),
+    rows, total = version_page(conn, "envelope", _SUMMARY_SELECT, patient_id, limit, before_version)
+    return [{**_meta(r), "speeds_mps": r["speeds_mps"], "inclines_deg": r["inclines_deg"],
              "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
 
-def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, checked: AsRun[Envelope],
+def _insert(conn: Connection, patient_id: int, parent_id: int | None, checked: AsRun[Envelope],
             comment: str | None, actor: User, extrapolation_reason: str | None = None) -> dict:
     """Insert a draft, as the device will run it, inside the caller's write transaction (``extrapolation_reason``: why
-    it was requested beyond the tasks the model knows); returns its metadata."""
+    it was requested beyond the tasks the model knows), numbered after the patient's versions while holding the
+    patient's row; returns its metadata."""
     envelope, violations = checked.item, checked.violations
     body = canonical_json(envelope)
     n_s, n_i = envelope.shape
-    version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM envelopes WHERE patient_id = ?",
-                           (patient_id,)).fetchone()[0]
-    cur = conn.execute(
-        "INSERT INTO envelopes (patient_id, version, parent_id, source, body_mass_kg, n_speeds, n_inclines, "
-        "extrapolation, extrapolation_reason, safety_ok, envelope_json, envelope_sha256, wire_crc32, "
-        "edit_comment, created_by, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        (patient_id, version, parent_id, "model" if parent_id is None else "edit", envelope.mass_kg, n_s, n_i,
-         int(any(n.extrapolation for n in envelope.nodes) or extrapolation_reason is not None), extrapolation_reason,
-         int(not violations), body,
-         content_sha256(body), checked.wire_crc32, comment, actor.id,
-         utc_now()))
-    return _meta(get_row(conn, int(cur.lastrowid)))
+    lock_patient(conn, patient_id)
+    new_id = conn.execute(insert(_e).values(
+        patient_id=patient_id, version=next_version(conn, "envelope", patient_id), parent_id=parent_id,
+        source="model" if parent_id is None else "edit", body_mass_kg=envelope.mass_kg, n_speeds=n_s, n_inclines=n_i,
+        extrapolation=int(any(n.extrapolation for n in envelope.nodes) or extrapolation_reason is not None),
+        extrapolation_reason=extrapolation_reason, safety_ok=int(not violations), envelope_json=body,
+        envelope_sha256=content_sha256(body), wire_crc32=checked.wire_crc32, edit_comment=comment,
+        created_by=actor.id, created_at=utc_now())).inserted_primary_key[0]
+    return _meta(get_row(conn, int(new_id)))
 
 
-def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envelope, actor: User,
+def create_from_model(conn: Connection, patient_id: int, envelope: Envelope, actor: User,
                       extrapolation_reason: str | None = None) -> dict:
     """Store a freshly built envelope as the patient's next draft version, rounded to the node quanta (what the
     device runs); returns its API view. ``extrapolation_reason``: the prosthetist's reason for nodes beyond the
@@ -159,8 +173,6 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
     checked = as_run(envelope)
     envelope, violations = checked.item, checked.violations
     with write_transaction(conn):
-        if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
-            raise NotFoundError(f"patient {patient_id} not found")
         meta = _insert(conn, patient_id, None, checked, None, actor, extrapolation_reason)
         audit.record(conn, actor.id, actor.username, "envelope.create", "envelope", meta["id"],
                      after={"patient_id": patient_id, "version": meta["version"], "speeds_mps": envelope.speeds_mps,
@@ -170,9 +182,9 @@ def create_from_model(conn: sqlite3.Connection, patient_id: int, envelope: Envel
     return _public(meta, envelope, full=True, violations=violations)
 
 
-def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[Envelope], changes: list[dict], comment: str,
+def create_edit(conn: Connection, parent_id: int, checked: AsRun[Envelope], changes: list[dict], comment: str,
                 actor: User, action: str = "envelope.edit",
-                also: Callable[[sqlite3.Connection, dict], dict] | None = None) -> dict:
+                also: Callable[[Connection, dict], dict] | None = None) -> dict:
     """Store an edited envelope as a new draft of the parent's patient, as the device runs it: ``checked`` is the
     caller's :func:`~device_bridge.as_run.as_run` of the edit (checked and found within every limit, once).
     ``action``: what the audit calls it (a refinement is ``envelope.refine``); ``also``: run in the same transaction
@@ -190,7 +202,7 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[Envelop
     return _public(meta, envelope, full=True, violations=checked.violations)
 
 
-def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
+def diff(conn: Connection, a_id: int, b_id: int) -> dict:
     """What changed from envelope ``a_id`` to ``b_id``: the grid, or node by node every value (with units)."""
     ra, rb = get_row(conn, a_id), get_row(conn, b_id)
     a, b = stored_envelope(ra), stored_envelope(rb)
@@ -213,7 +225,7 @@ def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
 
 
 
-def decide(conn: sqlite3.Connection, envelope_id: int, status: str, comment: str, actor: User,
+def decide(conn: Connection, envelope_id: int, status: str, comment: str, actor: User,
            override_reason: str | None = None) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored envelope and re-runs the device-side check."""
     with write_transaction(conn):

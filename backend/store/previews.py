@@ -3,15 +3,18 @@
 from __future__ import annotations
 
 import json
-import sqlite3
+
+from sqlalchemy import Connection, select
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError
+from backend.store.dialect import insert_or_ignore
+from backend.store.tables import envelope_previews, proposal_previews
 
 
-def get_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str) -> dict | None:
+def get_preview(conn: Connection, proposal_id: int, table_sha256: str) -> dict | None:
     """The stored preview of a proposal, or ``None``; refuses one made from a different table."""
-    row = conn.execute("SELECT * FROM proposal_previews WHERE proposal_id = ?", (proposal_id,)).fetchone()
+    row = conn.execute(select(proposal_previews).where(proposal_previews.c.proposal_id == proposal_id)).mappings().first()
     if row is None:
         return None
     if row["table_sha256"] != table_sha256:
@@ -21,20 +24,20 @@ def get_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str) -
             **json.loads(row["result_json"])}
 
 
-def store_preview(conn: sqlite3.Connection, proposal_id: int, table_sha256: str, result: dict) -> dict:
+def store_preview(conn: Connection, proposal_id: int, table_sha256: str, result: dict) -> dict:
     """Keep a freshly simulated preview (the first one wins if two requests raced) and return the stored one."""
     with write_transaction(conn):
-        conn.execute("INSERT INTO proposal_previews (proposal_id, table_sha256, seconds, created_at, result_json) "
-                     "VALUES (?, ?, ?, ?, ?) ON CONFLICT (proposal_id) DO NOTHING",
-                     (proposal_id, table_sha256, float(result["seconds"]), utc_now(), json.dumps(result)))
+        conn.execute(insert_or_ignore(conn, proposal_previews, ["proposal_id"]).values(
+            proposal_id=proposal_id, table_sha256=table_sha256, seconds=float(result["seconds"]), created_at=utc_now(),
+            result_json=json.dumps(result)))
     stored = get_preview(conn, proposal_id, table_sha256)
     assert stored is not None
     return stored
 
 
-def get_envelope_preview(conn: sqlite3.Connection, envelope_id: int, envelope_sha256: str) -> dict | None:
+def get_envelope_preview(conn: Connection, envelope_id: int, envelope_sha256: str) -> dict | None:
     """The stored preview of an envelope, or ``None``; refuses one made from a different envelope."""
-    row = conn.execute("SELECT * FROM envelope_previews WHERE envelope_id = ?", (envelope_id,)).fetchone()
+    row = conn.execute(select(envelope_previews).where(envelope_previews.c.envelope_id == envelope_id)).mappings().first()
     if row is None:
         return None
     if row["envelope_sha256"] != envelope_sha256:
@@ -43,13 +46,12 @@ def get_envelope_preview(conn: sqlite3.Connection, envelope_id: int, envelope_sh
     return {"envelope_id": envelope_id, "created_at": row["created_at"], **json.loads(row["result_json"])}
 
 
-def store_envelope_preview(conn: sqlite3.Connection, envelope_id: int, envelope_sha256: str, result: dict) -> dict:
+def store_envelope_preview(conn: Connection, envelope_id: int, envelope_sha256: str, result: dict) -> dict:
     """Keep a freshly simulated envelope preview (the first one wins a race) and return the stored one."""
     with write_transaction(conn):
-        conn.execute("INSERT INTO envelope_previews (envelope_id, envelope_sha256, course, created_at, result_json) "
-                     "VALUES (?, ?, ?, ?, ?) ON CONFLICT (envelope_id) DO NOTHING",
-                     (envelope_id, envelope_sha256, result["course"]["name"], utc_now(),
-                      json.dumps(result, allow_nan=False)))
+        conn.execute(insert_or_ignore(conn, envelope_previews, ["envelope_id"]).values(
+            envelope_id=envelope_id, envelope_sha256=envelope_sha256, course=result["course"]["name"],
+            created_at=utc_now(), result_json=json.dumps(result, allow_nan=False)))
     stored = get_envelope_preview(conn, envelope_id, envelope_sha256)
     assert stored is not None
     return stored

@@ -1,23 +1,25 @@
 """Proposal versions: created from the model or derived by an edit, then approved or rejected once.
 
-A proposal's content (task, curves, features, table) is immutable — SQLite triggers refuse any change
-(migration 0001) — and its decision is taken at most once. Versions are numbered per patient (1, 2, …);
+A proposal's content (task, curves, features, table) is immutable — triggers refuse any change (the baseline
+revision) — and its decision is taken at most once. Versions are numbered per patient (1, 2, …);
 an edit records its parent.
 """
 
 from __future__ import annotations
 
 import json
-import sqlite3
 from collections.abc import Callable
 
 import numpy as np
 from pydantic_core import to_json
+from sqlalchemy import Connection, RowMapping, insert, select
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
-from backend.store.decisions import decide_once, summary_select, version_page
+from backend.store.decisions import decide_once, next_version, summary_columns, version_page
+from backend.store.patients import lock_patient
+from backend.store.tables import patients, proposals, users
 from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
 from controller_core.proposal import Proposal
@@ -30,13 +32,21 @@ ROW_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad":
 THRESHOLD_UNITS = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
                    "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
                    "sf_to_se_knee_extension_deg_per_s": "deg/s"}
-_SELECT = ("SELECT p.*, cu.username AS created_by_name, du.username AS decided_by_name, "
-           "pp.version AS parent_version, pa.code_name AS patient_code FROM proposals p "
-           "JOIN users cu ON cu.id = p.created_by LEFT JOIN users du ON du.id = p.decided_by "
-           "LEFT JOIN proposals pp ON pp.id = p.parent_id JOIN patients pa ON pa.id = p.patient_id")
+_p, _cu, _du, _pp = proposals, users.alias("cu"), users.alias("du"), proposals.alias("pp")
 
 
-def stored_table(row: sqlite3.Row) -> ParameterTable:
+def _select(*columns):
+    """``columns`` of proposals with who created and decided it, its parent's version and its patient's code name."""
+    return (select(*columns, _cu.c.username.label("created_by_name"), _du.c.username.label("decided_by_name"),
+                   _pp.c.version.label("parent_version"), patients.c.code_name.label("patient_code"))
+            .select_from(_p.join(_cu, _cu.c.id == _p.c.created_by).outerjoin(_du, _du.c.id == _p.c.decided_by)
+                         .outerjoin(_pp, _pp.c.id == _p.c.parent_id).join(patients, patients.c.id == _p.c.patient_id)))
+
+
+_SELECT = _select(_p)
+
+
+def stored_table(row: RowMapping) -> ParameterTable:
     """The proposal's table, re-validated from storage and checked against its recorded sha256."""
     if content_sha256(row["table_json"]) != row["table_sha256"]:
         raise ConflictError(f"proposal {row['id']}: stored table does not match its sha256; refusing to use it")
@@ -67,7 +77,7 @@ def table_label(patient_code: str, proposal_version: int) -> str:
     return f"{patient_code} · table v{proposal_version}"
 
 
-def _meta(row: sqlite3.Row) -> dict:
+def _meta(row: RowMapping) -> dict:
     return {
         "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
         "parent_version": row["parent_version"], "table_label": table_label(row["patient_code"], row["version"]),
@@ -84,51 +94,49 @@ def _meta(row: sqlite3.Row) -> dict:
     }
 
 
-def _public(row: sqlite3.Row, full: bool) -> dict:
+def _public(row: RowMapping, full: bool) -> dict:
     return _assemble(_meta(row), stored_table(row), json.loads(row["model_json"]), full)
 
 
-def get_row(conn: sqlite3.Connection, proposal_id: int) -> sqlite3.Row:
-    row = conn.execute(_SELECT + " WHERE p.id = ?", (proposal_id,)).fetchone()
+def get_row(conn: Connection, proposal_id: int) -> RowMapping:
+    row = conn.execute(_SELECT.where(_p.c.id == proposal_id)).mappings().first()
     if row is None:
         raise NotFoundError(f"proposal {proposal_id} not found")
     return row
 
 
-def get_proposal(conn: sqlite3.Connection, proposal_id: int, full: bool = True) -> dict:
+def get_proposal(conn: Connection, proposal_id: int, full: bool = True) -> dict:
     return _public(get_row(conn, proposal_id), full)
 
 
-_SUMMARY_SELECT = summary_select(_SELECT, "p", "p.speed_mps, p.incline_deg, p.body_mass_kg, p.extrapolation, "
-                                                "p.extrapolation_reason, p.table_sha256")
+_SUMMARY_SELECT = _select(*summary_columns(_p), _p.c.speed_mps, _p.c.incline_deg, _p.c.body_mass_kg, _p.c.extrapolation,
+                          _p.c.extrapolation_reason, _p.c.table_sha256)
 
 
-def list_proposals(conn: sqlite3.Connection, patient_id: int, limit: int = 50,
+def list_proposals(conn: Connection, patient_id: int, limit: int = 50,
                    before_version: int | None = None) -> tuple[list[dict], int]:
     """One page of summaries, newest version first (metadata only: the table, curves and the live limit check are
     the full version's, on its own endpoint), and how many versions the patient has in all."""
-    rows, total = version_page(conn, "proposal", _SUMMARY_SELECT, "p", patient_id, limit, before_version)
+    rows, total = version_page(conn, "proposal", _SUMMARY_SELECT, patient_id, limit, before_version)
     return [{**_meta(r), "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
 
-def _insert(conn: sqlite3.Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
+def _insert(conn: Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
             extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User,
             violations: list[LimitViolation], extrapolation_reason: str | None = None) -> dict:
     """Insert a draft (``violations``: its table's limit check; ``extrapolation_reason``: why it was requested beyond
-    the tasks the model knows); returns its metadata as :func:`_meta` gives it."""
+    the tasks the model knows), numbered after the patient's versions while holding the patient's row; returns its
+    metadata as :func:`_meta` gives it."""
     table_json = canonical_json(table)
-    created_at = utc_now()
-    table_sha256 = content_sha256(table_json)
-    version = conn.execute("SELECT coalesce(max(version), 0) + 1 FROM proposals WHERE patient_id = ?",
-                           (patient_id,)).fetchone()[0]
-    cur = conn.execute(
-        "INSERT INTO proposals (patient_id, version, parent_id, source, speed_mps, incline_deg, body_mass_kg, "
-        "extrapolation, extrapolation_reason, safety_ok, model_json, table_json, table_sha256, edit_comment, created_by, "
-        "created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        (patient_id, version, parent_id, source, task["speed_mps"], task["incline_deg"], task["body_mass_kg"],
-         int(extrapolation or extrapolation_reason is not None), extrapolation_reason, int(not violations), model_json,
-         table_json, table_sha256, comment, actor.id, created_at))
-    return _meta(conn.execute(_SELECT + " WHERE p.id = ?", (int(cur.lastrowid),)).fetchone())
+    lock_patient(conn, patient_id)
+    new_id = conn.execute(insert(_p).values(
+        patient_id=patient_id, version=next_version(conn, "proposal", patient_id), parent_id=parent_id, source=source,
+        speed_mps=task["speed_mps"], incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"],
+        extrapolation=int(extrapolation or extrapolation_reason is not None),
+        extrapolation_reason=extrapolation_reason, safety_ok=int(not violations), model_json=model_json,
+        table_json=table_json, table_sha256=content_sha256(table_json), edit_comment=comment, created_by=actor.id,
+        created_at=utc_now())).inserted_primary_key[0]
+    return _meta(get_row(conn, int(new_id)))
 
 
 def _refuse_non_finite(proposal: Proposal) -> None:
@@ -139,7 +147,7 @@ def _refuse_non_finite(proposal: Proposal) -> None:
         raise RuntimeError("the model produced a non-finite curve or feature; nothing stored")
 
 
-def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User,
+def insert_from_model(conn: Connection, patient_id: int, proposal: Proposal, actor: User,
                       extrapolation_reason: str | None = None) -> dict:
     """Store a freshly computed proposal as the patient's next draft version, inside the caller's write
     transaction; returns its API view. ``extrapolation_reason``: the prosthetist's reason for a task beyond the
@@ -150,8 +158,6 @@ def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
     checked = as_run(proposal.table)   # stored, shown and checked as the device will run it
     table, violations = checked.item, checked.violations
-    if conn.execute("SELECT 1 FROM patients WHERE id = ?", (patient_id,)).fetchone() is None:
-        raise NotFoundError(f"patient {patient_id} not found")
     meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, table,
                    None, actor, violations, extrapolation_reason)
     audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
@@ -161,16 +167,16 @@ def insert_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Propo
     return _assemble(meta, table, body, full=True, violations=violations)
 
 
-def create_from_model(conn: sqlite3.Connection, patient_id: int, proposal: Proposal, actor: User,
+def create_from_model(conn: Connection, patient_id: int, proposal: Proposal, actor: User,
                       extrapolation_reason: str | None = None) -> dict:
     """:func:`insert_from_model` in a write transaction of its own."""
     with write_transaction(conn):
         return insert_from_model(conn, patient_id, proposal, actor, extrapolation_reason)
 
 
-def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[ParameterTable], changes: list[dict],
+def create_edit(conn: Connection, parent_id: int, checked: AsRun[ParameterTable], changes: list[dict],
                 comment: str, actor: User, action: str = "proposal.edit",
-                also: Callable[[sqlite3.Connection, dict], dict] | None = None) -> dict:
+                also: Callable[[Connection, dict], dict] | None = None) -> dict:
     """Store an edited table as a new draft derived from ``parent_id``, as the device runs it: ``checked`` is the
     caller's :func:`~device_bridge.as_run.as_run` of the edit (its check made once, by the caller that refuses).
     ``action``: what the audit calls it (a refinement is ``proposal.refine``); ``also``: run in the same transaction
@@ -194,7 +200,7 @@ def create_edit(conn: sqlite3.Connection, parent_id: int, checked: AsRun[Paramet
     return out
 
 
-def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str, actor: User,
+def decide(conn: Connection, proposal_id: int, status: str, comment: str, actor: User,
            override_reason: str | None = None) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored table and re-checks every limit."""
     with write_transaction(conn):
@@ -204,7 +210,7 @@ def decide(conn: sqlite3.Connection, proposal_id: int, status: str, comment: str
         return get_proposal(conn, proposal_id)
 
 
-def diff(conn: sqlite3.Connection, a_id: int, b_id: int) -> dict:
+def diff(conn: Connection, a_id: int, b_id: int) -> dict:
     """Field-by-field differences from proposal ``a_id`` to ``b_id`` (task, table cells, thresholds)."""
     a, b = get_row(conn, a_id), get_row(conn, b_id)
     ta, tb = stored_table(a), stored_table(b)

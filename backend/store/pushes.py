@@ -1,4 +1,4 @@
-"""Pushes in SQLite (migrations 0002, 0004, 0007): an approved proposal's table or an approved envelope.
+"""Pushes: an approved proposal's table or an approved envelope, sent to a device.
 
 A push row is written before anything goes on the bus (status ``sending``) and finished afterwards
 (``acknowledged`` with the CRC the device read back, or ``failed`` with the reason); ``active`` is set only when
@@ -10,31 +10,37 @@ N being the proposal's version for that patient (:func:`backend.store.proposals.
 
 from __future__ import annotations
 
-import sqlite3
 from typing import Literal
+
+from sqlalchemy import Connection, RowMapping, case, func, insert, or_, select, update
 
 from backend.db import utc_now, write_transaction
 from backend.errors import NotFoundError
 from backend.store import audit, devices
-from backend.store.envelopes import envelope_label
+from backend.store.envelopes import envelope_label, json_field
 from backend.store.proposals import table_label
+from backend.store.tables import envelopes, patients, proposals, pushes, users
 from backend.store.users import User
 
-_PUSH_SELECT = ("SELECT pu.*, u.username AS requested_by_name, pr.version AS proposal_version, "
-                "en.version AS envelope_version, coalesce(pr.patient_id, en.patient_id) AS patient_id, "
-                "pa.code_name AS patient_code, "
-                "coalesce(pr.speed_mps, json_extract(en.envelope_json, '$.nominal_speed_mps')) AS speed_mps, "
-                "coalesce(pr.incline_deg, json_extract(en.envelope_json, '$.nominal_incline_deg')) AS incline_deg, "
-                "coalesce(pr.body_mass_kg, en.body_mass_kg) AS built_for_mass_kg, "
-                "coalesce(pr.decision_override, en.decision_override) AS approval_override, "
-                "coalesce(pr.extrapolation_reason, en.extrapolation_reason) AS extrapolation_reason "
-                "FROM pushes pu "
-                "JOIN users u ON u.id = pu.requested_by LEFT JOIN proposals pr ON pr.id = pu.proposal_id "
-                "LEFT JOIN envelopes en ON en.id = pu.envelope_id "
-                "JOIN patients pa ON pa.id = coalesce(pr.patient_id, en.patient_id)")
+_pu, _pr, _en = pushes, proposals, envelopes
+_PUSH_SELECT = (
+    select(_pu, users.c.username.label("requested_by_name"), _pr.c.version.label("proposal_version"),
+           _en.c.version.label("envelope_version"),
+           func.coalesce(_pr.c.patient_id, _en.c.patient_id).label("patient_id"),
+           patients.c.code_name.label("patient_code"),
+           func.coalesce(_pr.c.speed_mps, json_field(_en.c.envelope_json, "nominal_speed_mps").as_float())
+           .label("speed_mps"),
+           func.coalesce(_pr.c.incline_deg, json_field(_en.c.envelope_json, "nominal_incline_deg").as_float())
+           .label("incline_deg"),
+           func.coalesce(_pr.c.body_mass_kg, _en.c.body_mass_kg).label("built_for_mass_kg"),
+           func.coalesce(_pr.c.decision_override, _en.c.decision_override).label("approval_override"),
+           func.coalesce(_pr.c.extrapolation_reason, _en.c.extrapolation_reason).label("extrapolation_reason"))
+    .select_from(_pu.join(users, users.c.id == _pu.c.requested_by).outerjoin(_pr, _pr.c.id == _pu.c.proposal_id)
+                 .outerjoin(_en, _en.c.id == _pu.c.envelope_id)
+                 .join(patients, patients.c.id == func.coalesce(_pr.c.patient_id, _en.c.patient_id))))
 
 
-def _push(row: sqlite3.Row) -> dict:
+def _push(row: RowMapping) -> dict:
     table = row["proposal_id"] is not None
     label = (table_label(row["patient_code"], row["proposal_version"]) if table
              else envelope_label(row["patient_code"], row["envelope_version"]))
@@ -52,8 +58,8 @@ def _push(row: sqlite3.Row) -> dict:
             "attempts": row["attempts"], "elapsed_ms": row["elapsed_ms"], "error": row["error"]}
 
 
-def get_push(conn: sqlite3.Connection, push_id: int) -> dict:
-    row = conn.execute(_PUSH_SELECT + " WHERE pu.id = ?", (push_id,)).fetchone()
+def get_push(conn: Connection, push_id: int) -> dict:
+    row = conn.execute(_PUSH_SELECT.where(_pu.c.id == push_id)).mappings().first()
     if row is None:
         raise NotFoundError(f"push {push_id} not found")
     return _push(row)
@@ -63,25 +69,24 @@ PushedKind = Literal["proposal", "envelope"]
 Pushed = tuple[PushedKind, int]      # ("proposal", id): its table; ("envelope", id): the whole envelope
 
 
-def pushes_of(conn: sqlite3.Connection, item: Pushed) -> list[dict]:
+def pushes_of(conn: Connection, item: Pushed) -> list[dict]:
     """Every push of this proposal or envelope, newest first."""
     kind, item_id = item
-    rows = conn.execute(_PUSH_SELECT + f" WHERE pu.{kind}_id = ? ORDER BY pu.id DESC", (item_id,)).fetchall()
+    rows = conn.execute(_PUSH_SELECT.where(_pu.c[f"{kind}_id"] == item_id).order_by(_pu.c.id.desc())).mappings()
     return [_push(r) for r in rows]
 
 
-def begin_push(conn: sqlite3.Connection, item: Pushed, device_id: str, crc32: int, actor: User,
+def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor: User,
                override_reason: str | None = None) -> tuple[int, int]:
     """Record a push about to be sent (``sending``) under the device's next table version, and audit it (with the
     prosthetist's reason when it goes ahead without a clean bench preview); returns (push id, version)."""
     kind, item_id = item
     with write_transaction(conn):
         version = devices.next_wire_version(conn, device_id)
-        cur = conn.execute(
-            f"INSERT INTO pushes ({kind}_id, device_id, table_version, crc32, status, requested_by, requested_at, "
-            "override_reason) VALUES (?, ?, ?, ?, 'sending', ?, ?, ?)",
-            (item_id, device_id, version, crc32, actor.id, utc_now(), override_reason))
-        push_id = int(cur.lastrowid)
+        push_id = int(conn.execute(insert(_pu).values(
+            {f"{kind}_id": item_id, "device_id": device_id, "table_version": version, "crc32": crc32,
+             "status": "sending", "requested_by": actor.id, "requested_at": utc_now(),
+             "override_reason": override_reason})).inserted_primary_key[0])
         audit.record(conn, actor.id, actor.username, f"{kind}.push", kind, item_id,
                      after={"push_id": push_id, "device_id": device_id, "table_version": version,
                             "crc32": f"{crc32:08x}", **({"override_reason": override_reason} if override_reason
@@ -89,28 +94,28 @@ def begin_push(conn: sqlite3.Connection, item: Pushed, device_id: str, crc32: in
     return push_id, version
 
 
-def finish_push(conn: sqlite3.Connection, push_id: int, outcome: Literal["acknowledged", "failed", "unconfirmed"],
+def finish_push(conn: Connection, push_id: int, outcome: Literal["acknowledged", "failed", "unconfirmed"],
                 attempts: int | None, elapsed_ms: float, error: str | None) -> None:
     """``acknowledged`` (the device read back the CRC), ``failed`` (it refused) or ``unconfirmed`` (no answer: its
     next status decides, :func:`reconcile`). A push the device's status has already decided keeps that."""
     now = utc_now()
     with write_transaction(conn):
+        status = case((_pu.c.status == "sending", outcome), else_=_pu.c.status)
         if outcome == "acknowledged":
-            conn.execute("UPDATE pushes SET status = CASE status WHEN 'sending' THEN 'acknowledged' ELSE status END, "
-                         "acknowledged_at = ?, attempts = ?, elapsed_ms = ? WHERE id = ?",
-                         (now, attempts, elapsed_ms, push_id))
+            values = {"status": status, "acknowledged_at": now, "attempts": attempts, "elapsed_ms": elapsed_ms}
         else:
-            conn.execute("UPDATE pushes SET status = CASE status WHEN 'sending' THEN ? ELSE status END, "
-                         "ended_at = CASE ? WHEN 'failed' THEN ? ELSE ended_at END, elapsed_ms = ?, error = ? "
-                         "WHERE id = ?", (outcome, outcome, now, elapsed_ms, error, push_id))
+            values = {"status": status, "elapsed_ms": elapsed_ms, "error": error,
+                      **({"ended_at": now} if outcome == "failed" else {})}
+        conn.execute(update(_pu).where(_pu.c.id == push_id).values(values))
 
 
-def interrupted_pushes(conn: sqlite3.Connection) -> int:
+def interrupted_pushes(conn: Connection) -> int:
     """At start-up: pushes left ``sending`` by a server that stopped mid-push become ``unconfirmed`` (each device's
     next status decides them). Returns how many."""
     with write_transaction(conn):
-        cur = conn.execute("UPDATE pushes SET status = 'unconfirmed', error = ? WHERE status = 'sending'",
-                           ("the server stopped during this push; the device's next status tells whether it holds it",))
+        cur = conn.execute(update(_pu).where(_pu.c.status == "sending").values(
+            status="unconfirmed",
+            error="the server stopped during this push; the device's next status tells whether it holds it"))
     return cur.rowcount
 
 
@@ -118,7 +123,7 @@ def _describe(active: tuple[int, int] | None) -> str:
     return "no table" if active is None else f"version {active[0]}, CRC {active[1]:08x}"
 
 
-def reconcile(conn: sqlite3.Connection, device_id: str, active: tuple[int, int] | None, pending_version: int | None,
+def reconcile(conn: Connection, device_id: str, active: tuple[int, int] | None, pending_version: int | None,
               in_flight: set[int]) -> list[Pushed]:
     """Make the records say what the device reports: ``active`` (version, CRC) running, ``pending_version`` staged.
 
@@ -135,13 +140,14 @@ def reconcile(conn: sqlite3.Connection, device_id: str, active: tuple[int, int] 
     now, changed = utc_now(), []
     reported = _describe(active)
     with write_transaction(conn):
-        running = None if active is None else conn.execute(
-            "SELECT id FROM pushes WHERE device_id = ? AND table_version = ? AND crc32 = ? ORDER BY id DESC LIMIT 1",
-            (device_id, *active)).fetchone()
-        running_id = None if running is None else running["id"]
-        rows = conn.execute("SELECT id, proposal_id, envelope_id, status, table_version FROM pushes WHERE device_id = ? "
-                            "AND (status IN ('sending', 'unconfirmed', 'acknowledged', 'active') OR id = ?)",
-                            (device_id, running_id)).fetchall()
+        running_id = None if active is None else conn.execute(
+            select(_pu.c.id).where(_pu.c.device_id == device_id, _pu.c.table_version == active[0],
+                                   _pu.c.crc32 == active[1]).order_by(_pu.c.id.desc()).limit(1)).scalar()
+        rows = conn.execute(
+            select(_pu.c.id, _pu.c.proposal_id, _pu.c.envelope_id, _pu.c.status, _pu.c.table_version)
+            .where(_pu.c.device_id == device_id,
+                   or_(_pu.c.status.in_(("sending", "unconfirmed", "acknowledged", "active")), _pu.c.id == running_id))
+            .order_by(_pu.c.id).with_for_update()).mappings().all()
         for r in rows:
             status, error, at = r["status"], None, {}
             if r["id"] == running_id:   # the device's word on this push is final, in flight or not
@@ -163,46 +169,45 @@ def reconcile(conn: sqlite3.Connection, device_id: str, active: tuple[int, int] 
                 error = None if ours_later else f"the device reported {reported}: it no longer holds this table"
             if status == r["status"]:
                 continue
-            sets = ", ".join(["status = ?", *(f"{k} = ?" for k in at), *(["error = ?"] if error else [])])
-            conn.execute(f"UPDATE pushes SET {sets} WHERE id = ?",
-                         (status, *at.values(), *([error] if error else []), r["id"]))
+            conn.execute(update(_pu).where(_pu.c.id == r["id"]).values(
+                status=status, **at, **({"error": error} if error else {})))
             changed.append(_item(r))
     return changed
 
 
-def _item(row: sqlite3.Row) -> Pushed:
+def _item(row: RowMapping) -> Pushed:
     return ("proposal", row["proposal_id"]) if row["proposal_id"] is not None else ("envelope", row["envelope_id"])
 
 
-def push_of_version(conn: sqlite3.Connection, device_id: str, version: int | None,
+def push_of_version(conn: Connection, device_id: str, version: int | None,
                     crc32: int | None = None) -> dict | None:
     """The newest push of this table version (and CRC, when given) to the device: what its status reports
     running or waiting for heel strike. None for no version, or a table this server never sent."""
     if version is None:
         return None
-    sql, args = " WHERE pu.device_id = ? AND pu.table_version = ?", [device_id, version]
+    query = _PUSH_SELECT.where(_pu.c.device_id == device_id, _pu.c.table_version == version)
     if crc32 is not None:
-        sql, args = sql + " AND pu.crc32 = ?", [*args, crc32]
-    row = conn.execute(_PUSH_SELECT + sql + " ORDER BY pu.id DESC LIMIT 1", args).fetchone()
+        query = query.where(_pu.c.crc32 == crc32)
+    row = conn.execute(query.order_by(_pu.c.id.desc()).limit(1)).mappings().first()
     return None if row is None else _push(row)
 
 
-def current_push(conn: sqlite3.Connection, device_id: str) -> dict | None:
+def current_push(conn: Connection, device_id: str) -> dict | None:
     """The table the device runs or will run from its next heel strike: its newest push that is ``active`` or
     ``acknowledged`` (a CRC read back but no status frame reporting it yet)."""
-    row = conn.execute(_PUSH_SELECT + " WHERE pu.device_id = ? AND pu.status IN ('active', 'acknowledged') "
-                       "ORDER BY pu.id DESC LIMIT 1", (device_id,)).fetchone()
+    row = conn.execute(_PUSH_SELECT.where(_pu.c.device_id == device_id, _pu.c.status.in_(("active", "acknowledged")))
+                       .order_by(_pu.c.id.desc()).limit(1)).mappings().first()
     return None if row is None else _push(row)
 
 
-def deployment_state(conn: sqlite3.Connection, item: Pushed) -> str | None:
+def deployment_state(conn: Connection, item: Pushed) -> str | None:
     """From its pushes, as the device last reported them (:func:`reconcile`): ``active_on_device`` / ``pushed`` (on
     its way: sent or read back, not yet running) / ``unconfirmed`` (no acknowledgement yet; the device's next status
     decides) / ``replaced`` (ran or was sent, then another table took its place) / ``not_on_device`` (the device
     reported it no longer holds it: restarted or lost) / ``push_failed`` / None (never pushed)."""
     kind, item_id = item
-    newest_first = [r[0] for r in conn.execute(f"SELECT status FROM pushes WHERE {kind}_id = ? ORDER BY id DESC",
-                                               (item_id,))]
+    newest_first = list(conn.execute(select(_pu.c.status).where(_pu.c[f"{kind}_id"] == item_id)
+                                     .order_by(_pu.c.id.desc())).scalars())
     statuses = set(newest_first)
     if "active" in statuses:
         return "active_on_device"

@@ -1,31 +1,38 @@
-"""Walking sessions in SQLite (migration 0002): the telemetry samples as they arrive and the summary when stopped."""
+"""Walking sessions: the telemetry samples as they arrive and the summary when stopped."""
 
 from __future__ import annotations
 
 import json
-import sqlite3
 from collections.abc import Iterable
+
+from sqlalchemy import Connection, RowMapping, func, insert, select, update
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
+from backend.store.dialect import insert_or_ignore
 from backend.store.envelopes import envelope_label
 from backend.store.proposals import table_label
+from backend.store.tables import envelopes, patients, proposals, session_samples, users, walking_sessions
 from backend.store.users import User
 from device_bridge.sim.course import COURSES
 
-_SESSION_SELECT = ("SELECT s.*, su.username AS started_by_name, pu.username AS stopped_by_name, "
-                   "pa.code_name AS patient_code, pr.version AS proposal_version, en.version AS envelope_version, "
-                   "pp.code_name AS table_patient_code, "
-                   "coalesce(pr.decision_override, en.decision_override) AS approval_override, "
-                   "coalesce(pr.extrapolation_reason, en.extrapolation_reason) AS extrapolation_reason "
-                   "FROM walking_sessions s JOIN users su ON su.id = s.started_by "
-                   "LEFT JOIN users pu ON pu.id = s.stopped_by JOIN patients pa ON pa.id = s.patient_id "
-                   "LEFT JOIN proposals pr ON pr.id = s.proposal_id LEFT JOIN envelopes en ON en.id = s.envelope_id "
-                   "LEFT JOIN patients pp ON pp.id = coalesce(pr.patient_id, en.patient_id)")
+_s, _su, _pu, _pa, _pp = (walking_sessions, users.alias("su"), users.alias("pu"), patients.alias("pa"),
+                          patients.alias("pp"))
+_SESSION_SELECT = (
+    select(_s, _su.c.username.label("started_by_name"), _pu.c.username.label("stopped_by_name"),
+           _pa.c.code_name.label("patient_code"), proposals.c.version.label("proposal_version"),
+           envelopes.c.version.label("envelope_version"), _pp.c.code_name.label("table_patient_code"),
+           func.coalesce(proposals.c.decision_override, envelopes.c.decision_override).label("approval_override"),
+           func.coalesce(proposals.c.extrapolation_reason, envelopes.c.extrapolation_reason)
+           .label("extrapolation_reason"))
+    .select_from(_s.join(_su, _su.c.id == _s.c.started_by).outerjoin(_pu, _pu.c.id == _s.c.stopped_by)
+                 .join(_pa, _pa.c.id == _s.c.patient_id).outerjoin(proposals, proposals.c.id == _s.c.proposal_id)
+                 .outerjoin(envelopes, envelopes.c.id == _s.c.envelope_id)
+                 .outerjoin(_pp, _pp.c.id == func.coalesce(proposals.c.patient_id, envelopes.c.patient_id))))
 
 
-def _label(row: sqlite3.Row) -> str | None:
+def _label(row: RowMapping) -> str | None:
     if row["proposal_id"] is not None:
         return table_label(row["table_patient_code"], row["proposal_version"])
     if row["envelope_id"] is not None:
@@ -45,7 +52,7 @@ def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
     return f"'{course}' course: {min(speeds):.2f}–{max(speeds):.2f} m/s, {slope}"
 
 
-def _session(row: sqlite3.Row) -> dict:
+def _session(row: RowMapping) -> dict:
     return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
             "device_id": row["device_id"], "proposal_id": row["proposal_id"], "envelope_id": row["envelope_id"],
             "table_label": _label(row), "course": row["course"],
@@ -60,34 +67,31 @@ def _session(row: sqlite3.Row) -> dict:
             "summary": None if row["summary_json"] is None else json.loads(row["summary_json"])}
 
 
-def get_session(conn: sqlite3.Connection, session_id: int) -> dict:
-    row = conn.execute(_SESSION_SELECT + " WHERE s.id = ?", (session_id,)).fetchone()
+def get_session(conn: Connection, session_id: int) -> dict:
+    row = conn.execute(_SESSION_SELECT.where(_s.c.id == session_id)).mappings().first()
     if row is None:
         raise NotFoundError(f"session {session_id} not found")
     return _session(row)
 
 
-def sessions_of_patient(conn: sqlite3.Connection, patient_id: int) -> list[dict]:
-    rows = conn.execute(_SESSION_SELECT + " WHERE s.patient_id = ? ORDER BY s.id DESC", (patient_id,)).fetchall()
+def sessions_of_patient(conn: Connection, patient_id: int) -> list[dict]:
+    rows = conn.execute(_SESSION_SELECT.where(_s.c.patient_id == patient_id).order_by(_s.c.id.desc())).mappings()
     return [_session(r) for r in rows]
 
 
-def start_session(conn: sqlite3.Connection, patient_id: int, device_id: str, task: dict, ran: dict,
+def start_session(conn: Connection, patient_id: int, device_id: str, task: dict, ran: dict,
                   actor: User, course: str | None = None) -> int:
     """Open a recording session (409 when the device already records one). ``ran``: what the device reports running
     (``table_version`` and ``crc32`` as reported, None for no table; ``proposal_id`` or ``envelope_id`` when this
     server sent it)."""
     with write_transaction(conn):
-        if conn.execute("SELECT 1 FROM walking_sessions WHERE device_id = ? AND status = 'recording'",
-                        (device_id,)).fetchone():
+        if conn.execute(select(_s.c.id).where(_s.c.device_id == device_id, _s.c.status == "recording")).first():
             raise ConflictError(f"device {device_id} is already recording a session; stop it first")
-        cur = conn.execute(
-            "INSERT INTO walking_sessions (patient_id, device_id, proposal_id, envelope_id, table_version, table_crc32, "
-            "speed_mps, incline_deg, body_mass_kg, course, status, started_by, started_at) "
-            "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, 'recording', ?, ?)",
-            (patient_id, device_id, ran["proposal_id"], ran["envelope_id"], ran["table_version"], ran["crc32"],
-             task["speed_mps"], task["incline_deg"], task["body_mass_kg"], course, actor.id, utc_now()))
-        session_id = int(cur.lastrowid)
+        session_id = int(conn.execute(insert(_s).values(
+            patient_id=patient_id, device_id=device_id, proposal_id=ran["proposal_id"], envelope_id=ran["envelope_id"],
+            table_version=ran["table_version"], table_crc32=ran["crc32"], speed_mps=task["speed_mps"],
+            incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"], course=course, status="recording",
+            started_by=actor.id, started_at=utc_now())).inserted_primary_key[0])
         audit.record(conn, actor.id, actor.username, "session.start", "session", session_id,
                      after={"patient_id": patient_id, "device_id": device_id, "task": task, "course": course,
                             "proposal_id": ran["proposal_id"], "envelope_id": ran["envelope_id"],
@@ -103,31 +107,33 @@ SAMPLE_COLUMNS = ("seq", "t_s", "mode", "fsm_state", "knee_angle_rad", "knee_vel
                   "adaptive_mode")
 
 
-def add_samples(conn: sqlite3.Connection, session_id: int, rows: Iterable[tuple]) -> None:
+def add_samples(conn: Connection, session_id: int, rows: Iterable[tuple]) -> None:
     """Append samples (tuples in :data:`SAMPLE_COLUMNS` order) to a recording session; a sample already stored
     (the same sequence number, a retried batch) is kept as it was, anything else malformed is refused."""
-    sql = (f"INSERT INTO session_samples (session_id, {', '.join(SAMPLE_COLUMNS)}) "
-           f"VALUES (?, {', '.join('?' * len(SAMPLE_COLUMNS))}) ON CONFLICT (session_id, seq) DO NOTHING")
+    batch = [{"session_id": session_id, **dict(zip(SAMPLE_COLUMNS, r, strict=True))} for r in rows]
+    if not batch:
+        return
     with write_transaction(conn):
-        conn.executemany(sql, ((session_id, *r) for r in rows))
+        conn.execute(insert_or_ignore(conn, session_samples, ["session_id", "seq"]), batch)
 
 
-def samples(conn: sqlite3.Connection, session_id: int) -> dict[str, list]:
+def samples(conn: Connection, session_id: int) -> dict[str, list]:
     """The session's samples by column (SI), in sequence order."""
-    rows = conn.execute(f"SELECT {', '.join(SAMPLE_COLUMNS)} FROM session_samples WHERE session_id = ? ORDER BY seq",
-                        (session_id,)).fetchall()
+    rows = conn.execute(select(*(session_samples.c[c] for c in SAMPLE_COLUMNS))
+                        .where(session_samples.c.session_id == session_id).order_by(session_samples.c.seq)).all()
     return {c: [r[i] for r in rows] for i, c in enumerate(SAMPLE_COLUMNS)}
 
 
-def stop_session(conn: sqlite3.Connection, session_id: int, summary: dict, actor: User) -> None:
+def stop_session(conn: Connection, session_id: int, summary: dict, actor: User) -> None:
     with write_transaction(conn):
-        row = conn.execute("SELECT status FROM walking_sessions WHERE id = ?", (session_id,)).fetchone()
+        row = conn.execute(select(_s.c.status).where(_s.c.id == session_id).with_for_update()).first()
         if row is None:
             raise NotFoundError(f"session {session_id} not found")
-        if row["status"] != "recording":
+        if row.status != "recording":
             raise ConflictError(f"session {session_id} is already stopped")
-        conn.execute("UPDATE walking_sessions SET status = 'stopped', stopped_by = ?, stopped_at = ?, summary_json = ? "
-                     "WHERE id = ?", (actor.id, utc_now(), json.dumps(summary, allow_nan=False), session_id))
+        conn.execute(update(_s).where(_s.c.id == session_id).values(
+            status="stopped", stopped_by=actor.id, stopped_at=utc_now(),
+            summary_json=json.dumps(summary, allow_nan=False)))
         audit.record(conn, actor.id, actor.username, "session.stop", "session", session_id,
                      after={k: summary.get(k) for k in ("samples", "strides", "cadence_steps_per_min",
                                                         "knee_angle_rmse_deg", "ankle_angle_rmse_deg")})

@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
-import sqlite3
 import time
 from dataclasses import dataclass
 from typing import Literal, get_args
+
+from sqlalchemy import Connection, RowMapping, delete, func, insert, select, update
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.security import hash_password, new_token, token_digest
 from backend.store import audit
+from backend.store.tables import tokens, users
 
 Role = Literal["prosthetist", "viewer", "admin"]
 ROLES: tuple[str, ...] = get_args(Role)
@@ -24,21 +26,30 @@ class User:
     must_change_password: bool = False   # a password someone else chose: nothing but changing it works
 
 
-def _public(row: sqlite3.Row) -> dict:
+def _public(row: RowMapping) -> dict:
     return {"id": row["id"], "username": row["username"], "role": row["role"], "created_at": row["created_at"],
             "disabled": bool(row["disabled"]), "must_change_password": bool(row["must_change_password"]),
             "password_changed_at": row["password_changed_at"]}
 
 
-def _user(row: sqlite3.Row) -> User:
+def _user(row: RowMapping) -> User:
     return User(row["id"], row["username"], row["role"], bool(row["must_change_password"]))
+
+
+def _named(username: str):
+    """The user-name match, ignoring case on every database (SQLite's column collates NOCASE; PostgreSQL's does not)."""
+    return func.lower(users.c.username) == func.lower(username)
+
+
+def _row(conn: Connection, user_id: int) -> dict:
+    return _public(conn.execute(select(users).where(users.c.id == user_id)).mappings().one())
 
 
 def _actor(actor: User | None) -> tuple[int | None, str]:
     return (actor.id, actor.username) if actor else (None, "command line")
 
 
-def create_user(conn: sqlite3.Connection, username: str, role: str, password: str,
+def create_user(conn: Connection, username: str, role: str, password: str,
                 actor: User | None = None, must_change_password: bool = False) -> dict:
     """Add a user (password hashed with scrypt). ``actor`` None means the command line; ``must_change_password``
     for a password someone other than the user chose (nothing else works until the user changes it)."""
@@ -46,30 +57,29 @@ def create_user(conn: sqlite3.Connection, username: str, role: str, password: st
         raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
     password_hash = hash_password(password)   # slow on purpose: outside the write lock
     with write_transaction(conn):
-        if conn.execute("SELECT 1 FROM users WHERE username = ?", (username,)).fetchone():
+        if conn.execute(select(users.c.id).where(_named(username))).first():
             raise ConflictError(f"a user named {username!r} already exists")
-        cur = conn.execute("INSERT INTO users (username, role, password_hash, created_at, must_change_password) "
-                           "VALUES (?, ?, ?, ?, ?)", (username, role, password_hash, utc_now(),
-                                                      int(must_change_password)))
-        uid = int(cur.lastrowid)
+        uid = int(conn.execute(insert(users).values(
+            username=username, role=role, password_hash=password_hash, created_at=utc_now(),
+            must_change_password=int(must_change_password))).inserted_primary_key[0])
         audit.record(conn, *_actor(actor), "user.create", "user", uid,
                      after={"username": username, "role": role, "must_change_password": must_change_password})
-        return _public(conn.execute("SELECT * FROM users WHERE id = ?", (uid,)).fetchone())
+        return _row(conn, uid)
 
 
-def id_of(conn: sqlite3.Connection, username: str) -> int:
+def id_of(conn: Connection, username: str) -> int:
     """The id of the user named ``username`` (NotFoundError when there is none)."""
-    row = conn.execute("SELECT id FROM users WHERE username = ?", (username,)).fetchone()
+    row = conn.execute(select(users.c.id).where(_named(username))).first()
     if row is None:
         raise NotFoundError(f"no user named {username!r}")
-    return int(row["id"])
+    return int(row.id)
 
 
-def password_hash_of(conn: sqlite3.Connection, user: User) -> str:
-    return conn.execute("SELECT password_hash FROM users WHERE id = ?", (user.id,)).fetchone()["password_hash"]
+def password_hash_of(conn: Connection, user: User) -> str:
+    return conn.execute(select(users.c.password_hash).where(users.c.id == user.id)).scalar_one()
 
 
-def set_password(conn: sqlite3.Connection, target_id: int, password: str, must_change_password: bool,
+def set_password(conn: Connection, target_id: int, password: str, must_change_password: bool,
                  actor: User | None = None, keep_token: str | None = None) -> dict:
     """Set a user's password and end every session it holds (except ``keep_token``: the one changing it).
 
@@ -77,35 +87,36 @@ def set_password(conn: sqlite3.Connection, target_id: int, password: str, must_c
     someone's password usually sets it (the user must then choose their own)."""
     password_hash = hash_password(password)   # slow on purpose: outside the write lock
     with write_transaction(conn):
-        if conn.execute("SELECT 1 FROM users WHERE id = ?", (target_id,)).fetchone() is None:
+        changed = conn.execute(update(users).where(users.c.id == target_id).values(
+            password_hash=password_hash, must_change_password=int(must_change_password),
+            password_changed_at=utc_now()))
+        if changed.rowcount == 0:
             raise NotFoundError(f"user {target_id} not found")
-        conn.execute("UPDATE users SET password_hash = ?, must_change_password = ?, password_changed_at = ? "
-                     "WHERE id = ?", (password_hash, int(must_change_password), utc_now(), target_id))
-        conn.execute("DELETE FROM tokens WHERE user_id = ? AND token_sha256 != ?",
-                     (target_id, token_digest(keep_token) if keep_token else ""))
+        conn.execute(delete(tokens).where(tokens.c.user_id == target_id,
+                                          tokens.c.token_sha256 != (token_digest(keep_token) if keep_token else "")))
         audit.record(conn, *_actor(actor), "user.password", "user", target_id,
                      after={"must_change_password": must_change_password})
-        return _public(conn.execute("SELECT * FROM users WHERE id = ?", (target_id,)).fetchone())
+        return _row(conn, target_id)
 
 
-def list_users(conn: sqlite3.Connection) -> list[dict]:
-    return [_public(r) for r in conn.execute("SELECT * FROM users ORDER BY id")]
+def list_users(conn: Connection) -> list[dict]:
+    return [_public(r) for r in conn.execute(select(users).order_by(users.c.id)).mappings()]
 
 
-def credentials(conn: sqlite3.Connection, username: str) -> tuple[User, str] | None:
+def credentials(conn: Connection, username: str) -> tuple[User, str] | None:
     """(user, stored password hash) of an enabled user, or None."""
-    row = conn.execute("SELECT * FROM users WHERE username = ? AND disabled = 0", (username,)).fetchone()
+    row = conn.execute(select(users).where(_named(username), users.c.disabled == 0)).mappings().first()
     return None if row is None else (_user(row), row["password_hash"])
 
 
-def issue_token(conn: sqlite3.Connection, user: User, ttl_s: float) -> str:
+def issue_token(conn: Connection, user: User, ttl_s: float) -> str:
     """A new bearer token for ``user`` valid ``ttl_s`` seconds (expired tokens are purged on the way)."""
     token = new_token()
     now = time.time()
     with write_transaction(conn):
-        conn.execute("DELETE FROM tokens WHERE expires_at_unix < ?", (now,))
-        conn.execute("INSERT INTO tokens (token_sha256, user_id, issued_at, expires_at_unix) VALUES (?, ?, ?, ?)",
-                     (token_digest(token), user.id, utc_now(), now + ttl_s))
+        conn.execute(delete(tokens).where(tokens.c.expires_at_unix < now))
+        conn.execute(insert(tokens).values(token_sha256=token_digest(token), user_id=user.id, issued_at=utc_now(),
+                                           expires_at_unix=now + ttl_s))
         audit.record(conn, user.id, user.username, "auth.login", "user", user.id)
     return token
 
@@ -116,40 +127,41 @@ def printable(text: str, limit: int = 64) -> str:
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text[:limit])
 
 
-def record_failed_login(conn: sqlite3.Connection, username: str, address: str) -> None:
+def record_failed_login(conn: Connection, username: str, address: str) -> None:
     """Audit a failed sign-in under the name as typed, made printable (a name is attacker-controlled text)."""
     with write_transaction(conn):
         audit.record(conn, None, printable(username), "auth.login_failed", "user", None,
                      after={"address": printable(address)})
 
 
-def user_for_token(conn: sqlite3.Connection, token: str) -> User | None:
+def user_for_token(conn: Connection, token: str) -> User | None:
     """The enabled user holding an unexpired ``token``, or None."""
     row = conn.execute(
-        "SELECT u.id, u.username, u.role, u.must_change_password FROM tokens t JOIN users u ON u.id = t.user_id "
-        "WHERE t.token_sha256 = ? AND t.expires_at_unix > ? AND u.disabled = 0",
-        (token_digest(token), time.time())).fetchone()
+        select(users.c.id, users.c.username, users.c.role, users.c.must_change_password)
+        .join(tokens, tokens.c.user_id == users.c.id)
+        .where(tokens.c.token_sha256 == token_digest(token), tokens.c.expires_at_unix > time.time(),
+               users.c.disabled == 0)).mappings().first()
     return None if row is None else _user(row)
 
 
-def revoke_token(conn: sqlite3.Connection, token: str, user: User) -> None:
+def revoke_token(conn: Connection, token: str, user: User) -> None:
     """Sign out: the token stops working at once (audited)."""
     with write_transaction(conn):
-        conn.execute("DELETE FROM tokens WHERE token_sha256 = ?", (token_digest(token),))
+        conn.execute(delete(tokens).where(tokens.c.token_sha256 == token_digest(token)))
         audit.record(conn, user.id, user.username, "auth.logout", "user", user.id)
 
 
-def set_disabled(conn: sqlite3.Connection, user_id: int, disabled: bool, actor: User | None) -> dict:
+def set_disabled(conn: Connection, user_id: int, disabled: bool, actor: User | None) -> dict:
     """Disable (or re-enable) an account; disabling also revokes every token it holds, so open sessions end."""
     with write_transaction(conn):
-        row = conn.execute("SELECT * FROM users WHERE id = ?", (user_id,)).fetchone()
+        row = conn.execute(select(users).where(users.c.id == user_id).with_for_update()).mappings().first()
         if row is None:
             raise NotFoundError(f"user {user_id} not found")
         if disabled and actor is not None and user_id == actor.id:
             raise ConflictError("you cannot disable your own account; another admin must")
-        conn.execute("UPDATE users SET disabled = ? WHERE id = ?", (int(disabled), user_id))
+        conn.execute(update(users).where(users.c.id == user_id).values(disabled=int(disabled)))
         if disabled:
-            conn.execute("DELETE FROM tokens WHERE user_id = ?", (user_id,))
+            conn.execute(delete(tokens).where(tokens.c.user_id == user_id))
         audit.record(conn, *_actor(actor), "user.disable" if disabled else "user.enable", "user", user_id,
                      before={"disabled": bool(row["disabled"])}, after={"disabled": disabled})
-        return _public(conn.execute("SELECT * FROM users WHERE id = ?", (user_id,)).fetchone())
+        return _row(conn, user_id)

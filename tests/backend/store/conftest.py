@@ -1,19 +1,18 @@
-"""A migrated database of its own per test, and the people who act on it."""
+"""A migrated database of its own per test, on SQLite and on PostgreSQL, and the people who act on it."""
 
 from __future__ import annotations
 
 import pytest
+from sqlalchemy import func, insert, select
 
 from backend.db import connect
-from backend.migrate import migrate
 from backend.store import patients, users
+from backend.store.tables import proposals
 
 
 @pytest.fixture
-def conn(tmp_path):
-    path = tmp_path / "store.sqlite"
-    migrate(path)
-    c = connect(path)
+def conn(database):
+    c = connect(database)
     yield c
     c.close()
 
@@ -36,14 +35,12 @@ def draft(conn, prosthetist, patient):
     from controller_core.content import content_sha256
 
     def make(table_json: str = '{"rows": []}', version: int | None = None) -> int:
-        v = version or conn.execute("SELECT coalesce(max(version), 0) + 1 FROM proposals").fetchone()[0]
-        cur = conn.execute(
-            "INSERT INTO proposals (patient_id, version, source, speed_mps, incline_deg, body_mass_kg, extrapolation, "
-            "safety_ok, model_json, table_json, table_sha256, created_by, created_at) "
-            "VALUES (?, ?, 'model', 1.2, 0, 80, 0, 1, '{}', ?, ?, ?, '2026-01-01T00:00:00Z')",
-            (patient["id"], v, table_json, content_sha256(table_json), prosthetist.id))
-        conn.commit()
-        return int(cur.lastrowid)
+        v = version or conn.execute(select(func.coalesce(func.max(proposals.c.version), 0) + 1)).scalar_one()
+        return int(conn.execute(insert(proposals).values(
+            patient_id=patient["id"], version=v, source="model", speed_mps=1.2, incline_deg=0, body_mass_kg=80,
+            extrapolation=0, safety_ok=1, model_json="{}", table_json=table_json,
+            table_sha256=content_sha256(table_json), created_by=prosthetist.id, created_at="2026-01-01T00:00:00Z",
+        )).inserted_primary_key[0])
 
     return make
 

@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import pytest
+from sqlalchemy import literal, select
 
+from backend.db import connect, write_transaction
 from backend.errors import ConflictError
 from backend.store import audit, proposals
-from backend.store.decisions import decide_once, summary_select, version_page
+from backend.store.decisions import decide_once, summary_columns, version_page
+from backend.store.tables import proposals as proposals_table
 from controller_core.table import LimitViolation
 
 REASON = "walked with the patient in the parallel bars"
 
 
 def _decide(conn, pid, actor, status, recheck=list, override=REASON):
-    with conn:
+    with write_transaction(conn):
         decide_once(conn, "proposal", proposals.get_row(conn, pid), status, "looked at it", actor, recheck,
                     "the safety limits", {"note": 1}, override)
 
@@ -45,10 +48,29 @@ def test_an_approval_whose_content_fails_its_check_writes_nothing(conn, prosthet
 def test_versions_page_newest_first_and_read_only_their_summary_columns(conn, patient, draft):
     for _ in range(5):
         draft()
-    select = summary_select("SELECT p.*, 0 AS unused FROM proposals p", "p", "p.speed_mps")
-    rows, total = version_page(conn, "proposal", select, "p", patient["id"], 2, None)
+    query = select(*summary_columns(proposals_table), proposals_table.c.speed_mps, literal(0).label("unused"))
+    rows, total = version_page(conn, "proposal", query, patient["id"], 2, None)
     assert total == 5 and [r["version"] for r in rows] == [5, 4]
-    rows, _ = version_page(conn, "proposal", select, "p", patient["id"], 2, 4)
+    rows, _ = version_page(conn, "proposal", query, patient["id"], 2, 4)
     assert [r["version"] for r in rows] == [3, 2]
-    columns = list(rows[0].keys())          # a sqlite3.Row's `in` looks at values, not names
+    columns = list(rows[0].keys())
     assert "table_json" not in columns and "speed_mps" in columns
+
+
+def test_a_decision_made_on_a_row_read_before_another_server_decided_it_writes_nothing(conn, database, prosthetist,
+                                                                                      draft):
+    """Two instances read the same draft; the other one's decision commits first. The second's update, made only
+    while the version is still a draft, changes nothing, and it is refused: no second decision, no second audit."""
+    pid = draft()
+    stale = proposals.get_row(conn, pid)            # read while still a draft
+    other = connect(database)
+    try:
+        _decide(other, pid, prosthetist, "rejected")
+    finally:
+        other.close()
+    with pytest.raises(ConflictError, match="decided by someone else a moment ago"), write_transaction(conn):
+        decide_once(conn, "proposal", stale, "approved", "me too", prosthetist, list, "the safety limits", {},
+                    REASON)
+    assert proposals.get_row(conn, pid)["status"] == "rejected"
+    decisions = [e["action"] for e in audit.list_entries(conn, entity="proposal", entity_id=pid)]
+    assert decisions == ["proposal.reject"]

@@ -6,12 +6,13 @@ import pytest
 
 from backend.errors import NotFoundError
 from backend.store import devices
+from tests.helpers.sql import sql
 
 
 def test_registration_keeps_the_first_and_assignment_is_audited(conn, prosthetist, patient):
     devices.register_device(conn, "leg", "simulated", "virtual", "a")
     devices.register_device(conn, "leg", "can", "socketcan", "can0")
-    assert conn.execute("SELECT kind FROM devices WHERE id = 'leg'").fetchone()[0] == "simulated"
+    assert sql(conn, "SELECT kind FROM devices WHERE id = 'leg'").scalar() == "simulated"
     assert devices.assignment(conn, "leg") is None
     devices.assign(conn, "leg", patient["id"], prosthetist)
     a = devices.assignment(conn, "leg")
@@ -27,5 +28,5 @@ def test_registration_keeps_the_first_and_assignment_is_audited(conn, prosthetis
 def test_the_wire_version_counts_to_65535_and_wraps_to_1(conn):
     devices.register_device(conn, "leg", "simulated", "virtual", "a")
     assert [devices.next_wire_version(conn, "leg") for _ in range(2)] == [1, 2]
-    conn.execute("UPDATE devices SET last_wire_version = 65535 WHERE id = 'leg'")
+    sql(conn, "UPDATE devices SET last_wire_version = 65535 WHERE id = 'leg'")
     assert devices.next_wire_version(conn, "leg") == 1

@@ -10,6 +10,7 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import envelopes
 from controller_core.content import canonical_json, content_sha256
 from device_bridge.as_run import as_run
+from tests.helpers.sql import drop_trigger, sql
 
 
 @pytest.fixture
@@ -31,18 +32,16 @@ def test_an_envelope_is_stored_rounded_with_its_hash_and_wire_crc(conn, stored):
 def test_a_row_from_an_older_release_with_a_json_crc_is_read(conn, stored):
     envelope, out = stored
     legacy = json.dumps({**as_run(envelope).item.to_json(), "crc32": 123}, sort_keys=True)
-    conn.execute("DROP TRIGGER envelopes_content_immutable")
-    conn.execute("UPDATE envelopes SET envelope_json = ?, envelope_sha256 = ? WHERE id = ?",
-                 (legacy, content_sha256(legacy), out["id"]))
-    conn.commit()
+    drop_trigger(conn, "envelopes_content_immutable", "envelopes")
+    sql(conn, "UPDATE envelopes SET envelope_json = :body, envelope_sha256 = :sha WHERE id = :id",
+        body=legacy, sha=content_sha256(legacy), id=out["id"])
     assert envelopes.stored_envelope(envelopes.get_row(conn, out["id"])) == as_run(envelope).item
 
 
 def test_content_changed_in_storage_is_refused(conn, stored):
     _, out = stored
-    conn.execute("DROP TRIGGER envelopes_content_immutable")
-    conn.execute("UPDATE envelopes SET envelope_json = envelope_json || ' ' WHERE id = ?", (out["id"],))
-    conn.commit()
+    drop_trigger(conn, "envelopes_content_immutable", "envelopes")
+    sql(conn, "UPDATE envelopes SET envelope_json = envelope_json || ' ' WHERE id = :id", id=out["id"])
     with pytest.raises(ConflictError, match="does not match its sha256"):
         envelopes.get_envelope(conn, out["id"])
 

@@ -8,6 +8,7 @@ from backend.errors import ConflictError
 from backend.store import proposals
 from controller_core.content import canonical_json, content_sha256
 from device_bridge.as_run import as_run
+from tests.helpers.sql import drop_trigger, sql
 
 
 def test_a_proposal_is_stored_as_the_device_will_run_it(conn, prosthetist, patient, model):
@@ -23,10 +24,9 @@ def test_a_proposal_is_stored_as_the_device_will_run_it(conn, prosthetist, patie
 
 def test_a_table_changed_in_storage_is_refused_at_read(conn, prosthetist, patient, model):
     out = proposals.create_from_model(conn, patient["id"], model.propose(1.2, 0.0, 80.0), prosthetist)
-    conn.execute("DROP TRIGGER proposals_content_immutable")      # what a tampered file could hold
-    conn.execute("UPDATE proposals SET table_json = replace(table_json, '\"theta_e_deg\":', '\"theta_e_deg\": ') "
-                 "WHERE id = ?", (out["id"],))
-    conn.commit()
+    drop_trigger(conn, "proposals_content_immutable", "proposals")      # what a tampered database could hold
+    sql(conn, "UPDATE proposals SET table_json = replace(table_json, '\"theta_e_deg\":', '\"theta_e_deg\": ') "
+        "WHERE id = :id", id=out["id"])
     with pytest.raises(ConflictError, match="does not match its sha256"):
         proposals.get_proposal(conn, out["id"])
 

@@ -12,7 +12,7 @@ NOTHING_RAN = {"proposal_id": None, "envelope_id": None, "table_version": None, 
 
 
 def _sample(seq: int) -> tuple:
-    return (seq, seq / 100.0, "active", 0, 0.1, 0.0, -5.0, 0.0, 0.0, 1.0, 700.0, -10.0,
+    return (seq, seq / 100.0, 1, 0, 0.1, 0.0, -5.0, 0.0, 0.0, 1.0, 700.0, -10.0,
             None, None, None, None, None)
 
 
