@@ -68,7 +68,7 @@ def open_engine(target: str | Path, keep: int = 16, pooled: bool = True) -> Engi
             pool_args = {"pool_size": keep, "max_overflow": -1}
         engine = create_engine(url, isolation_level="AUTOCOMMIT", connect_args={
             "timeout": BUSY_TIMEOUT_MS / 1000, "check_same_thread": False}, **pool_args)
-        event.listen(engine, "connect", _sqlite_pragmas)
+        event.listen(engine, "connect", sqlite_pragmas)
     else:
         if pooled:
             pool_args = {"pool_size": keep, "max_overflow": keep, "pool_pre_ping": True}
@@ -94,7 +94,8 @@ def pooled(engine: Engine) -> Iterator[Connection]:
                 conn.exec_driver_sql("ROLLBACK")
 
 
-def _sqlite_pragmas(dbapi_connection, _record) -> None:
+def sqlite_pragmas(dbapi_connection, _record) -> None:
+    """The project's settings on a new SQLite connection (SQLAlchemy's ``connect`` event)."""
     cur = dbapi_connection.cursor()
     cur.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
     _enable_wal(cur)

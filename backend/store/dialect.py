@@ -1,16 +1,40 @@
-"""The few statements whose Core construct differs per database: an insert that leaves an existing row alone.
+"""The few Core constructs that differ per database: an insert that leaves an existing row alone, and a field of a
+JSON text column.
 
 ``INSERT … ON CONFLICT (…) DO NOTHING`` is the same SQL on SQLite and PostgreSQL, but SQLAlchemy builds it from each
-dialect's own ``insert``; this picks the one of the connection's database.
+dialect's own ``insert``; :func:`insert_or_ignore` picks the one of the connection's database.
 """
 
 from __future__ import annotations
 
-from sqlalchemy import Connection, Table
+from sqlalchemy import JSON, Connection, Table
 from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.ext.compiler import compiles
+from sqlalchemy.sql.functions import FunctionElement
 
 
 def insert_or_ignore(conn: Connection, table: Table, key: list[str]):
     """``INSERT INTO table … ON CONFLICT (key) DO NOTHING`` for the connection's database (add ``.values(...)``)."""
     dialect = postgresql if conn.dialect.name == "postgresql" else sqlite
     return dialect.insert(table).on_conflict_do_nothing(index_elements=key)
+
+
+class json_of(FunctionElement):   # noqa: N801 (a SQL function, named as SQL names them)
+    """A JSON text column read as JSON, so ``json_of(column)["key"]`` reads one field in the database (SQLite's
+    ``json_extract`` on the text itself; PostgreSQL's ``->`` on the text cast to ``json``). SQLite has no JSON type: a
+    ``CAST(… AS JSON)`` there is a numeric cast that turns the text into 0, so SQLAlchemy's plain ``cast`` cannot be
+    used on both."""
+
+    type = JSON()
+    name = "json_of"
+    inherit_cache = True
+
+
+@compiles(json_of, "sqlite")
+def _json_of_sqlite(element: json_of, compiler, **kw) -> str:
+    return compiler.process(element.clauses, **kw)
+
+
+@compiles(json_of, "postgresql")
+def _json_of_postgresql(element: json_of, compiler, **kw) -> str:
+    return f"CAST({compiler.process(element.clauses, **kw)} AS JSON)"

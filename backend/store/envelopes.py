@@ -13,13 +13,14 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 
-from sqlalchemy import JSON, Connection, RowMapping, cast, insert, select
+from sqlalchemy import Connection, RowMapping, insert, select
 
 from backend.clinical_words import field_words
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.decisions import decide_once, next_version, summary_columns, version_page
+from backend.store.dialect import json_of
 from backend.store.patients import lock_patient
 from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
 from backend.store.tables import envelopes, patients, users
@@ -45,9 +46,9 @@ _SELECT = _select(_e)
 
 
 def json_field(column, key: str):
-    """One top-level field of a JSON text column, read by the database (SQLite's ``json_extract``, PostgreSQL's
-    ``->``): the summaries show an envelope's axes without loading its nodes."""
-    return cast(column, JSON)[key]
+    """One top-level field of a JSON text column, read by the database (:class:`~backend.store.dialect.json_of`): the
+    summaries show an envelope's axes without loading its nodes."""
+    return json_of(column)[key]
 
 
 def _hex(crc32: int | None) -> str | None:

@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import pytest
+from sqlalchemy.exc import OperationalError
 
 from backend import db
 from backend.app import prepare_storage
@@ -16,7 +17,7 @@ import sys, time
 from backend.db import connect, write_transaction
 conn = connect(sys.argv[1])
 with write_transaction(conn):
-    conn.execute("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'holder', 'x', 'y')")
+    conn.exec_driver_sql("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'holder', 'x', 'y')")
     print('holding', flush=True)
     time.sleep(float(sys.argv[2]))
 print('released', flush=True)
@@ -38,7 +39,7 @@ def _hold(db_path, seconds: float) -> subprocess.Popen:
 
 
 def _audit_rows(conn) -> list[str]:
-    return [r[0] for r in conn.execute("SELECT actor_name FROM audit_log ORDER BY id")]
+    return list(conn.exec_driver_sql("SELECT actor_name FROM audit_log ORDER BY id").scalars())
 
 
 def test_a_writer_waits_for_another_process_and_then_commits(db_path):
@@ -46,7 +47,7 @@ def test_a_writer_waits_for_another_process_and_then_commits(db_path):
     before = _audit_rows(conn)
     holder = _hold(db_path, 0.5)
     with db.write_transaction(conn):
-        conn.execute("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'me', 'x', 'y')")
+        conn.exec_driver_sql("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'me', 'x', 'y')")
     assert holder.wait(timeout=10) == 0
     # it queued behind the other process's open transaction: both committed, the holder's first
     assert _audit_rows(conn) == [*before, "holder", "me"]
@@ -58,12 +59,12 @@ def test_a_writer_gives_up_with_a_clear_error_after_the_busy_timeout(db_path, mo
     before = _audit_rows(conn)
     holder = _hold(db_path, 1.5)
     try:
-        with pytest.raises(db.sqlite3.OperationalError, match="database is locked"), \
+        with pytest.raises(OperationalError, match="database is locked"), \
                 db.write_transaction(conn):
-            conn.execute("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'me', 'x', 'y')")
+            conn.exec_driver_sql("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'me', 'x', 'y')")
     finally:
         assert holder.wait(timeout=10) == 0
     assert _audit_rows(conn) == [*before, "holder"]          # nothing of the refused write
     with db.write_transaction(conn):                           # the lock is free again afterwards
-        conn.execute("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'me', 'x', 'y')")
+        conn.exec_driver_sql("INSERT INTO audit_log (at, actor_name, action, entity) VALUES ('t', 'me', 'x', 'y')")
     assert _audit_rows(conn)[-1] == "me"

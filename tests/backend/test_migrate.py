@@ -11,11 +11,24 @@ from pathlib import Path
 
 import pytest
 
-from backend.db import connect
-from backend.migrate import BASELINE, LEGACY_DIR_NAME, MIGRATIONS_DIR, MigrationError, head, migrate, schema_version
+from backend.db import sqlite_pragmas
+from backend.migrate import BASELINE, LEGACY_DIR_NAME, MIGRATIONS_DIR, MigrationError, head, migrate
 
 LEGACY = sorted((MIGRATIONS_DIR / LEGACY_DIR_NAME).glob("*.sql"))
 NOW = "2026-11-24T00:00:00Z"
+
+
+def connect(path: Path) -> sqlite3.Connection:
+    """The file opened with the app's own connection settings (WAL, foreign keys, busy timeout, autocommit), as
+    SQLite's own connection: these tests read SQLite's catalogue and the driver's errors."""
+    conn = sqlite3.connect(path, isolation_level=None)
+    sqlite_pragmas(conn, None)
+    return conn
+
+
+def schema_version(conn: sqlite3.Connection) -> int:
+    row = conn.execute("SELECT version_num FROM alembic_version").fetchone()
+    return int(row[0]) if row else 0
 
 
 def _migrate_in_child(db: str, barrier) -> None:

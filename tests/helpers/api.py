@@ -8,10 +8,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from fastapi.testclient import TestClient
+from sqlalchemy import func, select
 
 from backend.app import create_app
 from backend.db import connect
 from backend.settings import Settings
+from backend.store.tables import metadata
 from backend.store.users import ROLES, create_user
 from tests.helpers.server import PASSWORD
 
@@ -23,20 +25,19 @@ class Api:
     client: TestClient
     data_dir: Path
     headers: dict[str, dict[str, str]] = field(default_factory=dict)
+    database: str | Path | None = None     # what the app stores in: its SQLite file or a PostgreSQL URL
 
     def as_(self, role: str) -> dict[str, str]:
         return self.headers[role]
 
     def db(self):
-        return connect(self.data_dir / "quasitune.sqlite")
+        """A connection of the test's own to the app's database (SQLAlchemy; close it, or use it in ``with``)."""
+        return connect(self.database or self.data_dir / "quasitune.sqlite")
 
     def count(self, table: str) -> int:
         """Rows in a table of the app's database (to check that a refused request stored nothing)."""
-        conn = self.db()
-        try:
-            return conn.execute(f"SELECT count(*) FROM {table}").fetchone()[0]
-        finally:
-            conn.close()
+        with self.db() as conn:
+            return conn.execute(select(func.count()).select_from(metadata.tables[table])).scalar_one()
 
     def new_patient(self, code: str = "P-001", mass: float = 80.0) -> dict:
         r = self.client.post("/api/patients", headers=self.as_("prosthetist"),
@@ -54,15 +55,15 @@ class Api:
 
 
 def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]:
-    """App on ``data_dir`` loading its model with ``model_loader``, with users prosthetist/viewer/admin
-    (password :data:`PASSWORD`), signed in."""
+    """App on ``data_dir`` (or on ``database_url``, a migrated PostgreSQL database, when the settings name one) loading
+    its model with ``model_loader``, with users prosthetist/viewer/admin (password :data:`PASSWORD`), signed in."""
     app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader)
-    conn = connect(data_dir / "quasitune.sqlite")
-    for role in ROLES:
-        create_user(conn, role, role, PASSWORD)
-    conn.close()
+    database = settings.get("database_url") or data_dir / "quasitune.sqlite"
+    with connect(database) as conn:
+        for role in ROLES:
+            create_user(conn, role, role, PASSWORD)
     client = TestClient(app)
-    api = Api(client=client, data_dir=data_dir)
+    api = Api(client=client, data_dir=data_dir, database=database)
     for role in ROLES:
         r = client.post("/api/auth/token", data={"username": role, "password": PASSWORD})
         assert r.status_code == 200, r.text

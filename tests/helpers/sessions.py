@@ -20,6 +20,7 @@ from controller_core.units import G_MPS2
 from device_bridge.bench.task_reference import task_reference
 from device_bridge.protocol import Mode
 from device_bridge.sim.simulate import run_walk
+from tests.helpers.sql import sql
 
 BENCH_DEVICE = "bench-leg"   # a device row of its own, not one the server's device manager drives
 
@@ -40,15 +41,15 @@ def bench_samples(table: ParameterTable, speed_mps: float, incline_deg: float, m
              float(c["ankle_moment_Nm"][i]), None, None, None, None, None) for k, i in enumerate(idx)]
 
 
-def record_offline(db_path: Path, model, patient: dict, proposal_id: int, seconds: float = 25.0, **walk) -> int:
+def record_offline(db_path: Path | str, model, patient: dict, proposal_id: int, seconds: float = 25.0, **walk) -> int:
     """A session of the patient on the approved table ``proposal_id``, its samples from the bench (not yet stopped);
     returns its id."""
     conn = connect(db_path)
     try:
-        if conn.execute("SELECT 1 FROM devices WHERE id = ?", (BENCH_DEVICE,)).fetchone() is None:
+        if sql(conn, "SELECT 1 FROM devices WHERE id = :id", id=BENCH_DEVICE).first() is None:
             devices_store.register_device(conn, BENCH_DEVICE, "can", "virtual", "bench")
         row = proposals_store.get_row(conn, proposal_id)
-        user_id = conn.execute("SELECT id FROM users WHERE role = 'prosthetist' ORDER BY id LIMIT 1").fetchone()[0]
+        user_id = sql(conn, "SELECT id FROM users WHERE role = 'prosthetist' ORDER BY id LIMIT 1").scalar_one()
         user = User(id=user_id, username="prosthetist", role="prosthetist")
         task = {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"], "body_mass_kg": patient["body_mass_kg"]}
         sid = sessions_store.start_session(conn, patient["id"], BENCH_DEVICE, task,

@@ -7,6 +7,7 @@ import io
 import pytest
 
 from backend.cli import main
+from tests.helpers.sql import sql
 
 
 def test_users_add_reads_the_password_from_stdin_and_refuses_bad_input(capsys, monkeypatch, tmp_path):
@@ -45,7 +46,7 @@ def test_users_disable_enable_and_passwd_from_the_command_line(capsys, monkeypat
     assert run("users", "passwd", "alex", stdin="short\n") == 2 and "8 characters" in capsys.readouterr().err
     assert run("users", "passwd", "alex", stdin=" second password \n") == 0
     conn = connect(tmp_path / "quasitune.sqlite")
-    row = conn.execute("SELECT * FROM users WHERE username = 'alex'").fetchone()
+    row = sql(conn, "SELECT * FROM users WHERE username = 'alex'").mappings().one()
     conn.close()
     assert verify_password(" second password ", row["password_hash"]) and not row["disabled"]
     assert row["must_change_password"] == 0                              # set by its owner at the console

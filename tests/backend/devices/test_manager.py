@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from backend.db import open_pool
+from backend.db import open_engine
 from backend.devices.manager import DeviceManager
 from backend.devices.specs import parse_device_spec
 from backend.errors import NotFoundError
@@ -17,7 +17,7 @@ from tests.helpers.device import until
 def manager(tmp_path):
     path = tmp_path / "q.sqlite"
     migrate(path)
-    pool = open_pool(path)
+    pool = open_engine(path)
     spec = parse_device_spec("sim")
     m = DeviceManager(pool, [spec]).start()
     yield m, spec.device_id

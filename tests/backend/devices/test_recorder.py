@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from backend.db import open_pool, pooled
+from backend.db import open_engine, pooled
 from backend.devices.recorder import SessionRecorder
 from backend.migrate import migrate
 from backend.store import devices, patients, sessions, users
@@ -18,7 +18,7 @@ def _sample(seq: int) -> tuple:
 def recording(tmp_path):
     path = tmp_path / "q.sqlite"
     migrate(path)
-    pool = open_pool(path)
+    pool = open_engine(path)
     with pooled(pool) as conn:
         made = users.create_user(conn, "pat", "prosthetist", "a long password")
         actor = users.User(made["id"], "pat", "prosthetist")

@@ -7,6 +7,7 @@ from starlette.websockets import WebSocketDisconnect
 
 from backend.db import write_transaction
 from tests.helpers.api import PASSWORD, walk_preview
+from tests.helpers.sql import sql
 
 
 # ------------------------------------------------------------------ auth
@@ -65,7 +66,7 @@ def test_a_password_is_kept_exactly_as_typed(api):
 def test_expired_token_is_refused(api):
     conn = api.db()
     with write_transaction(conn):
-        conn.execute("UPDATE tokens SET expires_at_unix = 0")
+        sql(conn, "UPDATE tokens SET expires_at_unix = 0")
     conn.close()
     r = api.client.get("/api/patients", headers=api.as_("viewer"))
     assert r.status_code == 401 and "expired" in r.json()["detail"]

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import json
-import sqlite3
 
 import pytest
+from sqlalchemy.exc import IntegrityError
 
 from backend.bench.safety_figures import safety_flags
 from backend.db import write_transaction
@@ -13,6 +13,7 @@ from controller_core.content import canonical_json, content_sha256
 from device_bridge.as_run import as_run
 from device_bridge.envelope_wire import WireEnvelope
 from tests.helpers.api import FIXTURE_OVERRIDE
+from tests.helpers.sql import drop_trigger, sql
 
 
 def request_envelope(api, patient_id: int, **body) -> dict:
@@ -83,14 +84,14 @@ def test_a_stored_envelope_cannot_be_changed_and_a_tampered_one_is_refused_at_ap
     patient = api.new_patient()
     e = request_envelope(api, patient["id"], grid=[2, 2])
     conn = api.db()
-    with pytest.raises(sqlite3.IntegrityError, match="immutable"):
-        conn.execute("UPDATE envelopes SET envelope_json = '{}' WHERE id = ?", (e["id"],))
-    with pytest.raises(sqlite3.IntegrityError, match="never deleted"):
-        conn.execute("DELETE FROM envelopes WHERE id = ?", (e["id"],))
+    with pytest.raises(IntegrityError, match="immutable"):
+        sql(conn, "UPDATE envelopes SET envelope_json = '{}' WHERE id = :id", id=e["id"])
+    with pytest.raises(IntegrityError, match="never deleted"):
+        sql(conn, "DELETE FROM envelopes WHERE id = :id", id=e["id"])
     with write_transaction(conn):   # simulate on-disk corruption: drop the trigger, change one value
-        conn.execute("DROP TRIGGER envelopes_content_immutable")
-        conn.execute("UPDATE envelopes SET envelope_json = replace(envelope_json, '\"knee\"', '\"knee\" ') "
-                     "WHERE id = ?", (e["id"],))
+        drop_trigger(conn, "envelopes_content_immutable", "envelopes")
+        sql(conn, "UPDATE envelopes SET envelope_json = replace(envelope_json, '\"knee\"', '\"knee\" ') "
+            "WHERE id = :id", id=e["id"])
     conn.close()
     r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
     assert r.status_code == 409 and "sha256" in r.json()["detail"]

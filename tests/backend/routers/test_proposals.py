@@ -3,17 +3,18 @@
 from __future__ import annotations
 
 import asyncio
-import sqlite3
 import threading
 
 import httpx
 import numpy as np
 import pytest
+from sqlalchemy.exc import IntegrityError
 
 from backend.db import write_transaction
 from backend.store import proposals as proposal_store
 from backend.store.users import User
 from tests.helpers.api import walk_preview
+from tests.helpers.sql import drop_trigger, sql
 
 
 # ------------------------------------------------------------- proposals
@@ -162,16 +163,16 @@ def test_approve_once_then_immutable(api):
                                 json={"comment": "again"})
         assert again.status_code == 409 and "already approved" in again.json()["detail"]
     conn = api.db()
-    with pytest.raises(sqlite3.IntegrityError, match="immutable"):
-        conn.execute("UPDATE proposals SET table_json = '{}' WHERE id = ?", (p["id"],))
-    with pytest.raises(sqlite3.IntegrityError, match="already been approved"):
-        conn.execute("UPDATE proposals SET status = 'draft' WHERE id = ?", (p["id"],))
-    with pytest.raises(sqlite3.IntegrityError, match="never deleted"):
-        conn.execute("DELETE FROM proposals")
-    with pytest.raises(sqlite3.IntegrityError, match="append-only"):
-        conn.execute("DELETE FROM audit_log")
-    with pytest.raises(sqlite3.IntegrityError, match="append-only"):
-        conn.execute("UPDATE audit_log SET actor_name = 'someone else'")
+    with pytest.raises(IntegrityError, match="immutable"):
+        sql(conn, "UPDATE proposals SET table_json = '{}' WHERE id = :id", id=p["id"])
+    with pytest.raises(IntegrityError, match="already been approved"):
+        sql(conn, "UPDATE proposals SET status = 'draft' WHERE id = :id", id=p["id"])
+    with pytest.raises(IntegrityError, match="never deleted"):
+        sql(conn, "DELETE FROM proposals")
+    with pytest.raises(IntegrityError, match="append-only"):
+        sql(conn, "DELETE FROM audit_log")
+    with pytest.raises(IntegrityError, match="append-only"):
+        sql(conn, "UPDATE audit_log SET actor_name = 'someone else'")
     conn.close()
     # editing an approved proposal derives a new draft; the approved one stays as it was
     v2 = api.client.post(f"/api/proposals/{p['id']}/edits", headers=api.as_("prosthetist"), json={
@@ -214,9 +215,9 @@ def test_tampered_table_is_refused_at_approval(api):
     p = api.propose(api.new_patient()["id"])
     conn = api.db()
     with write_transaction(conn):   # simulate on-disk corruption: drop the trigger, change one byte
-        conn.execute("DROP TRIGGER proposals_content_immutable")
-        conn.execute("UPDATE proposals SET table_json = replace(table_json, '\"knee\"', '\"knee\" ') WHERE id = ?",
-                     (p["id"],))
+        drop_trigger(conn, "proposals_content_immutable", "proposals")
+        sql(conn, "UPDATE proposals SET table_json = replace(table_json, '\"knee\"', '\"knee\" ') WHERE id = :id",
+            id=p["id"])
     conn.close()
     r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
     assert r.status_code == 409 and "sha256" in r.json()["detail"]

@@ -8,6 +8,7 @@ import pytest
 
 from tests.backend.routers.test_envelopes import request_envelope
 from tests.helpers.api import DEVICE, FIXTURE_OVERRIDE, assign, push_body, wait_for, wait_recorded
+from tests.helpers.sql import sql
 
 
 def approved_envelope(api, patient_id: int) -> dict:
@@ -75,8 +76,8 @@ def test_an_envelope_goes_only_to_the_leg_of_its_patient_at_its_body_mass(sim_ap
     assert r.status_code == 409 and "assigned to P-090 (90 kg), not to P-070 (70 kg) whose envelope" in r.json()["detail"]
     assign(api, owner["id"])
     conn = api.db()
-    conn.execute("UPDATE patients SET body_mass_kg = 80 WHERE id = ?", (owner["id"],))
-    conn.commit()
+    sql(conn, "UPDATE patients SET body_mass_kg = 80 WHERE id = :id", id=owner["id"])
+    conn.close()
     r = push_envelope(api, env["id"], override_reason=None)
     assert r.status_code == 409 and "built for 70 kg and P-070 now weighs 80 kg" in r.json()["detail"]
     assert c.get(f"/api/envelopes/{env['id']}/pushes", headers=api.as_("viewer")).json() == []

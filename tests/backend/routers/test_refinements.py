@@ -19,7 +19,7 @@ from tests.helpers.sessions import record_offline
 
 def recorded_session(api, model, patient: dict, table: dict, seconds: float = 25.0, **walk) -> int:
     """A stopped session of the patient on the approved table, its samples from the bench walked offline."""
-    sid = record_offline(api.data_dir / "quasitune.sqlite", model, patient, table["id"], seconds, **walk)
+    sid = record_offline(api.database, model, patient, table["id"], seconds, **walk)
     r = api.client.post(f"/api/sessions/{sid}/stop", headers=api.as_("prosthetist"))
     assert r.status_code == 200, r.text
     return sid

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from tests.helpers.sql import sql
+
 
 def test_admin_adds_users_and_passwords_are_scrypt_hashes(api):
     r = api.client.post("/api/users", headers=api.as_("admin"),
@@ -14,7 +16,7 @@ def test_admin_adds_users_and_passwords_are_scrypt_hashes(api):
                             json={"username": "eve", "role": "viewer", "password": "short"})
     assert short.status_code == 422 and "password" in short.json()["detail"]
     conn = api.db()
-    stored = conn.execute("SELECT password_hash FROM users WHERE username = 'dana'").fetchone()[0]
+    stored = sql(conn, "SELECT password_hash FROM users WHERE username = 'dana'").scalar_one()
     conn.close()
     assert stored.startswith("scrypt$16384$8$1$") and "a-long-password" not in stored
     assert api.client.post("/api/auth/token", data={"username": "dana", "password": "a-long-password"}).status_code == 200
