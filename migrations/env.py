@@ -25,9 +25,8 @@ def run_migrations_online() -> None:
     if given is not None:
         _run(given)
         return
-    from backend.settings import Settings
-
     from backend.db import database_url
+    from backend.settings import Settings
 
     engine = create_engine(database_url(Settings().database))
     with engine.connect() as connection:

@@ -6,6 +6,7 @@ from typing import Annotated
 
 from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
 from fastapi.security import OAuth2PasswordRequestForm
+from sqlalchemy import Connection
 
 from backend.deps import Conn, SignedIn, get_settings, oauth2
 from backend.errors import InvalidError
@@ -20,16 +21,16 @@ from backend.throttle import LoginThrottle
 router = APIRouter(prefix="/api", tags=["auth"])
 
 
-def _throttled(request: Request, name: str) -> tuple[LoginThrottle, str]:
-    """The login throttle and the caller's address; 429 with Retry-After while ``name`` or the address has had
-    too many failed attempts (then nothing is checked or written)."""
+def _throttled(request: Request, conn: Connection, name: str) -> str:
+    """The caller's address; 429 with Retry-After while ``name`` or the address has had too many failed attempts,
+    counted in the database by every instance (then nothing is checked or written)."""
     throttle: LoginThrottle = request.app.state.login_throttle
     address = request.client.host if request.client else "unknown"
-    wait = throttle.retry_after_s(name, address)
+    wait = throttle.retry_after_s(conn, name, address)
     if wait:
         raise HTTPException(status.HTTP_429_TOO_MANY_REQUESTS, f"too many failed sign-ins; try again in {wait} s",
                             headers={"Retry-After": str(wait)})
-    return throttle, address
+    return address
 
 
 @router.post("/auth/token", response_model=TokenOut, responses={**UNAUTHORIZED, **TOO_MANY})
@@ -40,7 +41,7 @@ def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Reques
     a minute: 429 with Retry-After, and nothing is checked or written until then (so failed sign-ins write a bounded
     number of audit rows). The address is the TCP peer's, or the one a trusted proxy (settings) forwards."""
     name = form.username[:64] if is_utf8_encodable(form.username) else "<not UTF-8>"
-    throttle, address = _throttled(request, name)
+    address = _throttled(request, conn, name)
     found = users.credentials(conn, form.username) if is_utf8_encodable(form.username) and len(form.username) <= 64 else None
     if found is None:
         burn_password_check(form.password)
@@ -48,7 +49,6 @@ def login(form: Annotated[OAuth2PasswordRequestForm, Depends()], request: Reques
     else:
         ok = verify_password(form.password, found[1])
     if not ok:
-        throttle.failed(name, address)
         users.record_failed_login(conn, name, address)
         raise HTTPException(status.HTTP_401_UNAUTHORIZED, "incorrect user name or password",
                             headers={"WWW-Authenticate": "Bearer"})
@@ -75,9 +75,8 @@ def change_password(body: PasswordChange, request: Request, user: SignedIn, conn
                     token: Annotated[str | None, Depends(oauth2)]) -> Me:
     """Change your own password (the current one is asked again). Every other session of the account ends; this
     one goes on. A wrong current password counts as a failed sign-in (throttled the same way)."""
-    throttle, address = _throttled(request, user.username)
+    address = _throttled(request, conn, user.username)
     if not verify_password(body.current_password, users.password_hash_of(conn, user)):
-        throttle.failed(user.username, address)
         users.record_failed_login(conn, user.username, address)
         raise HTTPException(status.HTTP_403_FORBIDDEN, "the current password is not correct; nothing was changed")
     if body.new_password == body.current_password:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from sqlalchemy import JSON, Connection, Table
 from sqlalchemy.dialects import postgresql, sqlite
+from sqlalchemy.exc import IntegrityError
 from sqlalchemy.ext.compiler import compiles
 from sqlalchemy.sql.functions import FunctionElement
 
@@ -38,3 +39,10 @@ def _json_of_sqlite(element: json_of, compiler, **kw) -> str:
 @compiles(json_of, "postgresql")
 def _json_of_postgresql(element: json_of, compiler, **kw) -> str:
     return f"CAST({compiler.process(element.clauses, **kw)} AS JSON)"
+
+
+def unique_violation(exc: IntegrityError, index: str, sqlite_columns: str) -> bool:
+    """Whether ``exc`` is the unique index ``index`` refusing a row (PostgreSQL names the index; SQLite names its
+    columns, e.g. ``pushes.device_id``)."""
+    text = str(exc.orig)
+    return f'"{index}"' in text if "duplicate key" in text else text == f"UNIQUE constraint failed: {sqlite_columns}"

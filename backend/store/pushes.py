@@ -13,10 +13,12 @@ from __future__ import annotations
 from typing import Literal
 
 from sqlalchemy import Connection, RowMapping, case, func, insert, or_, select, update
+from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now, write_transaction
-from backend.errors import NotFoundError
+from backend.errors import ConflictError, NotFoundError
 from backend.store import audit, devices
+from backend.store.dialect import unique_violation
 from backend.store.envelopes import envelope_label, json_field
 from backend.store.proposals import table_label
 from backend.store.tables import envelopes, patients, proposals, pushes, users
@@ -83,10 +85,15 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
     kind, item_id = item
     with write_transaction(conn):
         version = devices.next_wire_version(conn, device_id)
-        push_id = int(conn.execute(insert(_pu).values(
-            {f"{kind}_id": item_id, "device_id": device_id, "table_version": version, "crc32": crc32,
-             "status": "sending", "requested_by": actor.id, "requested_at": utc_now(),
-             "override_reason": override_reason})).inserted_primary_key[0])
+        try:
+            push_id = int(conn.execute(insert(_pu).values(
+                {f"{kind}_id": item_id, "device_id": device_id, "table_version": version, "crc32": crc32,
+                 "status": "sending", "requested_by": actor.id, "requested_at": utc_now(),
+                 "override_reason": override_reason})).inserted_primary_key[0])
+        except IntegrityError as exc:   # the database's one push on its way per device, across instances
+            if not unique_violation(exc, "one_push_sending_per_device", "pushes.device_id"):
+                raise
+            raise ConflictError(f"another push to device {device_id} is still in progress; nothing was sent") from None
         audit.record(conn, actor.id, actor.username, f"{kind}.push", kind, item_id,
                      after={"push_id": push_id, "device_id": device_id, "table_version": version,
                             "crc32": f"{crc32:08x}", **({"override_reason": override_reason} if override_reason

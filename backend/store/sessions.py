@@ -6,11 +6,12 @@ import json
 from collections.abc import Iterable
 
 from sqlalchemy import Connection, RowMapping, func, insert, select, update
+from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
-from backend.store.dialect import insert_or_ignore
+from backend.store.dialect import insert_or_ignore, unique_violation
 from backend.store.envelopes import envelope_label
 from backend.store.proposals import table_label
 from backend.store.tables import envelopes, patients, proposals, session_samples, users, walking_sessions
@@ -85,13 +86,19 @@ def start_session(conn: Connection, patient_id: int, device_id: str, task: dict,
     (``table_version`` and ``crc32`` as reported, None for no table; ``proposal_id`` or ``envelope_id`` when this
     server sent it)."""
     with write_transaction(conn):
+        busy = ConflictError(f"device {device_id} is already recording a session; stop it first")
         if conn.execute(select(_s.c.id).where(_s.c.device_id == device_id, _s.c.status == "recording")).first():
-            raise ConflictError(f"device {device_id} is already recording a session; stop it first")
-        session_id = int(conn.execute(insert(_s).values(
-            patient_id=patient_id, device_id=device_id, proposal_id=ran["proposal_id"], envelope_id=ran["envelope_id"],
-            table_version=ran["table_version"], table_crc32=ran["crc32"], speed_mps=task["speed_mps"],
-            incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"], course=course, status="recording",
-            started_by=actor.id, started_at=utc_now())).inserted_primary_key[0])
+            raise busy
+        try:
+            session_id = int(conn.execute(insert(_s).values(
+                patient_id=patient_id, device_id=device_id, proposal_id=ran["proposal_id"],
+                envelope_id=ran["envelope_id"], table_version=ran["table_version"], table_crc32=ran["crc32"],
+                speed_mps=task["speed_mps"], incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"],
+                course=course, status="recording", started_by=actor.id, started_at=utc_now())).inserted_primary_key[0])
+        except IntegrityError as exc:   # another instance started one a moment ago: the database's one per device
+            if not unique_violation(exc, "one_recording_session_per_device", "walking_sessions.device_id"):
+                raise
+            raise busy from None
         audit.record(conn, actor.id, actor.username, "session.start", "session", session_id,
                      after={"patient_id": patient_id, "device_id": device_id, "task": task, "course": course,
                             "proposal_id": ran["proposal_id"], "envelope_id": ran["envelope_id"],

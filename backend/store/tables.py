@@ -292,6 +292,9 @@ pushes = Table(
     Index("pushes_by_proposal", "proposal_id"),
     Index("pushes_by_envelope", "envelope_id"),
     Index("pushes_by_device", "device_id", "status"),
+    # one push on its way per device (revision 0013): the guarantee holds across API instances, not only in one process
+    Index("one_push_sending_per_device", "device_id", unique=True,
+          sqlite_where=Column("status") == "sending", postgresql_where=Column("status") == "sending"),
 )
 
 refinements = Table(
@@ -306,4 +309,16 @@ refinements = Table(
     Column("created_at", Text, nullable=False),
     _json_check("session_ids_json"), _json_check("evidence_json"),
     CheckConstraint("(envelope_id IS NULL) <> (proposal_id IS NULL)"),
+)
+
+# failed sign-ins in the last minutes (revision 0013): counted by every API instance (backend.throttle)
+login_failures = Table(
+    "login_failures", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("at_unix", _Float, nullable=False),
+    Column("username_key", Text, nullable=False),   # the name as typed, lower-cased (sign-in ignores case)
+    Column("address", Text, nullable=False),
+    Index("login_failures_by_user", "username_key", "at_unix"),
+    Index("login_failures_by_address", "address", "at_unix"),
+    Index("login_failures_by_time", "at_unix"),
 )

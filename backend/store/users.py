@@ -128,8 +128,12 @@ def printable(text: str, limit: int = 64) -> str:
 
 
 def record_failed_login(conn: Connection, username: str, address: str) -> None:
-    """Audit a failed sign-in under the name as typed, made printable (a name is attacker-controlled text)."""
+    """Count a failed sign-in for the throttle (:mod:`backend.throttle`) and audit it under the name as typed, made
+    printable (a name is attacker-controlled text), in one transaction."""
+    from backend.throttle import record_failure
+
     with write_transaction(conn):
+        record_failure(conn, username, address)
         audit.record(conn, None, printable(username), "auth.login_failed", "user", None,
                      after={"address": printable(address)})
 

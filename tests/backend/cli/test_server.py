@@ -70,6 +70,6 @@ def test_db_upgrade_runs_the_migrations_once_and_says_where_the_database_stands(
 
     assert main(["db", "upgrade", "--data-dir", str(tmp_path)]) == 0
     first = capsys.readouterr().out
-    assert f"quasitune.sqlite: {head()}" in first and f"at revision {head()}" in first
+    assert "quasitune.sqlite: 0012, " in first and f"{head()}; at revision {head()}" in first
     assert main(["db", "upgrade", "--data-dir", str(tmp_path)]) == 0
     assert "nothing to apply" in capsys.readouterr().out

@@ -5,21 +5,35 @@ from __future__ import annotations
 import pytest
 from sqlalchemy.exc import IntegrityError
 
+from backend.errors import ConflictError
 from backend.store import devices, pushes
 from backend.store.users import User
 from tests.helpers.sql import sql
 
 
-def _pushes(api, n: int) -> tuple[object, list[int], list[int], list[int]]:
+def _pushes(api, n: int, outcomes: list[str | None] | None = None
+            ) -> tuple[object, list[int], list[int], list[int]]:
+    """``n`` pushes to one leg, one after the other as a device takes them: each finished with its outcome (None: left
+    ``sending``, only the last may be) before the next is recorded."""
+    outcomes = outcomes or [None] * n
+    assert None not in outcomes[:-1], "one push on its way per device"
     patient = api.new_patient()
     proposal_ids = [api.propose(patient["id"], speed=1.0 + 0.1 * i)["id"] for i in range(n)]
     conn = api.db()
     devices.register_device(conn, "leg", "simulated", "virtual", "x")
+    push_ids, versions = [], []
+    for pid, outcome in zip(proposal_ids, outcomes, strict=True):
+        push_id, version = pushes.begin_push(conn, ("proposal", pid), "leg", 0xABC0 + pid, _actor(conn))
+        if outcome is not None:
+            pushes.finish_push(conn, push_id, outcome, 1, 3.0, None if outcome == "acknowledged" else outcome)
+        push_ids.append(push_id)
+        versions.append(version)
+    return conn, proposal_ids, push_ids, versions
+
+
+def _actor(conn) -> User:
     user_id = sql(conn, "SELECT id FROM users WHERE username = 'prosthetist'").scalar_one()
-    actor = User(id=user_id, username="prosthetist", role="prosthetist")
-    push_ids, versions = zip(*[pushes.begin_push(conn, ("proposal", pid), "leg", 0xABC0 + pid, actor)
-                               for pid in proposal_ids], strict=True)
-    return conn, proposal_ids, list(push_ids), list(versions)
+    return User(id=user_id, username="prosthetist", role="prosthetist")
 
 
 def test_acknowledged_push_is_current_before_the_device_reports_it(api):
@@ -30,9 +44,7 @@ def test_acknowledged_push_is_current_before_the_device_reports_it(api):
 
 
 def test_running_a_table_supersedes_older_acknowledged_pushes(api):
-    conn, proposal_ids, push_ids, versions = _pushes(api, 3)
-    for push_id in push_ids:
-        pushes.finish_push(conn, push_id, "acknowledged", 1, 3.0, None)
+    conn, proposal_ids, push_ids, versions = _pushes(api, 3, ["acknowledged"] * 3)
     changed = pushes.reconcile(conn, "leg", (versions[1], 0xABC0 + proposal_ids[1]), versions[2], set())
     statuses = [pushes.get_push(conn, i)["status"] for i in push_ids]
     assert statuses == ["superseded", "active", "acknowledged"]        # the newest is still to be run
@@ -53,12 +65,14 @@ def test_a_device_kind_outside_the_schema_is_refused_not_ignored(api):
 
 
 def test_the_table_version_is_the_devices_own_counter_and_wraps_past_16_bits(api):
-    conn, proposal_ids, push_ids, versions = _pushes(api, 2)
+    conn, proposal_ids, push_ids, versions = _pushes(api, 2, ["failed"] * 2)
     assert versions == [1, 2]                                          # not the proposal ids
     sql(conn, "UPDATE devices SET last_wire_version = 65534 WHERE id = 'leg'")
-    user = User(id=sql(conn, "SELECT id FROM users WHERE username = 'prosthetist'").scalar_one(),
-                username="prosthetist", role="prosthetist")
-    wrapped = [pushes.begin_push(conn, ("proposal", proposal_ids[0]), "leg", 0x1234, user)[1] for _ in range(3)]
+    wrapped = []
+    for _ in range(3):
+        push_id, version = pushes.begin_push(conn, ("proposal", proposal_ids[0]), "leg", 0x1234, _actor(conn))
+        pushes.finish_push(conn, push_id, "failed", 1, 3.0, "refused")
+        wrapped.append(version)
     assert wrapped == [65535, 1, 2]
     # a reused number still names the newest push of that version and CRC
     assert pushes.push_of_version(conn, "leg", 2, 0x1234)["id"] > push_ids[1]
@@ -67,11 +81,9 @@ def test_the_table_version_is_the_devices_own_counter_and_wraps_past_16_bits(api
 
 def test_the_records_follow_what_the_device_reports_after_a_restart(api):
     """A server killed mid-push, a device that came back with no table: nothing stays active or sending."""
-    conn, proposal_ids, push_ids, versions = _pushes(api, 3)
-    pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)
-    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), None, set(push_ids[1:]))   # in flight
-    pushes.finish_push(conn, push_ids[1], "acknowledged", 1, 3.0, None)      # staged, waiting for heel strike
-    # push 2 is left 'sending' by a server that was killed
+    conn, proposal_ids, push_ids, versions = _pushes(api, 3, ["acknowledged", "acknowledged", None])
+    # the first runs, the second is staged for the next heel strike, the third was left 'sending' by a killed server
+    pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), versions[1], {push_ids[2]})
     assert pushes.interrupted_pushes(conn) == 1
     assert pushes.get_push(conn, push_ids[2])["status"] == "unconfirmed"
     pushes.reconcile(conn, "leg", None, None, set())                          # the leg restarted: no table
@@ -84,9 +96,7 @@ def test_the_records_follow_what_the_device_reports_after_a_restart(api):
 
 
 def test_an_unconfirmed_push_is_decided_by_the_devices_next_status(api):
-    conn, proposal_ids, push_ids, versions = _pushes(api, 2)
-    for i in push_ids:
-        pushes.finish_push(conn, i, "unconfirmed", 3, 2000.0, "no acknowledgement")
+    conn, proposal_ids, push_ids, versions = _pushes(api, 2, ["unconfirmed"] * 2)
     assert [pushes.get_push(conn, i)["status"] for i in push_ids] == ["unconfirmed", "unconfirmed"]
     assert pushes.deployment_state(conn, ("proposal", proposal_ids[0])) == "unconfirmed"
     # the device runs the first (its acknowledgement was lost as it switched) and never got the second
@@ -95,8 +105,7 @@ def test_an_unconfirmed_push_is_decided_by_the_devices_next_status(api):
 
 
 def test_a_push_in_flight_is_left_to_its_sender_and_a_staged_one_is_kept(api):
-    conn, _proposal_ids, push_ids, versions = _pushes(api, 2)
-    pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)
+    conn, _proposal_ids, push_ids, versions = _pushes(api, 2, ["acknowledged", None])
     pushes.reconcile(conn, "leg", None, versions[0], {push_ids[1]})
     assert [pushes.get_push(conn, i)["status"] for i in push_ids] == ["acknowledged", "sending"]
 
@@ -116,3 +125,15 @@ def test_a_push_the_device_reports_running_is_active_even_while_its_sender_finis
     assert pushes.get_push(conn, push_ids[0])["status"] == "active"
     pushes.finish_push(conn, push_ids[0], "acknowledged", 1, 3.0, None)     # the sender's answer keeps it active
     assert pushes.get_push(conn, push_ids[0])["status"] == "active"
+
+
+def test_one_push_on_its_way_per_device_is_the_databases_rule(conn, prosthetist, draft):
+    """Two instances pushing to one leg at once: the second push's record is refused by the database itself (a
+    partial unique index), whichever instance records it; once the first is finished the next may go."""
+    devices.register_device(conn, "leg", "simulated", "virtual", "x")
+    first, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x1234, prosthetist)
+    with pytest.raises(ConflictError, match="another push to device leg is still in progress"):
+        pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
+    assert sql(conn, "SELECT count(*) FROM pushes").scalar_one() == 1     # nothing of the refused one
+    pushes.finish_push(conn, first, "acknowledged", 1, 3.0, None)
+    pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)

@@ -57,3 +57,20 @@ def test_task_words_name_a_course_by_its_range_and_a_fixed_task_by_its_values():
     assert sessions.task_words("unknown", 1.0, 0.0) == "1.00 m/s, incline +0.0°"
     words = sessions.task_words("mixed", 1.0, 0.0)
     assert "0.85–1.60 m/s" in words and "incline -8° to +8°" in words
+
+
+def test_a_second_recording_started_past_the_check_is_refused_by_the_database(conn, prosthetist, patient, session_id,
+                                                                             monkeypatch):
+    """Two instances starting a session on one leg at once both pass the read; the database's partial unique index
+    refuses the second, and it is the same refusal."""
+    from backend.store import sessions as module
+
+    real = module.select
+
+    def blind(*cols):   # the first look finds nothing, as it would for an instance racing another
+        query = real(*cols)
+        return query.where(module._s.c.id < 0) if cols == (module._s.c.id,) else query
+
+    monkeypatch.setattr(module, "select", blind)
+    with pytest.raises(ConflictError, match="already recording"):
+        sessions.start_session(conn, patient["id"], "leg", TASK, NOTHING_RAN, prosthetist)

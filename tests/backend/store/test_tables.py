@@ -6,6 +6,7 @@ from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import CheckConstraint, create_engine, inspect
 
+from backend.db import database_url
 from backend.migrate import migrate
 from backend.store.tables import metadata
 
@@ -14,10 +15,10 @@ def _checks(table) -> list[str]:
     return sorted(" ".join(str(c.sqltext).split()) for c in table.constraints if isinstance(c, CheckConstraint))
 
 
-def test_the_migrated_database_is_the_metadata_column_for_column(tmp_path):
-    db = tmp_path / "q.sqlite"
-    migrate(db)
-    engine = create_engine(f"sqlite:///{db}")
+def test_the_migrated_database_is_the_metadata_column_for_column(database):
+    """On both databases: Alembic's own comparison finds nothing, and every check is there (word for word on SQLite,
+    which keeps the text; by count on PostgreSQL, which rewrites it into its own form)."""
+    engine = create_engine(database_url(database))
     with engine.connect() as conn:
         context = MigrationContext.configure(conn, opts={"compare_type": True, "compare_server_default": True})
         diffs = [d for d in compare_metadata(context, metadata)
@@ -27,7 +28,11 @@ def test_the_migrated_database_is_the_metadata_column_for_column(tmp_path):
         assert set(reflected.get_table_names()) == set(metadata.tables) | {"alembic_version"}
         for table in metadata.sorted_tables:   # Alembic does not compare checks: reflect them
             got = sorted(" ".join(c["sqltext"].split()) for c in reflected.get_check_constraints(table.name))
-            assert got == _checks(table), table.name
+            if conn.dialect.name == "sqlite":
+                assert got == _checks(table), table.name
+            else:
+                wanted = [c for c in _checks(table) if "json_valid" not in c]   # SQLite's JSON checks only
+                assert len(got) == len(wanted), (table.name, got)
     engine.dispose()
 
 
