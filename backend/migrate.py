@@ -108,10 +108,10 @@ def _stamp_legacy(conn: Connection, directory: Path, script: ScriptDirectory) ->
     MigrationContext.configure(conn).stamp(script, BASELINE)
 
 
-def migrate(target: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
-    """Bring the database at ``target`` (an SQLite file, created if missing, or a URL) to the newest revision;
-    returns the revisions applied by this call, oldest first (a stamped baseline is not among them: nothing was
-    applied)."""
+def migrate(target: str | Path, directory: Path = MIGRATIONS_DIR, to: str = "head") -> list[str]:
+    """Bring the database at ``target`` (an SQLite file, created if missing, or a URL) to the newest revision (or to
+    revision ``to``: the tests of a revision's data migration); returns the revisions applied by this call, oldest
+    first (a stamped baseline is not among them: nothing was applied)."""
     cfg = alembic_config(directory)
     script = ScriptDirectory.from_config(cfg)
     if is_sqlite(target):
@@ -120,7 +120,7 @@ def migrate(target: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
             connect(db_path).close()          # the file in WAL mode with the project's pragmas, as the app opens it
             engine = sqlite_engine(db_path)
             try:
-                before, after = _upgrade(engine, cfg, directory, script)
+                before, after = _upgrade(engine, cfg, directory, script, to)
             finally:
                 engine.dispose()
     else:
@@ -131,7 +131,7 @@ def migrate(target: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
             conn.exec_driver_sql(f"SELECT pg_advisory_xact_lock({ADVISORY_LOCK_KEY})")
 
         try:
-            before, after = _upgrade(engine, cfg, directory, script)
+            before, after = _upgrade(engine, cfg, directory, script, to)
         finally:
             engine.dispose()
     if after is None or script.get_revision(after) is None:
@@ -141,14 +141,15 @@ def migrate(target: str | Path, directory: Path = MIGRATIONS_DIR) -> list[str]:
     return list(reversed(chain))
 
 
-def _upgrade(engine: Engine, cfg: Config, directory: Path, script: ScriptDirectory) -> tuple[str | None, str | None]:
-    """(revision before, revision after) of one upgrade to head, in one transaction."""
+def _upgrade(engine: Engine, cfg: Config, directory: Path, script: ScriptDirectory, to: str
+             ) -> tuple[str | None, str | None]:
+    """(revision before, revision after) of one upgrade to ``to``, in one transaction."""
     with engine.begin() as conn:
         _stamp_legacy(conn, directory, script)
     with engine.connect() as conn:
         before = MigrationContext.configure(conn).get_current_revision()
         cfg.attributes["connection"] = conn
-        command.upgrade(cfg, "head")
+        command.upgrade(cfg, to)
         conn.commit()
         after = MigrationContext.configure(conn).get_current_revision()
     return before, after

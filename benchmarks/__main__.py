@@ -1,4 +1,4 @@
-"""``python -m benchmarks {model,api,device,envelope,refine,ui} [options]``: one benchmark, its figures as JSON."""
+"""``python -m benchmarks {model,api,device,envelope,refine,storage,ui} [options]``: one benchmark, its figures as JSON."""
 
 from __future__ import annotations
 
@@ -25,6 +25,9 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("refine", help="a 5 × 5 envelope refined from 120 s of recorded strides (target ≤ 2 s)")
     p.add_argument("--repeats", type=int, default=10)
     p.add_argument("--seconds", type=float, default=120.0, help="walking recorded once, before the timing (s)")
+    p = sub.add_parser("storage", help="bytes and read-back time of an hour of telemetry on SQLite and PostgreSQL")
+    p.add_argument("--record-seconds", type=float, default=60.0, help="walking recorded by a real server (s)")
+    p.add_argument("--hours", type=float, default=1.0, help="walking hours written from that recording")
     p = sub.add_parser("ui", help="dashboard in Chromium: proposal view time to interactive, live-monitor fps")
     p.add_argument("--repeats", type=int, default=20, help="proposals requested through the page")
     p.add_argument("--monitor-seconds", type=float, default=5.0, help="live monitor measured for this long (s)")
@@ -37,6 +40,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.api import run
 
         result = run(args.clients, args.seconds)
+    elif args.name == "storage":
+        from benchmarks.storage import run
+
+        result = run(args.record_seconds, args.hours)
     elif args.name == "refine":
         from benchmarks.refine import run
 

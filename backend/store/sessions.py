@@ -10,11 +10,11 @@ from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
-from backend.store import audit
+from backend.store import audit, sample_pack
 from backend.store.dialect import insert_or_ignore, unique_violation
 from backend.store.envelopes import envelope_label
 from backend.store.proposals import table_label
-from backend.store.tables import envelopes, patients, proposals, session_samples, users, walking_sessions
+from backend.store.tables import envelopes, patients, proposals, session_sample_seconds, users, walking_sessions
 from backend.store.users import User
 from device_bridge.sim.course import COURSES
 
@@ -107,27 +107,45 @@ def start_session(conn: Connection, patient_id: int, device_id: str, task: dict,
     return session_id
 
 
-SAMPLE_COLUMNS = ("seq", "t_s", "mode", "fsm_state", "knee_angle_rad", "knee_velocity_rad_s", "knee_torque_Nm",
-                  "ankle_angle_rad", "ankle_velocity_rad_s", "ankle_torque_Nm", "load_N", "ankle_moment_Nm",
-                  # the adaptive leg's task (migration 0007; NULL while a single table runs)
-                  "estimated_speed_mps", "estimated_incline_deg", "running_speed_mps", "running_incline_deg",
-                  "adaptive_mode")
+SAMPLE_COLUMNS = sample_pack.COLUMNS   # (the adaptive leg's task columns are None while a single table runs)
 
 
 def add_samples(conn: Connection, session_id: int, rows: Iterable[tuple]) -> None:
-    """Append samples (tuples in :data:`SAMPLE_COLUMNS` order) to a recording session; a sample already stored
-    (the same sequence number, a retried batch) is kept as it was, anything else malformed is refused."""
-    batch = [{"session_id": session_id, **dict(zip(SAMPLE_COLUMNS, r, strict=True))} for r in rows]
-    if not batch:
+    """Append samples (tuples in :data:`SAMPLE_COLUMNS` order) to a recording session, one stored row per second of
+    walking. A sample already stored (the same sequence number: a retried batch) is kept as it was; anything malformed
+    is refused (ValueError naming the value) and nothing of the batch is written.
+
+    Each second's row is read under a row lock and rewritten merged, so two writers of one session (two instances)
+    never lose each other's samples: SQLite's write lock, PostgreSQL's ``FOR UPDATE`` (an empty second is first
+    inserted if missing, without replacing one another writer inserted a moment before)."""
+    by_second: dict[int, list[tuple]] = {}
+    for r in rows:
+        by_second.setdefault(sample_pack.second_of(int(r[0])), []).append(tuple(r))
+    # each second's batch as it would be stored on its own (validated, and de-duplicated, before anything is written)
+    alone = {second: sample_pack.merge([], batch)[0] for second, batch in by_second.items()}
+    packed = {second: sample_pack.pack(batch) for second, batch in alone.items()}
+    if not packed:
         return
+    t = session_sample_seconds.c
     with write_transaction(conn):
-        conn.execute(insert_or_ignore(conn, session_samples, ["session_id", "seq"]), batch)
+        for second, arriving in sorted(by_second.items()):
+            fresh = conn.execute(insert_or_ignore(conn, session_sample_seconds, ["session_id", "second"]).values(
+                session_id=session_id, second=second, n=len(alone[second]), samples=packed[second]))
+            if fresh.rowcount == 1:
+                continue
+            stored = conn.execute(select(t.samples).where(t.session_id == session_id, t.second == second)
+                                  .with_for_update()).scalar_one()
+            merged, added = sample_pack.merge(sample_pack.unpack(stored), arriving)
+            if added:
+                conn.execute(update(session_sample_seconds).where(t.session_id == session_id, t.second == second)
+                             .values(n=len(merged), samples=sample_pack.pack(merged)))
 
 
 def samples(conn: Connection, session_id: int) -> dict[str, list]:
-    """The session's samples by column (SI), in sequence order."""
-    rows = conn.execute(select(*(session_samples.c[c] for c in SAMPLE_COLUMNS))
-                        .where(session_samples.c.session_id == session_id).order_by(session_samples.c.seq)).all()
+    """The session's samples by column (SI), in sequence order, exactly as they were written."""
+    t = session_sample_seconds.c
+    rows = [r for blob in conn.execute(select(t.samples).where(t.session_id == session_id).order_by(t.second))
+            .scalars() for r in sample_pack.unpack(blob)]
     return {c: [r[i] for r in rows] for i, c in enumerate(SAMPLE_COLUMNS)}
 
 

@@ -18,6 +18,7 @@ from sqlalchemy import (
     ForeignKey,
     Index,
     Integer,
+    LargeBinary,
     MetaData,
     PrimaryKeyConstraint,
     Table,
@@ -218,29 +219,17 @@ walking_sessions = Table(
           sqlite_where=Column("status") == "recording", postgresql_where=Column("status") == "recording"),
 )
 
-session_samples = Table(
-    "session_samples", metadata,
+# the session's telemetry, one row per second of walking (revision 0014): that second's samples packed into one value
+# (backend.store.sample_pack); merged, never rewritten, as batches arrive (backend.store.sessions.add_samples)
+session_sample_seconds = Table(
+    "session_sample_seconds", metadata,
     Column("session_id", Integer, ForeignKey("walking_sessions.id"), nullable=False),
-    Column("seq", Integer, nullable=False),
-    Column("t_s", _Float, nullable=False),
-    Column("mode", Integer, nullable=False),
-    Column("fsm_state", Integer),
-    Column("knee_angle_rad", _Float, nullable=False),
-    Column("knee_velocity_rad_s", _Float, nullable=False),
-    Column("knee_torque_Nm", _Float, nullable=False),
-    Column("ankle_angle_rad", _Float, nullable=False),
-    Column("ankle_velocity_rad_s", _Float, nullable=False),
-    Column("ankle_torque_Nm", _Float, nullable=False),
-    Column("load_N", _Float, nullable=False),
-    Column("ankle_moment_Nm", _Float, nullable=False),
-    Column("estimated_speed_mps", _Float),
-    Column("estimated_incline_deg", _Float),
-    Column("running_speed_mps", _Float),
-    Column("running_incline_deg", _Float),
-    Column("adaptive_mode", Text),
-    CheckConstraint("adaptive_mode IS NULL OR adaptive_mode IN ('nominal', 'partial', 'adaptive', 'clamped', "
-                    "'unknown')"),
-    PrimaryKeyConstraint("session_id", "seq"),
+    Column("second", Integer, nullable=False),
+    Column("n", Integer, nullable=False),
+    Column("samples", LargeBinary, nullable=False),
+    CheckConstraint("second >= 0"),
+    CheckConstraint("n BETWEEN 1 AND 100"),
+    PrimaryKeyConstraint("session_id", "second"),
     sqlite_with_rowid=False,
 )
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from backend.db import sqlite_pragmas
+from backend.store.sample_pack import pack, unpack
 from backend.migrate import BASELINE, LEGACY_DIR_NAME, MIGRATIONS_DIR, MigrationError, head, migrate
 
 LEGACY = sorted((MIGRATIONS_DIR / LEGACY_DIR_NAME).glob("*.sql"))
@@ -49,8 +50,12 @@ def _legacy_database(path: Path, files: list[Path] = LEGACY) -> sqlite3.Connecti
     return conn
 
 
+SAMPLE = (0, 0.01, 1, 2, 0.1, 0.2, 3.0, -0.1, 0.0, 5.0, 700.0, 1.0, 1.2, 0.5, 1.2, 0.0, "adaptive")
+
+
 def _fill(conn: sqlite3.Connection) -> None:
-    """A row in every table, through the columns the later migrations added too."""
+    """A row in every table, through the columns the later migrations added too (a database of the hand-written
+    migrations: samples a row each, as they were stored then; a newer one: a second of samples packed)."""
     x = conn.execute
     x("INSERT INTO users (id, username, role, password_hash, created_at, must_change_password) VALUES "
       "(1, 'Dana', 'prosthetist', 'h', ?, 1)", (NOW,))
@@ -69,8 +74,10 @@ def _fill(conn: sqlite3.Connection) -> None:
       "override_reason) VALUES (1, 'leg', 3, 4294967295, 'active', 1, ?, 'a reason written out in full')", (NOW,))
     x("INSERT INTO walking_sessions (id, patient_id, device_id, envelope_id, speed_mps, incline_deg, body_mass_kg, "
       "status, started_by, started_at, course) VALUES (1, 1, 'leg', 1, 1.2, 0, 80, 'recording', 1, ?, 'mixed')", (NOW,))
-    x("INSERT INTO session_samples VALUES (1, 0, 0.01, 1, 2, 0.1, 0.2, 3.0, -0.1, 0.0, 5.0, 700.0, 1.0, 1.2, 0.5, "
-      "1.2, 0.0, 'adaptive')")
+    if x("SELECT 1 FROM sqlite_master WHERE name = 'session_samples'").fetchone():
+        x(f"INSERT INTO session_samples VALUES (1, {', '.join('?' * len(SAMPLE))})", SAMPLE)
+    else:
+        x("INSERT INTO session_sample_seconds VALUES (1, 0, 1, ?)", (pack([SAMPLE]),))
     x("INSERT INTO proposal_previews VALUES (1, ?, 10, ?, '{\"a\": 1}')", ("0" * 64, NOW))
     x("INSERT INTO envelope_previews VALUES (1, ?, 'mixed', ?, '{}')", ("0" * 64, NOW))
     x("INSERT INTO audit_log (at, actor_id, actor_name, action, entity, entity_id) VALUES (?, 1, 'Dana', 'a', 'b', 1)",
@@ -88,6 +95,10 @@ def _everything(conn: sqlite3.Connection) -> dict[str, list[tuple]]:
     return {t: [tuple(r) for r in conn.execute(f"SELECT * FROM {t} ORDER BY 1, 2")] for t in tables}
 
 
+LATER = ["0013", "0014"]                                   # the revisions after the baseline
+LATER_TABLES = {"login_failures", "session_sample_seconds"}  # the tables they added
+
+
 def _triggers(conn: sqlite3.Connection) -> set[str]:
     return {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'trigger'")}
 
@@ -98,7 +109,7 @@ def test_a_fresh_database_gets_the_baseline_once_in_wal_mode(tmp_path):
     assert applied[0] == BASELINE and applied[-1] == head()
     assert migrate(db) == []
     conn = connect(db)
-    assert schema_version(conn) == int(BASELINE)
+    assert schema_version(conn) == int(head())
     assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     assert conn.execute("PRAGMA foreign_keys").fetchone()[0] == 1
     conn.close()
@@ -111,10 +122,16 @@ def test_a_database_of_the_hand_written_migrations_is_stamped_with_every_row_kep
     rows, triggers = _everything(old), _triggers(old)
     old.close()
     assert all(rows.values()) and len(rows) == 13 and len(triggers) == 18
-    assert migrate(db) == []                       # stamped at the baseline: nothing applied
+    assert migrate(db) == LATER                    # stamped at the baseline, then the later revisions applied
     conn = connect(db)
-    assert _everything(conn) == rows and _triggers(conn) == triggers
-    assert schema_version(conn) == int(BASELINE)
+    now = _everything(conn)
+    # every row kept; the samples now a row per second (revision 0014), read back the same
+    assert {t: v for t, v in now.items() if t not in LATER_TABLES} == {t: v for t, v in rows.items()
+                                                                       if t != "session_samples"}
+    assert [r for (blob,) in conn.execute("SELECT samples FROM session_sample_seconds") for r in unpack(blob)] == \
+        [tuple(r[1:]) for r in rows["session_samples"]]
+    assert _triggers(conn) == triggers - {"session_samples_append_only"}
+    assert schema_version(conn) == int(head())
     assert conn.execute("SELECT 1 FROM sqlite_master WHERE name = 'schema_version'").fetchone() is None
     with pytest.raises(sqlite3.IntegrityError, match="append-only"):   # its rules still hold
         conn.execute("DELETE FROM audit_log")
@@ -167,8 +184,8 @@ def test_an_older_or_altered_hand_written_database_is_refused(tmp_path):
 def test_a_failing_revision_leaves_nothing_behind(tmp_path):
     mig = tmp_path / "migrations"
     shutil.copytree(MIGRATIONS_DIR, mig)
-    (mig / "versions" / "0013_broken.py").write_text(
-        "import sqlalchemy as sa\nfrom alembic import op\nrevision = '0013'\ndown_revision = '0012'\n"
+    (mig / "versions" / "9999_broken.py").write_text(
+        f"import sqlalchemy as sa\nfrom alembic import op\nrevision = '9999'\ndown_revision = '{head()}'\n"
         "branch_labels = None\ndepends_on = None\n\n\ndef upgrade():\n"
         "    op.create_table('half_done', sa.Column('a', sa.Integer))\n"
         "    op.execute('INSERT INTO no_such_table VALUES (1)')\n")
@@ -178,7 +195,7 @@ def test_a_failing_revision_leaves_nothing_behind(tmp_path):
     conn = connect(db)
     assert conn.execute("SELECT 1 FROM sqlite_master WHERE name IN ('half_done', 'users')").fetchone() is None
     conn.close()
-    assert migrate(db) == [BASELINE]              # and the good revisions still apply
+    assert migrate(db) == [BASELINE, *LATER]      # and the good revisions still apply
 
 
 def test_a_database_from_a_newer_quasitune_is_refused(tmp_path):
@@ -203,5 +220,5 @@ def test_two_processes_starting_at_once_upgrade_once(tmp_path):
     assert [p.exitcode for p in procs] == [0, 0, 0]
     conn = connect(db)
     assert [r[0] for r in conn.execute("SELECT version_num FROM alembic_version")] == [head()]
-    assert len(_triggers(conn)) == 18
+    assert len(_triggers(conn)) == 17
     conn.close()

@@ -74,3 +74,40 @@ def test_a_second_recording_started_past_the_check_is_refused_by_the_database(co
     monkeypatch.setattr(module, "select", blind)
     with pytest.raises(ConflictError, match="already recording"):
         sessions.start_session(conn, patient["id"], "leg", TASK, NOTHING_RAN, prosthetist)
+
+
+def test_samples_stored_a_row_each_before_revision_0014_are_carried_over_exactly(tmp_path):
+    """An SQLite database of the release before (one row per sample; that release ran on SQLite only) upgraded in
+    place: every sample reads back the same."""
+    from backend.db import connect
+    from backend.migrate import migrate
+    from tests.helpers.sql import sql
+
+    database = tmp_path / "old.sqlite"
+    migrate(database, to="0013")
+    conn = connect(database)
+    try:
+        sql(conn, "INSERT INTO users (username, role, password_hash, created_at) VALUES ('pat', 'prosthetist', 'x', 't')")
+        sql(conn, "INSERT INTO patients (code_name, body_mass_kg, side, created_by, created_at, updated_at) "
+            "VALUES ('P-1', 80, 'left', 1, 't', 't')")
+        sql(conn, "INSERT INTO devices (id, kind, interface, channel, registered_at) VALUES ('leg', 'simulated', "
+            "'virtual', 'a', 't')")
+        sql(conn, "INSERT INTO walking_sessions (patient_id, device_id, speed_mps, incline_deg, body_mass_kg, status, "
+            "started_by, started_at) VALUES (1, 'leg', 1.2, 0, 80, 'recording', 1, 't')")
+        rows = [(i, i / 100, 1, i % 4, 0.1 * i, 0.0, -5.0, 0.01 * i, 0.0, 1.0, 700.0 - i, -10.0,
+                 *((1.2, 0.5, 1.25, 0.0, "adaptive") if i % 3 else (None,) * 5)) for i in range(250) if i != 120]
+        columns = ", ".join(("session_id", *sessions.SAMPLE_COLUMNS))
+        marks = ", ".join(f":v{k}" for k in range(len(sessions.SAMPLE_COLUMNS) + 1))
+        for r in rows:
+            sql(conn, f"INSERT INTO session_samples ({columns}) VALUES ({marks})",
+                **{f"v{k}": v for k, v in enumerate((1, *r))})
+    finally:
+        conn.close()
+    assert migrate(database) == ["0014"]
+    conn = connect(database)
+    try:
+        got = sessions.samples(conn, 1)
+        assert [tuple(got[c][i] for c in sessions.SAMPLE_COLUMNS) for i in range(len(got["seq"]))] == rows
+        assert sql(conn, "SELECT count(*) FROM session_sample_seconds").scalar_one() == 3      # seconds 0, 1, 2
+    finally:
+        conn.close()
