@@ -1,4 +1,5 @@
-"""``python -m benchmarks {model,api,device,envelope,refine,storage,ui} [options]``: one benchmark, its figures as JSON."""
+"""``python -m benchmarks {model,api,device,envelope,instances,refine,storage,ui} [options]``: one benchmark, its
+figures as JSON."""
 
 from __future__ import annotations
 
@@ -25,6 +26,10 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("refine", help="a 5 × 5 envelope refined from 120 s of recorded strides (target ≤ 2 s)")
     p.add_argument("--repeats", type=int, default=10)
     p.add_argument("--seconds", type=float, default=120.0, help="walking recorded once, before the timing (s)")
+    p = sub.add_parser("instances", help="one and two API instances on PostgreSQL against one on SQLite, then SIGKILLs")
+    p.add_argument("--clients", type=int, default=20)
+    p.add_argument("--seconds", type=float, default=20.0, help="measured per configuration (s)")
+    p.add_argument("--kill-seconds", type=float, default=60.0, help="the run with two SIGKILLs (s)")
     p = sub.add_parser("storage", help="bytes and read-back time of an hour of telemetry on SQLite and PostgreSQL")
     p.add_argument("--record-seconds", type=float, default=60.0, help="walking recorded by a real server (s)")
     p.add_argument("--hours", type=float, default=1.0, help="walking hours written from that recording")
@@ -40,6 +45,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.api import run
 
         result = run(args.clients, args.seconds)
+    elif args.name == "instances":
+        from benchmarks.instances import run
+
+        result = run(args.clients, args.seconds, args.kill_seconds)
     elif args.name == "storage":
         from benchmarks.storage import run
 

@@ -4,7 +4,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup_venv.sh
 bash scripts/setup_frontend.sh
-# the browser tests drive Debian's Chromium (never 'playwright install'); docker-compose checks the compose file
-bash scripts/ensure_debian.sh chromium chromium docker-compose docker-compose
+# the browser tests drive Debian's Chromium (never 'playwright install'); docker-compose checks the compose file;
+# the store, router and concurrency tests also run on PostgreSQL: a throwaway server the tests start themselves from
+# Debian's binaries (tests/helpers/postgres.py), on loopback, in a temporary folder, as 'nobody' under root
+bash scripts/ensure_debian.sh chromium chromium docker-compose docker-compose pg_ctlcluster postgresql
 .venv/bin/ruff check .
 exec .venv/bin/python -m pytest -q "$@"

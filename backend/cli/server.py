@@ -23,14 +23,17 @@ def _settings(args: argparse.Namespace, **flags: object) -> Settings:
 
 @contextmanager
 def _database(args: argparse.Namespace) -> Iterator[tuple[Settings, Connection]]:
-    """The settings and a connection to their database, migrated first (created if missing)."""
+    """The settings and a connection to their database: the SQLite file migrated first (created if missing), a server
+    database checked to be at this QuasiTune's revision."""
     from backend.db import connect
-    from backend.migrate import migrate
+    from backend.migrate import migrate, require_current
 
     settings = _settings(args)
     if settings.database_url is None:
         settings.data_dir.mkdir(parents=True, exist_ok=True)
-    migrate(settings.database, settings.migrations_dir)
+        migrate(settings.db_path, settings.migrations_dir)
+    else:       # a server database is migrated once, by 'quasitune db upgrade', never on the side
+        require_current(settings.database_url, settings.migrations_dir)
     conn = connect(settings.database)
     try:
         yield settings, conn

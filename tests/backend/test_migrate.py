@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from backend.db import sqlite_pragmas
-from backend.store.sample_pack import pack, unpack
 from backend.migrate import BASELINE, LEGACY_DIR_NAME, MIGRATIONS_DIR, MigrationError, head, migrate
+from backend.store.sample_pack import pack, unpack
 
 LEGACY = sorted((MIGRATIONS_DIR / LEGACY_DIR_NAME).glob("*.sql"))
 NOW = "2026-11-24T00:00:00Z"
