@@ -78,6 +78,20 @@ def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
     return load_default_model
 
 
+def broker_bus_options(settings: Settings) -> dict[str, dict]:
+    """What a device ``mqtt:DEVICE_ID`` is opened with: the broker of the settings and this instance's identity there
+    (its own MQTT client id, so several instances each read every leg's frames)."""
+    if settings.broker_url is None:
+        return {}
+    if not settings.broker_username or settings.broker_password is None:
+        raise ValueError("broker_url is set but broker_username / broker_password (this instance's identity at the "
+                         "broker) are not")
+    return {"mqtt": {"broker": settings.broker_url, "username": settings.broker_username,
+                     "password": settings.broker_password.get_secret_value(),
+                     "ca_file": None if settings.broker_ca_file is None else str(settings.broker_ca_file),
+                     "role": "server", "instance": settings.instance_name}}
+
+
 def prepare_storage(settings: Settings) -> None:
     """The embedded SQLite file: create the data directory and bring the database up to date. A server database:
     refuse to start unless it is already at this QuasiTune's revision (``quasitune db upgrade`` migrates it, once,
@@ -116,7 +130,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
-    app.state.devices = DeviceManager(app.state.db, [spec] if spec else [], app.state.bench_leg).start()
+    app.state.devices = DeviceManager(app.state.db, [spec] if spec else [], app.state.bench_leg,
+                                      bus_options=broker_bus_options(settings)).start()
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)

@@ -40,7 +40,7 @@ def database_url(target: str | Path) -> str:
         if url.get_backend_name() not in ("sqlite", "postgresql"):
             raise ValueError(f"QuasiTune stores its data in SQLite or PostgreSQL, not {url.get_backend_name()!r} "
                              f"({url.render_as_string(hide_password=True)})")
-        if url.get_backend_name() == "postgresql" and url.get_driver_name() != "psycopg":
+        if url.get_backend_name() == "postgresql" and url.drivername != "postgresql+psycopg":
             url = url.set(drivername="postgresql+psycopg")   # psycopg 3, whatever driver the URL named
         return url.render_as_string(hide_password=False)
     return f"sqlite:///{Path(text)}"

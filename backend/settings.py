@@ -8,10 +8,11 @@ the model layer sits below the backend and is used without a server.
 from __future__ import annotations
 
 import os
+import socket
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import Field, field_validator
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 DB_FILE = "quasitune.sqlite"
@@ -51,6 +52,13 @@ class Settings(BaseSettings):
             its flag nor the environment names one; the app factory (several workers) ``none``.
         frontend_dir: the dashboard (``index.html``, ``app/``) and its npm packages (``node_modules/``).
         migrations_dir: the schema migrations applied at start-up.
+        broker_url: the MQTT broker the legs connect to (``mqtts://HOST:8883``); a device ``mqtt:DEVICE_ID`` is reached
+            through it. None: no broker (the embedded default).
+        broker_username, broker_password: this API instance's identity at the broker (``quasitune broker add-server``).
+        broker_ca_file: the CA that signed the broker's certificate (QuasiTune's own, made at the broker's first start).
+        broker_admin_username, broker_admin_password: the broker's admin identity, with which an admin's request
+            registers, replaces or revokes a leg's credentials (Mosquitto's dynamic security); None: not from the API.
+        instance_name: this API instance's name at the broker (its MQTT client ids); default ``HOSTNAME-PID``.
         bench_leg: a leg file (``device_bridge/sim/legs/*.json`` or a path) for the simulated leg and the bench
             previews; None: the nominal bench.
         viewer3d: also serve viser's 3D view of each leg on a loopback port. Off by default: viser has no login,
@@ -77,6 +85,14 @@ class Settings(BaseSettings):
     frontend_dir: Path = Field(default_factory=default_frontend_dir)
     migrations_dir: Path = Field(default_factory=default_migrations_dir)
     bench_leg: Path | None = None
+    broker_url: str | None = None
+    broker_username: str | None = None
+    broker_password: SecretStr | None = None
+    broker_ca_file: Path | None = None
+    broker_admin_username: str | None = None
+    broker_admin_password: SecretStr | None = None
+    instance_name: str = Field(default_factory=lambda: f"{socket.gethostname()}-{os.getpid()}", min_length=1,
+                               max_length=40, pattern=r"^[A-Za-z0-9._-]+$")
     viewer3d: bool = False
     trusted_proxies: Annotated[tuple[str, ...], NoDecode] = ()
     request_threads: int = Field(default=2, ge=1, le=64)

@@ -37,6 +37,31 @@ def postgres():
         server.stop()
 
 
+@pytest.fixture(scope="session")
+def broker():
+    """A Mosquitto broker of the test run's own (tests/helpers/mosquitto.py): TLS on loopback, a throwaway CA, the
+    dynamic security plugin; started when a test first needs it."""
+    from tests.helpers.mosquitto import MosquittoBroker
+
+    server = MosquittoBroker()
+    try:
+        server.start()
+        yield server
+    finally:
+        server.remove()
+
+
+@pytest.fixture
+def broker_admin(broker):
+    """The broker's admin (device identities), connected for one test."""
+    from device_bridge.broker_admin import BrokerAdmin
+    from tests.helpers.mosquitto import ADMIN
+
+    admin = BrokerAdmin(broker.url, ADMIN, broker.admin_password, broker.ca_file)
+    yield admin
+    admin.close()
+
+
 @pytest.fixture(params=["sqlite", "postgresql"])
 def database(request, tmp_path):
     """An empty database at the newest revision, once on each database QuasiTune runs on: an SQLite file's path, or

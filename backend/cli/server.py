@@ -171,12 +171,41 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
     return 0
 
 
+def _credentials(path: Path) -> dict:
+    """The bridge's identity at the broker: a JSON file ``{"username": ..., "password": ..., "ca_file": ...}`` as
+    'quasitune devices credentials' or the device page printed it (ValueError naming what is missing)."""
+    import json
+
+    try:
+        found = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"--credentials {path}: not a readable JSON file ({exc})") from None
+    missing = [k for k in ("username", "password") if not isinstance(found.get(k), str) or not found[k]]
+    if missing:
+        raise ValueError(f"--credentials {path}: {', '.join(missing)} missing")
+    return found
+
+
 def cmd_bridge(args: argparse.Namespace) -> int:
     from device_bridge.buses import open_bus
     from device_bridge.gateway import Gateway
 
-    gateway = Gateway(open_bus(args.can), open_bus(args.to)).start()
-    print(f"QuasiTune bridge: {args.can} <-> {args.to}", flush=True)
+    if args.broker:
+        from device_bridge.mqtt_bus import MqttBus
+
+        if args.device_id is None or args.credentials is None:
+            raise ValueError("--broker needs --device-id and --credentials")
+        who = _credentials(args.credentials)
+        far = MqttBus(args.device_id, args.broker, who["username"], who["password"], role="device",
+                      ca_file=who.get("ca_file"))
+        to = f"{args.broker} as {args.device_id}"
+    else:
+        far, to = open_bus(args.to), args.to
+        if args.to.startswith("udp_multicast"):
+            print("WARNING: udp_multicast has no identity and no encryption: an isolated bench network only; "
+                  "use --broker for a leg anywhere else", file=sys.stderr, flush=True)
+    gateway = Gateway(open_bus(args.can), far).start()
+    print(f"QuasiTune bridge: {args.can} <-> {to}", flush=True)
     try:
         gateway.wait()
     except KeyboardInterrupt:
@@ -210,10 +239,16 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="also serve viser's 3D view of the leg on a loopback port; viser has no login, so anyone on "
                         "this machine can watch it: only for an engineer's single-user bench")
     p.set_defaults(func=cmd_serve)
-    p = sub.add_parser("bridge", help="forward frames between the leg's CAN bus and the API server's bus")
+    p = sub.add_parser("bridge", help="forward frames between the leg's CAN bus and the servers: through an MQTT "
+                                      "broker over TLS (--broker), or another python-can bus (--to)")
     p.add_argument("--can", required=True, help="the leg's bus, INTERFACE:CHANNEL (e.g. socketcan:can0)")
+    p.add_argument("--broker", default=None, help="mqtts://HOST:PORT: connect out to the broker as this leg")
+    p.add_argument("--device-id", default=None, help="the leg's id at the broker (with --broker)")
+    p.add_argument("--credentials", type=Path, default=None,
+                   help="JSON file with the leg's username, password and ca_file (with --broker)")
     p.add_argument("--to", default="udp_multicast:239.74.163.2",
-                   help="the bus 'quasitune serve --device' uses (default udp_multicast:239.74.163.2)")
+                   help="without --broker: the bus 'quasitune serve --device' uses (udp_multicast: an isolated "
+                        "bench network only, it has no identity and no encryption)")
     p.set_defaults(func=cmd_bridge)
     p = sub.add_parser("db", help="the database's schema")
     db_sub = p.add_subparsers(dest="db_command", required=True)

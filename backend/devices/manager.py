@@ -20,8 +20,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import can
-from sqlalchemy import Connection
-from sqlalchemy.pool import QueuePool
+from sqlalchemy import Connection, Engine
 
 from backend.db import pooled
 from backend.devices.fanout import TelemetryFanout
@@ -63,9 +62,11 @@ class ManagedDevice:
 class DeviceManager:
     """Opens a link per spec on :meth:`start`; :meth:`close` ends them and the recorder."""
 
-    def __init__(self, db: QueuePool, specs: list[DeviceSpec], bench_leg: LegGeometry | None = None) -> None:
+    def __init__(self, db: Engine, specs: list[DeviceSpec], bench_leg: LegGeometry | None = None,
+                 bus_options: dict[str, dict] | None = None) -> None:
         self.db = db
         self._specs = specs
+        self._bus_options = bus_options or {}   # per interface: the broker link's address and identity
         self._bench_leg = bench_leg   # the simulated leg's leg and person (None: the nominal bench)
         self._devices: dict[str, ManagedDevice] = {}
         self.recorder = SessionRecorder(db)
@@ -80,7 +81,8 @@ class DeviceManager:
             if spec.kind == "simulated":
                 dev.walker = SimWalker(self._bench_leg)
                 dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker).start()
-            dev.link = DeviceLink(can.Bus(interface=spec.interface, channel=spec.channel),
+            dev.link = DeviceLink(can.Bus(interface=spec.interface, channel=spec.channel,
+                                          **self._bus_options.get(spec.interface, {})),
                                   on_status=lambda s, d=dev: self._on_status(d, s),
                                   on_telemetry=lambda x, d=dev: self._on_telemetry(d, x))
             self._devices[spec.device_id] = dev   # before the link starts: its callbacks look the device up

@@ -7,7 +7,7 @@ from __future__ import annotations
 import threading
 from collections import Counter
 
-from sqlalchemy.pool import QueuePool
+from sqlalchemy import Engine
 
 from backend.db import pooled
 from backend.store import sessions as store
@@ -18,7 +18,7 @@ FLUSH_PERIOD_S = 0.25
 class SessionRecorder:
     """Buffers each device's samples for the session it records and writes them in batches."""
 
-    def __init__(self, db: QueuePool) -> None:
+    def __init__(self, db: Engine) -> None:
         self._db = db
         self._recording: dict[str, int] = {}        # device id → session id
         self._reports: dict[str, Counter] = {}      # device id → (mode, (version, crc) or None) → status reports

@@ -1,5 +1,6 @@
 """Which device a server talks to: ``sim`` (the simulated leg on an in-process virtual bus), ``none``, or a
-python-can ``INTERFACE:CHANNEL`` for a real leg (``socketcan:can0``, ``pcan:PCAN_USBBUS1`` …)."""
+python-can ``INTERFACE:CHANNEL`` for a real leg (``socketcan:can0``, ``pcan:PCAN_USBBUS1`` …; ``mqtt:DEVICE_ID``: the
+leg with that id, through the broker of the settings)."""
 
 from __future__ import annotations
 
@@ -36,5 +37,9 @@ def parse_device_spec(text: str) -> DeviceSpec | None:
         interface, channel = parse_bus_spec(text)
     except ValueError as exc:
         raise ValueError(f"device must be 'sim', 'none' or {str(exc).removeprefix('expected ')}") from None
+    if interface == "mqtt":     # a leg through the broker is known by its own id there
+        if not re.fullmatch(r"[A-Za-z0-9._-]{1,64}", channel):
+            raise ValueError(f"a device id at the broker is 1-64 letters, digits, '.', '_' or '-', got {channel!r}")
+        return DeviceSpec(channel, "can", interface, channel)
     device_id = re.sub(r"[^A-Za-z0-9._-]", "-", f"{interface}-{channel}")[:64]
     return DeviceSpec(device_id, "can", interface, channel)

@@ -47,7 +47,11 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
            "DEVICE": "socketcan:can0", "FRONTEND_DIR": str(tmp_path / "f"), "MIGRATIONS_DIR": str(tmp_path / "mig"),
            "BENCH_LEG": "heavy_foot", "VIEWER3D": "true", "TRUSTED_PROXIES": "10.0.0.2, 10.0.0.3",
            "REQUEST_THREADS": "4", "LOGIN_PER_USER_PER_MINUTE": "3", "LOGIN_PER_ADDRESS_PER_MINUTE": "9",
-           "LOGIN_PER_USER_ANYWHERE_PER_MINUTE": "50"}
+           "LOGIN_PER_USER_ANYWHERE_PER_MINUTE": "50",
+           "DATABASE_URL": "postgresql://qt:secret@db.example:5432/quasitune",
+           "BROKER_URL": "mqtts://broker.example:8883", "BROKER_USERNAME": "server-a", "BROKER_PASSWORD": "pw",
+           "BROKER_CA_FILE": str(tmp_path / "ca.crt"), "BROKER_ADMIN_USERNAME": "admin",
+           "BROKER_ADMIN_PASSWORD": "admin pw", "INSTANCE_NAME": "api-a"}
     for name, value in env.items():
         monkeypatch.setenv(f"QUASITUNE_{name}", value)
     s = Settings()
@@ -57,13 +61,18 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
     assert s.trusted_proxies == ("10.0.0.2", "10.0.0.3") and s.bench_leg == Path("heavy_foot")
     assert (s.login_per_user_per_minute, s.login_per_address_per_minute,
             s.login_per_user_anywhere_per_minute) == (3, 9, 50)
+    assert s.database_url == "postgresql+psycopg://qt:secret@db.example:5432/quasitune"   # psycopg 3 always
+    assert s.database_shown == "postgresql+psycopg://qt:***@db.example:5432/quasitune"      # never the password
+    assert s.broker_password.get_secret_value() == "pw" and "pw" not in repr(s) and s.instance_name == "api-a"
     assert s.given("device")
     flags = Settings(device="none", token_ttl_s=120)
     assert flags.device == "none" and flags.token_ttl_s == 120 and flags.request_threads == 4
 
 
 @pytest.mark.parametrize(("name", "value"), [("TOKEN_TTL_S", "-1"), ("REQUEST_THREADS", "0"),
-                                             ("MODEL_WAIT_S", "soon"), ("VIEWER3D", "perhaps")])
+                                             ("MODEL_WAIT_S", "soon"), ("VIEWER3D", "perhaps"),
+                                             ("DATABASE_URL", "mysql://db/quasitune"), ("DATABASE_URL", "/a/file"),
+                                             ("INSTANCE_NAME", "two words")])
 def test_a_bad_value_is_refused_naming_the_knob(monkeypatch, name, value):
     monkeypatch.setenv(f"QUASITUNE_{name}", value)
     with pytest.raises(ValidationError, match=name.lower()):

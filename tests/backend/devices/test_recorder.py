@@ -11,7 +11,7 @@ from backend.store import devices, patients, sessions, users
 
 
 def _sample(seq: int) -> tuple:
-    return (seq, seq / 100.0, "active", 0, 0.1, 0.0, -5.0, 0.0, 0.0, 1.0, 700.0, -10.0, None, None, None, None, None)
+    return (seq, seq / 100.0, 1, 0, 0.1, 0.0, -5.0, 0.0, 0.0, 1.0, 700.0, -10.0, None, None, None, None, None)
 
 
 @pytest.fixture

@@ -1,0 +1,130 @@
+"""Device identities at the broker: Mosquitto's dynamic security plugin, driven over its own control topic.
+
+Each leg gets a user name (its device id) and a random password, and a role that lets it publish only its own frames
+(``…/{id}/up``) and subscribe only to its own commands (``…/{id}/down``); API server instances get a role that
+publishes commands to any leg and reads every leg's frames. Nothing else may publish or subscribe (the plugin's
+defaults deny both; QuasiTune's roles are the only grants).
+
+Why passwords and not client certificates: the plugin stores them hashed (salted PBKDF2-SHA512) and revokes one at
+once (``deleteClient`` or ``disableClient`` disconnects a connected client the same moment), where a certificate
+would need a revocation list the broker re-reads; the link is TLS either way, so a password never crosses in clear.
+QuasiTune keeps no copy: a new password is shown once, to be written into the bridge's credentials file.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+import ssl
+import threading
+import uuid
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion
+
+from device_bridge.mqtt_bus import TOPIC_PREFIX, BrokerAddress, topic
+
+CONTROL = "$CONTROL/dynamic-security/v1"
+SERVER_ROLE = "quasitune-server"
+
+
+class BrokerAdminError(RuntimeError):
+    """The broker refused or did not answer a command (the message says which and why)."""
+
+
+def device_role(device_id: str) -> str:
+    return f"quasitune-device-{device_id}"
+
+
+class BrokerAdmin:
+    """Commands to the dynamic security plugin, answered one at a time (used from the server, as the broker's admin).
+
+    Args:
+        broker: ``mqtts://HOST:PORT``; username, password: the broker's admin identity; ca_file: the broker's CA.
+    """
+
+    def __init__(self, broker: str, username: str, password: str, ca_file: str | None = None,
+                 timeout_s: float = 10.0, insecure: bool = False) -> None:
+        address = BrokerAddress.parse(broker)
+        if not address.tls and not insecure:
+            raise ValueError("the broker's admin link is TLS only (mqtts://)")
+        self.timeout_s = timeout_s
+        self._answers: dict[str, dict] = {}
+        self._arrived = threading.Condition()
+        self._ready = threading.Event()
+        self._client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"quasitune-admin-{uuid.uuid4().hex[:8]}")
+        self._client.username_pw_set(username, password)
+        if address.tls:
+            self._client.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
+        self._client.on_connect = lambda c, *_: (c.subscribe(CONTROL + "/response", qos=1), None)
+        self._client.on_subscribe = lambda *_: self._ready.set()
+        self._client.on_message = self._on_message
+        self._client.connect(address.host, address.port, keepalive=30)
+        self._client.loop_start()
+        if not self._ready.wait(timeout_s):
+            self.close()
+            raise BrokerAdminError(f"the broker at {address.host}:{address.port} did not accept the admin identity")
+
+    def _on_message(self, _client, _userdata, message) -> None:
+        for answer in json.loads(message.payload).get("responses", []):
+            with self._arrived:
+                self._answers[answer.get("correlationData", "")] = answer
+                self._arrived.notify_all()
+
+    def _command(self, command: str, **fields: object) -> dict:
+        key = uuid.uuid4().hex
+        body = {"commands": [{"command": command, "correlationData": key, **fields}]}
+        self._client.publish(CONTROL, json.dumps(body), qos=1)
+        with self._arrived:
+            if not self._arrived.wait_for(lambda: key in self._answers, self.timeout_s):
+                raise BrokerAdminError(f"the broker did not answer {command}")
+            answer = self._answers.pop(key)
+        if answer.get("error"):
+            raise BrokerAdminError(f"the broker refused {command}: {answer['error']}")
+        return answer
+
+    def _role(self, name: str, acls: list[tuple[str, str]]) -> None:
+        try:
+            self._command("createRole", rolename=name)
+        except BrokerAdminError as exc:
+            if "already exists" not in str(exc):
+                raise
+        for acltype, pattern in acls:
+            try:
+                self._command("addRoleACL", rolename=name, acltype=acltype, topic=pattern, allow=True, priority=0)
+            except BrokerAdminError as exc:
+                if "already exists" not in str(exc):
+                    raise
+
+    def _client_with(self, username: str, role: str) -> str:
+        password = secrets.token_urlsafe(24)
+        self._command("createClient", username=username, password=password, roles=[{"rolename": role}])
+        return password
+
+    def add_server(self, name: str) -> str:
+        """An identity for one API instance (its password, shown once): commands to every leg, every leg's frames."""
+        self._role(SERVER_ROLE, [("publishClientSend", f"{TOPIC_PREFIX}/+/down"),
+                                 ("subscribePattern", f"{TOPIC_PREFIX}/+/up")])
+        return self._client_with(name, SERVER_ROLE)
+
+    def add_device(self, device_id: str) -> str:
+        """The leg's identity (its password, shown once): its own frames out, its own commands in, nothing else."""
+        self._role(device_role(device_id), [("publishClientSend", topic(device_id, "up")),
+                                            ("subscribeLiteral", topic(device_id, "down"))])
+        return self._client_with(device_id, device_role(device_id))
+
+    def replace_device(self, device_id: str) -> str:
+        """A new password for the leg; the old one stops working and a bridge connected with it is disconnected."""
+        password = secrets.token_urlsafe(24)
+        self._command("setClientPassword", username=device_id, password=password)
+        self._command("disableClient", username=device_id)      # drops the connection made with the old password
+        self._command("enableClient", username=device_id)
+        return password
+
+    def revoke_device(self, device_id: str) -> None:
+        """The leg's identity removed: refused from now on, disconnected now if connected."""
+        self._command("deleteClient", username=device_id)
+
+    def close(self) -> None:
+        self._client.disconnect()
+        self._client.loop_stop()
