@@ -29,6 +29,7 @@ from backend.model_service import ModelService
 from backend.routers import (
     audit,
     auth,
+    device_credentials,
     devices,
     envelopes,
     health,
@@ -81,11 +82,8 @@ def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
 def broker_bus_options(settings: Settings) -> dict[str, dict]:
     """What a device ``mqtt:DEVICE_ID`` is opened with: the broker of the settings and this instance's identity there
     (its own MQTT client id, so several instances each read every leg's frames)."""
-    if settings.broker_url is None:
+    if settings.broker_url is None or not settings.broker_username or settings.broker_password is None:
         return {}
-    if not settings.broker_username or settings.broker_password is None:
-        raise ValueError("broker_url is set but broker_username / broker_password (this instance's identity at the "
-                         "broker) are not")
     return {"mqtt": {"broker": settings.broker_url, "username": settings.broker_username,
                      "password": settings.broker_password.get_secret_value(),
                      "ca_file": None if settings.broker_ca_file is None else str(settings.broker_ca_file),
@@ -130,8 +128,12 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     spec = parse_device_spec(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
+    bus_options = broker_bus_options(settings)
+    if spec is not None and spec.interface == "mqtt" and "mqtt" not in bus_options:
+        raise ValueError(f"device {settings.device} is reached through the broker: set QUASITUNE_BROKER_URL, "
+                         "QUASITUNE_BROKER_USERNAME and QUASITUNE_BROKER_PASSWORD (this instance's identity there)")
     app.state.devices = DeviceManager(app.state.db, [spec] if spec else [], app.state.bench_leg,
-                                      bus_options=broker_bus_options(settings)).start()
+                                      bus_options=bus_options).start()
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)
@@ -155,7 +157,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
 
     for router in (health.router, auth.router, users.router, patients.router, proposals.router, envelopes.router,
                    previews.router, reference.router, pushes.router, sessions.router, devices.router, audit.router,
-                   refinements.router):
+                   refinements.router, device_credentials.router):
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)

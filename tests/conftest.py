@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
 
 import pytest
@@ -62,39 +63,58 @@ def broker_admin(broker):
     admin.close()
 
 
-@pytest.fixture(params=["sqlite", "postgresql"])
-def database(request, tmp_path):
-    """An empty database at the newest revision, once on each database QuasiTune runs on: an SQLite file's path, or
-    a PostgreSQL URL (a database of this test's own on the run's server, dropped afterwards)."""
+@pytest.fixture(scope="session")
+def migrated_sqlite(tmp_path_factory):
+    """An SQLite file brought to the newest revision once per run (each test copies it: migrating is the slow part)."""
     from backend.migrate import migrate
 
+    path = tmp_path_factory.mktemp("template") / "template.sqlite"
+    migrate(path)
+    return path
+
+
+@pytest.fixture(scope="session")
+def migrated_postgres(postgres):
+    """The name of a PostgreSQL database at the newest revision, made once per run as the template of each test's."""
+    from backend.migrate import migrate
+
+    name = postgres.create_database("quasitune_template")
+    migrate(postgres.url(name))
+    return name
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def database(request, tmp_path):
+    """An empty database at the newest revision, once on each database QuasiTune runs on: an SQLite file's path (a copy
+    of the run's migrated file), or a PostgreSQL URL (a database of this test's own, made from the run's migrated
+    template, dropped afterwards)."""
     if request.param == "sqlite":
         path = tmp_path / "store.sqlite"
-        migrate(path)
+        shutil.copyfile(request.getfixturevalue("migrated_sqlite"), path)
         yield path
         return
-    with request.getfixturevalue("postgres").new_database() as url:
-        migrate(url)
+    template = request.getfixturevalue("migrated_postgres")
+    with request.getfixturevalue("postgres").new_database(template=template) as url:
         yield url
 
 
 @pytest.fixture
-def sim_api(tmp_path, model):
+def sim_api(tmp_path, model, migrated_sqlite):
     """In-process API with the simulated leg on a virtual bus (device ``sim-leg-1``), one signed-in user per role."""
     from tests.helpers.api import make_api
 
-    api, _client = make_api(tmp_path, lambda: model, device="sim", viewer3d=True)
+    api, _client = make_api(tmp_path, lambda: model, device="sim", viewer3d=True, template=migrated_sqlite)
     yield api
     api.client.app.state.viewers.close()
     api.client.app.state.devices.close()
 
 
 @pytest.fixture
-def api(tmp_path, model):
+def api(tmp_path, model, migrated_sqlite):
     """In-process API on a temporary database, one signed-in user per role (see tests/helpers/api.py)."""
     from tests.helpers.api import make_api
 
-    api, client = make_api(tmp_path, lambda: model)
+    api, client = make_api(tmp_path, lambda: model, template=migrated_sqlite)
     with client:
         yield api
 

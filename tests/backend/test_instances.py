@@ -18,7 +18,7 @@ from tests.helpers.api import FIXTURE_OVERRIDE, make_api
 def two(tmp_path, model, database):
     """(first instance's Api, a second instance's TestClient): two apps, one database, the same signed-in users."""
     extra = {} if "://" not in str(database) else {"database_url": str(database)}
-    api, first = make_api(tmp_path, lambda: model, **extra)
+    api, first = make_api(tmp_path, lambda: model, **extra, **({} if extra else {"template": database}))
     second = TestClient(create_app(Settings(data_dir=tmp_path, **extra), model_loader=lambda: model))
     with first, second:
         yield api, second

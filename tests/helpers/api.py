@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -56,7 +57,12 @@ class Api:
 
 def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]:
     """App on ``data_dir`` (or on ``database_url``, a migrated PostgreSQL database, when the settings name one) loading
-    its model with ``model_loader``, with users prosthetist/viewer/admin (password :data:`PASSWORD`), signed in."""
+    its model with ``model_loader``, with users prosthetist/viewer/admin (password :data:`PASSWORD`), signed in.
+    ``template``: an SQLite file already at the newest revision, copied in first."""
+    template = settings.pop("template", None)      # a migrated SQLite file to start from (migrating is slow)
+    data_dir.mkdir(parents=True, exist_ok=True)
+    if template is not None and "database_url" not in settings and not (data_dir / "quasitune.sqlite").exists():
+        shutil.copyfile(template, data_dir / "quasitune.sqlite")
     app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader)
     database = settings.get("database_url") or data_dir / "quasitune.sqlite"
     with connect(database) as conn:

@@ -77,12 +77,18 @@ class PostgresServer:
         """SQLAlchemy's URL for ``database`` (psycopg 3)."""
         return f"postgresql+psycopg://{SUPERUSER}@127.0.0.1:{self.port}/{database}"
 
-    @contextmanager
-    def new_database(self) -> Iterator[str]:
-        """An empty database for one test (its URL), dropped afterwards with any connection still open to it."""
-        name = "t_" + uuid.uuid4().hex[:12]
+    def create_database(self, name: str, template: str | None = None) -> str:
+        """A database ``name`` (a copy of ``template`` when given: PostgreSQL copies its files, far faster than
+        migrating again); returns its name."""
         with psycopg.connect(self.dsn("postgres"), autocommit=True) as admin:
-            admin.execute(f'CREATE DATABASE "{name}"')
+            admin.execute(f'CREATE DATABASE "{name}"' + (f' TEMPLATE "{template}"' if template else ""))
+        return name
+
+    @contextmanager
+    def new_database(self, template: str | None = None) -> Iterator[str]:
+        """A database for one test (its URL; empty, or a copy of ``template``), dropped afterwards with any connection
+        still open to it."""
+        name = self.create_database("t_" + uuid.uuid4().hex[:12], template)
         try:
             yield self.url(name)
         finally:

@@ -10,7 +10,7 @@ def api(tmp_path, model, database):
     """In-process API on a database of its own (each kind in turn), one signed-in user per role."""
     from tests.helpers.api import make_api
 
-    extra = {} if "://" not in str(database) else {"database_url": str(database)}
+    extra = {"template": database} if "://" not in str(database) else {"database_url": str(database)}
     api, client = make_api(tmp_path, lambda: model, **extra)
     with client:
         yield api
