@@ -1,19 +1,24 @@
 """A second of telemetry as one compact value: the session samples stored one row per second of walking.
 
 100 Hz telemetry is the largest thing QuasiTune stores; a row per sample costs a row header, a key and an index entry
-per sample on every database (about 200 bytes on PostgreSQL). Here the samples of one second (sequence numbers
-100·s … 100·s + 99) are one ``bytes`` value:
+per sample on every database (about 150 bytes on PostgreSQL). Here the samples of one second (sequence numbers
+100·s … 100·s + 99) are one ``bytes`` value, zlib (level 6) over the columns one after the other (:data:`COLUMNS`
+order), each column in the first of these encodings that gives its values back bit for bit:
 
-* format 1: a version byte, then zlib (level 6) of the columns one after the other (:data:`COLUMNS` order), each as
-  ``n`` little-endian float64 values whose bytes are shuffled (all first bytes, then all second bytes, …: the filter
-  HDF5 and Blosc use, which lets zlib find the slowly changing exponents and high mantissa bytes of smooth signals);
-* a missing value (SQL's NULL before) is NaN: the leg's telemetry is decoded from fixed-point CAN signals and is always
-  finite, so NaN never stands for a measurement; integers (sequence, mode, state) are exact in float64;
-* ``adaptive_mode`` is stored as its index in :data:`ADAPTIVE_MODES`.
+* **missing**: every value missing (the adaptive leg's task columns while a single table runs);
+* **scaled integers**: every value is ``(n × q) × f`` for whole numbers ``n``, a quantum ``q`` of
+  :data:`QUANTA` and ``f`` 1 or π/180, computed in that order in float64 (what the host's decoder does with the
+  leg's fixed-point CAN signals: raw × scale, then degrees to radians); stored as the first ``n`` and the differences
+  (32-bit): a smooth signal's steps are small numbers that zlib folds away;
+* **floats**: float64, each value XOR the one before (its sign, exponent and high mantissa bits then mostly cancel), the
+  bytes shuffled (all first bytes, then all second bytes, …: the filter HDF5 and Blosc use); the fallback, and the
+  host's receive times.
 
-Reading back gives exactly the tuples written (every float bit for bit). What is refused, with the column and the
-reason: a row of the wrong length, a missing value where the leg always sends one, a non-finite number, an unknown
-adaptive mode, a sequence number outside the second.
+A missing value (SQL's NULL before) is NaN in the floats: the leg's telemetry is decoded from fixed-point signals and
+is always finite, so NaN never stands for a measurement; ``adaptive_mode`` is its index in :data:`ADAPTIVE_MODES`.
+Reading back gives exactly the tuples written (every float bit for bit, checked when packing). What is refused, with
+the column and the reason: a row of the wrong length, a missing value where the leg always sends one, a non-finite
+number, an unknown adaptive mode, a sequence number outside the second or written twice.
 """
 
 from __future__ import annotations
@@ -62,6 +67,57 @@ def _encode(column: str, value: object) -> float:
     return number
 
 
+QUANTA = (1.0, 0.5, 0.1, 0.05, 0.04, 0.01, 0.005, 0.004, 0.002, 0.001, 0.0005, 0.0001)
+_FACTORS = (1.0, math.pi / 180.0)
+_MISSING, _SCALED, _FLOATS = 0, 1, 2
+_COLUMN_HEAD = struct.Struct("<Bdd")   # encoding, quantum, factor (the last two only for scaled integers)
+
+
+def _scaled(values: np.ndarray) -> tuple[float, float, np.ndarray] | None:
+    """(q, f, n) with ``(n × q) × f == values`` bit for bit, or None."""
+    if np.isnan(values).any():
+        return None
+    for f in _FACTORS:
+        for q in QUANTA:
+            n = np.rint(values / f / q)
+            if np.abs(n).max(initial=0.0) >= 2**31:
+                continue
+            n = n.astype(np.int64)
+            again = (n.astype(np.float64) * q) * f      # exactly as unpacking computes it (-0.0 included)
+            if np.array_equal(again, values) and np.array_equal(np.signbit(again), np.signbit(values)):
+                return q, f, n
+    return None
+
+
+def _encode_column(values: np.ndarray) -> bytes:
+    if np.isnan(values).all():
+        return _COLUMN_HEAD.pack(_MISSING, 0.0, 0.0)
+    found = _scaled(values)
+    if found is not None:
+        q, f, n = found
+        steps = np.diff(n, prepend=0)
+        if np.abs(steps).max(initial=0) < 2**31:
+            return _COLUMN_HEAD.pack(_SCALED, q, f) + steps.astype("<i4").tobytes()
+    bits = values.astype("<f8").view("<u8")
+    xored = bits ^ np.concatenate(([np.uint64(0)], bits[:-1]))
+    return _COLUMN_HEAD.pack(_FLOATS, 0.0, 0.0) + xored.view(np.uint8).reshape(-1, 8).T.tobytes()
+
+
+def _decode_column(blob: memoryview, offset: int, n: int) -> tuple[np.ndarray, int]:
+    kind, q, f = _COLUMN_HEAD.unpack_from(blob, offset)
+    offset += _COLUMN_HEAD.size
+    if kind == _MISSING:
+        return np.full(n, np.nan), offset
+    if kind == _SCALED:
+        steps = np.frombuffer(blob, dtype="<i4", count=n, offset=offset).astype(np.int64)
+        return (np.cumsum(steps).astype(np.float64) * q) * f, offset + 4 * n
+    if kind != _FLOATS:
+        raise ValueError(f"stored samples hold an unknown column encoding {kind}")
+    shuffled = np.frombuffer(blob, dtype=np.uint8, count=8 * n, offset=offset).reshape(8, n)
+    xored = np.ascontiguousarray(shuffled.T).view("<u8").ravel()
+    return np.bitwise_xor.accumulate(xored).view("<f8"), offset + 8 * n
+
+
 def pack(rows: Sequence[tuple]) -> bytes:
     """The rows (tuples in :data:`COLUMNS` order, one second's, in any order, no sequence number twice) as one value,
     in sequence order."""
@@ -78,9 +134,8 @@ def pack(rows: Sequence[tuple]) -> bytes:
                          f"{SAMPLES_PER_ROW}·s to {SAMPLES_PER_ROW}·s + {SAMPLES_PER_ROW - 1})")
     if np.any(np.diff(seqs) == 0):
         raise ValueError("a sequence number appears twice in one second's samples")
-    columns = np.ascontiguousarray(values.T)                        # column after column
-    shuffled = columns.view(np.uint8).reshape(len(COLUMNS), len(rows), 8).transpose(0, 2, 1)
-    return _HEADER.pack(FORMAT, len(rows)) + zlib.compress(np.ascontiguousarray(shuffled).tobytes(), 6)
+    body = b"".join(_encode_column(np.ascontiguousarray(values[:, j])) for j in range(len(COLUMNS)))
+    return _HEADER.pack(FORMAT, len(rows)) + zlib.compress(body, 6)
 
 
 def unpack(blob: bytes) -> list[tuple]:
@@ -88,11 +143,13 @@ def unpack(blob: bytes) -> list[tuple]:
     version, n = _HEADER.unpack_from(blob)
     if version != FORMAT:
         raise ValueError(f"samples stored in format {version}; this QuasiTune reads format {FORMAT}")
-    raw = np.frombuffer(zlib.decompress(blob[_HEADER.size:]), dtype=np.uint8)
-    columns = raw.reshape(len(COLUMNS), 8, n).transpose(0, 2, 1).copy().view("<f8").reshape(len(COLUMNS), n)
+    body, offset, columns = memoryview(zlib.decompress(blob[_HEADER.size:])), 0, []
+    for _ in COLUMNS:
+        column, offset = _decode_column(body, offset, n)
+        columns.append(column.tolist())
     out: list[list[object]] = [[None] * len(COLUMNS) for _ in range(n)]
     for j, column in enumerate(COLUMNS):
-        for i, x in enumerate(columns[j].tolist()):
+        for i, x in enumerate(columns[j]):
             if x != x:   # NaN: missing
                 continue
             out[i][j] = (ADAPTIVE_MODES[int(x)] if column == "adaptive_mode"

@@ -66,3 +66,20 @@ def test_flushes_append_in_batches(recording):
     recorder.flush()                                         # nothing new: nothing written
     with pooled(pool) as conn:
         assert sessions.samples(conn, sid)["seq"] == [1, 2]
+
+
+def test_the_periodic_flush_writes_whole_seconds_and_a_silent_legs_last_second(recording, monkeypatch):
+    """Each second of walking is written once, complete; the second still filling waits, unless the leg went silent."""
+    from backend.devices import recorder as module
+
+    pool, recorder, sid = recording
+    recorder.begin("leg", sid)
+    for seq in range(150):
+        recorder.add("leg", _sample(seq))
+    recorder.flush(whole_seconds=True)
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == list(range(100))        # second 0 only: second 1 is filling
+    monkeypatch.setattr(module.time, "monotonic", lambda: 1e9)             # long after the last sample arrived
+    recorder.flush(whole_seconds=True)
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == list(range(150))        # a silent leg's last second is written

@@ -68,3 +68,20 @@ def test_a_merge_keeps_what_was_stored_and_counts_what_is_new():
     retry = [_sample(i, rng) for i in (2, 3)]            # 2 again, with other values: the stored one stays
     merged, added = merge(stored, retry)
     assert added == 1 and [r[0] for r in merged] == [0, 1, 2, 3] and merged[2] == stored[2]
+
+
+def test_the_legs_fixed_point_signals_are_kept_as_scaled_integers():
+    """Synthetic (said so): values made the way the host decodes the leg's CAN signals (raw × scale, angles then × π/180)
+    over a random walk of raw counts; packed as whole numbers they cost a fraction of their float64 size, exactly."""
+    rng, deg = random.Random(9), math.pi / 180      # the host's degrees-to-radians factor
+    raw = [0] * 6
+    rows = []
+    for i in range(SAMPLES_PER_ROW):
+        raw = [r + rng.randint(-40, 40) for r in raw]
+        rows.append((i, 1_795_750_000.0 + i * 0.01 + rng.random() * 1e-4, 1, i % 4,
+                     raw[0] * 0.01 * deg, raw[1] * 0.1 * deg, raw[2] * 0.01,
+                     raw[3] * 0.01 * deg, raw[4] * 0.1 * deg, raw[5] * 0.01,
+                     700 + (i % 7) * 0.5, -20 + (i % 11) * 0.01, None, None, None, None, None))
+    blob = pack(rows)
+    assert unpack(blob) == rows
+    assert len(blob) < 25 * SAMPLES_PER_ROW          # float64 columns alone would be 8 × 17 = 136 bytes a sample
