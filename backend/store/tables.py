@@ -220,7 +220,8 @@ walking_sessions = Table(
 )
 
 # the session's telemetry, one row per second of walking (revision 0014): that second's samples packed into one value
-# (backend.store.sample_pack); merged, never rewritten, as batches arrive (backend.store.sessions.add_samples)
+# (backend.store.sample_pack); merged, never rewritten, as batches arrive (backend.store.sessions.add_samples). A rowid
+# table on SQLite: its leaves hold a 2 KB value in place, where a WITHOUT ROWID table's spill past 1 KB into overflow pages
 session_sample_seconds = Table(
     "session_sample_seconds", metadata,
     Column("session_id", Integer, ForeignKey("walking_sessions.id"), nullable=False),
@@ -230,7 +231,6 @@ session_sample_seconds = Table(
     CheckConstraint("second >= 0"),
     CheckConstraint("n BETWEEN 1 AND 100"),
     PrimaryKeyConstraint("session_id", "second"),
-    sqlite_with_rowid=False,
 )
 
 proposal_previews = Table(

@@ -36,7 +36,6 @@ def upgrade() -> None:
         sa.CheckConstraint("n BETWEEN 1 AND 100"),
         sa.ForeignKeyConstraint(["session_id"], ["walking_sessions.id"]),
         sa.PrimaryKeyConstraint("session_id", "second"),
-        sqlite_with_rowid=False,
     )
     bind = op.get_bind()
     old = sa.table("session_samples", *(sa.column(c) for c in ("session_id", *COLUMNS)))
