@@ -104,25 +104,27 @@ class Load:
         self.drafts: list[int] = []
         self.approved_200: dict[int, int] = defaultdict(int)
 
-    def _request(self, kind: str) -> tuple[str, str, dict | None]:
+    def _request(self, kind: str) -> tuple[str, str, str, dict | None]:
+        """(class, method, path, body) of one request of ``kind``; a new proposal while there is nothing to read,
+        edit or approve yet."""
         rng, pid = self.rng, self.rng.choice(self.patients)
         known = list(self.proposals)
         if kind == "read" and known:
             pick = rng.choice(known)
-            return ("GET", f"/api/proposals/{pick}", None) if rng.random() < 0.5 else \
-                ("GET", f"/api/patients/{self.proposals[pick][0]}/proposals", None)
+            return ("read", "GET", f"/api/proposals/{pick}", None) if rng.random() < 0.5 else \
+                ("read", "GET", f"/api/patients/{self.proposals[pick][0]}/proposals", None)
         if kind == "edit" and self.drafts:
-            return "POST", f"/api/proposals/{rng.choice(self.drafts)}/edits", {
+            return "edit", "POST", f"/api/proposals/{rng.choice(self.drafts)}/edits", {
                 "rows": [{"joint": "knee", "subphase": "swing_flexion",
                           "theta_e_deg": round(rng.uniform(55, 62), 1)}], "comment": "benchmark edit"}
         if kind == "approve" and self.drafts:
-            return "POST", f"/api/proposals/{rng.choice(self.drafts)}/approve", {
+            return "approve", "POST", f"/api/proposals/{rng.choice(self.drafts)}/approve", {
                 "comment": "benchmark", "override_reason": OVERRIDE}
         if kind == "envelope":
-            return "POST", f"/api/patients/{pid}/envelopes", {"grid": [2, 2], "speed_range_mps": [0.8, 1.4],
-                                                             "incline_range_deg": [-5.0, 5.0]}
-        return "POST", f"/api/patients/{pid}/proposals", {"speed_mps": round(rng.uniform(0.6, 1.8), 3),
-                                                         "incline_deg": round(rng.uniform(-8, 8), 2)}
+            return "envelope", "POST", f"/api/patients/{pid}/envelopes", {
+                "grid": [2, 2], "speed_range_mps": [0.8, 1.4], "incline_range_deg": [-5.0, 5.0]}
+        return "propose", "POST", f"/api/patients/{pid}/proposals", {"speed_mps": round(rng.uniform(0.6, 1.8), 3),
+                                                                     "incline_deg": round(rng.uniform(-8, 8), 2)}
 
     def _note(self, kind: str, path: str, status: int, body: dict) -> None:
         if kind in ("propose", "edit") and status == 201:
@@ -144,9 +146,7 @@ class Load:
         kinds, weights = zip(*WEIGHTS.items(), strict=True)
         try:
             while time.perf_counter() < deadline:
-                kind = self.rng.choices(kinds, weights)[0]
-                method, path, body = self._request(kind)
-                kind = kind if method == "POST" or kind == "read" else "read"
+                kind, method, path, body = self._request(self.rng.choices(kinds, weights)[0])
                 t0 = time.perf_counter()
                 try:
                     r = await clients[home].request(method, path, json=body)

@@ -162,9 +162,6 @@ def test_a_node_opens_like_a_proposal_with_its_own_table_and_the_models_curves_t
     assert r.status_code == 404 and "[0..2] × [0..2]" in r.json()["detail"]
 
 
-# the walk is the bench's, the same on either database (16 s of the suite's time); the store keeps a preview once on
-# both (tests/backend/store/test_previews.py) and a table's preview route runs on both (test_previews.py)
-@pytest.mark.parametrize("database", ["sqlite"], indirect=True)
 def test_the_preview_walks_the_course_with_the_envelope_and_the_fsmic_once(api):
     patient = api.new_patient()
     e = request_envelope(api, patient["id"])
