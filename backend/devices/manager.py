@@ -75,7 +75,8 @@ class DeviceManager:
         with pooled(self.db) as conn:
             for spec in self._specs:
                 devices_store.register_device(conn, spec.device_id, spec.kind, spec.interface, spec.channel)
-            pushes_store.interrupted_pushes(conn)   # a server that stopped mid-push: each device's status decides
+            # a server of these devices that stopped mid-push: each device's status decides
+            pushes_store.interrupted_pushes(conn, [spec.device_id for spec in self._specs])
         for spec in self._specs:
             dev = ManagedDevice(spec=spec)
             if spec.kind == "simulated":

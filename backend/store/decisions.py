@@ -10,7 +10,7 @@ from backend.db import utc_now
 from backend.errors import ConflictError
 from backend.store import audit
 from backend.store.bench_verdict import require_bench
-from backend.store.tables import envelopes, proposals
+from backend.store.tables import envelopes, patients, proposals, users
 from backend.store.users import User
 from controller_core.table import LimitViolation
 
@@ -68,6 +68,17 @@ def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, com
 # what every decided-once version's summary reads, besides its own columns
 VERSION_COLUMNS = ("id", "patient_id", "version", "parent_id", "source", "status", "created_at", "edit_comment",
                    "decided_at", "decision_comment", "decision_override", "safety_ok")
+
+
+def version_select(table: Table, *columns) -> Select:
+    """``columns`` of a versions table (proposals or envelopes) with who created and who decided each version, its
+    parent's version and its patient's code name."""
+    cu, du, parent = users.alias("cu"), users.alias("du"), table.alias("parent")
+    return (select(*columns, cu.c.username.label("created_by_name"), du.c.username.label("decided_by_name"),
+                   parent.c.version.label("parent_version"), patients.c.code_name.label("patient_code"))
+            .select_from(table.join(cu, cu.c.id == table.c.created_by).outerjoin(du, du.c.id == table.c.decided_by)
+                         .outerjoin(parent, parent.c.id == table.c.parent_id)
+                         .join(patients, patients.c.id == table.c.patient_id)))
 
 
 def summary_columns(table: Table) -> list:

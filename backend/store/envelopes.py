@@ -12,18 +12,19 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from functools import partial
 
-from sqlalchemy import Connection, RowMapping, insert, select
+from sqlalchemy import Connection, RowMapping, insert
 
 from backend.clinical_words import field_words
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
-from backend.store.decisions import decide_once, next_version, summary_columns, version_page
+from backend.store.decisions import decide_once, next_version, summary_columns, version_page, version_select
 from backend.store.dialect import json_of
 from backend.store.patients import lock_patient
 from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
-from backend.store.tables import envelopes, patients, users
+from backend.store.tables import envelopes
 from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
@@ -31,15 +32,8 @@ from controller_core.table import LimitViolation, display_rows
 from device_bridge.as_run import AsRun, as_run
 
 _UNITS = ROW_UNITS | THRESHOLD_UNITS
-_e, _cu, _du, _pe = envelopes, users.alias("cu"), users.alias("du"), envelopes.alias("pe")
-
-
-def _select(*columns):
-    """``columns`` of envelopes with who created and decided it, its parent's version and its patient's code name."""
-    return (select(*columns, _cu.c.username.label("created_by_name"), _du.c.username.label("decided_by_name"),
-                   _pe.c.version.label("parent_version"), patients.c.code_name.label("patient_code"))
-            .select_from(_e.join(_cu, _cu.c.id == _e.c.created_by).outerjoin(_du, _du.c.id == _e.c.decided_by)
-                         .outerjoin(_pe, _pe.c.id == _e.c.parent_id).join(patients, patients.c.id == _e.c.patient_id)))
+_e = envelopes
+_select = partial(version_select, _e)
 
 
 _SELECT = _select(_e)

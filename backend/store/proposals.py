@@ -9,17 +9,18 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from pydantic_core import to_json
-from sqlalchemy import Connection, RowMapping, insert, select
+from sqlalchemy import Connection, RowMapping, insert
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
-from backend.store.decisions import decide_once, next_version, summary_columns, version_page
+from backend.store.decisions import decide_once, next_version, summary_columns, version_page, version_select
 from backend.store.patients import lock_patient
-from backend.store.tables import patients, proposals, users
+from backend.store.tables import proposals
 from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
 from controller_core.proposal import Proposal
@@ -32,15 +33,8 @@ ROW_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad":
 THRESHOLD_UNITS = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
                    "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
                    "sf_to_se_knee_extension_deg_per_s": "deg/s"}
-_p, _cu, _du, _pp = proposals, users.alias("cu"), users.alias("du"), proposals.alias("pp")
-
-
-def _select(*columns):
-    """``columns`` of proposals with who created and decided it, its parent's version and its patient's code name."""
-    return (select(*columns, _cu.c.username.label("created_by_name"), _du.c.username.label("decided_by_name"),
-                   _pp.c.version.label("parent_version"), patients.c.code_name.label("patient_code"))
-            .select_from(_p.join(_cu, _cu.c.id == _p.c.created_by).outerjoin(_du, _du.c.id == _p.c.decided_by)
-                         .outerjoin(_pp, _pp.c.id == _p.c.parent_id).join(patients, patients.c.id == _p.c.patient_id)))
+_p = proposals
+_select = partial(version_select, _p)
 
 
 _SELECT = _select(_p)

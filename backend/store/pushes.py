@@ -116,11 +116,12 @@ def finish_push(conn: Connection, push_id: int, outcome: Literal["acknowledged",
         conn.execute(update(_pu).where(_pu.c.id == push_id).values(values))
 
 
-def interrupted_pushes(conn: Connection) -> int:
-    """At start-up: pushes left ``sending`` by a server that stopped mid-push become ``unconfirmed`` (each device's
-    next status decides them). Returns how many."""
+def interrupted_pushes(conn: Connection, device_ids: list[str]) -> int:
+    """At start-up: pushes to the devices this server serves left ``sending`` by a server that stopped mid-push become
+    ``unconfirmed`` (each device's next status decides them); another instance's push on its way to its own device is
+    left alone. Returns how many."""
     with write_transaction(conn):
-        cur = conn.execute(update(_pu).where(_pu.c.status == "sending").values(
+        cur = conn.execute(update(_pu).where(_pu.c.status == "sending", _pu.c.device_id.in_(device_ids)).values(
             status="unconfirmed",
             error="the server stopped during this push; the device's next status tells whether it holds it"))
     return cur.rowcount

@@ -84,7 +84,8 @@ def test_the_records_follow_what_the_device_reports_after_a_restart(api):
     conn, proposal_ids, push_ids, versions = _pushes(api, 3, ["acknowledged", "acknowledged", None])
     # the first runs, the second is staged for the next heel strike, the third was left 'sending' by a killed server
     pushes.reconcile(conn, "leg", (versions[0], 0xABC0 + proposal_ids[0]), versions[1], {push_ids[2]})
-    assert pushes.interrupted_pushes(conn) == 1
+    assert pushes.interrupted_pushes(conn, ["another-leg"]) == 0     # another instance's device: left to it
+    assert pushes.interrupted_pushes(conn, ["leg"]) == 1
     assert pushes.get_push(conn, push_ids[2])["status"] == "unconfirmed"
     pushes.reconcile(conn, "leg", None, None, set())                          # the leg restarted: no table
     statuses = [pushes.get_push(conn, i)["status"] for i in push_ids]
