@@ -13,7 +13,8 @@ import tempfile
 import time
 from pathlib import Path
 
-DYNSEC_PLUGIN = Path("/usr/lib/x86_64-linux-gnu/mosquitto_dynamic_security.so")
+DYNSEC_PLUGIN = next(iter(sorted(Path("/usr/lib").glob("*/mosquitto_dynamic_security.so"))),
+                     Path("/usr/lib/x86_64-linux-gnu/mosquitto_dynamic_security.so"))   # Debian's multiarch folder
 ADMIN = "quasitune-admin"
 
 
