@@ -4,7 +4,6 @@ with every row kept, a failing revision leaves nothing behind, processes startin
 from __future__ import annotations
 
 import hashlib
-import multiprocessing
 import shutil
 import sqlite3
 from pathlib import Path
@@ -14,6 +13,7 @@ import pytest
 from backend.db import sqlite_pragmas
 from backend.migrate import BASELINE, LEGACY_DIR_NAME, MIGRATIONS_DIR, MigrationError, head, migrate
 from backend.store.sample_pack import pack, unpack
+from tests.helpers.migrators import migrate_at_once
 
 LEGACY = sorted((MIGRATIONS_DIR / LEGACY_DIR_NAME).glob("*.sql"))
 NOW = "2026-11-24T00:00:00Z"
@@ -30,11 +30,6 @@ def connect(path: Path) -> sqlite3.Connection:
 def schema_version(conn: sqlite3.Connection) -> int:
     row = conn.execute("SELECT version_num FROM alembic_version").fetchone()
     return int(row[0]) if row else 0
-
-
-def _migrate_in_child(db: str, barrier) -> None:
-    barrier.wait()
-    migrate(db)
 
 
 def _legacy_database(path: Path, files: list[Path] = LEGACY) -> sqlite3.Connection:
@@ -210,14 +205,7 @@ def test_a_database_from_a_newer_quasitune_is_refused(tmp_path):
 
 def test_two_processes_starting_at_once_upgrade_once(tmp_path):
     db = str(tmp_path / "q.sqlite")
-    ctx = multiprocessing.get_context("spawn")
-    barrier = ctx.Barrier(3)
-    procs = [ctx.Process(target=_migrate_in_child, args=(db, barrier)) for _ in range(3)]
-    for p in procs:
-        p.start()
-    for p in procs:
-        p.join(60)
-    assert [p.exitcode for p in procs] == [0, 0, 0]
+    assert migrate_at_once(db) == [0, 0, 0]
     conn = connect(db)
     assert [r[0] for r in conn.execute("SELECT version_num FROM alembic_version")] == [head()]
     assert len(_triggers(conn)) == 17

@@ -3,19 +3,13 @@ once (an advisory lock), an instance refuses a database not at its revision, and
 
 from __future__ import annotations
 
-import multiprocessing
-
 import pytest
 from sqlalchemy import create_engine, inspect
 
 from backend.cli import main
 from backend.db import database_url
 from backend.migrate import MigrationError, head, migrate, require_current
-
-
-def _migrate_in_child(url: str, barrier) -> None:
-    barrier.wait()
-    migrate(url)
+from tests.helpers.migrators import migrate_at_once
 
 
 @pytest.fixture
@@ -25,14 +19,7 @@ def empty(postgres):
 
 
 def test_three_migrators_at_once_upgrade_once(empty):
-    ctx = multiprocessing.get_context("spawn")
-    barrier = ctx.Barrier(3)
-    procs = [ctx.Process(target=_migrate_in_child, args=(empty, barrier)) for _ in range(3)]
-    for p in procs:
-        p.start()
-    for p in procs:
-        p.join(60)
-    assert [p.exitcode for p in procs] == [0, 0, 0]
+    assert migrate_at_once(empty) == [0, 0, 0]
     require_current(empty)
     engine = create_engine(database_url(empty))
     with engine.connect() as conn:
