@@ -46,10 +46,10 @@ def database_url(target: str | Path) -> str:
     return f"sqlite:///{Path(text)}"
 
 
-def is_sqlite(target: str | Path | Connection | Engine) -> bool:
-    if isinstance(target, Connection | Engine):
-        return target.dialect.name == "sqlite"
-    return database_url(target).startswith("sqlite")
+def sqlite_file(target: str | Path) -> Path | None:
+    """The SQLite file ``target`` names (a path or a ``sqlite:///`` URL), or None for a server database."""
+    url = make_url(database_url(target))
+    return Path(url.database) if url.get_backend_name() == "sqlite" else None
 
 
 def open_engine(target: str | Path, keep: int = 16, pooled: bool = True) -> Engine:

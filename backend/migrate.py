@@ -27,7 +27,7 @@ from alembic.runtime.migration import MigrationContext
 from alembic.script import ScriptDirectory
 from sqlalchemy import Connection, Engine, create_engine, event, inspect, text
 
-from backend.db import BUSY_TIMEOUT_MS, connect, database_url, is_sqlite, open_engine
+from backend.db import BUSY_TIMEOUT_MS, connect, database_url, open_engine, sqlite_file
 from backend.settings import default_migrations_dir
 
 MIGRATIONS_DIR = default_migrations_dir()
@@ -114,8 +114,8 @@ def migrate(target: str | Path, directory: Path = MIGRATIONS_DIR, to: str = "hea
     first (a stamped baseline is not among them: nothing was applied)."""
     cfg = alembic_config(directory)
     script = ScriptDirectory.from_config(cfg)
-    if is_sqlite(target):
-        db_path = Path(target) if "://" not in str(target) else Path(str(target).split(":///", 1)[1])
+    db_path = sqlite_file(target)
+    if db_path is not None:
         with _exclusive(db_path):
             connect(db_path).close()          # the file in WAL mode with the project's pragmas, as the app opens it
             engine = sqlite_engine(db_path)

@@ -173,7 +173,7 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
 
 def _credentials(path: Path) -> dict:
     """The bridge's identity at the broker: a JSON file ``{"username": ..., "password": ..., "ca_file": ...}`` as
-    'quasitune devices credentials' or the device page printed it (ValueError naming what is missing)."""
+    ``POST /api/devices/{id}/credentials`` (admin) answered it (ValueError naming what is missing)."""
     import json
 
     try:

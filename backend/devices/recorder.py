@@ -61,6 +61,7 @@ class SessionRecorder:
         with self._lock:
             self._recording.pop(device_id, None)
             self._buffers.pop(device_id, None)
+            self._last_sample.pop(device_id, None)
             return self._reports.pop(device_id, Counter())
 
     def note_status(self, device_id: str, mode: str, active: tuple[int, int] | None) -> None:

@@ -39,10 +39,6 @@ _select = partial(version_select, _e)
 _SELECT = _select(_e)
 
 
-def json_field(column, key: str):
-    """One top-level field of a JSON text column, read by the database (:class:`~backend.store.dialect.json_of`): the
-    summaries show an envelope's axes without loading its nodes."""
-    return json_of(column)[key]
 
 
 def _hex(crc32: int | None) -> str | None:
@@ -128,8 +124,9 @@ def get_envelope(conn: Connection, envelope_id: int, full: bool = True) -> dict:
 
 _SUMMARY_SELECT = _select(*summary_columns(_e), _e.c.body_mass_kg, _e.c.n_speeds, _e.c.n_inclines, _e.c.extrapolation,
                           _e.c.extrapolation_reason, _e.c.wire_crc32, _e.c.envelope_sha256,
-                          json_field(_e.c.envelope_json, "speeds_mps").label("speeds_mps"),
-                          json_field(_e.c.envelope_json, "inclines_deg").label("inclines_deg"))
+                          # the axes read by the database, without loading the nodes
+                          json_of(_e.c.envelope_json)["speeds_mps"].label("speeds_mps"),
+                          json_of(_e.c.envelope_json)["inclines_deg"].label("inclines_deg"))
 
 
 def list_envelopes(conn: Connection, patient_id: int, limit: int = 50,

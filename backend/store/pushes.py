@@ -18,8 +18,8 @@ from sqlalchemy.exc import IntegrityError
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit, devices
-from backend.store.dialect import unique_violation
-from backend.store.envelopes import envelope_label, json_field
+from backend.store.dialect import json_of, unique_violation
+from backend.store.envelopes import envelope_label
 from backend.store.proposals import table_label
 from backend.store.tables import envelopes, patients, proposals, pushes, users
 from backend.store.users import User
@@ -30,9 +30,9 @@ _PUSH_SELECT = (
            _en.c.version.label("envelope_version"),
            func.coalesce(_pr.c.patient_id, _en.c.patient_id).label("patient_id"),
            patients.c.code_name.label("patient_code"),
-           func.coalesce(_pr.c.speed_mps, json_field(_en.c.envelope_json, "nominal_speed_mps").as_float())
+           func.coalesce(_pr.c.speed_mps, json_of(_en.c.envelope_json)["nominal_speed_mps"].as_float())
            .label("speed_mps"),
-           func.coalesce(_pr.c.incline_deg, json_field(_en.c.envelope_json, "nominal_incline_deg").as_float())
+           func.coalesce(_pr.c.incline_deg, json_of(_en.c.envelope_json)["nominal_incline_deg"].as_float())
            .label("incline_deg"),
            func.coalesce(_pr.c.body_mass_kg, _en.c.body_mass_kg).label("built_for_mass_kg"),
            func.coalesce(_pr.c.decision_override, _en.c.decision_override).label("approval_override"),
