@@ -45,7 +45,7 @@ def create_envelope(patient_id: IdPath, body: EnvelopeRequest, conn: Conn, user:
                                  np.linspace(*body.incline_range_deg, body.grid[1]), patient["body_mass_kg"],
                                  nominal=(body.nominal_speed_mps, body.nominal_incline_deg))
     created = envelopes.create_from_model(conn, patient_id, env, user, reason)
-    return {**created, **_shown_with(conn, created["id"])}
+    return _with_state(conn, created)
 
 
 @router.get("/patients/{patient_id}/envelopes", response_model=list[EnvelopeListItem], responses=NOT_FOUND)
@@ -62,13 +62,14 @@ def list_envelopes(patient_id: IdPath, response: Response, conn: Conn, _user: Cu
 @router.get("/envelopes/{envelope_id}", response_model=EnvelopeOut, responses=NOT_FOUND)
 def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """An envelope with every node's table, extrapolation flag, feature SDs and guarded values, and its check."""
-    return {**envelopes.get_envelope(conn, envelope_id), **_shown_with(conn, envelope_id)}
+    return _with_state(conn, envelopes.get_envelope(conn, envelope_id))
 
 
-def _shown_with(conn: Connection, envelope_id: int) -> dict:
-    """What the page shows beside the version: where it runs, and the bench's verdict on exactly its content."""
-    return {"deployment": pushes.deployment_state(conn, ("envelope", envelope_id)),
-            "bench": bench_verdict.verdict(conn, "envelope", envelopes.get_row(conn, envelope_id))}
+def _with_state(conn: Connection, shown: dict) -> dict:
+    """The version's view ``shown`` (its ``id`` and ``envelope_sha256`` are read) and what the page shows beside it: where it
+    runs, and the bench's verdict on exactly its content."""
+    return {**shown, "deployment": pushes.deployment_state(conn, ("envelope", shown["id"])),
+            "bench": bench_verdict.verdict(conn, "envelope", shown)}
 
 
 @router.get("/envelopes/{envelope_id}/nodes/{i}/{j}", response_model=EnvelopeNodeOut, responses=NOT_FOUND)
@@ -108,7 +109,7 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
                            + "." + hint, violations=[v.model_dump() for v in violations],
                            neighbour_rule_only=neighbours_only)
     created = envelopes.create_edit(conn, envelope_id, checked, changes, body.comment, user)
-    return {**created, **_shown_with(conn, created["id"])}
+    return _with_state(conn, created)
 
 
 @router.get("/envelopes/{envelope_id}/diff/{other_id}", response_model=EnvelopeDiffOut, responses=NOT_FOUND)
@@ -122,12 +123,11 @@ def diff(envelope_id: IdPath, other_id: IdPath, conn: Conn, _user: CurrentUser) 
 def approve_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Approve a draft envelope (prosthetist). The stored envelope is re-validated and every node and the neighbour
     rule re-checked as the device will run them; an approved envelope never changes."""
-    return {**envelopes.decide(conn, envelope_id, "approved", body.comment, user, body.override_reason),
-            **_shown_with(conn, envelope_id)}
+    return _with_state(conn, envelopes.decide(conn, envelope_id, "approved", body.comment, user, body.override_reason))
 
 
 @router.post("/envelopes/{envelope_id}/reject", response_model=EnvelopeOut,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def reject_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Reject a draft envelope (prosthetist)."""
-    return {**envelopes.decide(conn, envelope_id, "rejected", body.comment, user), **_shown_with(conn, envelope_id)}
+    return _with_state(conn, envelopes.decide(conn, envelope_id, "rejected", body.comment, user))

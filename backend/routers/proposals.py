@@ -40,7 +40,7 @@ async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn,
     reason = extrapolation_reason(model, [(body.speed_mps, body.incline_deg)], body.extrapolate, body.reason)
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
     created = proposals.create_from_model(conn, patient_id, proposal, user, reason)
-    return {**created, **_shown_with(conn, created["id"])}
+    return _with_state(conn, created)
 
 
 @router.get("/patients/{patient_id}/proposals", response_model=list[ProposalListItem], responses=NOT_FOUND)
@@ -57,13 +57,14 @@ def list_proposals(patient_id: IdPath, response: Response, conn: Conn, _user: Cu
 @router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)
 def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """A proposal with its curves, features, table and safety check, and its deployment state."""
-    return {**proposals.get_proposal(conn, proposal_id), **_shown_with(conn, proposal_id)}
+    return _with_state(conn, proposals.get_proposal(conn, proposal_id))
 
 
-def _shown_with(conn: Connection, proposal_id: int) -> dict:
-    """What the page shows beside the version: where it runs, and the bench's verdict on exactly its content."""
-    return {"deployment": pushes.deployment_state(conn, ("proposal", proposal_id)),
-            "bench": bench_verdict.verdict(conn, "proposal", proposals.get_row(conn, proposal_id))}
+def _with_state(conn: Connection, shown: dict) -> dict:
+    """The version's view ``shown`` (its ``id`` and ``table_sha256`` are read) and what the page shows beside it: where it
+    runs, and the bench's verdict on exactly its content."""
+    return {**shown, "deployment": pushes.deployment_state(conn, ("proposal", shown["id"])),
+            "bench": bench_verdict.verdict(conn, "proposal", shown)}
 
 
 @router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
@@ -84,7 +85,7 @@ def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Pros
         raise InvalidError("edit refused, nothing stored: " + "; ".join(v.message for v in violations),
                            violations=[v.model_dump() for v in violations])
     created = proposals.create_edit(conn, proposal_id, checked, changes, body.comment, user)
-    return {**created, **_shown_with(conn, created["id"])}
+    return _with_state(conn, created)
 
 
 @router.get("/proposals/{proposal_id}/diff/{other_id}", response_model=DiffOut, responses=NOT_FOUND)
@@ -98,12 +99,11 @@ def diff_proposals(proposal_id: IdPath, other_id: IdPath, conn: Conn, _user: Cur
 def approve(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Approve a draft (prosthetist). The stored table is re-validated and every limit re-checked first;
     an approved proposal never changes."""
-    return {**proposals.decide(conn, proposal_id, "approved", body.comment, user, body.override_reason),
-            **_shown_with(conn, proposal_id)}
+    return _with_state(conn, proposals.decide(conn, proposal_id, "approved", body.comment, user, body.override_reason))
 
 
 @router.post("/proposals/{proposal_id}/reject", response_model=ProposalOut,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def reject(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Reject a draft (prosthetist)."""
-    return {**proposals.decide(conn, proposal_id, "rejected", body.comment, user), **_shown_with(conn, proposal_id)}
+    return _with_state(conn, proposals.decide(conn, proposal_id, "rejected", body.comment, user))

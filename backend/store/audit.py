@@ -13,11 +13,13 @@ from sqlalchemy import Connection, RowMapping, insert, select
 from backend.db import utc_now
 from backend.store.tables import audit_log
 
+_INSERT = insert(audit_log)   # every write appends: built once (see backend/store/__init__.py)
+
 
 def record(conn: Connection, actor_id: int | None, actor_name: str, action: str, entity: str,
            entity_id: int | None, before: Any = None, after: Any = None) -> int:
     """Append one entry (call inside the transaction that makes the change); returns its id."""
-    return int(conn.execute(insert(audit_log).values(
+    return int(conn.execute(_INSERT, dict(
         at=utc_now(), actor_id=actor_id, actor_name=actor_name, action=action, entity=entity, entity_id=entity_id,
         before_json=None if before is None else json.dumps(before, sort_keys=True),
         after_json=None if after is None else json.dumps(after, sort_keys=True))).inserted_primary_key[0])

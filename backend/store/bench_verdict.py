@@ -8,9 +8,10 @@ and shown wherever the version is shown. Warnings are shown, and do not stop a d
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Literal
 
-from sqlalchemy import Connection, RowMapping
+from sqlalchemy import Connection
 
 from backend.bench.safety_figures import safety_figures, safety_flags
 from backend.errors import ConflictError
@@ -22,7 +23,7 @@ _WORDS = {"clean": "bench preview clean", "warnings": "bench preview with warnin
           "unsafe": "bench preview UNSAFE", "not_walked": "bench preview not walked yet"}
 
 
-def verdict(conn: Connection, kind: Kind, row: RowMapping) -> dict:
+def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
     """``status`` clean / warnings / unsafe / not_walked, the ``flags`` (bad first), every safety ``figure`` beside the
     FSMIC's, and ``words`` for the chip."""
     if kind == "proposal":
@@ -37,7 +38,7 @@ def verdict(conn: Connection, kind: Kind, row: RowMapping) -> dict:
     return {"status": status, "flags": flags, "figures": safety_figures(mine, fsmic), "words": _WORDS[status]}
 
 
-def require_bench(conn: Connection, kind: Kind, row: RowMapping, override_reason: str | None,
+def require_bench(conn: Connection, kind: Kind, row: Mapping, override_reason: str | None,
                   action: str) -> tuple[dict, str | None]:
     """(the verdict, the override reason to keep: None where the bench allows ``action`` by itself), when the
     verdict allows ``action`` ("approved", "pushed") or an override reason is given; else 409 with the reason in a

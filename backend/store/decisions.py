@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from sqlalchemy import Connection, RowMapping, Select, Table, func, select, update
+from sqlalchemy import Connection, RowMapping, Select, Table, bindparam, func, select, update
 
 from backend.db import utc_now
 from backend.errors import ConflictError
@@ -86,21 +86,39 @@ def summary_columns(table: Table) -> list:
     return [table.c[c] for c in VERSION_COLUMNS]
 
 
+# built once per versions table (see backend/store/__init__.py)
+_COUNT = {e: select(func.count()).select_from(t).where(t.c.patient_id == bindparam("patient_id"))
+          for e, t in TABLES.items()}
+_NEXT = {e: select(func.coalesce(func.max(t.c.version), 0) + 1).where(t.c.patient_id == bindparam("patient_id"))
+         for e, t in TABLES.items()}
+_PAGES: dict[tuple[int, bool], tuple[Select, Select]] = {}   # (id(query), paged back) → (query, its page statement)
+
+
+def _page_statement(entity: str, query: Select, before: bool) -> Select:
+    """``query`` narrowed to one patient's versions (older than a bound version when ``before``), newest first, a
+    bound number of them; built once per summary query (the queries are module constants)."""
+    key = (id(query), before)
+    if key not in _PAGES:
+        table = TABLES[entity]
+        page = query.where(table.c.patient_id == bindparam("patient_id"))
+        if before:
+            page = page.where(table.c.version < bindparam("before_version"))
+        _PAGES[key] = (query, page.order_by(table.c.version.desc()).limit(bindparam("limit")))
+    return _PAGES[key][1]
+
+
 def version_page(conn: Connection, entity: str, query: Select, patient_id: int, limit: int,
                  before_version: int | None) -> tuple[list[RowMapping], int]:
     """One page of a patient's versions, newest first (older than ``before_version``), and how many in all."""
-    table = TABLES[entity]
-    total = conn.execute(select(func.count()).select_from(table).where(table.c.patient_id == patient_id)).scalar_one()
-    query = query.where(table.c.patient_id == patient_id)
+    total = conn.execute(_COUNT[entity], {"patient_id": patient_id}).scalar_one()
+    params = {"patient_id": patient_id, "limit": limit}
     if before_version is not None:
-        query = query.where(table.c.version < before_version)
-    rows = conn.execute(query.order_by(table.c.version.desc()).limit(limit)).mappings().all()
+        params["before_version"] = before_version
+    rows = conn.execute(_page_statement(entity, query, before_version is not None), params).mappings().all()
     return list(rows), total
 
 
 def next_version(conn: Connection, entity: str, patient_id: int) -> int:
     """The patient's next version number of ``entity`` (inside a write transaction that holds the patient's row:
     :func:`backend.store.patients.lock_patient`)."""
-    table = TABLES[entity]
-    return int(conn.execute(select(func.coalesce(func.max(table.c.version), 0) + 1)
-                            .where(table.c.patient_id == patient_id)).scalar_one())
+    return int(conn.execute(_NEXT[entity], {"patient_id": patient_id}).scalar_one())

@@ -14,7 +14,7 @@ import json
 from collections.abc import Callable
 from functools import partial
 
-from sqlalchemy import Connection, RowMapping, insert
+from sqlalchemy import Connection, RowMapping, bindparam, insert
 
 from backend.clinical_words import field_words
 from backend.db import utc_now, write_transaction
@@ -36,7 +36,8 @@ _e = envelopes
 _select = partial(version_select, _e)
 
 
-_SELECT = _select(_e)
+_BY_ID = _select(_e).where(_e.c.id == bindparam("id"))   # built once (see backend/store/__init__.py)
+_INSERT = insert(_e)
 
 
 
@@ -111,7 +112,7 @@ def node_view(row: RowMapping, envelope: Envelope, i: int, j: int) -> dict:
 
 
 def get_row(conn: Connection, envelope_id: int) -> RowMapping:
-    row = conn.execute(_SELECT.where(_e.c.id == envelope_id)).mappings().first()
+    row = conn.execute(_BY_ID, {"id": envelope_id}).mappings().first()
     if row is None:
         raise NotFoundError(f"envelope {envelope_id} not found")
     return row
@@ -147,7 +148,7 @@ def _insert(conn: Connection, patient_id: int, parent_id: int | None, checked: A
     body = canonical_json(envelope)
     n_s, n_i = envelope.shape
     lock_patient(conn, patient_id)
-    new_id = conn.execute(insert(_e).values(
+    new_id = conn.execute(_INSERT, dict(
         patient_id=patient_id, version=next_version(conn, "envelope", patient_id), parent_id=parent_id,
         source="model" if parent_id is None else "edit", body_mass_kg=envelope.mass_kg, n_speeds=n_s, n_inclines=n_i,
         extrapolation=int(any(n.extrapolation for n in envelope.nodes) or extrapolation_reason is not None),

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from sqlalchemy import Connection, RowMapping, func, insert, select, update
+from sqlalchemy import Connection, RowMapping, bindparam, func, insert, select, update
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
@@ -18,8 +18,13 @@ def _public(row: RowMapping) -> dict:
             "updated_at": row["updated_at"]}
 
 
+# on most requests: built once (see backend/store/__init__.py)
+_BY_ID = select(patients).where(patients.c.id == bindparam("patient_id"))
+_LOCK = select(patients.c.id).where(patients.c.id == bindparam("patient_id")).with_for_update()
+
+
 def get_patient(conn: Connection, patient_id: int) -> dict:
-    row = conn.execute(select(patients).where(patients.c.id == patient_id)).mappings().first()
+    row = conn.execute(_BY_ID, {"patient_id": patient_id}).mappings().first()
     if row is None:
         raise NotFoundError(f"patient {patient_id} not found")
     return _public(row)
@@ -29,7 +34,7 @@ def lock_patient(conn: Connection, patient_id: int) -> None:
     """Inside a write transaction: hold the patient's row until it ends (NotFoundError when there is none), so two
     instances numbering the patient's next version do it one after the other (a row lock on PostgreSQL; SQLite's
     ``BEGIN IMMEDIATE`` already serialises every writer)."""
-    found = conn.execute(select(patients.c.id).where(patients.c.id == patient_id).with_for_update()).first()
+    found = conn.execute(_LOCK, {"patient_id": patient_id}).first()
     if found is None:
         raise NotFoundError(f"patient {patient_id} not found")
 

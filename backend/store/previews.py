@@ -4,17 +4,21 @@ from __future__ import annotations
 
 import json
 
-from sqlalchemy import Connection, select
+from sqlalchemy import Connection, bindparam, select
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError
 from backend.store.dialect import insert_or_ignore
 from backend.store.tables import envelope_previews, proposal_previews
 
+# read with every version shown (its bench verdict): built once (see backend/store/__init__.py)
+_PROPOSAL_PREVIEW = select(proposal_previews).where(proposal_previews.c.proposal_id == bindparam("proposal_id"))
+_ENVELOPE_PREVIEW = select(envelope_previews).where(envelope_previews.c.envelope_id == bindparam("envelope_id"))
+
 
 def get_preview(conn: Connection, proposal_id: int, table_sha256: str) -> dict | None:
     """The stored preview of a proposal, or ``None``; refuses one made from a different table."""
-    row = conn.execute(select(proposal_previews).where(proposal_previews.c.proposal_id == proposal_id)).mappings().first()
+    row = conn.execute(_PROPOSAL_PREVIEW, {"proposal_id": proposal_id}).mappings().first()
     if row is None:
         return None
     if row["table_sha256"] != table_sha256:
@@ -37,7 +41,7 @@ def store_preview(conn: Connection, proposal_id: int, table_sha256: str, result:
 
 def get_envelope_preview(conn: Connection, envelope_id: int, envelope_sha256: str) -> dict | None:
     """The stored preview of an envelope, or ``None``; refuses one made from a different envelope."""
-    row = conn.execute(select(envelope_previews).where(envelope_previews.c.envelope_id == envelope_id)).mappings().first()
+    row = conn.execute(_ENVELOPE_PREVIEW, {"envelope_id": envelope_id}).mappings().first()
     if row is None:
         return None
     if row["envelope_sha256"] != envelope_sha256:

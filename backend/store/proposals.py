@@ -13,7 +13,7 @@ from functools import partial
 
 import numpy as np
 from pydantic_core import to_json
-from sqlalchemy import Connection, RowMapping, insert
+from sqlalchemy import Connection, RowMapping, bindparam, insert
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
@@ -37,7 +37,8 @@ _p = proposals
 _select = partial(version_select, _p)
 
 
-_SELECT = _select(_p)
+_BY_ID = _select(_p).where(_p.c.id == bindparam("id"))   # built once (see backend/store/__init__.py)
+_INSERT = insert(_p)
 
 
 def stored_table(row: RowMapping) -> ParameterTable:
@@ -93,7 +94,7 @@ def _public(row: RowMapping, full: bool) -> dict:
 
 
 def get_row(conn: Connection, proposal_id: int) -> RowMapping:
-    row = conn.execute(_SELECT.where(_p.c.id == proposal_id)).mappings().first()
+    row = conn.execute(_BY_ID, {"id": proposal_id}).mappings().first()
     if row is None:
         raise NotFoundError(f"proposal {proposal_id} not found")
     return row
@@ -123,7 +124,7 @@ def _insert(conn: Connection, patient_id: int, parent_id: int | None, source: st
     metadata as :func:`_meta` gives it."""
     table_json = canonical_json(table)
     lock_patient(conn, patient_id)
-    new_id = conn.execute(insert(_p).values(
+    new_id = conn.execute(_INSERT, dict(
         patient_id=patient_id, version=next_version(conn, "proposal", patient_id), parent_id=parent_id, source=source,
         speed_mps=task["speed_mps"], incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"],
         extrapolation=int(extrapolation or extrapolation_reason is not None),

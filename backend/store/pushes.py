@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from sqlalchemy import Connection, RowMapping, case, func, insert, or_, select, update
+from sqlalchemy import Connection, RowMapping, bindparam, case, func, insert, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now, write_transaction
@@ -208,14 +208,18 @@ def current_push(conn: Connection, device_id: str) -> dict | None:
     return None if row is None else _push(row)
 
 
+# shown with every version: built once (see backend/store/__init__.py)
+_STATUSES = {kind: select(_pu.c.status).where(_pu.c[f"{kind}_id"] == bindparam("item_id")).order_by(_pu.c.id.desc())
+             for kind in ("proposal", "envelope")}
+
+
 def deployment_state(conn: Connection, item: Pushed) -> str | None:
     """From its pushes, as the device last reported them (:func:`reconcile`): ``active_on_device`` / ``pushed`` (on
     its way: sent or read back, not yet running) / ``unconfirmed`` (no acknowledgement yet; the device's next status
     decides) / ``replaced`` (ran or was sent, then another table took its place) / ``not_on_device`` (the device
     reported it no longer holds it: restarted or lost) / ``push_failed`` / None (never pushed)."""
     kind, item_id = item
-    newest_first = list(conn.execute(select(_pu.c.status).where(_pu.c[f"{kind}_id"] == item_id)
-                                     .order_by(_pu.c.id.desc())).scalars())
+    newest_first = list(conn.execute(_STATUSES[kind], {"item_id": item_id}).scalars())
     statuses = set(newest_first)
     if "active" in statuses:
         return "active_on_device"

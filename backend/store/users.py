@@ -6,7 +6,7 @@ import time
 from dataclasses import dataclass
 from typing import Literal, get_args
 
-from sqlalchemy import Connection, RowMapping, delete, func, insert, select, update
+from sqlalchemy import Connection, RowMapping, bindparam, delete, func, insert, select, update
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
@@ -138,13 +138,16 @@ def record_failed_login(conn: Connection, username: str, address: str) -> None:
                      after={"address": printable(address)})
 
 
+# every request runs it: built once (see backend/store/__init__.py)
+_BY_TOKEN = (select(users.c.id, users.c.username, users.c.role, users.c.must_change_password)
+             .join(tokens, tokens.c.user_id == users.c.id)
+             .where(tokens.c.token_sha256 == bindparam("digest"), tokens.c.expires_at_unix > bindparam("now_unix"),
+                    users.c.disabled == 0))
+
+
 def user_for_token(conn: Connection, token: str) -> User | None:
     """The enabled user holding an unexpired ``token``, or None."""
-    row = conn.execute(
-        select(users.c.id, users.c.username, users.c.role, users.c.must_change_password)
-        .join(tokens, tokens.c.user_id == users.c.id)
-        .where(tokens.c.token_sha256 == token_digest(token), tokens.c.expires_at_unix > time.time(),
-               users.c.disabled == 0)).mappings().first()
+    row = conn.execute(_BY_TOKEN, {"digest": token_digest(token), "now_unix": time.time()}).mappings().first()
     return None if row is None else _user(row)
 
 
