@@ -15,10 +15,14 @@ at once when the leg is not walking (no table yet, safe mode, no sensors, or no 
 ``idle_switch_s``). Loss, corruption, reordering, a bad CRC, a refused limit or a timeout only ever discard the
 buffer being received: the active table runs on untouched, so a mixed table cannot exist.
 
-The host's heartbeat is watched on every tick: when none arrived for ``heartbeat_timeout_s``, the device drops
-into safe mode (passive: τ = −b_safe·θ̇, clipped) on that tick. It leaves safe mode only on a new valid table
-(committed after safe mode was entered) or an explicit LEAVE_SAFE_MODE command while the host is alive and a table
-is held.
+The host's heartbeat is watched on every tick: when none arrived for ``heartbeat_timeout_s``, the device raises
+HEARTBEAT_LOST on that tick, and what else it does is the device's link mode (:class:`~device_bridge.protocol.LinkMode`,
+set by the host's LINK_SUPERVISED / LINK_AUTONOMOUS commands and reported in DEVICE_HEALTH). *Supervised* (the
+default, tuning in the clinic): it drops into safe mode (passive: τ = −b_safe·θ̇, clipped) and leaves it only on a
+new valid table (committed after safe mode was entered) or an explicit LEAVE_SAFE_MODE command while the host is
+alive and a table is held. *Autonomous* (daily life, far from any server): it runs on with the table or envelope it
+holds, and clears the fault when heartbeats come back. Either way a staged table waits for a live host. The link
+mode is kept in the device's memory with its tables: a device that restarts starts supervised, with no table.
 
 Times are seconds on the device's monotonic clock; torques N·m; angles rad inside, deg on the wire.
 """
@@ -52,6 +56,7 @@ from device_bridge.protocol import (
     Command,
     DeviceTable,
     Fault,
+    LinkMode,
     Mode,
     ProtocolError,
     WireTable,
@@ -140,6 +145,7 @@ class DeviceFirmware:
         rx_errors_: malformed frames seen.
         safe_mode_entered_s_: when safe mode was last entered (None if never).
         last_heartbeat_s_: when the host's heartbeat last arrived.
+        link_mode_: what a lost host heartbeat does (supervised: safe mode; autonomous: nothing but the fault).
     """
 
     def __init__(self, config: FirmwareConfig | None = None, now_s: float = 0.0) -> None:
@@ -151,6 +157,7 @@ class DeviceFirmware:
         self.rx_errors_ = 0
         self.safe_mode_entered_s_: float | None = None
         self.last_heartbeat_s_ = now_s   # the host gets one timeout from boot to appear
+        self.link_mode_ = LinkMode.SUPERVISED
         self.controller_: StateMachineController | AdaptiveController | None = None
         self._rx: _Transfer | EnvelopeReceiver | None = None
         self._last_commit: _LastCommit | None = None
@@ -309,6 +316,8 @@ class DeviceFirmware:
             host_alive = now_s - self.last_heartbeat_s_ <= self.config.heartbeat_timeout_s
             if self.mode_ == Mode.SAFE and self.active_ is not None and host_alive:
                 self._run()
+        elif command in (Command.LINK_SUPERVISED, Command.LINK_AUTONOMOUS):
+            self.link_mode_ = LinkMode.SUPERVISED if command == Command.LINK_SUPERVISED else LinkMode.AUTONOMOUS
         elif command != Command.REQUEST_STATUS:
             self.rx_errors_ += 1
             self.faults_ |= Fault.MALFORMED_FRAME
@@ -386,8 +395,13 @@ class DeviceFirmware:
             self._rx = None
         host_alive = now_s - self.last_heartbeat_s_ <= cfg.heartbeat_timeout_s
         if not host_alive and Fault.HEARTBEAT_LOST not in self.faults_:   # also when already in safe mode
-            self._enter_safe(now_s)
+            if self.link_mode_ == LinkMode.SUPERVISED:
+                self._enter_safe(now_s)
             self.faults_ |= Fault.HEARTBEAT_LOST
+            out += self._status_frames()
+        elif host_alive and Fault.HEARTBEAT_LOST in self.faults_ and self.link_mode_ == LinkMode.AUTONOMOUS \
+                and self.mode_ != Mode.SAFE:   # the link is back; a supervised leg waits for the host to say so
+            self.faults_ &= ~Fault.HEARTBEAT_LOST
             out += self._status_frames()
         if self.staged_ is not None and host_alive:
             idle = sample is None or self.mode_ != Mode.ACTIVE or now_s - self._last_heel_strike_s > cfg.idle_switch_s
@@ -448,7 +462,7 @@ class DeviceFirmware:
         return [
             encode("DEVICE_HEALTH", {"fault_flags": int(faults), "temperature": TEMPERATURE_UNKNOWN_RAW,
                                      "pending_version": self.staged_.version if self.staged_ else 0,
-                                     "rx_errors": min(self.rx_errors_, 0xFFFF)}),
+                                     "rx_errors": min(self.rx_errors_, 0xFFFF), "link_mode": int(self.link_mode_)}),
             encode("DEVICE_STATUS", {"counter": self._status_counter, "mode": int(self.mode_),
                                      "fsm_state": self.fsm_state,
                                      "active_version": active.version if active else 0,

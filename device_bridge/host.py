@@ -39,6 +39,7 @@ from device_bridge.protocol import (
     AckResult,
     Command,
     Fault,
+    LinkMode,
     Mode,
     ProtocolError,
     WireTable,
@@ -85,6 +86,7 @@ class DeviceStatus:
     rx_errors: int
     received_monotonic_s: float
     received_unix_s: float
+    link_mode: LinkMode = LinkMode.SUPERVISED
 
 
 ADAPTIVE_MODE_NAMES = {1: "nominal", 2: "partial", 3: "adaptive", 4: "clamped"}
@@ -252,7 +254,7 @@ class DeviceLink(BusThreads):
             self._heartbeat_paused.clear()
 
     def command(self, command: Command) -> None:
-        """Send a DEVICE_COMMAND (enter/leave safe mode, request status)."""
+        """Send a DEVICE_COMMAND (enter/leave safe mode, request status, the lost-link mode)."""
         self._send(encode("DEVICE_COMMAND", {"command": int(command)}))
 
     def _heartbeat_loop(self) -> None:
@@ -324,7 +326,8 @@ class DeviceLink(BusThreads):
             temperature_degC=None if temp_raw == TEMPERATURE_UNKNOWN_RAW else temp_raw - 40.0,
             pending_version=int(h["pending_version"]) or None if h else None,
             rx_errors=int(h.get("rx_errors", 0)),
-            received_monotonic_s=time.monotonic(), received_unix_s=time.time())
+            received_monotonic_s=time.monotonic(), received_unix_s=time.time(),
+            link_mode=LinkMode.AUTONOMOUS if h.get("link_mode") == LinkMode.AUTONOMOUS else LinkMode.SUPERVISED)
         self.status = status
         if self.on_status is not None:
             self.on_status(status)

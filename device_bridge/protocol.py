@@ -79,6 +79,20 @@ class Command(IntEnum):
     ENTER_SAFE_MODE = 1
     LEAVE_SAFE_MODE = 2
     REQUEST_STATUS = 3
+    LINK_SUPERVISED = 4    # a lost host heartbeat puts the leg in safe mode (the default)
+    LINK_AUTONOMOUS = 5    # a lost host heartbeat is reported and changes nothing the leg does
+
+
+class LinkMode(IntEnum):
+    """DEVICE_HEALTH.link_mode: what a lost host heartbeat does to the leg (the prosthetist's choice per device).
+
+    SUPERVISED (tuning in the clinic): safe mode on the first tick past the heartbeat timeout, as the leg always did.
+    AUTONOMOUS (daily life, no server near): the leg runs on with the approved table or envelope it holds; the lost
+    heartbeat is a reported fault, not a change of behaviour. Safe mode from any other cause is unchanged.
+    """
+
+    SUPERVISED = 0
+    AUTONOMOUS = 1
 
 
 class Fault(IntFlag):

@@ -16,6 +16,7 @@ from device_bridge.protocol import (
     AckResult,
     Command,
     Fault,
+    LinkMode,
     Mode,
     WireTable,
     begin_frame,
@@ -213,6 +214,69 @@ def test_heartbeat_loss_enters_safe_mode_on_the_first_tick_past_the_timeout(tabl
     assert status(out)["mode"] == Mode.SAFE and Fault.HEARTBEAT_LOST in fw.faults_
     knee, ankle, _ = fw.tick(standing(1.202), 1.202)   # passive and damped: only -b·θ̇
     assert knee == pytest.approx(-cfg.safe_damping_knee * 0.5) and ankle == pytest.approx(cfg.safe_damping_ankle * 0.2)
+
+
+def health(frames: list[can.Message]) -> dict:
+    return next(decode(m)[1] for m in reversed(frames) if decode(m)[0] == "DEVICE_HEALTH")
+
+
+def link_mode(fw: DeviceFirmware, mode: LinkMode, now: float) -> list[can.Message]:
+    command = Command.LINK_AUTONOMOUS if mode == LinkMode.AUTONOMOUS else Command.LINK_SUPERVISED
+    return fw.receive(encode("DEVICE_COMMAND", {"command": int(command)}), now)
+
+
+def test_a_device_starts_supervised_and_reports_the_link_mode_it_is_given(tables):
+    fw = DeviceFirmware()
+    assert fw.link_mode_ == LinkMode.SUPERVISED
+    assert health(link_mode(fw, LinkMode.AUTONOMOUS, 0.0))["link_mode"] == LinkMode.AUTONOMOUS
+    assert health(link_mode(fw, LinkMode.SUPERVISED, 0.01))["link_mode"] == LinkMode.SUPERVISED
+
+
+def test_an_autonomous_leg_runs_on_through_a_lost_link_and_clears_the_fault_when_it_returns(tables):
+    cfg = FirmwareConfig(heartbeat_timeout_s=0.2)
+    fw = DeviceFirmware(cfg)
+    install(fw, tables[0], 1)
+    heartbeat(fw, 0.5)
+    link_mode(fw, LinkMode.AUTONOMOUS, 0.5)
+    t, reported = 0.5, []
+    while t < 60.0:                        # a minute with no host at all
+        knee, _, out = fw.tick(standing(t), t)
+        assert fw.mode_ == Mode.ACTIVE and knee != pytest.approx(-cfg.safe_damping_knee * 0.5)
+        reported += [health(out)] if any(decode(m)[0] == "DEVICE_HEALTH" for m in out) else []
+        t = round(t + 0.01, 6)
+    assert Fault.HEARTBEAT_LOST in fw.faults_ and fw.active_.version == 1
+    assert reported[-1]["fault_flags"] & Fault.HEARTBEAT_LOST and reported[-1]["link_mode"] == LinkMode.AUTONOMOUS
+    heartbeat(fw, 60.0)
+    _, _, out = fw.tick(standing(60.001), 60.001)
+    assert Fault.HEARTBEAT_LOST not in fw.faults_ and fw.mode_ == Mode.ACTIVE
+    assert not health(out)["fault_flags"] & Fault.HEARTBEAT_LOST
+
+
+def test_an_autonomous_leg_still_waits_for_the_host_to_switch_a_staged_table(tables):
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    first = install(fw, tables[0], 1)
+    heartbeat(fw, 0.1)
+    link_mode(fw, LinkMode.AUTONOMOUS, 0.1)
+    begin, rows, commit, _ = transfer(tables[1], 2, 2)
+    [ack] = feed(fw, [begin, *rows, commit], 0.15)
+    assert ack["result"] == AckResult.STAGED
+    fw.tick(None, 0.5)                     # the link is gone before the switch
+    assert fw.mode_ == Mode.ACTIVE and fw.active_.crc32 == first and fw.staged_ is not None
+
+
+def test_a_supervised_leg_goes_safe_on_a_lost_link_and_back_only_when_the_host_says_so(tables):
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    install(fw, tables[0], 1)
+    heartbeat(fw, 0.5)
+    link_mode(fw, LinkMode.AUTONOMOUS, 0.5)
+    link_mode(fw, LinkMode.SUPERVISED, 0.6)    # the prosthetist's choice changed back
+    fw.tick(standing(0.81), 0.81)
+    assert fw.mode_ == Mode.SAFE and Fault.HEARTBEAT_LOST in fw.faults_
+    heartbeat(fw, 2.0)
+    fw.tick(standing(2.001), 2.001)
+    assert fw.mode_ == Mode.SAFE               # the link alone does not end it
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.LEAVE_SAFE_MODE)}), 2.002)
+    assert fw.mode_ == Mode.ACTIVE and Fault.HEARTBEAT_LOST not in fw.faults_
 
 
 def test_safe_mode_is_left_only_by_command_or_a_new_table(tables):
