@@ -40,6 +40,8 @@ from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.walker import SimWalker
 
 ONLINE_WITHIN_S = 1.0        # a device whose status is older than this is offline
+LINK_MODE_RESEND_S = 0.5     # a device still reporting another lost-link mode is sent the choice again after this
+_LINK_COMMANDS = {"supervised": Command.LINK_SUPERVISED, "autonomous": Command.LINK_AUTONOMOUS}
 
 
 @dataclass
@@ -57,6 +59,8 @@ class ManagedDevice:
     epoch: int = 0                                          # counts finished pushes: a report is reconciled anew
     acknowledged: tuple[int, float] | None = None           # (push id, monotonic s) of the last CRC read back
     push_lock: threading.Lock = field(default_factory=threading.Lock)
+    link_mode: str = "supervised"                           # the stored lost-link choice as this process last read it
+    link_mode_sent_s: float = float("-inf")                 # monotonic s the choice was last sent to the device
 
 
 class DeviceManager:
@@ -79,6 +83,8 @@ class DeviceManager:
             pushes_store.interrupted_pushes(conn, [spec.device_id for spec in self._specs])
         for spec in self._specs:
             dev = ManagedDevice(spec=spec)
+            with pooled(self.db) as conn:
+                dev.link_mode = devices_store.link_mode(conn, spec.device_id)
             if spec.kind == "simulated":
                 dev.walker = SimWalker(self._bench_leg)
                 dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker).start()
@@ -155,6 +161,7 @@ class DeviceManager:
             patient = devices_store.assignment(conn, device_id)
             active = None if s is None else self._table(conn, dev, s.active_version, s.active_crc32)
             pending = None if s is None else self._table(conn, dev, s.pending_version, None)
+            link_mode = devices_store.link_mode(conn, device_id)   # another instance may have changed it
         return {
             "patient": patient, "active_table": active, "pending_table": pending,
             "body_mass_mismatch": mass_mismatch(active, patient),
@@ -175,6 +182,8 @@ class DeviceManager:
             "bench_state": None if dev.walker is None else dev.walker.state,
             "bench_task": _bench_task(dev.walker),
             "recording_session_id": self.recorder.session_of(device_id),
+            "link_mode": link_mode,
+            "link_mode_on_device": None if s is None else s.link_mode.name.lower(),
         }
 
     def on_leg(self, conn: Connection, device_id: str, running_only: bool = False) -> dict:
@@ -258,6 +267,29 @@ class DeviceManager:
             raise ConflictError(f"device {device_id} is offline; the command was not sent")
         dev.link.command(command)
 
+    def link_mode_chosen(self, device_id: str, mode: str) -> None:
+        """The stored lost-link choice changed (:func:`backend.store.devices.set_link_mode`): tell the device now if it
+        is online, else when it next reports (every status that shows another mode sends the choice again)."""
+        dev = self.get(device_id)
+        dev.link_mode, dev.link_mode_sent_s = mode, float("-inf")
+        if dev.status is not None:
+            self._apply_link_mode(dev, dev.status)
+
+    def _apply_link_mode(self, dev: ManagedDevice, status: DeviceStatus) -> None:
+        """Send the device the stored lost-link choice when its report differs (a restarted device starts
+        supervised), at most every :data:`LINK_MODE_RESEND_S`; the choice is read again first, since another instance
+        may have changed it."""
+        reported = status.link_mode.name.lower()
+        now = time.monotonic()
+        if reported == dev.link_mode or now - dev.link_mode_sent_s < LINK_MODE_RESEND_S or dev.link is None:
+            return
+        with pooled(self.db) as conn:
+            dev.link_mode = devices_store.link_mode(conn, dev.spec.device_id)
+        if reported != dev.link_mode:
+            dev.link_mode_sent_s = now
+            with contextlib.suppress(can.CanError):   # a full or closed bus: the next status tries again
+                dev.link.command(_LINK_COMMANDS[dev.link_mode])
+
     def start_recording(self, device_id: str, session_id: int, reference: WalkingReference | None,
                         mass_kg: float, course: Course | None = None) -> None:
         """Record the device's telemetry into ``session_id``; a simulated leg starts walking at the task, or walks
@@ -307,6 +339,7 @@ class DeviceManager:
             # a push that finished meanwhile moved the epoch on: the next status is reconciled again
             dev.reconciled = key
         self.recorder.note_status(dev.spec.device_id, status.mode.name.lower(), active)
+        self._apply_link_mode(dev, status)
         if dev.fanout:
             dev.fanout.publish({"type": "status", **self.view(dev.spec.device_id)})
 

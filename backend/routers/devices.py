@@ -12,7 +12,14 @@ from backend.db import pooled
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
 from backend.errors import ConflictError
-from backend.schemas.devices import AssignmentRequest, CommandRequest, DeviceIdPath, DeviceOut, ViewerOut
+from backend.schemas.devices import (
+    AssignmentRequest,
+    CommandRequest,
+    DeviceIdPath,
+    DeviceOut,
+    LinkModeRequest,
+    ViewerOut,
+)
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.store import devices as devices_store
 from backend.store import patients
@@ -91,6 +98,22 @@ def command(device_id: DeviceIdPath, body: CommandRequest, request: Request, con
     m = manager(request)
     m.command(device_id, _COMMANDS[body.command])
     devices_store.record_command(conn, device_id, body.command, user)
+    return m.view(device_id)
+
+
+@router.put("/{device_id}/link-mode", response_model=DeviceOut,
+            responses={**UNAUTHORIZED, **FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def set_link_mode(device_id: DeviceIdPath, body: LinkModeRequest, request: Request, conn: Conn,
+                  user: Prosthetist) -> dict:
+    """Choose what a lost link to the server does to this leg (prosthetist; audited with the reason). *Supervised*
+    (tuning in the clinic): the leg goes to its passive safe mode within the heartbeat timeout and back to its table
+    once the link returns and the host says so. *Autonomous* (daily life, far from any server): the leg runs on with
+    the approved table or envelope it holds, and the lost link changes nothing the patient feels. Stored at once and
+    sent to the device now, or when it next reports if it is offline: ``link_mode_on_device`` shows what it does."""
+    m = manager(request)
+    m.get(device_id)
+    devices_store.set_link_mode(conn, device_id, body.link_mode, body.reason, user)
+    m.link_mode_chosen(device_id, body.link_mode)
     return m.view(device_id)
 
 

@@ -12,6 +12,7 @@ from backend.schemas.common import StrictIn
 DEVICE_ID_PATTERN = r"^[A-Za-z0-9._-]{1,64}$"
 DeviceId = Annotated[str, Field(pattern=DEVICE_ID_PATTERN, description="device id, as GET /api/devices lists it")]
 DeviceIdPath = Annotated[str, Path(pattern=DEVICE_ID_PATTERN, description="device id")]
+LinkModeName = Literal["supervised", "autonomous"]
 
 
 class DeviceAssignment(BaseModel):
@@ -90,6 +91,10 @@ class DeviceOut(BaseModel):
     bench_task: BenchTask | None = Field(description="simulated leg only: the true task the bench walks now "
                                                      "(ground truth for the leg's own estimate)")
     recording_session_id: int | None
+    link_mode: LinkModeName = Field(description="the prosthetist's choice of what a lost link does to this leg")
+    link_mode_on_device: LinkModeName | None = Field(
+        description="what the device reports it does (null before its first status); the server sends the choice "
+                    "whenever the two differ")
 
 
 class ViewerOut(BaseModel):
@@ -106,3 +111,10 @@ class AssignmentRequest(StrictIn):
 
 class CommandRequest(StrictIn):
     command: Literal["enter_safe_mode", "leave_safe_mode"]
+
+
+class LinkModeRequest(StrictIn):
+    link_mode: LinkModeName = Field(description="what a lost link does to the leg: 'supervised' (tuning in the "
+                                                "clinic): it goes to safe mode; 'autonomous' (daily life, no server "
+                                                "near): it runs on with the approved table or envelope it holds")
+    reason: str = Field(min_length=10, max_length=500, description="why, in the prosthetist's words (audited)")

@@ -25,6 +25,26 @@ def record_command(conn: Connection, device_id: str, command: str, actor: User) 
         audit.record(conn, actor.id, actor.username, f"device.{command}", "device", None, after={"device_id": device_id})
 
 
+def link_mode(conn: Connection, device_id: str) -> str:
+    """The prosthetist's choice of what a lost link does to the device: ``supervised`` or ``autonomous``."""
+    row = conn.execute(select(devices.c.link_mode).where(devices.c.id == device_id)).first()
+    if row is None:
+        raise NotFoundError(f"device {device_id!r} is not registered")
+    return str(row[0])
+
+
+def set_link_mode(conn: Connection, device_id: str, mode: str, reason: str, actor: User) -> None:
+    """Choose what a lost link does to the device (audited with the reason, the choice before and after)."""
+    with write_transaction(conn):
+        before = conn.execute(select(devices.c.link_mode).where(devices.c.id == device_id).with_for_update()).first()
+        if before is None:
+            raise NotFoundError(f"device {device_id!r} is not registered")
+        conn.execute(update(devices).where(devices.c.id == device_id).values(link_mode=mode))
+        audit.record(conn, actor.id, actor.username, "device.link_mode", "device", None,
+                     before={"device_id": device_id, "link_mode": before[0]},
+                     after={"device_id": device_id, "link_mode": mode, "reason": reason})
+
+
 def assignment(conn: Connection, device_id: str) -> dict | None:
     """The patient the device is assigned to (id, code name, body mass, by whom and when), or None."""
     row = conn.execute(

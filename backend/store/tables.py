@@ -185,6 +185,8 @@ devices = Table(
     Column("assigned_by", Integer, ForeignKey("users.id")),
     Column("assigned_at", Text),
     Column("last_wire_version", Integer, nullable=False, server_default="0"),
+    Column("link_mode", Text, CheckConstraint("link_mode IN ('supervised', 'autonomous')"), nullable=False,
+           server_default="supervised"),
     CheckConstraint("length(id) BETWEEN 1 AND 64"),
     CheckConstraint("kind IN ('simulated', 'can')"),
     CheckConstraint("last_wire_version BETWEEN 0 AND 65535"),

@@ -152,6 +152,15 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.wait_for_selector("#viewer3d-off:has-text('no login')")
     expect(page.locator("#viewer3d iframe")).to_have_count(0)
     assert "P-100 · table v2" in page.inner_text("#active-version")
+    # what a lost link does to this leg: supervised until the prosthetist chooses otherwise, with a written reason
+    assert "supervised: the leg goes to its passive safe mode" in page.inner_text("#link-mode")
+    page.click("#link-mode-change")
+    assert page.is_disabled("#link-mode-dialog-confirm")
+    page.fill("#link-mode-dialog-reason", "home trial: walks far from the clinic server")
+    page.click("#link-mode-dialog-confirm")
+    page.wait_for_selector("#link-mode:has-text('autonomous: the leg runs on')")
+    page.wait_for_function("() => !document.querySelector('#link-mode').textContent.includes('being sent')",
+                           timeout=10_000)                                # the leg reports it does so
     shot(page, "05-monitor")
     seen = page.evaluate("window.quasitune.monitor.samples")                # a few strides more, by the samples
     page.wait_for_function("(n) => window.quasitune.monitor.samples > n", arg=seen + 250, timeout=20_000)

@@ -231,7 +231,36 @@ function renderStatus(box, d) {
       : d.pending_table ? tableName(d.pending_table) : `device version ${d.pending_version}`),
     h("dt", {}, "FSM state"), h("dd", {}, d.fsm_state === null ? "—" : FSM_STATES[d.fsm_state]),
     h("dt", {}, "Last heartbeat"), h("dd", { id: "heartbeat" }, d.last_heartbeat_age_s === null ? "never" : `${fmt(d.last_heartbeat_age_s, 2)} s ago`),
-    h("dt", {}, "Temperature"), h("dd", {}, d.temperature_degC === null ? "not measured" : fmt(d.temperature_degC, 1, "°C"))));
+    h("dt", {}, "Temperature"), h("dd", {}, d.temperature_degC === null ? "not measured" : fmt(d.temperature_degC, 1, "°C")),
+    h("dt", {}, "If the link is lost"), h("dd", { id: "link-mode" }, ...linkModeWords(d))));
+}
+
+// What a lost link does to this leg: the prosthetist's choice, what the leg reports it does, and the way to change it
+const LINK_WORDS = {
+  supervised: "supervised: the leg goes to its passive safe mode (tuning in the clinic)",
+  autonomous: "autonomous: the leg runs on with its approved table or envelope (daily life)",
+};
+
+function linkModeWords(d) {
+  const other = d.link_mode === "supervised" ? "autonomous" : "supervised";
+  const told = d.link_mode_on_device === d.link_mode ? null
+    : chip(d.online ? "being sent to the leg…" : "the leg is told when it next reports", "warn");
+  const change = canCommandOf() ? h("button", { class: "secondary", id: "link-mode-change",
+    onclick: () => changeLinkMode(d.id, other) }, other === "autonomous" ? "Make autonomous…" : "Make supervised…") : null;
+  return [LINK_WORDS[d.link_mode], told ? " " : null, told, change ? " " : null, change];
+}
+
+async function changeLinkMode(deviceId, mode) {
+  const reason = await confirmDialog({ id: "link-mode-dialog", title: `${deviceId}: ${mode} when the link is lost?`,
+    facts: [["From now on", LINK_WORDS[mode]], ["Recorded", "in the audit log, with your reason"]],
+    reason: { label: "Why", min: 10 }, confirm: `Make ${mode}`, danger: mode === "autonomous" });
+  if (!reason) return;
+  try {
+    await put(`/api/devices/${deviceId}/link-mode`, { link_mode: mode, reason });
+    notice(`Lost-link mode ${mode}: the leg reports it in its next status.`, "warn");
+  } catch (err) {
+    notice(err.message);
+  }
 }
 
 // While recording, the chip says whether the strides count: in safe mode (or without a table) the leg does not run

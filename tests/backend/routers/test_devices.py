@@ -257,3 +257,52 @@ def test_the_assigned_patient_stands_on_the_simulated_leg_between_walks_with_liv
     assert max(s["knee_angle_deg"] for s in samples) < 10.0                      # the knee near extension
     r = c.delete(f"/api/devices/{DEVICE}/assignment", headers=api.as_("prosthetist"))
     assert r.status_code == 200 and r.json()["bench_state"] == "not_worn"
+
+
+def test_the_lost_link_mode_is_the_prosthetists_choice_audited_sent_to_the_leg_and_obeyed(sim_api):
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    device = lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json()   # noqa: E731
+    prop = approved_proposal(api)
+    assert push_to_leg(api, prop).status_code == 201
+    wait_for(device, lambda d: d["mode"] == "active" and d["link_mode_on_device"] == "supervised")
+    assert device()["link_mode"] == "supervised"
+    body = {"link_mode": "autonomous", "reason": "home trial: the patient walks far from the clinic's server"}
+    assert c.put(f"/api/devices/{DEVICE}/link-mode", headers=api.as_("viewer"), json=body).status_code == 403
+    for bad in ({**body, "link_mode": "sometimes"}, {**body, "reason": "home"}, {"link_mode": "autonomous"}):
+        r = c.put(f"/api/devices/{DEVICE}/link-mode", headers=pro, json=bad)
+        assert r.status_code == 422, r.text
+    r = c.put(f"/api/devices/{DEVICE}/link-mode", headers=pro, json=body)
+    assert r.status_code == 200 and r.json()["link_mode"] == "autonomous"
+    wait_for(device, lambda d: d["link_mode_on_device"] == "autonomous")
+    [entry] = [e for e in c.get("/api/audit", headers=api.as_("admin"), params={"entity": "device"}).json()["items"]
+               if e["action"] == "device.link_mode"]
+    assert entry["before"]["link_mode"] == "supervised" and entry["after"]["reason"] == body["reason"]
+
+    link = api.client.app.state.devices.get(DEVICE).link
+    link.pause_heartbeat()                 # the link to the server is lost: the autonomous leg runs on
+    wait_for(device, lambda d: "heartbeat_lost" in d["faults"])
+    assert device()["mode"] == "active"
+    link.pause_heartbeat(False)
+    wait_for(device, lambda d: "heartbeat_lost" not in d["faults"] and d["mode"] == "active")
+
+    r = c.put(f"/api/devices/{DEVICE}/link-mode", headers=pro,
+              json={"link_mode": "supervised", "reason": "back in the clinic for tuning"})
+    wait_for(device, lambda d: d["link_mode_on_device"] == "supervised")
+    link.pause_heartbeat()                 # supervised: the lost link means safe mode
+    wait_for(device, lambda d: d["safe_mode"] and "heartbeat_lost" in d["faults"])
+    link.pause_heartbeat(False)
+
+
+def test_a_restarted_leg_is_sent_the_stored_lost_link_mode_again(sim_api):
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    r = c.put(f"/api/devices/{DEVICE}/link-mode", headers=pro,
+              json={"link_mode": "autonomous", "reason": "home trial with the patient's own phone link"})
+    assert r.status_code == 200
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
+             lambda d: d["link_mode_on_device"] == "autonomous")
+    firmware = api.client.app.state.devices.get(DEVICE).node.firmware
+    firmware.link_mode_ = type(firmware.link_mode_).SUPERVISED   # as after a restart: the device starts supervised
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
+             lambda d: d["link_mode_on_device"] == "autonomous")

