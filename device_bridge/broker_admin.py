@@ -1,9 +1,9 @@
 """Device identities at the broker: Mosquitto's dynamic security plugin, driven over its own control topic.
 
 Each leg gets a user name (its device id) and a random password, and a role that lets it publish only its own frames
-(``…/{id}/up``) and subscribe only to its own commands (``…/{id}/down``); API server instances get a role that
-publishes commands to any leg and reads every leg's frames. Nothing else may publish or subscribe (the plugin's
-defaults deny both; QuasiTune's roles are the only grants).
+(``…/{id}/up``, and ``…/{id}/late`` for what it buffered while away) and subscribe only to its own commands
+(``…/{id}/down``); API server instances get a role that publishes commands to any leg and reads every leg's frames.
+Nothing else may publish or subscribe (the plugin's defaults deny both; QuasiTune's roles are the only grants).
 
 Why passwords and not client certificates: the plugin stores them hashed (salted PBKDF2-SHA512) and revokes one at
 once (``deleteClient`` or ``disableClient`` disconnects a connected client the same moment), where a certificate
@@ -104,12 +104,14 @@ class BrokerAdmin:
     def add_server(self, name: str) -> str:
         """An identity for one API instance (its password, shown once): commands to every leg, every leg's frames."""
         self._role(SERVER_ROLE, [("publishClientSend", f"{TOPIC_PREFIX}/+/down"),
-                                 ("subscribePattern", f"{TOPIC_PREFIX}/+/up")])
+                                 ("subscribePattern", f"{TOPIC_PREFIX}/+/up"),
+                                 ("subscribePattern", f"{TOPIC_PREFIX}/+/late")])
         return self._client_with(name, SERVER_ROLE)
 
     def add_device(self, device_id: str) -> str:
         """The leg's identity (its password, shown once): its own frames out, its own commands in, nothing else."""
         self._role(device_role(device_id), [("publishClientSend", topic(device_id, "up")),
+                                            ("publishClientSend", topic(device_id, "late")),
                                             ("subscribeLiteral", topic(device_id, "down"))])
         return self._client_with(device_id, device_role(device_id))
 

@@ -397,6 +397,8 @@ class DeviceFirmware:
         if not host_alive and Fault.HEARTBEAT_LOST not in self.faults_:   # also when already in safe mode
             if self.link_mode_ == LinkMode.SUPERVISED:
                 self._enter_safe(now_s)
+                if self.staged_ is not None:   # verified before the link was lost: held for LEAVE_SAFE_MODE, as
+                    self.active_, self.staged_ = self.staged_, None   # a commanded safe mode holds it
             self.faults_ |= Fault.HEARTBEAT_LOST
             out += self._status_frames()
         elif host_alive and Fault.HEARTBEAT_LOST in self.faults_ and self.link_mode_ == LinkMode.AUTONOMOUS \

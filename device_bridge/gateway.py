@@ -59,4 +59,4 @@ MAX_BATCH = 64        # at most this many frames in one message (a push's data f
 
 def _copy(msg: can.Message) -> can.Message:
     return can.Message(arbitration_id=msg.arbitration_id, data=bytes(msg.data), is_extended_id=msg.is_extended_id,
-                       is_remote_frame=msg.is_remote_frame, is_fd=msg.is_fd, dlc=msg.dlc)
+                       is_remote_frame=msg.is_remote_frame, is_fd=msg.is_fd, dlc=msg.dlc, timestamp=msg.timestamp)

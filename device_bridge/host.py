@@ -34,6 +34,7 @@ from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, enve
 from device_bridge.protocol import (
     FAULT_MASK,
     ROW_COUNT,
+    TELEMETRY_PERIOD_S,
     TEMPERATURE_UNKNOWN_RAW,
     TRANSFER_IDS,
     AckResult,
@@ -51,6 +52,7 @@ from device_bridge.protocol import (
 )
 
 _DEG = math.pi / 180.0
+LONG_SILENCE_S = 300.0   # telemetry back after a silence this long is placed by time (a 16-bit sequence wraps in 655 s)
 log = logging.getLogger(__name__)
 
 
@@ -150,7 +152,9 @@ class TelemetrySample:
 
 
 class _TelemetryJoiner:
-    """Joins the three frames of a sample by their 16-bit sequence number and unwraps it."""
+    """Joins the three frames of a sample by their 16-bit sequence number and unwraps it: to the nearest of the last
+    sample's (a repeat or a sample overtaken on the way, QoS 1 through the broker, lies just behind it), or near a
+    number the caller estimates from time (a late sample; a stream back after a long silence)."""
 
     PARTS = ("TELEMETRY_GAIT", "TELEMETRY_KNEE", "TELEMETRY_ANKLE")
 
@@ -164,7 +168,11 @@ class _TelemetryJoiner:
             self._tasks.clear()
         self._tasks[raw["seq"]] = TaskTelemetry.from_physical(physical("TELEMETRY_TASK", raw))
 
-    def add(self, name: str, raw: dict[str, int]) -> TelemetrySample | None:
+    def add(self, name: str, raw: dict[str, int], at_unix_s: float | None = None,
+            near: int | None = None) -> TelemetrySample | None:
+        """One telemetry frame; the sample once its three frames are in. ``at_unix_s``: when the sample was made (a
+        late one; default now); ``near``: an unwrapped sequence number the sample's lies within ±32768 of (estimated
+        from time), else it lies within ±32768 of the last one joined."""
         seq16 = raw["seq"]
         parts = self._partial.setdefault(seq16, {})
         parts[name] = physical(name, raw)
@@ -174,10 +182,9 @@ class _TelemetryJoiner:
                     del self._partial[k]
             return None
         del self._partial[seq16]
-        if self._last_full is None:
-            seq = seq16
-        else:
-            seq = self._last_full + ((seq16 - self._last_full) & 0xFFFF)
+        if near is None:
+            near = self._last_full
+        seq = seq16 if near is None else near + ((seq16 - near + 0x8000) & 0xFFFF) - 0x8000
         self._last_full = seq
         g, k, a = parts["TELEMETRY_GAIT"], parts["TELEMETRY_KNEE"], parts["TELEMETRY_ANKLE"]
         state = int(g["fsm_state"])
@@ -185,8 +192,8 @@ class _TelemetryJoiner:
             seq=seq, fsm_state=None if state > 3 else state, mode=Mode(int(g["mode"])),
             knee_angle_rad=k["angle"] * _DEG, knee_velocity_rad_s=k["velocity"] * _DEG, knee_torque_Nm=k["torque"],
             ankle_angle_rad=a["angle"] * _DEG, ankle_velocity_rad_s=a["velocity"] * _DEG, ankle_torque_Nm=a["torque"],
-            load_N=g["load"], ankle_moment_Nm=g["ankle_moment"], received_unix_s=time.time(),
-            task=self._tasks.pop(seq16, None))
+            load_N=g["load"], ankle_moment_Nm=g["ankle_moment"],
+            received_unix_s=time.time() if at_unix_s is None else at_unix_s, task=self._tasks.pop(seq16, None))
 
 
 def _check_version(version: int, what: str) -> None:
@@ -214,11 +221,15 @@ class DeviceLink(BusThreads):
         heartbeat_period_s: host heartbeat period (s); keep it well under the device's timeout (200 ms).
         on_status: called with each :class:`DeviceStatus` (from the receive thread: return quickly).
         on_telemetry: called with each complete :class:`TelemetrySample` (from the receive thread).
+        on_late_telemetry: called with each sample the leg's bridge kept while the link was down and delivered late
+            (a bus with ``on_late``, the broker link): stamped with the time it was made, its sequence number placed
+            by the live stream's; the late messages' other frames (old statuses, old acknowledgements) are ignored.
     """
 
     def __init__(self, bus: can.BusABC, heartbeat_period_s: float = 0.02,
                  on_status: Callable[[DeviceStatus], None] | None = None,
-                 on_telemetry: Callable[[TelemetrySample], None] | None = None) -> None:
+                 on_telemetry: Callable[[TelemetrySample], None] | None = None,
+                 on_late_telemetry: Callable[[TelemetrySample], None] | None = None) -> None:
         if not (math.isfinite(heartbeat_period_s) and 0.001 <= heartbeat_period_s <= 1.0):
             raise ValueError(f"heartbeat_period_s must be in [0.001, 1] s, got {heartbeat_period_s!r}")
         self.bus = bus
@@ -237,6 +248,12 @@ class DeviceLink(BusThreads):
         self._heartbeat_paused = threading.Event()
         super().__init__([bus])
         self._joiner = _TelemetryJoiner()
+        self.on_late_telemetry = on_late_telemetry
+        self._late_joiner = _TelemetryJoiner()
+        self._live: tuple[int, float] | None = None   # (seq, Unix s) of the newest live sample: places late ones
+        self.late_samples = 0
+        if hasattr(bus, "on_late"):
+            bus.on_late = self._on_late
         self._threads = [threading.Thread(target=self._rx_loop, name="can-rx", daemon=True),
                          threading.Thread(target=self._heartbeat_loop, name="can-heartbeat", daemon=True)]
 
@@ -301,13 +318,46 @@ class DeviceLink(BusThreads):
         elif name == "TELEMETRY_TASK":
             self._joiner.add_task(raw)
         elif name in _TelemetryJoiner.PARTS:
-            sample = self._joiner.add(name, raw)
-            if sample is not None and self.on_telemetry is not None:
-                self.on_telemetry(sample)
+            now = time.time()
+            # after a silence of minutes (the link was down while the leg walked) the sequence moved on with time
+            near = None if self._live is None or now - self._live[1] < LONG_SILENCE_S else \
+                self._live[0] + round((now - self._live[1]) / TELEMETRY_PERIOD_S)
+            sample = self._joiner.add(name, raw, near=near)
+            if sample is not None:
+                self._live = (sample.seq, sample.received_unix_s)
+                if self.on_telemetry is not None:
+                    self.on_telemetry(sample)
         elif name == "DEVICE_HEALTH":
             self._health = dict(raw)
         elif name == "DEVICE_STATUS":
             self._on_status(raw)
+
+    def _on_late(self, records: list[tuple[float, list[can.Message]]]) -> None:
+        """A late message from the leg's bridge (the broker's thread): its telemetry, joined apart from the live stream,
+        each sample's sequence number placed near where the live stream puts the time it was made."""
+        for at, frames in records:
+            near = None if self._live is None else self._live[0] + round((at - self._live[1]) / TELEMETRY_PERIOD_S)
+            for msg in frames:
+                try:
+                    decoded = decode(msg)
+                except ProtocolError:
+                    self.rx_errors += 1
+                    continue
+                if decoded is None:
+                    continue
+                name, raw = decoded
+                if name == "TELEMETRY_TASK":
+                    self._late_joiner.add_task(raw)
+                elif name in _TelemetryJoiner.PARTS:
+                    sample = self._late_joiner.add(name, raw, at_unix_s=at, near=near)
+                    if sample is not None:
+                        self.late_samples += 1
+                        if self.on_late_telemetry is not None:
+                            try:
+                                self.on_late_telemetry(sample)
+                            except Exception:
+                                self.callback_errors += 1
+                                log.exception("device link: the late telemetry callback failed")
 
     def _on_status(self, raw: dict[str, int]) -> None:
         h = self._health or {}
@@ -403,6 +453,14 @@ class DeviceLink(BusThreads):
                 return ack   # anything else is a late answer to an earlier attempt
 
     def _push(self, transfer: _Outgoing, version: int, timeout_s: float, ack_timeout_s: float) -> PushResult:
+        try:
+            return self._transfer(transfer, version, timeout_s, ack_timeout_s)
+        except can.CanError as exc:   # the link went down under the transfer (the broker out of reach)
+            raise PushError(f"the link to the device went down during the transfer ({exc}); unconfirmed: the "
+                            f"device's next status tells whether it took the {transfer.kind}, whole, or kept what it "
+                            "ran", "link_lost") from exc
+
+    def _transfer(self, transfer: _Outgoing, version: int, timeout_s: float, ack_timeout_s: float) -> PushResult:
         crc = transfer.crc
         t0 = time.monotonic()
         deadline = t0 + timeout_s

@@ -17,6 +17,12 @@ that altered a frame is caught by the protocol exactly as a noisy bus is.
 * QoS 1 both ways (at least once: the protocol already tolerates a repeated frame, a repeated commit is answered
   again and a repeated telemetry sample is joined once on its sequence number); persistent sessions, so the broker
   keeps what arrives for a client that is briefly away.
+* **Store and forward** (the leg's side, with a :class:`~device_bridge.late_buffer.LateBuffer`): while the broker is
+  out of reach the leg's messages go to the bounded buffer on disk instead of into the link, each with the time it
+  left the leg's bus; once the link is back they are delivered, oldest first, on ``…/{id}/late``: records of
+  (time f64 Unix s, frame count u8, the frames), several to a message. They are *late*: the server takes the
+  telemetry from them for the session record (at the time each sample was made) and nothing else, since a status or
+  an acknowledgement from a minute ago says nothing about the leg now.
 
 paho-mqtt (the Eclipse client) keeps the connection: TLS, reconnection with back-off, the QoS 1 retries.
 """
@@ -28,7 +34,7 @@ import ssl
 import struct
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from urllib.parse import urlsplit
 
@@ -36,15 +42,19 @@ import can
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 
+from device_bridge.late_buffer import WRITE_PERIOD_S, LateBuffer
+
 FRAME = struct.Struct("<HB8s")          # id, dlc, data
+LATE_RECORD = struct.Struct("<dB")      # when the frames left the leg's bus (Unix s), how many follow
+LATE_CHUNK_BYTES = 48 * 1024            # a late message carries at most about this much
 TOPIC_PREFIX = "quasitune/v1/devices"
 Role = str   # "server" (sends down, reads up) or "device" (sends up, reads down)
 
 
 def topic(device_id: str, direction: str) -> str:
     """The topic of one device's frames in one direction (``up`` from the leg, ``down`` to it)."""
-    if direction not in ("up", "down"):
-        raise ValueError(f"direction must be 'up' or 'down', got {direction!r}")
+    if direction not in ("up", "down", "late"):
+        raise ValueError(f"direction must be 'up', 'down' or 'late', got {direction!r}")
     if not device_id or any(c in device_id for c in "/+#") or len(device_id) > 64:
         raise ValueError(f"a device id is 1-64 characters without '/', '+' or '#', got {device_id!r}")
     return f"{TOPIC_PREFIX}/{device_id}/{direction}"
@@ -77,6 +87,34 @@ def unpack_frames(payload: bytes) -> list[can.Message]:
     return frames
 
 
+def pack_late(records: Iterable[tuple[float, bytes]]) -> bytes:
+    """Buffered messages (time they left the leg's bus, their packed frames) as one late payload."""
+    out = bytearray()
+    for at, frames in records:
+        out += LATE_RECORD.pack(at, len(frames) // FRAME.size) + frames
+    return bytes(out)
+
+
+def unpack_late(payload: bytes) -> list[tuple[float, list[can.Message]]]:
+    """The records of a late payload, each (time, frames) with the frames stamped at that time; ValueError (nothing
+    returned) for a payload that is not whole records."""
+    out, offset = [], 0
+    while offset < len(payload):
+        if len(payload) - offset < LATE_RECORD.size:
+            raise ValueError(f"a late payload ends inside a record header at byte {offset}")
+        at, count = LATE_RECORD.unpack_from(payload, offset)
+        offset += LATE_RECORD.size
+        end = offset + count * FRAME.size
+        if count == 0 or end > len(payload):
+            raise ValueError(f"a late record at byte {offset} claims {count} frames past the payload's end")
+        frames = unpack_frames(payload[offset:end])
+        for f in frames:
+            f.timestamp = at
+        out.append((at, frames))
+        offset = end
+    return out
+
+
 @dataclass(frozen=True)
 class BrokerAddress:
     """``mqtts://HOST:PORT`` (TLS, the deployment) or ``mqtt://HOST:PORT`` (plain: only with ``insecure=True``, for a
@@ -106,11 +144,17 @@ class MqttBus(can.BusABC):
         instance: the server instance's name: its client id is ``server-{instance}-{device_id}``, so several instances
             each keep a session of their own and each reads every frame of the leg (default: one server).
         connect_timeout_s: how long the constructor waits for the first connection before it fails loudly.
+        late_buffer: the leg's side only: where its messages wait while the broker is out of reach (see the module);
+            None: paho keeps them in memory and sends them on reconnection as if they were new.
+
+    Attributes:
+        on_late: the server's side: called (from paho's thread) with each late message's records, (time, frames);
+            unset, late messages are counted in :attr:`late_unclaimed` and dropped.
     """
 
     def __init__(self, channel: str, broker: str, username: str, password: str, role: Role = "server",
                  ca_file: str | None = None, instance: str | None = None, insecure: bool = False,
-                 connect_timeout_s: float = 10.0, **kwargs: object) -> None:
+                 connect_timeout_s: float = 10.0, late_buffer: LateBuffer | None = None, **kwargs: object) -> None:
         if role not in ("server", "device"):
             raise ValueError(f"role must be 'server' or 'device', got {role!r}")
         address = BrokerAddress.parse(broker)
@@ -121,6 +165,11 @@ class MqttBus(can.BusABC):
         self.device_id, self.role = channel, role
         self._send_topic = topic(channel, "down" if role == "server" else "up")
         self._recv_topic = topic(channel, "up" if role == "server" else "down")
+        self._late_topic = topic(channel, "late")
+        self._late_buffer = late_buffer if role == "device" else None
+        self.on_late: Callable[[list[tuple[float, list[can.Message]]]], None] | None = None
+        self.late_unclaimed = 0
+        self.late_delivered = 0   # the leg's side: buffered messages the broker acknowledged
         self._rx: queue.Queue[can.Message] = queue.Queue()
         self._connected = threading.Event()
         self.malformed = 0
@@ -144,6 +193,11 @@ class MqttBus(can.BusABC):
             why = self.refused or "no answer"
             raise can.CanInitializationError(f"{self.channel_info}: could not connect ({why})")
         super().__init__(channel=channel, **kwargs)
+        self._drain_stop = threading.Event()
+        self._drainer: threading.Thread | None = None
+        if self._late_buffer is not None:
+            self._drainer = threading.Thread(target=self._drain, name=f"mqtt-late-{channel}", daemon=True)
+            self._drainer.start()
 
     # paho's callbacks (its network thread)
     def _on_connect(self, client, _userdata, _flags, reason_code, _properties) -> None:
@@ -151,7 +205,8 @@ class MqttBus(can.BusABC):
             self.refused = str(reason_code)
             return
         self.refused = None
-        client.subscribe(self._recv_topic, qos=1)
+        wanted = [(self._recv_topic, 1)] + ([(self._late_topic, 1)] if self.role == "server" else [])
+        client.subscribe(wanted)
 
     def _on_subscribe(self, _client, _userdata, _mid, reason_codes, _properties) -> None:
         if any(rc.is_failure for rc in reason_codes):     # the broker's rules refused this client the topic
@@ -166,9 +221,18 @@ class MqttBus(can.BusABC):
 
     def _on_message(self, _client, _userdata, message) -> None:
         try:
-            frames = unpack_frames(message.payload)
+            if message.topic == self._late_topic:
+                records = unpack_late(message.payload)
+            else:
+                frames = unpack_frames(message.payload)
         except ValueError:
             self.malformed += 1
+            return
+        if message.topic == self._late_topic:
+            if self.on_late is None:
+                self.late_unclaimed += 1
+            else:
+                self.on_late(records)
             return
         for f in frames:
             self._rx.put(f)
@@ -181,8 +245,17 @@ class MqttBus(can.BusABC):
         self.send_batch([msg])
 
     def send_batch(self, frames: list[can.Message]) -> None:
-        """Frames in one message (QoS 1). While the link is down paho keeps them and sends them on reconnection."""
-        info = self._client.publish(self._send_topic, pack_frames(frames), qos=1)
+        """Frames in one message (QoS 1). While the link is down: the leg's side keeps them in its late buffer (without
+        one, paho keeps them in memory and sends them on reconnection); the server's side refuses them
+        (CanOperationError): a heartbeat, a command or a push frame from minutes ago must not reach the leg."""
+        payload = pack_frames(frames)
+        if not self._connected.is_set():
+            if self.role == "server":
+                raise can.CanOperationError(f"{self.channel_info}: the link to the broker is down; not sent")
+            if self._late_buffer is not None:
+                self._late_buffer.append(frames[0].timestamp or time.time(), payload)
+                return
+        info = self._client.publish(self._send_topic, payload, qos=1)
         if info.rc not in (mqtt.MQTT_ERR_SUCCESS, mqtt.MQTT_ERR_NO_CONN):
             raise can.CanOperationError(f"{self.channel_info}: publish refused ({mqtt.error_string(info.rc)})")
 
@@ -192,7 +265,34 @@ class MqttBus(can.BusABC):
         except queue.Empty:
             return None, False
 
+    def _drain(self) -> None:
+        """The leg's side: write the buffer to disk every few tenths of a second and, while the link is up, deliver
+        it oldest first; a chunk is forgotten only once the broker acknowledged it (a chunk delivered twice, after a
+        cut at the wrong moment, is joined once by the server on its sequence numbers)."""
+        buffer = self._late_buffer
+        assert buffer is not None
+        while not self._drain_stop.wait(WRITE_PERIOD_S):
+            buffer.write_pending()
+            while self._connected.is_set() and not self._drain_stop.is_set():
+                chunk = buffer.oldest(LATE_CHUNK_BYTES)
+                if not chunk:
+                    break
+                info = self._client.publish(self._late_topic, pack_late((at, p) for _, at, p in chunk), qos=1)
+                try:
+                    info.wait_for_publish(timeout=5.0)
+                except (RuntimeError, ValueError):
+                    break
+                if not info.is_published():
+                    break
+                buffer.forget_through(chunk[-1][0])
+                self.late_delivered += len(chunk)
+
     def shutdown(self) -> None:
+        self._drain_stop.set()
+        if self._drainer is not None:
+            self._drainer.join(timeout=10.0)
+        if self._late_buffer is not None:
+            self._late_buffer.close()
         self._client.disconnect()
         self._client.loop_stop()
         super().shutdown()

@@ -91,7 +91,8 @@ class DeviceManager:
             dev.link = DeviceLink(can.Bus(interface=spec.interface, channel=spec.channel,
                                           **self._bus_options.get(spec.interface, {})),
                                   on_status=lambda s, d=dev: self._on_status(d, s),
-                                  on_telemetry=lambda x, d=dev: self._on_telemetry(d, x))
+                                  on_telemetry=lambda x, d=dev: self._on_telemetry(d, x),
+                                  on_late_telemetry=lambda x, d=dev: self._on_late_telemetry(d, x))
             self._devices[spec.device_id] = dev   # before the link starts: its callbacks look the device up
             dev.link.start()
         self.recorder.start()
@@ -303,12 +304,13 @@ class DeviceManager:
             dev.walker.start(reference, mass_kg)
         self.recorder.begin(device_id, session_id)
 
-    def stop_recording(self, device_id: str) -> list[dict]:
+    def stop_recording(self, device_id: str) -> tuple[list[dict], int]:
         """Stop recording (everything received so far is written before this returns). Returns what the device's
         status reported while it walked, most reported first: mode, table version and CRC (None: no table), the
-        version's name when this server sent it, and the share of the status reports."""
+        version's name when this server sent it, and the share of the status reports; and how many samples arrived
+        late (kept by the leg's bridge while its link was down)."""
         dev = self.get(device_id)
-        reports = self.recorder.end(device_id)
+        reports, late = self.recorder.end(device_id)
         if not reports and dev.status is not None:   # shorter than one status period: its latest report
             reports[(dev.status.mode.name.lower(), _running(dev.status))] = 1
         if dev.walker is not None:
@@ -324,7 +326,7 @@ class DeviceManager:
                 out.append({"mode": mode, "table_version": None if active is None else active[0],
                             "crc32": None if active is None else f"{active[1]:08x}",
                             "label": None if push is None else push["label"], "share": round(n / total, 3)})
-        return out
+        return out, late
 
     # ------------------------------------------------------------------------------------------ callbacks (rx thread)
 
@@ -345,12 +347,22 @@ class DeviceManager:
 
     def _on_telemetry(self, dev: ManagedDevice, x: TelemetrySample) -> None:
         dev.last_sample = x
-        self.recorder.add(dev.spec.device_id, (
-            x.seq, x.received_unix_s, int(x.mode), x.fsm_state, x.knee_angle_rad, x.knee_velocity_rad_s,
-            x.knee_torque_Nm, x.ankle_angle_rad, x.ankle_velocity_rad_s, x.ankle_torque_Nm, x.load_N,
-            x.ankle_moment_Nm, *_task_columns(x)))
+        self.recorder.add(dev.spec.device_id, _sample_row(x))
         if dev.fanout:
             dev.fanout.publish({"type": "telemetry", **x.to_json()})
+
+
+    def _on_late_telemetry(self, dev: ManagedDevice, x: TelemetrySample) -> None:
+        """A sample the leg's bridge kept while the link was down: for the session record only (the live monitor
+        shows the leg now)."""
+        self.recorder.add(dev.spec.device_id, _sample_row(x), late=True)
+
+
+def _sample_row(x: TelemetrySample) -> tuple:
+    """A sample as the session store takes it (:data:`backend.store.sessions.SAMPLE_COLUMNS` order)."""
+    return (x.seq, x.received_unix_s, int(x.mode), x.fsm_state, x.knee_angle_rad, x.knee_velocity_rad_s,
+            x.knee_torque_Nm, x.ankle_angle_rad, x.ankle_velocity_rad_s, x.ankle_torque_Nm, x.load_N,
+            x.ankle_moment_Nm, *_task_columns(x))
 
 
 MASS_MISMATCH = 0.05   # a table built for a body mass more than 5 % from the patient's current one is flagged

@@ -3,7 +3,11 @@ database by a thread of their own, every :data:`FLUSH_PERIOD_S`, each second of 
 keeps a row per second: writing a second as a whole writes its row once, where four partial writes rewrote it four
 times, which on PostgreSQL leaves dead row versions behind). A second still filling is held until it is complete, or
 until no sample has come for :data:`STALE_S` (a leg that stopped sending); stopping a session writes everything.
-What a crash of the server can lose is the second being filled (at most about 1.25 s of samples)."""
+What a crash of the server can lose is the second being filled (at most about 1.25 s of samples).
+
+Samples the leg's bridge kept while its link was down arrive *late* (:meth:`SessionRecorder.add` with ``late=True``):
+they belong to seconds long written, so they are kept apart and written at the next flush, merged into those seconds
+by sequence number (the store keeps a sample it already has as it was)."""
 
 from __future__ import annotations
 
@@ -29,6 +33,8 @@ class SessionRecorder:
         self._recording: dict[str, int] = {}        # device id → session id
         self._reports: dict[str, Counter] = {}      # device id → (mode, (version, crc) or None) → status reports
         self._buffers: dict[str, list[tuple]] = {}
+        self._late: dict[str, list[tuple]] = {}     # device id → late samples not yet written
+        self._late_counts: dict[str, int] = {}      # device id → late samples received while recorded
         self._last_sample: dict[str, float] = {}    # device id → when its newest sample arrived (monotonic s)
         self._lock = threading.Lock()
         self._write_lock = threading.Lock()
@@ -52,17 +58,21 @@ class SessionRecorder:
         with self._lock:
             self._recording[device_id] = session_id
             self._buffers[device_id] = []
+            self._late[device_id] = []
+            self._late_counts[device_id] = 0
             self._reports[device_id] = Counter()
 
-    def end(self, device_id: str) -> Counter:
+    def end(self, device_id: str) -> tuple[Counter, int]:
         """Stop recording ``device_id``; everything received so far is written before this returns. Returns what
-        the device's status reports said while it was recorded: (mode, (version, CRC) or None) → how many."""
+        the device's status reports said while it was recorded, (mode, (version, CRC) or None) → how many, and how
+        many of its samples arrived late."""
         self.flush()
         with self._lock:
             self._recording.pop(device_id, None)
             self._buffers.pop(device_id, None)
+            self._late.pop(device_id, None)
             self._last_sample.pop(device_id, None)
-            return self._reports.pop(device_id, Counter())
+            return self._reports.pop(device_id, Counter()), self._late_counts.pop(device_id, 0)
 
     def note_status(self, device_id: str, mode: str, active: tuple[int, int] | None) -> None:
         """One status report of a device (counted only while it is recorded)."""
@@ -71,9 +81,16 @@ class SessionRecorder:
             if reports is not None:
                 reports[(mode, active)] += 1
 
-    def add(self, device_id: str, row: tuple) -> None:
-        """One sample (in :data:`backend.store.sessions.SAMPLE_COLUMNS` order), if the device is recording."""
+    def add(self, device_id: str, row: tuple, late: bool = False) -> None:
+        """One sample (in :data:`backend.store.sessions.SAMPLE_COLUMNS` order), if the device is recording; ``late``:
+        one its bridge kept while the link was down."""
         with self._lock:
+            if late:
+                buffer = self._late.get(device_id)
+                if buffer is not None:
+                    buffer.append(row)
+                    self._late_counts[device_id] += 1
+                return
             buffer = self._buffers.get(device_id)
             if buffer is not None:
                 buffer.append(row)
@@ -93,8 +110,9 @@ class SessionRecorder:
                         filling = second_of(int(rows[-1][0]))
                         keep = [r for r in rows if second_of(int(r[0])) >= filling]
                         rows = [r for r in rows if second_of(int(r[0])) < filling]
-                    if rows:
-                        batches.append((self._recording[d], rows))
+                    late, self._late[d] = self._late[d], []
+                    if rows or late:
+                        batches.append((self._recording[d], late + rows))
                     self._buffers[d] = keep
             if not batches:
                 return

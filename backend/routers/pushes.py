@@ -99,7 +99,7 @@ def _push(conn: Connection, devices: DeviceManager, user: User, body: PushReques
         try:
             result = send(version)
         except (PushError, ConflictError) as exc:
-            unconfirmed = isinstance(exc, PushError) and exc.reason == "timeout"
+            unconfirmed = isinstance(exc, PushError) and exc.reason in ("timeout", "link_lost")
             store.finish_push(conn, push_id, "unconfirmed" if unconfirmed else "failed", None,
                               (time.monotonic() - t0) * 1e3, str(exc))
             devices.push_finished(body.device_id, push_id, acknowledged=False)

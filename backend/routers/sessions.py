@@ -86,8 +86,9 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
     if session["status"] != "recording":
         raise ConflictError(f"session {session_id} was already stopped at {session['stopped_at']}")
     reported: list[dict] = []
+    late = 0
     if session["device_id"] in devices.ids():
-        reported = devices.stop_recording(session["device_id"])
+        reported, late = devices.stop_recording(session["device_id"])
     t = session["task"]
     cols = store.samples(conn, session_id)
     times = device_times(np.asarray(cols["seq"]), np.asarray(cols["t_s"]), TELEMETRY_PERIOD_S)
@@ -116,6 +117,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
     summary["device_reported"] = reported
     seqs = cols["seq"]
     summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
+    summary["late_samples"] = late   # kept by the leg's bridge while its link was down, delivered after
     store.stop_session(conn, session_id, summary, user)
     return store.get_session(conn, session_id)
 

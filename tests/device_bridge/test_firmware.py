@@ -252,6 +252,25 @@ def test_an_autonomous_leg_runs_on_through_a_lost_link_and_clears_the_fault_when
     assert not health(out)["fault_flags"] & Fault.HEARTBEAT_LOST
 
 
+def test_a_table_staged_before_the_link_was_lost_does_not_end_the_safe_mode_when_it_returns(tables):
+    """A copy staged just before the cut (a retried transfer over a slow link) waits for the host's word like the
+    table it replaces: the link coming back alone never takes a supervised leg out of safe mode."""
+    fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
+    install(fw, tables[0], 1)
+    heartbeat(fw, 0.1)
+    begin, rows, commit, crc = transfer(tables[1], 2, 2)
+    [ack] = feed(fw, [begin, *rows, commit], 0.15)
+    assert ack["result"] == AckResult.STAGED
+    fw.tick(standing(0.40), 0.40)          # lost before the next heel strike
+    assert fw.mode_ == Mode.SAFE and fw.staged_ is None and fw.active_.crc32 == crc
+    for t in (1.0, 1.1, 1.2):              # the host is back
+        heartbeat(fw, t)
+        fw.tick(standing(t + 0.001), t + 0.001)
+    assert fw.mode_ == Mode.SAFE
+    fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.LEAVE_SAFE_MODE)}), 1.3)
+    assert fw.mode_ == Mode.ACTIVE and fw.active_.crc32 == crc
+
+
 def test_an_autonomous_leg_still_waits_for_the_host_to_switch_a_staged_table(tables):
     fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
     first = install(fw, tables[0], 1)

@@ -128,3 +128,32 @@ def test_every_status_after_an_acknowledgement_says_what_the_device_has_staged(t
     finally:
         link.close()
         node.close()
+
+
+def _sample_frames(seq16: int) -> list[tuple[str, dict[str, int]]]:
+    from device_bridge.protocol import decode, encode
+
+    return [decode(encode(name, {"seq": seq16}))
+            for name in ("TELEMETRY_GAIT", "TELEMETRY_KNEE", "TELEMETRY_ANKLE")]
+
+
+def _join(joiner, seq16: int, **kwargs):
+    out = None
+    for name, raw in _sample_frames(seq16):
+        out = joiner.add(name, raw, **kwargs)
+    return out
+
+
+def test_sequence_numbers_unwrap_through_repeats_wraps_and_late_samples():
+    """The 16-bit sequence made whole: forward through a wrap, a repeat (QoS 1 delivers at least once) just behind the
+    newest instead of a wrap ahead, and a late sample near where its time puts it."""
+    from device_bridge.host import _TelemetryJoiner
+
+    live = _TelemetryJoiner()
+    assert [_join(live, s).seq for s in (65534, 65535, 0, 1)] == [65534, 65535, 65536, 65537]
+    assert _join(live, 65535).seq == 65535                 # a repeat, not 131071
+    assert _join(live, 2).seq == 65538
+    late = _TelemetryJoiner()
+    sample = _join(late, 40000, near=65538 - 6000, at_unix_s=123.0)   # made a minute before the newest live one
+    assert sample.seq == 40000 and sample.received_unix_s == 123.0
+    assert _join(late, 1000, near=65538 + 1000).seq == 65536 + 1000

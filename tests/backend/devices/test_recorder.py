@@ -46,8 +46,8 @@ def test_only_a_recording_device_is_kept_and_end_writes_everything(recording):
     recorder.note_status("leg", "active", (3, 0xABC))
     recorder.note_status("leg", "active", (3, 0xABC))
     recorder.note_status("other", "safe", None)
-    reports = recorder.end("leg")
-    assert reports == {("active", (3, 0xABC)): 2} and recorder.session_of("leg") is None
+    reports, late = recorder.end("leg")
+    assert reports == {("active", (3, 0xABC)): 2} and late == 0 and recorder.session_of("leg") is None
     with pooled(pool) as conn:
         assert sessions.samples(conn, sid)["seq"] == [1, 2, 3, 4, 5]
     recorder.add("leg", _sample(6))                         # after end: not recorded
@@ -83,3 +83,20 @@ def test_the_periodic_flush_writes_whole_seconds_and_a_silent_legs_last_second(r
     recorder.flush(whole_seconds=True)
     with pooled(pool) as conn:
         assert sessions.samples(conn, sid)["seq"] == list(range(150))        # a silent leg's last second is written
+
+
+def test_late_samples_fill_the_seconds_already_written_and_are_counted(recording):
+    """A link down for a while: the live stream jumps past the gap, the bridge's buffer fills it afterwards."""
+    pool, recorder, sid = recording
+    recorder.begin("leg", sid)
+    for seq in [*range(0, 250), *range(6250, 6400)]:        # 60 s missing in the live stream
+        recorder.add("leg", _sample(seq))
+    recorder.flush(whole_seconds=True)
+    for seq in range(250, 6250):                             # delivered late, oldest first
+        recorder.add("leg", _sample(seq), late=True)
+    recorder.add("leg", _sample(6300), late=True)            # one the live stream also brought: kept once
+    recorder.flush(whole_seconds=True)
+    _reports, late = recorder.end("leg")
+    assert late == 6001
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == list(range(6400))
