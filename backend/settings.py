@@ -7,12 +7,13 @@ the model layer sits below the backend and is used without a server.
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import Field, SecretStr, field_validator
+from pydantic import Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 DB_FILE = "quasitune.sqlite"
@@ -56,6 +57,8 @@ class Settings(BaseSettings):
             through it. None: no broker (the embedded default).
         broker_username, broker_password: this API instance's identity at the broker (``quasitune broker add-server``).
         broker_ca_file: the CA that signed the broker's certificate (QuasiTune's own, made at the broker's first start).
+        broker_credentials: a credentials file (JSON ``username``, ``password``, ``ca_file``, as ``quasitune broker
+            add-server --out`` writes it) standing in for the three above, so the password is in no environment.
         broker_admin_username, broker_admin_password: the broker's admin identity, with which an admin's request
             registers, replaces or revokes a leg's credentials (Mosquitto's dynamic security); None: not from the API.
         instance_name: this API instance's name at the broker (its MQTT client ids); default ``HOSTNAME-PID``.
@@ -89,6 +92,7 @@ class Settings(BaseSettings):
     broker_username: str | None = None
     broker_password: SecretStr | None = None
     broker_ca_file: Path | None = None
+    broker_credentials: Path | None = None
     broker_admin_username: str | None = None
     broker_admin_password: SecretStr | None = None
     instance_name: str = Field(default_factory=lambda: f"{socket.gethostname()}-{os.getpid()}", min_length=1,
@@ -105,6 +109,23 @@ class Settings(BaseSettings):
     def _split_addresses(cls, value: object) -> object:
         """``"10.0.0.2, 10.0.0.3"`` from the environment becomes ``("10.0.0.2", "10.0.0.3")``."""
         return tuple(value.replace(",", " ").split()) if isinstance(value, str) else value
+
+    @model_validator(mode="before")
+    @classmethod
+    def _credentials_file(cls, data: object) -> object:
+        """The broker identity from ``broker_credentials`` where the fields themselves are not given."""
+        if not isinstance(data, dict) or not data.get("broker_credentials"):
+            return data
+        path = Path(data["broker_credentials"])
+        try:
+            found = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"broker_credentials {path}: not a readable JSON file ({exc})") from None
+        if not isinstance(found, dict) or not all(isinstance(found.get(k), str) and found[k]
+                                                  for k in ("username", "password")):
+            raise ValueError(f"broker_credentials {path}: username and password are needed")
+        return {"broker_username": found["username"], "broker_password": found["password"],
+                **({"broker_ca_file": found["ca_file"]} if found.get("ca_file") else {}), **data}
 
     @field_validator("database_url")
     @classmethod

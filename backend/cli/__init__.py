@@ -1,6 +1,7 @@
 """The ``quasitune`` command line.
 
-Commands by area: the server (``serve``, ``users``, ``bridge``: :mod:`backend.cli.server`), the model (``predict``,
+Commands by area: the server (``serve``, ``users``, ``bridge``: :mod:`backend.cli.server`; ``broker``:
+:mod:`backend.cli.broker`), the model (``predict``,
 ``plot``, ``train``, ``evaluate``, ``envelope``: :mod:`backend.cli.model`), the simulated bench (``simulate``, ``compare``:
 :mod:`backend.cli.simulation`) and the device link (``device soak|drill``: :mod:`backend.cli.device`). Bad input
 exits with code 2 and a one-line reason on stderr. Benchmarks are not commands of the app: ``python -m benchmarks``.
@@ -11,14 +12,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from backend.cli import device, model, server, simulation
+from backend.cli import broker, device, model, server, simulation
 from controller_core import InvalidTaskError, SafetyLimitError
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="quasitune", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
-    for area in (server, device, model, simulation):
+    for area in (server, broker, device, model, simulation):
         area.add_commands(sub)
     return parser
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -186,25 +187,50 @@ def _credentials(path: Path) -> dict:
     return found
 
 
+def _state_dir() -> Path:
+    """Where a bridge keeps what waits for its link: ``$XDG_STATE_HOME/quasitune`` (``~/.local/state/quasitune``)."""
+    return Path(os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state") / "quasitune"
+
+
 def cmd_bridge(args: argparse.Namespace) -> int:
     from device_bridge.buses import open_bus
     from device_bridge.gateway import Gateway
 
     if args.broker:
+        from device_bridge.late_buffer import LateBuffer
         from device_bridge.mqtt_bus import MqttBus
 
         if args.device_id is None or args.credentials is None:
             raise ValueError("--broker needs --device-id and --credentials")
+        if not (isinstance(args.buffer_mb, int) and 1 <= args.buffer_mb <= 65536):
+            raise ValueError(f"--buffer-mb must be a whole number of MiB in [1, 65536], got {args.buffer_mb!r}")
         who = _credentials(args.credentials)
+        path = args.buffer or _state_dir() / f"bridge-{args.device_id}-late.sqlite"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        buffer = LateBuffer(path, max_bytes=args.buffer_mb * 1024 * 1024)
+        if len(buffer):
+            print(f"QuasiTune bridge: {len(buffer)} message(s) kept from before, delivered once connected", flush=True)
         far = MqttBus(args.device_id, args.broker, who["username"], who["password"], role="device",
-                      ca_file=who.get("ca_file"))
-        to = f"{args.broker} as {args.device_id}"
+                      ca_file=who.get("ca_file"), late_buffer=buffer)
+        to = f"{args.broker} as {args.device_id} (buffer {path}, at most {args.buffer_mb} MiB)"
     else:
         far, to = open_bus(args.to), args.to
         if args.to.startswith("udp_multicast"):
             print("WARNING: udp_multicast has no identity and no encryption: an isolated bench network only; "
                   "use --broker for a leg anywhere else", file=sys.stderr, flush=True)
-    gateway = Gateway(open_bus(args.can), far).start()
+    node = None
+    leg_bus = args.can
+    if args.can == "sim":   # the simulated leg as a device of its own, its patient standing on it (demos, benches)
+        import can
+
+        from device_bridge.device_node import DeviceNode
+        from device_bridge.sim.walker import SimWalker
+
+        leg_bus = f"virtual:quasitune-bridge-sim-{os.getpid()}"
+        walker = SimWalker()
+        walker.stand(args.mass)
+        node = DeviceNode(can.Bus(interface="virtual", channel=leg_bus.split(":", 1)[1]), leg=walker).start()
+    gateway = Gateway(open_bus(leg_bus), far).start()
     print(f"QuasiTune bridge: {args.can} <-> {to}", flush=True)
     try:
         gateway.wait()
@@ -212,6 +238,8 @@ def cmd_bridge(args: argparse.Namespace) -> int:
         pass
     finally:
         gateway.close()
+        if node is not None:
+            node.close()
     return 0
 
 
@@ -241,7 +269,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_serve)
     p = sub.add_parser("bridge", help="forward frames between the leg's CAN bus and the servers: through an MQTT "
                                       "broker over TLS (--broker), or another python-can bus (--to)")
-    p.add_argument("--can", required=True, help="the leg's bus, INTERFACE:CHANNEL (e.g. socketcan:can0)")
+    p.add_argument("--can", required=True, help="the leg's bus, INTERFACE:CHANNEL (e.g. socketcan:can0), or 'sim': the "
+                                                 "simulated leg in this process, its patient standing on it")
+    p.add_argument("--mass", type=float, default=75.0, help="with --can sim: the standing patient's body mass (kg)")
     p.add_argument("--broker", default=None, help="mqtts://HOST:PORT: connect out to the broker as this leg")
     p.add_argument("--device-id", default=None, help="the leg's id at the broker (with --broker)")
     p.add_argument("--credentials", type=Path, default=None,
@@ -249,6 +279,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--to", default="udp_multicast:239.74.163.2",
                    help="without --broker: the bus 'quasitune serve --device' uses (udp_multicast: an isolated "
                         "bench network only, it has no identity and no encryption)")
+    p.add_argument("--buffer", type=Path, default=None,
+                   help="with --broker: the file where the leg's messages wait while the broker is out of reach "
+                        "(default $XDG_STATE_HOME/quasitune/bridge-ID-late.sqlite); delivered late on reconnection")
+    p.add_argument("--buffer-mb", type=int, default=64,
+                   help="with --broker: the most the buffer holds (MiB, default 64: about four hours of walking); "
+                        "past it the oldest messages go first")
     p.set_defaults(func=cmd_bridge)
     p = sub.add_parser("db", help="the database's schema")
     db_sub = p.add_subparsers(dest="db_command", required=True)

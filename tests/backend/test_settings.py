@@ -51,7 +51,9 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
            "DATABASE_URL": "postgresql://qt:secret@db.example:5432/quasitune",
            "BROKER_URL": "mqtts://broker.example:8883", "BROKER_USERNAME": "server-a", "BROKER_PASSWORD": "pw",
            "BROKER_CA_FILE": str(tmp_path / "ca.crt"), "BROKER_ADMIN_USERNAME": "admin",
-           "BROKER_ADMIN_PASSWORD": "admin pw", "INSTANCE_NAME": "api-a"}
+           "BROKER_ADMIN_PASSWORD": "admin pw", "INSTANCE_NAME": "api-a",
+           "BROKER_CREDENTIALS": str(tmp_path / "identity.json")}
+    (tmp_path / "identity.json").write_text('{"username": "from-file", "password": "file pw"}')
     for name, value in env.items():
         monkeypatch.setenv(f"QUASITUNE_{name}", value)
     s = Settings()
@@ -64,6 +66,7 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
     assert s.database_url == "postgresql+psycopg://qt:secret@db.example:5432/quasitune"   # psycopg 3 always
     assert s.database_shown == "postgresql+psycopg://qt:***@db.example:5432/quasitune"      # never the password
     assert s.broker_password.get_secret_value() == "pw" and "pw" not in repr(s) and s.instance_name == "api-a"
+    assert s.broker_username == "server-a"                 # what is given outright wins over the credentials file
     assert s.given("device")
     flags = Settings(device="none", token_ttl_s=120)
     assert flags.device == "none" and flags.token_ttl_s == 120 and flags.request_threads == 4
@@ -83,3 +86,18 @@ def test_one_version_string_the_packages():
     from importlib.metadata import version
 
     assert __version__ == version("quasitune") and __version__ != "unknown"
+
+
+def test_the_brokers_identity_from_a_credentials_file_and_a_bad_file_refused(tmp_path):
+    good = tmp_path / "api1.json"
+    good.write_text('{"username": "api1", "password": "a long one", "ca_file": "/broker-ca/ca.crt"}')
+    s = Settings(broker_credentials=good)
+    assert (s.broker_username, s.broker_password.get_secret_value(), s.broker_ca_file) == \
+        ("api1", "a long one", Path("/broker-ca/ca.crt"))
+    for text, why in (("not json", "not a readable JSON file"), ('{"username": "api1"}', "password are needed")):
+        bad = tmp_path / "bad.json"
+        bad.write_text(text)
+        with pytest.raises(ValueError, match=why):
+            Settings(broker_credentials=bad)
+    with pytest.raises(ValueError, match="not a readable"):
+        Settings(broker_credentials=tmp_path / "missing.json")
