@@ -73,7 +73,7 @@ class DeviceManager:
         self._bus_options = bus_options or {}   # per interface: the broker link's address and identity
         self._bench_leg = bench_leg   # the simulated leg's leg and person (None: the nominal bench)
         self._devices: dict[str, ManagedDevice] = {}
-        self.recorder = SessionRecorder(db)
+        self.recorder = SessionRecorder(db, tuple(spec.device_id for spec in specs))
 
     def start(self) -> DeviceManager:
         with pooled(self.db) as conn:

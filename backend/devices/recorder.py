@@ -5,12 +5,19 @@ times, which on PostgreSQL leaves dead row versions behind). A second still fill
 until no sample has come for :data:`STALE_S` (a leg that stopped sending); stopping a session writes everything.
 What a crash of the server can lose is the second being filled (at most about 1.25 s of samples).
 
+Several API instances reach one leg through the broker and any of them may start or stop its session: every instance's
+recorder looks, every :data:`SYNC_PERIOD_S`, for the sessions its devices have open in the database and records them
+too (the store merges the instances' writes by sequence number, so each sample is stored once). A session stopped
+elsewhere is dropped here without writing what is left: the stopping instance received the same samples and wrote them
+before it summarised the session.
+
 Samples the leg's bridge kept while its link was down arrive *late* (:meth:`SessionRecorder.add` with ``late=True``):
 they belong to seconds long written, so they are kept apart and written at the next flush, merged into those seconds
 by sequence number (the store keeps a sample it already has as it was)."""
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections import Counter
@@ -22,14 +29,18 @@ from backend.store import sessions as store
 from backend.store.sample_pack import second_of
 
 FLUSH_PERIOD_S = 0.25
+SYNC_PERIOD_S = 1.0   # how often the sessions open in the database are looked up (several instances)
+log = logging.getLogger(__name__)
 STALE_S = 1.0     # a second still filling is written anyway once no sample has come for this long
 
 
 class SessionRecorder:
     """Buffers each device's samples for the session it records and writes them in batches."""
 
-    def __init__(self, db: Engine) -> None:
+    def __init__(self, db: Engine, device_ids: tuple[str, ...] = ()) -> None:
         self._db = db
+        self._device_ids = tuple(device_ids)      # looked up in the database every SYNC_PERIOD_S (none: never)
+        self._ended: set[int] = set()             # sessions this instance stopped: never taken up again
         self._recording: dict[str, int] = {}        # device id → session id
         self._reports: dict[str, Counter] = {}      # device id → (mode, (version, crc) or None) → status reports
         self._buffers: dict[str, list[tuple]] = {}
@@ -56,6 +67,8 @@ class SessionRecorder:
 
     def begin(self, device_id: str, session_id: int) -> None:
         with self._lock:
+            if self._recording.get(device_id) == session_id:   # already taken up (from the database, or twice)
+                return
             self._recording[device_id] = session_id
             self._buffers[device_id] = []
             self._late[device_id] = []
@@ -68,7 +81,9 @@ class SessionRecorder:
         many of its samples arrived late."""
         self.flush()
         with self._lock:
-            self._recording.pop(device_id, None)
+            session_id = self._recording.pop(device_id, None)
+            if session_id is not None:
+                self._ended.add(session_id)
             self._buffers.pop(device_id, None)
             self._late.pop(device_id, None)
             self._last_sample.pop(device_id, None)
@@ -99,7 +114,8 @@ class SessionRecorder:
     def flush(self, whole_seconds: bool = False) -> None:
         """Write the buffered samples (``whole_seconds``: only the seconds already complete, and a second still filling
         only once its leg has been silent for :data:`STALE_S`); a flush already writing is waited for, so nothing is
-        read half-written."""
+        read half-written. A write that fails (the database away for a moment) puts its samples back for the next
+        flush, and raises."""
         with self._write_lock:
             with self._lock:
                 batches = []
@@ -112,14 +128,56 @@ class SessionRecorder:
                         rows = [r for r in rows if second_of(int(r[0])) < filling]
                     late, self._late[d] = self._late[d], []
                     if rows or late:
-                        batches.append((self._recording[d], late + rows))
+                        batches.append((d, self._recording[d], late + rows))
                     self._buffers[d] = keep
             if not batches:
                 return
-            with pooled(self._db) as conn:
-                for session_id, rows in batches:
-                    store.add_samples(conn, session_id, rows)
+            written = 0
+            try:
+                with pooled(self._db) as conn:
+                    for _, session_id, rows in batches:
+                        store.add_samples(conn, session_id, rows)
+                        written += 1
+            except BaseException:
+                with self._lock:   # back in front of what arrived meanwhile; the store merges by sequence number
+                    for d, session_id, rows in batches[written:]:
+                        if self._recording.get(d) == session_id:
+                            self._late[d] = rows + self._late[d]
+                raise
+
+    def sync(self) -> None:
+        """Take up the sessions the database has open for this instance's devices (started on another instance) and
+        drop those stopped elsewhere (see the module docstring)."""
+        with pooled(self._db) as conn:
+            open_now = store.recording_sessions(conn, self._device_ids)
+        with self._lock:
+            ours = dict(self._recording)
+        for device_id, session_id in open_now.items():
+            if ours.get(device_id) != session_id and session_id not in self._ended:
+                self.begin(device_id, session_id)
+        for device_id, session_id in ours.items():
+            if open_now.get(device_id) != session_id:
+                self._drop(device_id, session_id)
+
+    def _drop(self, device_id: str, session_id: int) -> None:
+        """Stop recording a session stopped elsewhere, writing nothing more (its stopping instance wrote it)."""
+        with self._write_lock, self._lock:
+            if self._recording.get(device_id) != session_id:
+                return
+            del self._recording[device_id]
+            for held in (self._buffers, self._late, self._last_sample, self._reports, self._late_counts):
+                held.pop(device_id, None)
 
     def _run(self) -> None:
+        next_sync = 0.0
         while not self._stop.wait(FLUSH_PERIOD_S):
-            self.flush(whole_seconds=True)
+            if self._device_ids and time.monotonic() >= next_sync:
+                next_sync = time.monotonic() + SYNC_PERIOD_S
+                try:
+                    self.sync()
+                except Exception:   # the database away for a moment: the next look tries again
+                    log.exception("session recorder: looking up the open sessions failed")
+            try:
+                self.flush(whole_seconds=True)
+            except Exception:
+                log.exception("session recorder: writing samples failed; they are written at the next flush")

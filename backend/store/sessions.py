@@ -110,6 +110,15 @@ def start_session(conn: Connection, patient_id: int, device_id: str, task: dict,
 SAMPLE_COLUMNS = sample_pack.COLUMNS   # (the adaptive leg's task columns are None while a single table runs)
 
 
+def recording_sessions(conn: Connection, device_ids: Iterable[str]) -> dict[str, int]:
+    """The session each of ``device_ids`` records now, if any (device id → session id)."""
+    ids = list(device_ids)
+    if not ids:
+        return {}
+    rows = conn.execute(select(_s.c.device_id, _s.c.id).where(_s.c.device_id.in_(ids), _s.c.status == "recording"))
+    return {device_id: int(session_id) for device_id, session_id in rows}
+
+
 def add_samples(conn: Connection, session_id: int, rows: Iterable[tuple]) -> None:
     """Append samples (tuples in :data:`SAMPLE_COLUMNS` order) to a recording session, one stored row per second of
     walking. A sample already stored (the same sequence number: a retried batch) is kept as it was; anything malformed

@@ -12,7 +12,7 @@ import pytest
 from backend.store import sessions as sessions_store
 from device_bridge.broker_admin import BrokerAdmin
 from device_bridge.protocol import Mode
-from tests.helpers.api import approved_proposal, push_to_leg, wait_for, walk_preview
+from tests.helpers.api import approved_proposal, assign, push_to_leg, wait_for, walk_preview
 from tests.helpers.bridged_leg import bridged_leg, broker_app
 from tests.helpers.mosquitto import ADMIN, MosquittoBroker
 
@@ -145,3 +145,58 @@ def test_a_push_cut_mid_way_ends_whole_or_not_at_all_and_the_api_says_which(home
     if on_leg == held:                                                  # not at all: the first table runs on, whole
         first_now = api.client.get(f"/api/proposals/{first['id']}", headers=api.as_("prosthetist")).json()
         assert first_now["deployment"] == "active_on_device"
+
+
+@pytest.fixture
+def two_instances(own_broker, tmp_path, model, migrated_sqlite):
+    """The leg behind its bridge, and two API instances on one database, each with its own identity at the broker."""
+    from fastapi.testclient import TestClient
+
+    from backend.app import create_app
+    from backend.settings import Settings
+
+    admin = BrokerAdmin(own_broker.url, ADMIN, own_broker.admin_password, own_broker.ca_file)
+    try:
+        with bridged_leg(own_broker, admin, tmp_path, LEG) as leg, \
+                broker_app(own_broker, admin, tmp_path, model, migrated_sqlite, LEG) as api:
+            second = TestClient(create_app(Settings(
+                data_dir=tmp_path / "one", device=f"mqtt:{LEG}", broker_url=own_broker.url,
+                broker_username="server-two", broker_password=admin.add_server("server-two"),
+                broker_ca_file=own_broker.ca_file, instance_name="two"), model_loader=lambda: model))
+            with second:
+                yield leg, api, second
+    finally:
+        admin.close()
+
+
+def test_two_instances_each_see_the_leg_and_a_session_started_on_one_is_stopped_whole_on_the_other(two_instances):
+    _leg, api, second = two_instances
+    pro = api.as_("prosthetist")
+    prop = approved_proposal(api)
+    assign(api, prop["patient_id"], LEG)
+    r = second.post(f"/api/proposals/{prop['id']}/push", headers=pro, json={
+        "device_id": LEG, "replaces_proposal_id": None, "replaces_envelope_id": None, "patient_ready": True})
+    assert r.status_code == 201, r.text                                    # pushed through the second instance
+    for client in (api.client, second):                                    # both see the leg run it
+        wait_for(lambda c=client: c.get(f"/api/devices/{LEG}", headers=pro).json(),
+                 lambda d: d["online"] and d["active_table"] is not None and d["active_table"]["proposal_id"] ==
+                 prop["id"])
+    token = pro["Authorization"].split()[1]
+    for client in (api.client, second):                                    # a live monitor on either instance
+        with client.websocket_connect(f"/api/devices/{LEG}/telemetry?token={token}") as ws:
+            assert any(ws.receive_json()["type"] == "telemetry" for _ in range(30))
+    r = api.client.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro,
+                        json={"device_id": LEG, "speed_mps": 1.2})
+    assert r.status_code == 201, r.text
+    session_id = r.json()["id"]
+    wait_for(lambda: second.get(f"/api/devices/{LEG}", headers=pro).json(),
+             lambda d: d["recording_session_id"] == session_id)              # the other instance records it too
+    time.sleep(2.5)
+    r = second.post(f"/api/sessions/{session_id}/stop", headers=pro)        # stopped where it was not started
+    assert r.status_code == 200, r.text
+    summary = r.json()["summary"]
+    with api.db() as conn:
+        seqs = sessions_store.samples(conn, session_id)["seq"]
+    assert len(seqs) >= 200 and summary["missing_samples"] == 0 and seqs == list(range(seqs[0], seqs[-1] + 1))
+    wait_for(lambda: api.client.get(f"/api/devices/{LEG}", headers=pro).json(),
+             lambda d: d["recording_session_id"] is None)                    # the starter let go of it

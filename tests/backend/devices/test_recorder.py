@@ -100,3 +100,44 @@ def test_late_samples_fill_the_seconds_already_written_and_are_counted(recording
     assert late == 6001
     with pooled(pool) as conn:
         assert sessions.samples(conn, sid)["seq"] == list(range(6400))
+
+
+def test_a_session_started_on_another_instance_is_taken_up_and_one_stopped_there_dropped(recording):
+    """Two instances, one leg: both record its open session (each sample stored once), and the one that did not stop it
+    drops what it still holds (the stopping instance wrote the same samples)."""
+    pool, first, sid = recording
+    second = SessionRecorder(pool, device_ids=("leg",))
+    second.sync()                                            # the session open in the database: taken up
+    assert second.session_of("leg") == sid
+    first.begin("leg", sid)
+    for seq in range(0, 120):                                # both instances receive every sample
+        first.add("leg", _sample(seq))
+        second.add("leg", _sample(seq))
+    second.flush()
+    first.end("leg")                                         # stopped on the first instance
+    with pooled(pool) as conn:
+        sessions.stop_session(conn, sid, {"strides": 0}, users.User(1, "pat", "prosthetist"))
+        assert sessions.samples(conn, sid)["seq"] == list(range(120))
+    second.add("leg", _sample(120))
+    second.sync()
+    assert second.session_of("leg") is None
+    second.flush()
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == list(range(120))   # nothing after the stop
+    first.sync()                                             # the stopping instance does not take it up again
+    assert first.session_of("leg") is None
+
+
+def test_a_failed_write_keeps_its_samples_for_the_next_flush(recording, monkeypatch):
+    pool, recorder, sid = recording
+    recorder.begin("leg", sid)
+    for seq in range(5):
+        recorder.add("leg", _sample(seq))
+    real = sessions.add_samples
+    monkeypatch.setattr(sessions, "add_samples", lambda *a, **k: (_ for _ in ()).throw(RuntimeError("database away")))
+    with pytest.raises(RuntimeError, match="away"):
+        recorder.flush()
+    monkeypatch.setattr(sessions, "add_samples", real)
+    recorder.flush()
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == list(range(5))
