@@ -1,4 +1,4 @@
-"""``python -m benchmarks {model,api,device,envelope,instances,refine,storage,ui} [options]``: one benchmark, its
+"""``python -m benchmarks {model,api,device,envelope,instances,link,refine,storage,ui} [options]``: one benchmark, its
 figures as JSON."""
 
 from __future__ import annotations
@@ -30,6 +30,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--clients", type=int, default=20)
     p.add_argument("--seconds", type=float, default=20.0, help="measured per configuration (s)")
     p.add_argument("--kill-seconds", type=float, default=60.0, help="the run with two SIGKILLs (s)")
+    p = sub.add_parser("link", help="the leg's link through a broker over TLS: pushes, a soak with broker restarts, "
+                                    "a link loss mid-session in both lost-link modes")
+    p.add_argument("--pushes", type=int, default=100, help="pushes of each kind (25-node envelope, table)")
+    p.add_argument("--trials", type=int, default=500, help="soak pushes with bus faults and broker restarts")
+    p.add_argument("--restart-every", type=int, default=50, help="the broker is restarted every this many trials")
+    p.add_argument("--cut-seconds", type=float, default=60.0, help="the link loss in the middle of a session (s)")
     p = sub.add_parser("storage", help="bytes and read-back time of an hour of telemetry on SQLite and PostgreSQL")
     p.add_argument("--record-seconds", type=float, default=60.0, help="walking recorded by a real server (s)")
     p.add_argument("--hours", type=float, default=1.0, help="walking hours written from that recording")
@@ -49,6 +55,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.instances import run
 
         result = run(args.clients, args.seconds, args.kill_seconds)
+    elif args.name == "link":
+        from benchmarks.link import run
+
+        result = run(args.pushes, args.trials, args.restart_every, args.cut_seconds)
     elif args.name == "storage":
         from benchmarks.storage import run
 

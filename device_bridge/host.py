@@ -263,6 +263,16 @@ class DeviceLink(BusThreads):
         with self._send_lock:
             self.bus.send(msg)
 
+    def _send_all(self, frames: list[can.Message]) -> None:
+        """Frames back to back; in one message where the bus carries batches (the broker link: a transfer's hundreds
+        of frames as one MQTT message instead of hundreds)."""
+        with self._send_lock:
+            if callable(getattr(self.bus, "send_batch", None)):
+                self.bus.send_batch(frames)
+            else:
+                for f in frames:
+                    self.bus.send(f)
+
     def pause_heartbeat(self, paused: bool = True) -> None:
         """Stop (or resume) sending heartbeats: for tests and drills of the device's safe mode."""
         if paused:
@@ -385,7 +395,7 @@ class DeviceLink(BusThreads):
     # ------------------------------------------------------------------------------------------ push
 
     def push(self, table: ParameterTable, version: int, timeout_s: float = 2.0,
-             ack_timeout_s: float = 0.01) -> PushResult:
+             ack_timeout_s: float | None = None) -> PushResult:
         """Send ``table`` as ``version`` and wait until the device acknowledges its exact CRC-32.
 
         Args:
@@ -393,8 +403,10 @@ class DeviceLink(BusThreads):
             version: table version, 1–65535 (the backend uses the proposal id).
             timeout_s: give up after this long (s).
             ack_timeout_s: how long to wait for one acknowledgement before resending (s). The device answers
-                within its 1 ms control period; 10 ms leaves room for a busy host, and an answer that comes
-                later only costs a repeated commit, which the device answers again (it is idempotent).
+                within its 1 ms control period; 10 ms (default on a CAN bus) leaves room for a busy host, and an answer
+                that comes later only costs a repeated commit, which the device answers again (it is idempotent). A
+                bus with a ``round_trip_s`` (the broker link) is waited on at least that long: re-asking sooner than
+                the answer can come restarts whole transfers for nothing.
 
         Raises:
             ProtocolError: a value does not fit the wire format (nothing sent).
@@ -413,10 +425,10 @@ class DeviceLink(BusThreads):
         transfer = _Outgoing(crc, wire.frames, lambda tid: begin_frame(tid, version, crc),
                              lambda tid: commit_frame(tid, version, crc), resend, "table")
         with self._push_lock:
-            return self._push(transfer, version, timeout_s, ack_timeout_s)
+            return self._push(transfer, version, timeout_s, self._ack_wait(ack_timeout_s, 0.01))
 
     def push_envelope(self, envelope: Envelope, version: int, timeout_s: float = 3.0,
-                      ack_timeout_s: float = 0.02) -> PushResult:
+                      ack_timeout_s: float | None = None) -> PushResult:
         """Send a whole envelope as ``version`` and wait until the device acknowledges its exact CRC-32 (all or
         nothing: until then the device runs what it ran before).
 
@@ -434,7 +446,11 @@ class DeviceLink(BusThreads):
         transfer = _Outgoing(crc, wire.frames, lambda tid: envelope_begin_frame(tid, version, crc, shape),
                              lambda tid: envelope_commit_frame(tid, version, crc, shape), resend, "envelope")
         with self._push_lock:
-            return self._push(transfer, version, timeout_s, ack_timeout_s)
+            return self._push(transfer, version, timeout_s, self._ack_wait(ack_timeout_s, 0.02))
+
+    def _ack_wait(self, given: float | None, on_can_s: float) -> float:
+        """The acknowledgement wait: as given, else ``on_can_s`` or the bus's own round trip if longer."""
+        return given if given is not None else max(on_can_s, float(getattr(self.bus, "round_trip_s", 0.0)))
 
     def _next_transfer_id(self) -> int:
         self._transfer_id = (self._transfer_id + 1) % TRANSFER_IDS
@@ -472,11 +488,8 @@ class DeviceLink(BusThreads):
             attempts += 1
             tid = self._next_transfer_id()
             frames = transfer.frames(tid)
-            self._send(transfer.begin(tid))
-            for f in frames:
-                self._send(f)
             commit = transfer.commit(tid)
-            self._send(commit)
+            self._send_all([transfer.begin(tid), *frames, commit])
             silent = 0
             while time.monotonic() < deadline:
                 ack = self._wait_ack(tid, version, min(deadline, time.monotonic() + ack_timeout_s))
@@ -496,9 +509,7 @@ class DeviceLink(BusThreads):
                     continue
                 if result == AckResult.MISSING_ROWS:
                     again, last_reason = transfer.resend(frames, ack)
-                    for f in again:
-                        self._send(f)
-                    self._send(commit)
+                    self._send_all([*again, commit])
                     continue
                 if result == AckResult.SAFETY_LIMIT:
                     rule = " or two neighbouring nodes break the neighbour rule" if transfer.kind == "envelope" else ""

@@ -152,6 +152,10 @@ class MqttBus(can.BusABC):
             unset, late messages are counted in :attr:`late_unclaimed` and dropped.
     """
 
+    # how long a push waits for the leg's acknowledgement before asking again (s): a TLS round trip through a broker
+    # across the internet, not a CAN bus's millisecond (device_bridge.host.DeviceLink reads it)
+    round_trip_s = 0.25
+
     def __init__(self, channel: str, broker: str, username: str, password: str, role: Role = "server",
                  ca_file: str | None = None, instance: str | None = None, insecure: bool = False,
                  connect_timeout_s: float = 10.0, late_buffer: LateBuffer | None = None, **kwargs: object) -> None:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import itertools
 import statistics
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import can
@@ -76,42 +76,52 @@ def soak(items: Sequence[ParameterTable | Envelope], trials: int, drop: float, c
         raise ValueError(f"trials must be in [1, 100000], got {trials!r}")
     if len(items) < 2:
         raise ValueError("the soak needs at least two different tables or envelopes to tell the old from the new")
-    known = [_Known.of(t) for t in items]
     channel = _channel("soak")
     node = DeviceNode(FaultInjectingBus(can.Bus(interface="virtual", channel=channel), drop, corrupt, reorder,
                                         seed=seed)).start()
     host_bus = FaultInjectingBus(can.Bus(interface="virtual", channel=channel), drop, corrupt, reorder, seed=seed + 1)
     link = DeviceLink(host_bus).start()
-    counts = {"committed": 0, "kept_old": 0, "committed_unconfirmed": 0, "mixed": 0, "crc_mismatch": 0}
-    push_ms: list[float] = []
     try:
-        old: _Known | None = None
-        for i in range(trials):
-            new = known[i % len(known)]
-            if new is old:
-                new = known[(i + 1) % len(known)]
-            version = i % 0xFFFF + 1
-            t0 = time.monotonic()
-            try:
-                result = new.push(link, version, push_timeout_s)
-                ok_crc: int | None = result.crc32
-                push_ms.append(result.elapsed_ms)
-            except PushError:
-                ok_crc = None
-                push_ms.append((time.monotonic() - t0) * 1e3)
-            snap = _settled(node)
-            counts[_classify(snap.active, snap.staged, old, new, ok_crc)] += 1
-            if snap.active is not None and new.held_as(snap.active):
-                old = new
+        counts = soak_link(link, node, items, trials, push_timeout_s)
     finally:
         link.close()
         node.close()
+    return {**counts, "faults": {"drop": drop, "corrupt": corrupt, "reorder": reorder, "seed": seed},
+            "frames": {"host": host_bus.counts}}
+
+
+def soak_link(link: DeviceLink, node: DeviceNode, items: Sequence[ParameterTable | Envelope], trials: int,
+              push_timeout_s: float = 2.0, between: Callable[[int], None] | None = None) -> dict:
+    """The soak's trials over a link and device node set up by the caller (a faulty bus, a broker between them …):
+    ``between(i)`` runs before trial ``i`` (a broker restart, say). Outcomes as in the module docstring, with the
+    push times (ms) of every trial, given up or not."""
+    known = [_Known.of(t) for t in items]
+    counts = {"committed": 0, "kept_old": 0, "committed_unconfirmed": 0, "mixed": 0, "crc_mismatch": 0}
+    push_ms: list[float] = []
+    old: _Known | None = None
+    for i in range(trials):
+        if between is not None:
+            between(i)
+        new = known[i % len(known)]
+        if new is old:
+            new = known[(i + 1) % len(known)]
+        version = i % 0xFFFF + 1
+        t0 = time.monotonic()
+        try:
+            result = new.push(link, version, push_timeout_s)
+            ok_crc: int | None = result.crc32
+            push_ms.append(result.elapsed_ms)
+        except PushError:
+            ok_crc = None
+            push_ms.append((time.monotonic() - t0) * 1e3)
+        snap = _settled(node)
+        counts[_classify(snap.active, snap.staged, old, new, ok_crc)] += 1
+        if snap.active is not None and new.held_as(snap.active):
+            old = new
     ordered = sorted(push_ms)
     return {"trials": trials, **counts,
             "median_push_ms": round(statistics.median(ordered), 3),
-            "p99_push_ms": round(ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))], 3),
-            "faults": {"drop": drop, "corrupt": corrupt, "reorder": reorder, "seed": seed},
-            "frames": {"host": host_bus.counts}}
+            "p99_push_ms": round(ordered[min(len(ordered) - 1, int(0.99 * len(ordered)))], 3)}
 
 
 def _settled(node: DeviceNode, wait_s: float = 0.05):
