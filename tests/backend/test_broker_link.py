@@ -12,7 +12,16 @@ import pytest
 from backend.store import sessions as sessions_store
 from device_bridge.broker_admin import BrokerAdmin
 from device_bridge.protocol import Mode
-from tests.helpers.api import approved_proposal, assign, push_to_leg, wait_for, walk_preview
+from tests.backend.routers.test_pushes import approved_envelope
+from tests.helpers.api import (
+    FIXTURE_OVERRIDE,
+    approved_proposal,
+    assign,
+    push_body,
+    push_to_leg,
+    wait_for,
+    walk_preview,
+)
 from tests.helpers.bridged_leg import bridged_leg, broker_app
 from tests.helpers.mosquitto import ADMIN, MosquittoBroker
 
@@ -45,12 +54,23 @@ def _device(api) -> dict:
     return api.client.get(f"/api/devices/{LEG}", headers=api.as_("prosthetist")).json()
 
 
-def _walking_session(api, leg) -> int:
-    prop = approved_proposal(api)
-    r = push_to_leg(api, prop, device=LEG)
+def _walking_session(api, leg, envelope: bool = False) -> int:
+    """A session on the leg running an approved table (or ``envelope``: an approved 5 × 5 envelope)."""
+    if envelope:
+        patient = api.new_patient()
+        env = approved_envelope(api, patient["id"])
+        assign(api, patient["id"], LEG)
+        r = api.client.post(f"/api/envelopes/{env['id']}/push", headers=api.as_("prosthetist"),
+                            json={**push_body(api, LEG), "override_reason": FIXTURE_OVERRIDE})
+        patient_id = patient["id"]
+    else:
+        prop = approved_proposal(api)
+        r = push_to_leg(api, prop, device=LEG)
+        patient_id = prop["patient_id"]
     assert r.status_code == 201, r.text
-    wait_for(lambda: _device(api), lambda d: d["mode"] == "active" and d["active_table"] is not None)
-    r = api.client.post(f"/api/patients/{prop['patient_id']}/sessions", headers=api.as_("prosthetist"),
+    kind = "envelope" if envelope else "table"
+    wait_for(lambda: _device(api), lambda d: d["mode"] == "active" and (d["active_table"] or {}).get("kind") == kind)
+    r = api.client.post(f"/api/patients/{patient_id}/sessions", headers=api.as_("prosthetist"),
                         json={"device_id": LEG, "speed_mps": 1.2})
     assert r.status_code == 201, r.text
     return r.json()["id"]
@@ -97,16 +117,17 @@ def test_a_supervised_leg_goes_safe_when_the_link_is_cut_and_back_when_the_host_
     _recorded_without_gaps(api, session_id, _stop(api, session_id))
 
 
-def test_an_autonomous_leg_never_leaves_its_table_and_the_session_keeps_every_sample(home):
+def test_an_autonomous_leg_never_leaves_its_envelope_and_the_session_keeps_every_sample(home):
     broker, leg, api = home
     r = api.client.put(f"/api/devices/{LEG}/link-mode", headers=api.as_("prosthetist"),
                        json={"link_mode": "autonomous", "reason": "home use, away from the clinic's server"})
     assert r.status_code == 200
-    session_id = _walking_session(api, leg)
+    session_id = _walking_session(api, leg, envelope=True)
     wait_for(lambda: _device(api), lambda d: d["link_mode_on_device"] == "autonomous")
+    running = leg.node.snapshot().active.crc32
     time.sleep(1.0)
     modes = _cut(broker, leg, CUT_S)
-    assert set(modes) == {Mode.ACTIVE}
+    assert set(modes) == {Mode.ACTIVE} and leg.node.snapshot().active.crc32 == running   # the envelope ran on
     wait_for(lambda: _device(api), lambda d: d["online"] and "heartbeat_lost" not in d["faults"], timeout_s=30.0)
     assert _device(api)["mode"] == "active"
     wait_for(lambda: leg.far, lambda far: len(far._late_buffer) == 0, timeout_s=30.0)
