@@ -14,9 +14,13 @@ that altered a frame is caught by the protocol exactly as a noisy bus is.
 * Batching: :meth:`MqttBus.send_batch` puts frames in one message. The bridge sends the frames the leg put on its bus
   within 2 ms of each other together, which is one telemetry sample (its three or four frames leave the leg
   back to back every 10 ms): 100 messages a second per walking leg instead of 300-400.
-* QoS 1 both ways (at least once: the protocol already tolerates a repeated frame, a repeated commit is answered
-  again and a repeated telemetry sample is joined once on its sequence number); persistent sessions, so the broker
-  keeps what arrives for a client that is briefly away.
+* **Up (the leg's frames): QoS 1**, persistent sessions: at least once (a repeated telemetry sample is joined once on
+  its sequence number, a repeated acknowledgement is an answer already had), so nothing the leg sent in the moment
+  the link broke is lost.
+* **Down (the server's frames): QoS 0**, at most once: a frame that cannot be delivered now must never be delivered
+  later. The protocol retries what matters itself (a transfer until its CRC is read back, the heartbeat every 20 ms),
+  and a stale one is harmful: a transfer the broker redelivered to a leg after a restart was staged again as a "new
+  table" and ended a supervised safe mode the host had not lifted (found by the link-cut test, 1 run in 10).
 * **Store and forward** (the leg's side, with a :class:`~device_bridge.late_buffer.LateBuffer`): while the broker is
   out of reach the leg's messages go to the bounded buffer on disk instead of into the link, each with the time it
   left the leg's bus; once the link is back they are delivered, oldest first, on ``…/{id}/late``: records of
@@ -24,7 +28,7 @@ that altered a frame is caught by the protocol exactly as a noisy bus is.
   telemetry from them for the session record (at the time each sample was made) and nothing else, since a status or
   an acknowledgement from a minute ago says nothing about the leg now.
 
-paho-mqtt (the Eclipse client) keeps the connection: TLS, reconnection with back-off, the QoS 1 retries.
+paho-mqtt (the Eclipse client) keeps the connection: TLS, reconnection with back-off, the QoS 1 retries upward.
 """
 
 from __future__ import annotations
@@ -249,9 +253,10 @@ class MqttBus(can.BusABC):
         self.send_batch([msg])
 
     def send_batch(self, frames: list[can.Message]) -> None:
-        """Frames in one message (QoS 1). While the link is down: the leg's side keeps them in its late buffer (without
-        one, paho keeps them in memory and sends them on reconnection); the server's side refuses them
-        (CanOperationError): a heartbeat, a command or a push frame from minutes ago must not reach the leg."""
+        """Frames in one message (up: QoS 1; down: QoS 0, see the module). While the link is down: the leg's side keeps
+        them in its late buffer (without one, paho keeps them in memory and sends them on reconnection); the server's
+        side refuses them (CanOperationError): a heartbeat, a command or a push frame from minutes ago must not reach
+        the leg."""
         payload = pack_frames(frames)
         if not self._connected.is_set():
             if self.role == "server":
@@ -259,7 +264,7 @@ class MqttBus(can.BusABC):
             if self._late_buffer is not None:
                 self._late_buffer.append(frames[0].timestamp or time.time(), payload)
                 return
-        info = self._client.publish(self._send_topic, payload, qos=1)
+        info = self._client.publish(self._send_topic, payload, qos=1 if self.role == "device" else 0)
         if info.rc not in (mqtt.MQTT_ERR_SUCCESS, mqtt.MQTT_ERR_NO_CONN):
             raise can.CanOperationError(f"{self.channel_info}: publish refused ({mqtt.error_string(info.rc)})")
 
