@@ -307,13 +307,7 @@ class DeviceLink(BusThreads):
                 if self._stop.is_set():
                     return
                 raise
-            if msg is None:
-                continue
-            try:
-                decoded = decode(msg)
-            except ProtocolError:
-                self.rx_errors += 1
-                continue
+            decoded = None if msg is None else self._decoded(msg)
             if decoded is None:
                 continue
             try:
@@ -321,6 +315,15 @@ class DeviceLink(BusThreads):
             except Exception:   # a failing callback must not stop the link (acknowledgements, heartbeats)
                 self.callback_errors += 1
                 log.exception("device link: a status or telemetry callback failed")
+
+    def _decoded(self, msg: can.Message) -> tuple[str, dict[str, int]] | None:
+        """A frame's message name and raw values; None for an id this protocol does not define, or a malformed frame
+        (counted in :attr:`rx_errors`)."""
+        try:
+            return decode(msg)
+        except ProtocolError:
+            self.rx_errors += 1
+            return None
 
     def _dispatch(self, name: str, raw: dict[str, int]) -> None:
         if name == "TABLE_ACK":
@@ -348,11 +351,7 @@ class DeviceLink(BusThreads):
         for at, frames in records:
             near = None if self._live is None else self._live[0] + round((at - self._live[1]) / TELEMETRY_PERIOD_S)
             for msg in frames:
-                try:
-                    decoded = decode(msg)
-                except ProtocolError:
-                    self.rx_errors += 1
-                    continue
+                decoded = self._decoded(msg)
                 if decoded is None:
                     continue
                 name, raw = decoded

@@ -1,0 +1,53 @@
+"""``quasitune bridge --can sim --broker …``: the simulated leg behind a bridge process of its own, reached through the
+broker as a real leg is (the command the deployment's ``bridge-sim`` service runs)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from controller_core.fsmic import fsmic_table
+from device_bridge.host import DeviceLink
+from device_bridge.mqtt_bus import MqttBus
+from device_bridge.protocol import Mode
+
+
+def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_pushes_to_it(broker, broker_admin,
+                                                                                          tmp_path):
+    credentials = tmp_path / "leg.json"
+    credentials.write_text(json.dumps({"username": "cli-bridge-leg", "password": broker_admin.add_device("cli-bridge-leg"),
+                                       "ca_file": broker.ca_file}))
+    proc = subprocess.Popen([sys.executable, "-m", "backend.cli", "bridge", "--can", "sim", "--broker", broker.url,
+                             "--device-id", "cli-bridge-leg", "--credentials", str(credentials),
+                             "--buffer", str(tmp_path / "late.sqlite"), "--buffer-mb", "4"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    link = None
+    try:
+        line = proc.stdout.readline()
+        assert "QuasiTune bridge: sim <->" in line and "at most 4 MiB" in line, proc.stderr.read()
+        link = DeviceLink(MqttBus("cli-bridge-leg", broker.url, "cli-bridge-server",
+                                  broker_admin.add_server("cli-bridge-server"), role="server",
+                                  ca_file=broker.ca_file)).start()
+        result = link.push(fsmic_table(75.0), version=3)
+        deadline = time.monotonic() + 10
+        while not (link.status and link.status.mode == Mode.ACTIVE and link.status.active_crc32 == result.crc32):
+            assert time.monotonic() < deadline, "the bridged leg did not report the table running"
+            time.sleep(0.05)
+    finally:
+        if link is not None:
+            link.close()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(10)
+    assert (tmp_path / "late.sqlite").exists()
+
+
+def test_a_bridge_refuses_a_buffer_bound_that_is_not_a_size(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "backend.cli", "bridge", "--can", "sim", "--broker",
+                        "mqtts://127.0.0.1:1", "--device-id", "x", "--credentials", str(tmp_path / "none.json"),
+                        "--buffer-mb", "0"], capture_output=True, text=True)
+    assert r.returncode == 2 and "--buffer-mb" in r.stderr
