@@ -351,7 +351,6 @@ class DeviceManager:
         if dev.fanout:
             dev.fanout.publish({"type": "telemetry", **x.to_json()})
 
-
     def _on_late_telemetry(self, dev: ManagedDevice, x: TelemetrySample) -> None:
         """A sample the leg's bridge kept while the link was down: for the session record only (the live monitor
         shows the leg now)."""
