@@ -40,14 +40,18 @@ def own_broker():
 
 
 @pytest.fixture
-def home(own_broker, tmp_path, model, migrated_sqlite):
+def own_admin(own_broker):
     admin = BrokerAdmin(own_broker.url, ADMIN, own_broker.admin_password, own_broker.ca_file)
-    try:
-        with bridged_leg(own_broker, admin, tmp_path, LEG) as leg, \
-                broker_app(own_broker, admin, tmp_path, model, migrated_sqlite, LEG) as api:
-            yield own_broker, leg, api
-    finally:
-        admin.close()
+    yield admin
+    admin.close()
+
+
+@pytest.fixture
+def home(own_broker, own_admin, tmp_path, model, migrated_sqlite):
+    """The leg behind its bridge, and an API instance reaching it through the broker."""
+    with bridged_leg(own_broker, own_admin, tmp_path, LEG) as leg, \
+            broker_app(own_broker, own_admin, tmp_path, model, migrated_sqlite, LEG) as api:
+        yield own_broker, leg, api
 
 
 def _device(api) -> dict:
@@ -169,25 +173,20 @@ def test_a_push_cut_mid_way_ends_whole_or_not_at_all_and_the_api_says_which(home
 
 
 @pytest.fixture
-def two_instances(own_broker, tmp_path, model, migrated_sqlite):
-    """The leg behind its bridge, and two API instances on one database, each with its own identity at the broker."""
+def two_instances(home, own_admin, tmp_path, model):
+    """:func:`home` and a second API instance on the same database, with its own identity at the broker."""
     from fastapi.testclient import TestClient
 
     from backend.app import create_app
     from backend.settings import Settings
 
-    admin = BrokerAdmin(own_broker.url, ADMIN, own_broker.admin_password, own_broker.ca_file)
-    try:
-        with bridged_leg(own_broker, admin, tmp_path, LEG) as leg, \
-                broker_app(own_broker, admin, tmp_path, model, migrated_sqlite, LEG) as api:
-            second = TestClient(create_app(Settings(
-                data_dir=tmp_path / "one", device=f"mqtt:{LEG}", broker_url=own_broker.url,
-                broker_username="server-two", broker_password=admin.add_server("server-two"),
-                broker_ca_file=own_broker.ca_file, instance_name="two"), model_loader=lambda: model))
-            with second:
-                yield leg, api, second
-    finally:
-        admin.close()
+    broker, leg, api = home
+    second = TestClient(create_app(Settings(
+        data_dir=tmp_path / "one", device=f"mqtt:{LEG}", broker_url=broker.url, broker_username="server-two",
+        broker_password=own_admin.add_server("server-two"), broker_ca_file=broker.ca_file, instance_name="two"),
+        model_loader=lambda: model))
+    with second:
+        yield leg, api, second
 
 
 def test_two_instances_each_see_the_leg_and_a_session_started_on_one_is_stopped_whole_on_the_other(two_instances):
