@@ -20,7 +20,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
 from backend.db import open_engine
-from backend.devices import DeviceManager, parse_device_spec
+from backend.devices import DeviceManager, parse_device_specs
 from backend.errors import DomainError
 from backend.frontend import mount_frontend
 from backend.headers import RefuseAnonymousWrites, add_security_headers, mount_docs
@@ -126,13 +126,13 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
                                              settings.login_per_user_anywhere_per_minute)
     app.state.db = open_engine(settings.database)
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
-    spec = parse_device_spec(settings.device)
+    specs = parse_device_specs(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
     bus_options = broker_bus_options(settings)
-    if spec is not None and spec.interface == "mqtt" and "mqtt" not in bus_options:
+    if any(spec.interface == "mqtt" for spec in specs) and "mqtt" not in bus_options:
         raise ValueError(f"device {settings.device} is reached through the broker: set QUASITUNE_BROKER_URL, "
                          "QUASITUNE_BROKER_USERNAME and QUASITUNE_BROKER_PASSWORD (this instance's identity there)")
-    app.state.devices = DeviceManager(app.state.db, [spec] if spec else [], app.state.bench_leg,
+    app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg,
                                       bus_options=bus_options).start()
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 

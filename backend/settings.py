@@ -49,8 +49,9 @@ class Settings(BaseSettings):
         model_dir: a model from ``quasitune train``; None = the default model (shipped data).
         model_wait_s: how long a request waits for the model while it loads at start-up before a 503.
         device: ``sim`` (the simulated leg on an in-process virtual CAN bus), ``none``, or ``INTERFACE:CHANNEL``
-            for a python-can bus to a real leg (``socketcan:can0``). ``quasitune serve`` uses ``sim`` when neither
-            its flag nor the environment names one; the app factory (several workers) ``none``.
+            for a python-can bus to a real leg (``socketcan:can0``, ``mqtt:LEG_ID`` through the broker); several
+            comma-separated (``mqtt:leg-1,mqtt:leg-2``). ``quasitune serve`` uses ``sim`` when neither its flag nor
+            the environment names one; the app factory (several workers) ``none``.
         frontend_dir: the dashboard (``index.html``, ``app/``) and its npm packages (``node_modules/``).
         migrations_dir: the schema migrations applied at start-up.
         broker_url: the MQTT broker the legs connect to (``mqtts://HOST:8883``); a device ``mqtt:DEVICE_ID`` is reached

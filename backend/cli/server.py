@@ -63,14 +63,14 @@ def _bench_leg(leg: str | None) -> Path | None:
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    from backend.devices import parse_device_spec
+    from backend.devices import parse_device_specs
     from backend.serve import serve
 
     settings = _settings(args, device=args.device, viewer3d=args.viewer3d or None, bench_leg=_bench_leg(args.leg),
                          trusted_proxies=tuple(args.trusted_proxy) if args.trusted_proxy else None)
     if not settings.given("device"):
         settings = settings.model_copy(update={"device": "sim"})   # serve's own default: the simulated leg
-    parse_device_spec(settings.device)   # refuse a bad spec before anything starts
+    parse_device_specs(settings.device)   # refuse a bad spec before anything starts
     return serve(settings, host=args.host, port=args.port, bootstrap=not args.no_bootstrap_user)
 
 
@@ -255,8 +255,8 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="do not create the first user on an empty database")
     p.add_argument("--device", default=None,
                    help="'sim' (default: the simulated leg on an in-process virtual CAN bus), 'none', or "
-                        "INTERFACE:CHANNEL for a real leg on a python-can bus (e.g. socketcan:can0); "
-                        "default $QUASITUNE_DEVICE or sim")
+                        "INTERFACE:CHANNEL for a real leg on a python-can bus (e.g. socketcan:can0, or mqtt:LEG_ID "
+                        "through the broker); several comma-separated; default $QUASITUNE_DEVICE or sim")
     p.add_argument("--trusted-proxy", action="append", default=None, metavar="ADDRESS",
                    help="a reverse proxy whose X-Forwarded-For is believed (repeatable; default "
                         "$QUASITUNE_TRUSTED_PROXIES, comma-separated, else none)")

@@ -1,6 +1,6 @@
-"""Which device a server talks to: ``sim`` (the simulated leg on an in-process virtual bus), ``none``, or a
+"""Which devices a server talks to: ``sim`` (the simulated leg on an in-process virtual bus), ``none``, or a
 python-can ``INTERFACE:CHANNEL`` for a real leg (``socketcan:can0``, ``pcan:PCAN_USBBUS1`` …; ``mqtt:DEVICE_ID``: the
-leg with that id, through the broker of the settings)."""
+leg with that id, through the broker of the settings); several, comma-separated (``mqtt:leg-1,mqtt:leg-2``)."""
 
 from __future__ import annotations
 
@@ -43,3 +43,17 @@ def parse_device_spec(text: str) -> DeviceSpec | None:
         return DeviceSpec(channel, "can", interface, channel)
     device_id = re.sub(r"[^A-Za-z0-9._-]", "-", f"{interface}-{channel}")[:64]
     return DeviceSpec(device_id, "can", interface, channel)
+
+
+def parse_device_specs(text: str) -> list[DeviceSpec]:
+    """A comma-separated list of specs (``mqtt:leg-1,mqtt:leg-2``: several legs served by one instance); ``none``
+    alone is no device. ValueError naming the spec for a bad one, ``none`` among others, or a device named twice."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) > 1 and "none" in parts:
+        raise ValueError(f"device list {text!r}: 'none' is a device list of its own, not one of several")
+    specs = [spec for spec in (parse_device_spec(p) for p in parts) if spec is not None]
+    ids = [spec.device_id for spec in specs]
+    twice = sorted({i for i in ids if ids.count(i) > 1})
+    if twice:
+        raise ValueError(f"device list {text!r} names {', '.join(twice)} more than once")
+    return specs

@@ -220,3 +220,20 @@ def test_two_instances_each_see_the_leg_and_a_session_started_on_one_is_stopped_
     assert len(seqs) >= 200 and summary["missing_samples"] == 0 and seqs == list(range(seqs[0], seqs[-1] + 1))
     wait_for(lambda: api.client.get(f"/api/devices/{LEG}", headers=pro).json(),
              lambda d: d["recording_session_id"] is None)                    # the starter let go of it
+
+
+def test_one_instance_serves_several_legs_through_the_broker(own_broker, own_admin, tmp_path, model, migrated_sqlite):
+    from tests.helpers.api import make_api
+
+    with bridged_leg(own_broker, own_admin, tmp_path, "leg-a") as a, bridged_leg(own_broker, own_admin, tmp_path,
+                                                                                 "leg-b") as b:
+        api, client = make_api(tmp_path / "many", lambda: model, template=migrated_sqlite,
+                               device="mqtt:leg-a,mqtt:leg-b", broker_url=own_broker.url, broker_username="many",
+                               broker_password=own_admin.add_server("many"), broker_ca_file=own_broker.ca_file)
+        with client:
+            listed = wait_for(lambda: client.get("/api/devices", headers=api.as_("viewer")).json(),
+                              lambda ds: len(ds) == 2 and all(d["online"] for d in ds))
+            assert sorted(d["id"] for d in listed) == ["leg-a", "leg-b"]
+            prop = approved_proposal(api)
+            assert push_to_leg(api, prop, device="leg-b").status_code == 201   # to one leg, the other untouched
+            assert b.node.snapshot().active is not None and a.node.snapshot().active is None

@@ -25,3 +25,15 @@ def test_a_channel_becomes_a_safe_device_id():
 def test_a_bad_spec_says_what_is_expected(text):
     with pytest.raises(ValueError, match="device must be 'sim', 'none' or"):
         parse_device_spec(text)
+
+
+def test_a_list_of_devices_one_instance_serves():
+    from backend.devices.specs import parse_device_specs
+
+    specs = parse_device_specs("mqtt:leg-1, mqtt:leg-2,socketcan:can0")
+    assert [s.device_id for s in specs] == ["leg-1", "leg-2", "socketcan-can0"]
+    assert parse_device_specs("none") == [] and [s.kind for s in parse_device_specs("sim")] == ["simulated"]
+    for bad, why in (("mqtt:leg-1,mqtt:leg-1", "more than once"), ("none,mqtt:leg-1", "'none' is a device list"),
+                     ("mqtt:leg-1,bogus", "device must be")):
+        with pytest.raises(ValueError, match=why):
+            parse_device_specs(bad)
