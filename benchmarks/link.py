@@ -174,24 +174,16 @@ def link_loss(broker, admin, model, cut_seconds: float, mode: str) -> dict:
 
 def run(pushes_n: int = 100, trials: int = 500, restart_every: int = 50, cut_seconds: float = 60.0) -> dict:
     from controller_core import load_default_model
-    from device_bridge.broker_admin import BrokerAdmin
-    from tests.helpers.mosquitto import ADMIN, MosquittoBroker
+    from tests.helpers.mosquitto import admin_of, running_broker
 
     model = load_default_model()
-    broker = MosquittoBroker()
-    broker.start()
-    admin = None
-    try:
-        admin = BrokerAdmin(broker.url, ADMIN, broker.admin_password, broker.ca_file)
+    with running_broker() as broker:
         t0 = time.monotonic()
-        out = {"tls": True, "broker": "Debian's Mosquitto on loopback", "pushes": pushes(broker, admin, model, pushes_n)}
-        out["soak"] = soak(broker, admin, model, trials, restart_every)
-        admin.close()
-        admin = BrokerAdmin(broker.url, ADMIN, broker.admin_password, broker.ca_file)
-        out["link_loss"] = [link_loss(broker, admin, model, cut_seconds, m) for m in ("supervised", "autonomous")]
+        with admin_of(broker) as admin:
+            out = {"tls": True, "broker": "Debian's Mosquitto on loopback",
+                   "pushes": pushes(broker, admin, model, pushes_n)}
+            out["soak"] = soak(broker, admin, model, trials, restart_every)
+        with admin_of(broker) as admin:   # a fresh admin connection after the soak's broker restarts
+            out["link_loss"] = [link_loss(broker, admin, model, cut_seconds, m) for m in ("supervised", "autonomous")]
         out["wall_s"] = round(time.monotonic() - t0, 1)
         return out
-    finally:
-        if admin is not None:
-            admin.close()
-        broker.remove()

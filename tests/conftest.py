@@ -42,25 +42,19 @@ def postgres():
 def broker():
     """A Mosquitto broker of the test run's own (tests/helpers/mosquitto.py): TLS on loopback, a throwaway CA, the
     dynamic security plugin; started when a test first needs it."""
-    from tests.helpers.mosquitto import MosquittoBroker
+    from tests.helpers.mosquitto import running_broker
 
-    server = MosquittoBroker()
-    try:
-        server.start()
+    with running_broker() as server:
         yield server
-    finally:
-        server.remove()
 
 
 @pytest.fixture
 def broker_admin(broker):
     """The broker's admin (device identities), connected for one test."""
-    from device_bridge.broker_admin import BrokerAdmin
-    from tests.helpers.mosquitto import ADMIN
+    from tests.helpers.mosquitto import admin_of
 
-    admin = BrokerAdmin(broker.url, ADMIN, broker.admin_password, broker.ca_file)
-    yield admin
-    admin.close()
+    with admin_of(broker) as admin:
+        yield admin
 
 
 @pytest.fixture(scope="session")

@@ -10,7 +10,6 @@ import time
 import pytest
 
 from backend.store import sessions as sessions_store
-from device_bridge.broker_admin import BrokerAdmin
 from device_bridge.protocol import Mode
 from tests.backend.routers.test_pushes import approved_envelope
 from tests.helpers.api import (
@@ -23,7 +22,7 @@ from tests.helpers.api import (
     walk_preview,
 )
 from tests.helpers.bridged_leg import bridged_leg, broker_app
-from tests.helpers.mosquitto import ADMIN, MosquittoBroker
+from tests.helpers.mosquitto import admin_of, running_broker
 
 LEG = "home-leg"
 CUT_S = 3.0      # the link is down this long (the 60 s of the target is the benchmark's: python -m benchmarks link)
@@ -31,19 +30,15 @@ CUT_S = 3.0      # the link is down this long (the 60 s of the target is the ben
 
 @pytest.fixture
 def own_broker():
-    server = MosquittoBroker()
-    server.start()
-    try:
+    """A broker of these tests' own: they stop and restart it (the run's shared one is left alone)."""
+    with running_broker() as server:
         yield server
-    finally:
-        server.remove()
 
 
 @pytest.fixture
 def own_admin(own_broker):
-    admin = BrokerAdmin(own_broker.url, ADMIN, own_broker.admin_password, own_broker.ca_file)
-    yield admin
-    admin.close()
+    with admin_of(own_broker) as admin:
+        yield admin
 
 
 @pytest.fixture

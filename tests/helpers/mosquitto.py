@@ -11,7 +11,11 @@ import socket
 import subprocess
 import tempfile
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+
+from device_bridge.broker_admin import BrokerAdmin
 
 DYNSEC_PLUGIN = next(iter(sorted(Path("/usr/lib").glob("*/mosquitto_dynamic_security.so"))),
                      Path("/usr/lib/x86_64-linux-gnu/mosquitto_dynamic_security.so"))   # Debian's multiarch folder
@@ -94,3 +98,24 @@ class MosquittoBroker:
     def remove(self) -> None:
         self.stop()
         shutil.rmtree(self.root, ignore_errors=True)
+
+
+@contextmanager
+def running_broker() -> Iterator[MosquittoBroker]:
+    """A broker started for the ``with`` block, removed after it."""
+    server = MosquittoBroker()
+    try:
+        server.start()
+        yield server
+    finally:
+        server.remove()
+
+
+@contextmanager
+def admin_of(server: MosquittoBroker) -> Iterator[BrokerAdmin]:
+    """The broker's admin (identities), connected for the ``with`` block."""
+    admin = BrokerAdmin(server.url, ADMIN, server.admin_password, server.ca_file)
+    try:
+        yield admin
+    finally:
+        admin.close()
