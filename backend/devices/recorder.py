@@ -81,13 +81,17 @@ class SessionRecorder:
         many of its samples arrived late."""
         self.flush()
         with self._lock:
-            session_id = self._recording.pop(device_id, None)
+            session_id = self._recording.get(device_id)
             if session_id is not None:
                 self._ended.add(session_id)
-            self._buffers.pop(device_id, None)
-            self._late.pop(device_id, None)
-            self._last_sample.pop(device_id, None)
-            return self._reports.pop(device_id, Counter()), self._late_counts.pop(device_id, 0)
+            return self._release(device_id)
+
+    def _release(self, device_id: str) -> tuple[Counter, int]:
+        """Forget everything held for ``device_id`` (under the lock); its status reports and late-sample count."""
+        self._recording.pop(device_id, None)
+        for held in (self._buffers, self._late, self._last_sample):
+            held.pop(device_id, None)
+        return self._reports.pop(device_id, Counter()), self._late_counts.pop(device_id, 0)
 
     def note_status(self, device_id: str, mode: str, active: tuple[int, int] | None) -> None:
         """One status report of a device (counted only while it is recorded)."""
@@ -162,11 +166,8 @@ class SessionRecorder:
     def _drop(self, device_id: str, session_id: int) -> None:
         """Stop recording a session stopped elsewhere, writing nothing more (its stopping instance wrote it)."""
         with self._write_lock, self._lock:
-            if self._recording.get(device_id) != session_id:
-                return
-            del self._recording[device_id]
-            for held in (self._buffers, self._late, self._last_sample, self._reports, self._late_counts):
-                held.pop(device_id, None)
+            if self._recording.get(device_id) == session_id:
+                self._release(device_id)
 
     def _run(self) -> None:
         next_sync = 0.0
