@@ -47,6 +47,7 @@ from backend.settings import Settings
 from backend.throttle import LoginThrottle
 from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
+from device_bridge.mqtt_connection import MqttConnection
 from device_bridge.sim.leg_file import load_leg
 from device_bridge.sim.leg_model import LegGeometry
 
@@ -79,15 +80,14 @@ def _default_loader(settings: Settings) -> Callable[[], QuasiStiffnessModel]:
     return load_default_model
 
 
-def broker_bus_options(settings: Settings) -> dict[str, dict]:
-    """What a device ``mqtt:DEVICE_ID`` is opened with: the broker of the settings and this instance's identity there
-    (its own MQTT client id, so several instances each read every leg's frames)."""
+def broker_connection(settings: Settings) -> MqttConnection | None:
+    """This instance's one connection to the broker of the settings, shared by every leg ``mqtt:DEVICE_ID`` it serves
+    (its own client id, so several instances each read every leg's frames); None without a broker identity."""
     if settings.broker_url is None or not settings.broker_username or settings.broker_password is None:
-        return {}
-    return {"mqtt": {"broker": settings.broker_url, "username": settings.broker_username,
-                     "password": settings.broker_password.get_secret_value(),
-                     "ca_file": None if settings.broker_ca_file is None else str(settings.broker_ca_file),
-                     "role": "server", "instance": settings.instance_name}}
+        return None
+    return MqttConnection(settings.broker_url, settings.broker_username, settings.broker_password.get_secret_value(),
+                          ca_file=None if settings.broker_ca_file is None else str(settings.broker_ca_file),
+                          instance=settings.instance_name)
 
 
 def prepare_storage(settings: Settings) -> None:
@@ -115,6 +115,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         if app.state.viewers is not None:
             app.state.viewers.close()
         app.state.devices.close()
+        if app.state.broker is not None:
+            app.state.broker.close()
         app.state.db.dispose()
 
     app = FastAPI(title="QuasiTune", version=__version__, lifespan=lifespan, docs_url=None, redoc_url=None,
@@ -128,12 +130,14 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     specs = parse_device_specs(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
-    bus_options = broker_bus_options(settings)
-    if any(spec.interface == "mqtt" for spec in specs) and "mqtt" not in bus_options:
-        raise ValueError(f"device {settings.device} is reached through the broker: set QUASITUNE_BROKER_URL, "
-                         "QUASITUNE_BROKER_USERNAME and QUASITUNE_BROKER_PASSWORD (this instance's identity there)")
-    app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg,
-                                      bus_options=bus_options).start()
+    app.state.broker = None
+    if any(spec.interface == "mqtt" for spec in specs):
+        app.state.broker = broker_connection(settings)
+        if app.state.broker is None:
+            raise ValueError(f"device {settings.device} is reached through the broker: set QUASITUNE_BROKER_URL, "
+                             "QUASITUNE_BROKER_USERNAME and QUASITUNE_BROKER_PASSWORD (this instance's identity there)")
+    bus_options = {} if app.state.broker is None else {"mqtt": {"role": "server", "connection": app.state.broker}}
+    app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg, bus_options=bus_options).start()
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)

@@ -24,6 +24,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Self
 
 import can
 
@@ -52,6 +53,7 @@ from device_bridge.protocol import (
 )
 
 _DEG = math.pi / 180.0
+GAP_MEMORY = 1000        # a skipped sample arriving within this many newer ones was overtaken, not lost (10 s)
 LONG_SILENCE_S = 300.0   # telemetry back after a silence this long is placed by time (a 16-bit sequence wraps in 655 s)
 log = logging.getLogger(__name__)
 
@@ -217,8 +219,13 @@ class DeviceLink(BusThreads):
     """Host end of one device's CAN link (see the module docstring).
 
     Args:
-        bus: an open python-can bus to the device (the link closes it on :meth:`close`).
-        heartbeat_period_s: host heartbeat period (s); keep it well under the device's timeout (200 ms).
+        bus: an open python-can bus to the device (the link closes it on :meth:`close`). A bus that
+            ``delivers_frames`` (the broker link's shared connection) calls the link with its frames from its own
+            thread, and the link runs no receive thread.
+        heartbeat_period_s: host heartbeat period (s); keep it well under the device's timeout (200 ms). None: the
+            bus's own ``heartbeat_period_s`` (the broker link's 50 ms), else 20 ms.
+        heartbeat_clock: beat from this shared clock (one thread for many links, at its period) instead of a thread
+            of the link's own.
         on_status: called with each :class:`DeviceStatus` (from the receive thread: return quickly).
         on_telemetry: called with each complete :class:`TelemetrySample` (from the receive thread).
         on_late_telemetry: called with each sample the leg's bridge kept while the link was down and delivered late
@@ -226,10 +233,13 @@ class DeviceLink(BusThreads):
             by the live stream's; the late messages' other frames (old statuses, old acknowledgements) are ignored.
     """
 
-    def __init__(self, bus: can.BusABC, heartbeat_period_s: float = 0.02,
+    def __init__(self, bus: can.BusABC, heartbeat_period_s: float | None = None,
                  on_status: Callable[[DeviceStatus], None] | None = None,
                  on_telemetry: Callable[[TelemetrySample], None] | None = None,
-                 on_late_telemetry: Callable[[TelemetrySample], None] | None = None) -> None:
+                 on_late_telemetry: Callable[[TelemetrySample], None] | None = None,
+                 heartbeat_clock: HeartbeatClock | None = None) -> None:
+        if heartbeat_period_s is None:
+            heartbeat_period_s = float(getattr(bus, "heartbeat_period_s", 0.02))
         if not (math.isfinite(heartbeat_period_s) and 0.001 <= heartbeat_period_s <= 1.0):
             raise ValueError(f"heartbeat_period_s must be in [0.001, 1] s, got {heartbeat_period_s!r}")
         self.bus = bus
@@ -252,10 +262,31 @@ class DeviceLink(BusThreads):
         self._late_joiner = _TelemetryJoiner()
         self._live: tuple[int, float] | None = None   # (seq, Unix s) of the newest live sample: places late ones
         self.late_samples = 0
+        self.telemetry_received = 0     # live samples joined
+        self.telemetry_missing = 0      # live samples skipped by the sequence (a late delivery may fill them in)
+        self._newest_seq: int | None = None
+        self._gaps: set[int] = set()      # skipped sequence numbers that may still arrive
         if hasattr(bus, "on_late"):
             bus.on_late = self._on_late
-        self._threads = [threading.Thread(target=self._rx_loop, name="can-rx", daemon=True),
-                         threading.Thread(target=self._heartbeat_loop, name="can-heartbeat", daemon=True)]
+        self._heartbeat_counter = 0
+        self._clock = heartbeat_clock
+        if getattr(bus, "delivers_frames", False):
+            bus.on_frames = self._receive
+        else:
+            self._threads.append(threading.Thread(target=self._rx_loop, name="can-rx", daemon=True))
+        if heartbeat_clock is None:
+            self._threads.append(threading.Thread(target=self._heartbeat_loop, name="can-heartbeat", daemon=True))
+
+    def start(self) -> Self:
+        super().start()
+        if self._clock is not None:
+            self._clock.add(self)
+        return self
+
+    def close(self) -> None:
+        if self._clock is not None:
+            self._clock.remove(self)
+        super().close()
 
     # ------------------------------------------------------------------------------------------ sending
 
@@ -284,16 +315,20 @@ class DeviceLink(BusThreads):
         """Send a DEVICE_COMMAND (enter/leave safe mode, request status, the lost-link mode)."""
         self._send(encode("DEVICE_COMMAND", {"command": int(command)}))
 
+    def beat(self) -> None:
+        """Send one heartbeat (none while paused)."""
+        if self._heartbeat_paused.is_set() or self._stop.is_set():
+            return
+        # a full or closing bus loses the beat: the device's watchdog is the safety net, not this loop
+        with contextlib.suppress(can.CanError):
+            self._send(encode("HOST_HEARTBEAT", {"counter": self._heartbeat_counter}))
+            self.last_heartbeat_sent_s = time.monotonic()
+        self._heartbeat_counter = (self._heartbeat_counter + 1) & 0xFFFF
+
     def _heartbeat_loop(self) -> None:
-        counter = 0
         next_t = time.monotonic()
         while not self._stop.is_set():
-            if not self._heartbeat_paused.is_set():
-                # a full or closing bus loses the beat: the device's watchdog is the safety net, not this loop
-                with contextlib.suppress(can.CanError):
-                    self._send(encode("HOST_HEARTBEAT", {"counter": counter}))
-                    self.last_heartbeat_sent_s = time.monotonic()
-                counter = (counter + 1) & 0xFFFF
+            self.beat()
             next_t += self.heartbeat_period_s
             self._stop.wait(max(0.0, next_t - time.monotonic()))
 
@@ -307,7 +342,13 @@ class DeviceLink(BusThreads):
                 if self._stop.is_set():
                     return
                 raise
-            decoded = None if msg is None else self._decoded(msg)
+            if msg is not None:
+                self._receive([msg])
+
+    def _receive(self, frames: list[can.Message]) -> None:
+        """Frames from the device, in order: decoded and dispatched (the receive thread, or the shared connection's)."""
+        for msg in frames:
+            decoded = self._decoded(msg)
             if decoded is None:
                 continue
             try:
@@ -337,6 +378,7 @@ class DeviceLink(BusThreads):
                 self._live[0] + round((now - self._live[1]) / TELEMETRY_PERIOD_S)
             sample = self._joiner.add(name, raw, near=near)
             if sample is not None:
+                self._count(sample.seq)
                 self._live = (sample.seq, sample.received_unix_s)
                 if self.on_telemetry is not None:
                     self.on_telemetry(sample)
@@ -344,6 +386,23 @@ class DeviceLink(BusThreads):
             self._health = dict(raw)
         elif name == "DEVICE_STATUS":
             self._on_status(raw)
+
+    def _count(self, seq: int) -> None:
+        """Count a live sample; one the sequence skipped is missing until it arrives (overtaken on the way), or for
+        good once :data:`GAP_MEMORY` newer samples came."""
+        self.telemetry_received += 1
+        newest = self._newest_seq
+        if newest is not None and seq <= newest:
+            if seq in self._gaps:
+                self._gaps.discard(seq)
+                self.telemetry_missing -= 1
+            return
+        if newest is not None and seq > newest + 1:
+            self.telemetry_missing += seq - newest - 1
+            self._gaps.update(range(max(newest + 1, seq - GAP_MEMORY), seq))
+        self._newest_seq = seq
+        if self._gaps and min(self._gaps) < seq - GAP_MEMORY:
+            self._gaps = {g for g in self._gaps if g >= seq - GAP_MEMORY}
 
     def _on_late(self, records: list[tuple[float, list[can.Message]]]) -> None:
         """A late message from the leg's bridge (the broker's thread): its telemetry, joined apart from the live stream,
@@ -522,3 +581,34 @@ class DeviceLink(BusThreads):
         raise PushError(f"no acknowledgement of CRC {crc:08x} within {timeout_s:g} s after {attempts} attempt(s): "
                         f"{last_reason}; unconfirmed: the device's next status tells whether it took the "
                         f"{transfer.kind}", "timeout")
+
+
+class HeartbeatClock(BusThreads):
+    """One thread that beats for many links every ``period_s`` (s). For links whose send only queues the frame (the
+    broker link's shared connection: paho's publish), so one leg cannot hold back another's beats; a CAN bus's send
+    can block on a full adapter, so such a link keeps a thread of its own. Ours because it is one loop over a list."""
+
+    def __init__(self, period_s: float) -> None:
+        if not (math.isfinite(period_s) and 0.001 <= period_s <= 1.0):
+            raise ValueError(f"period_s must be in [0.001, 1] s, got {period_s!r}")
+        super().__init__([])
+        self.period_s = period_s
+        self._links: tuple[DeviceLink, ...] = ()     # replaced whole, so the loop reads it without a lock
+        self._lock = threading.Lock()
+        self._threads = [threading.Thread(target=self._loop, name="heartbeat-clock", daemon=True)]
+
+    def add(self, link: DeviceLink) -> None:
+        with self._lock:
+            self._links = (*self._links, link)
+
+    def remove(self, link: DeviceLink) -> None:
+        with self._lock:
+            self._links = tuple(x for x in self._links if x is not link)
+
+    def _loop(self) -> None:
+        next_t = time.monotonic()
+        while not self._stop.is_set():
+            for link in self._links:
+                link.beat()
+            next_t += self.period_s
+            self._stop.wait(max(0.0, next_t - time.monotonic()))

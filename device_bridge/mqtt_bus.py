@@ -11,9 +11,10 @@ that altered a frame is caught by the protocol exactly as a noisy bus is.
 * Payload: one or more classic CAN frames of 11 bytes each: the 11-bit id (u16 little-endian), the data length
   (u8, 0-8) and 8 data bytes (zero-padded). A message whose length is not a whole number of frames, or a frame whose
   id or length is out of range, is dropped whole and counted in :attr:`MqttBus.malformed`.
-* Batching: :meth:`MqttBus.send_batch` puts frames in one message. The bridge sends the frames the leg put on its bus
-  within 2 ms of each other together, which is one telemetry sample (its three or four frames leave the leg
-  back to back every 10 ms): 100 messages a second per walking leg instead of 300-400.
+* Batching: :meth:`MqttBus.send_batch` puts frames in one message. The bridge (:meth:`Gateway.to_broker
+  <device_bridge.gateway.Gateway.to_broker>`) sends a burst of frames (one telemetry sample's three or four leave the
+  leg back to back every 10 ms) in one message, and lets telemetry wait up to 50 ms for the samples after it: 20
+  messages a second per walking leg instead of 300-400 frames; an acknowledgement or a status leaves at once.
 * **Up (the leg's frames): QoS 1**, persistent sessions: at least once (a repeated telemetry sample is joined once on
   its sequence number, a repeated acknowledgement is an answer already had), so nothing the leg sent in the moment
   the link broke is lost.
@@ -38,8 +39,9 @@ import ssl
 import struct
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
 import can
@@ -47,6 +49,9 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 
 from device_bridge.late_buffer import WRITE_PERIOD_S, LateBuffer
+
+if TYPE_CHECKING:
+    from device_bridge.mqtt_connection import MqttConnection
 
 FRAME = struct.Struct("<HB8s")          # id, dlc, data
 LATE_RECORD = struct.Struct("<dB")      # when the frames left the leg's bus (Unix s), how many follow
@@ -89,6 +94,19 @@ def unpack_frames(payload: bytes) -> list[can.Message]:
         frames.append(can.Message(arbitration_id=arbitration_id, data=data[:dlc], is_extended_id=False,
                                   timestamp=time.time()))
     return frames
+
+
+def _bursts(frames: list[can.Message], gap_s: float = 0.002) -> Iterator[tuple[float, list[can.Message]]]:
+    """Frames in runs that left the leg's bus within ``gap_s`` of each run's first (one telemetry sample each), with
+    that first frame's time (Unix s; now for frames without one)."""
+    run: list[can.Message] = []
+    for f in frames:
+        if run and abs((f.timestamp or 0.0) - (run[0].timestamp or 0.0)) > gap_s:
+            yield run[0].timestamp or time.time(), run
+            run = []
+        run.append(f)
+    if run:
+        yield run[0].timestamp or time.time(), run
 
 
 def pack_late(records: Iterable[tuple[float, bytes]]) -> bytes:
@@ -150,54 +168,65 @@ class MqttBus(can.BusABC):
         connect_timeout_s: how long the constructor waits for the first connection before it fails loudly.
         late_buffer: the leg's side only: where its messages wait while the broker is out of reach (see the module);
             None: paho keeps them in memory and sends them on reconnection as if they were new.
+        connection: the server's side: an instance's one :class:`~device_bridge.mqtt_connection.MqttConnection`
+            shared by all its legs (then ``broker``, the identity and ``instance`` are the connection's); None: a
+            client of this bus's own.
 
     Attributes:
-        on_late: the server's side: called (from paho's thread) with each late message's records, (time, frames);
-            unset, late messages are counted in :attr:`late_unclaimed` and dropped.
+        on_late: the server's side: called (from paho's thread, or the shared connection's dispatch thread) with each
+            late message's records, (time, frames); unset, late messages are counted in :attr:`late_unclaimed` and
+            dropped.
+        on_frames: with a shared connection, called with each message's frames (see :attr:`delivers_frames`).
     """
 
     # how long a push waits for the leg's acknowledgement before asking again (s): a TLS round trip through a broker
     # across the internet, not a CAN bus's millisecond (device_bridge.host.DeviceLink reads it)
     round_trip_s = 0.25
+    # the server's heartbeat period through a broker (s): four beats in the leg's 200 ms watchdog, a fifth of the
+    # messages of the CAN bus's 20 ms (50 legs at 20 ms were as many messages as their telemetry)
+    heartbeat_period_s = 0.05
 
-    def __init__(self, channel: str, broker: str, username: str, password: str, role: Role = "server",
-                 ca_file: str | None = None, instance: str | None = None, insecure: bool = False,
-                 connect_timeout_s: float = 10.0, late_buffer: LateBuffer | None = None, **kwargs: object) -> None:
+    def __init__(self, channel: str, broker: str | None = None, username: str | None = None,
+                 password: str | None = None, role: Role = "server", ca_file: str | None = None,
+                 instance: str | None = None, insecure: bool = False, connect_timeout_s: float = 10.0,
+                 late_buffer: LateBuffer | None = None, connection: MqttConnection | None = None,
+                 **kwargs: object) -> None:
         if role not in ("server", "device"):
             raise ValueError(f"role must be 'server' or 'device', got {role!r}")
-        address = BrokerAddress.parse(broker)
-        if not address.tls and not insecure:
-            raise ValueError("the broker link is TLS only (mqtts://); a plain mqtt:// link needs insecure=True and an "
-                             "isolated network")
-        self.channel_info = f"mqtt {role} {channel} @ {address.host}:{address.port}"
+        if connection is not None and role != "server":
+            raise ValueError("only the server's side shares a connection among legs")
         self.device_id, self.role = channel, role
         self._send_topic = topic(channel, "down" if role == "server" else "up")
         self._recv_topic = topic(channel, "up" if role == "server" else "down")
         self._late_topic = topic(channel, "late")
         self._late_buffer = late_buffer if role == "device" else None
         self.on_late: Callable[[list[tuple[float, list[can.Message]]]], None] | None = None
+        self.on_frames: Callable[[list[can.Message]], None] | None = None
         self.late_unclaimed = 0
         self.late_delivered = 0   # the leg's side: buffered messages the broker acknowledged
         self._rx: queue.Queue[can.Message] = queue.Queue()
         self._connected = threading.Event()
         self.malformed = 0
         self.refused: str | None = None
-        client_id = f"{role}-{instance}-{channel}" if instance and role == "server" else f"{role}-{channel}"
-        self._client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id,
-                                   clean_session=False, protocol=mqtt.MQTTv311)
-        self._client.username_pw_set(username, password)
-        if address.tls:
-            self._client.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
-        self._client.reconnect_delay_set(min_delay=1, max_delay=8)
-        self._client.max_queued_messages_set(0)
-        self._client.on_connect = self._on_connect
-        self._client.on_disconnect = self._on_disconnect
-        self._client.on_message = self._on_message
-        self._client.on_subscribe = self._on_subscribe
-        self._client.connect_async(address.host, address.port, keepalive=5)
-        self._client.loop_start()
+        self._connection = connection
+        self._client: mqtt.Client | None = None
+        if connection is not None:
+            self.channel_info = f"mqtt server {channel} @ {connection.description}"
+            connection.attach(self)
+        else:
+            if broker is None or username is None or password is None:
+                raise ValueError("a broker link needs the broker's address and an identity (or a shared connection)")
+            address = BrokerAddress.parse(broker)
+            if not address.tls and not insecure:
+                raise ValueError("the broker link is TLS only (mqtts://); a plain mqtt:// link needs insecure=True and "
+                                 "an isolated network")
+            self.channel_info = f"mqtt {role} {channel} @ {address.host}:{address.port}"
+            self._client = self._own_client(address, username, password, ca_file, instance)
         if not self._connected.wait(connect_timeout_s):
-            self._client.loop_stop()
+            if connection is not None:
+                connection.detach(self)
+            else:
+                self._client.loop_stop()
             why = self.refused or "no answer"
             raise can.CanInitializationError(f"{self.channel_info}: could not connect ({why})")
         super().__init__(channel=channel, **kwargs)
@@ -206,6 +235,41 @@ class MqttBus(can.BusABC):
         if self._late_buffer is not None:
             self._drainer = threading.Thread(target=self._drain, name=f"mqtt-late-{channel}", daemon=True)
             self._drainer.start()
+
+    def _own_client(self, address: BrokerAddress, username: str, password: str, ca_file: str | None,
+                    instance: str | None) -> mqtt.Client:
+        """This leg's own MQTT client (the bridge's side; a server serving one leg), connecting in the background."""
+        role, channel = self.role, self.device_id
+        client_id = f"{role}-{instance}-{channel}" if instance and role == "server" else f"{role}-{channel}"
+        client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=False,
+                             protocol=mqtt.MQTTv311)
+        client.username_pw_set(username, password)
+        if address.tls:
+            client.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
+        client.reconnect_delay_set(min_delay=1, max_delay=8)
+        client.max_queued_messages_set(0)
+        client.on_connect = self._on_connect
+        client.on_disconnect = self._on_disconnect
+        client.on_message = self._on_message
+        client.on_subscribe = self._on_subscribe
+        client.connect_async(address.host, address.port, keepalive=5)
+        client.loop_start()
+        return client
+
+    @property
+    def delivers_frames(self) -> bool:
+        """True when the frames come through :attr:`on_frames`, called from a shared connection's dispatch thread
+        (:class:`~device_bridge.mqtt_connection.MqttConnection`), instead of :meth:`recv`: a reader then needs no
+        thread of its own."""
+        return self._connection is not None
+
+    def link_up(self) -> None:
+        """(the shared connection) The leg's topics are read again: frames may be sent."""
+        self._connected.set()
+
+    def link_down(self) -> None:
+        """(the shared connection) The broker is out of reach: nothing is sent until :meth:`link_up`."""
+        self._connected.clear()
 
     # paho's callbacks (its network thread)
     def _on_connect(self, client, _userdata, _flags, reason_code, _properties) -> None:
@@ -228,19 +292,27 @@ class MqttBus(can.BusABC):
             self.refused = str(reason_code)
 
     def _on_message(self, _client, _userdata, message) -> None:
+        self.deliver("late" if message.topic == self._late_topic else "frames", message.payload)
+
+    def deliver(self, direction: str, payload: bytes) -> None:
+        """One message from the broker: a late one (``direction`` ``late``) to :attr:`on_late`, else its frames to
+        :attr:`on_frames` or the receive queue; a malformed one is counted and dropped whole."""
         try:
-            if message.topic == self._late_topic:
-                records = unpack_late(message.payload)
+            if direction == "late":
+                records = unpack_late(payload)
             else:
-                frames = unpack_frames(message.payload)
+                frames = unpack_frames(payload)
         except ValueError:
             self.malformed += 1
             return
-        if message.topic == self._late_topic:
+        if direction == "late":
             if self.on_late is None:
                 self.late_unclaimed += 1
             else:
                 self.on_late(records)
+            return
+        if self.on_frames is not None:
+            self.on_frames(frames)
             return
         for f in frames:
             self._rx.put(f)
@@ -261,10 +333,13 @@ class MqttBus(can.BusABC):
         if not self._connected.is_set():
             if self.role == "server":
                 raise can.CanOperationError(f"{self.channel_info}: the link to the broker is down; not sent")
-            if self._late_buffer is not None:
-                self._late_buffer.append(frames[0].timestamp or time.time(), payload)
+            if self._late_buffer is not None:     # one record per burst, each at the time it left the leg's bus
+                for at, burst in _bursts(frames):
+                    self._late_buffer.append(at, pack_frames(burst))
                 return
-        info = self._client.publish(self._send_topic, payload, qos=1 if self.role == "device" else 0)
+        qos = 1 if self.role == "device" else 0
+        info = self._client.publish(self._send_topic, payload, qos=qos) if self._connection is None else \
+            self._connection.publish(self._send_topic, payload, qos)
         if info.rc not in (mqtt.MQTT_ERR_SUCCESS, mqtt.MQTT_ERR_NO_CONN):
             raise can.CanOperationError(f"{self.channel_info}: publish refused ({mqtt.error_string(info.rc)})")
 
@@ -302,6 +377,9 @@ class MqttBus(can.BusABC):
             self._drainer.join(timeout=10.0)
         if self._late_buffer is not None:
             self._late_buffer.close()
-        self._client.disconnect()
-        self._client.loop_stop()
+        if self._connection is not None:
+            self._connection.detach(self)
+        else:
+            self._client.disconnect()
+            self._client.loop_stop()
         super().shutdown()

@@ -33,7 +33,7 @@ from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 from controller_core.walking_reference import WalkingReference
 from device_bridge.device_node import DeviceNode
-from device_bridge.host import DeviceLink, DeviceStatus, PushResult, TelemetrySample
+from device_bridge.host import DeviceLink, DeviceStatus, HeartbeatClock, PushResult, TelemetrySample
 from device_bridge.protocol import Command, Fault
 from device_bridge.sim.course import Course
 from device_bridge.sim.leg_model import LegGeometry
@@ -41,6 +41,7 @@ from device_bridge.sim.walker import SimWalker
 
 ONLINE_WITHIN_S = 1.0        # a device whose status is older than this is offline
 LINK_MODE_RESEND_S = 0.5     # a device still reporting another lost-link mode is sent the choice again after this
+STORED_VIEW_MAX_AGE_S = 1.0  # a live stream's statuses show the assignment and tables as read at most this long ago
 _LINK_COMMANDS = {"supervised": Command.LINK_SUPERVISED, "autonomous": Command.LINK_AUTONOMOUS}
 
 
@@ -61,6 +62,7 @@ class ManagedDevice:
     push_lock: threading.Lock = field(default_factory=threading.Lock)
     link_mode: str = "supervised"                           # the stored lost-link choice as this process last read it
     link_mode_sent_s: float = float("-inf")                 # monotonic s the choice was last sent to the device
+    stored: tuple | None = None                             # (status key, monotonic s, parts) of the last stored read
 
 
 class DeviceManager:
@@ -73,6 +75,7 @@ class DeviceManager:
         self._bus_options = bus_options or {}   # per interface: the broker link's address and identity
         self._bench_leg = bench_leg   # the simulated leg's leg and person (None: the nominal bench)
         self._devices: dict[str, ManagedDevice] = {}
+        self._clock: HeartbeatClock | None = None   # one heartbeat thread for the legs of a shared broker connection
         self.recorder = SessionRecorder(db, tuple(spec.device_id for spec in specs))
 
     def start(self) -> DeviceManager:
@@ -88,8 +91,8 @@ class DeviceManager:
             if spec.kind == "simulated":
                 dev.walker = SimWalker(self._bench_leg)
                 dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker).start()
-            dev.link = DeviceLink(can.Bus(interface=spec.interface, channel=spec.channel,
-                                          **self._bus_options.get(spec.interface, {})),
+            bus = can.Bus(interface=spec.interface, channel=spec.channel, **self._bus_options.get(spec.interface, {}))
+            dev.link = DeviceLink(bus, heartbeat_clock=self._clock_for(bus),
                                   on_status=lambda s, d=dev: self._on_status(d, s),
                                   on_telemetry=lambda x, d=dev: self._on_telemetry(d, x),
                                   on_late_telemetry=lambda x, d=dev: self._on_late_telemetry(d, x))
@@ -101,6 +104,15 @@ class DeviceManager:
                 worn = devices_store.assignment(conn, spec.device_id)
                 self.worn_by(spec.device_id, None if worn is None else worn["body_mass_kg"])
         return self
+
+    def _clock_for(self, bus: can.BusABC) -> HeartbeatClock | None:
+        """The shared heartbeat clock for a leg whose frames come through the instance's broker connection (its send
+        only queues: :class:`~device_bridge.host.HeartbeatClock`); None (a thread of its own) for a CAN bus."""
+        if not getattr(bus, "delivers_frames", False):
+            return None
+        if self._clock is None:
+            self._clock = HeartbeatClock(float(getattr(bus, "heartbeat_period_s", 0.05))).start()
+        return self._clock
 
     def worn_by(self, device_id: str, mass_kg: float | None) -> None:
         """A simulated leg's patient: stands on it between walks (``mass_kg``), or nobody wears it (None). A walk
@@ -120,6 +132,8 @@ class DeviceManager:
                 dev.link.close()
             if dev.node is not None:
                 dev.node.close()
+        if self._clock is not None:
+            self._clock.close()
 
     # ------------------------------------------------------------------------------------------ queries
 
@@ -152,17 +166,15 @@ class DeviceManager:
                                                     "approval_override", "extrapolation_reason")}
         return dev.tables[key]
 
-    def view(self, device_id: str) -> dict:
+    def view(self, device_id: str, fresh: bool = True) -> dict:
         """The device as the API shows it: configuration, link state, the latest status (display units), the
-        patient it is assigned to and which tables its status reports."""
+        patient it is assigned to and which tables its status reports. ``fresh=False`` (the live stream's 10 Hz
+        statuses): the stored parts may be up to :data:`STORED_VIEW_MAX_AGE_S` old while the device reports the same
+        tables."""
         dev = self.get(device_id)
         s = dev.status
         age = None if s is None else round(time.monotonic() - s.received_monotonic_s, 3)
-        with pooled(self.db) as conn:
-            patient = devices_store.assignment(conn, device_id)
-            active = None if s is None else self._table(conn, dev, s.active_version, s.active_crc32)
-            pending = None if s is None else self._table(conn, dev, s.pending_version, None)
-            link_mode = devices_store.link_mode(conn, device_id)   # another instance may have changed it
+        patient, active, pending, link_mode = self._stored(dev, 0.0 if fresh else STORED_VIEW_MAX_AGE_S)
         return {
             "patient": patient, "active_table": active, "pending_table": pending,
             "body_mass_mismatch": mass_mismatch(active, patient),
@@ -185,7 +197,26 @@ class DeviceManager:
             "recording_session_id": self.recorder.session_of(device_id),
             "link_mode": link_mode,
             "link_mode_on_device": None if s is None else s.link_mode.name.lower(),
+            "telemetry_samples_received": 0 if dev.link is None else dev.link.telemetry_received,
+            "telemetry_samples_missing": 0 if dev.link is None else dev.link.telemetry_missing,
         }
+
+    def _stored(self, dev: ManagedDevice, max_age_s: float) -> tuple:
+        """(patient, active table, pending table, lost-link choice) from the database, read again unless read within
+        ``max_age_s`` for the tables the device reports now (another instance may change the assignment or the
+        choice: a stream shows that within the age)."""
+        s = dev.status
+        key = None if s is None else (s.active_version, s.active_crc32, s.pending_version)
+        now = time.monotonic()
+        if dev.stored is not None and dev.stored[0] == key and now - dev.stored[1] <= max_age_s:
+            return dev.stored[2]
+        with pooled(self.db) as conn:
+            patient = devices_store.assignment(conn, dev.spec.device_id)
+            active = None if s is None else self._table(conn, dev, s.active_version, s.active_crc32)
+            pending = None if s is None else self._table(conn, dev, s.pending_version, None)
+            link_mode = devices_store.link_mode(conn, dev.spec.device_id)   # another instance may have changed it
+        dev.stored = (key, now, (patient, active, pending, link_mode))
+        return dev.stored[2]
 
     def on_leg(self, conn: Connection, device_id: str, running_only: bool = False) -> dict:
         """What the device reports it runs (``running_only``) or will run from its next heel strike, as its last
@@ -343,7 +374,7 @@ class DeviceManager:
         self.recorder.note_status(dev.spec.device_id, status.mode.name.lower(), active)
         self._apply_link_mode(dev, status)
         if dev.fanout:
-            dev.fanout.publish({"type": "status", **self.view(dev.spec.device_id)})
+            dev.fanout.publish({"type": "status", **self.view(dev.spec.device_id, fresh=False)})
 
     def _on_telemetry(self, dev: ManagedDevice, x: TelemetrySample) -> None:
         dev.last_sample = x

@@ -95,6 +95,11 @@ class DeviceOut(BaseModel):
     link_mode_on_device: LinkModeName | None = Field(
         description="what the device reports it does (null before its first status); the server sends the choice "
                     "whenever the two differ")
+    telemetry_samples_received: int = Field(
+        description="live telemetry samples this API instance received from the leg since it connected")
+    telemetry_samples_missing: int = Field(
+        description="live samples this instance did not receive, by the leg's sequence numbers (a broker link's late "
+                    "delivery fills them in the session record afterwards)")
 
 
 class ViewerOut(BaseModel):

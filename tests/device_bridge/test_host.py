@@ -157,3 +157,71 @@ def test_sequence_numbers_unwrap_through_repeats_wraps_and_late_samples():
     sample = _join(late, 40000, near=65538 - 6000, at_unix_s=123.0)   # made a minute before the newest live one
     assert sample.seq == 40000 and sample.received_unix_s == 123.0
     assert _join(late, 1000, near=65538 + 1000).seq == 65536 + 1000
+
+
+class _PushingBus(can.BusABC):
+    """A bus that hands its frames to the link (as the broker link's shared connection does) and keeps what is sent."""
+
+    delivers_frames = True
+
+    def __init__(self) -> None:
+        super().__init__(channel="pushing")
+        self.on_frames = None
+        self.sent: list[can.Message] = []
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.sent.append(msg)
+
+    def _recv_internal(self, timeout: float | None):
+        raise AssertionError("a link on a bus that delivers its frames must not read it")
+
+
+def _telemetry(seq16: int) -> list[can.Message]:
+    from device_bridge.protocol import encode
+
+    return [encode(name, {"seq": seq16}) for name in ("TELEMETRY_GAIT", "TELEMETRY_KNEE", "TELEMETRY_ANKLE")]
+
+
+def test_a_bus_that_delivers_its_frames_feeds_the_link_and_gaps_are_counted_until_filled():
+    """No receive thread on such a bus; a skipped sample is missing until it arrives (overtaken on the way), a repeat
+    is no gap."""
+    bus = _PushingBus()
+    samples = []
+    link = DeviceLink(bus, on_telemetry=samples.append).start()
+    try:
+        assert [t.name for t in link._threads] == ["can-heartbeat"]
+        for seq in (0, 1, 4):
+            bus.on_frames(_telemetry(seq))
+        assert [s.seq for s in samples] == [0, 1, 4]
+        assert (link.telemetry_received, link.telemetry_missing) == (3, 2)
+        bus.on_frames(_telemetry(2))          # overtaken, not lost
+        bus.on_frames(_telemetry(4))          # a repeat (QoS 1): no gap, nothing filled
+        assert (link.telemetry_received, link.telemetry_missing) == (5, 1)
+    finally:
+        link.close()
+
+
+def test_one_clock_beats_for_several_links_and_skips_a_paused_one():
+    from device_bridge.host import HeartbeatClock
+    from device_bridge.protocol import frame_id
+
+    clock = HeartbeatClock(0.01).start()
+    buses = [_PushingBus() for _ in range(3)]
+    links = [DeviceLink(bus, heartbeat_clock=clock).start() for bus in buses]
+    beats = lambda bus: sum(f.arbitration_id == frame_id("HOST_HEARTBEAT") for f in bus.sent)  # noqa: E731
+    try:
+        assert all(t.name != "can-heartbeat" for link in links for t in link._threads)
+        links[1].pause_heartbeat()
+        paused_at = beats(buses[1])
+        until(lambda: beats(buses[0]) >= 5 and beats(buses[2]) >= 5)
+        assert beats(buses[1]) <= paused_at + 1       # at most the beat under way when it was paused
+        links[0].close()
+        closed_at = beats(buses[0])
+        until(lambda: beats(buses[2]) >= closed_at + 5)
+        assert beats(buses[0]) <= closed_at + 1
+    finally:
+        for link in links[1:]:
+            link.close()
+        clock.close()
+    with pytest.raises(ValueError, match="period_s"):
+        HeartbeatClock(0.0)

@@ -1,0 +1,113 @@
+"""One API instance's shared connection to the broker: each leg's frames to its own bus, in order; a leg the identity
+may not read refused by name; every leg down while the broker is, nothing sent then, and all back after it."""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import can
+import pytest
+
+from device_bridge.mqtt_bus import MqttBus
+from device_bridge.mqtt_connection import MqttConnection
+from tests.helpers.device import until
+from tests.helpers.mosquitto import admin_of, running_broker
+
+_ids = itertools.count()
+
+
+def _frame(i: int) -> can.Message:
+    return can.Message(arbitration_id=i, data=b"\x01", is_extended_id=False)
+
+
+def _legs(broker, admin, n: int) -> list[MqttBus]:
+    """``n`` legs' bridges (device role, each its own identity), connected."""
+    out = []
+    for _ in range(n):
+        device_id = f"shared-leg-{next(_ids)}"
+        out.append(MqttBus(device_id, broker.url, device_id, admin.add_device(device_id), role="device",
+                           ca_file=broker.ca_file))
+    return out
+
+
+def _connection(broker, admin) -> MqttConnection:
+    name = f"shared-server-{next(_ids)}"
+    return MqttConnection(broker.url, name, admin.add_server(name), ca_file=broker.ca_file, instance=name)
+
+
+def test_one_connection_serves_several_legs_each_on_its_own_bus(broker, broker_admin):
+    far = _legs(broker, broker_admin, 2)
+    conn = _connection(broker, broker_admin)
+    got: dict[str, list[int]] = {leg.device_id: [] for leg in far}
+    near = []
+    try:
+        for leg in far:
+            bus = MqttBus(leg.device_id, role="server", connection=conn)
+            bus.on_frames = lambda frames, d=leg.device_id: got[d].extend(f.arbitration_id for f in frames)
+            near.append(bus)
+        assert all(bus.delivers_frames and bus.connected for bus in near)
+        far[0].send_batch([_frame(0x300), _frame(0x301)])
+        far[1].send_batch([_frame(0x310)])
+        far[0].send_batch([_frame(0x302)])
+        until(lambda: len(got[far[0].device_id]) == 3 and len(got[far[1].device_id]) == 1)
+        assert got == {far[0].device_id: [0x300, 0x301, 0x302], far[1].device_id: [0x310]}
+        near[1].send(_frame(0x100))                      # down: to that leg only
+        back = far[1].recv(5)
+        assert back is not None and back.arbitration_id == 0x100
+        assert far[0].recv(0.3) is None
+        near[1].shutdown()                               # that leg no longer read; the other still is
+        far[1].send_batch([_frame(0x311)])
+        far[0].send_batch([_frame(0x303)])
+        until(lambda: got[far[0].device_id][-1:] == [0x303])
+        assert got[far[1].device_id] == [0x310]
+        with pytest.raises(ValueError, match="shares a connection"):
+            MqttBus("leg", role="device", connection=conn)
+    finally:
+        for bus in near[:1]:
+            bus.shutdown()
+        conn.close()
+        for leg in far:
+            leg.shutdown()
+
+
+def test_a_leg_the_identity_may_not_read_is_refused_by_name(broker, broker_admin):
+    mine, other = (f"shared-leg-{next(_ids)}" for _ in range(2))
+    password = broker_admin.add_device(mine)
+    broker_admin.add_device(other)
+    conn = MqttConnection(broker.url, mine, password, ca_file=broker.ca_file, instance=f"as-a-leg-{next(_ids)}")
+    try:
+        with pytest.raises(can.CanInitializationError, match=f"not allowed to read quasitune/v1/devices/{other}/up"):
+            MqttBus(other, role="server", connection=conn, connect_timeout_s=3.0)
+    finally:
+        conn.close()
+
+
+def test_every_leg_is_down_while_the_broker_is_and_back_after_it():
+    with running_broker() as broker, admin_of(broker) as admin:
+        far = _legs(broker, admin, 2)
+        conn = _connection(broker, admin)
+        got: list[int] = []
+        near = [MqttBus(leg.device_id, role="server", connection=conn) for leg in far]
+        near[0].on_frames = lambda frames: got.extend(f.arbitration_id for f in frames)
+        try:
+            broker.stop()
+            until(lambda: not any(bus.connected for bus in near), timeout_s=15.0)
+            with pytest.raises(can.CanOperationError, match="down"):
+                near[0].send(_frame(0x100))             # a frame from now must not reach the leg later
+            broker.start()
+            until(lambda: all(bus.connected for bus in near) and far[0].connected, timeout_s=30.0)
+            far[0].send_batch([_frame(0x320)])
+            until(lambda: got == [0x320], timeout_s=10.0)
+            near[1].send(_frame(0x101))
+            deadline = time.monotonic() + 5
+            back = None
+            while back is None and time.monotonic() < deadline:
+                back = far[1].recv(0.5)
+            assert back is not None and back.arbitration_id == 0x101
+        finally:
+            for bus in near:
+                bus.shutdown()
+            conn.close()
+            for leg in far:
+                leg.shutdown()
