@@ -51,7 +51,7 @@ def _topology(broker, admin, faults: tuple[float, float, float] | None = None, s
     node = DeviceNode(leg_bus(0)).start()
     far = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file,
                   connect_timeout_s=30.0)
-    gateway = Gateway(leg_bus(1), far).start()
+    gateway = Gateway.to_broker(leg_bus(1), far).start()
     name = f"bench-server-{next(_legs)}"
     link = DeviceLink(MqttBus(device_id, broker.url, name, admin.add_server(name), role="server",
                               ca_file=broker.ca_file, connect_timeout_s=30.0)).start()

@@ -136,6 +136,19 @@ def frame_id(name: str) -> int:
     return message(name).frame_id
 
 
+TELEMETRY_MESSAGES = ("TELEMETRY_TASK", "TELEMETRY_GAIT", "TELEMETRY_KNEE", "TELEMETRY_ANKLE")
+
+
+@cache
+def _telemetry_ids() -> frozenset[int]:
+    return frozenset(frame_id(name) for name in TELEMETRY_MESSAGES)
+
+
+def is_telemetry(msg: can.Message) -> bool:
+    """A telemetry frame (a sample's part): what may wait a little to share a broker message with the next samples."""
+    return msg.arbitration_id in _telemetry_ids() and not msg.is_extended_id
+
+
 def signal_scale(msg_name: str, signal: str) -> float:
     return float(message(msg_name).get_signal_by_name(signal).scale)
 

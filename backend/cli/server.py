@@ -230,7 +230,7 @@ def cmd_bridge(args: argparse.Namespace) -> int:
         walker = SimWalker()
         walker.stand(args.mass)
         node = DeviceNode(can.Bus(interface="virtual", channel=leg_bus.split(":", 1)[1]), leg=walker).start()
-    gateway = Gateway(open_bus(leg_bus), far).start()
+    gateway = (Gateway.to_broker(open_bus(leg_bus), far) if args.broker else Gateway(open_bus(leg_bus), far)).start()
     print(f"QuasiTune bridge: {args.can} <-> {to}", flush=True)
     try:
         gateway.wait()

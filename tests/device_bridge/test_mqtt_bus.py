@@ -230,3 +230,14 @@ def test_two_server_instances_both_read_one_legs_frames(broker, broker_admin, ta
             link.close()
         gateway.close()
         node.close()
+
+
+def test_a_batch_kept_while_disconnected_is_one_record_per_burst_at_its_own_time():
+    """The bridge's 50 ms messages hold several samples: each is kept with the time it left the leg's bus."""
+    from device_bridge.mqtt_bus import _bursts
+
+    frames = [_frame(0x300), _frame(0x301), _frame(0x300), _frame(0x301), _frame(0x080)]
+    for f, at in zip(frames, (10.000, 10.001, 10.010, 10.0105, 10.040), strict=True):
+        f.timestamp = at
+    runs = [(at, [f.arbitration_id for f in run]) for at, run in _bursts(frames)]
+    assert runs == [(10.000, [0x300, 0x301]), (10.010, [0x300, 0x301]), (10.040, [0x080])]

@@ -42,7 +42,7 @@ def bridged_leg(broker, admin, folder: Path, device_id: str = "home-leg", mass_k
     node = DeviceNode(can.Bus(interface="virtual", channel=channel), leg=walker).start()
     far = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file,
                   late_buffer=LateBuffer(folder / f"{device_id}-late.sqlite"))
-    gateway = Gateway(can.Bus(interface="virtual", channel=channel), far).start()
+    gateway = Gateway.to_broker(can.Bus(interface="virtual", channel=channel), far).start()
     try:
         yield BridgedLeg(device_id, node, walker, far, gateway)
     finally:
