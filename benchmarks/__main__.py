@@ -1,4 +1,4 @@
-"""``python -m benchmarks {model,api,device,envelope,instances,link,refine,storage,ui} [options]``: one benchmark, its
+"""``python -m benchmarks {model,api,device,envelope,fleet,instances,link,refine,storage,ui} [options]``: one benchmark, its
 figures as JSON."""
 
 from __future__ import annotations
@@ -36,6 +36,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--trials", type=int, default=500, help="soak pushes with bus faults and broker restarts")
     p.add_argument("--restart-every", type=int, default=50, help="the broker is restarted every this many trials")
     p.add_argument("--cut-seconds", type=float, default=60.0, help="the link loss in the middle of a session (s)")
+    p = sub.add_parser("fleet", help="many legs' replayed telemetry through one broker to two API instances, with live "
+                                     "monitors: latency, gaps, heartbeats at the legs, CPU")
+    p.add_argument("--legs", type=int, default=50)
+    p.add_argument("--monitors", type=int, default=20, help="live monitors (WebSockets), one leg each")
+    p.add_argument("--seconds", type=float, default=30.0, help="measured for this long (s) after a warm-up")
+    p.add_argument("--replayers", type=int, default=2, help="processes publishing the legs' telemetry")
     p = sub.add_parser("storage", help="bytes and read-back time of an hour of telemetry on SQLite and PostgreSQL")
     p.add_argument("--record-seconds", type=float, default=60.0, help="walking recorded by a real server (s)")
     p.add_argument("--hours", type=float, default=1.0, help="walking hours written from that recording")
@@ -59,6 +65,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.link import run
 
         result = run(args.pushes, args.trials, args.restart_every, args.cut_seconds)
+    elif args.name == "fleet":
+        from benchmarks.fleet import run
+
+        result = run(args.legs, args.monitors, args.seconds, args.replayers)
     elif args.name == "storage":
         from benchmarks.storage import run
 
