@@ -42,6 +42,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--monitors", type=int, default=20, help="live monitors (WebSockets), one leg each")
     p.add_argument("--seconds", type=float, default=30.0, help="measured for this long (s) after a warm-up")
     p.add_argument("--replayers", type=int, default=2, help="processes publishing the legs' telemetry")
+    p.add_argument("--recording", type=int, default=10, help="legs recording a session each")
+    p.add_argument("--window-ms", type=float, default=None,
+                   help="the bridge's telemetry window (default the bridge's own; 0: a message per sample)")
     p = sub.add_parser("storage", help="bytes and read-back time of an hour of telemetry on SQLite and PostgreSQL")
     p.add_argument("--record-seconds", type=float, default=60.0, help="walking recorded by a real server (s)")
     p.add_argument("--hours", type=float, default=1.0, help="walking hours written from that recording")
@@ -68,7 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     elif args.name == "fleet":
         from benchmarks.fleet import run
 
-        result = run(args.legs, args.monitors, args.seconds, args.replayers)
+        result = run(args.legs, args.monitors, args.seconds, args.replayers,
+                     None if args.window_ms is None else args.window_ms / 1e3, args.recording)
     elif args.name == "storage":
         from benchmarks.storage import run
 

@@ -7,13 +7,15 @@ learned envelope at 1.2 m/s level (75 kg) for the length of the run, faster than
 firmware put on its bus, one control tick's frames to a broker message as the bridge sends them (a telemetry sample
 every 10 ms, status and health every 100 ms), are published by every leg on the firmware's schedule from
 ``replayers`` processes (the legs' starts spread over the 10 ms). ``monitors`` live monitors (the WebSocket a
-clinician's page opens) watch one leg each, alternating between the instances.
+clinician's page opens) watch the first legs, one each, alternating between the instances; the last ``recording``
+legs record a session each (started on one instance, stopped on the other; both instances record them).
 
 Measured over ``seconds`` after a warm-up:
 
 * **latency**: from the replayer publishing a sample to a monitor receiving it (one machine, one clock): p50/p99/max.
 * **gaps**: per instance and leg, telemetry samples the instance's link did not receive, by their sequence numbers
   (the device's ``telemetry_samples_missing``), and samples a monitor did not receive.
+* **recorded**: the sessions' samples and the samples missing from them (their stop summaries).
 * **heartbeats at the legs**: the servers' heartbeats arriving at each leg (both instances together): the rate and
   the longest silence (the leg's watchdog acts at 200 ms).
 * **CPU**: each process's user + system time over the window (``/proc/PID/stat``), per leg for the instances.
@@ -230,8 +232,37 @@ def _percentiles_ms(values: np.ndarray) -> dict:
             "p99_ms": round(float(np.percentile(ms, 99)), 1), "max_ms": round(float(ms.max()), 1)}
 
 
+def _start_sessions(base: str, headers: dict, leg_ids: list[str]) -> list[int]:
+    """A patient per leg, the leg assigned to them, a session recording it (through the first instance)."""
+    import httpx
+
+    out = []
+    with httpx.Client(base_url=base, headers=headers, timeout=60.0) as c:
+        for i, leg in enumerate(leg_ids):
+            patient = c.post("/api/patients", json={"code_name": f"FLEET-{i + 1}", "body_mass_kg": 75.0,
+                                                    "side": "left"}).json()
+            c.put(f"/api/devices/{leg}/assignment", json={"patient_id": patient["id"]}).raise_for_status()
+            r = c.post(f"/api/patients/{patient['id']}/sessions", json={"device_id": leg, "speed_mps": 1.2})
+            r.raise_for_status()
+            out.append(r.json()["id"])
+    return out
+
+
+def _stop_sessions(base: str, headers: dict, sessions: list[int]) -> dict:
+    import httpx
+
+    summaries = []
+    with httpx.Client(base_url=base, headers=headers, timeout=120.0) as c:
+        for sid in sessions:
+            r = c.post(f"/api/sessions/{sid}/stop")
+            r.raise_for_status()
+            summaries.append(r.json()["summary"])
+    return {"sessions": len(sessions), "samples": sum(x["samples"] for x in summaries),
+            "missing_samples": sum(x["missing_samples"] for x in summaries)}
+
+
 def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: int = 2,
-        window_s: float | None = None) -> dict:
+        window_s: float | None = None, recording: int = 10) -> dict:
     import httpx
 
     from backend.db import connect
@@ -239,8 +270,8 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
     from backend.store.users import create_user
     from tests.helpers.mosquitto import admin_of, running_broker
 
-    if not (1 <= monitors <= legs and 1 <= replayers <= legs):
-        raise ValueError("need 1 <= monitors <= legs and 1 <= replayers <= legs")
+    if not (1 <= monitors <= legs and 1 <= replayers <= legs and 0 <= recording <= legs):
+        raise ValueError("need 1 <= monitors <= legs, 1 <= replayers <= legs and 0 <= recording <= legs")
     walk_s = WARMUP_S + seconds + 30.0     # the instances' start-up and the monitors' connections come first
     t0 = time.monotonic()
     walk = recorded_walk(walk_s, window_s=window_s)
@@ -254,7 +285,7 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
         migrate(folder / "quasitune.sqlite")
         conn = connect(folder / "quasitune.sqlite")
         try:
-            create_user(conn, "bench", "viewer", PASSWORD)
+            create_user(conn, "bench", "prosthetist", PASSWORD)
         finally:
             conn.close()
         device = ",".join(f"mqtt:{leg}" for leg in leg_ids)
@@ -276,7 +307,10 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
                 procs.append(p)
             with httpx.Client(base_url=f"http://127.0.0.1:{servers[0].port}", timeout=60.0) as c:
                 token = c.post("/api/auth/token", data={"username": "bench", "password": PASSWORD}).json()
-            time.sleep(max(0.0, start_at - time.time()) + WARMUP_S)
+            headers = {"Authorization": f"Bearer {token['access_token']}"}
+            time.sleep(max(0.0, start_at - time.time()) + 1.0)
+            sessions = _start_sessions(f"http://127.0.0.1:{servers[0].port}", headers, leg_ids[legs - recording:])
+            time.sleep(max(0.0, start_at + WARMUP_S - time.time()))
             cpu_pids = {"broker": broker.proc.pid, **{s.name: s.proc.pid for s in servers},
                         **{f"replayer_{r}": p.pid for r, p in enumerate(procs)}, "monitors": os.getpid()}
             cpu0 = {k: _cpu_s(pid) for k, pid in cpu_pids.items()}
@@ -290,8 +324,8 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
             views = {}
             for s in servers:
                 with httpx.Client(base_url=f"http://127.0.0.1:{s.port}", timeout=60.0) as c:
-                    h = {"Authorization": f"Bearer {token['access_token']}"}
-                    views[s.name] = {d["id"]: d for d in c.get("/api/devices", headers=h).json()}
+                    views[s.name] = {d["id"]: d for d in c.get("/api/devices", headers=headers).json()}
+            recorded = _stop_sessions(f"http://127.0.0.1:{servers[1].port}", headers, sessions)
             for p in procs:
                 p.join(timeout=walk_s + 60)
         finally:
@@ -321,6 +355,7 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
         "walk_recorded_in_s": round(recorded_in, 1),
         "monitor_latency": _percentiles_ms(lat[np.isfinite(lat)]),
         "monitor_samples": int(seen_a.shape[0]), "monitor_samples_missing": monitor_missing,
+        "recorded": recorded,
         "instances": {name: {
             "samples_received": sum(d["telemetry_samples_received"] for d in v.values()),
             "samples_missing": sum(d["telemetry_samples_missing"] for d in v.values()),

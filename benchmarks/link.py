@@ -11,7 +11,7 @@ loopback with TLS and a throwaway CA (as the tests start it), the leg's identity
    came late from the bridge's buffer, the leg's modes during the cut (from the device, 50 Hz), how long it took to be
    in safe mode (supervised) and that it runs its table again after the host said so.
 
-Not here: 50 legs at 100 Hz to two instances (an API instance serves one device; see docs/results.md).
+Many legs to two instances: ``python -m benchmarks fleet``.
 """
 
 from __future__ import annotations
