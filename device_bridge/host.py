@@ -226,8 +226,8 @@ class DeviceLink(BusThreads):
             bus's own ``heartbeat_period_s`` (the broker link's 50 ms), else 20 ms.
         heartbeat_clock: beat from this shared clock (one thread for many links, at its period) instead of a thread
             of the link's own.
-        on_status: called with each :class:`DeviceStatus` (from the receive thread: return quickly).
-        on_telemetry: called with each complete :class:`TelemetrySample` (from the receive thread).
+        on_status: called with each :class:`DeviceStatus` (from the receive thread, or the bus's: return quickly).
+        on_telemetry: called with each complete :class:`TelemetrySample` (from the same thread).
         on_late_telemetry: called with each sample the leg's bridge kept while the link was down and delivered late
             (a bus with ``on_late``, the broker link): stamped with the time it was made, its sequence number placed
             by the live stream's; the late messages' other frames (old statuses, old acknowledgements) are ignored.
@@ -270,15 +270,16 @@ class DeviceLink(BusThreads):
             bus.on_late = self._on_late
         self._heartbeat_counter = 0
         self._clock = heartbeat_clock
-        if getattr(bus, "delivers_frames", False):
-            bus.on_frames = self._receive
-        else:
+        self._pushed = bool(getattr(bus, "delivers_frames", False))
+        if not self._pushed:
             self._threads.append(threading.Thread(target=self._rx_loop, name="can-rx", daemon=True))
         if heartbeat_clock is None:
             self._threads.append(threading.Thread(target=self._heartbeat_loop, name="can-heartbeat", daemon=True))
 
     def start(self) -> Self:
         super().start()
+        if self._pushed:       # from now on, as a receive thread would begin reading now
+            self.bus.on_frames = self._receive
         if self._clock is not None:
             self._clock.add(self)
         return self
@@ -286,6 +287,8 @@ class DeviceLink(BusThreads):
     def close(self) -> None:
         if self._clock is not None:
             self._clock.remove(self)
+        if self._pushed:
+            self.bus.on_frames = None
         super().close()
 
     # ------------------------------------------------------------------------------------------ sending
