@@ -272,6 +272,8 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
 
     if not (1 <= monitors <= legs and 1 <= replayers <= legs and 0 <= recording <= legs):
         raise ValueError("need 1 <= monitors <= legs, 1 <= replayers <= legs and 0 <= recording <= legs")
+    if not 1.0 <= seconds <= 500.0:      # the replay's 16-bit sequence numbers must not wrap (655 s)
+        raise ValueError(f"seconds must be in [1, 500], got {seconds!r}")
     walk_s = WARMUP_S + seconds + 30.0     # the instances' start-up and the monitors' connections come first
     t0 = time.monotonic()
     walk = recorded_walk(walk_s, window_s=window_s)
