@@ -152,6 +152,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     page.wait_for_selector("#viewer3d-off:has-text('no login')")
     expect(page.locator("#viewer3d iframe")).to_have_count(0)
     assert "P-100 · table v2" in page.inner_text("#active-version")
+    assert re.fullmatch(r"[\d,]+ since this server connected, none missed", page.inner_text("#stream"))
     # what a lost link does to this leg: supervised until the prosthetist chooses otherwise, with a written reason
     assert "supervised: the leg goes to its passive safe mode" in page.inner_text("#link-mode")
     page.click("#link-mode-change")

@@ -231,8 +231,17 @@ function renderStatus(box, d) {
       : d.pending_table ? tableName(d.pending_table) : `device version ${d.pending_version}`),
     h("dt", {}, "FSM state"), h("dd", {}, d.fsm_state === null ? "—" : FSM_STATES[d.fsm_state]),
     h("dt", {}, "Last heartbeat"), h("dd", { id: "heartbeat" }, d.last_heartbeat_age_s === null ? "never" : `${fmt(d.last_heartbeat_age_s, 2)} s ago`),
+    h("dt", {}, "Samples reaching this server"), h("dd", { id: "stream" }, ...streamWords(d)),
     h("dt", {}, "Temperature"), h("dd", {}, d.temperature_degC === null ? "not measured" : fmt(d.temperature_degC, 1, "°C")),
     h("dt", {}, "If the link is lost"), h("dd", { id: "link-mode" }, ...linkModeWords(d))));
+}
+
+// The leg's live samples as this server received them: how many since it connected, and whether any were missed
+// (by the leg's own sequence numbers; samples the bridge delivers late fill a session's record afterwards)
+function streamWords(d) {
+  const got = `${d.telemetry_samples_received.toLocaleString("en")} since this server connected`;
+  return d.telemetry_samples_missing === 0 ? [`${got}, none missed`]
+    : [`${got}, `, chip(`${d.telemetry_samples_missing.toLocaleString("en")} missed on the way`, "warn")];
 }
 
 // What a lost link does to this leg: the prosthetist's choice, what the leg reports it does, and the way to change it
