@@ -137,7 +137,12 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
             raise ValueError(f"device {settings.device} is reached through the broker: set QUASITUNE_BROKER_URL, "
                              "QUASITUNE_BROKER_USERNAME and QUASITUNE_BROKER_PASSWORD (this instance's identity there)")
     bus_options = {} if app.state.broker is None else {"mqtt": {"role": "server", "connection": app.state.broker}}
-    app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg, bus_options=bus_options).start()
+    try:
+        app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg, bus_options=bus_options).start()
+    except BaseException:     # a leg refused at the broker: the connection's threads must not outlive the failed start
+        if app.state.broker is not None:
+            app.state.broker.close()
+        raise
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)
