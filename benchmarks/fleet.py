@@ -44,13 +44,14 @@ PASSWORD = "fleet benchmark password"
 
 
 def recorded_walk(seconds: float, mass_kg: float = 75.0, window_s: float | None = None
-                  ) -> list[tuple[float, tuple[tuple[int, float], ...], bytes]]:
+                  ) -> list[tuple[float, tuple[tuple[int, float], ...], tuple[tuple[float, bytes], ...]]]:
     """The broker messages of the simulated leg's bridge over ``seconds`` of walking its envelope: (when the message
     leaves, from the start s; (sequence number, when the leg made that sample) for each telemetry sample in it; its
-    frames, packed as the broker carries them). Grouped as :meth:`Gateway.to_broker` groups them: one control tick's
-    frames (a burst) to a message, telemetry waiting up to ``window_s`` (default the bridge's
-    :data:`~device_bridge.gateway.TELEMETRY_WINDOW_S`) for the samples after it, anything else leaving at once. The
-    firmware and the bench are stepped directly (no bus, no threads), so this takes a few seconds."""
+    bursts, each (when it left the leg's bus, from the start s; its frames packed as the broker carries them)).
+    Grouped as :meth:`Gateway.to_broker` groups them: one control tick's frames (a burst) to a message, telemetry
+    waiting up to ``window_s`` (default the bridge's :data:`~device_bridge.gateway.TELEMETRY_WINDOW_S`) for the samples
+    after it, anything else leaving at once. The firmware and the bench are stepped directly (no bus, no threads), so
+    this takes a few seconds."""
     from controller_core import load_default_model
     from controller_core.walking_reference import sloped_walking_reference
     from device_bridge.device_node import TICK_S
@@ -72,7 +73,7 @@ def recorded_walk(seconds: float, mass_kg: float = 75.0, window_s: float | None 
         fw.receive(frame, 0.0)
     walker = SimWalker()
     walker.start(sloped_walking_reference(1.2, 0.0), mass_kg)
-    out: list[tuple[float, tuple[tuple[int, float], ...], bytes]] = []
+    out: list[tuple[float, tuple[tuple[int, float], ...], tuple[tuple[float, bytes], ...]]] = []
     opened: list | None = None      # [opened at s, samples, payload, still waiting]
     for i in range(round(seconds / TICK_S)):
         t = i * TICK_S
@@ -86,7 +87,7 @@ def recorded_walk(seconds: float, mass_kg: float = 75.0, window_s: float | None 
         made = () if seq is None else ((seq, t),)
         if opened is not None and t < opened[0] + window - 1e-9:      # still open: these join it
             opened[1] += made
-            opened[2] += pack_frames(frames)
+            opened[2] += ((t, pack_frames(frames)),)
             if not all(map(is_telemetry, frames)):     # a status: the message leaves now
                 out.append((t, opened[1], opened[2]))
                 opened = None
@@ -95,9 +96,9 @@ def recorded_walk(seconds: float, mass_kg: float = 75.0, window_s: float | None 
             out.append((opened[0] + window, opened[1], opened[2]))
             opened = None
         if window > 0 and all(map(is_telemetry, frames)):
-            opened = [t, made, pack_frames(frames)]
+            opened = [t, made, ((t, pack_frames(frames)),)]
         else:
-            out.append((t, made, pack_frames(frames)))
+            out.append((t, made, ((t, pack_frames(frames)),)))
     if opened is not None:
         out.append((opened[0] + window, opened[1], opened[2]))
     return out
@@ -110,7 +111,8 @@ def _cpu_s(pid: int) -> float:
 
 
 def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file: str,
-            walk: list[tuple[float, tuple[tuple[int, float], ...], bytes]], start_at: float, out_file: str) -> None:
+            walk: list[tuple[float, tuple[tuple[int, float], ...], tuple[tuple[float, bytes], ...]]], start_at: float,
+            out_file: str) -> None:
     """One replayer process: its legs (index, id, password) publish the recorded walk on the firmware's schedule from
     ``start_at`` (Unix s), each leg offset by its index over the 10 ms; the publish time of each sample and the
     heartbeats each leg received are written to ``out_file``.
@@ -126,7 +128,7 @@ def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file:
     import paho.mqtt.client as mqtt
     from paho.mqtt.enums import CallbackAPIVersion
 
-    from device_bridge.mqtt_bus import BrokerAddress, topic
+    from device_bridge.mqtt_bus import BrokerAddress, pack_late, topic
     from device_bridge.protocol import frame_id
 
     address = BrokerAddress.parse(broker)
@@ -163,9 +165,9 @@ def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file:
         due = start_at + offset
         if due - time.time() > EARLY_S:    # events within a couple of ms go out together (fewer wake-ups)
             pump(due - EARLY_S)
-        t_message, made, payload = walk[k]
-        info = clients[j].publish(up[j], payload, qos=1)
-        now = time.time()
+        t_message, made, bursts = walk[k]
+        now = time.time()       # the records say when each burst left the leg's bus, as the bridge's do
+        info = clients[j].publish(up[j], pack_late((now - (t_message - tb), fb) for tb, fb in bursts), qos=1)
         for seq, t_made in made:     # when the leg made the sample: what waited for the message counts
             sent[j, seq] = now - (t_message - t_made) if info.rc == mqtt.MQTT_ERR_SUCCESS else np.nan
         if due >= next_misc:     # keepalive and retries, once a second

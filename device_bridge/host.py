@@ -53,6 +53,8 @@ from device_bridge.protocol import (
 )
 
 _DEG = math.pi / 180.0
+STALE_STATUS_S = 1.0     # a status this much later than the link's usual delay is history, not the leg's state now
+LAG_FLOOR_RISE = 0.01    # the usual delay (the smallest seen) may rise this much a second (s/s)
 GAP_MEMORY = 1000        # a skipped sample arriving within this many newer ones was overtaken, not lost (10 s)
 LONG_SILENCE_S = 300.0   # telemetry back after a silence this long is placed by time (a 16-bit sequence wraps in 655 s)
 log = logging.getLogger(__name__)
@@ -266,6 +268,10 @@ class DeviceLink(BusThreads):
         self.telemetry_missing = 0      # live samples skipped by the sequence (a late delivery may fill them in)
         self._newest_seq: int | None = None
         self._gaps: set[int] = set()      # skipped sequence numbers that may still arrive
+        self.stale_statuses = 0           # statuses that arrived too late to be the leg's state (see _current)
+        self._fresh = True                # the frame being dispatched is the leg's state now (see _current)
+        self._lag_floor: float | None = None
+        self._lag_at = 0.0
         if hasattr(bus, "on_late"):
             bus.on_late = self._on_late
         self._heartbeat_counter = 0
@@ -354,6 +360,7 @@ class DeviceLink(BusThreads):
             decoded = self._decoded(msg)
             if decoded is None:
                 continue
+            self._fresh = self._current(msg.timestamp or time.time())
             try:
                 self._dispatch(*decoded)
             except Exception:   # a failing callback must not stop the link (acknowledgements, heartbeats)
@@ -388,7 +395,26 @@ class DeviceLink(BusThreads):
         elif name == "DEVICE_HEALTH":
             self._health = dict(raw)
         elif name == "DEVICE_STATUS":
-            self._on_status(raw)
+            if self._fresh:
+                self._on_status(raw)
+            else:
+                self.stale_statuses += 1
+
+    def _current(self, made_unix_s: float) -> bool:
+        """Whether a frame that left the leg's bus at ``made_unix_s`` (the leg's clock, carried by the broker link; a
+        CAN bus stamps its arrival) is the leg's state now: it took at most :data:`STALE_STATUS_S` longer than the
+        link's usual delay, the smallest seen (let rise :data:`LAG_FLOOR_RISE` s a second, so a clock step or a slower
+        path is learned). What was in flight when a link broke arrives first when it returns: such a status is
+        history, not what the leg does now. The usual delay is learned from the frames themselves, so the very first
+        ones (an instance's queue at the broker after a restart) cannot be judged."""
+        now = time.time()
+        lag = now - made_unix_s
+        if self._lag_floor is None:
+            self._lag_floor = lag
+        else:
+            self._lag_floor = min(self._lag_floor + LAG_FLOOR_RISE * max(now - self._lag_at, 0.0), lag)
+        self._lag_at = now
+        return lag - self._lag_floor <= STALE_STATUS_S
 
     def _count(self, seq: int) -> None:
         """Count a live sample; one the sequence skipped is missing until it arrives (overtaken on the way), or for

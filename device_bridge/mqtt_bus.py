@@ -8,8 +8,11 @@ that altered a frame is caught by the protocol exactly as a noisy bus is.
 * Topics, per device: ``quasitune/v1/devices/{device_id}/up`` (the leg's frames: telemetry, status, health,
   acknowledgements) and ``…/down`` (the server's: heartbeats, pushes, commands). The broker's access rules let a
   device publish only its own ``up`` and read only its own ``down``, and only the server publish ``down``.
-* Payload: one or more classic CAN frames of 11 bytes each: the 11-bit id (u16 little-endian), the data length
-  (u8, 0-8) and 8 data bytes (zero-padded). A message whose length is not a whole number of frames, or a frame whose
+* Payload: classic CAN frames of 11 bytes each: the 11-bit id (u16 little-endian), the data length (u8, 0-8) and 8
+  data bytes (zero-padded). The server's (``down``) are frames only; the leg's (``up`` and ``late``) are records of
+  (the time the frames left the leg's bus, f64 Unix s; their count, u8; the frames), one per burst, so the server can
+  tell a status that was in flight when the link broke, and arrives first when it returns, from the leg's state now
+  (:meth:`device_bridge.host.DeviceLink._current`). A message that is not whole frames or records, or a frame whose
   id or length is out of range, is dropped whole and counted in :attr:`MqttBus.malformed`.
 * Batching: :meth:`MqttBus.send_batch` puts frames in one message. The bridge (:meth:`Gateway.to_broker
   <device_bridge.gateway.Gateway.to_broker>`) sends a burst of frames (one telemetry sample's three or four leave the
@@ -296,10 +299,13 @@ class MqttBus(can.BusABC):
 
     def deliver(self, direction: str, payload: bytes) -> None:
         """One message from the broker: a late one (``direction`` ``late``) to :attr:`on_late`, else its frames to
-        :attr:`on_frames` or the receive queue; a malformed one is counted and dropped whole."""
+        :attr:`on_frames` or the receive queue (the leg's stamped with the time they left its bus); a malformed one is
+        counted and dropped whole."""
         try:
             if direction == "late":
                 records = unpack_late(payload)
+            elif self.role == "server":      # the leg's frames: records of (when they left its bus, frames)
+                frames = [f for _, run in unpack_late(payload) for f in run]
             else:
                 frames = unpack_frames(payload)
         except ValueError:
@@ -329,13 +335,14 @@ class MqttBus(can.BusABC):
         them in its late buffer (without one, paho keeps them in memory and sends them on reconnection); the server's
         side refuses them (CanOperationError): a heartbeat, a command or a push frame from minutes ago must not reach
         the leg."""
-        payload = pack_frames(frames)
+        bursts = [(at, pack_frames(burst)) for at, burst in _bursts(frames)] if self.role == "device" else []
+        payload = pack_late(bursts) if self.role == "device" else pack_frames(frames)
         if not self._connected.is_set():
             if self.role == "server":
                 raise can.CanOperationError(f"{self.channel_info}: the link to the broker is down; not sent")
             if self._late_buffer is not None:     # one record per burst, each at the time it left the leg's bus
-                for at, burst in _bursts(frames):
-                    self._late_buffer.append(at, pack_frames(burst))
+                for at, packed in bursts:
+                    self._late_buffer.append(at, packed)
                 return
         qos = 1 if self.role == "device" else 0
         info = self._client.publish(self._send_topic, payload, qos=qos) if self._connection is None else \

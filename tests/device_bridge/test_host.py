@@ -225,3 +225,36 @@ def test_one_clock_beats_for_several_links_and_skips_a_paused_one():
         clock.close()
     with pytest.raises(ValueError, match="period_s"):
         HeartbeatClock(0.0)
+
+
+def _status_frame(mode: Mode, made_unix_s: float) -> can.Message:
+    from device_bridge.protocol import encode
+
+    f = encode("DEVICE_STATUS", {"counter": 1, "mode": int(mode), "fsm_state": 15})
+    f.timestamp = made_unix_s
+    return f
+
+
+def test_a_status_that_was_in_flight_when_the_link_broke_is_history_not_the_legs_state():
+    """What the broker link delivers first after a cut was made before it: a status much later than the link's usual
+    delay is counted, not taken as the leg's state; fresh ones are."""
+    import time
+
+    bus = _PushingBus()
+    link = DeviceLink(bus).start()
+    try:
+        now = time.time()
+        bus.on_frames([_status_frame(Mode.ACTIVE, now - 0.02)])
+        assert link.status.mode == Mode.ACTIVE
+        telemetry = _telemetry(0)
+        for f in telemetry:
+            f.timestamp = time.time() - 0.02          # the link's usual delay: 20 ms
+        bus.on_frames(telemetry)
+        bus.on_frames([_status_frame(Mode.SAFE, time.time() - 0.03)])
+        assert link.status.mode == Mode.SAFE
+        bus.on_frames([_status_frame(Mode.ACTIVE, time.time() - 3.0)])   # made 3 s ago, before the cut
+        assert link.status.mode == Mode.SAFE and link.stale_statuses == 1
+        bus.on_frames([_status_frame(Mode.SAFE, time.time() - 0.02)])
+        assert link.status.mode == Mode.SAFE and link.stale_statuses == 1
+    finally:
+        link.close()
