@@ -30,8 +30,6 @@ import asyncio
 import json
 import multiprocessing
 import os
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -122,23 +120,18 @@ def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file:
     on a ``select`` of their sockets; a publish writes at once): a network thread per client cost the replayers most
     of a core at 50 legs, taken from the instances measured."""
     import select
-    import ssl
     import struct
 
     import paho.mqtt.client as mqtt
-    from paho.mqtt.enums import CallbackAPIVersion
 
-    from device_bridge.mqtt_bus import BrokerAddress, pack_late, topic
+    from device_bridge.mqtt_bus import broker_client, pack_late, topic
     from device_bridge.protocol import frame_id
 
-    address = BrokerAddress.parse(broker)
     heartbeat = struct.pack("<H", frame_id("HOST_HEARTBEAT"))
     beats: list[list[float]] = [[] for _ in legs]
     clients = []
     for j, (_, leg_id, password) in enumerate(legs):
-        c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"device-{leg_id}", protocol=mqtt.MQTTv311)
-        c.username_pw_set(leg_id, password)
-        c.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
+        c, address = broker_client(broker, f"device-{leg_id}", leg_id, password, ca_file)
         c.on_message = lambda _c, _u, m, j=j: beats[j].append(time.time()) if m.payload[:2] == heartbeat else None
         c.connect(address.host, address.port, keepalive=30)
         c.subscribe(topic(leg_id, "down"), qos=0)
@@ -179,32 +172,6 @@ def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file:
         c.disconnect()
     np.savez(out_file, sent=sent, index=np.array([i for i, _, _ in legs]),
              beats=np.array([np.array(b) for b in beats], dtype=object))
-
-
-class _Server:
-    """One ``quasitune serve`` serving every leg through the broker."""
-
-    def __init__(self, name: str, data_dir: Path, device: str, env: dict[str, str]) -> None:
-        from benchmarks.instances import _free_port
-
-        self.name, self.port = name, _free_port()
-        cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", str(self.port), "--data-dir", str(data_dir),
-               "--device", device, "--no-bootstrap-user"]
-        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                                     env={**os.environ, "PYTHONUNBUFFERED": "1", **env})
-
-    def ready(self) -> None:
-        line = self.proc.stdout.readline()
-        if "listening on" not in line:
-            raise RuntimeError(f"instance {self.name} did not start: {line!r}")
-
-    def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(15)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
 
 
 async def _monitor(url: str, leg: int, until: float, seen: list[tuple[int, int, float]]) -> None:
@@ -270,6 +237,7 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
     from backend.db import connect
     from backend.migrate import migrate
     from backend.store.users import create_user
+    from benchmarks.instances import Instance
     from tests.helpers.mosquitto import admin_of, running_broker
 
     if not (1 <= monitors <= legs and 1 <= replayers <= legs and 0 <= recording <= legs):
@@ -293,13 +261,15 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
         finally:
             conn.close()
         device = ",".join(f"mqtt:{leg}" for leg in leg_ids)
-        servers = [_Server(name, folder, device, {
+        servers = {name: Instance(folder, None, device, {
             "QUASITUNE_BROKER_URL": broker.url, "QUASITUNE_BROKER_USERNAME": f"fleet-{name}",
             "QUASITUNE_BROKER_PASSWORD": pw, "QUASITUNE_BROKER_CA_FILE": broker.ca_file,
-            "QUASITUNE_INSTANCE_NAME": name}) for name, pw in servers_pw.items()]
+            "QUASITUNE_INSTANCE_NAME": name}) for name, pw in servers_pw.items()}
         procs: list[multiprocessing.Process] = []
         try:
-            for s in servers:
+            for s in servers.values():
+                s.spawn()
+            for s in servers.values():
                 s.ready()
             start_at = time.time() + 5.0 + 0.2 * legs / replayers    # every replayer connected by then
             ctx = multiprocessing.get_context("spawn")
@@ -309,34 +279,35 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
                                                       str(folder / f"replay-{r}.npz")))
                 p.start()
                 procs.append(p)
-            with httpx.Client(base_url=f"http://127.0.0.1:{servers[0].port}", timeout=60.0) as c:
+            first, second = servers.values()
+            with httpx.Client(base_url=first.base, timeout=60.0) as c:
                 token = c.post("/api/auth/token", data={"username": "bench", "password": PASSWORD}).json()
             headers = {"Authorization": f"Bearer {token['access_token']}"}
             time.sleep(max(0.0, start_at - time.time()) + 1.0)
-            sessions = _start_sessions(f"http://127.0.0.1:{servers[0].port}", headers, leg_ids[legs - recording:])
+            sessions = _start_sessions(first.base, headers, leg_ids[legs - recording:])
             time.sleep(max(0.0, start_at + WARMUP_S - time.time()))
-            cpu_pids = {"broker": broker.proc.pid, **{s.name: s.proc.pid for s in servers},
+            cpu_pids = {"broker": broker.proc.pid, **{name: s.proc.pid for name, s in servers.items()},
                         **{f"replayer_{r}": p.pid for r, p in enumerate(procs)}, "monitors": os.getpid()}
             cpu0 = {k: _cpu_s(pid) for k, pid in cpu_pids.items()}
             w0 = time.monotonic()
             window = (time.time(), time.time() + seconds)
-            urls = [(f"ws://127.0.0.1:{servers[m % 2].port}/api/devices/{leg_ids[m]}/telemetry"
+            urls = [(f"ws://127.0.0.1:{(first, second)[m % 2].port}/api/devices/{leg_ids[m]}/telemetry"
                      f"?token={token['access_token']}", m) for m in range(monitors)]
             seen = asyncio.run(_monitors(urls, window[1]))
             wall = time.monotonic() - w0
             cpu = {k: round((_cpu_s(pid) - cpu0[k]) / wall, 3) for k, pid in cpu_pids.items()}
             views = {}
-            for s in servers:
-                with httpx.Client(base_url=f"http://127.0.0.1:{s.port}", timeout=60.0) as c:
-                    views[s.name] = {d["id"]: d for d in c.get("/api/devices", headers=headers).json()}
-            recorded = _stop_sessions(f"http://127.0.0.1:{servers[1].port}", headers, sessions)
+            for name, s in servers.items():
+                with httpx.Client(base_url=s.base, timeout=60.0) as c:
+                    views[name] = {d["id"]: d for d in c.get("/api/devices", headers=headers).json()}
+            recorded = _stop_sessions(second.base, headers, sessions)
             for p in procs:
                 p.join(timeout=walk_s + 60)
         finally:
             for p in procs:
                 if p.is_alive():
                     p.terminate()
-            for s in servers:
+            for s in servers.values():
                 s.stop()
         replays = [np.load(folder / f"replay-{r}.npz", allow_pickle=True) for r in range(replayers)]
     sent = np.full((legs, replays[0]["sent"].shape[1]), np.nan)
@@ -367,6 +338,6 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
         "heartbeats_at_legs": {"per_leg_per_s": round(float(np.mean([b.size for b in in_window])) / seconds, 1),
                                "longest_silence_ms": round(max(beat_gaps) * 1e3, 1) if beat_gaps else None},
         "cpu_cores": cpu, "cpu_per_leg_per_instance": {
-            s.name: round(cpu[s.name] / legs, 4) for s in servers},
+            name: round(cpu[name] / legs, 4) for name in servers},
         "machine_cores": os.cpu_count(),
     }

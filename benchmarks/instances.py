@@ -57,11 +57,13 @@ def _free_port() -> int:
 
 
 class Instance:
-    """One ``quasitune serve`` on a fixed loopback port (so a restarted one is found where it was)."""
+    """One ``quasitune serve`` on a fixed loopback port (so a restarted one is found where it was), serving ``device``
+    (none: the store and the API alone), with ``env`` added to its environment."""
 
-    def __init__(self, data_dir: Path, database_url: str | None) -> None:
-        self.data_dir, self.port, self.proc = data_dir, _free_port(), None
-        self.env = {**os.environ, "PYTHONUNBUFFERED": "1", "QUASITUNE_DEVICE": "none"}
+    def __init__(self, data_dir: Path, database_url: str | None, device: str = "none",
+                 env: dict[str, str] | None = None) -> None:
+        self.data_dir, self.port, self.proc, self.device = data_dir, _free_port(), None, device
+        self.env = {**os.environ, "PYTHONUNBUFFERED": "1", "QUASITUNE_DEVICE": device, **(env or {})}
         if database_url:
             self.env["QUASITUNE_DATABASE_URL"] = database_url
 
@@ -70,12 +72,20 @@ class Instance:
         return f"http://127.0.0.1:{self.port}"
 
     def start(self) -> None:
+        self.spawn()
+        self.ready()
+
+    def spawn(self) -> None:
+        """Start the process (several can start side by side before :meth:`ready`)."""
         cmd = [sys.executable, "-m", "backend.cli", "serve", "--port", str(self.port), "--data-dir",
-               str(self.data_dir), "--device", "none", "--no-bootstrap-user"]
+               str(self.data_dir), "--device", self.device, "--no-bootstrap-user"]
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=self.env)
+
+    def ready(self) -> None:
+        """Wait for the process to say it listens."""
         line = self.proc.stdout.readline()
         if "listening on" not in line:
-            raise RuntimeError(f"instance did not start: {line!r}")
+            raise RuntimeError(f"instance on port {self.port} did not start: {line!r}")
 
     def kill(self) -> None:
         self.proc.send_signal(signal.SIGKILL)

@@ -15,14 +15,10 @@ from __future__ import annotations
 
 import json
 import secrets
-import ssl
 import threading
 import uuid
 
-import paho.mqtt.client as mqtt
-from paho.mqtt.enums import CallbackAPIVersion
-
-from device_bridge.mqtt_bus import TOPIC_PREFIX, BrokerAddress, topic
+from device_bridge.mqtt_bus import TOPIC_PREFIX, broker_client, topic
 
 CONTROL = "$CONTROL/dynamic-security/v1"
 SERVER_ROLE = "quasitune-server"
@@ -45,17 +41,12 @@ class BrokerAdmin:
 
     def __init__(self, broker: str, username: str, password: str, ca_file: str | None = None,
                  timeout_s: float = 10.0, insecure: bool = False) -> None:
-        address = BrokerAddress.parse(broker)
-        if not address.tls and not insecure:
-            raise ValueError("the broker's admin link is TLS only (mqtts://)")
+        self._client, address = broker_client(broker, f"quasitune-admin-{uuid.uuid4().hex[:8]}", username, password,
+                                              ca_file, insecure)
         self.timeout_s = timeout_s
         self._answers: dict[str, dict] = {}
         self._arrived = threading.Condition()
         self._ready = threading.Event()
-        self._client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"quasitune-admin-{uuid.uuid4().hex[:8]}")
-        self._client.username_pw_set(username, password)
-        if address.tls:
-            self._client.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
         self._client.on_connect = lambda c, *_: (c.subscribe(CONTROL + "/response", qos=1), None)
         self._client.on_subscribe = lambda *_: self._ready.set()
         self._client.on_message = self._on_message

@@ -269,7 +269,6 @@ class DeviceLink(BusThreads):
         self._newest_seq: int | None = None
         self._gaps: set[int] = set()      # skipped sequence numbers that may still arrive
         self.stale_statuses = 0           # statuses that arrived too late to be the leg's state (see _current)
-        self._fresh = True                # the frame being dispatched is the leg's state now (see _current)
         self._lag_floor: float | None = None
         self._lag_at = 0.0
         if hasattr(bus, "on_late"):
@@ -360,9 +359,8 @@ class DeviceLink(BusThreads):
             decoded = self._decoded(msg)
             if decoded is None:
                 continue
-            self._fresh = self._current(msg.timestamp or time.time())
             try:
-                self._dispatch(*decoded)
+                self._dispatch(*decoded, current=self._current(msg.timestamp or time.time()))
             except Exception:   # a failing callback must not stop the link (acknowledgements, heartbeats)
                 self.callback_errors += 1
                 log.exception("device link: a status or telemetry callback failed")
@@ -376,7 +374,8 @@ class DeviceLink(BusThreads):
             self.rx_errors += 1
             return None
 
-    def _dispatch(self, name: str, raw: dict[str, int]) -> None:
+    def _dispatch(self, name: str, raw: dict[str, int], current: bool = True) -> None:
+        """One decoded frame; ``current``: it is the leg's state now (a status that is not is history, :meth:`_current`)."""
         if name == "TABLE_ACK":
             self._acks.put(raw)
         elif name == "TELEMETRY_TASK":
@@ -395,7 +394,7 @@ class DeviceLink(BusThreads):
         elif name == "DEVICE_HEALTH":
             self._health = dict(raw)
         elif name == "DEVICE_STATUS":
-            if self._fresh:
+            if current:
                 self._on_status(raw)
             else:
                 self.stale_statuses += 1

@@ -51,6 +51,7 @@ import can
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 
+from device_bridge.gateway import BURST_GAP_S
 from device_bridge.late_buffer import WRITE_PERIOD_S, LateBuffer
 
 if TYPE_CHECKING:
@@ -99,7 +100,7 @@ def unpack_frames(payload: bytes) -> list[can.Message]:
     return frames
 
 
-def _bursts(frames: list[can.Message], gap_s: float = 0.002) -> Iterator[tuple[float, list[can.Message]]]:
+def _bursts(frames: list[can.Message], gap_s: float = BURST_GAP_S) -> Iterator[tuple[float, list[can.Message]]]:
     """Frames in runs that left the leg's bus within ``gap_s`` of each run's first (one telemetry sample each), with
     that first frame's time (Unix s; now for frames without one)."""
     run: list[can.Message] = []
@@ -155,6 +156,23 @@ class BrokerAddress:
         if parts.scheme not in ("mqtts", "mqtt") or not parts.hostname:
             raise ValueError(f"broker must be mqtts://HOST:PORT (or mqtt:// on an isolated bench), got {url!r}")
         return cls(parts.hostname, parts.port or (8883 if parts.scheme == "mqtts" else 1883), parts.scheme == "mqtts")
+
+
+def broker_client(broker: str, client_id: str, username: str, password: str, ca_file: str | None = None,
+                  insecure: bool = False, clean_session: bool = True) -> tuple[mqtt.Client, BrokerAddress]:
+    """A paho client (MQTT 3.1.1) for ``broker`` with this identity, TLS against ``ca_file`` (None: the system's CAs),
+    not yet connected, and the broker's address. ValueError for a plain ``mqtt://`` address unless ``insecure`` (a
+    bench on an isolated network): every link to the broker, the legs', the servers' and the admin's, is TLS."""
+    address = BrokerAddress.parse(broker)
+    if not address.tls and not insecure:
+        raise ValueError("the broker link is TLS only (mqtts://); a plain mqtt:// link needs insecure=True and an "
+                         "isolated network")
+    client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=clean_session,
+                         protocol=mqtt.MQTTv311)
+    client.username_pw_set(username, password)
+    if address.tls:
+        client.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
+    return client, address
 
 
 class MqttBus(can.BusABC):
@@ -219,12 +237,11 @@ class MqttBus(can.BusABC):
         else:
             if broker is None or username is None or password is None:
                 raise ValueError("a broker link needs the broker's address and an identity (or a shared connection)")
-            address = BrokerAddress.parse(broker)
-            if not address.tls and not insecure:
-                raise ValueError("the broker link is TLS only (mqtts://); a plain mqtt:// link needs insecure=True and "
-                                 "an isolated network")
+            client_id = f"{role}-{instance}-{channel}" if instance and role == "server" else f"{role}-{channel}"
+            self._client, address = broker_client(broker, client_id, username, password, ca_file, insecure,
+                                                  clean_session=False)
             self.channel_info = f"mqtt {role} {channel} @ {address.host}:{address.port}"
-            self._client = self._own_client(address, username, password, ca_file, instance)
+            self._start_client(address)
         if not self._connected.wait(connect_timeout_s):
             if connection is not None:
                 connection.detach(self)
@@ -239,16 +256,9 @@ class MqttBus(can.BusABC):
             self._drainer = threading.Thread(target=self._drain, name=f"mqtt-late-{channel}", daemon=True)
             self._drainer.start()
 
-    def _own_client(self, address: BrokerAddress, username: str, password: str, ca_file: str | None,
-                    instance: str | None) -> mqtt.Client:
-        """This leg's own MQTT client (the bridge's side; a server serving one leg), connecting in the background."""
-        role, channel = self.role, self.device_id
-        client_id = f"{role}-{instance}-{channel}" if instance and role == "server" else f"{role}-{channel}"
-        client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=False,
-                             protocol=mqtt.MQTTv311)
-        client.username_pw_set(username, password)
-        if address.tls:
-            client.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
+    def _start_client(self, address: BrokerAddress) -> None:
+        """Connect this leg's own client (the bridge's side; a server serving one leg) in the background."""
+        client = self._client
         client.reconnect_delay_set(min_delay=1, max_delay=8)
         client.max_queued_messages_set(0)
         client.on_connect = self._on_connect
@@ -257,7 +267,6 @@ class MqttBus(can.BusABC):
         client.on_subscribe = self._on_subscribe
         client.connect_async(address.host, address.port, keepalive=5)
         client.loop_start()
-        return client
 
     @property
     def delivers_frames(self) -> bool:

@@ -15,13 +15,11 @@ from __future__ import annotations
 
 import logging
 import queue
-import ssl
 import threading
 
 import paho.mqtt.client as mqtt
-from paho.mqtt.enums import CallbackAPIVersion
 
-from device_bridge.mqtt_bus import TOPIC_PREFIX, BrokerAddress, MqttBus, topic
+from device_bridge.mqtt_bus import TOPIC_PREFIX, MqttBus, broker_client, topic
 
 log = logging.getLogger(__name__)
 
@@ -39,22 +37,15 @@ class MqttConnection:
 
     def __init__(self, broker: str, username: str, password: str, ca_file: str | None = None,
                  instance: str | None = None, insecure: bool = False, connect_timeout_s: float = 10.0) -> None:
-        address = BrokerAddress.parse(broker)
-        if not address.tls and not insecure:
-            raise ValueError("the broker link is TLS only (mqtts://); a plain mqtt:// link needs insecure=True and an "
-                             "isolated network")
-        self.description = f"mqtt server {instance or ''} @ {address.host}:{address.port}".replace("  ", " ")
+        self._client, address = broker_client(broker, f"server-{instance}" if instance else "", username, password,
+                                              ca_file, insecure, clean_session=not instance)
+        self.description = f"mqtt server{f' {instance}' if instance else ''} @ {address.host}:{address.port}"
         self._buses: dict[str, MqttBus] = {}
         self._pending: dict[int, MqttBus] = {}     # subscription message id -> the leg it subscribes
         self._lock = threading.Lock()
         self._connected = threading.Event()
         self.refused: str | None = None
         self._inbox: queue.SimpleQueue[tuple[str, bytes] | None] = queue.SimpleQueue()
-        self._client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"server-{instance}" if instance else "",
-                                   clean_session=not instance, protocol=mqtt.MQTTv311)
-        self._client.username_pw_set(username, password)
-        if address.tls:
-            self._client.tls_set(ca_certs=ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
         self._client.reconnect_delay_set(min_delay=1, max_delay=8)
         self._client.max_queued_messages_set(0)
         self._client.on_connect = self._on_connect
