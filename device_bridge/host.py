@@ -421,16 +421,16 @@ class DeviceLink(BusThreads):
         self.telemetry_received += 1
         newest = self._newest_seq
         if newest is not None and seq <= newest:
-            if seq in self._gaps:
+            if seq >= newest - GAP_MEMORY and seq in self._gaps:
                 self._gaps.discard(seq)
                 self.telemetry_missing -= 1
             return
         if newest is not None and seq > newest + 1:
             self.telemetry_missing += seq - newest - 1
             self._gaps.update(range(max(newest + 1, seq - GAP_MEMORY), seq))
+            if len(self._gaps) > GAP_MEMORY:      # numbers too far behind to be filled any more: forgotten
+                self._gaps = {g for g in self._gaps if g >= seq - GAP_MEMORY}
         self._newest_seq = seq
-        if self._gaps and min(self._gaps) < seq - GAP_MEMORY:
-            self._gaps = {g for g in self._gaps if g >= seq - GAP_MEMORY}
 
     def _on_late(self, records: list[tuple[float, list[can.Message]]]) -> None:
         """A late message from the leg's bridge (the broker's thread): its telemetry, joined apart from the live stream,
