@@ -11,8 +11,6 @@ change nothing, or that has nothing to learn from, is refused with why and store
 
 from __future__ import annotations
 
-from dataclasses import asdict
-
 from sqlalchemy import Connection
 
 from backend.errors import ConflictError, InvalidError
@@ -21,7 +19,7 @@ from backend.store import envelopes, proposals, refinements
 from backend.store import sessions as sessions_store
 from backend.store.users import User
 from controller_core.model import QuasiStiffnessModel
-from controller_core.refine import RefineRules, refine_envelope, refine_node
+from controller_core.refine import REACH_FRACTION, RefineRules, change_in_steps, refine_envelope, refine_node
 from controller_core.refine_evidence import (
     MIN_CONSISTENT_STRIDES,
     QUANTITIES,
@@ -58,8 +56,10 @@ def _bench_expectation(nodes: list[dict], before: list, after: list, mass_kg: fl
                                  else round(new["error"][q] - old["error"][q], 3) for q in old["error"]}}
 
 
-SENSITIVITY = ("the sub-phase spring read at the node's own measured strides (controller_core.refine): an equilibrium "
-               "angle moves its peak one for one, a stiffness scales the peak's distance from it and its timing")
+SENSITIVITY = ("measured on the simulated bench at the node's task (controller_core/data/refine_sensitivity.json, "
+               "'quasitune sensitivity'): how far each controlled feature moved when each refined value was changed a "
+               "little, on the nominal leg; this leg's response is checked each round and a feature that does not "
+               "respond is held")
 
 
 def _sessions(conn: Connection, kind: str, version_id: int, patient_id: int, session_ids: list[int]
@@ -111,7 +111,10 @@ def _evidence(counted: dict, strides: list[MeasuredStride], targets, nodes: list
                                    "unit": "deg" if q.part == "value" else "% gait cycle"} for q in QUANTITIES},
             "nodes": nodes, "changes": changes, "nodes_changed": sorted({tuple(c["node"]) for c in changes}),
             "sensitivity": SENSITIVITY,
-            "rules": {**{k: v for k, v in asdict(rules).items() if k != "limits"},
+            "change_in_steps": change_in_steps(changes, rules),
+            "rules": {**{k: getattr(rules, k) for k in ("damping", "theta_step_deg", "k_step_fraction",
+                                                         "swing_threshold_fraction")},
+                      "reach_fraction": REACH_FRACTION,
                       "min_consistent_strides": MIN_CONSISTENT_STRIDES}}
 
 

@@ -16,12 +16,19 @@ def format_refine(result: dict) -> str:
     keys = [q.key for q in QUANTITIES]
     lines = [f"Leg: {result['leg']}, {result['mass_kg']:g} kg; training: {result['train_course']['name']}; "
              f"evaluation: {result['eval_course']['name']}", "",
-             "| round | strides (used) | falls | toe catches | " + " | ".join(keys) + " | nodes changed |",
-             "|" + "---|" * (5 + len(keys))]
+             "| round | strides (used) | falls | toe catches | " + " | ".join(keys)
+             + " | nodes changed | change (step limits) | held as out of the table's reach (nodes) |",
+             "|" + "---|" * (7 + len(keys))]
     for r in result["rounds"]:
         errs = " | ".join(cell(r["feature_abs_error"].get(k)) for k in keys)
+        reach: dict[str, int] = {}
+        for n in r["nodes"]:
+            for k, q in n["quantities"].items():
+                if q.get("held") == "out of reach":
+                    reach[k] = reach.get(k, 0) + 1
+        held = ", ".join(f"{k} ({v})" for k, v in reach.items()) or "none"
         lines.append(f"| {r['round']} | {r['strides']} ({r['strides_used']}) | {r['falls']} | {r['toe_catches']} | "
-                     f"{errs} | {len(r['nodes_changed'])} |")
+                     f"{errs} | {len(r['nodes_changed'])} | {r.get('change_in_steps', 0.0):.2f} | {held} |")
     for r in result["rounds"]:
         if not r["changes"]:
             lines += ["", f"Round {r['round']}: no change."]

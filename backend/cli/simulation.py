@@ -88,6 +88,28 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sensitivity(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from controller_core.refine_sensitivity import BenchSensitivity
+    from device_bridge.bench.sensitivity import measure_sensitivity
+
+    body = measure_sensitivity(load(args), args.speeds, args.inclines, args.mass, args.seconds, args.workers)
+    grid = BenchSensitivity.from_json(body)
+    mean = grid.grid_median()
+    unresolved = int(np.isnan(grid.jacobians).sum())
+    print(f"sensitivity on the bench: {len(grid.speeds_mps)} × {len(grid.inclines_deg)} tasks, {args.seconds:g} s per "
+          f"walk, {unresolved} entries unresolved, {grid.outliers()} set aside as outliers; median over the grid "
+          "(quantity unit per deg or per unit ln|value|):")
+    short = ("stance knee °", "swing knee °", "swing pk %", "push-off °", "push-off %")
+    print("refined value".ljust(38) + "".join(h.rjust(14) for h in short[:len(grid.quantities)]))
+    for c, name in enumerate(grid.parameters):
+        print(name.ljust(38) + "".join(f"{v:14.2f}" for v in mean[:, c]))
+    if args.out is not None:
+        write_json(args.out, body)
+    return 0
+
+
 def cmd_refine(args: argparse.Namespace) -> int:
     from device_bridge.bench.refine_walks import refine_on_bench
     from device_bridge.sim.course import load_course
@@ -182,6 +204,16 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", type=Path, default=None)
     p.add_argument("--out", type=Path, default=None, help="write the JSON here")
     p.set_defaults(func=cmd_refine)
+    p = sub.add_parser("sensitivity", help="measure on the bench how the refined table values move the controlled "
+                                           "features (the refinement's sensitivity, shipped in controller_core/data)")
+    p.add_argument("--speeds", type=float, nargs="+", default=[0.6, 0.85, 1.1, 1.35, 1.6])
+    p.add_argument("--inclines", type=float, nargs="+", default=[-10.0, -5.0, 0.0, 5.0, 10.0])
+    p.add_argument("--seconds", type=float, default=16.0, help="walking per perturbed table (s)")
+    p.add_argument("--mass", type=float, default=75.0)
+    p.add_argument("--workers", type=int, default=2, help="walks in parallel")
+    p.add_argument("--model", type=Path, default=None)
+    p.add_argument("--out", type=Path, default=None, help="write the grid as JSON here")
+    p.set_defaults(func=cmd_sensitivity)
     p = sub.add_parser("calibrate", help="walk the reference's own joint angles on the bench over a task grid: how far "
                                          "the body strays from where people's is")
     p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])

@@ -38,10 +38,14 @@ class RefinementOut(BaseModel):
     feature_abs_error: dict[str, float | None] = Field(description="mean absolute error of the strides per quantity")
     quantities: dict[str, dict] = Field(description="each controlled quantity: label, tolerance, unit")
     nodes: list[dict] = Field(description="per node walked: strides, per quantity the evidence (error, 95 % "
-                                          "interval, agreement, act and why), expected error after the change")
+                                          "interval, agreement, act and why; held: 'not responding' or 'out of "
+                                          "reach'), expected error after the change")
     changes: list[dict] = Field(description="per node and value: before, after, why in clinical words, held_from "
                                             "where the neighbour rule moved it back")
     nodes_changed: list[list[int]]
+    change_in_steps: float | None = Field(default=None, description="how far the values moved: the sum over the "
+                                                                    "changes of |change| in step limits (5° of θe, 25 % "
+                                                                    "of k or b); None for refinements stored before it")
     sensitivity: str
     rules: dict
     version: dict | None = Field(default=None, description="the refined draft as its own endpoint returns it (on "

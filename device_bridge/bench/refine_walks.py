@@ -20,7 +20,7 @@ from controller_core.adaptive import StrideDecision
 from controller_core.envelope import Envelope
 from controller_core.gait_metrics import channel_strides, episodes, gait_channels
 from controller_core.model import QuasiStiffnessModel
-from controller_core.refine import EnvelopeRefinement, RefineRules, refine_envelope
+from controller_core.refine import EnvelopeRefinement, RefineRules, change_in_steps, refine_envelope
 from controller_core.refine_evidence import QUANTITIES, feature_abs_errors, gather_evidence, model_targets
 from controller_core.session_summary import session_strikes
 from controller_core.stride_features import MeasuredStride, measure_strides, toe_off_phases
@@ -162,6 +162,7 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
             "toe_catches": score.summary["toe_catches"],
             "feature_abs_error": feature_abs_errors(strides, targets_at),
             "nodes_changed": sorted({tuple(c["node"]) for c in refinement.changes}),
+            "change_in_steps": change_in_steps(refinement.changes, rules),
             "changes": [{**c, "before": round(c["before"], 4), "after": round(c["after"], 4)}
                         for c in refinement.changes],
             "nodes": [n for n in refinement.nodes if n["strides"]],
