@@ -13,8 +13,9 @@ small change of each value, walked on the nominal leg at the node's task. Chosen
 (a feature moving one for one with its own row's θe), which this project used first and which the bench showed wrong
 where it matters: the stance knee peak moves about 0.2° per degree of the stance-flexion θe but 0.75° per degree of the
 terminal-swing θe and about 2° per 10 % of terminal-swing damping (the knee lands more or less flexed); the swing peak's
-timing hardly follows any row (the bench drives the thigh in time: :func:`out_of_reach`). Chosen over the session's own variation, which does not span the parameters
-(every stride of a session runs the same rows). The bench sensitivity costs nothing at refinement time.
+timing hardly follows any row (the bench drives the thigh in time: :func:`out_of_reach`). Chosen over the session's
+own variation, which does not span the parameters (every stride of a session runs the same rows). The bench
+sensitivity costs nothing at refinement time.
 
 **When the sensitivity is wrong** (every patient's leg is not the nominal one). For one quantity the step is e/g_model,
 so the next error is e(1 − g_true/g_model): it shrinks monotonically while the true gain lies between 0 and the
