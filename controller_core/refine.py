@@ -51,7 +51,7 @@ from controller_core.envelope import (
     table_with_values,
 )
 from controller_core.features import FEATURES_BY_NAME
-from controller_core.refine_evidence import QUANTITIES, QUANTITY_BY_KEY, NodeEvidence
+from controller_core.refine_evidence import QUANTITIES, QUANTITY_BY_KEY, NodeEvidence, Quantity
 from controller_core.refine_sensitivity import BenchSensitivity, load_sensitivity
 from controller_core.table import DEFAULT_LIMITS, ParameterTable, SafetyLimits, check_table, support_floor_Nm_per_rad
 from controller_core.table_edit import EditError, edit_table
@@ -200,19 +200,33 @@ def clamp_value(p: Parameter, value: float, table: ParameterTable, limits: Safet
     return min(max(value, rng.low), rng.high)
 
 
+def _quantity_words(q: Quantity, error: float) -> str:
+    """One quantity's error in clinical words ("swing knee flexion 7.0° short")."""
+    if q.part == "value":   # a peak of flexion (max) is short below its target, one of plantarflexion (min) above
+        short = (error < 0) == (FEATURES_BY_NAME[q.feature].kind == "max")
+        return f"{q.label} {abs(error):.1f}° {'short' if short else 'too much'}"
+    return f"{q.label} {abs(error):.1f} % of the cycle {'early' if error < 0 else 'late'}"
+
+
 def _words(evidence: NodeEvidence, skip: frozenset[str] = frozenset()) -> str:
     """What the node's strides say, in clinical words ("swing knee flexion 7.0° short")."""
-    parts = []
-    for q in QUANTITIES:
-        ev = evidence.quantities[q.key]
-        if not ev.act or ev.error is None or q.key in skip:
-            continue
-        if q.part == "value":   # a peak of flexion (max) is short below its target, one of plantarflexion (min) above
-            short = (ev.error < 0) == (FEATURES_BY_NAME[q.feature].kind == "max")
-            parts.append(f"{q.label} {abs(ev.error):.1f}° {'short' if short else 'too much'}")
-        else:
-            parts.append(f"{q.label} {abs(ev.error):.1f} % of the cycle {'early' if ev.error < 0 else 'late'}")
-    return "; ".join(parts)
+    return "; ".join(_quantity_words(q, ev.error) for q in QUANTITIES
+                     if (ev := evidence.quantities[q.key]).act and ev.error is not None and q.key not in skip)
+
+
+def _value_words(e: np.ndarray, J: np.ndarray, delta: np.ndarray, column: int) -> str:
+    """Why one value changed, in clinical words: the acted-on quantities its own change moves towards their targets
+    (each at least a third of the value's largest such contribution, in tolerances), or, when it moves none, that it
+    holds what the other changes would disturb."""
+    tol = np.array([q.tolerance for q in QUANTITIES])
+    towards = -np.sign(e) * J[:, column] * delta[column] / tol          # > 0: this change moves q towards its target
+    towards[e == 0.0] = 0.0
+    if np.max(towards, initial=0.0) > 0.0:
+        keep = [k for k in np.argsort(-towards) if towards[k] >= max(towards) / 3.0]
+        return "; ".join(_quantity_words(QUANTITIES[k], float(e[k])) for k in keep)
+    side = -J[:, column] * delta[column] / tol                          # what it counters of the others' side effects
+    k = int(np.argmax(np.abs(side)))
+    return f"holds {QUANTITIES[k].label} while the other values change"
 
 
 NOT_RESPONDING_RATIO = 0.25
@@ -314,7 +328,7 @@ def refine_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRule
             p.field.split(".")[2]] = new
         change = f"{100 * (new / old - 1):+.0f} %" if p.relative else f"{new - old:+.1f}°"
         at = f"{evidence.speed_mps:.2f} m/s, {evidence.incline_deg:+.1f}°"
-        why[p.field] = f"{words} at {at}: {p.label} {change}"
+        why[p.field] = f"{_value_words(e, J_used, delta, PARAMETERS.index(p))} at {at}: {p.label} {change}"
     thresholds = _swing_threshold(table, evidence, delta, rules, J_used)
     if not edits and not thresholds:
         return NodeRefinement(table, [], f"{words}, but the step rounds to nothing within the limits",

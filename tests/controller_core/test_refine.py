@@ -128,6 +128,25 @@ def test_a_quantity_the_rows_barely_move_is_held_for_the_prosthetist_and_the_res
     assert refine_node(table, late, reachable).out_of_reach == frozenset()
 
 
+def test_each_change_says_which_of_the_nodes_errors_it_is_for(model):
+    """Two errors, each with its own row: each change names only its own; a value that only counters another row's side
+    effect says so."""
+    table = model.propose(1.0, 0.0, 75.0).table
+    theta = table.row("knee", "swing_flexion").theta_e_deg
+    rules = synthetic_rules({**SWING_ON_THETA,
+                             ("knee_stance_flexion_peak_deg", "knee.stance_flexion.theta_e_deg"): 1.0,
+                             ("ankle_plantarflexion_peak_deg", "knee.swing_flexion.theta_e_deg"): 0.5,
+                             ("ankle_plantarflexion_peak_deg", "ankle.stance_extension.theta_e_deg"): 1.0})
+    ev = node_evidence(table, swing_gain=1.0, swing_offset_deg=62.0 - theta - 7.0, stance_peak_deg=23.0)
+    why = {c["field"]: c["why"] for c in refine_node(table, ev, rules).changes}
+    assert why["knee.swing_flexion.theta_e_deg"].startswith("swing knee flexion ")
+    assert "stance" not in why["knee.swing_flexion.theta_e_deg"].split(" at ")[0]
+    assert why["knee.stance_flexion.theta_e_deg"].startswith("stance knee flexion ")
+    assert "too much" in why["knee.stance_flexion.theta_e_deg"]
+    # push-off is on target (not acted on): the ankle's change only holds it against the swing row's side effect
+    assert why["ankle.stance_extension.theta_e_deg"].startswith("holds push-off plantarflexion")
+
+
 def test_a_rounds_change_is_measured_in_step_limits():
     changes = [{"field": "knee.swing_flexion.theta_e_deg", "before": 60.0, "after": 62.5},
                {"field": "ankle.stance_extension.k_Nm_per_rad", "before": -100.0, "after": -125.0},
