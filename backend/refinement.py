@@ -29,27 +29,21 @@ from controller_core.refine_evidence import (
 )
 from controller_core.stride_features import MeasuredStride
 from device_bridge.as_run import as_run
-from device_bridge.bench.refine_walks import bench_feature_errors
+from device_bridge.bench.refine_walks import BenchStepCheck
 
-BENCH_NODES = 6          # changed nodes the bench walks for the expected change (the most walked first)
 BENCH_SECONDS = 12.0
 
 
-def _bench_expectation(nodes: list[dict], before: list, after: list, mass_kg: float, model: QuasiStiffnessModel
-                       ) -> None:
-    """Per changed node (at most :data:`BENCH_NODES`, most walked first), what the bench expects: the node's old and
-    new rows walked at its task (``BENCH_SECONDS``), the controlled quantities' mean errors with the same feature
+def _bench_expectation(nodes: list[dict], before: list, after: list, check: BenchStepCheck) -> None:
+    """Per changed node, what the bench expects: the node's old and new rows walked at its task (``BENCH_SECONDS``, the
+    walks that checked the step, so mostly already made), the controlled quantities' mean errors with the same feature
     definitions; added to each node's summary as ``bench`` (the bench is not the patient: read the change, after −
     before, more than either figure)."""
-    changed = sorted((k for k, n in enumerate(nodes) if n["changed"] and n["strides"]),
-                     key=lambda k: -nodes[k]["stride_weight"])
-    for rank, k in enumerate(changed):
-        n = nodes[k]
-        if rank >= BENCH_NODES:
-            n["bench"] = {"walked": False, "why": f"the bench walks the {BENCH_NODES} most walked changed nodes"}
+    for k, n in enumerate(nodes):
+        if not (n["changed"] and n["strides"]):
             continue
-        old = bench_feature_errors(before[k], n["speed_mps"], n["incline_deg"], mass_kg, model, BENCH_SECONDS)
-        new = bench_feature_errors(after[k], n["speed_mps"], n["incline_deg"], mass_kg, model, BENCH_SECONDS)
+        old = check.errors(before[k], n["speed_mps"], n["incline_deg"])
+        new = check.errors(after[k], n["speed_mps"], n["incline_deg"])
         n["bench"] = {"walked": True, "seconds": BENCH_SECONDS, "before": old["error"], "after": new["error"],
                       "falls_before": old["falls"], "falls_after": new["falls"],
                       "change": {q: None if old["error"][q] is None or new["error"][q] is None
@@ -58,8 +52,9 @@ def _bench_expectation(nodes: list[dict], before: list, after: list, mass_kg: fl
 
 SENSITIVITY = ("measured on the simulated bench at the node's task (controller_core/data/refine_sensitivity.json, "
                "'quasitune sensitivity'): how far each controlled feature moved when each refined value was changed a "
-               "little, on the nominal leg; this leg's response is checked each round and a feature that does not "
-               "respond is held")
+               "little, on the nominal leg; each node's step is walked on the bench before it is taken (halved, then "
+               "quartered, then left out where the bench does not confirm it); this leg's response is checked each "
+               "round and a feature that does not respond is held")
 
 
 def _sessions(conn: Connection, kind: str, version_id: int, patient_id: int, session_ids: list[int]
@@ -138,14 +133,15 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
     evidence = gather_evidence(strides, parent.speeds_mps, parent.inclines_deg, targets)
     before = refinements.of_version(conn, "envelope", envelope_id)
     rules = RefineRules()
-    result = refine_envelope(parent, evidence, rules, before["nodes"] if before else None)
+    check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS)
+    result = refine_envelope(parent, evidence, rules, before["nodes"] if before else None, check)
     if not result.changes:
         raise _nothing(result.nodes)
     checked = as_run(result.envelope)
     if checked.violations:   # not reached by construction; refused rather than stored
         raise InvalidError("the refined envelope breaks a limit, nothing stored: " + "; ".join(
             v.message for v in checked.violations))
-    _bench_expectation(result.nodes, parent.tables(), result.envelope.tables(), parent.mass_kg, model)
+    _bench_expectation(result.nodes, parent.tables(), result.envelope.tables(), check)
     body = _evidence(counted, strides, targets, result.nodes, result.changes, [s["id"] for s in sessions], rules)
     created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
                                     refinements.recorder("envelope", envelope_id, body["session_ids"], body, actor))
@@ -167,7 +163,8 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
     [evidence] = gather_evidence(strides, [row["speed_mps"]], [row["incline_deg"]], targets)
     before = refinements.of_version(conn, "proposal", proposal_id)
     rules = RefineRules()
-    result = refine_node(table, evidence, rules, previous=before["nodes"][0] if before else None)
+    check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS)
+    result = refine_node(table, evidence, rules, previous=before["nodes"][0] if before else None, check=check)
     node = {**evidence.to_json(), "changed": bool(result.changes), "left_alone": result.left_alone}
     for key, q in node["quantities"].items():
         q["expected_error"] = None if key not in result.expected_error else round(result.expected_error[key], 3)
@@ -180,7 +177,7 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
     changes = [{"node": [0, 0], "speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"], "walked": True,
                 **c} for c in result.changes]
     node["stride_weight"] = evidence.weight
-    _bench_expectation([node], [table], [result.table], row["body_mass_kg"], model)
+    _bench_expectation([node], [table], [result.table], check)
     body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules)
     created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
                                     refinements.recorder("proposal", proposal_id, body["session_ids"], body, actor))

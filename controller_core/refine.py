@@ -26,18 +26,22 @@ settles rather than chases.
 
 **The step.** Minimise Σ_q ((e_q + J_q Δ)/tol_q)² + λ² Σ_p (Δ_p/step_p)² (Levenberg–Marquardt with the parameters
 scaled by their step), quantities not acted on held (e_q = 0 keeps them where they are), then each Δ clipped to its
-step: :attr:`RefineRules.theta_step_deg` (5°) for θe, :attr:`RefineRules.k_step_fraction` (25 %) for k and b, per
-round. Changes below 0.1° or 1 % are dropped. The result is clamped into every limit (joint ranges, stance k ≤ 0 (kept
-by scaling k), the knee's stance support floor, damping ≥ 0), and the swing threshold follows the expected swing knee
-peak (85 % of it, the table rule). Nodes no stride reached stay as they were; the neighbour rule is then held by moving
-the least (:func:`controller_core.envelope.neighbour_guard`, sweeping out from the node walked most), and every value so
-moved is marked ``neighbour_guard`` with what the refinement gave.
+step: :attr:`RefineRules.theta_step_deg` (3°) for θe, :attr:`RefineRules.k_step_fraction` (25 %) for k and b, per
+round: the ranges the bench measured the sensitivity over (±3°, ×/÷1.25), beyond which it is not known (moving the
+terminal-swing θe 5° down from the nominal 8° lands the knee straight and delays push-off 8 % of the cycle on the
+bench, where ±3° around it is smooth). Changes below 0.1° or 1 % are dropped. The result is clamped into every limit
+(joint ranges, stance k ≤ 0 (kept by scaling k), the knee's stance support floor, damping ≥ 0), and the swing
+threshold follows the expected swing knee peak (85 % of it, the table rule). Where a bench is at hand (the API, the
+loop on the bench) each node's step is walked before it is taken (``check``): one the bench does not confirm is
+halved, then quartered, then left out with why. Nodes no stride reached stay as they were; the neighbour rule is then
+held by moving the least (:func:`controller_core.envelope.neighbour_guard`, sweeping out from the node walked most),
+and every value so moved is marked ``neighbour_guard`` with what the refinement gave.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -117,7 +121,7 @@ class RefineRules:
     """
 
     damping: float = 1.0
-    theta_step_deg: float = 5.0
+    theta_step_deg: float = 3.0
     k_step_fraction: float = 0.25
     swing_threshold_fraction: float = 0.85
     limits: SafetyLimits = field(default_factory=lambda: DEFAULT_LIMITS)
@@ -295,10 +299,18 @@ def out_of_reach(evidence: NodeEvidence, table: ParameterTable, rules: RefineRul
                       "(alignment, the socket, how the person walks)")
 
 
+StepCheck = Callable[[NodeEvidence, ParameterTable, ParameterTable, dict[str, float]], str | None]
+STEP_SCALES = (1.0, 0.5, 0.25)   # a step the check refuses is tried at half, then a quarter, then left out
+
+
 def refine_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRules,
-                J: np.ndarray | None = None, previous: dict | None = None) -> NodeRefinement:
+                J: np.ndarray | None = None, previous: dict | None = None,
+                check: StepCheck | None = None) -> NodeRefinement:
     """The node's table moved by one round (module docstring), or unchanged with the reason. ``previous``: this node's
-    summary from the round before, if any (:func:`not_responding`)."""
+    summary from the round before, if any (:func:`not_responding`). ``check``: called with (evidence, old table, new
+    table, the change of each quantity the sensitivity expects), returns None to accept the step or why not; a
+    refused step is tried at :data:`STEP_SCALES` and, refused at all of them, not taken (the bench's
+    :func:`device_bridge.bench.refine_walks.bench_step_check`: the sensitivity holds only near where it was measured)."""
     if evidence.strides == 0:
         return NodeRefinement(table, [], "no strides near this node: left as it was")
     held = not_responding(evidence, previous)
@@ -306,45 +318,67 @@ def refine_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRule
     reach = out_of_reach(evidence, table, rules, J_used, frozenset(held))
     held.update(reach)
     skip = frozenset(held)
-    delta = node_step(evidence, table, rules, J_used, skip)
+    full = node_step(evidence, table, rules, J_used, skip)
     words = _words(evidence, skip)
     if not words:
         reasons = sorted({q.reason for q in evidence.quantities.values()} | set(held.values()))
         return NodeRefinement(table, [], "nothing to act on: " + "; ".join(reasons), not_responding=held,
                               out_of_reach=frozenset(reach))
-    e = acted_errors(evidence, skip)
-    after = e + J_used @ delta
-    expected = {q.key: float(after[k]) for k, q in enumerate(QUANTITIES) if e[k] != 0.0}
+    refused = ""
+    for scale in STEP_SCALES if check is not None else (1.0,):
+        made = _stepped(table, evidence, full * scale, J_used, acted_errors(evidence, skip), rules, words)
+        if isinstance(made, str):
+            return NodeRefinement(table, [], made, not_responding=held, out_of_reach=frozenset(reach))
+        new_table, changes, expected, change = made
+        why_not = check(evidence, table, new_table, change) if check is not None else None
+        if why_not is None:
+            if scale < 1.0:
+                for c in changes:
+                    c["why"] += f" (a {100 * scale:.0f} % step: the bench refused a larger one: {refused})"
+            return NodeRefinement(new_table, changes, None, expected, held, frozenset(reach))
+        refused = why_not
+    return NodeRefinement(table, [], f"{words}, but the bench did not confirm the step, even at a quarter: {refused}",
+                          not_responding=held, out_of_reach=frozenset(reach))
+
+
+def _stepped(table: ParameterTable, evidence: NodeEvidence, delta: np.ndarray, J: np.ndarray, e: np.ndarray,
+             rules: RefineRules, words: str) -> tuple[ParameterTable, list[dict], dict[str, float], dict[str, float]] | str:
+    """The table moved by ``delta`` (clamped into the limits) with its changes and why, the errors the sensitivity
+    expects after it (acted quantities) and the change it expects of every measured quantity; or why no table."""
+    resolution = np.array([math.log(1.01) if p.relative else 0.1 for p in PARAMETERS])
+    delta = np.where(np.abs(delta) < resolution, 0.0, delta)
     edits: dict[tuple[str, str], dict] = {}
     why: dict[str, str] = {}
-    for p, d in zip(PARAMETERS, delta, strict=True):
+    actual = np.zeros(len(PARAMETERS))
+    for c, (p, d) in enumerate(zip(PARAMETERS, delta, strict=True)):
         if d == 0.0:
             continue
         old = _value(table, p)
         new = clamp_value(p, old * math.exp(d) if p.relative else old + d, table, rules.limits)
         if abs(new - old) < 1e-9:
             continue
-        edits.setdefault((p.joint, p.subphase), {"joint": p.joint, "subphase": p.subphase})[
-            p.field.split(".")[2]] = new
+        actual[c] = math.log(new / old) if p.relative else new - old
+        edits.setdefault((p.joint, p.subphase), {"joint": p.joint, "subphase": p.subphase})[p.attr] = new
         change = f"{100 * (new / old - 1):+.0f} %" if p.relative else f"{new - old:+.1f}°"
         at = f"{evidence.speed_mps:.2f} m/s, {evidence.incline_deg:+.1f}°"
-        why[p.field] = f"{_value_words(e, J_used, delta, PARAMETERS.index(p))} at {at}: {p.label} {change}"
-    thresholds = _swing_threshold(table, evidence, delta, rules, J_used)
+        why[p.field] = f"{_value_words(e, J, delta, c)} at {at}: {p.label} {change}"
+    thresholds = _swing_threshold(table, evidence, actual, rules, J)
     if not edits and not thresholds:
-        return NodeRefinement(table, [], f"{words}, but the step rounds to nothing within the limits",
-                              not_responding=held, out_of_reach=frozenset(reach))
+        return f"{words}, but the step rounds to nothing within the limits"
     try:
         new_table, changes = edit_table(table, list(edits.values()), thresholds, method="refined", source="refinement")
     except EditError as err:
-        return NodeRefinement(table, [], f"no change: {err}", not_responding=held, out_of_reach=frozenset(reach))
+        return f"no change: {err}"
     violations = check_table(new_table, rules.limits)
     if violations:   # not reached by construction (values are clamped); refused rather than quietly corrected
-        return NodeRefinement(table, [], "the refined rows would break a limit: " + "; ".join(
-            v.message for v in violations), not_responding=held, out_of_reach=frozenset(reach))
-    for c in changes:
-        c["why"] = why.get(c["field"], "the swing threshold follows the expected swing knee peak (85 %, as the "
-                                       "table rule)")
-    return NodeRefinement(new_table, changes, None, expected, held, frozenset(reach))
+        return "the refined rows would break a limit: " + "; ".join(v.message for v in violations)
+    for ch in changes:
+        ch["why"] = why.get(ch["field"], "the swing threshold follows the expected swing knee peak (85 %, as the "
+                                         "table rule)")
+    moved = J @ actual
+    expected = {q.key: float(e[k] + moved[k]) for k, q in enumerate(QUANTITIES) if e[k] != 0.0}
+    change = {q.key: float(moved[k]) for k, q in enumerate(QUANTITIES) if q.key in evidence.measured}
+    return new_table, changes, expected, change
 
 
 def _swing_threshold(table: ParameterTable, evidence: NodeEvidence, delta: np.ndarray, rules: RefineRules,
@@ -372,15 +406,16 @@ class EnvelopeRefinement:
 
 
 def refine_envelope(envelope: Envelope, evidence: Sequence[NodeEvidence], rules: RefineRules | None = None,
-                    previous: Sequence[dict] | None = None) -> EnvelopeRefinement:
+                    previous: Sequence[dict] | None = None, check: StepCheck | None = None) -> EnvelopeRefinement:
     """One round of refinement of every node (speed-major ``evidence``, one per node), then the neighbour rule.
     ``previous``: the node summaries of the round that made ``envelope`` (:attr:`EnvelopeRefinement.nodes`), if it
-    was one, so that quantities its changes did not move are held (:func:`not_responding`)."""
+    was one, so that quantities its changes did not move are held (:func:`not_responding`). ``check``: as in
+    :func:`refine_node`."""
     rules = rules or RefineRules()
     if len(evidence) != len(envelope.nodes):
         raise ValueError(f"evidence for {len(evidence)} nodes; the envelope has {len(envelope.nodes)}")
     before = {tuple(n["node"]): n for n in previous or ()}
-    per_node = [refine_node(n.table, ev, rules, previous=before.get(ev.node))
+    per_node = [refine_node(n.table, ev, rules, previous=before.get(ev.node), check=check)
                 for n, ev in zip(envelope.nodes, evidence, strict=True)]
     wanted = [table_values(r.table) for r in per_node]
     start = max(range(len(evidence)), key=lambda k: evidence[k].weight)
@@ -417,7 +452,7 @@ def refine_envelope(envelope: Envelope, evidence: Sequence[NodeEvidence], rules:
 
 def change_in_steps(changes: Sequence[dict], rules: RefineRules | None = None) -> float:
     """How far a round moved the refined values: the sum over its changes of |change| in units of one round's step limit
-    (5° of θe, 25 % of a stiffness or damping), so that rounds compare whatever values they moved."""
+    (3° of θe, 25 % of a stiffness or damping), so that rounds compare whatever values they moved."""
     rules = rules or RefineRules()
     by_field = {p.field: p for p in PARAMETERS}
     total = 0.0

@@ -21,7 +21,13 @@ from controller_core.envelope import Envelope
 from controller_core.gait_metrics import channel_strides, episodes, gait_channels
 from controller_core.model import QuasiStiffnessModel
 from controller_core.refine import EnvelopeRefinement, RefineRules, change_in_steps, refine_envelope
-from controller_core.refine_evidence import QUANTITIES, feature_abs_errors, gather_evidence, model_targets
+from controller_core.refine_evidence import (
+    QUANTITIES,
+    NodeEvidence,
+    feature_abs_errors,
+    gather_evidence,
+    model_targets,
+)
 from controller_core.session_summary import session_strikes
 from controller_core.stride_features import MeasuredStride, measure_strides, toe_off_phases
 from controller_core.table import ParameterTable
@@ -119,6 +125,59 @@ def bench_feature_errors(table: ParameterTable, speed_mps: float, incline_deg: f
             "error": errors, "seconds": seconds}
 
 
+class BenchStepCheck:
+    """The bench's check of a node's step (:data:`controller_core.refine.StepCheck`): the old and the new rows walked
+    ``seconds`` at the node's task on the nominal leg; the step is refused when the new rows fall more, or when any
+    controlled quantity moves further from what the sensitivity expects than its tolerance or the expected change
+    itself, whichever is larger (the step left the range where the sensitivity holds). Walks are kept, so a table walked
+    again (the old rows at a halved step, the API's expected change) costs nothing.
+
+    Args:
+        model: the model the targets come from.
+        mass_kg: the patient's mass.
+        seconds: walking per table (s).
+    """
+
+    def __init__(self, model: QuasiStiffnessModel, mass_kg: float, seconds: float = 12.0) -> None:
+        self.model = model
+        self.mass_kg = mass_kg
+        self.seconds = seconds
+        self._walks: dict[tuple[str, float, float], dict[str, object]] = {}
+        self.refused = 0
+
+    @property
+    def walks(self) -> int:
+        """Tables walked so far (each once)."""
+        return len(self._walks)
+
+    def errors(self, table: ParameterTable, speed_mps: float, incline_deg: float) -> dict[str, object]:
+        """:func:`bench_feature_errors` of the table at the task, walked once."""
+        key = (table.model_dump_json(exclude={"provenance"}), round(speed_mps, 4), round(incline_deg, 4))
+        if key not in self._walks:
+            self._walks[key] = bench_feature_errors(table, speed_mps, incline_deg, self.mass_kg, self.model,
+                                                    self.seconds)
+        return self._walks[key]
+
+    def __call__(self, evidence: NodeEvidence, old: ParameterTable, new: ParameterTable,
+                 expected_change: dict[str, float]) -> str | None:
+        before = self.errors(old, evidence.speed_mps, evidence.incline_deg)
+        after = self.errors(new, evidence.speed_mps, evidence.incline_deg)
+        if after["falls"] > before["falls"]:
+            self.refused += 1
+            return f"the new rows fell {after['falls']} times on the bench ({before['falls']} before)"
+        for q in QUANTITIES:
+            a, b = after["error"][q.key], before["error"][q.key]
+            if a is None or b is None:
+                continue
+            moved, expected = a - b, expected_change.get(q.key, 0.0)
+            if abs(moved - expected) > max(q.tolerance, abs(expected)):
+                self.refused += 1
+                unit = "°" if q.part == "value" else " % of the cycle"
+                return (f"the bench moved {q.label} {moved:+.1f}{unit} where the sensitivity expected "
+                        f"{expected:+.1f}{unit}")
+        return None
+
+
 def _evaluation(score: CourseScore, strides: Sequence[MeasuredStride], targets_at) -> dict[str, object]:
     s = score.summary
     errors = feature_abs_errors(strides, targets_at)
@@ -148,6 +207,7 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
         raise ValueError(f"rounds must be a whole number from 1 to 10, got {rounds!r}")
     original = envelope or default_envelope(model, mass_kg)
     targets_at = model_targets(model)
+    check = BenchStepCheck(model, mass_kg)
     course = train.lasting(seconds_per_round)
     current = original
     out_rounds = []
@@ -155,7 +215,8 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
     for k in range(rounds):
         score, strides, not_found, total = walk_envelope(current, model, course, geometry)
         evidence = gather_evidence(strides, current.speeds_mps, current.inclines_deg, targets_at)
-        refinement = refine_envelope(current, evidence, rules, refinement.nodes if refinement else None)
+        refused = check.refused
+        refinement = refine_envelope(current, evidence, rules, refinement.nodes if refinement else None, check)
         out_rounds.append({
             "round": k + 1, "course": course.name, "strides": total, "strides_used": len(strides),
             "strides_without_feature": not_found, "falls": score.summary["falls"],
@@ -163,6 +224,7 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
             "feature_abs_error": feature_abs_errors(strides, targets_at),
             "nodes_changed": sorted({tuple(c["node"]) for c in refinement.changes}),
             "change_in_steps": change_in_steps(refinement.changes, rules),
+            "steps_refused_by_bench": check.refused - refused,
             "changes": [{**c, "before": round(c["before"], 4), "after": round(c["after"], 4)}
                         for c in refinement.changes],
             "nodes": [n for n in refinement.nodes if n["strides"]],
