@@ -26,16 +26,17 @@ settles rather than chases.
 
 **The step.** Minimise Σ_q ((e_q + J_q Δ)/tol_q)² + λ² Σ_p (Δ_p/step_p)² (Levenberg–Marquardt with the parameters
 scaled by their step), quantities not acted on held (e_q = 0 keeps them where they are), then each Δ clipped to its
-step: :attr:`RefineRules.theta_step_deg` (3°) for θe, :attr:`RefineRules.k_step_fraction` (25 %) for k and b, per
-round: the ranges the bench measured the sensitivity over (±3°, ×/÷1.25), beyond which it is not known (moving the
-terminal-swing θe 5° down from the nominal 8° lands the knee straight and delays push-off 8 % of the cycle on the
-bench, where ±3° around it is smooth). Changes below 0.1° or 1 % are dropped. The result is clamped into every limit
-(joint ranges, stance k ≤ 0 (kept by scaling k), the knee's stance support floor, damping ≥ 0), and the swing
-threshold follows the expected swing knee peak (85 % of it, the table rule). Where a bench is at hand (the API, the
-loop on the bench) each node's step is walked before it is taken (``check``): one the bench does not confirm is
-halved, then quartered, then left out with why. Nodes no stride reached stay as they were; the neighbour rule is then
-held by moving the least (:func:`controller_core.envelope.neighbour_guard`, sweeping out from the node walked most),
-and every value so moved is marked ``neighbour_guard`` with what the refinement gave.
+step: :attr:`RefineRules.theta_step_deg` (5°) for θe, :attr:`RefineRules.k_step_fraction` (25 %) for k and b, per
+round. The sensitivity was measured over ±3° and ×/÷1.25 and is not known beyond (moving the terminal-swing θe 5° down
+from the nominal 8° lands the knee straight and delays push-off 8 % of the cycle on the bench, where ±3° around it is
+smooth), so where a bench is at hand (the API, the loop on the bench) each node's step is walked before it is taken
+(``check``): one the bench does not confirm is halved, then quartered, then left out with why. (A fixed 3° limit
+instead cost the heavy-footed leg most of its stance-knee correction in two rounds.) Changes below 0.1° or 1 % are
+dropped. The result is clamped into every limit (joint ranges, stance k ≤ 0 (kept by scaling k), the knee's stance
+support floor, damping ≥ 0), and the swing threshold follows the expected swing knee peak (85 % of it, the table rule).
+Nodes no stride reached stay as they were; the neighbour rule is then held by moving the least
+(:func:`controller_core.envelope.neighbour_guard`, sweeping out from the node walked most), and every value so moved is
+marked ``neighbour_guard`` with what the refinement gave.
 """
 
 from __future__ import annotations
@@ -121,7 +122,7 @@ class RefineRules:
     """
 
     damping: float = 1.0
-    theta_step_deg: float = 3.0
+    theta_step_deg: float = 5.0
     k_step_fraction: float = 0.25
     swing_threshold_fraction: float = 0.85
     limits: SafetyLimits = field(default_factory=lambda: DEFAULT_LIMITS)
@@ -452,7 +453,7 @@ def refine_envelope(envelope: Envelope, evidence: Sequence[NodeEvidence], rules:
 
 def change_in_steps(changes: Sequence[dict], rules: RefineRules | None = None) -> float:
     """How far a round moved the refined values: the sum over its changes of |change| in units of one round's step limit
-    (3° of θe, 25 % of a stiffness or damping), so that rounds compare whatever values they moved."""
+    (5° of θe, 25 % of a stiffness or damping), so that rounds compare whatever values they moved."""
     rules = rules or RefineRules()
     by_field = {p.field: p for p in PARAMETERS}
     total = 0.0

@@ -44,7 +44,7 @@ class RefinementOut(BaseModel):
                                             "where the neighbour rule moved it back")
     nodes_changed: list[list[int]]
     change_in_steps: float | None = Field(default=None, description="how far the values moved: the sum over the "
-                                                                    "changes of |change| in step limits (3° of θe, 25 % "
+                                                                    "changes of |change| in step limits (5° of θe, 25 % "
                                                                     "of k or b); None for refinements stored before it")
     sensitivity: str
     rules: dict

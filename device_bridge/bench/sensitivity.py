@@ -31,7 +31,7 @@ from controller_core.table_edit import edit_table
 from device_bridge.bench.controllers import DEFAULT_ENVELOPE_INCLINES_DEG, DEFAULT_ENVELOPE_SPEEDS_MPS, NOMINAL_TASK
 from device_bridge.bench.refine_walks import bench_feature_errors
 
-THETA_STEP_DEG = 3.0            # ± on an equilibrium angle (the refinement steps no further per round: RefineRules)
+THETA_STEP_DEG = 3.0            # ± on an equilibrium angle (beyond it, the refinement's bench check: RefineRules)
 LOG_STEP = math.log(1.25)       # ± on ln|k| or ln|b| (×1.25, ÷1.25)
 MIN_STRIDES = 6
 
