@@ -94,8 +94,12 @@ def measure_sensitivity(model: QuasiStiffnessModel, speeds_mps: Sequence[float] 
     walked = [(perturbed(table, p, sign), s, i) for s, i, table in tasks for p in PARAMETERS for sign in (1.0, -1.0)]
     jobs = [(table, s, i, mass_kg, seconds) for (table, _), s, i in walked]
     values = [v for (_, v), _, _ in walked]
-    with ProcessPoolExecutor(max_workers=workers, initializer=_start_worker, initargs=(model,)) as pool:
-        results = list(pool.map(_errors, jobs, chunksize=4))
+    if workers <= 1:                 # in this process (tests, a one-core machine)
+        _start_worker(model)
+        results = [_errors(job) for job in jobs]
+    else:
+        with ProcessPoolExecutor(max_workers=workers, initializer=_start_worker, initargs=(model,)) as pool:
+            results = list(pool.map(_errors, jobs, chunksize=4))
     per = 2 * len(PARAMETERS)
     return {
         "version": SENSITIVITY_VERSION,

@@ -37,3 +37,26 @@ def test_a_step_past_a_limit_is_held_at_the_limit_and_measured_from_there(model)
     up, value = perturbed(table, k, 1.0)
     assert value == pytest.approx(math.log(table.row("knee", "swing_extension").b_Nm_s_per_rad) + LOG_STEP)
     assert up.row("knee", "swing_extension").b_Nm_s_per_rad == pytest.approx(math.exp(value))
+
+
+def test_a_measured_grid_gives_back_a_known_response(model, monkeypatch):
+    """A made-up bench (said here): the stance knee error is 0.5 × the terminal-swing θe + 10 × ln of its damping, the
+    rest 0. The measurement over a 2 × 2 grid must give those gains back, in the form the refinement reads."""
+    import device_bridge.bench.sensitivity as sensitivity
+    from controller_core.refine_sensitivity import BenchSensitivity
+
+    def made_up(table, speed_mps, incline_deg, mass_kg, model, seconds):
+        we = table.row("knee", "swing_extension")
+        err = {q.key: 0.0 for q in QUANTITIES}
+        err["knee_stance_flexion_peak_deg"] = 0.5 * we.theta_e_deg + 10.0 * math.log(we.b_Nm_s_per_rad)
+        return {"strides": 10, "falls": 0, "error": err, "seconds": seconds}
+
+    monkeypatch.setattr(sensitivity, "bench_feature_errors", made_up)
+    body = sensitivity.measure_sensitivity(model, (1.0, 1.4), (0.0, 5.0), workers=1)
+    grid = BenchSensitivity.from_json(body)
+    col = {p.field: c for c, p in enumerate(PARAMETERS)}
+    J = grid.at(1.2, 2.5)
+    assert J[0, col["knee.swing_extension.theta_e_deg"]] == pytest.approx(0.5, abs=1e-3)
+    assert J[0, col["knee.swing_extension.b_Nm_s_per_rad"]] == pytest.approx(10.0, abs=1e-3)
+    assert abs(J).sum() == pytest.approx(10.5, abs=1e-2)
+    assert body["provenance"]["leg"] == "nominal" and body["provenance"]["seconds_per_walk"] == 16.0
