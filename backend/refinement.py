@@ -166,6 +166,8 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
     check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS)
     result = refine_node(table, evidence, rules, previous=before["nodes"][0] if before else None, check=check)
     node = {**evidence.to_json(), "changed": bool(result.changes), "left_alone": result.left_alone}
+    if result.step_refused:
+        node["step_scale"], node["step_refused"] = result.step_scale, result.step_refused
     for key, q in node["quantities"].items():
         q["expected_error"] = None if key not in result.expected_error else round(result.expected_error[key], 3)
     if not result.changes:

@@ -243,7 +243,8 @@ class NodeRefinement:
     """One node's refined table (or the unchanged one) and the changes, each ``{"field", "before", "after", "why"}``;
     ``expected_error``: per quantity acted on, the error the sensitivity expects after the step; ``not_responding``:
     quantities held, with why: the last round's change did not move them (:func:`not_responding`), or the table's
-    values barely move them (:func:`out_of_reach`, also listed in ``out_of_reach``)."""
+    values barely move them (:func:`out_of_reach`, also listed in ``out_of_reach``); ``step_scale``: the fraction of
+    the step taken (below 1 where the check refused a larger one, ``step_refused`` saying why)."""
 
     table: ParameterTable
     changes: list[dict]
@@ -251,6 +252,8 @@ class NodeRefinement:
     expected_error: dict[str, float] = field(default_factory=dict)
     not_responding: dict[str, str] = field(default_factory=dict)
     out_of_reach: frozenset[str] = frozenset()
+    step_scale: float = 1.0
+    step_refused: str | None = None
 
 
 def not_responding(evidence: NodeEvidence, previous: dict | None) -> dict[str, str]:
@@ -333,10 +336,10 @@ def refine_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRule
         new_table, changes, expected, change = made
         why_not = check(evidence, table, new_table, change) if check is not None else None
         if why_not is None:
-            if scale < 1.0:
-                for c in changes:
-                    c["why"] += f" (a {100 * scale:.0f} % step: the bench refused a larger one: {refused})"
-            return NodeRefinement(new_table, changes, None, expected, held, frozenset(reach))
+            if scale < 1.0:   # said once, on the node's first change (and in its summary), not on every value
+                changes[0]["why"] += f" (the node's step at {100 * scale:.0f} %: the bench refused a larger one: {refused})"
+            return NodeRefinement(new_table, changes, None, expected, held, frozenset(reach), scale,
+                                  refused or None)
         refused = why_not
     return NodeRefinement(table, [], f"{words}, but the bench did not confirm the step, even at a quarter: {refused}",
                           not_responding=held, out_of_reach=frozenset(reach))
@@ -446,6 +449,8 @@ def refine_envelope(envelope: Envelope, evidence: Sequence[NodeEvidence], rules:
             if key in r.not_responding:
                 q["act"], q["reason"] = False, r.not_responding[key]
                 q["held"] = "out of reach" if key in r.out_of_reach else "not responding"
+        if r.step_refused:
+            node_json["step_scale"], node_json["step_refused"] = r.step_scale, r.step_refused
         summary.append({**node_json, "changed": bool(node_changes),
                         "left_alone": None if node_changes else (r.left_alone or "no change")})
     return EnvelopeRefinement(envelope.model_copy(update={"nodes": nodes}), summary, changes)

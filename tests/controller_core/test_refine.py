@@ -161,7 +161,8 @@ def test_a_step_the_bench_does_not_confirm_is_halved_and_then_left_out(model):
 
     r = refine_node(table, ev, rules, check=at_most_2_deg)
     moved = next(c for c in r.changes if c["field"] == "knee.swing_flexion.theta_e_deg")
-    assert moved["after"] - moved["before"] == pytest.approx(1.25) and "(a 25 % step" in moved["why"]
+    assert moved["after"] - moved["before"] == pytest.approx(1.25) and r.step_scale == 0.25
+    assert r.step_refused == "moved 2.5°" and sum("the node's step at 25 %" in c["why"] for c in r.changes) == 1
     assert seen == pytest.approx([5.0, 2.5, 1.25])          # the change each tried step was expected to make
     never = refine_node(table, ev, rules, check=lambda *a: "no")
     assert never.changes == [] and never.table is table and "did not confirm the step" in never.left_alone

@@ -47,6 +47,8 @@ function nodeCard(n, ev) {
       `${fmt(n.stride_weight, 1)} strides · `, n.changed ? chip("changed", "warn") : chip(n.left_alone || "left alone")),
     table(["Quantity", "Strides", "Measured", "Target", "Error [95 % interval]", "Expected after (step)",
       "Bench: change", "Acted on?"], rows),
+    n.step_refused ? h("p", { class: "small" }, chip(`step at ${fmt(n.step_scale * 100, 0)} %`, "warn"),
+      ` The bench refused a larger step here: ${n.step_refused}.`) : null,
     n.bench?.walked ? h("p", { class: "muted small" }, `Bench: the old and new rows walked ${fmt(n.bench.seconds, 0, "s")} at this task `,
       `(falls ${n.bench.falls_before} → ${n.bench.falls_after}); the bench is not the patient, so read the change.`) : null);
 }
