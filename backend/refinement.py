@@ -103,7 +103,7 @@ def _evidence(counted: dict, strides: list[MeasuredStride], targets, nodes: list
               session_ids: list[int], rules: RefineRules) -> dict:
     return {**counted, "session_ids": session_ids, "feature_abs_error": feature_abs_errors(strides, targets),
             "quantities": {q.key: {"label": q.label, "tolerance": q.tolerance,
-                                   "unit": "deg" if q.part == "value" else "% gait cycle"} for q in QUANTITIES},
+                                   "unit": q.unit} for q in QUANTITIES},
             "nodes": nodes, "changes": changes, "nodes_changed": sorted({tuple(c["node"]) for c in changes}),
             "sensitivity": SENSITIVITY,
             "change_in_steps": change_in_steps(changes, rules),

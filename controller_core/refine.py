@@ -91,6 +91,14 @@ class Parameter:
         """Stepped in ln|value|: stiffness and damping."""
         return self.attr in ("k_Nm_per_rad", "b_Nm_s_per_rad")
 
+    def stepping(self, value: float) -> float:
+        """A value in the stepping unit: ln|value| (k, b) or deg (θe)."""
+        return math.log(abs(value)) if self.relative else value
+
+    def moved(self, value: float, step: float) -> float:
+        """``value`` moved by ``step`` in the stepping unit."""
+        return value * math.exp(step) if self.relative else value + step
+
 
 PARAMETERS: tuple[Parameter, ...] = (
     Parameter("knee.stance_flexion.theta_e_deg", "knee stance-flexion equilibrium angle"),
@@ -105,6 +113,8 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("ankle.swing_flexion.k_Nm_per_rad", "ankle swing stiffness"),
 )
 SWING_THRESHOLD = "thresholds.wf_to_we_knee_angle_deg"
+RESOLUTION = np.array([math.log(1.01) if p.relative else 0.1 for p in PARAMETERS])   # smaller changes are dropped
+TOLERANCES = np.array([q.tolerance for q in QUANTITIES])                          # each quantity's, display unit
 
 
 @dataclass(frozen=True)
@@ -177,14 +187,12 @@ def node_step(evidence: NodeEvidence, table: ParameterTable, rules: RefineRules,
     e = acted_errors(evidence, skip)
     if not np.any(e):
         return np.zeros(len(PARAMETERS))
-    tol = np.array([q.tolerance for q in QUANTITIES])
     steps = np.array([rules.step(p) for p in PARAMETERS])
-    A = (J * steps[None, :]) / tol[:, None]      # in scaled parameters u = Δ / step
-    b = -e / tol
+    A = (J * steps[None, :]) / TOLERANCES[:, None]      # in scaled parameters u = Δ / step
+    b = -e / TOLERANCES
     u = np.linalg.solve(A.T @ A + rules.damping ** 2 * np.eye(len(PARAMETERS)), A.T @ b)
     delta = np.clip(u, -1.0, 1.0) * steps
-    resolution = np.array([math.log(1.01) if p.relative else 0.1 for p in PARAMETERS])
-    delta[np.abs(delta) < resolution] = 0.0
+    delta[np.abs(delta) < RESOLUTION] = 0.0
     return delta
 
 
@@ -223,13 +231,12 @@ def _value_words(e: np.ndarray, J: np.ndarray, delta: np.ndarray, column: int) -
     """Why one value changed, in clinical words: the acted-on quantities its own change moves towards their targets
     (each at least a third of the value's largest such contribution, in tolerances), or, when it moves none, that it
     holds what the other changes would disturb."""
-    tol = np.array([q.tolerance for q in QUANTITIES])
-    towards = -np.sign(e) * J[:, column] * delta[column] / tol          # > 0: this change moves q towards its target
+    towards = -np.sign(e) * J[:, column] * delta[column] / TOLERANCES   # > 0: this change moves q towards its target
     towards[e == 0.0] = 0.0
     if np.max(towards, initial=0.0) > 0.0:
         keep = [k for k in np.argsort(-towards) if towards[k] >= max(towards) / 3.0]
         return "; ".join(_quantity_words(QUANTITIES[k], float(e[k])) for k in keep)
-    side = -J[:, column] * delta[column] / tol                          # what it counters of the others' side effects
+    side = -J[:, column] * delta[column] / TOLERANCES                   # what it counters of the others' side effects
     k = int(np.argmax(np.abs(side)))
     return f"holds {QUANTITIES[k].label} while the other values change"
 
@@ -290,17 +297,15 @@ def out_of_reach(evidence: NodeEvidence, table: ParameterTable, rules: RefineRul
         if not np.any(e):
             return out
         after = e + J @ node_step(evidence, table, rules, J, held)
-        tol = np.array([q.tolerance for q in QUANTITIES])
         moved = np.abs(e) - np.abs(after)
-        gain = np.where((e != 0.0) & (moved < tol), moved / np.where(e != 0.0, np.abs(e), 1.0), np.inf)
+        gain = np.where((e != 0.0) & (moved < TOLERANCES), moved / np.where(e != 0.0, np.abs(e), 1.0), np.inf)
         k = int(np.argmin(gain))
         if gain[k] >= REACH_FRACTION:
             return out
         q = QUANTITIES[k]
-        unit = "°" if q.part == "value" else " % of the cycle"
-        out[q.key] = (f"{e[k]:+.1f}{unit} off, but the table's values move it little on the bench (one round would leave "
-                      f"{after[k]:+.1f}{unit} while holding the rest): not set by these rows here; for the prosthetist "
-                      "(alignment, the socket, how the person walks)")
+        out[q.key] = (f"{e[k]:+.1f}{q.unit_text} off, but the table's values move it little on the bench (one round "
+                      f"would leave {after[k]:+.1f}{q.unit_text} while holding the rest): not set by these rows here; "
+                      "for the prosthetist (alignment, the socket, how the person walks)")
 
 
 StepCheck = Callable[[NodeEvidence, ParameterTable, ParameterTable, dict[str, float]], str | None]
@@ -314,7 +319,7 @@ def refine_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRule
     summary from the round before, if any (:func:`not_responding`). ``check``: called with (evidence, old table, new
     table, the change of each quantity the sensitivity expects), returns None to accept the step or why not; a
     refused step is tried at :data:`STEP_SCALES` and, refused at all of them, not taken (the bench's
-    :func:`device_bridge.bench.refine_walks.bench_step_check`: the sensitivity holds only near where it was measured)."""
+    :class:`device_bridge.bench.refine_walks.BenchStepCheck`: the sensitivity holds only near where it was measured)."""
     if evidence.strides == 0:
         return NodeRefinement(table, [], "no strides near this node: left as it was")
     held = not_responding(evidence, previous)
@@ -349,8 +354,7 @@ def _stepped(table: ParameterTable, evidence: NodeEvidence, delta: np.ndarray, J
              rules: RefineRules, words: str) -> tuple[ParameterTable, list[dict], dict[str, float], dict[str, float]] | str:
     """The table moved by ``delta`` (clamped into the limits) with its changes and why, the errors the sensitivity
     expects after it (acted quantities) and the change it expects of every measured quantity; or why no table."""
-    resolution = np.array([math.log(1.01) if p.relative else 0.1 for p in PARAMETERS])
-    delta = np.where(np.abs(delta) < resolution, 0.0, delta)
+    delta = np.where(np.abs(delta) < RESOLUTION, 0.0, delta)
     edits: dict[tuple[str, str], dict] = {}
     why: dict[str, str] = {}
     actual = np.zeros(len(PARAMETERS))
@@ -358,10 +362,10 @@ def _stepped(table: ParameterTable, evidence: NodeEvidence, delta: np.ndarray, J
         if d == 0.0:
             continue
         old = _value(table, p)
-        new = clamp_value(p, old * math.exp(d) if p.relative else old + d, table, rules.limits)
+        new = clamp_value(p, p.moved(old, d), table, rules.limits)
         if abs(new - old) < 1e-9:
             continue
-        actual[c] = math.log(new / old) if p.relative else new - old
+        actual[c] = p.stepping(new) - p.stepping(old)
         edits.setdefault((p.joint, p.subphase), {"joint": p.joint, "subphase": p.subphase})[p.attr] = new
         change = f"{100 * (new / old - 1):+.0f} %" if p.relative else f"{new - old:+.1f}°"
         at = f"{evidence.speed_mps:.2f} m/s, {evidence.incline_deg:+.1f}°"
@@ -466,12 +470,12 @@ def change_in_steps(changes: Sequence[dict], rules: RefineRules | None = None) -
         p = by_field.get(c["field"])
         if p is None or c["before"] == c["after"]:
             continue
-        moved = (abs(math.log(abs(c["after"]) / abs(c["before"]))) if p.relative and c["before"] and c["after"]
-                 else abs(c["after"] - c["before"]))
+        zero = p.relative and 0.0 in (c["before"], c["after"])      # a damping set to 0 has no ln: its change as is
+        moved = abs(c["after"] - c["before"]) if zero else abs(p.stepping(c["after"]) - p.stepping(c["before"]))
         total += moved / rules.step(p)
     return round(total, 3)
 
 
 def quantity_units() -> dict[str, str]:
     """Each quantity's unit, for people: deg or % of the gait cycle."""
-    return {q.key: ("deg" if q.part == "value" else "% gait cycle") for q in QUANTITY_BY_KEY.values()}
+    return {q.key: q.unit for q in QUANTITY_BY_KEY.values()}

@@ -45,6 +45,16 @@ class Quantity:
     tolerance: float     # in the key's unit
     label: str           # clinical words
 
+    @property
+    def unit(self) -> str:
+        """The display unit's name in JSON: ``deg`` or ``% gait cycle``."""
+        return "deg" if self.part == "value" else "% gait cycle"
+
+    @property
+    def unit_text(self) -> str:
+        """The display unit as it follows a number in words: ``°`` or `` % of the cycle``."""
+        return "°" if self.part == "value" else " % of the cycle"
+
     def display(self, phase: float, value: float) -> float:
         """The quantity of a (phase fraction, value rad) pair, in its display unit."""
         return math.degrees(value) if self.part == "value" else 100.0 * phase

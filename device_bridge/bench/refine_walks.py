@@ -172,9 +172,8 @@ class BenchStepCheck:
             moved, expected = a - b, expected_change.get(q.key, 0.0)
             if abs(moved - expected) > max(q.tolerance, abs(expected)):
                 self.refused += 1
-                unit = "°" if q.part == "value" else " % of the cycle"
-                return (f"the bench moved {q.label} {moved:+.1f}{unit} where the sensitivity expected "
-                        f"{expected:+.1f}{unit}")
+                return (f"the bench moved {q.label} {moved:+.1f}{q.unit_text} where the sensitivity expected "
+                        f"{expected:+.1f}{q.unit_text}")
         return None
 
 

@@ -11,8 +11,9 @@ nodes.
 
 Why measured, not modelled: the sub-phase spring model the refinement used before (a feature moves one for one with its
 own row's θe) is wrong on this leg where it matters most. The stance knee peak is set by how the knee lands, the
-terminal-swing row (about +30° per unit ln b there, against +0.2° per degree of the stance-flexion row's θe), and the
-swing peak's timing hardly responds to the swing-flexion stiffness the spring model moved for it.
+terminal-swing row (+22° per unit ln b and +0.75° per degree of its θe, grid medians, against +0.19° per degree of the
+stance-flexion row's θe), and the swing peak's timing hardly responds to the swing-flexion stiffness the spring model
+moved for it.
 """
 
 from __future__ import annotations
@@ -36,20 +37,14 @@ LOG_STEP = math.log(1.25)       # ± on ln|k| or ln|b| (×1.25, ÷1.25)
 MIN_STRIDES = 6
 
 
-def stepped(p: Parameter, value: float) -> float:
-    """A value in the refinement's stepping unit: deg, or ln|value|."""
-    return math.log(abs(value)) if p.relative else value
-
-
 def perturbed(table: ParameterTable, p: Parameter, sign: float) -> tuple[ParameterTable, float]:
     """The table with ``p`` moved one measuring step in the direction ``sign``, held inside the limits (a node at a
     limit is measured one-sidedly), and the value it was given in the stepping unit."""
     old = float(getattr(table.row(p.joint, p.subphase), p.attr))
-    new = old * math.exp(sign * LOG_STEP) if p.relative else old + sign * THETA_STEP_DEG
-    new = clamp_value(p, new, table, DEFAULT_LIMITS)
+    new = clamp_value(p, p.moved(old, sign * (LOG_STEP if p.relative else THETA_STEP_DEG)), table, DEFAULT_LIMITS)
     if new == old:
-        return table, stepped(p, old)
-    return edit_table(table, [{"joint": p.joint, "subphase": p.subphase, p.attr: new}])[0], stepped(p, new)
+        return table, p.stepping(old)
+    return edit_table(table, [{"joint": p.joint, "subphase": p.subphase, p.attr: new}])[0], p.stepping(new)
 
 
 _WORKER_MODEL: list[QuasiStiffnessModel] = []   # the model in a worker process, sent once (not with every walk)
@@ -109,7 +104,7 @@ def measure_sensitivity(model: QuasiStiffnessModel, speeds_mps: Sequence[float] 
                       for k in range(len(tasks))],
         "provenance": {
             "what": "central differences of each controlled quantity's mean error (quantity unit per deg of θe, or "
-                    "per unit ln|k| or ln|b|) on the simulated bench, the model's table at each task",
+                    "per unit ln|k| or ln|b|) on the simulated bench, the model's envelope table at each node",
             "leg": "nominal", "mass_kg": mass_kg, "seconds_per_walk": seconds,
             "steps": {"theta_e_deg": THETA_STEP_DEG, "ln_value": round(LOG_STEP, 6)},
             "unresolved_rule": f"a walk that falls or measures a quantity on fewer than {MIN_STRIDES} strides",
