@@ -88,6 +88,17 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_stance_response(args: argparse.Namespace) -> int:
+    from device_bridge.bench.stance_response import stance_response
+    from lab.stance_response import format_stance_response
+
+    rows = stance_response(load(args), args.mass, args.seconds)
+    print(format_stance_response(rows))
+    if args.out is not None:
+        write_json(args.out, rows)
+    return 0
+
+
 def cmd_sensitivity(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -214,6 +225,14 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", type=Path, default=None)
     p.add_argument("--out", type=Path, default=None, help="write the grid as JSON here")
     p.set_defaults(func=cmd_sensitivity)
+    p = sub.add_parser("stance-response", help="bench study: how far the loaded knee answers its stance-flexion "
+                                               "stiffness (learned table and FSMIC), under the bench's person and "
+                                               "weaker ones")
+    p.add_argument("--seconds", type=float, default=16.0, help="walking per table (s)")
+    p.add_argument("--mass", type=float, default=75.0)
+    p.add_argument("--model", type=Path, default=None)
+    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
+    p.set_defaults(func=cmd_stance_response)
     p = sub.add_parser("calibrate", help="walk the reference's own joint angles on the bench over a task grid: how far "
                                          "the body strays from where people's is")
     p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])

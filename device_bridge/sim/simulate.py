@@ -112,7 +112,8 @@ class StepController(Protocol):
 
 
 def run_walk(controller: StepController, reference: WalkingReference, mass_kg: float, seconds: float,
-             geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0) -> WalkLog:
+             geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0,
+             person: Person | None = None) -> WalkLog:
     """Walk ``controller`` on the bench for ``seconds`` at the reference's task.
 
     Args:
@@ -122,10 +123,14 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
         seconds: simulated time (s).
         geometry: bench and prosthesis geometry.
         frame_callback: called with the plant every ``frame_every`` ticks (rendering), if given.
+        person: the person around the prosthesis (default :class:`Person` of ``mass_kg`` as stated there); bench
+            studies give another to see what the person's stated strengths hide.
     """
     if not (math.isfinite(seconds) and 0.0 < seconds <= 600.0):
         raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")
-    leg = SimulatedLeg(geometry, reference.incline_deg, person=Person(mass_kg))
+    if person is not None and person.mass_kg != mass_kg:
+        raise ValueError(f"the person's mass ({person.mass_kg:g} kg) is not the walk's ({mass_kg:g} kg)")
+    leg = SimulatedLeg(geometry, reference.incline_deg, person=person or Person(mass_kg))
     traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, seconds, leg.timestep_s)
     s0 = traj.phase[0]
     knee0 = float(np.interp(s0, reference.phase, reference.knee_angle_rad))

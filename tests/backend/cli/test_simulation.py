@@ -110,3 +110,12 @@ def test_cli_refine_walks_refines_and_evaluates_on_a_leg_and_writes_the_contract
     assert as_run(Envelope.from_json(result["refined_envelope"])).violations == []
     assert main(["refine", "--rounds", "0", "--seconds-per-round", "10"]) == 2
     assert "rounds" in capsys.readouterr().err
+
+
+def test_cli_stance_response_prints_the_study_and_writes_it(capsys, tmp_path):
+    out = tmp_path / "stance.json"
+    assert main(["stance-response", "--seconds", "3", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "bench study (limits not checked)" in text and "| the bench's person | learned |" in text
+    rows = json.loads(out.read_text())
+    assert {r["person"] for r in rows} >= {"the bench's person", "soft progression (2 kN/m)"}

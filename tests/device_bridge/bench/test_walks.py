@@ -5,6 +5,7 @@ from __future__ import annotations
 import pandas as pd
 import pytest
 
+from device_bridge.bench.stance_response import with_knee_stance_k as _knee
 from device_bridge.bench.walks import simulate
 
 
@@ -21,12 +22,6 @@ def test_a_given_table_walks_as_the_model_table_at_its_task(model, tmp_path):
 def test_a_bad_task_is_refused_before_walking(model):
     with pytest.raises(ValueError, match="speed"):
         simulate("fsmic", -1.0, 0.0, seconds=1.0)
-
-
-def _knee(table, **k_by_subphase):
-    return table.model_copy(update={"rows": [
-        r.model_copy(update={"k_Nm_per_rad": k_by_subphase[r.subphase]})
-        if r.joint == "knee" and r.subphase in k_by_subphase else r for r in table.rows]})
 
 
 def test_a_knee_with_no_stance_support_lets_the_body_fall_where_the_learned_table_carries_it(model):
