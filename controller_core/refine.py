@@ -13,7 +13,8 @@ small change of each value, walked on the nominal leg at the node's task. Chosen
 (a feature moving one for one with its own row's θe), which this project used first and which the bench showed wrong
 where it matters: the stance knee peak moves about 0.2° per degree of the stance-flexion θe but 0.75° per degree of the
 terminal-swing θe and about 2° per 10 % of terminal-swing damping (the knee lands more or less flexed); the swing peak's
-timing hardly follows any row (the bench drives the thigh in time: :func:`out_of_reach`). Chosen over the session's
+timing hardly follows any one row within a step (:func:`out_of_reach`), though larger joint changes of several rows do
+move it (docs/results.md). Chosen over the session's
 own variation, which does not span the parameters (every stride of a session runs the same rows). The bench
 sensitivity costs nothing at refinement time.
 
@@ -287,8 +288,9 @@ def out_of_reach(evidence: NodeEvidence, table: ParameterTable, rules: RefineRul
                  skip: frozenset[str]) -> dict[str, str]:
     """Quantities the step would move by less than :data:`REACH_FRACTION` of their error (and less than their tolerance:
     a large error limited by the step limits is reachable over rounds) while holding the others:
-    the table's values barely set them on the bench (the swing knee peak's timing follows the person's thigh more
-    than any row), so they are held and named for the prosthetist instead of nudging every row for a small gain.
+    a round's step barely moves them on the bench (the swing knee peak's timing, mostly), so they are held and named
+    for the prosthetist instead of nudging every row for a small gain. Not a claim that no table could: on the bench,
+    changes of several rows far beyond one round's limits do move the timing (docs/results.md).
     Decided one at a time, the least reachable first, re-stepping without it."""
     out: dict[str, str] = {}
     while True:
@@ -303,9 +305,10 @@ def out_of_reach(evidence: NodeEvidence, table: ParameterTable, rules: RefineRul
         if gain[k] >= REACH_FRACTION:
             return out
         q = QUANTITIES[k]
-        out[q.key] = (f"{e[k]:+.1f}{q.unit_text} off, but the table's values move it little on the bench (one round "
-                      f"would leave {after[k]:+.1f}{q.unit_text} while holding the rest): not set by these rows here; "
-                      "for the prosthetist (alignment, the socket, how the person walks)")
+        out[q.key] = (f"{e[k]:+.1f}{q.unit_text} off, but a round's step moves it little on the bench (one round "
+                      f"would leave {after[k]:+.1f}{q.unit_text} while holding the rest): beyond this refinement's "
+                      "reach here; for the prosthetist (alignment, the socket, how the person walks, or larger changes "
+                      "by hand, previewed on the bench)")
 
 
 StepCheck = Callable[[NodeEvidence, ParameterTable, ParameterTable, dict[str, float]], str | None]

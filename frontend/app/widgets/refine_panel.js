@@ -40,7 +40,7 @@ function nodeCard(n, ev) {
       h("td", { class: "num" }, q.error === null ? "—" : `${signed(q.error)}${unit}${q.ci95 ? ` [${signed(q.ci95[0])}, ${signed(q.ci95[1])}]` : ""}`),
       h("td", { class: "num" }, q.expected_error === null || q.expected_error === undefined ? "—" : `${signed(q.expected_error)}${unit}`),
       h("td", { class: "num" }, bench),
-      h("td", {}, q.act ? chip("acted on", "ok") : q.held === "out of reach" ? chip("not set by these rows", "warn") : "", " ", q.reason));
+      h("td", {}, q.act ? chip("acted on", "ok") : q.held === "out of reach" ? chip("beyond a round's reach", "warn") : "", " ", q.reason));
   });
   return h("details", { class: "refine-node", open: n.changed, dataset: { node: n.node.join(",") } },
     h("summary", {}, `${fmt(n.speed_mps, 2, "m/s")}, ${n.incline_deg > 0 ? "+" : ""}${fmt(n.incline_deg, 1, "°")}: `,
@@ -73,7 +73,7 @@ export function refinementView(ev, grid = {}) {
       "80 % of them on the same side of the target, beyond the tolerance and with a 95 % interval clear of zero. ",
       `Sensitivity: ${ev.sensitivity}. Steps per round at most ${fmt(ev.rules.theta_step_deg, 0, "°")} of equilibrium angle and `,
       `${fmt(ev.rules.k_step_fraction * 100, 0)} % of stiffness or damping; every limit and the neighbour rule hold. `,
-      "A quantity one round could move by less than a quarter of its error is held as not set by these rows and left to you."));
+      "A quantity one round could move by less than a quarter of its error is held as beyond a round's reach and left to you (larger changes by hand, previewed on the bench, may still move it)."));
 }
 
 // the card on an envelope's or a table's page (kind "envelope" or "proposal")
