@@ -31,7 +31,8 @@ step: :attr:`RefineRules.theta_step_deg` (5°) for θe, :attr:`RefineRules.k_ste
 round. The sensitivity was measured over ±3° and ×/÷1.25 and is not known beyond (moving the terminal-swing θe 5° down
 from the nominal 8° lands the knee straight and delays push-off 8 % of the cycle on the bench, where ±3° around it is
 smooth), so where a bench is at hand (the API, the loop on the bench) each node's step is walked before it is taken
-(``check``): one the bench does not confirm is halved, then quartered, then left out with why. (A fixed 3° limit
+(``check``: more falls, strides turned irregular, or a change the sensitivity did not expect): one the bench does not
+confirm is halved, then quartered, then left out with why. (A fixed 3° limit
 instead cost the heavy-footed leg most of its stance-knee correction in two rounds.) Changes below 0.1° or 1 % are
 dropped. The result is clamped into every limit (joint ranges, stance k ≤ 0 (kept by scaling k), the knee's stance
 support floor, damping ≥ 0), and the swing threshold follows the expected swing knee peak (85 % of it, the table rule).

@@ -40,6 +40,9 @@ from device_bridge.sim.course_walk import CourseScore, run_course, score_course
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import WalkLog, fall_mask, run_walk
 
+# a spread of the new rows above this many times the old rows' plus the tolerance is an irregular walk: a 12 s walk's
+# spread is uncertain by about a factor of 2 (the learned table at 1.2 m/s level: stance knee ±2.3° in 12 s, ±1.3° in 30 s)
+IRREGULAR_SPREAD_RATIO = 2.0
 DECISION_MATCH_S = 0.3   # a load-based heel strike and the machine's own (at a higher load) within this are one strike
 
 
@@ -103,8 +106,9 @@ def bench_feature_errors(table: ParameterTable, speed_mps: float, incline_deg: f
                          model: QuasiStiffnessModel, seconds: float = 12.0, geometry: LegGeometry | None = None
                          ) -> dict[str, object]:
     """What the bench expects of a table at a task: walked ``seconds`` on the leg ``geometry``, its strides read as a
-    session's (after 2 s) and each controlled quantity's mean error against the model's target (measured − target,
-    the quantity's unit), with the walk's falls. The same feature definitions as the leg's own strides."""
+    session's (after 2 s), each controlled quantity's mean error against the model's target (measured − target, the
+    quantity's unit) and its spread from stride to stride (``spread``: the standard deviation, same unit; None below
+    two strides), with the walk's falls. The same feature definitions as the leg's own strides."""
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
     log = run_walk(make_controller("table", mass_kg, table=table), ref, mass_kg, seconds, geometry)
     c = log.channels
@@ -116,21 +120,26 @@ def bench_feature_errors(table: ParameterTable, speed_mps: float, incline_deg: f
     strides, _ = measure_strides(channel_strides(measured, strikes), tasks) if tasks else ([], {})
     targets = model_targets(model)
     errors: dict[str, float | None] = {}
+    spread: dict[str, float | None] = {}
     for q in QUANTITIES:
         errs = [q.display(*s.features[q.feature]) - q.display(t.phase, t.value) for s in strides
                 if q.feature in s.features for t in (targets(s.speed_mps, s.incline_deg)[q.feature],)]
         errors[q.key] = round(float(np.mean(errs)), 3) if errs else None
+        spread[q.key] = round(float(np.std(errs, ddof=1)), 3) if len(errs) >= 2 else None
     return {"strides": len(strides), "falls": int(episodes(fall_mask(c, mass_kg * G_MPS2) & (c["time_s"] >= 2.0),
                                                              round(0.2 / log.timestep_s))),
-            "error": errors, "seconds": seconds}
+            "error": errors, "spread": spread, "seconds": seconds}
 
 
 class BenchStepCheck:
     """The bench's check of a node's step (:data:`controller_core.refine.StepCheck`): the old and the new rows walked
-    ``seconds`` at the node's task on the nominal leg; the step is refused when the new rows fall more, or when any
-    controlled quantity moves further from what the sensitivity expects than its tolerance or the expected change
-    itself, whichever is larger (the step left the range where the sensitivity holds). Walks are kept, so a table walked
-    again (the old rows at a halved step, the API's expected change) costs nothing.
+    ``seconds`` at the node's task on the nominal leg; the step is refused when the new rows fall more, when any
+    controlled quantity's spread from stride to stride grows beyond :data:`IRREGULAR_SPREAD_RATIO` times what it was
+    plus its tolerance (the gait became irregular, alternating long and short strides, which a mean error does not
+    show and the per-stride error the patient lives with does), or when any controlled quantity moves further from
+    what the sensitivity expects than its tolerance or the expected change itself, whichever is larger (the step left
+    the range where the sensitivity holds). Walks are kept, so a table walked again (the old rows at a halved step,
+    the API's expected change) costs nothing.
 
     Args:
         model: the model the targets come from.
@@ -165,6 +174,12 @@ class BenchStepCheck:
         if after["falls"] > before["falls"]:
             self.refused += 1
             return f"the new rows fell {after['falls']} times on the bench ({before['falls']} before)"
+        for q in QUANTITIES:
+            a, b = after.get("spread", {}).get(q.key), before.get("spread", {}).get(q.key)
+            if a is not None and b is not None and a > IRREGULAR_SPREAD_RATIO * b + q.tolerance:
+                self.refused += 1
+                return (f"the strides became irregular on the bench: {q.label} varies ±{a:.1f}{q.unit_text} from "
+                        f"stride to stride, ±{b:.1f}{q.unit_text} before")
         for q in QUANTITIES:
             a, b = after["error"][q.key], before["error"][q.key]
             if a is None or b is None:
