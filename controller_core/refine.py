@@ -93,6 +93,10 @@ class Parameter:
         """Stepped in ln|value|: stiffness and damping."""
         return self.attr in ("k_Nm_per_rad", "b_Nm_s_per_rad")
 
+    def value_in(self, table: ParameterTable) -> float:
+        """This value in ``table``."""
+        return float(getattr(table.row(self.joint, self.subphase), self.attr))
+
     def stepping(self, value: float) -> float:
         """A value in the stepping unit: ln|value| (k, b) or deg (θe)."""
         return math.log(abs(value)) if self.relative else value
@@ -157,10 +161,6 @@ class RefineRules:
         grid = self.sensitivity or load_sensitivity()
         grid.check_names(tuple(p.field for p in PARAMETERS), tuple(q.key for q in QUANTITIES))
         return grid.at(speed_mps, incline_deg)
-
-
-def _value(table: ParameterTable, p: Parameter) -> float:
-    return float(getattr(table.row(p.joint, p.subphase), p.attr))
 
 
 def sensitivity(evidence: NodeEvidence, rules: RefineRules) -> np.ndarray:
@@ -251,8 +251,8 @@ REACH_FRACTION = 0.25   # a quantity one round would move by less than this frac
 class NodeRefinement:
     """One node's refined table (or the unchanged one) and the changes, each ``{"field", "before", "after", "why"}``;
     ``expected_error``: per quantity acted on, the error the sensitivity expects after the step; ``not_responding``:
-    quantities held, with why: the last round's change did not move them (:func:`not_responding`), or the table's
-    values barely move them (:func:`out_of_reach`, also listed in ``out_of_reach``); ``step_scale``: the fraction of
+    quantities held, with why: the last round's change did not move them (:func:`not_responding`), or a round's step
+    barely moves them (:func:`out_of_reach`, also listed in ``out_of_reach``); ``step_scale``: the fraction of
     the step taken (below 1 where the check refused a larger one, ``step_refused`` saying why)."""
 
     table: ParameterTable
@@ -365,7 +365,7 @@ def _stepped(table: ParameterTable, evidence: NodeEvidence, delta: np.ndarray, J
     for c, (p, d) in enumerate(zip(PARAMETERS, delta, strict=True)):
         if d == 0.0:
             continue
-        old = _value(table, p)
+        old = p.value_in(table)
         new = clamp_value(p, p.moved(old, d), table, rules.limits)
         if abs(new - old) < 1e-9:
             continue

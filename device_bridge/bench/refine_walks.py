@@ -175,7 +175,7 @@ class BenchStepCheck:
             self.refused += 1
             return f"the new rows fell {after['falls']} times on the bench ({before['falls']} before)"
         for q in QUANTITIES:
-            a, b = after.get("spread", {}).get(q.key), before.get("spread", {}).get(q.key)
+            a, b = after["spread"][q.key], before["spread"][q.key]
             if a is not None and b is not None and a > IRREGULAR_SPREAD_RATIO * b + q.tolerance:
                 self.refused += 1
                 return (f"the strides became irregular on the bench: {q.label} varies ±{a:.1f}{q.unit_text} from "

@@ -40,7 +40,7 @@ MIN_STRIDES = 6
 def perturbed(table: ParameterTable, p: Parameter, sign: float) -> tuple[ParameterTable, float]:
     """The table with ``p`` moved one measuring step in the direction ``sign``, held inside the limits (a node at a
     limit is measured one-sidedly), and the value it was given in the stepping unit."""
-    old = float(getattr(table.row(p.joint, p.subphase), p.attr))
+    old = p.value_in(table)
     new = clamp_value(p, p.moved(old, sign * (LOG_STEP if p.relative else THETA_STEP_DEG)), table, DEFAULT_LIMITS)
     if new == old:
         return table, p.stepping(old)
