@@ -90,7 +90,10 @@ def test_after_a_kill_mid_push_the_records_pages_and_next_session_agree_with_the
     try:
         c = _client(base)
         device = _until(lambda: c.get(f"/api/devices/{DEVICE}").json(), lambda d: d["mode"] is not None)
-        assert device["mode"] == "no_table" and device["active_table"] is None        # what the leg says
+        assert device["active_table"] is None and "no_table" in device["faults"]       # what the leg says
+        # a supervised leg whose host fell silent for its 200 ms (a starved CI machine can do that to the server's
+        # heartbeat thread) is in safe mode as well: the leg's word, with its reason, and still no table
+        assert device["mode"] == "no_table" or (device["mode"] == "safe" and "heartbeat_lost" in device["faults"])
         pushes = _until(lambda: c.get(f"/api/envelopes/{second['id']}/pushes").json() +
                         c.get(f"/api/envelopes/{first['id']}/pushes").json(),
                         lambda ps: not any(p["status"] in ("sending", "unconfirmed", "active", "acknowledged")
