@@ -19,6 +19,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
+from backend.bench.preview import BenchmarkCourseWalks
 from backend.db import open_engine
 from backend.devices import DeviceManager, parse_device_specs
 from backend.errors import DomainError
@@ -130,6 +131,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     specs = parse_device_specs(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
+    app.state.benchmark_walks = BenchmarkCourseWalks()   # the FSMIC's course walk per body mass, for the previews
     app.state.broker = None
     if any(spec.interface == "mqtt" for spec in specs):
         app.state.broker = broker_connection(settings)

@@ -6,6 +6,8 @@ adapting), both against the FSMIC on the same plant, reference and metrics as ``
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from controller_core.envelope import Envelope
@@ -18,10 +20,29 @@ from device_bridge.bench.task_reference import task_reference
 from device_bridge.bench.versus import against_fsmic, versus
 from device_bridge.bench.walks import walk_course
 from device_bridge.sim.course import Course
+from device_bridge.sim.course_walk import CourseScore
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import run_walk, score_walk
 
 PREVIEW_COURSE = "mixed"
+
+
+class BenchmarkCourseWalks:
+    """The FSMIC's walk of a course, kept per (course, body mass, leg, model) for the life of the server.
+
+    The benchmark does not depend on the version previewed, so every envelope preview after the first at a body mass
+    reuses its walk (about five CPU-seconds of the mixed course) instead of walking the same deterministic bench
+    again; an edit's preview then costs the envelope's walk alone. ``maxsize`` bounds the memory (one entry per
+    patient's body mass in use). The scores returned are shared: read them, never change them.
+    """
+
+    def __init__(self, maxsize: int = 32) -> None:
+        self.maxsize = maxsize
+        self.score = functools.lru_cache(maxsize=maxsize)(self._walk)
+
+    @staticmethod
+    def _walk(course: Course, mass_kg: float, geometry: LegGeometry, model: QuasiStiffnessModel) -> CourseScore:
+        return walk_course("fsmic", course, model, mass_kg, geometry=geometry)
 
 
 def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, mass_kg: float,
@@ -52,13 +73,16 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
 
 
 def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course,
-                     geometry: LegGeometry | None = None) -> dict[str, object]:
+                     geometry: LegGeometry | None = None,
+                     benchmark: BenchmarkCourseWalks | None = None) -> dict[str, object]:
     """The envelope's preview for its page: the course walked with the envelope (the leg estimating its task and
-    adapting) and with the FSMIC, at the envelope's body mass. Per controller its summary (safety figures, errors by
-    segment, estimation accuracy for the envelope); ``envelope_minus_fsmic``: per channel the mean per-stride RMSE
-    difference with its 95 % interval and verdict."""
+    adapting) and with the FSMIC (from ``benchmark`` when it holds that walk), at the envelope's body mass. Per
+    controller its summary (safety figures, errors by segment, estimation accuracy for the envelope);
+    ``envelope_minus_fsmic``: per channel the mean per-stride RMSE difference with its 95 % interval and verdict."""
+    geometry = geometry or LegGeometry()
+    fsmic = (benchmark or BenchmarkCourseWalks(maxsize=1)).score(course, envelope.mass_kg, geometry, model)
     scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope, geometry=geometry),
-              "fsmic": walk_course("fsmic", course, model, envelope.mass_kg, geometry=geometry)}
-    return {"course": course.to_json(), "mass_kg": envelope.mass_kg, "leg": (geometry or LegGeometry()).name,
+              "fsmic": fsmic}
+    return {"course": course.to_json(), "mass_kg": envelope.mass_kg, "leg": geometry.name,
             "controllers": {name: s.to_dict() for name, s in scores.items()},
             "envelope_minus_fsmic": versus(scores["envelope"], scores["fsmic"], "envelope", "FSMIC")}

@@ -7,7 +7,7 @@ import threading
 from fastapi import APIRouter, Request
 from sqlalchemy import Connection
 
-from backend.bench.preview import PREVIEW_COURSE, preview_envelope, preview_table
+from backend.bench.preview import PREVIEW_COURSE, BenchmarkCourseWalks, preview_envelope, preview_table
 from backend.bench.safety_figures import safety_flags
 from backend.deps import Conn, CurrentUser, Model
 from backend.errors import ConflictError
@@ -62,11 +62,12 @@ async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn
     its task and adapting, and with the FSMIC (computed on first request, about ten seconds, then stored). Safety
     figures (``safety``: flags on their own bounds), errors per segment against the reference at each stride's true
     task, the leg's estimation accuracy, and the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
-    return await run_waiting(_envelope_preview, envelope_id, conn, model, request.app.state.bench_leg)
+    return await run_waiting(_envelope_preview, envelope_id, conn, model, request.app.state.bench_leg,
+                             request.app.state.benchmark_walks)
 
 
-def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry
-                      ) -> dict:
+def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
+                      benchmark: BenchmarkCourseWalks) -> dict:
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
     if stored is None:
@@ -76,7 +77,7 @@ def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessM
                 checked = as_run(envelopes.stored_envelope(row))
                 _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
                 envelope = checked.item
-                result = preview_envelope(envelope, model, COURSES[PREVIEW_COURSE], leg)
+                result = preview_envelope(envelope, model, COURSES[PREVIEW_COURSE], leg, benchmark)
                 stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["envelope"], runs["fsmic"])}

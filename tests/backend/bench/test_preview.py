@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from backend.bench.preview import preview_table
+from backend.bench import preview as preview_module
+from backend.bench.preview import BenchmarkCourseWalks, preview_table
 from controller_core.fsmic import fsmic_table
 from controller_core.table import SafetyLimitError
+from device_bridge.sim.course import Course, Segment
 
 
 def test_a_table_preview_walks_the_table_and_the_fsmic_with_their_difference(model):
@@ -27,3 +29,31 @@ def test_an_unsafe_table_is_never_walked(model):
     bad = table.model_copy(update={"rows": [row.model_copy(update={"k_Nm_per_rad": 50.0}), *table.rows[1:]]})
     with pytest.raises(SafetyLimitError):
         preview_table(bad, 1.2, 0.0, 75.0, model, seconds=5.0)
+
+
+def test_the_benchmark_walks_a_course_once_per_body_mass_and_every_envelope_preview_reuses_it(model, monkeypatch):
+    walked: list[tuple[str, float]] = []
+    real_walk = preview_module.walk_course
+
+    def counting_walk(controller, course, model_, mass_kg, *args, **kwargs):
+        walked.append((controller, mass_kg))
+        return real_walk(controller, course, model_, mass_kg, *args, **kwargs)
+
+    monkeypatch.setattr(preview_module, "walk_course", counting_walk)
+    course = Course("short", (Segment(6.0, 1.0, 0.0), Segment(6.0, 1.2, 0.0)))
+    benchmark = BenchmarkCourseWalks()
+    first = model.propose_envelope([0.8, 1.4], [-4.0, 4.0], 75.0)
+    second = model.propose_envelope([0.9, 1.5], [-4.0, 4.0], 75.0)
+    a = preview_module.preview_envelope(first, model, course, benchmark=benchmark)
+    b = preview_module.preview_envelope(second, model, course, benchmark=benchmark)
+    assert walked == [("fsmic", 75.0), ("adaptive", 75.0), ("adaptive", 75.0)]   # the benchmark once, each envelope
+    assert a["controllers"]["fsmic"] == b["controllers"]["fsmic"]
+    assert a["controllers"]["envelope"] != b["controllers"]["envelope"]
+    # the benchmark is the same walk as walked afresh, and another body mass walks its own
+    fresh = preview_module.preview_envelope(second, model, course)["controllers"]["fsmic"]
+    kept = b["controllers"]["fsmic"]
+    assert kept.pop("real_time_factor") > 0 and fresh.pop("real_time_factor") > 0   # the machine's speed, not the walk
+    assert fresh == kept
+    heavier = model.propose_envelope([0.9, 1.5], [-4.0, 4.0], 90.0)
+    preview_module.preview_envelope(heavier, model, course, benchmark=benchmark)
+    assert walked[-2:] == [("fsmic", 90.0), ("adaptive", 90.0)]
