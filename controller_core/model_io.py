@@ -16,6 +16,7 @@ import json
 import os
 import shutil
 import tempfile
+import threading
 from pathlib import Path
 
 import joblib
@@ -131,18 +132,24 @@ def cache_dir() -> Path:
     return Path(base) / "quasitune"
 
 
+# one fit of the default model at a time in a process: a server's background loader and a command (or a test) asking at
+# once would each fit it (about 15 CPU-seconds); the second now finds the first's in the cache
+_DEFAULT_FIT = threading.Lock()
+
+
 def load_default_model(refit: bool = False) -> QuasiStiffnessModel:
     """The default model, from the per-user cache or fitted now (and cached) from the shipped data."""
     ref_hash = load_shipped_reference().data_sha256
     ramps_hash = sha256_of(data_dir() / SHIPPED_RAMPS_CSV)
     key = hashlib.sha256((ref_hash + incline_table_sha256() + ramps_hash + code_sha256()).encode()).hexdigest()[:16]
     directory = cache_dir() / "models" / key
-    if not refit and (directory / MODEL_FILE).exists():
-        try:
-            return load_model(directory)
-        except Exception:  # a corrupt cache entry is rebuilt, never trusted
-            shutil.rmtree(directory, ignore_errors=True)
-    model = train_default()
-    with contextlib.suppress(OSError):  # a read-only home still gets a working (uncached) model
-        save_model(model, directory)
-    return model
+    with _DEFAULT_FIT:
+        if not refit and (directory / MODEL_FILE).exists():
+            try:
+                return load_model(directory)
+            except Exception:  # a corrupt cache entry is rebuilt, never trusted
+                shutil.rmtree(directory, ignore_errors=True)
+        model = train_default()
+        with contextlib.suppress(OSError):  # a read-only home still gets a working (uncached) model
+            save_model(model, directory)
+        return model

@@ -1,10 +1,14 @@
-"""Saved models: what an older QuasiTune wrote is refused with a reason."""
+"""Saved models: what an older QuasiTune wrote is refused with a reason; the default model is fitted once."""
 
 from __future__ import annotations
 
 import copy
+import threading
+import time
 
 import pytest
+
+from controller_core import model_io
 
 
 def test_a_saved_model_from_before_the_swing_settings_is_refused_with_a_reason(model, tmp_path):
@@ -28,3 +32,29 @@ def test_a_saved_model_from_before_the_model_was_split_in_parts_is_refused_with_
     save_model(old, tmp_path / "old")
     with pytest.raises(ValueError, match=r"older QuasiTune.*feature_model_.*quasitune train"):
         load_model(tmp_path / "old")
+
+
+def test_two_threads_asking_for_the_default_model_at_once_fit_it_once(model, tmp_path, monkeypatch):
+    fits: list[int] = []
+    started = threading.Barrier(2)
+
+    def counting_fit():
+        fits.append(threading.get_ident())
+        time.sleep(0.2)          # a fit takes a while: the other thread asks meanwhile
+        return model
+
+    monkeypatch.setenv("QUASITUNE_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(model_io, "train_default", counting_fit)
+    got: list[object] = []
+
+    def ask() -> None:
+        started.wait()
+        got.append(model_io.load_default_model())
+
+    threads = [threading.Thread(target=ask) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert len(fits) == 1 and len(got) == 2          # the second read what the first fitted and cached
+    assert all(m.model_version == model.model_version for m in got)
