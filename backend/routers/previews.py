@@ -59,9 +59,10 @@ def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessMode
 async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn, _user: CurrentUser,
                                model: Model) -> dict:
     """Walk the bench's ``mixed`` course (speed changes, ramps up and down ±8°) with this envelope, the leg estimating
-    its task and adapting, and with the FSMIC (computed on first request, about ten seconds, then stored). Safety
-    figures (``safety``: flags on their own bounds), errors per segment against the reference at each stride's true
-    task, the leg's estimation accuracy, and the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
+    its task and adapting, and with the FSMIC (computed on first request, about ten seconds, five when the server
+    has walked the FSMIC at this body mass already, then stored). Safety figures (``safety``: flags on their own
+    bounds), errors per segment against the reference at each stride's true task, the leg's estimation accuracy, and
+    the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
     return await run_waiting(_envelope_preview, envelope_id, conn, model, request.app.state.bench_leg,
                              request.app.state.benchmark_walks)
 

@@ -111,7 +111,7 @@ export async function envelopePage(view, id, params) {
   const pushBox = h("section", { class: "card", id: "push" });
   const refineBox = h("section", { class: "card", id: "refine" });
   const previewBox = h("section", { class: "card", id: "preview" }, h("h2", {}, "Simulated preview: the varying-task course"),
-    h("p", { class: "muted", id: "preview-status" }, "Walking the course with this envelope and with the FSMIC on the simulated bench (about ten seconds, once)…"));
+    h("p", { class: "muted", id: "preview-status" }, "Walking the course with this envelope and with the FSMIC on the simulated bench (up to about ten seconds, once)…"));
   view.replaceChildren(...head,
     h("section", { class: "card" }, h("h2", {}, "Maps over speed × incline"), picker, maps, mapNote,
       guarded.length ? h("p", { class: "small", id: "guarded-note" }, `${guarded.length} node(s) have values held within a step of `,
