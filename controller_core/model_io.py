@@ -133,7 +133,7 @@ def cache_dir() -> Path:
 
 
 # one fit of the default model at a time in a process: a server's background loader and a command (or a test) asking at
-# once would each fit it (about 15 CPU-seconds); the second now finds the first's in the cache
+# once would each fit it (5-15 s on a 2-core machine); the second now finds the first's in the cache
 _DEFAULT_FIT = threading.Lock()
 
 
