@@ -11,6 +11,4 @@ bash scripts/setup_frontend.sh
 bash scripts/ensure_debian.sh chromium chromium docker-compose docker-compose pg_ctlcluster postgresql \
     mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
 .venv/bin/ruff check .
-# two processes (one per core on the 2-core CI), a test file per process at a time, so a module's server and browser
-# stay in one process: 13-14 min in one process, about 9 in two (docs/results.md). '-n 0' runs it in one.
-exec .venv/bin/python -m pytest -q --numprocesses=auto --maxprocesses=2 --dist=loadfile "$@"
+exec .venv/bin/python -m pytest -q "$@"
