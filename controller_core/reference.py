@@ -145,6 +145,23 @@ def sha256_of(*paths: Path) -> str:
     return h.hexdigest()
 
 
+def interp_rows(x: float, xs: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Interpolate (R, P) rows sampled at non-decreasing xs linearly at x, clamped at the ends: column by column what
+    ``np.interp`` gives (the same arithmetic and the same choice among equal xs, so the same bits; NaN at a NaN x), in
+    one step instead of a call per column."""
+    if math.isnan(x):
+        return np.full(rows.shape[1], np.nan)
+    if x < xs[0]:
+        return rows[0].copy()
+    if x >= xs[-1]:
+        return rows[-1].copy()
+    j = int(np.searchsorted(xs, x, side="right")) - 1
+    if x == xs[j]:
+        return rows[j].copy()
+    slope = (rows[j + 1] - rows[j]) / (xs[j + 1] - xs[j])
+    return slope * (x - xs[j]) + rows[j]
+
+
 def load_npz(path: Path) -> dict[str, np.ndarray]:
     with np.load(path, allow_pickle=False) as d:
         return {k: d[k] for k in d.files}
@@ -256,8 +273,7 @@ def level_curves_at(reference: ReferenceSet, speed_mps: float,
     speeds = np.array([level[i].task["speed_mps"] for i in order])
 
     def at(curves: list[np.ndarray]) -> np.ndarray:
-        stack = np.array([curves[i] for i in order])
-        return np.array([np.interp(speed_mps, speeds, stack[:, p]) for p in range(stack.shape[1])])
+        return interp_rows(speed_mps, speeds, np.array([curves[i] for i in order]))
 
     return ({c: at([r.mean[c] for r in level]) for c in channels},
             {c: at([r.sd[c] for r in level]) for c in channels})

@@ -27,7 +27,14 @@ import numpy as np
 
 from controller_core.incline import InclineChange
 from controller_core.phase_table import load_shipped_ramps
-from controller_core.reference import SHIPPED_NPZ, bovi_ankle_offset_deg, data_dir, load_npz, sha256_of
+from controller_core.reference import (
+    SHIPPED_NPZ,
+    bovi_ankle_offset_deg,
+    data_dir,
+    interp_rows,
+    load_npz,
+    sha256_of,
+)
 
 
 @dataclass(frozen=True)
@@ -69,20 +76,6 @@ class WalkingReference:
         """A curve by the channel names of :data:`controller_core.reference.CHANNELS` (SI)."""
         return {"knee_angle": self.knee_angle_rad, "ankle_angle": self.ankle_angle_rad,
                 "knee_moment": self.knee_moment_Nm_per_kg, "ankle_moment": self.ankle_moment_Nm_per_kg}[channel]
-
-
-def _interp_rows(x: float, xs: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Interpolate (R, P) rows sampled at increasing xs linearly at x, clamped at the ends: column by column what
-    ``np.interp`` gives (the same arithmetic, so the same bits), in one step instead of a call per column."""
-    if x <= xs[0]:
-        return rows[0].copy()
-    if x >= xs[-1]:
-        return rows[-1].copy()
-    j = int(np.searchsorted(xs, x, side="right")) - 1
-    if x == xs[j]:
-        return rows[j].copy()
-    slope = (rows[j + 1] - rows[j]) / (xs[j + 1] - xs[j])
-    return slope * (x - xs[j]) + rows[j]
 
 
 _LEVEL_CURVES: tuple[str, ...] = ("hip_angle_deg", "knee_angle_deg", "ankle_angle_deg", "knee_moment_Nm_per_kg",
@@ -138,7 +131,7 @@ def level_walking_reference(speed_mps: float) -> WalkingReference:
     speeds = rec.speeds_mps
 
     def rows(key: str) -> np.ndarray:
-        return _interp_rows(speed_mps, speeds, rec.curves[key])
+        return interp_rows(speed_mps, speeds, rec.curves[key])
 
     hi = int(np.searchsorted(speeds, speed_mps))
     lo = max(hi - 1, 0)

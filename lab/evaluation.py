@@ -33,7 +33,14 @@ from controller_core.joint_reference import JointReference
 from controller_core.model_io import train
 from controller_core.phase_table import load_shipped_ramps
 from controller_core.proposal import FEATURE_UNITS
-from controller_core.reference import CHANNEL_DISPLAY, CHANNELS, ReferenceSet, level_curves_at, load_shipped_reference
+from controller_core.reference import (
+    CHANNEL_DISPLAY,
+    CHANNELS,
+    ReferenceSet,
+    interp_rows,
+    level_curves_at,
+    load_shipped_reference,
+)
 from lab.um21_envelopes import um21_change_check
 
 METHODS = ("proposal", "reference", "gmr", "linear", "nearest")
@@ -41,8 +48,7 @@ METHODS = ("proposal", "reference", "gmr", "linear", "nearest")
 
 def _interp_curves(speeds: np.ndarray, curves: np.ndarray, speed: float) -> np.ndarray:
     order = np.argsort(speeds)
-    s, c = speeds[order], curves[order]
-    return np.array([np.interp(speed, s, c[:, j]) for j in range(c.shape[1])])
+    return interp_rows(speed, speeds[order], curves[order])
 
 
 def _feature_display(spec: FeatureSpec, value: float) -> float:

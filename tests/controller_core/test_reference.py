@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from controller_core.reference import bovi_ankle_offset_deg, load_shipped_reference
+from controller_core.reference import bovi_ankle_offset_deg, interp_rows, load_shipped_reference
 
 
 def test_default_reference_is_bovi_adult_level_walking(reference):
@@ -41,3 +41,15 @@ def test_other_sources_load_without_speed():
                                  require_speed=False)
     assert len(ref.records) == 8
     assert all(math.isnan(r.task["speed_mps"]) for r in ref.records)
+
+
+def test_rows_are_interpolated_exactly_as_np_interp_does_column_by_column():
+    """Random rows (said here), speeds with repeats, queries between, on, below and above them."""
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        xs = np.sort(np.round(rng.uniform(0.0, 3.0, rng.integers(2, 7)), 1))
+        rows = rng.normal(size=(len(xs), 4))
+        for x in (float(rng.choice(xs)), float(np.round(rng.uniform(-0.5, 3.5), 2)), float(xs[0]), float(xs[-1])):
+            expected = np.array([np.interp(x, xs, rows[:, p]) for p in range(rows.shape[1])])
+            assert np.array_equal(interp_rows(x, xs, rows), expected), (x, xs)
+    assert np.isnan(interp_rows(math.nan, np.array([1.0, 2.0]), np.ones((2, 3)))).all()
