@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import threading
-import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -32,6 +31,7 @@ import can
 
 from controller_core.fsm import SensorSample
 from device_bridge.bus_threads import BusThreads
+from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.firmware import DeviceFirmware, FirmwareConfig, HeldTable
 from device_bridge.protocol import Mode
 
@@ -65,10 +65,12 @@ class Snapshot:
 class DeviceNode(BusThreads):
     """The simulated prosthesis on ``bus`` (see the module docstring)."""
 
-    def __init__(self, bus: can.BusABC, leg: Leg | None = None, config: FirmwareConfig | None = None) -> None:
+    def __init__(self, bus: can.BusABC, leg: Leg | None = None, config: FirmwareConfig | None = None,
+                 clock: Clock = WALL_CLOCK) -> None:
         self.bus = bus
         self.leg = leg
-        self.firmware = DeviceFirmware(config, now_s=time.monotonic())
+        self.clock = clock
+        self.firmware = DeviceFirmware(config, now_s=clock.monotonic())
         self._lock = threading.Lock()
         # frames leave in the order the firmware made them (as from a firmware's one thread): each thread queues its
         # frames while it holds the firmware, and whichever sends drains the queue in order. A status built before a
@@ -105,28 +107,49 @@ class DeviceNode(BusThreads):
             except Exception:
                 self.errors += 1
                 log.exception("device node: %s failed; carrying on", threading.current_thread().name)
-                self._stop.wait(TICK_S)
+                self.clock.wait(self._stop, TICK_S)
+
+    def control_tick(self, now_s: float) -> None:
+        """One control period at ``now_s`` (s): read the leg, run the firmware, drive the leg; the frames it made are
+        queued (call :meth:`_send`, or :meth:`step`)."""
+        leg = self.leg
+        sample = leg.sample() if leg is not None else None
+        knee, ankle, frames = self.firmware.tick(sample, now_s)
+        self._outbox.extend(frames)
+        if leg is not None:
+            leg.step(knee, ankle)
+
+    def handle(self, msg: can.Message, now_s: float) -> None:
+        """One frame from the bus, received at ``now_s``; the firmware's answer is sent at once."""
+        with self._lock:
+            self._outbox.extend(self.firmware.receive(msg, now_s))
+        self._send()
+
+    def step(self, now_s: float) -> None:
+        """One period of a stepped rig (:mod:`device_bridge.rig`), on the rig's thread instead of the node's two: every
+        frame waiting on the bus, then one control tick, then its frames sent."""
+        while (msg := self.bus.recv(0.0)) is not None:
+            self.handle(msg, now_s)
+        with self._lock:
+            self.control_tick(now_s)
+        self._send()
 
     def _control_loop(self) -> None:
-        fw, leg = self.firmware, self.leg
-        next_tick = time.monotonic()
+        clock = self.clock
+        next_tick = clock.monotonic()
         while not self._stop.is_set():
-            now = time.monotonic()
+            now = clock.monotonic()
             with self._lock:
                 ticks = 0
                 while next_tick <= now and ticks < MAX_CATCH_UP_TICKS:
-                    sample = leg.sample() if leg is not None else None
-                    knee, ankle, frames = fw.tick(sample, next_tick)
-                    self._outbox.extend(frames)
-                    if leg is not None:
-                        leg.step(knee, ankle)
+                    self.control_tick(next_tick)
                     next_tick += TICK_S
                     ticks += 1
                 if next_tick <= now:          # stalled beyond the catch-up budget: slip instead of racing
                     self.overruns += 1
                     next_tick = now + TICK_S
             self._send()
-            self._stop.wait(max(0.0, next_tick + WAKE_S - TICK_S - time.monotonic()))
+            clock.wait(self._stop, next_tick + WAKE_S - TICK_S - clock.monotonic())
 
     def _receive_loop(self) -> None:
         """Hand each frame to the firmware as it arrives and send its answer at once."""
@@ -137,8 +160,5 @@ class DeviceNode(BusThreads):
                 if self._stop.is_set():
                     return
                 raise
-            if msg is None:
-                continue
-            with self._lock:
-                self._outbox.extend(self.firmware.receive(msg, time.monotonic()))
-            self._send()
+            if msg is not None:
+                self.handle(msg, self.clock.monotonic())

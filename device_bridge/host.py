@@ -21,7 +21,6 @@ import logging
 import math
 import queue
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Self
@@ -31,6 +30,7 @@ import can
 from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 from device_bridge.bus_threads import BusThreads
+from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.protocol import (
     FAULT_MASK,
@@ -172,11 +172,11 @@ class _TelemetryJoiner:
             self._tasks.clear()
         self._tasks[raw["seq"]] = TaskTelemetry.from_physical(physical("TELEMETRY_TASK", raw))
 
-    def add(self, name: str, raw: dict[str, int], at_unix_s: float | None = None,
+    def add(self, name: str, raw: dict[str, int], at_unix_s: float,
             near: int | None = None) -> TelemetrySample | None:
-        """One telemetry frame; the sample once its three frames are in. ``at_unix_s``: when the sample was made (a
-        late one; default now); ``near``: an unwrapped sequence number the sample's lies within ±32768 of (estimated
-        from time), else it lies within ±32768 of the last one joined."""
+        """One telemetry frame; the sample once its three frames are in. ``at_unix_s``: when the sample was made (now
+        for a live one, earlier for a late one); ``near``: an unwrapped sequence number the sample's lies within ±32768
+        of (estimated from time), else it lies within ±32768 of the last one joined."""
         seq16 = raw["seq"]
         parts = self._partial.setdefault(seq16, {})
         parts[name] = physical(name, raw)
@@ -197,7 +197,7 @@ class _TelemetryJoiner:
             knee_angle_rad=k["angle"] * _DEG, knee_velocity_rad_s=k["velocity"] * _DEG, knee_torque_Nm=k["torque"],
             ankle_angle_rad=a["angle"] * _DEG, ankle_velocity_rad_s=a["velocity"] * _DEG, ankle_torque_Nm=a["torque"],
             load_N=g["load"], ankle_moment_Nm=g["ankle_moment"],
-            received_unix_s=time.time() if at_unix_s is None else at_unix_s, task=self._tasks.pop(seq16, None))
+            received_unix_s=at_unix_s, task=self._tasks.pop(seq16, None))
 
 
 def _check_version(version: int, what: str) -> None:
@@ -239,12 +239,13 @@ class DeviceLink(BusThreads):
                  on_status: Callable[[DeviceStatus], None] | None = None,
                  on_telemetry: Callable[[TelemetrySample], None] | None = None,
                  on_late_telemetry: Callable[[TelemetrySample], None] | None = None,
-                 heartbeat_clock: HeartbeatClock | None = None) -> None:
+                 heartbeat_clock: HeartbeatClock | None = None, clock: Clock = WALL_CLOCK) -> None:
         if heartbeat_period_s is None:
             heartbeat_period_s = float(getattr(bus, "heartbeat_period_s", 0.02))
         if not (math.isfinite(heartbeat_period_s) and 0.001 <= heartbeat_period_s <= 1.0):
             raise ValueError(f"heartbeat_period_s must be in [0.001, 1] s, got {heartbeat_period_s!r}")
         self.bus = bus
+        self.clock = clock
         self.heartbeat_period_s = heartbeat_period_s
         self.on_status = on_status
         self.on_telemetry = on_telemetry
@@ -284,7 +285,7 @@ class DeviceLink(BusThreads):
     def start(self) -> Self:
         super().start()
         if self._pushed:       # from now on, as a receive thread would begin reading now
-            self.bus.on_frames = self._receive
+            self.bus.on_frames = self.receive
         if self._clock is not None:
             self._clock.add(self)
         return self
@@ -330,15 +331,16 @@ class DeviceLink(BusThreads):
         # a full or closing bus loses the beat: the device's watchdog is the safety net, not this loop
         with contextlib.suppress(can.CanError):
             self._send(encode("HOST_HEARTBEAT", {"counter": self._heartbeat_counter}))
-            self.last_heartbeat_sent_s = time.monotonic()
+            self.last_heartbeat_sent_s = self.clock.monotonic()
         self._heartbeat_counter = (self._heartbeat_counter + 1) & 0xFFFF
 
     def _heartbeat_loop(self) -> None:
-        next_t = time.monotonic()
+        clock = self.clock
+        next_t = clock.monotonic()
         while not self._stop.is_set():
             self.beat()
             next_t += self.heartbeat_period_s
-            self._stop.wait(max(0.0, next_t - time.monotonic()))
+            clock.wait(self._stop, next_t - clock.monotonic())
 
     # ------------------------------------------------------------------------------------------ receiving
 
@@ -351,16 +353,17 @@ class DeviceLink(BusThreads):
                     return
                 raise
             if msg is not None:
-                self._receive([msg])
+                self.receive([msg])
 
-    def _receive(self, frames: list[can.Message]) -> None:
-        """Frames from the device, in order: decoded and dispatched (the receive thread, or the shared connection's)."""
+    def receive(self, frames: list[can.Message]) -> None:
+        """Frames from the device, in order: decoded and dispatched (the receive thread, the shared connection's, or a
+        stepped rig's)."""
         for msg in frames:
             decoded = self._decoded(msg)
             if decoded is None:
                 continue
             try:
-                self._dispatch(*decoded, current=self._current(msg.timestamp or time.time()))
+                self._dispatch(*decoded, current=self._current(msg.timestamp or self.clock.time()))
             except Exception:   # a failing callback must not stop the link (acknowledgements, heartbeats)
                 self.callback_errors += 1
                 log.exception("device link: a status or telemetry callback failed")
@@ -381,11 +384,11 @@ class DeviceLink(BusThreads):
         elif name == "TELEMETRY_TASK":
             self._joiner.add_task(raw)
         elif name in _TelemetryJoiner.PARTS:
-            now = time.time()
+            now = self.clock.time()
             # after a silence of minutes (the link was down while the leg walked) the sequence moved on with time
             near = None if self._live is None or now - self._live[1] < LONG_SILENCE_S else \
                 self._live[0] + round((now - self._live[1]) / TELEMETRY_PERIOD_S)
-            sample = self._joiner.add(name, raw, near=near)
+            sample = self._joiner.add(name, raw, now, near=near)
             if sample is not None:
                 self._count(sample.seq)
                 self._live = (sample.seq, sample.received_unix_s)
@@ -406,7 +409,7 @@ class DeviceLink(BusThreads):
         path is learned). What was in flight when a link broke arrives first when it returns: such a status is
         history, not what the leg does now. The usual delay is learned from the frames themselves, so the very first
         ones (an instance's queue at the broker after a restart) cannot be judged."""
-        now = time.time()
+        now = self.clock.time()
         lag = now - made_unix_s
         if self._lag_floor is None:
             self._lag_floor = lag
@@ -472,7 +475,7 @@ class DeviceLink(BusThreads):
             temperature_degC=None if temp_raw == TEMPERATURE_UNKNOWN_RAW else temp_raw - 40.0,
             pending_version=int(h["pending_version"]) or None if h else None,
             rx_errors=int(h.get("rx_errors", 0)),
-            received_monotonic_s=time.monotonic(), received_unix_s=time.time(),
+            received_monotonic_s=self.clock.monotonic(), received_unix_s=self.clock.time(),
             link_mode=LinkMode.AUTONOMOUS if h.get("link_mode") == LinkMode.AUTONOMOUS else LinkMode.SUPERVISED)
         self.status = status
         if self.on_status is not None:
@@ -544,11 +547,11 @@ class DeviceLink(BusThreads):
 
     def _wait_ack(self, tid: int, version: int, until: float) -> dict[str, int] | None:
         while True:
-            left = until - time.monotonic()
+            left = until - self.clock.monotonic()
             if left <= 0:
                 return None
             try:
-                ack = self._acks.get(timeout=left)
+                ack = self.clock.get(self._acks, left)
             except queue.Empty:
                 return None
             if ack["transfer_id"] == tid and ack["version_low"] == version & 0xFF:
@@ -564,21 +567,22 @@ class DeviceLink(BusThreads):
 
     def _transfer(self, transfer: _Outgoing, version: int, timeout_s: float, ack_timeout_s: float) -> PushResult:
         crc = transfer.crc
-        t0 = time.monotonic()
+        clock = self.clock
+        t0 = clock.monotonic()
         deadline = t0 + timeout_s
         while not self._acks.empty():
             self._acks.get_nowait()
         attempts = 0
         last_reason = "no answer from the device"
-        while time.monotonic() < deadline:
+        while clock.monotonic() < deadline:
             attempts += 1
             tid = self._next_transfer_id()
             frames = transfer.frames(tid)
             commit = transfer.commit(tid)
             self._send_all([transfer.begin(tid), *frames, commit])
             silent = 0
-            while time.monotonic() < deadline:
-                ack = self._wait_ack(tid, version, min(deadline, time.monotonic() + ack_timeout_s))
+            while clock.monotonic() < deadline:
+                ack = self._wait_ack(tid, version, min(deadline, clock.monotonic() + ack_timeout_s))
                 if ack is None:
                     silent += 1
                     if silent > 2:      # begin lost, or the device is gone: start over with a new transfer id
@@ -589,7 +593,7 @@ class DeviceLink(BusThreads):
                 if result == AckResult.STAGED:
                     if ack["crc32"] == crc:
                         return PushResult(version=version, crc32=crc, attempts=attempts,
-                                          elapsed_ms=(time.monotonic() - t0) * 1e3)
+                                          elapsed_ms=(clock.monotonic() - t0) * 1e3)
                     last_reason = f"the device acknowledged CRC {ack['crc32']:08x}, expected {crc:08x}"
                     self._send(commit)
                     continue
@@ -616,11 +620,12 @@ class HeartbeatClock(BusThreads):
     broker link's shared connection: paho's publish), so one leg cannot hold back another's beats; a CAN bus's send
     can block on a full adapter, so such a link keeps a thread of its own. Ours because it is one loop over a list."""
 
-    def __init__(self, period_s: float) -> None:
+    def __init__(self, period_s: float, clock: Clock = WALL_CLOCK) -> None:
         if not (math.isfinite(period_s) and 0.001 <= period_s <= 1.0):
             raise ValueError(f"period_s must be in [0.001, 1] s, got {period_s!r}")
         super().__init__([])
         self.period_s = period_s
+        self.clock = clock
         self._links: tuple[DeviceLink, ...] = ()     # replaced whole, so the loop reads it without a lock
         self._lock = threading.Lock()
         self._threads = [threading.Thread(target=self._loop, name="heartbeat-clock", daemon=True)]
@@ -633,10 +638,15 @@ class HeartbeatClock(BusThreads):
         with self._lock:
             self._links = tuple(x for x in self._links if x is not link)
 
+    def beat(self) -> None:
+        """One beat for every link (the thread's round; a stepped rig calls it at the period)."""
+        for link in self._links:
+            link.beat()
+
     def _loop(self) -> None:
-        next_t = time.monotonic()
+        clock = self.clock
+        next_t = clock.monotonic()
         while not self._stop.is_set():
-            for link in self._links:
-                link.beat()
+            self.beat()
             next_t += self.period_s
-            self._stop.wait(max(0.0, next_t - time.monotonic()))
+            clock.wait(self._stop, next_t - clock.monotonic())

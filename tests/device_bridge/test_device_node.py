@@ -1,23 +1,26 @@
-"""The simulated device on its bus: it keeps hearing the host even when its physics runs slower than real time."""
+"""The simulated device on its bus, with its two threads on the wall clock (their timing is the subject): it keeps
+hearing the host even when its physics runs slower than real time, and its frames leave in the order made."""
 
 from __future__ import annotations
 
 import time
 
 from controller_core.fsm import SensorSample
+from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.protocol import Fault, Mode
-from tests.helpers.device import pair, until
+from tests.helpers.device import until, wall_pair
 
 
 class SlowLeg:
     """A standing leg whose physics step takes 1.3 ms of wall time per 1 ms tick (as a MuJoCo leg does when other
     threads of a busy server hold the interpreter): the node falls behind a little more every batch of ticks."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Clock = WALL_CLOCK) -> None:
         self.steps = 0
+        self.clock = clock
 
     def sample(self) -> SensorSample:
-        return SensorSample(time_s=time.monotonic(), knee_angle_rad=0.1, knee_velocity_rad_s=0.0, ankle_angle_rad=0.0,
+        return SensorSample(time_s=self.clock.monotonic(), knee_angle_rad=0.1, knee_velocity_rad_s=0.0, ankle_angle_rad=0.0,
                             ankle_velocity_rad_s=0.0, load_N=700.0, ankle_moment_Nm=0.0)
 
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None:
@@ -29,7 +32,7 @@ class SlowLeg:
 
 def test_a_node_running_behind_still_hears_the_heartbeat(tables):
     leg = SlowLeg()
-    node, link = pair(leg=leg)
+    node, link = wall_pair(leg=leg)
     try:
         until(lambda: link.status is not None)
         until(lambda: leg.steps >= 1500, timeout_s=60)   # 1.5 s of ticks: well past the 200 ms watchdog, all late

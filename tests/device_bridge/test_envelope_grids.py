@@ -102,11 +102,11 @@ def test_an_8_by_8_envelope_pushed_on_a_running_node_keeps_control_alive(model):
     walker = SimWalker()
     node, link = pair(leg=walker)
     try:
-        until(lambda: link.status is not None)
+        until(lambda: link.status is not None, clock=link.clock)
         result = link.push_envelope(envelope_of(model, (8, 8)), 9, timeout_s=5.0)
-        until(lambda: link.status is not None and link.status.active_crc32 == result.crc32)
+        until(lambda: link.status is not None and link.status.active_crc32 == result.crc32, clock=link.clock)
         seen = link.status.received_monotonic_s
-        until(lambda: link.status.received_monotonic_s > seen + 0.15)    # the device goes on reporting
+        until(lambda: link.status.received_monotonic_s > seen + 0.15, clock=link.clock)    # the device goes on reporting
         assert link.status.mode == Mode.ACTIVE and node.errors == 0
     finally:
         link.close()

@@ -150,9 +150,10 @@ def test_a_walking_leg_adapts_to_a_ramp_and_streams_its_estimate_to_the_host(env
     try:
         result = link.push_envelope(envelopes[0], version=21)
         assert result.crc32 == WireEnvelope.from_envelope(envelopes[0]).crc32()
-        until(lambda: link.status is not None and link.status.active_crc32 == result.crc32)
+        until(lambda: link.status is not None and link.status.active_crc32 == result.crc32, clock=link.clock)
         walker.start(sloped_walking_reference(1.2, 8.0), 70.0)
-        until(lambda: any(s.task is not None and s.task.adaptive_mode == "adaptive" for s in samples), timeout_s=20.0)
+        until(lambda: any(s.task is not None and s.task.adaptive_mode == "adaptive" for s in samples), timeout_s=20.0,
+              clock=link.clock)
         last = next(s for s in reversed(samples) if s.task is not None)
         assert last.task.estimated_incline_deg == pytest.approx(8.0, abs=1.5)
         assert last.task.estimated_speed_mps == pytest.approx(1.2, abs=0.1)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import can
 import pytest
 
+from device_bridge.clock import SteppedClock
 from device_bridge.firmware import FirmwareConfig
 from device_bridge.host import DeviceLink, PushError
 from device_bridge.protocol import Command, Mode, WireTable
@@ -16,7 +17,7 @@ def test_a_push_returns_the_crc_the_device_then_reports_active(tables):
     try:
         result = link.push(tables[0], version=42)
         assert result.crc32 == WireTable.from_table(tables[0]).crc32() and result.version == 42
-        until(lambda: link.status is not None and link.status.active_crc32 == result.crc32)
+        until(lambda: link.status is not None and link.status.active_crc32 == result.crc32, clock=link.clock)
         assert link.status.mode == Mode.ACTIVE and link.status.active_version == 42
         assert node.snapshot().active.crc32 == result.crc32
     finally:
@@ -28,7 +29,7 @@ def test_a_table_the_device_finds_unsafe_is_refused_and_the_old_one_stays(tables
     node, link = pair()
     try:
         old = link.push(tables[0], version=1).crc32
-        until(lambda: node.snapshot().active is not None)     # a leg at rest switches at its next control tick
+        until(lambda: node.snapshot().active is not None, clock=link.clock)   # a leg at rest switches at its next tick
         row = tables[1].rows[0]
         unsafe = tables[1].model_copy(update={"rows": [row.model_copy(update={"b_Nm_s_per_rad": 60.0}),
                                                        *tables[1].rows[1:]]})
@@ -42,7 +43,7 @@ def test_a_table_the_device_finds_unsafe_is_refused_and_the_old_one_stays(tables
 
 
 def test_a_push_to_a_silent_bus_times_out_with_a_reason(tables):
-    link = DeviceLink(can.Bus(interface="virtual", channel="test-link-silent")).start()
+    link = DeviceLink(can.Bus(interface="virtual", channel="test-link-silent"), clock=SteppedClock())
     try:
         with pytest.raises(PushError, match="unconfirmed: the device's next status tells") as err:
             link.push(tables[0], version=1, timeout_s=0.3)
@@ -55,16 +56,16 @@ def test_heartbeat_loss_is_reported_as_safe_mode_and_a_command_resumes(tables):
     node, link = pair(FirmwareConfig(heartbeat_timeout_s=0.1))
     try:
         link.push(tables[0], version=1)
-        until(lambda: link.status is not None and link.status.mode == Mode.ACTIVE)
+        until(lambda: link.status is not None and link.status.mode == Mode.ACTIVE, clock=link.clock)
         link.pause_heartbeat(True)
-        until(lambda: link.status.mode == Mode.SAFE)
+        until(lambda: link.status.mode == Mode.SAFE, clock=link.clock)
         entered = node.snapshot().safe_mode_entered_s
         assert entered - node.snapshot().last_heartbeat_s == pytest.approx(0.1, abs=0.02)
         link.pause_heartbeat(False)
-        until(lambda: node.snapshot().last_heartbeat_s > entered)    # the host is heard again: the leg stays safe
+        until(lambda: node.snapshot().last_heartbeat_s > entered, clock=link.clock)    # heard again: the leg stays safe
         assert node.snapshot().mode == Mode.SAFE and link.status.mode == Mode.SAFE
         link.command(Command.LEAVE_SAFE_MODE)
-        until(lambda: link.status.mode == Mode.ACTIVE)
+        until(lambda: link.status.mode == Mode.ACTIVE, clock=link.clock)
     finally:
         link.close()
         node.close()
@@ -76,7 +77,7 @@ def test_a_failing_callback_does_not_stop_the_link(tables):
 
     node, link = pair(on_status=broken)
     try:
-        until(lambda: link.callback_errors > 0)
+        until(lambda: link.callback_errors > 0, clock=link.clock)
         assert link.push(tables[0], version=5).crc32 == WireTable.from_table(tables[0]).crc32()
     finally:
         link.close()
@@ -88,41 +89,44 @@ def test_every_status_after_an_acknowledgement_says_what_the_device_has_staged(t
     (A status joined with the health of the cycle before said "nothing staged" for one status period after the
     acknowledgement, and a second push confirming the old table could then pass the one-push-per-device check.)"""
     import queue
-    import time
     from dataclasses import replace
 
+    from device_bridge.rig import Rig
     from tests.device_bridge.test_device_node import StandingLeg
 
     class OneStep(StandingLeg):
         """The foot comes down once, 0.3 s in, and the leg then stands loaded: one heel strike, none after it."""
 
-        def __init__(self) -> None:
-            super().__init__()
-            self.t0 = time.monotonic()
+        def __init__(self, clock) -> None:
+            super().__init__(clock)
+            self.t0 = clock.monotonic()
 
         def sample(self):
             x = super().sample()
             return x if x.time_s - self.t0 > 0.3 else replace(x, load_N=0.0)
 
     # after its one heel strike the leg is walking for a minute: a staged table stays staged
-    node, link = pair(FirmwareConfig(idle_switch_s=60.0), leg=OneStep())
+    rig = Rig(config=FirmwareConfig(idle_switch_s=60.0))
+    node, link = rig.node, rig.link
+    node.leg = OneStep(rig.clock)
     acked: list[float] = []
 
     class NotedAcks(queue.Queue):
         def put(self, item, block=True, timeout=None):
-            acked.append(time.monotonic())
+            acked.append(link.clock.monotonic())
             super().put(item, block, timeout)
 
     seen: list = []
     link.on_status = seen.append
     try:
         link.push(tables[0], version=1)
-        until(lambda: link.status is not None and link.status.active_version == 1)
-        until(lambda: node.firmware.controller_ is not None and node.firmware.controller_.state_ == 0)  # stance
+        until(lambda: link.status is not None and link.status.active_version == 1, clock=link.clock)
+        until(lambda: node.firmware.controller_ is not None and node.firmware.controller_.state_ == 0,   # stance
+              clock=link.clock)
         link._acks = NotedAcks()
         link.push(tables[1], version=2)
         ack_s = acked[-1]
-        until(lambda: sum(s.received_monotonic_s > ack_s for s in seen) >= 3)
+        until(lambda: sum(s.received_monotonic_s > ack_s for s in seen) >= 3, clock=link.clock)
         after = [s for s in seen if s.received_monotonic_s > ack_s and s.active_version == 1]
         assert after and all(s.pending_version == 2 for s in after), [s.pending_version for s in after]
     finally:
@@ -138,6 +142,7 @@ def _sample_frames(seq16: int) -> list[tuple[str, dict[str, int]]]:
 
 
 def _join(joiner, seq16: int, **kwargs):
+    kwargs.setdefault("at_unix_s", 0.0)
     out = None
     for name, raw in _sample_frames(seq16):
         out = joiner.add(name, raw, **kwargs)
@@ -205,19 +210,21 @@ def test_one_clock_beats_for_several_links_and_skips_a_paused_one():
     from device_bridge.host import HeartbeatClock
     from device_bridge.protocol import frame_id
 
-    clock = HeartbeatClock(0.01).start()
+    stepped = SteppedClock()
+    clock = HeartbeatClock(0.01, clock=stepped)   # not started: the stepped clock runs its round
+    stepped.add(lambda now: clock.beat() if stepped.steps % 10 == 0 else None)   # what its thread does at 0.01 s
     buses = [_PushingBus() for _ in range(3)]
-    links = [DeviceLink(bus, heartbeat_clock=clock).start() for bus in buses]
+    links = [DeviceLink(bus, heartbeat_clock=clock, clock=stepped).start() for bus in buses]
     beats = lambda bus: sum(f.arbitration_id == frame_id("HOST_HEARTBEAT") for f in bus.sent)  # noqa: E731
     try:
         assert all(t.name != "can-heartbeat" for link in links for t in link._threads)
         links[1].pause_heartbeat()
         paused_at = beats(buses[1])
-        until(lambda: beats(buses[0]) >= 5 and beats(buses[2]) >= 5)
+        until(lambda: beats(buses[0]) >= 5 and beats(buses[2]) >= 5, clock=stepped)
         assert beats(buses[1]) <= paused_at + 1       # at most the beat under way when it was paused
         links[0].close()
         closed_at = beats(buses[0])
-        until(lambda: beats(buses[2]) >= closed_at + 5)
+        until(lambda: beats(buses[2]) >= closed_at + 5, clock=stepped)
         assert beats(buses[0]) <= closed_at + 1
     finally:
         for link in links[1:]:

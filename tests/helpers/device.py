@@ -1,4 +1,5 @@
-"""Helpers for the device-link tests: a device node and host link on a virtual bus of their own, and waiting."""
+"""Helpers for the device-link tests: a device node and host link stepped together in simulated time (a rig), or on a
+virtual bus of their own in real time where real time is the subject; and waiting on either."""
 
 from __future__ import annotations
 
@@ -9,25 +10,40 @@ from collections.abc import Callable
 import can
 
 from controller_core.envelope import Envelope
+from device_bridge.clock import SteppedClock
 from device_bridge.device_node import DeviceNode
 from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.firmware import FirmwareConfig
 from device_bridge.host import DeviceLink
+from device_bridge.rig import Rig
 
 _channels = itertools.count()
 
 
 def pair(config: FirmwareConfig | None = None, leg=None, **link_kwargs) -> tuple[DeviceNode, DeviceLink]:
-    """A started device node (with ``leg``, if any) and host link sharing a virtual bus of their own."""
+    """A device node (with ``leg``, if any) and host link on a stepped rig (:class:`device_bridge.rig.Rig`): they run
+    only while something waits on ``link.clock`` (a push, :func:`until` with ``clock=link.clock``)."""
+    rig = Rig(leg=leg, config=config, **link_kwargs)
+    return rig.node, rig.link
+
+
+def wall_pair(config: FirmwareConfig | None = None, leg=None, **link_kwargs) -> tuple[DeviceNode, DeviceLink]:
+    """A started device node and host link on a virtual bus of their own, each with its threads on the wall clock: for
+    the tests whose subject is the threads themselves (a node running behind, frames from two threads in order)."""
     channel = f"test-link-{next(_channels)}"
     node = DeviceNode(can.Bus(interface="virtual", channel=channel), leg=leg, config=config).start()
     link = DeviceLink(can.Bus(interface="virtual", channel=channel), **link_kwargs).start()
     return node, link
 
 
-def until(predicate: Callable[[], bool], timeout_s: float = 5.0, poll_s: float = 0.002) -> None:
-    """Wait for ``predicate`` to hold, asking every ``poll_s``; fail after ``timeout_s``. Poll slowly where a
-    simulated leg shares the interpreter with the test (it would otherwise be starved)."""
+def until(predicate: Callable[[], bool], timeout_s: float = 5.0, poll_s: float = 0.002,
+          clock: SteppedClock | None = None) -> None:
+    """Wait for ``predicate`` to hold; fail after ``timeout_s``. On a rig's ``clock`` the wait steps the rig (simulated
+    seconds); without one it asks every ``poll_s`` of real time (poll slowly where a simulated leg shares the
+    interpreter with the test: it would otherwise be starved)."""
+    if clock is not None:
+        assert clock.run_until(predicate, timeout_s), f"condition not reached within {timeout_s:g} s of simulated time"
+        return
     deadline = time.monotonic() + timeout_s
     while not predicate():
         assert time.monotonic() < deadline, "condition not reached in time"

@@ -28,7 +28,7 @@ def test_the_walking_simulated_leg_streams_telemetry_without_gaps(tables):
     try:
         link.push(tables[0], version=3)
         walker.start(level_walking_reference(1.2), 75.0)
-        until(lambda: len(got) >= 150, timeout_s=10.0)
+        until(lambda: len(got) >= 150, timeout_s=10.0, clock=link.clock)
     finally:
         link.close()
         node.close()
