@@ -44,6 +44,7 @@ from backend.routers import (
     users,
 )
 from backend.schemas.errors import FieldError
+from backend.security import set_hash_cost
 from backend.settings import Settings
 from backend.throttle import LoginThrottle
 from backend.viewer3d import ViewerRegistry
@@ -104,6 +105,7 @@ def prepare_storage(settings: Settings) -> None:
 
 def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None) -> FastAPI:
     """Build the app for ``settings`` (migrates the database now; the model loads in the background)."""
+    set_hash_cost(settings.password_hash_cost)
     prepare_storage(settings)
 
     @asynccontextmanager

@@ -2,7 +2,8 @@
 
 Passwords: ``hashlib.scrypt`` with n = 2¹⁴, r = 8, p = 1 (16 MiB per hash, tens of milliseconds), a 16-byte
 random salt, stored as ``scrypt$n$r$p$salt$hash`` (base64) so the cost can be raised later without breaking
-old hashes. Tokens: 32 random bytes (URL-safe base64) handed to the client once; only their SHA-256 is
+old hashes. The cost of new hashes is the process's (:func:`set_hash_cost`, from the one Settings'
+``password_hash_cost``): a test run lowers it, since a hash's cost is what it is for and a suite makes hundreds. Tokens: 32 random bytes (URL-safe base64) handed to the client once; only their SHA-256 is
 stored, so a copy of the database does not log anyone in. Tokens expire (``expires_in`` seconds).
 """
 
@@ -15,6 +16,7 @@ import hmac
 import secrets
 
 SCRYPT_N, SCRYPT_R, SCRYPT_P = 2**14, 8, 1
+_cost_n = SCRYPT_N       # n of the hashes this process makes (set_hash_cost)
 _MAXMEM = 64 * 1024 * 1024
 MIN_PASSWORD_LENGTH = 8
 MAX_PASSWORD_LENGTH = 1024
@@ -36,11 +38,20 @@ def check_password_policy(password: str) -> None:
         raise ValueError(f"password must be at most {MAX_PASSWORD_LENGTH} characters")
 
 
+def set_hash_cost(n: int) -> None:
+    """The scrypt n of the hashes this process makes from now on (a power of two, 2 to 2²⁰; 2¹⁴ in production).
+    Hashes already stored keep their own n: verifying reads it from the hash."""
+    global _cost_n
+    if not (isinstance(n, int) and 2 <= n <= 2**20 and n & (n - 1) == 0):
+        raise ValueError(f"the password hash cost must be a power of two from 2 to 2**20, got {n!r}")
+    _cost_n = n
+
+
 def hash_password(password: str) -> str:
     """Salted scrypt hash in the self-describing ``scrypt$n$r$p$salt$hash`` form."""
     salt = secrets.token_bytes(16)
-    digest = _scrypt(password, salt, SCRYPT_N, SCRYPT_R, SCRYPT_P)
-    return f"scrypt${SCRYPT_N}${SCRYPT_R}${SCRYPT_P}${_b64(salt)}${_b64(digest)}"
+    digest = _scrypt(password, salt, _cost_n, SCRYPT_R, SCRYPT_P)
+    return f"scrypt${_cost_n}${SCRYPT_R}${SCRYPT_P}${_b64(salt)}${_b64(digest)}"
 
 
 def verify_password(password: str, stored: str) -> bool:
@@ -57,14 +68,14 @@ def verify_password(password: str, stored: str) -> bool:
 
 
 @functools.cache
-def _dummy_hash() -> str:
+def _dummy_hash(n: int) -> str:
     return hash_password(secrets.token_urlsafe(16))
 
 
 def burn_password_check(password: str) -> None:
     """Spend the same time as a real check, for unknown users: a failed login takes as long whether or not
     the name exists (no user enumeration by timing)."""
-    verify_password(password, _dummy_hash())
+    verify_password(password, _dummy_hash(_cost_n))
 
 
 def new_token() -> str:

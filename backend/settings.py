@@ -76,6 +76,8 @@ class Settings(BaseSettings):
         login_per_user_per_minute, login_per_address_per_minute, login_per_user_anywhere_per_minute: failed
             sign-ins allowed per minute for one user name from one address, from one address, and for one user name
             from anywhere (:class:`backend.throttle.LoginThrottle`).
+        password_hash_cost: scrypt's n for the password hashes this process makes (2¹⁴, 16 MiB each, in production;
+            a power of two). Lower it only for a test run, which makes hundreds of hashes.
     """
 
     model_config = SettingsConfigDict(env_prefix="QUASITUNE_", frozen=True, extra="forbid")
@@ -104,6 +106,14 @@ class Settings(BaseSettings):
     login_per_user_per_minute: int = Field(default=5, ge=1)
     login_per_address_per_minute: int = Field(default=20, ge=1)
     login_per_user_anywhere_per_minute: int = Field(default=100, ge=1)
+    password_hash_cost: int = Field(default=2**14, ge=2, le=2**20)
+
+    @field_validator("password_hash_cost")
+    @classmethod
+    def _power_of_two(cls, value: int) -> int:
+        if value & (value - 1):
+            raise ValueError(f"password_hash_cost must be a power of two (scrypt's n), got {value}")
+        return value
 
     @field_validator("trusted_proxies", mode="before")
     @classmethod

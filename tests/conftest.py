@@ -9,6 +9,16 @@ import tempfile
 import pytest
 
 os.environ.setdefault("QUASITUNE_CACHE_DIR", tempfile.mkdtemp(prefix="quasitune-test-cache-"))
+# cheap password hashes for the run (servers the tests start read the same variable through their Settings): the
+# suite makes hundreds; the production cost is tested on its own (tests/backend/test_security.py)
+TEST_HASH_COST = 16
+os.environ["QUASITUNE_PASSWORD_HASH_COST"] = str(TEST_HASH_COST)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    from backend.security import set_hash_cost
+
+    set_hash_cost(TEST_HASH_COST)
 
 
 @pytest.fixture(scope="session")

@@ -28,8 +28,10 @@ def _database(args: argparse.Namespace) -> Iterator[tuple[Settings, Connection]]
     database checked to be at this QuasiTune's revision."""
     from backend.db import connect
     from backend.migrate import migrate, require_current
+    from backend.security import set_hash_cost
 
     settings = _settings(args)
+    set_hash_cost(settings.password_hash_cost)
     if settings.database_url is None:
         settings.data_dir.mkdir(parents=True, exist_ok=True)
         migrate(settings.db_path, settings.migrations_dir)

@@ -39,6 +39,7 @@ def test_defaults_are_the_embedded_ones():
     s = Settings(data_dir=Path("/tmp/x"))
     assert s.db_path == Path("/tmp/x") / DB_FILE and s.device == "none" and not s.viewer3d
     assert s.token_ttl_s == 8 * 3600 and s.request_threads == 2 and s.trusted_proxies == ()
+    assert Settings.model_fields["password_hash_cost"].default == 2**14     # the run's own is lowered (conftest)
     assert (s.migrations_dir / "env.py").exists() and not s.given("device")
 
 
@@ -47,7 +48,7 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
            "DEVICE": "socketcan:can0", "FRONTEND_DIR": str(tmp_path / "f"), "MIGRATIONS_DIR": str(tmp_path / "mig"),
            "BENCH_LEG": "heavy_foot", "VIEWER3D": "true", "TRUSTED_PROXIES": "10.0.0.2, 10.0.0.3",
            "REQUEST_THREADS": "4", "LOGIN_PER_USER_PER_MINUTE": "3", "LOGIN_PER_ADDRESS_PER_MINUTE": "9",
-           "LOGIN_PER_USER_ANYWHERE_PER_MINUTE": "50",
+           "LOGIN_PER_USER_ANYWHERE_PER_MINUTE": "50", "PASSWORD_HASH_COST": "1024",
            "DATABASE_URL": "postgresql://qt:secret@db.example:5432/quasitune",
            "BROKER_URL": "mqtts://broker.example:8883", "BROKER_USERNAME": "server-a", "BROKER_PASSWORD": "pw",
            "BROKER_CA_FILE": str(tmp_path / "ca.crt"), "BROKER_ADMIN_USERNAME": "admin",
@@ -62,7 +63,7 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
                                                                                            True, 4)
     assert s.trusted_proxies == ("10.0.0.2", "10.0.0.3") and s.bench_leg == Path("heavy_foot")
     assert (s.login_per_user_per_minute, s.login_per_address_per_minute,
-            s.login_per_user_anywhere_per_minute) == (3, 9, 50)
+            s.login_per_user_anywhere_per_minute, s.password_hash_cost) == (3, 9, 50, 1024)
     assert s.database_url == "postgresql+psycopg://qt:secret@db.example:5432/quasitune"   # psycopg 3 always
     assert s.database_shown == "postgresql+psycopg://qt:***@db.example:5432/quasitune"      # never the password
     assert s.broker_password.get_secret_value() == "pw" and "pw" not in repr(s) and s.instance_name == "api-a"
