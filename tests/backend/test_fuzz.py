@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import tempfile
+from concurrent.futures import Future
 from pathlib import Path
 
 import pytest
@@ -10,20 +11,22 @@ import schemathesis
 from hypothesis import HealthCheck, settings
 from schemathesis.checks import positive_data_acceptance
 
-from controller_core import load_default_model
 from tests.helpers.api import make_api
 
 _tmp = tempfile.TemporaryDirectory(prefix="quasitune-fuzz-")
-
-
-_api, _client = make_api(Path(_tmp.name), load_default_model)   # the real default model, loaded in the background
+# the app is built when the file is collected (schemathesis reads its schema then; its fixture-based loader does not
+# run under pytest 9); its model is the run's own, handed over when the test starts, so collecting costs no model load
+_model: Future = Future()
+_api, _client = make_api(Path(_tmp.name), _model.result)
 
 
 schema = schemathesis.openapi.from_asgi("/openapi.json", _client.app)
 
 
 @pytest.fixture(scope="module")
-def fuzz_api():
+def fuzz_api(model):
+    if not _model.done():
+        _model.set_result(model)
     with _client:
         patient = _api.new_patient("FUZZ-1")
         first = _api.propose(patient["id"])
