@@ -4,7 +4,8 @@ Passwords: ``hashlib.scrypt`` with n = 2¹⁴, r = 8, p = 1 (16 MiB per hash, te
 random salt, stored as ``scrypt$n$r$p$salt$hash`` (base64) so the cost can be raised later without breaking
 old hashes. The cost of new hashes is the process's (:func:`set_hash_cost`, from the one Settings'
 ``password_hash_cost``): a test run lowers it, since a hash's cost is what it is for and a suite makes hundreds.
-Tokens: 32 random bytes (URL-safe base64) handed to the client once; only their SHA-256 is stored, so a copy of the database does not log anyone in. Tokens expire (``expires_in`` seconds).
+Tokens: 32 random bytes (URL-safe base64) handed to the client once; only their SHA-256 is stored, so a copy of
+the database does not log anyone in. Tokens expire (``expires_in`` seconds).
 """
 
 from __future__ import annotations

@@ -41,6 +41,11 @@ class Clock(Protocol):
         """The next item of ``items``, waiting at most ``timeout_s``; :class:`queue.Empty` when none came."""
         ...
 
+    def until(self, done: Callable[[], bool], timeout_s: float, poll_s: float = 0.005) -> bool:
+        """Wait until ``done()`` holds or ``timeout_s`` passed (asking every ``poll_s`` where time runs on its own);
+        whether it holds."""
+        ...
+
 
 class WallClock:
     """The real clocks, and waits that block the calling thread."""
@@ -56,6 +61,15 @@ class WallClock:
 
     def get(self, items: queue.Queue[T], timeout_s: float) -> T:
         return items.get(timeout=max(0.0, timeout_s))
+
+    def until(self, done: Callable[[], bool], timeout_s: float, poll_s: float = 0.005) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while not done():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            time.sleep(min(poll_s, left))
+        return True
 
 
 WALL_CLOCK = WallClock()
@@ -108,6 +122,9 @@ class SteppedClock:
         """Run the steps of ``seconds`` of simulated time."""
         for _ in range(max(0, round(seconds / self.step_s))):
             self.step()
+
+    def until(self, done: Callable[[], bool], timeout_s: float, poll_s: float = 0.0) -> bool:
+        return self.run_until(done, timeout_s)
 
     def run_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
         """Step until ``done()`` holds (checked before each step) or ``timeout_s`` of simulated time passed; whether

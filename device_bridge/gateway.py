@@ -15,13 +15,13 @@ Any other frame (an acknowledgement, a status) leaves with its burst at once: a 
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from typing import Self
 
 import can
 
 from device_bridge.bus_threads import BusThreads
+from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.protocol import is_telemetry
 
 
@@ -38,11 +38,12 @@ class Gateway(BusThreads):
     """
 
     def __init__(self, a: can.BusABC, b: can.BusABC, window_s: float = 0.0,
-                 may_wait: Callable[[can.Message], bool] | None = None) -> None:
+                 may_wait: Callable[[can.Message], bool] | None = None, clock: Clock = WALL_CLOCK) -> None:
         if not 0.0 <= window_s <= 1.0:
             raise ValueError(f"window_s must be in [0, 1] s, got {window_s!r}")
         self.a, self.b = a, b
         self.window_s, self.may_wait = window_s, may_wait
+        self.clock = clock
         self.forwarded = {"a_to_b": 0, "b_to_a": 0}
         self.dropped = 0
         super().__init__([a, b])
@@ -80,10 +81,10 @@ class Gateway(BusThreads):
     def _fill(self, src: can.BusABC, frames: list[can.Message]) -> None:
         """The rest of a message begun with ``frames[0]``: the rest of its burst, and while every frame in it may
         wait, what else comes before the window closes (then the rest of that burst: a sample is never split)."""
-        closes_at = time.monotonic() + self.window_s
+        closes_at = self.clock.monotonic() + self.window_s
         waiting = self.may_wait is not None and self.window_s > 0.0 and self.may_wait(frames[0])
         while len(frames) < MAX_BATCH:
-            timeout = max(closes_at - time.monotonic(), BURST_GAP_S) if waiting else BURST_GAP_S
+            timeout = max(closes_at - self.clock.monotonic(), BURST_GAP_S) if waiting else BURST_GAP_S
             more = src.recv(timeout=timeout)
             if more is None:
                 return

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import contextlib
 import threading
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -32,6 +31,7 @@ from backend.store import pushes as pushes_store
 from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 from controller_core.walking_reference import WalkingReference
+from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.device_node import DeviceNode
 from device_bridge.host import DeviceLink, DeviceStatus, HeartbeatClock, PushResult, TelemetrySample
 from device_bridge.protocol import Command, Fault
@@ -69,14 +69,15 @@ class DeviceManager:
     """Opens a link per spec on :meth:`start`; :meth:`close` ends them and the recorder."""
 
     def __init__(self, db: Engine, specs: list[DeviceSpec], bench_leg: LegGeometry | None = None,
-                 bus_options: dict[str, dict] | None = None) -> None:
+                 bus_options: dict[str, dict] | None = None, clock: Clock = WALL_CLOCK) -> None:
         self.db = db
+        self.clock = clock
         self._specs = specs
         self._bus_options = bus_options or {}   # per interface: the broker link's address and identity
         self._bench_leg = bench_leg   # the simulated leg's leg and person (None: the nominal bench)
         self._devices: dict[str, ManagedDevice] = {}
-        self._clock: HeartbeatClock | None = None   # one heartbeat thread for the legs of a shared broker connection
-        self.recorder = SessionRecorder(db, tuple(spec.device_id for spec in specs))
+        self._heartbeats: HeartbeatClock | None = None   # one heartbeat thread for the legs of a shared broker connection
+        self.recorder = SessionRecorder(db, tuple(spec.device_id for spec in specs), clock=clock)
 
     def start(self) -> DeviceManager:
         with pooled(self.db) as conn:
@@ -90,9 +91,10 @@ class DeviceManager:
                 dev.link_mode = devices_store.link_mode(conn, spec.device_id)
             if spec.kind == "simulated":
                 dev.walker = SimWalker(self._bench_leg)
-                dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker).start()
+                dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker,
+                                      clock=self.clock).start()
             bus = can.Bus(interface=spec.interface, channel=spec.channel, **self._bus_options.get(spec.interface, {}))
-            dev.link = DeviceLink(bus, heartbeat_clock=self._clock_for(bus),
+            dev.link = DeviceLink(bus, heartbeat_clock=self._clock_for(bus), clock=self.clock,
                                   on_status=lambda s, d=dev: self._on_status(d, s),
                                   on_telemetry=lambda x, d=dev: self._on_telemetry(d, x),
                                   on_late_telemetry=lambda x, d=dev: self._on_late_telemetry(d, x))
@@ -110,9 +112,9 @@ class DeviceManager:
         only queues: :class:`~device_bridge.host.HeartbeatClock`); None (a thread of its own) for a CAN bus."""
         if not getattr(bus, "delivers_frames", False):
             return None
-        if self._clock is None:
-            self._clock = HeartbeatClock(float(getattr(bus, "heartbeat_period_s", 0.05))).start()
-        return self._clock
+        if self._heartbeats is None:
+            self._heartbeats = HeartbeatClock(float(getattr(bus, "heartbeat_period_s", 0.05)), clock=self.clock).start()
+        return self._heartbeats
 
     def worn_by(self, device_id: str, mass_kg: float | None) -> None:
         """A simulated leg's patient: stands on it between walks (``mass_kg``), or nobody wears it (None). A walk
@@ -132,8 +134,8 @@ class DeviceManager:
                 dev.link.close()
             if dev.node is not None:
                 dev.node.close()
-        if self._clock is not None:
-            self._clock.close()
+        if self._heartbeats is not None:
+            self._heartbeats.close()
 
     # ------------------------------------------------------------------------------------------ queries
 
@@ -148,7 +150,7 @@ class DeviceManager:
         return list(self._devices)
 
     def online(self, dev: ManagedDevice) -> bool:
-        return dev.status is not None and time.monotonic() - dev.status.received_monotonic_s <= ONLINE_WITHIN_S
+        return dev.status is not None and self.clock.monotonic() - dev.status.received_monotonic_s <= ONLINE_WITHIN_S
 
     def _table(self, conn: Connection, dev: ManagedDevice, version: int | None,
                crc32: int | None) -> dict | None:
@@ -173,7 +175,7 @@ class DeviceManager:
         tables."""
         dev = self.get(device_id)
         s = dev.status
-        age = None if s is None else round(time.monotonic() - s.received_monotonic_s, 3)
+        age = None if s is None else round(self.clock.monotonic() - s.received_monotonic_s, 3)
         patient, active, pending, link_mode = self._stored(dev, 0.0 if fresh else STORED_VIEW_MAX_AGE_S)
         return {
             "patient": patient, "active_table": active, "pending_table": pending,
@@ -207,7 +209,7 @@ class DeviceManager:
         choice: a stream shows that within the age)."""
         s = dev.status
         key = None if s is None else (s.active_version, s.active_crc32, s.pending_version)
-        now = time.monotonic()
+        now = self.clock.monotonic()
         if dev.stored is not None and dev.stored[0] == key and now - dev.stored[1] <= max_age_s:
             return dev.stored[2]
         with pooled(self.db) as conn:
@@ -247,10 +249,8 @@ class DeviceManager:
 
     def _status_after(self, dev: ManagedDevice, after_monotonic_s: float, wait_s: float = 0.5) -> None:
         """Wait (at most ``wait_s``) for a status received after ``after_monotonic_s``, if the last one is older."""
-        deadline = time.monotonic() + wait_s
-        while (dev.status is None or dev.status.received_monotonic_s <= after_monotonic_s) and \
-                time.monotonic() < deadline and self.online(dev):
-            time.sleep(0.005)
+        self.clock.until(lambda: (dev.status is not None and dev.status.received_monotonic_s > after_monotonic_s)
+                         or not self.online(dev), wait_s)
 
     @contextlib.contextmanager
     def push_slot(self, device_id: str, wait_s: float = 15.0) -> Iterator[ManagedDevice]:
@@ -271,7 +271,7 @@ class DeviceManager:
         """The push's outcome is recorded: from now on the device's reports decide it."""
         dev = self.get(device_id)
         if acknowledged:
-            dev.acknowledged = (push_id, time.monotonic())
+            dev.acknowledged = (push_id, self.clock.monotonic())
         dev.in_flight.discard(push_id)
         dev.epoch += 1   # the next status (sent after this push ended) is reconciled whatever it says
 
@@ -312,7 +312,7 @@ class DeviceManager:
         supervised), at most every :data:`LINK_MODE_RESEND_S`; the choice is read again first, since another instance
         may have changed it."""
         reported = status.link_mode.name.lower()
-        now = time.monotonic()
+        now = self.clock.monotonic()
         if reported == dev.link_mode or now - dev.link_mode_sent_s < LINK_MODE_RESEND_S or dev.link is None:
             return
         with pooled(self.db) as conn:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from collections import Counter
 
 from sqlalchemy import Engine
@@ -27,6 +26,7 @@ from sqlalchemy import Engine
 from backend.db import pooled
 from backend.store import sessions as store
 from backend.store.sample_pack import second_of
+from device_bridge.clock import WALL_CLOCK, Clock
 
 FLUSH_PERIOD_S = 0.25
 SYNC_PERIOD_S = 1.0   # how often the sessions open in the database are looked up (several instances)
@@ -37,8 +37,9 @@ STALE_S = 1.0     # a second still filling is written anyway once no sample has 
 class SessionRecorder:
     """Buffers each device's samples for the session it records and writes them in batches."""
 
-    def __init__(self, db: Engine, device_ids: tuple[str, ...] = ()) -> None:
+    def __init__(self, db: Engine, device_ids: tuple[str, ...] = (), clock: Clock = WALL_CLOCK) -> None:
         self._db = db
+        self._clock = clock
         self._device_ids = tuple(device_ids)      # looked up in the database every SYNC_PERIOD_S (none: never)
         self._ended: set[int] = set()             # sessions this instance stopped: never taken up again
         self._recording: dict[str, int] = {}        # device id → session id
@@ -113,7 +114,7 @@ class SessionRecorder:
             buffer = self._buffers.get(device_id)
             if buffer is not None:
                 buffer.append(row)
-                self._last_sample[device_id] = time.monotonic()
+                self._last_sample[device_id] = self._clock.monotonic()
 
     def flush(self, whole_seconds: bool = False) -> None:
         """Write the buffered samples (``whole_seconds``: only the seconds already complete, and a second still filling
@@ -123,7 +124,7 @@ class SessionRecorder:
         with self._write_lock:
             with self._lock:
                 batches = []
-                now = time.monotonic()
+                now = self._clock.monotonic()
                 for d, rows in self._buffers.items():
                     keep: list[tuple] = []
                     if whole_seconds and rows and now - self._last_sample.get(d, now) < STALE_S:
@@ -170,10 +171,11 @@ class SessionRecorder:
                 self._release(device_id)
 
     def _run(self) -> None:
+        clock = self._clock
         next_sync = 0.0
-        while not self._stop.wait(FLUSH_PERIOD_S):
-            if self._device_ids and time.monotonic() >= next_sync:
-                next_sync = time.monotonic() + SYNC_PERIOD_S
+        while not clock.wait(self._stop, FLUSH_PERIOD_S):
+            if self._device_ids and clock.monotonic() >= next_sync:
+                next_sync = clock.monotonic() + SYNC_PERIOD_S
                 try:
                     self.sync()
                 except Exception:   # the database away for a moment: the next look tries again

@@ -8,6 +8,7 @@ from backend.db import open_engine, pooled
 from backend.devices.recorder import SessionRecorder
 from backend.migrate import migrate
 from backend.store import devices, patients, sessions, users
+from device_bridge.clock import SteppedClock
 
 
 def _sample(seq: int) -> tuple:
@@ -29,7 +30,7 @@ def recording(tmp_path):
                                                                   "body_mass_kg": 80.0},
                                      {"proposal_id": None, "envelope_id": None, "table_version": None, "crc32": None},
                                      actor)
-    recorder = SessionRecorder(pool)          # not started: flushes happen when the test says so
+    recorder = SessionRecorder(pool, clock=SteppedClock())     # not started: flushes happen when the test says so
     yield pool, recorder, sid
     recorder.close()
     pool.dispose()
@@ -68,9 +69,9 @@ def test_flushes_append_in_batches(recording):
         assert sessions.samples(conn, sid)["seq"] == [1, 2]
 
 
-def test_the_periodic_flush_writes_whole_seconds_and_a_silent_legs_last_second(recording, monkeypatch):
+def test_the_periodic_flush_writes_whole_seconds_and_a_silent_legs_last_second(recording):
     """Each second of walking is written once, complete; the second still filling waits, unless the leg went silent."""
-    from backend.devices import recorder as module
+    from backend.devices.recorder import STALE_S
 
     pool, recorder, sid = recording
     recorder.begin("leg", sid)
@@ -79,7 +80,11 @@ def test_the_periodic_flush_writes_whole_seconds_and_a_silent_legs_last_second(r
     recorder.flush(whole_seconds=True)
     with pooled(pool) as conn:
         assert sessions.samples(conn, sid)["seq"] == list(range(100))        # second 0 only: second 1 is filling
-    monkeypatch.setattr(module.time, "monotonic", lambda: 1e9)             # long after the last sample arrived
+    recorder._clock.advance(STALE_S * 0.9)
+    recorder.flush(whole_seconds=True)
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == list(range(100))        # not silent for long enough yet
+    recorder._clock.advance(STALE_S * 0.2)                                  # the last sample is now STALE_S old
     recorder.flush(whole_seconds=True)
     with pooled(pool) as conn:
         assert sessions.samples(conn, sid)["seq"] == list(range(150))        # a silent leg's last second is written
