@@ -49,6 +49,7 @@ from backend.settings import Settings
 from backend.throttle import LoginThrottle
 from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
+from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.mqtt_connection import MqttConnection
 from device_bridge.sim.leg_file import load_leg
 from device_bridge.sim.leg_model import LegGeometry
@@ -103,8 +104,11 @@ def prepare_storage(settings: Settings) -> None:
     migrate(settings.db_path, settings.migrations_dir)
 
 
-def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None) -> FastAPI:
-    """Build the app for ``settings`` (migrates the database now; the model loads in the background)."""
+def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None,
+               clock: Clock = WALL_CLOCK) -> FastAPI:
+    """Build the app for ``settings`` (migrates the database now; the model loads in the background). ``clock``: what
+    the device stack runs on; a stepped one (:mod:`device_bridge.clock`, for tests) runs a simulated leg and its link
+    in simulated time, moved by whoever waits on it."""
     set_hash_cost(settings.password_hash_cost)
     prepare_storage(settings)
 
@@ -142,7 +146,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
                              "QUASITUNE_BROKER_USERNAME and QUASITUNE_BROKER_PASSWORD (this instance's identity there)")
     bus_options = {} if app.state.broker is None else {"mqtt": {"role": "server", "connection": app.state.broker}}
     try:
-        app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg, bus_options=bus_options).start()
+        app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg, bus_options=bus_options,
+                                          clock=clock).start()
     except BaseException:     # a leg refused at the broker: the connection's threads must not outlive the failed start
         if app.state.broker is not None:
             app.state.broker.close()

@@ -80,7 +80,9 @@ class SteppedClock:
 
     :meth:`step` advances the time one step and then runs every stepper added (:meth:`add`) with the new time, in
     the order they were added; :meth:`advance` and every wait run steps. Time is kept as a step count, so it never
-    drifts and two runs see the same floats. A wait from inside a step would never end: it raises instead.
+    drifts and two runs see the same floats. Several threads may wait at once (a test and a request it made): one
+    step at a time, each waiter checking its own condition between steps. A wait from inside a step would never end:
+    it raises instead.
     """
 
     def __init__(self, step_s: float = 0.001, start_unix_s: float = 1_800_000_000.0) -> None:
@@ -90,7 +92,8 @@ class SteppedClock:
         self.start_unix_s = start_unix_s
         self.steps = 0
         self._steppers: list[Callable[[float], None]] = []
-        self._stepping = False
+        self._lock = threading.Lock()
+        self._stepping: int | None = None     # the thread running a step
 
     def monotonic(self) -> float:
         return self.steps * self.step_s
@@ -107,16 +110,18 @@ class SteppedClock:
 
     def step(self) -> None:
         """One step: the time moves on by ``step_s``, then every stepper runs at the new time."""
-        if self._stepping:
+        me = threading.get_ident()
+        if self._stepping == me:
             raise RuntimeError("a stepped clock was waited on from inside one of its own steps: it would never move")
-        self._stepping = True
-        try:
-            self.steps += 1
-            now = self.monotonic()
-            for stepper in list(self._steppers):
-                stepper(now)
-        finally:
-            self._stepping = False
+        with self._lock:
+            self._stepping = me
+            try:
+                self.steps += 1
+                now = self.monotonic()
+                for stepper in list(self._steppers):
+                    stepper(now)
+            finally:
+                self._stepping = None
 
     def advance(self, seconds: float) -> None:
         """Run the steps of ``seconds`` of simulated time."""

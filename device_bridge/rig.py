@@ -31,7 +31,7 @@ class RigBus(can.BusABC):
     other end's inbox; receiving never blocks. Ours because python-can's ``virtual`` bus stamps the wall clock (the
     link judges a status's age by its stamp) and hands frames across threads."""
 
-    def __init__(self, clock: SteppedClock, log: list[tuple[int, str, int, bytes]], name: str) -> None:
+    def __init__(self, clock: SteppedClock, log: list[tuple[int, str, int, bytes]] | None, name: str) -> None:
         super().__init__(channel=name)
         self.channel_info = f"rig:{name}"
         self._clock, self._log, self._name = clock, log, name
@@ -39,15 +39,16 @@ class RigBus(can.BusABC):
         self.peer: RigBus | None = None
 
     @classmethod
-    def pair(cls, clock: SteppedClock, log: list[tuple[int, str, int, bytes]]) -> tuple[RigBus, RigBus]:
-        """The host's end and the device's end of one wire."""
+    def pair(cls, clock: SteppedClock, log: list[tuple[int, str, int, bytes]] | None) -> tuple[RigBus, RigBus]:
+        """The host's end and the device's end of one wire (``log``: where to note every frame, or None)."""
         host, device = cls(clock, log, "host"), cls(clock, log, "device")
         host.peer, device.peer = device, host
         return host, device
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
         data = bytes(msg.data)
-        self._log.append((self._clock.steps, self._name, msg.arbitration_id, data))
+        if self._log is not None:
+            self._log.append((self._clock.steps, self._name, msg.arbitration_id, data))
         self.peer._inbox.append(can.Message(timestamp=self._clock.time(), arbitration_id=msg.arbitration_id,
                                             data=data, is_extended_id=msg.is_extended_id))
 
@@ -69,6 +70,8 @@ class Rig:
         heartbeat_period_s: the host's heartbeat period (a whole number of steps).
         to_device, to_host: faults of each direction (``drop``, ``corrupt``, ``reorder`` probabilities,
             :class:`device_bridge.faults.FaultInjectingBus`), drawn from ``seed``.
+        clock: a clock shared with other rigs or pieces (a server's, in tests); default a clock of its own.
+        keep_frames: log every frame in :attr:`frames` (a long-running rig says no).
         link_kwargs: the link's callbacks (``on_status``, ``on_telemetry``).
 
     Attributes:
@@ -77,10 +80,12 @@ class Rig:
 
     def __init__(self, leg: Leg | None = None, config: FirmwareConfig | None = None, heartbeat_period_s: float = 0.02,
                  to_device: dict[str, float] | None = None, to_host: dict[str, float] | None = None, seed: int = 0,
-                 **link_kwargs: Any) -> None:
-        self.clock = SteppedClock(TICK_S)
+                 clock: SteppedClock | None = None, keep_frames: bool = True, **link_kwargs: Any) -> None:
+        self.clock = clock if clock is not None else SteppedClock(TICK_S)
+        if self.clock.step_s != TICK_S:
+            raise ValueError(f"a rig steps every control tick ({TICK_S} s), its clock every {self.clock.step_s} s")
         self.frames: list[tuple[int, str, int, bytes]] = []
-        self._host_end, self._device_end = RigBus.pair(self.clock, self.frames)
+        self._host_end, self._device_end = RigBus.pair(self.clock, self.frames if keep_frames else None)
         self.node = DeviceNode(_with_faults(self._device_end, to_host, seed + 1), leg=leg, config=config,
                                clock=self.clock)
         self.link = DeviceLink(_with_faults(self._host_end, to_device, seed), heartbeat_period_s=heartbeat_period_s,

@@ -21,6 +21,27 @@ def pytest_configure(config: pytest.Config) -> None:
     set_hash_cost(TEST_HASH_COST)
 
 
+# what a fixture needs, as markers (pyproject.toml): `-m "not browser and not postgres and not broker and not wallclock"`
+# is the fast subset (scripts/test.sh --fast)
+_MARKS_BY_FIXTURE = {
+    "page": ("browser", "wallclock"), "browser": ("browser", "wallclock"),
+    "postgres": ("postgres",), "migrated_postgres": ("postgres",),
+    "broker": ("broker", "wallclock"), "broker_admin": ("broker", "wallclock"),
+}
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        names = set(getattr(item, "fixturenames", ()))
+        marks = {m for name in names & _MARKS_BY_FIXTURE.keys() for m in _MARKS_BY_FIXTURE[name]}
+        callspec = getattr(item, "callspec", None)
+        if callspec is not None and callspec.params.get("database") == "postgresql":
+            marks.add("postgres")
+        for m in sorted(marks):
+            item.add_marker(m)
+
+
 @pytest.fixture(scope="session")
 def reference():
     from controller_core.reference import load_shipped_reference
@@ -104,10 +125,14 @@ def database(request, tmp_path):
 
 @pytest.fixture
 def sim_api(tmp_path, model, migrated_sqlite):
-    """In-process API with the simulated leg on a virtual bus (device ``sim-leg-1``), one signed-in user per role."""
+    """In-process API with the simulated leg (device ``sim-leg-1``) stepped with its link in simulated time: it walks
+    only while something waits on ``api.clock`` (a push, :func:`tests.helpers.api.wait_for` with ``clock=api.clock``,
+    ``api.clock.advance``). One signed-in user per role."""
+    from device_bridge.clock import SteppedClock
     from tests.helpers.api import make_api
 
-    api, _client = make_api(tmp_path, lambda: model, device="sim", viewer3d=True, template=migrated_sqlite)
+    api, _client = make_api(tmp_path, lambda: model, device="sim", viewer3d=True, template=migrated_sqlite,
+                            clock=SteppedClock())
     yield api
     api.client.app.state.viewers.close()
     api.client.app.state.devices.close()

@@ -18,6 +18,8 @@ import pytest
 from device_bridge.broker_admin import BrokerAdmin
 from device_bridge.mqtt_bus import MqttBus
 
+pytestmark = [pytest.mark.broker, pytest.mark.wallclock]
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -23,7 +23,7 @@ from sqlalchemy import Connection, Engine
 
 from backend.db import pooled
 from backend.devices.fanout import TelemetryFanout
-from backend.devices.recorder import SessionRecorder
+from backend.devices.recorder import FLUSH_PERIOD_S, SessionRecorder
 from backend.devices.specs import DeviceSpec
 from backend.errors import ConflictError, NotFoundError
 from backend.store import devices as devices_store
@@ -31,10 +31,11 @@ from backend.store import pushes as pushes_store
 from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 from controller_core.walking_reference import WalkingReference
-from device_bridge.clock import WALL_CLOCK, Clock
+from device_bridge.clock import WALL_CLOCK, Clock, SteppedClock
 from device_bridge.device_node import DeviceNode
 from device_bridge.host import DeviceLink, DeviceStatus, HeartbeatClock, PushResult, TelemetrySample
 from device_bridge.protocol import Command, Fault
+from device_bridge.rig import Rig
 from device_bridge.sim.course import Course
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.walker import SimWalker
@@ -89,25 +90,35 @@ class DeviceManager:
             dev = ManagedDevice(spec=spec)
             with pooled(self.db) as conn:
                 dev.link_mode = devices_store.link_mode(conn, spec.device_id)
+            callbacks = {"on_status": lambda s, d=dev: self._on_status(d, s),
+                         "on_telemetry": lambda x, d=dev: self._on_telemetry(d, x),
+                         "on_late_telemetry": lambda x, d=dev: self._on_late_telemetry(d, x)}
             if spec.kind == "simulated":
                 dev.walker = SimWalker(self._bench_leg)
+            if spec.kind == "simulated" and isinstance(self.clock, SteppedClock):   # leg and link on one thread
+                rig = Rig(leg=dev.walker, clock=self.clock, keep_frames=False, **callbacks)
+                dev.node, dev.link = rig.node, rig.link
+                self._devices[spec.device_id] = dev
+                continue
+            if spec.kind == "simulated":
                 dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker,
                                       clock=self.clock).start()
             bus = can.Bus(interface=spec.interface, channel=spec.channel, **self._bus_options.get(spec.interface, {}))
-            dev.link = DeviceLink(bus, heartbeat_clock=self._clock_for(bus), clock=self.clock,
-                                  on_status=lambda s, d=dev: self._on_status(d, s),
-                                  on_telemetry=lambda x, d=dev: self._on_telemetry(d, x),
-                                  on_late_telemetry=lambda x, d=dev: self._on_late_telemetry(d, x))
+            dev.link = DeviceLink(bus, heartbeat_clock=self._heartbeats_for(bus), clock=self.clock, **callbacks)
             self._devices[spec.device_id] = dev   # before the link starts: its callbacks look the device up
             dev.link.start()
-        self.recorder.start()
+        if isinstance(self.clock, SteppedClock):     # the recorder thread's rounds, on the rig's clock
+            every = round(FLUSH_PERIOD_S / self.clock.step_s)
+            self.clock.add(lambda _now: self.recorder.periodic() if self.clock.steps % every == 0 else None)
+        else:
+            self.recorder.start()
         with pooled(self.db) as conn:
             for spec in self._specs:
                 worn = devices_store.assignment(conn, spec.device_id)
                 self.worn_by(spec.device_id, None if worn is None else worn["body_mass_kg"])
         return self
 
-    def _clock_for(self, bus: can.BusABC) -> HeartbeatClock | None:
+    def _heartbeats_for(self, bus: can.BusABC) -> HeartbeatClock | None:
         """The shared heartbeat clock for a leg whose frames come through the instance's broker connection (its send
         only queues: :class:`~device_bridge.host.HeartbeatClock`); None (a thread of its own) for a CAN bus."""
         if not getattr(bus, "delivers_frames", False):
@@ -209,8 +220,8 @@ class DeviceManager:
         choice: a stream shows that within the age)."""
         s = dev.status
         key = None if s is None else (s.active_version, s.active_crc32, s.pending_version)
-        now = self.clock.monotonic()
-        if dev.stored is not None and dev.stored[0] == key and now - dev.stored[1] <= max_age_s:
+        now = WALL_CLOCK.monotonic()      # the age of a database read: the server's own time, not the leg's
+        if max_age_s > 0 and dev.stored is not None and dev.stored[0] == key and now - dev.stored[1] <= max_age_s:
             return dev.stored[2]
         with pooled(self.db) as conn:
             patient = devices_store.assignment(conn, dev.spec.device_id)

@@ -51,6 +51,7 @@ class SessionRecorder:
         self._lock = threading.Lock()
         self._write_lock = threading.Lock()
         self._stop = threading.Event()
+        self._next_sync = float("-inf")
         self._thread = threading.Thread(target=self._run, name="session-recorder", daemon=True)
 
     def start(self) -> SessionRecorder:
@@ -170,17 +171,20 @@ class SessionRecorder:
             if self._recording.get(device_id) == session_id:
                 self._release(device_id)
 
-    def _run(self) -> None:
-        clock = self._clock
-        next_sync = 0.0
-        while not clock.wait(self._stop, FLUSH_PERIOD_S):
-            if self._device_ids and clock.monotonic() >= next_sync:
-                next_sync = clock.monotonic() + SYNC_PERIOD_S
-                try:
-                    self.sync()
-                except Exception:   # the database away for a moment: the next look tries again
-                    log.exception("session recorder: looking up the open sessions failed")
+    def periodic(self) -> None:
+        """One round of the recorder's thread (every :data:`FLUSH_PERIOD_S`; a stepped rig calls it at that period):
+        the open sessions looked up when :data:`SYNC_PERIOD_S` has passed, then the complete seconds written."""
+        if self._device_ids and self._clock.monotonic() >= self._next_sync:
+            self._next_sync = self._clock.monotonic() + SYNC_PERIOD_S
             try:
-                self.flush(whole_seconds=True)
-            except Exception:
-                log.exception("session recorder: writing samples failed; they are written at the next flush")
+                self.sync()
+            except Exception:   # the database away for a moment: the next look tries again
+                log.exception("session recorder: looking up the open sessions failed")
+        try:
+            self.flush(whole_seconds=True)
+        except Exception:
+            log.exception("session recorder: writing samples failed; they are written at the next flush")
+
+    def _run(self) -> None:
+        while not self._clock.wait(self._stop, FLUSH_PERIOD_S):
+            self.periodic()

@@ -12,6 +12,8 @@ from backend import db
 from backend.app import prepare_storage
 from backend.settings import Settings
 
+pytestmark = pytest.mark.wallclock   # a writer in another process holds the lock for a time
+
 HOLDER = """
 import sys, time
 from backend.db import connect, write_transaction

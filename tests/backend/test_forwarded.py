@@ -5,8 +5,11 @@ from __future__ import annotations
 import signal
 
 import httpx
+import pytest
 
 from tests.helpers.server import add_user, start_server
+
+pytestmark = pytest.mark.wallclock
 
 
 def _guesses(base: str, forwarded: list[str], names: list[str] | None = None) -> list[int]:

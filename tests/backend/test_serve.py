@@ -9,8 +9,11 @@ import threading
 import time
 
 import httpx
+import pytest
 
 from tests.helpers.server import PASSWORD, add_user, start_server
+
+pytestmark = pytest.mark.wallclock
 
 
 def _wait_ready(base: str, timeout_s: float = 60.0) -> None:

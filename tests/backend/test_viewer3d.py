@@ -20,14 +20,16 @@ def test_viewer_binds_loopback_on_a_port_it_reads_back_and_follows_telemetry(sim
     assign(sim_api, patient["id"])
     r = c.post(f"/api/patients/{patient['id']}/sessions", headers=viewer, json={"device_id": DEVICE, "speed_mps": 1.2})
     assert r.status_code == 201, r.text   # the simulated leg walks (and streams telemetry) during a session
-    wait_for(lambda: c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json(), lambda v: v["frames_drawn"] > 5)
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json(), lambda v: v["frames_drawn"] > 5,
+             clock=sim_api.clock)
     assert c.get("/api/devices/nope/viewer", headers=viewer).status_code == 404
 
 
 def test_the_3d_view_is_off_unless_the_server_was_started_with_it(tmp_path, model):
+    from device_bridge.clock import SteppedClock
     from tests.helpers.api import make_api
 
-    api, client = make_api(tmp_path, lambda: model, device="sim")   # as quasitune serve runs by default
+    api, client = make_api(tmp_path, lambda: model, device="sim", clock=SteppedClock())   # as quasitune serve runs
     try:
         r = client.get("/api/devices/sim-leg-1/viewer", headers=api.as_("viewer"))
         assert r.status_code == 409 and "no login" in r.json()["detail"] and "--viewer3d" in r.json()["detail"]

@@ -5,10 +5,14 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 from controller_core.fsm import SensorSample
 from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.protocol import Fault, Mode
 from tests.helpers.device import until, wall_pair
+
+pytestmark = pytest.mark.wallclock
 
 
 class SlowLeg:

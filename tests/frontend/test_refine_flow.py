@@ -15,6 +15,8 @@ from tests.helpers.browser import api_call, create_patient_and_propose, shot, si
 from tests.helpers.server import add_user, start_server, stop_server
 from tests.helpers.sessions import record_offline
 
+pytestmark = [pytest.mark.browser, pytest.mark.wallclock]
+
 playwright_api = pytest.importorskip("playwright.sync_api", reason="playwright is a dev dependency")
 expect = playwright_api.expect
 

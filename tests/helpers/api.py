@@ -16,6 +16,7 @@ from backend.db import connect
 from backend.settings import Settings
 from backend.store.tables import metadata
 from backend.store.users import ROLES, create_user
+from device_bridge.clock import SteppedClock
 from tests.helpers.server import PASSWORD
 
 DEVICE = "sim-leg-1"   # the simulated leg of an app made with device="sim"
@@ -27,6 +28,7 @@ class Api:
     data_dir: Path
     headers: dict[str, dict[str, str]] = field(default_factory=dict)
     database: str | Path | None = None     # what the app stores in: its SQLite file or a PostgreSQL URL
+    clock: SteppedClock | None = None      # the device stack's, when the app runs its simulated leg stepped
 
     def as_(self, role: str) -> dict[str, str]:
         return self.headers[role]
@@ -58,18 +60,21 @@ class Api:
 def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]:
     """App on ``data_dir`` (or on ``database_url``, a migrated PostgreSQL database, when the settings name one) loading
     its model with ``model_loader``, with users prosthetist/viewer/admin (password :data:`PASSWORD`), signed in.
-    ``template``: an SQLite file already at the newest revision, copied in first."""
+    ``template``: an SQLite file already at the newest revision, copied in first; ``clock``: the device stack's (a
+    :class:`~device_bridge.clock.SteppedClock` runs the simulated leg in simulated time, moved by :func:`wait_for`)."""
     template = settings.pop("template", None)      # a migrated SQLite file to start from (migrating is slow)
+    clock = settings.pop("clock", None)
     data_dir.mkdir(parents=True, exist_ok=True)
     if template is not None and "database_url" not in settings and not (data_dir / "quasitune.sqlite").exists():
         shutil.copyfile(template, data_dir / "quasitune.sqlite")
-    app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader)
+    app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader,
+                     **({} if clock is None else {"clock": clock}))
     database = settings.get("database_url") or data_dir / "quasitune.sqlite"
     with connect(database) as conn:
         for role in ROLES:
             create_user(conn, role, role, PASSWORD)
     client = TestClient(app)
-    api = Api(client=client, data_dir=data_dir, database=database)
+    api = Api(client=client, data_dir=data_dir, database=database, clock=clock)
     for role in ROLES:
         r = client.post("/api/auth/token", data={"username": role, "password": PASSWORD})
         assert r.status_code == 200, r.text
@@ -77,8 +82,16 @@ def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]
     return api, client
 
 
-def wait_for(fetch: Callable[[], object], predicate: Callable[[object], bool], timeout_s: float = 10.0):
-    """Call ``fetch`` until ``predicate`` holds for its value (returned); fail with the last value after the timeout."""
+def wait_for(fetch: Callable[[], object], predicate: Callable[[object], bool], timeout_s: float = 10.0,
+             clock: SteppedClock | None = None):
+    """Call ``fetch`` until ``predicate`` holds for its value (returned); fail with the last value after the timeout.
+    With a stepped ``clock`` (an app's simulated leg) each poll moves it on 20 ms and the timeout is simulated time."""
+    if clock is not None:
+        deadline = clock.monotonic() + timeout_s
+        while not predicate(value := fetch()):
+            assert clock.monotonic() < deadline, f"condition not reached in {timeout_s:g} simulated s; last {value}"
+            clock.advance(0.02)
+        return value
     deadline = time.monotonic() + timeout_s
     while True:
         value = fetch()
@@ -90,14 +103,19 @@ def wait_for(fetch: Callable[[], object], predicate: Callable[[object], bool], t
 
 def wait_recorded(api: Api, session_id: int, seconds: float, timeout_s: float = 60.0) -> None:
     """Wait until the session holds ``seconds`` of the device's samples (by its 10 ms period, not the host's clock).
-    Polled twice a second: the simulated leg runs in this process, and a busier poll would take its interpreter time
-    (its heartbeat, its physics) and change what it walks."""
+    On a stepped app the simulated leg walks half a second between looks; otherwise they come twice a second of real
+    time (a busier poll would take the in-process leg's interpreter time and change what it walks)."""
     wanted = round(seconds * 100 / 100)
-    deadline = time.monotonic() + timeout_s
+    clock = api.clock
+    deadline = time.monotonic() + timeout_s if clock is None else clock.monotonic() + timeout_s
     while api.client.get(f"/api/sessions/{session_id}/samples", params={"every": 100},
                          headers=api.as_("viewer")).json()["count"] < wanted:
-        assert time.monotonic() < deadline, f"{seconds} s of samples not recorded in {timeout_s} s"
-        time.sleep(0.5)
+        if clock is None:
+            assert time.monotonic() < deadline, f"{seconds} s of samples not recorded in {timeout_s} s"
+            time.sleep(0.5)
+        else:
+            assert clock.monotonic() < deadline, f"{seconds} s of samples not recorded in {timeout_s} simulated s"
+            clock.advance(0.5)
 
 
 # approving an envelope needs its bench preview (about ten seconds of the mixed course) or a written override; the
@@ -133,7 +151,7 @@ def assign(api: Api, patient_id: int, device: str = DEVICE) -> dict:
 def push_body(api: Api, device: str = DEVICE) -> dict:
     """A push request confirming what the leg runs now (read from the device) and that the patient is ready."""
     d = wait_for(lambda: api.client.get(f"/api/devices/{device}", headers=api.as_("prosthetist")).json(),
-                 lambda d: d["online"])
+                 lambda d: d["online"], clock=api.clock)
     current = d["pending_table"] or d["active_table"]
     return {"device_id": device, "replaces_proposal_id": None if current is None else current["proposal_id"],
             "replaces_envelope_id": None if current is None else current["envelope_id"], "patient_ready": True}

@@ -14,10 +14,13 @@ import sqlite3
 import threading
 
 import httpx
+import pytest
 
 from backend.settings import DB_FILE
 from tests.helpers.api import FIXTURE_OVERRIDE, wait_for
 from tests.helpers.server import PASSWORD, add_user, start_server
+
+pytestmark = pytest.mark.wallclock
 
 DEVICE = "sim-leg-1"
 

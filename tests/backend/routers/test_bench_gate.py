@@ -55,7 +55,8 @@ def test_an_unsafe_preview_stops_approval_and_push_unless_a_written_reason_is_gi
     r = c.post(f"/api/proposals/{p['id']}/push", headers=pro, json={**body, "override_reason": REASON + " (push)"})
     assert r.status_code == 201, r.text
     assert r.json()["override_reason"] == REASON + " (push)" and r.json()["approval_override"] == REASON
-    device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"])
+    device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"],
+                      clock=api.clock)
     assert device["active_table"]["approval_override"] == REASON
     assert device["active_table"]["override_reason"] == REASON + " (push)"
 
@@ -78,10 +79,11 @@ def test_a_session_on_a_version_approved_by_override_carries_the_reason_into_its
     assign(api, patient["id"])
     assert c.post(f"/api/proposals/{p['id']}/push", headers=pro,
                   json={**push_body(api), "override_reason": REASON}).status_code == 201
-    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"])
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"], clock=api.clock)
     s = c.post(f"/api/patients/{patient['id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
     assert s["approval_override"] == REASON
-    wait_for(lambda: c.get(f"/api/sessions/{s['id']}/samples", headers=pro).json()["count"], lambda n: n >= 100)
+    wait_for(lambda: c.get(f"/api/sessions/{s['id']}/samples", headers=pro).json()["count"], lambda n: n >= 100,
+             clock=api.clock)
     assert c.post(f"/api/sessions/{s['id']}/stop", headers=pro).status_code == 200
     stopped = c.get(f"/api/sessions/{s['id']}", headers=pro).json()
     facts = dict(report_facts(stopped, c.get(f"/api/patients/{patient['id']}", headers=pro).json()))

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 from starlette.websockets import WebSocketDisconnect
 
+from backend.routers.devices import RECHECK_TOKEN_S
 from device_bridge.protocol import WireTable
 from tests.helpers.api import (
     DEVICE,
@@ -22,7 +25,7 @@ from tests.helpers.api import (
 def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     api = sim_api
     c, viewer = api.client, api.as_("viewer")
-    device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(), lambda d: d["online"])
+    device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(), lambda d: d["online"], clock=api.clock)
     assert device["mode"] == "no_table" and device["active_crc32"] is None
 
     prop = approved_proposal(api)
@@ -35,12 +38,12 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     assert push["table_label"] == f"P-001 · table v{prop['version']}"
 
     device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(),
-                      lambda d: d["active_crc32"] == push["crc32"])
+                      lambda d: d["active_crc32"] == push["crc32"], clock=api.clock)
     assert device["mode"] == "active" and device["active_version"] == 1
     assert device["active_table"]["table_label"] == push["table_label"]
     assert device["patient"]["patient_code"] == "P-001"
     got = wait_for(lambda: c.get(f"/api/proposals/{prop['id']}", headers=viewer).json(),
-                   lambda p: p["deployment"] == "active_on_device")
+                   lambda p: p["deployment"] == "active_on_device", clock=api.clock)
     assert got["status"] == "approved"   # the approved proposal itself never changes
     [record] = c.get(f"/api/proposals/{prop['id']}/pushes", headers=viewer).json()
     assert record["status"] == "active" and record["active_at"] is not None
@@ -55,6 +58,7 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     with c.websocket_connect(f"/api/devices/{DEVICE}/telemetry?token={token}") as ws:
         first = ws.receive_json()
         assert first["type"] == "status" and first["active_crc32"] == push["crc32"]
+        api.clock.advance(3.5)          # the patient walks 3.5 s: the stream's queue holds its samples
         while len(samples) < 300:
             msg = ws.receive_json()
             if msg["type"] == "telemetry":
@@ -185,7 +189,7 @@ def test_a_table_built_for_another_body_mass_is_pushed_only_with_a_written_reaso
     r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json={**push_body(api), "override_reason": reason})
     assert r.status_code == 201 and r.json()["override_reason"] == reason
     c.patch(f"/api/patients/{prop['patient_id']}", headers=pro, json={"body_mass_kg": 83.0})   # within 5 %
-    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"])
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["active_table"], clock=api.clock)
     r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json=push_body(api))      # no reason needed
     assert r.status_code == 201 and r.json()["override_reason"] is None
 
@@ -207,9 +211,9 @@ def test_safe_mode_command_round_trip(sim_api):
     assert r.status_code == 403
     r = c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "enter_safe_mode"})
     assert r.status_code == 202
-    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["safe_mode"])
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["safe_mode"], clock=api.clock)
     c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "leave_safe_mode"})
-    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["mode"] == "active")
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(), lambda d: d["mode"] == "active", clock=api.clock)
 
 
 def test_an_open_telemetry_stream_closes_when_its_user_is_disabled(sim_api):
@@ -220,8 +224,10 @@ def test_an_open_telemetry_stream_closes_when_its_user_is_disabled(sim_api):
     with c.websocket_connect(f"/api/devices/{DEVICE}/telemetry?token={token}") as ws:
         assert ws.receive_json()["type"] == "status"
         c.patch(f"/api/users/{viewer_id}", headers=admin, json={"disabled": True})
+        deadline = time.monotonic() + 20 * RECHECK_TOKEN_S
         with pytest.raises(WebSocketDisconnect) as closed:
-            for _ in range(1000):                         # status at 10 Hz: the re-check comes within ~1 s
+            while time.monotonic() < deadline:   # the token is checked again every RECHECK_TOKEN_S of real time
+                api.clock.advance(0.1)           # the unworn leg reports on: a status every 0.1 s
                 ws.receive_json()
         assert closed.value.code == 1008 and "disabled" in closed.value.reason
 
@@ -232,7 +238,7 @@ def test_a_table_built_for_another_body_mass_is_flagged_on_the_device(sim_api):
     prop = approved_proposal(api)                                  # built for 80 kg
     assert push_to_leg(api, prop).status_code == 201
     device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
-                      lambda d: d["active_table"] is not None)
+                      lambda d: d["active_table"] is not None, clock=api.clock)
     assert device["active_table"]["body_mass_kg"] == 80.0 and device["body_mass_mismatch"] is None
     assert c.patch(f"/api/patients/{prop['patient_id']}", headers=pro, json={"body_mass_kg": 83.0}).status_code == 200
     assert c.get(f"/api/devices/{DEVICE}", headers=pro).json()["body_mass_mismatch"] is None      # within 5 %
@@ -251,6 +257,8 @@ def test_the_assigned_patient_stands_on_the_simulated_leg_between_walks_with_liv
     assert device["bench_state"] == "standing" and device["walking"] is False
     samples = []
     with c.websocket_connect(f"/api/devices/{DEVICE}/telemetry?token={viewer['Authorization'].split()[1]}") as ws:
+        assert ws.receive_json()["type"] == "status"
+        api.clock.advance(0.6)
         while len(samples) < 50:
             msg = ws.receive_json()
             if msg["type"] == "telemetry":
@@ -267,7 +275,7 @@ def test_the_lost_link_mode_is_the_prosthetists_choice_audited_sent_to_the_leg_a
     device = lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json()   # noqa: E731
     prop = approved_proposal(api)
     assert push_to_leg(api, prop).status_code == 201
-    wait_for(device, lambda d: d["mode"] == "active" and d["link_mode_on_device"] == "supervised")
+    wait_for(device, lambda d: d["mode"] == "active" and d["link_mode_on_device"] == "supervised", clock=api.clock)
     assert device()["link_mode"] == "supervised"
     body = {"link_mode": "autonomous", "reason": "home trial: the patient walks far from the clinic's server"}
     assert c.put(f"/api/devices/{DEVICE}/link-mode", headers=api.as_("viewer"), json=body).status_code == 403
@@ -276,23 +284,23 @@ def test_the_lost_link_mode_is_the_prosthetists_choice_audited_sent_to_the_leg_a
         assert r.status_code == 422, r.text
     r = c.put(f"/api/devices/{DEVICE}/link-mode", headers=pro, json=body)
     assert r.status_code == 200 and r.json()["link_mode"] == "autonomous"
-    wait_for(device, lambda d: d["link_mode_on_device"] == "autonomous")
+    wait_for(device, lambda d: d["link_mode_on_device"] == "autonomous", clock=api.clock)
     [entry] = [e for e in c.get("/api/audit", headers=api.as_("admin"), params={"entity": "device"}).json()["items"]
                if e["action"] == "device.link_mode"]
     assert entry["before"]["link_mode"] == "supervised" and entry["after"]["reason"] == body["reason"]
 
     link = api.client.app.state.devices.get(DEVICE).link
     link.pause_heartbeat()                 # the link to the server is lost: the autonomous leg runs on
-    wait_for(device, lambda d: "heartbeat_lost" in d["faults"])
+    wait_for(device, lambda d: "heartbeat_lost" in d["faults"], clock=api.clock)
     assert device()["mode"] == "active"
     link.pause_heartbeat(False)
-    wait_for(device, lambda d: "heartbeat_lost" not in d["faults"] and d["mode"] == "active")
+    wait_for(device, lambda d: "heartbeat_lost" not in d["faults"] and d["mode"] == "active", clock=api.clock)
 
     r = c.put(f"/api/devices/{DEVICE}/link-mode", headers=pro,
               json={"link_mode": "supervised", "reason": "back in the clinic for tuning"})
-    wait_for(device, lambda d: d["link_mode_on_device"] == "supervised")
+    wait_for(device, lambda d: d["link_mode_on_device"] == "supervised", clock=api.clock)
     link.pause_heartbeat()                 # supervised: the lost link means safe mode
-    wait_for(device, lambda d: d["safe_mode"] and "heartbeat_lost" in d["faults"])
+    wait_for(device, lambda d: d["safe_mode"] and "heartbeat_lost" in d["faults"], clock=api.clock)
     link.pause_heartbeat(False)
 
 
@@ -303,8 +311,8 @@ def test_a_restarted_leg_is_sent_the_stored_lost_link_mode_again(sim_api):
               json={"link_mode": "autonomous", "reason": "home trial with the patient's own phone link"})
     assert r.status_code == 200
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
-             lambda d: d["link_mode_on_device"] == "autonomous")
+             lambda d: d["link_mode_on_device"] == "autonomous", clock=api.clock)
     firmware = api.client.app.state.devices.get(DEVICE).node.firmware
     firmware.link_mode_ = type(firmware.link_mode_).SUPERVISED   # as after a restart: the device starts supervised
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
-             lambda d: d["link_mode_on_device"] == "autonomous")
+             lambda d: d["link_mode_on_device"] == "autonomous", clock=api.clock)

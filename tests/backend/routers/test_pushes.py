@@ -41,10 +41,10 @@ def test_an_approved_envelope_runs_on_its_patients_leg_and_a_table_can_replace_i
     assert push["crc32"] == f"{env['wire_crc32']:08x}" and push["label"] == "P-001 · envelope v2"
     assert push["table_label"] is None and push["task"] == {"speed_mps": 1.2, "incline_deg": 0.0}   # nominal
     device = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(),
-                      lambda d: d["active_crc32"] == push["crc32"])
+                      lambda d: d["active_crc32"] == push["crc32"], clock=api.clock)
     assert device["active_table"]["kind"] == "envelope" and device["active_table"]["label"] == push["label"]
     got = wait_for(lambda: c.get(f"/api/envelopes/{env['id']}", headers=viewer).json(),
-                   lambda e: e["deployment"] == "active_on_device")
+                   lambda e: e["deployment"] == "active_on_device", clock=api.clock)
     assert got["status"] == "approved"
     [record] = c.get(f"/api/envelopes/{env['id']}/pushes", headers=viewer).json()
     assert record["status"] == "active"
@@ -63,7 +63,7 @@ def test_an_approved_envelope_runs_on_its_patients_leg_and_a_table_can_replace_i
     r = c.post(f"/api/proposals/{prop['id']}/push", headers=pro, json=push_body(api))
     assert r.status_code == 201, r.text
     wait_for(lambda: c.get(f"/api/envelopes/{env['id']}", headers=viewer).json(),
-             lambda e: e["deployment"] == "replaced")
+             lambda e: e["deployment"] == "replaced", clock=api.clock)
 
 
 def test_an_envelope_goes_only_to_the_leg_of_its_patient_at_its_body_mass(sim_api):
@@ -91,7 +91,7 @@ def test_a_course_session_records_the_legs_own_task_estimate_and_summarises_it_b
     assign(api, patient["id"])
     push = push_envelope(api, env["id"]).json()
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(),
-             lambda d: d["active_crc32"] == push["crc32"])
+             lambda d: d["active_crc32"] == push["crc32"], clock=api.clock)
     r = c.post(f"/api/patients/{patient['id']}/sessions", headers=viewer, json={"device_id": DEVICE, "course": "mixed"})
     assert r.status_code == 201, r.text
     session = r.json()
@@ -137,7 +137,7 @@ def test_two_pushes_confirming_the_same_envelope_on_the_leg_cannot_both_go(sim_a
     current = approved_envelope(api, patient["id"])
     assert push_envelope(api, current["id"]).status_code == 201
     wait_for(lambda: api.client.get(f"/api/envelopes/{current['id']}", headers=api.as_("viewer")).json(),
-             lambda e: e["deployment"] == "active_on_device")
+             lambda e: e["deployment"] == "active_on_device", clock=api.clock)
     rivals = [approved_envelope(api, patient["id"]) for _ in range(2)]
     body = {**push_body(api), "replaces_envelope_id": current["id"], "override_reason": FIXTURE_OVERRIDE}
     answers: dict[int, object] = {}

@@ -41,15 +41,15 @@ def test_strides_in_safe_mode_are_marked_and_left_out_of_the_errors(sim_api):
     assert push_to_leg(api, prop).status_code == 201
     session = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
     modes = lambda: c.get(f"/api/sessions/{session['id']}/samples", headers=pro).json()["columns"]["mode"]  # noqa: E731
-    wait_for(modes, lambda m: m.count("active") >= 250, 30)                 # 2.5 s of walking, by the device's clock
+    wait_for(modes, lambda m: m.count("active") >= 250, 30, clock=api.clock)   # 2.5 s of walking, by the device's clock
     assert c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "enter_safe_mode"}).status_code == 202
-    wait_for(modes, lambda m: m.count("safe") >= 150, 30)                   # 1.5 s in safe mode
+    wait_for(modes, lambda m: m.count("safe") >= 150, 30, clock=api.clock)                   # 1.5 s in safe mode
     c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "leave_safe_mode"})
     safe_when_left = wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
-                              lambda d: d["mode"] == "active")
+                              lambda d: d["mode"] == "active", clock=api.clock)
     safe_seen = modes().count("safe")
     assert safe_when_left["mode"] == "active"
-    wait_for(modes, lambda m: len(m) - m.index("safe") - m.count("safe") >= 250, 30)   # 2.5 s walking again
+    wait_for(modes, lambda m: len(m) - m.index("safe") - m.count("safe") >= 250, 30, clock=api.clock)   # 2.5 s walking again
     summary = c.post(f"/api/sessions/{session['id']}/stop", headers=pro).json()["summary"]
     period = summary["sample_period_s"]
     # what the device reported, not a clock; the stored samples trail the live ones by one recorder flush (25)
