@@ -1,14 +1,43 @@
 #!/usr/bin/env bash
 # Install what is missing, then run the linter and the whole test suite.
+#   bash scripts/test.sh            the whole suite (CI runs this through .ci/run)
+#   bash scripts/test.sh --fast     everything but the browser, PostgreSQL, broker and wall-clock tests (work in progress)
+# Further arguments go to pytest (a path, -k, -x ...).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+fast=0
+if [ "${1:-}" = "--fast" ]; then fast=1; shift; fi
 bash scripts/setup_venv.sh
 bash scripts/setup_frontend.sh
 # the browser tests drive Debian's Chromium (never 'playwright install'); docker-compose checks the compose file;
 # the store, router and concurrency tests also run on PostgreSQL: a throwaway server the tests start themselves from
 # Debian's binaries (tests/helpers/postgres.py), on loopback, in a temporary folder, as 'nobody' under root; the broker
 # link's tests start Mosquitto likewise (tests/helpers/mosquitto.py: TLS with a CA made by openssl for the run)
-bash scripts/ensure_debian.sh chromium chromium docker-compose docker-compose pg_ctlcluster postgresql \
-    mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
+if [ "$fast" -eq 0 ]; then
+  bash scripts/ensure_debian.sh chromium chromium docker-compose docker-compose pg_ctlcluster postgresql \
+      mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
+fi
 .venv/bin/ruff check .
-exec .venv/bin/python -m pytest -q "$@"
+# one fit of the default model for every process of the run (the first to need it fits and caches it)
+if [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
+  QUASITUNE_CACHE_DIR=$(mktemp -d -t quasitune-test-cache-XXXXXX)
+  trap 'rm -rf "$QUASITUNE_CACHE_DIR"' EXIT
+  export QUASITUNE_CACHE_DIR
+fi
+pytest=(.venv/bin/python -m pytest -q)
+# the tests that need no wall clock run in two processes (pytest-xdist, a file per process at a time); those whose
+# subject is real time (servers, browsers, the broker, threads: tests/README.md) run after them, alone on the machine,
+# so a busy neighbour cannot starve a live leg's heartbeat
+if [ "$fast" -eq 1 ]; then
+  exec "${pytest[@]}" -n 2 --dist loadfile -m "not browser and not postgres and not broker and not wallclock" "$@"
+fi
+ran=0
+status=0
+"${pytest[@]}" -n 2 --dist loadfile -m "not wallclock" "$@" || status=$?
+if [ "$status" -eq 5 ]; then status=0; else ran=1; fi       # 5: nothing selected (a path of wall-clock tests only)
+wall=0
+"${pytest[@]}" -m "wallclock" "$@" || wall=$?
+if [ "$wall" -eq 5 ]; then wall=0; else ran=1; fi
+if [ "$ran" -eq 0 ]; then echo "no test selected" >&2; exit 5; fi
+[ "$status" -ne 0 ] && exit "$status"
+exit "$wall"

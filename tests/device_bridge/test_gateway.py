@@ -5,12 +5,15 @@ from __future__ import annotations
 import time
 
 import can
+import pytest
 
 from device_bridge.device_node import DeviceNode
 from device_bridge.gateway import Gateway
 from device_bridge.host import DeviceLink
 from device_bridge.protocol import WireTable, frame_id, is_telemetry
 from tests.helpers.device import until
+
+pytestmark = pytest.mark.wallclock   # the gateway's batching window and the leg's sample period are its subject
 
 
 def test_a_push_and_telemetry_cross_the_bridge(model):

@@ -10,6 +10,7 @@ from backend.devices.specs import parse_device_spec
 from backend.errors import NotFoundError
 from backend.migrate import migrate
 from device_bridge.as_run import as_run
+from device_bridge.clock import SteppedClock
 from tests.helpers.device import until
 
 
@@ -19,7 +20,7 @@ def manager(tmp_path):
     migrate(path)
     pool = open_engine(path)
     spec = parse_device_spec("sim")
-    m = DeviceManager(pool, [spec]).start()
+    m = DeviceManager(pool, [spec], clock=SteppedClock()).start()     # the leg and its link in simulated time
     yield m, spec.device_id
     m.close()
     pool.dispose()
@@ -28,7 +29,7 @@ def manager(tmp_path):
 def test_the_leg_comes_online_and_says_it_runs_no_table(manager):
     m, leg = manager
     assert m.ids() == [leg]
-    until(lambda: m.online(m.get(leg)), 15.0, 0.05)
+    until(lambda: m.online(m.get(leg)), 15.0, clock=m.clock)
     view = m.view(leg)
     assert view["kind"] == "simulated" and view["mode"] == "no_table" and view["active_crc32"] is None
     assert view["patient"] is None and view["bench_state"] is not None
@@ -38,8 +39,8 @@ def test_the_leg_comes_online_and_says_it_runs_no_table(manager):
 
 def test_a_pushed_table_is_read_back_by_its_crc_and_then_run(manager, model):
     m, leg = manager
-    until(lambda: m.online(m.get(leg)), 15.0, 0.05)
+    until(lambda: m.online(m.get(leg)), 15.0, clock=m.clock)
     table = model.propose(1.2, 0.0, 75.0).table
     result = m.push(leg, table, version=1)
     assert result.crc32 == as_run(table).wire_crc32 and result.version == 1
-    until(lambda: m.view(leg)["active_crc32"] == f"{result.crc32:08x}", 15.0, 0.05)   # at its next heel strike
+    until(lambda: m.view(leg)["active_crc32"] == f"{result.crc32:08x}", 15.0, clock=m.clock)   # at its next heel strike
