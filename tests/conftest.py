@@ -22,11 +22,12 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 # what a fixture needs, as markers (pyproject.toml): `-m "not browser and not postgres and not broker and not wallclock"`
-# is the fast subset (scripts/test.sh --fast)
+# is the fast subset (scripts/test.sh --fast); `live` tests run alone on the machine after the rest
 _MARKS_BY_FIXTURE = {
     "page": ("browser", "wallclock"), "browser": ("browser", "wallclock"),
+    "server": ("wallclock", "live"),        # the browser tests' server process, with its simulated leg in real time
     "postgres": ("postgres",), "migrated_postgres": ("postgres",),
-    "broker": ("broker", "wallclock"), "broker_admin": ("broker", "wallclock"),
+    "broker": ("broker", "wallclock", "live"), "broker_admin": ("broker", "wallclock", "live"),
 }
 
 

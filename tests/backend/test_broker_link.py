@@ -24,7 +24,7 @@ from tests.helpers.api import (
 from tests.helpers.bridged_leg import bridged_leg, broker_app
 from tests.helpers.mosquitto import admin_of, running_broker
 
-pytestmark = [pytest.mark.broker, pytest.mark.wallclock]
+pytestmark = [pytest.mark.broker, pytest.mark.wallclock, pytest.mark.live]
 
 LEG = "home-leg"
 CUT_S = 3.0      # the link is down this long (the 60 s of the target is the benchmark's: python -m benchmarks link)

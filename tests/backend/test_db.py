@@ -12,7 +12,7 @@ from backend import db
 from backend.app import prepare_storage
 from backend.settings import Settings
 
-pytestmark = pytest.mark.wallclock   # a writer in another process holds the lock for a time
+pytestmark = [pytest.mark.wallclock, pytest.mark.live]   # another process holds the lock for a time
 
 HOLDER = """
 import sys, time

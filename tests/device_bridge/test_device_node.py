@@ -12,7 +12,7 @@ from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.protocol import Fault, Mode
 from tests.helpers.device import until, wall_pair
 
-pytestmark = pytest.mark.wallclock
+pytestmark = [pytest.mark.wallclock, pytest.mark.live]
 
 
 class SlowLeg:

@@ -13,7 +13,7 @@ from device_bridge.host import DeviceLink
 from device_bridge.protocol import WireTable, frame_id, is_telemetry
 from tests.helpers.device import until
 
-pytestmark = pytest.mark.wallclock   # the gateway's batching window and the leg's sample period are its subject
+pytestmark = [pytest.mark.wallclock, pytest.mark.live]   # the batching window against the leg's sample period
 
 
 def test_a_push_and_telemetry_cross_the_bridge(model):

@@ -17,7 +17,7 @@ from device_bridge.host import DeviceLink
 from device_bridge.mqtt_bus import MqttBus
 from device_bridge.protocol import Mode
 
-pytestmark = [pytest.mark.broker, pytest.mark.wallclock]
+pytestmark = [pytest.mark.broker, pytest.mark.wallclock, pytest.mark.live]
 
 
 def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_pushes_to_it(broker, broker_admin,

@@ -20,7 +20,7 @@ from backend.settings import DB_FILE
 from tests.helpers.api import FIXTURE_OVERRIDE, wait_for
 from tests.helpers.server import PASSWORD, add_user, start_server
 
-pytestmark = pytest.mark.wallclock
+pytestmark = [pytest.mark.wallclock, pytest.mark.live]
 
 DEVICE = "sim-leg-1"
 
