@@ -19,6 +19,7 @@ from tests.helpers.api import (
     push_body,
     push_to_leg,
     wait_for,
+    wait_recorded,
     walk_preview,
 )
 from tests.helpers.bridged_leg import bridged_leg, broker_app
@@ -94,6 +95,19 @@ def _stop(api, session_id: int) -> dict:
     return r.json()["summary"]
 
 
+def _stored_seqs(api, session_id: int) -> list[int]:
+    with api.db() as conn:
+        return sessions_store.samples(conn, session_id)["seq"]
+
+
+def _gap_filled(api, session_id: int) -> None:
+    """Wait until the stored samples reach past the newest live one now and run without a gap: the cut's samples,
+    delivered late, are written."""
+    resumed = api.client.app.state.devices.get(LEG).link._newest_seq      # a sample the leg sent after the cut
+    wait_for(lambda: _stored_seqs(api, session_id),
+             lambda s: bool(s) and s[-1] >= resumed and s == list(range(s[0], s[-1] + 1)), timeout_s=30.0)
+
+
 def _recorded_without_gaps(api, session_id: int, summary: dict) -> None:
     with api.db() as conn:
         seqs = sessions_store.samples(conn, session_id)["seq"]
@@ -104,7 +118,7 @@ def _recorded_without_gaps(api, session_id: int, summary: dict) -> None:
 def test_a_supervised_leg_goes_safe_when_the_link_is_cut_and_back_when_the_host_says_so(home):
     broker, leg, api = home
     session_id = _walking_session(api, leg)
-    time.sleep(1.0)
+    wait_recorded(api, session_id, 1.0)                                  # a second of walking recorded first
     modes = _cut(broker, leg, CUT_S)
     assert Mode.SAFE in modes and modes[-1] == Mode.SAFE                 # within the heartbeat timeout, and stays
     wait_for(lambda: _device(api), lambda d: d["online"], timeout_s=30.0)
@@ -114,7 +128,7 @@ def test_a_supervised_leg_goes_safe_when_the_link_is_cut_and_back_when_the_host_
     assert r.status_code == 202
     wait_for(lambda: _device(api), lambda d: d["mode"] == "active")
     wait_for(lambda: leg.far, lambda far: len(far._late_buffer) == 0, timeout_s=30.0)
-    time.sleep(1.0)
+    _gap_filled(api, session_id)
     _recorded_without_gaps(api, session_id, _stop(api, session_id))
 
 
@@ -126,13 +140,13 @@ def test_an_autonomous_leg_never_leaves_its_envelope_and_the_session_keeps_every
     session_id = _walking_session(api, leg, envelope=True)
     wait_for(lambda: _device(api), lambda d: d["link_mode_on_device"] == "autonomous")
     running = leg.node.snapshot().active.crc32
-    time.sleep(1.0)
+    wait_recorded(api, session_id, 1.0)
     modes = _cut(broker, leg, CUT_S)
     assert set(modes) == {Mode.ACTIVE} and leg.node.snapshot().active.crc32 == running   # the envelope ran on
     wait_for(lambda: _device(api), lambda d: d["online"] and "heartbeat_lost" not in d["faults"], timeout_s=30.0)
     assert _device(api)["mode"] == "active"
     wait_for(lambda: leg.far, lambda far: len(far._late_buffer) == 0, timeout_s=30.0)
-    time.sleep(1.0)
+    _gap_filled(api, session_id)
     _recorded_without_gaps(api, session_id, _stop(api, session_id))
 
 
@@ -152,10 +166,11 @@ def test_a_push_cut_mid_way_ends_whole_or_not_at_all_and_the_api_says_which(home
     time.sleep(cut_after_s)               # the transfer under way (or just done)
     broker.stop()
     pushing.join(30.0)
-    time.sleep(0.5)
+    time.sleep(0.5)                       # the broker stays down half a second
     broker.start()
-    wait_for(lambda: _device(api), lambda d: d["online"], timeout_s=30.0)
-    time.sleep(0.5)                       # a status after the link returned
+    back_unix_s = time.time()
+    wait_for(lambda: _device(api), lambda d: d["online"] and d["last_heartbeat_unix_s"] > back_unix_s + 0.2,
+             timeout_s=30.0)              # a status the leg sent after the link returned
     on_leg = leg.node.snapshot().staged_or_active_crc32()
     r = answer["r"]
     push = r.json() if r.status_code == 201 else r.json()["push"]
@@ -208,7 +223,7 @@ def test_two_instances_each_see_the_leg_and_a_session_started_on_one_is_stopped_
     session_id = r.json()["id"]
     wait_for(lambda: second.get(f"/api/devices/{LEG}", headers=pro).json(),
              lambda d: d["recording_session_id"] == session_id)              # the other instance records it too
-    time.sleep(2.5)
+    wait_recorded(api, session_id, 2.5)
     r = second.post(f"/api/sessions/{session_id}/stop", headers=pro)        # stopped where it was not started
     assert r.status_code == 200, r.text
     summary = r.json()["summary"]

@@ -6,23 +6,18 @@ import os
 import signal
 import subprocess
 import threading
-import time
 
 import httpx
 import pytest
 
+from tests.helpers.device import until
 from tests.helpers.server import PASSWORD, add_user, start_server
 
 pytestmark = pytest.mark.wallclock
 
 
 def _wait_ready(base: str, timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if httpx.get(f"{base}/api/health").json()["model"] == "ready":
-            return
-        time.sleep(0.1)
-    raise AssertionError("model not ready")
+    until(lambda: httpx.get(f"{base}/api/health").json()["model"] == "ready", timeout_s, poll_s=0.1)
 
 
 def _login(base: str, name: str, password: str = PASSWORD) -> dict[str, str]:
@@ -116,10 +111,7 @@ def test_sigkill_mid_load_loses_no_acknowledged_write(tmp_path):
     threads = [threading.Thread(target=writer, args=(i,)) for i in range(6)]
     for t in threads:
         t.start()
-    deadline = time.monotonic() + 60
-    while len(acknowledged) <= 20:                 # the load under way, by what the server acknowledged
-        assert time.monotonic() < deadline, "the load did not get going"
-        time.sleep(0.05)
+    until(lambda: len(acknowledged) > 20, 60.0, poll_s=0.05)   # the load under way, by what the server acknowledged
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
     stop.set()

@@ -6,7 +6,6 @@ from __future__ import annotations
 import itertools
 import ssl
 import threading
-import time
 
 import can
 import paho.mqtt.client as mqtt
@@ -18,6 +17,7 @@ from device_bridge.gateway import Gateway
 from device_bridge.host import DeviceLink, PushError
 from device_bridge.mqtt_bus import MqttBus, pack_frames, topic, unpack_frames
 from device_bridge.protocol import WireTable, frame_id
+from tests.helpers.device import until
 
 _ids = itertools.count()
 
@@ -112,10 +112,7 @@ def test_a_revoked_device_is_disconnected_at_once_and_refused_afterwards(broker,
     try:
         assert leg.connected
         broker_admin.revoke_device(device_id)
-        deadline = time.monotonic() + 5
-        while leg.connected and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert not leg.connected
+        until(lambda: not leg.connected, 5.0, poll_s=0.05)
     finally:
         leg.shutdown()
     with pytest.raises(can.CanInitializationError, match="could not connect"):
@@ -216,15 +213,9 @@ def test_two_server_instances_both_read_one_legs_frames(broker, broker_admin, ta
             bus = MqttBus(device_id, broker.url, name, broker_admin.add_server(name), role="server",
                           ca_file=broker.ca_file, instance=instance)
             links.append(DeviceLink(bus).start())
-        deadline = time.monotonic() + 5
-        while any(link.status is None for link in links) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert all(link.status is not None for link in links)
+        until(lambda: all(link.status is not None for link in links), 5.0, poll_s=0.05)
         links[0].push(tables[0], version=9)           # pushed through one instance, seen running by both
-        deadline = time.monotonic() + 5
-        while any(link.status.active_version != 9 for link in links) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert [link.status.active_version for link in links] == [9, 9]
+        until(lambda: [link.status.active_version for link in links] == [9, 9], 5.0, poll_s=0.05)
     finally:
         for link in links:
             link.close()

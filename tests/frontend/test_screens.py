@@ -5,11 +5,11 @@ at (artifacts/browser/screens/)."""
 from __future__ import annotations
 
 import re
-import time
 
 import pytest
 
 from tests.helpers.browser import ARTIFACTS, api_call, create_patient_and_propose, next_frames, sign_in, watch_errors
+from tests.helpers.device import until
 
 SIZES = [(1280, 800), (1024, 700), (768, 1024)]
 
@@ -30,15 +30,11 @@ def pages(server, browser) -> dict[str, str]:
         pushed = api_call(page, "POST", f"/api/proposals/{pid}/push", body)
         assert pushed["status"] == 201, pushed
         envelope = api_call(page, "POST", f"/api/patients/{patient_id}/envelopes", {"grid": [3, 3]})["body"]
-        deadline = time.monotonic() + 20
-        while api_call(page, "GET", "/api/devices/sim-leg-1")["body"]["active_crc32"] != pushed["body"]["crc32"]:
-            assert time.monotonic() < deadline
-            time.sleep(0.2)
+        until(lambda: api_call(page, "GET", "/api/devices/sim-leg-1")["body"]["active_crc32"] == pushed["body"]["crc32"],
+              20.0, poll_s=0.2)
         session = api_call(page, "POST", f"/api/patients/{patient_id}/sessions", {"device_id": "sim-leg-1"})["body"]
-        deadline = time.monotonic() + 30
-        while api_call(page, "GET", f"/api/sessions/{session['id']}/samples?every=10")["body"]["count"] < 30:
-            assert time.monotonic() < deadline                   # 3 s of the device's samples
-            time.sleep(0.2)
+        until(lambda: api_call(page, "GET", f"/api/sessions/{session['id']}/samples?every=10")["body"]["count"] >= 30,
+              30.0, poll_s=0.2)                                  # 3 s of the device's samples
         assert api_call(page, "POST", f"/api/sessions/{session['id']}/stop")["status"] == 200
     finally:
         context.close()

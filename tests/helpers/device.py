@@ -4,13 +4,12 @@ virtual bus of their own in real time where real time is the subject; and waitin
 from __future__ import annotations
 
 import itertools
-import time
 from collections.abc import Callable
 
 import can
 
 from controller_core.envelope import Envelope
-from device_bridge.clock import SteppedClock
+from device_bridge.clock import WALL_CLOCK, SteppedClock
 from device_bridge.device_node import DeviceNode
 from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.firmware import FirmwareConfig
@@ -44,10 +43,7 @@ def until(predicate: Callable[[], bool], timeout_s: float = 5.0, poll_s: float =
     if clock is not None:
         assert clock.run_until(predicate, timeout_s), f"condition not reached within {timeout_s:g} s of simulated time"
         return
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        assert time.monotonic() < deadline, "condition not reached in time"
-        time.sleep(poll_s)
+    assert WALL_CLOCK.until(predicate, timeout_s, poll_s), f"condition not reached within {timeout_s:g} s"
 
 
 def assert_same_as_device(table, device) -> None:

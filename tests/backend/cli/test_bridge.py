@@ -8,7 +8,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -16,6 +15,7 @@ from controller_core.fsmic import fsmic_table
 from device_bridge.host import DeviceLink
 from device_bridge.mqtt_bus import MqttBus
 from device_bridge.protocol import Mode
+from tests.helpers.device import until
 
 pytestmark = [pytest.mark.broker, pytest.mark.wallclock, pytest.mark.live]
 
@@ -38,10 +38,8 @@ def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_push
                                   broker_admin.add_server("cli-bridge-server"), role="server",
                                   ca_file=broker.ca_file)).start()
         result = link.push(fsmic_table(75.0), version=3)
-        deadline = time.monotonic() + 10
-        while not (link.status and link.status.mode == Mode.ACTIVE and link.status.active_crc32 == result.crc32):
-            assert time.monotonic() < deadline, "the bridged leg did not report the table running"
-            time.sleep(0.05)
+        until(lambda: link.status and link.status.mode == Mode.ACTIVE and link.status.active_crc32 == result.crc32,
+              10.0, poll_s=0.05)          # the bridged leg reports the table running
     finally:
         if link is not None:
             link.close()
