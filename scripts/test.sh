@@ -25,15 +25,15 @@ if [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   export QUASITUNE_CACHE_DIR
 fi
 pytest=(.venv/bin/python -m pytest -q)
-# the tests run in two processes (pytest-xdist, a file per process at a time) but the `live` ones (a simulated leg, a
-# broker link or threads on the wall clock: tests/README.md), which run after them alone on the machine, so that a
-# busy neighbour cannot starve a live leg's heartbeat
+# the tests run in two processes (pytest-xdist, test by test, an idle process taking work from the other) but the
+# `live` ones (a simulated leg, a broker link or threads on the wall clock: tests/README.md), which run after them
+# alone on the machine, so that a busy neighbour cannot starve a live leg's heartbeat
 if [ "$fast" -eq 1 ]; then
-  exec "${pytest[@]}" -n 2 --dist loadfile -m "not browser and not postgres and not broker and not wallclock" "$@"
+  exec "${pytest[@]}" -n 2 --dist worksteal -m "not browser and not postgres and not broker and not wallclock" "$@"
 fi
 ran=0
 status=0
-"${pytest[@]}" -n 2 --dist loadfile -m "not live" "$@" || status=$?
+"${pytest[@]}" -n 2 --dist worksteal -m "not live" "$@" || status=$?
 if [ "$status" -eq 5 ]; then status=0; else ran=1; fi       # 5: nothing selected (a path of live tests only)
 wall=0
 "${pytest[@]}" -m "live" "$@" || wall=$?

@@ -1,5 +1,5 @@
-"""Browser fixtures: one real server with the simulated leg per test module, Debian's Chromium, a page that fails
-its test on any console error the test did not provoke."""
+"""Browser fixtures: one real server with the simulated leg per test module, one Debian Chromium for the run (each
+test has a browser context of its own), a page that fails its test on any console error the test did not provoke."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def server(tmp_path_factory):
     stop_server(proc)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def browser():
     with playwright_api.sync_playwright() as pw:
         b = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS)
