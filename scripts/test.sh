@@ -18,8 +18,11 @@ if [ "$fast" -eq 0 ]; then
       mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
 fi
 .venv/bin/ruff check .
-# one fit of the default model for every process of the run (the first to need it fits and caches it)
-if [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
+# one fit of the default model for every process of the run (the first to need it fits and caches it); --fast keeps
+# it between runs (the cache is keyed by the data's and the code's hashes, so a changed model is fitted again)
+if [ "$fast" -eq 1 ] && [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
+  export QUASITUNE_CACHE_DIR="${XDG_CACHE_HOME:-$HOME/.cache}/quasitune-tests"
+elif [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   QUASITUNE_CACHE_DIR=$(mktemp -d -t quasitune-test-cache-XXXXXX)
   trap 'rm -rf "$QUASITUNE_CACHE_DIR"' EXIT
   export QUASITUNE_CACHE_DIR

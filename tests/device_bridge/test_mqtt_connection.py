@@ -14,6 +14,8 @@ from device_bridge.mqtt_connection import MqttConnection
 from tests.helpers.device import until
 from tests.helpers.mosquitto import admin_of, running_broker
 
+pytestmark = [pytest.mark.broker, pytest.mark.wallclock, pytest.mark.live]   # one test starts a broker of its own
+
 _ids = itertools.count()
 
 
