@@ -1,10 +1,12 @@
-"""Run the firmware on a CAN bus in real time: the simulated prosthesis as a device on the bus.
+"""Run the firmware on a CAN bus: the simulated prosthesis as a device on the bus.
 
 :class:`DeviceNode` owns a bus, a :class:`device_bridge.firmware.DeviceFirmware` and a leg (anything with
-``sample()`` and ``step(knee_Nm, ankle_Nm)``, e.g. :class:`device_bridge.sim.walker.SimWalker`; or none). Two threads,
-as a real device has a control timer and a receive interrupt:
+``sample()`` and ``step(knee_Nm, ankle_Nm)``, e.g. :class:`device_bridge.sim.walker.SimWalker`; or none), and reads
+the time from its clock (:mod:`device_bridge.clock`). Started, it runs two threads, as a real device has a control
+timer and a receive interrupt; in a stepped rig (:mod:`device_bridge.rig`) it runs none, and :meth:`DeviceNode.step`
+does one period of both on the rig's thread:
 
-* the **control** thread runs the 1 kHz control period against the wall clock: every :data:`WAKE_S` it runs the
+* the **control** thread runs the 1 kHz control period against its clock: every :data:`WAKE_S` it runs the
   ticks that are due, each with its own time stamp (catching up after a stall, at most 100 at a time, then slipping
   rather than racing). Waking every tick would cost a server process that hosts the simulated leg much of its
   throughput in thread switches; the physics and the firmware see the same 1 ms steps either way.

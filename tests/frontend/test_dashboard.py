@@ -336,6 +336,11 @@ def test_a_link_opened_in_a_new_tab_survives_sign_in_and_the_audit_view_lists_th
         tab.fill("#audit-filter input[name=entity_id]", str(pid))
         tab.click("#audit-filter button[type=submit]")
         tab.wait_for_selector(f"#audit-table a[href='#/proposals/{pid}']")
+        # the unfiltered table had that link too: wait for the filtered one, every row about this proposal
+        tab.wait_for_function("""(want) => {
+            const cells = [...document.querySelectorAll('#audit-table tbody td:nth-child(4)')];
+            return cells.length > 0 && cells.every(c => c.innerText.trim() === want);
+        }""", arg=f"proposal {pid}")
         concerning = tab.locator("#audit-table tbody td:nth-child(4)").all_inner_texts()
         assert concerning and set(concerning) == {f"proposal {pid}"}, concerning
         shot(tab, "17-audit-log")
