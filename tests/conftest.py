@@ -125,15 +125,17 @@ def database(request, tmp_path):
 
 
 @pytest.fixture
-def sim_api(tmp_path, model, migrated_sqlite):
+def sim_api(request, tmp_path, model, migrated_sqlite):
     """In-process API with the simulated leg (device ``sim-leg-1``) stepped with its link in simulated time: it walks
     only while something waits on ``api.clock`` (a push, :func:`tests.helpers.api.wait_for` with ``clock=api.clock``,
-    ``api.clock.advance``). One signed-in user per role."""
+    ``api.clock.advance``). One signed-in user per role. Parametrized indirectly with ``"wall"`` (marked ``live``), the
+    leg runs on its own threads against the wall clock as ``quasitune serve`` runs it, and ``api.clock`` is None."""
     from device_bridge.clock import SteppedClock
     from tests.helpers.api import make_api
 
+    clock = None if getattr(request, "param", "stepped") == "wall" else SteppedClock()
     api, _client = make_api(tmp_path, lambda: model, device="sim", viewer3d=True, template=migrated_sqlite,
-                            clock=SteppedClock())
+                            clock=clock)
     yield api
     api.client.app.state.viewers.close()
     api.client.app.state.devices.close()
