@@ -129,11 +129,8 @@ class SteppedClock:
             self.step()
 
     def until(self, done: Callable[[], bool], timeout_s: float, poll_s: float = 0.0) -> bool:
-        return self.run_until(done, timeout_s)
-
-    def run_until(self, done: Callable[[], bool], timeout_s: float) -> bool:
         """Step until ``done()`` holds (checked before each step) or ``timeout_s`` of simulated time passed; whether
-        it holds."""
+        it holds (``poll_s`` is the wall clock's: here every step is a look)."""
         deadline = self.steps + max(0, round(timeout_s / self.step_s))
         while not done():
             if self.steps >= deadline:
@@ -142,9 +139,9 @@ class SteppedClock:
         return True
 
     def wait(self, stop: threading.Event, timeout_s: float) -> bool:
-        return self.run_until(stop.is_set, timeout_s)
+        return self.until(stop.is_set, timeout_s)
 
     def get(self, items: queue.Queue[T], timeout_s: float) -> T:
-        if not self.run_until(lambda: not items.empty(), timeout_s):
+        if not self.until(lambda: not items.empty(), timeout_s):
             raise queue.Empty
         return items.get_nowait()

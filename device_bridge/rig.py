@@ -109,7 +109,7 @@ class Rig:
 
     def run_until(self, done: Callable[[], bool], timeout_s: float = 5.0) -> None:
         """Step until ``done()`` holds; AssertionError (a test's failure) after ``timeout_s`` simulated seconds."""
-        if not self.clock.run_until(done, timeout_s):
+        if not self.clock.until(done, timeout_s):
             raise AssertionError(f"condition not reached within {timeout_s:g} s of simulated time")
 
     def close(self) -> None:

@@ -95,12 +95,11 @@ class DeviceManager:
                          "on_late_telemetry": lambda x, d=dev: self._on_late_telemetry(d, x)}
             if spec.kind == "simulated":
                 dev.walker = SimWalker(self._bench_leg)
-            if spec.kind == "simulated" and isinstance(self.clock, SteppedClock):   # leg and link on one thread
-                rig = Rig(leg=dev.walker, clock=self.clock, keep_frames=False, **callbacks)
-                dev.node, dev.link = rig.node, rig.link
-                self._devices[spec.device_id] = dev
-                continue
-            if spec.kind == "simulated":
+                if isinstance(self.clock, SteppedClock):   # leg and link on one thread, moved by whoever waits
+                    rig = Rig(leg=dev.walker, clock=self.clock, keep_frames=False, **callbacks)
+                    dev.node, dev.link = rig.node, rig.link
+                    self._devices[spec.device_id] = dev
+                    continue
                 dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker,
                                       clock=self.clock).start()
             bus = can.Bus(interface=spec.interface, channel=spec.channel, **self._bus_options.get(spec.interface, {}))

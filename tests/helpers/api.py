@@ -16,7 +16,7 @@ from backend.db import connect
 from backend.settings import Settings
 from backend.store.tables import metadata
 from backend.store.users import ROLES, create_user
-from device_bridge.clock import SteppedClock
+from device_bridge.clock import WALL_CLOCK, SteppedClock
 from tests.helpers.server import PASSWORD
 
 DEVICE = "sim-leg-1"   # the simulated leg of an app made with device="sim"
@@ -86,19 +86,12 @@ def wait_for(fetch: Callable[[], object], predicate: Callable[[object], bool], t
              clock: SteppedClock | None = None):
     """Call ``fetch`` until ``predicate`` holds for its value (returned); fail with the last value after the timeout.
     With a stepped ``clock`` (an app's simulated leg) each poll moves it on 20 ms and the timeout is simulated time."""
-    if clock is not None:
-        deadline = clock.monotonic() + timeout_s
-        while not predicate(value := fetch()):
-            assert clock.monotonic() < deadline, f"condition not reached in {timeout_s:g} simulated s; last {value}"
-            clock.advance(0.02)
-        return value
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = fetch()
-        if predicate(value):
-            return value
-        assert time.monotonic() < deadline, f"condition not reached; last value {value}"
-        time.sleep(0.02)
+    time_of, pause = (WALL_CLOCK, time.sleep) if clock is None else (clock, clock.advance)
+    deadline = time_of.monotonic() + timeout_s
+    while not predicate(value := fetch()):
+        assert time_of.monotonic() < deadline, f"condition not reached in {timeout_s:g} s; last value {value}"
+        pause(0.02)
+    return value
 
 
 def wait_recorded(api: Api, session_id: int, seconds: float, timeout_s: float = 60.0) -> None:
@@ -106,16 +99,12 @@ def wait_recorded(api: Api, session_id: int, seconds: float, timeout_s: float = 
     On a stepped app the simulated leg walks half a second between looks; otherwise they come twice a second of real
     time (a busier poll would take the in-process leg's interpreter time and change what it walks)."""
     wanted = round(seconds * 100 / 100)
-    clock = api.clock
-    deadline = time.monotonic() + timeout_s if clock is None else clock.monotonic() + timeout_s
+    time_of, pause = (WALL_CLOCK, time.sleep) if api.clock is None else (api.clock, api.clock.advance)
+    deadline = time_of.monotonic() + timeout_s
     while api.client.get(f"/api/sessions/{session_id}/samples", params={"every": 100},
                          headers=api.as_("viewer")).json()["count"] < wanted:
-        if clock is None:
-            assert time.monotonic() < deadline, f"{seconds} s of samples not recorded in {timeout_s} s"
-            time.sleep(0.5)
-        else:
-            assert clock.monotonic() < deadline, f"{seconds} s of samples not recorded in {timeout_s} simulated s"
-            clock.advance(0.5)
+        assert time_of.monotonic() < deadline, f"{seconds} s of samples not recorded in {timeout_s} s"
+        pause(0.5)
 
 
 # approving an envelope needs its bench preview (about ten seconds of the mixed course) or a written override; the

@@ -40,10 +40,8 @@ def until(predicate: Callable[[], bool], timeout_s: float = 5.0, poll_s: float =
     """Wait for ``predicate`` to hold; fail after ``timeout_s``. On a rig's ``clock`` the wait steps the rig (simulated
     seconds); without one it asks every ``poll_s`` of real time (poll slowly where a simulated leg shares the
     interpreter with the test: it would otherwise be starved)."""
-    if clock is not None:
-        assert clock.run_until(predicate, timeout_s), f"condition not reached within {timeout_s:g} s of simulated time"
-        return
-    assert WALL_CLOCK.until(predicate, timeout_s, poll_s), f"condition not reached within {timeout_s:g} s"
+    where = "s" if clock is None else "s of simulated time"
+    assert (clock or WALL_CLOCK).until(predicate, timeout_s, poll_s), f"condition not reached within {timeout_s:g} {where}"
 
 
 def assert_same_as_device(table, device) -> None:
