@@ -10,7 +10,10 @@ does one period of both on the rig's thread:
   ticks that are due, each with its own time stamp (catching up after a stall, at most 100 at a time, then slipping
   rather than racing). Waking every tick would cost a server process that hosts the simulated leg much of its
   throughput in thread switches; the physics and the firmware see the same 1 ms steps either way.
-* the **receive** thread hands every frame to the firmware as it arrives and sends the answer at once.
+* the **receive** thread takes every frame off the bus as it arrives, stamped with its arrival time, and hands it to
+  the firmware at once (sending the answer) when the control thread is between batches; else the control thread
+  hands it over before its next tick, as a firmware's main loop empties the receive interrupt's buffer. A control
+  loop catching up after a stall therefore never starves the reception of the host's heartbeat.
 
 The control loop never parses a frame, so nothing a frame does can stop it; the firmware itself fails safe in both
 (an error in reception aborts that transfer, an error in control puts the leg in safe mode), and each thread logs and
@@ -80,6 +83,7 @@ class DeviceNode(BusThreads):
         # device's word and record the push lost); sending under the firmware lock instead starved the receive loop.
         self._outbox: deque[can.Message] = deque()
         self._send_lock = threading.Lock()
+        self._inbox: deque[tuple[can.Message, float]] = deque()   # frames received, not yet handed to the firmware
         super().__init__([bus], join_timeout_s=2.0)
         self._threads = [threading.Thread(target=self._guarded, args=(self._control_loop,), name="device-control",
                                           daemon=True),
@@ -111,9 +115,16 @@ class DeviceNode(BusThreads):
                 log.exception("device node: %s failed; carrying on", threading.current_thread().name)
                 self.clock.wait(self._stop, TICK_S)
 
+    def _hand_over(self) -> None:
+        """Hand every received frame to the firmware, oldest first, each at its arrival time (hold ``_lock``)."""
+        while self._inbox:
+            msg, arrived_s = self._inbox.popleft()
+            self._outbox.extend(self.firmware.receive(msg, arrived_s))
+
     def control_tick(self, now_s: float) -> None:
         """One control period at ``now_s`` (s): read the leg, run the firmware, drive the leg; the frames it made are
         queued (call :meth:`_send`, or :meth:`step`)."""
+        self._hand_over()
         leg = self.leg
         sample = leg.sample() if leg is not None else None
         knee, ankle, frames = self.firmware.tick(sample, now_s)
@@ -162,5 +173,12 @@ class DeviceNode(BusThreads):
                 if self._stop.is_set():
                     return
                 raise
-            if msg is not None:
-                self.handle(msg, self.clock.monotonic())
+            if msg is None:
+                continue
+            self._inbox.append((msg, self.clock.monotonic()))
+            if self._lock.acquire(blocking=False):      # else the control loop hands it over before its next tick
+                try:
+                    self._hand_over()
+                finally:
+                    self._lock.release()
+                self._send()

@@ -27,20 +27,11 @@ elif [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   trap 'rm -rf "$QUASITUNE_CACHE_DIR"' EXIT
   export QUASITUNE_CACHE_DIR
 fi
-pytest=(.venv/bin/python -m pytest -q)
-# the tests run in two processes (pytest-xdist, test by test, an idle process taking work from the other) but the
-# `live` ones (a simulated leg, a broker link or threads on the wall clock: tests/README.md), which run after them
-# alone on the machine, so that a busy neighbour cannot starve a live leg's heartbeat
+pytest=(.venv/bin/python -m pytest -q -n 2)
+# two processes (pytest-xdist); every `live` test (a simulated leg, a broker link or threads on the wall clock:
+# tests/README.md) goes to one of them, one after the other (`--dist loadgroup`, tests/conftest.py), so that never two
+# live legs or browsers share the machine, while the other process works through the rest
 if [ "$fast" -eq 1 ]; then
-  exec "${pytest[@]}" -n 2 --dist worksteal -m "not browser and not postgres and not broker and not wallclock" "$@"
+  exec "${pytest[@]}" --dist worksteal -m "not browser and not postgres and not broker and not wallclock" "$@"
 fi
-ran=0
-status=0
-"${pytest[@]}" -n 2 --dist worksteal -m "not live" "$@" || status=$?
-if [ "$status" -eq 5 ]; then status=0; else ran=1; fi       # 5: nothing selected (a path of live tests only)
-wall=0
-"${pytest[@]}" -m "live" "$@" || wall=$?
-if [ "$wall" -eq 5 ]; then wall=0; else ran=1; fi
-if [ "$ran" -eq 0 ]; then echo "no test selected" >&2; exit 5; fi
-[ "$status" -ne 0 ] && exit "$status"
-exit "$wall"
+exec "${pytest[@]}" --dist loadgroup "$@"

@@ -159,8 +159,11 @@ class DeviceManager:
     def ids(self) -> list[str]:
         return list(self._devices)
 
-    def online(self, dev: ManagedDevice) -> bool:
-        return dev.status is not None and self.clock.monotonic() - dev.status.received_monotonic_s <= ONLINE_WITHIN_S
+    def online(self, dev: ManagedDevice, status: DeviceStatus | None = None) -> bool:
+        """Whether the device reported within :data:`ONLINE_WITHIN_S`; ``status``: judge this snapshot of its status
+        (a view reads the status once, so that "online" and the mode it shows come from the same frame)."""
+        s = dev.status if status is None else status
+        return s is not None and self.clock.monotonic() - s.received_monotonic_s <= ONLINE_WITHIN_S
 
     def _table(self, conn: Connection, dev: ManagedDevice, version: int | None,
                crc32: int | None) -> dict | None:
@@ -191,7 +194,7 @@ class DeviceManager:
             "patient": patient, "active_table": active, "pending_table": pending,
             "body_mass_mismatch": mass_mismatch(active, patient),
             "id": dev.spec.device_id, "kind": dev.spec.kind, "interface": dev.spec.interface,
-            "channel": dev.spec.channel, "online": self.online(dev),
+            "channel": dev.spec.channel, "online": self.online(dev, s),
             "mode": None if s is None else s.mode.name.lower(),
             "safe_mode": s is not None and s.mode.name == "SAFE",
             "fsm_state": None if s is None else s.fsm_state,

@@ -66,7 +66,7 @@ def test_telemetry_waits_for_the_window_and_anything_else_leaves_at_once():
                 leg.send(can.Message(arbitration_id=i, data=bytes(8), is_extended_id=False))
             time.sleep(0.01)
         leg.send(can.Message(arbitration_id=status, data=bytes(8), is_extended_id=False))
-        time.sleep(0.05)
+        until(lambda: any(status in m for m in far.messages))        # forwarded at once, with what it joined
         for i in sample:
             leg.send(can.Message(arbitration_id=i, data=bytes(8), is_extended_id=False))
         until(lambda: sum(map(len, far.messages)) == 7 * 3 + 1)
