@@ -25,15 +25,16 @@ def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_push
     credentials = tmp_path / "leg.json"
     credentials.write_text(json.dumps({"username": "cli-bridge-leg", "password": broker_admin.add_device("cli-bridge-leg"),
                                        "ca_file": broker.ca_file}))
+    err = (tmp_path / "stderr.txt").open("w")      # a file, not a pipe: a full pipe would stop the bridge
     proc = subprocess.Popen([sys.executable, "-m", "backend.cli", "bridge", "--can", "sim", "--broker", broker.url,
                              "--device-id", "cli-bridge-leg", "--credentials", str(credentials),
                              "--buffer", str(tmp_path / "late.sqlite"), "--buffer-mb", "4"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                            stdout=subprocess.PIPE, stderr=err, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONFAULTHANDLER": "1"})
     link = None
     try:
         line = proc.stdout.readline()
-        assert "QuasiTune bridge: sim <->" in line and "at most 4 MiB" in line, proc.stderr.read()
+        assert "QuasiTune bridge: sim <->" in line and "at most 4 MiB" in line, (tmp_path / "stderr.txt").read_text()
         link = DeviceLink(MqttBus("cli-bridge-leg", broker.url, "cli-bridge-server",
                                   broker_admin.add_server("cli-bridge-server"), role="server",
                                   ca_file=broker.ca_file)).start()
@@ -43,9 +44,21 @@ def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_push
     finally:
         if link is not None:
             link.close()
-        proc.send_signal(signal.SIGINT)
-        proc.wait(10)
+        _interrupt(proc, tmp_path / "stderr.txt")
+        err.close()
     assert (tmp_path / "late.sqlite").exists()
+
+
+def _interrupt(proc: subprocess.Popen, stderr) -> None:
+    """Ctrl-C, and the bridge stops cleanly; one that does not is aborted and its threads' stacks are the failure."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(30)
+    except subprocess.TimeoutExpired:
+        proc.send_signal(signal.SIGABRT)          # PYTHONFAULTHANDLER: every thread's stack to stderr
+        proc.wait(10)
+        raise AssertionError("the bridge did not stop after Ctrl-C:\n" + stderr.read_text()[-6000:]) from None
+    assert proc.returncode == 0, stderr.read_text()[-3000:]
 
 
 def test_a_bridge_refuses_a_buffer_bound_that_is_not_a_size(tmp_path):
