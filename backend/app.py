@@ -33,6 +33,7 @@ from backend.routers import (
     device_credentials,
     devices,
     envelopes,
+    gate,
     health,
     patients,
     previews,
@@ -175,7 +176,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
 
     for router in (health.router, auth.router, users.router, patients.router, proposals.router, envelopes.router,
                    previews.router, reference.router, pushes.router, sessions.router, devices.router, audit.router,
-                   refinements.router, device_credentials.router):
+                   refinements.router, device_credentials.router, gate.router):
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)

@@ -14,6 +14,7 @@ one step.
 from __future__ import annotations
 
 import contextlib
+import logging
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -41,6 +42,8 @@ from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.walker import SimWalker
 
 ONLINE_WITHIN_S = 1.0        # a device whose status is older than this is offline
+log = logging.getLogger(__name__)
+WITHDRAWAL_RECHECK_S = 5.0   # a leg reporting the same thing is checked again for a withdrawal (another instance's)
 LINK_MODE_RESEND_S = 0.5     # a device still reporting another lost-link mode is sent the choice again after this
 STORED_VIEW_MAX_AGE_S = 1.0  # a live stream's statuses show the assignment and tables as read at most this long ago
 _LINK_COMMANDS = {"supervised": Command.LINK_SUPERVISED, "autonomous": Command.LINK_AUTONOMOUS}
@@ -64,6 +67,7 @@ class ManagedDevice:
     link_mode: str = "supervised"                           # the stored lost-link choice as this process last read it
     link_mode_sent_s: float = float("-inf")                 # monotonic s the choice was last sent to the device
     stored: tuple | None = None                             # (status key, monotonic s, parts) of the last stored read
+    withdrawal_checked: tuple = (None, float("-inf"))       # (status key, wall monotonic s) last checked for a withdrawal
 
 
 class DeviceManager:
@@ -79,6 +83,7 @@ class DeviceManager:
         self._devices: dict[str, ManagedDevice] = {}
         self._heartbeats: HeartbeatClock | None = None   # one heartbeat thread for the legs of a shared broker connection
         self.recorder = SessionRecorder(db, tuple(spec.device_id for spec in specs), clock=clock)
+        self._withdrawals = 0     # counts withdrawals made through this process
 
     def start(self) -> DeviceManager:
         with pooled(self.db) as conn:
@@ -189,7 +194,7 @@ class DeviceManager:
         dev = self.get(device_id)
         s = dev.status
         age = None if s is None else round(self.clock.monotonic() - s.received_monotonic_s, 3)
-        patient, active, pending, link_mode = self._stored(dev, 0.0 if fresh else STORED_VIEW_MAX_AGE_S)
+        patient, active, pending, link_mode, notice = self._stored(dev, 0.0 if fresh else STORED_VIEW_MAX_AGE_S)
         return {
             "patient": patient, "active_table": active, "pending_table": pending,
             "body_mass_mismatch": mass_mismatch(active, patient),
@@ -211,6 +216,7 @@ class DeviceManager:
             "bench_task": _bench_task(dev.walker),
             "recording_session_id": self.recorder.session_of(device_id),
             "link_mode": link_mode,
+            "withdrawal_notice": notice,
             "link_mode_on_device": None if s is None else s.link_mode.name.lower(),
             "telemetry_samples_received": 0 if dev.link is None else dev.link.telemetry_received,
             "telemetry_samples_missing": 0 if dev.link is None else dev.link.telemetry_missing,
@@ -230,7 +236,8 @@ class DeviceManager:
             active = None if s is None else self._table(conn, dev, s.active_version, s.active_crc32)
             pending = None if s is None else self._table(conn, dev, s.pending_version, None)
             link_mode = devices_store.link_mode(conn, dev.spec.device_id)   # another instance may have changed it
-        dev.stored = (key, now, (patient, active, pending, link_mode))
+            notice = None if s is None else _withdrawal_notice(conn, dev.spec.device_id, s)
+        dev.stored = (key, now, (patient, active, pending, link_mode, notice))
         return dev.stored[2]
 
     def on_leg(self, conn: Connection, device_id: str, running_only: bool = False) -> dict:
@@ -335,6 +342,28 @@ class DeviceManager:
             with contextlib.suppress(can.CanError):   # a full or closed bus: the next status tries again
                 dev.link.command(_LINK_COMMANDS[dev.link_mode])
 
+    def withdrawn(self) -> None:
+        """A version was withdrawn: every leg's next status is checked for it (:meth:`_refuse_withdrawn`)."""
+        self._withdrawals += 1
+
+    def _refuse_withdrawn(self, dev: ManagedDevice, status: DeviceStatus) -> None:
+        """A leg that runs a withdrawn version, with nothing else on its way to it, is put in safe mode (a leg that was
+        offline when it was withdrawn, or whose return to an earlier version failed). Checked when its report or the
+        withdrawals change, and every :data:`WITHDRAWAL_RECHECK_S` (another instance may have withdrawn it)."""
+        key = (_running(status), status.pending_version, status.mode, self._withdrawals)
+        now = WALL_CLOCK.monotonic()
+        if (key == dev.withdrawal_checked[0] and now - dev.withdrawal_checked[1] < WITHDRAWAL_RECHECK_S) \
+                or status.mode.name == "SAFE" or status.active_version is None or dev.in_flight or dev.link is None:
+            return
+        dev.withdrawal_checked = (key, now)
+        with pooled(self.db) as conn:
+            active = pushes_store.push_of_version(conn, dev.spec.device_id, status.active_version, status.active_crc32)
+            pending = pushes_store.push_of_version(conn, dev.spec.device_id, status.pending_version)
+        if active is not None and active["withdrawal"] is not None and (pending is None or pending["withdrawal"]):
+            log.warning("device %s runs %s, which was withdrawn: safe mode", dev.spec.device_id, active["label"])
+            with contextlib.suppress(can.CanError):   # a full or closed bus: the next status tries again
+                dev.link.command(Command.ENTER_SAFE_MODE)
+
     def start_recording(self, device_id: str, session_id: int, reference: WalkingReference | None,
                         mass_kg: float, course: Course | None = None) -> None:
         """Record the device's telemetry into ``session_id``; a simulated leg starts walking at the task, or walks
@@ -386,6 +415,7 @@ class DeviceManager:
             dev.reconciled = key
         self.recorder.note_status(dev.spec.device_id, status.mode.name.lower(), active)
         self._apply_link_mode(dev, status)
+        self._refuse_withdrawn(dev, status)
         if dev.fanout:
             dev.fanout.publish({"type": "status", **self.view(dev.spec.device_id, fresh=False)})
 
@@ -409,6 +439,23 @@ def _sample_row(x: TelemetrySample) -> tuple:
 
 
 MASS_MISMATCH = 0.05   # a table built for a body mass more than 5 % from the patient's current one is flagged
+
+
+def _withdrawal_notice(conn: Connection, device_id: str, s: DeviceStatus) -> dict | None:
+    """What the monitor says about a withdrawal on this leg: it runs a withdrawn version (and is put in safe mode), or
+    what it runs or will run was sent back because the version before was withdrawn (which, by whom, why)."""
+    active = pushes_store.push_of_version(conn, device_id, s.active_version, s.active_crc32)
+    pending = pushes_store.push_of_version(conn, device_id, s.pending_version)
+    if active is not None and active["withdrawal"] is not None and (pending is None or pending["withdrawal"]):
+        w = active["withdrawal"]
+        return {"state": "runs_withdrawn", "label": active["label"], **w,
+                "words": f"{active['label']} was withdrawn by {w['by']} ({w['reason']}): the leg is put in safe mode"}
+    for push in (pending, active):
+        if push is not None and push["sent_back_reason"]:
+            return {"state": "sent_back", "label": push["label"], "by": push["requested_by"], "at": push["requested_at"],
+                    "reason": push["sent_back_reason"],
+                    "words": f"sent back to {push['label']}: {push['sent_back_reason']}"}
+    return None
 
 
 def mass_differs(built_kg: float, now_kg: float) -> bool:

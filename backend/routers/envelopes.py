@@ -22,7 +22,7 @@ from backend.schemas.envelopes import (
 )
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
-from backend.store import bench_verdict, envelopes, patients, pushes
+from backend.store import bench_verdict, envelopes, patients, pushes, withdrawals
 from backend.task_range import extrapolation_reason
 from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
@@ -69,7 +69,8 @@ def _with_state(conn: Connection, shown: dict) -> dict:
     """The version's view ``shown`` (its ``id`` and ``envelope_sha256`` are read) and what the page shows beside it: where it
     runs, and the bench's verdict on exactly its content."""
     return {**shown, "deployment": pushes.deployment_state(conn, ("envelope", shown["id"])),
-            "bench": bench_verdict.verdict(conn, "envelope", shown)}
+            "bench": bench_verdict.verdict(conn, "envelope", shown),
+            "withdrawal": withdrawals.withdrawal(conn, "envelope", shown["id"])}
 
 
 @router.get("/envelopes/{envelope_id}/nodes/{i}/{j}", response_model=EnvelopeNodeOut, responses=NOT_FOUND)

@@ -18,7 +18,7 @@ from backend.schemas.proposals import (
     ProposalOut,
     ProposalRequest,
 )
-from backend.store import bench_verdict, patients, proposals, pushes
+from backend.store import bench_verdict, patients, proposals, pushes, withdrawals
 from backend.task_range import extrapolation_reason
 from controller_core.table_edit import EditError, edit_table
 from device_bridge.as_run import as_run
@@ -64,7 +64,8 @@ def _with_state(conn: Connection, shown: dict) -> dict:
     """The version's view ``shown`` (its ``id`` and ``table_sha256`` are read) and what the page shows beside it: where it
     runs, and the bench's verdict on exactly its content."""
     return {**shown, "deployment": pushes.deployment_state(conn, ("proposal", shown["id"])),
-            "bench": bench_verdict.verdict(conn, "proposal", shown)}
+            "bench": bench_verdict.verdict(conn, "proposal", shown),
+            "withdrawal": withdrawals.withdrawal(conn, "proposal", shown["id"])}
 
 
 @router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,

@@ -15,7 +15,7 @@ from backend.errors import ConflictError, DeviceError, InvalidError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.pushes import PushOut, PushRequest
-from backend.store import bench_verdict, envelopes, patients, proposals
+from backend.store import bench_verdict, envelopes, patients, proposals, withdrawals
 from backend.store import devices as devices_store
 from backend.store import pushes as store
 from backend.store.users import User
@@ -78,6 +78,10 @@ def _push(conn: Connection, devices: DeviceManager, user: User, body: PushReques
     kind, item_id = item
     if row["status"] != "approved":
         raise ConflictError(f"{kind} {item_id} is {row['status']}; only approved {kind}s can be pushed")
+    taken_back = withdrawals.withdrawal(conn, kind, item_id)
+    if taken_back is not None:
+        raise ConflictError(f"{kind} {item_id} was withdrawn by {taken_back['by']} at {taken_back['at']} "
+                            f"(“{taken_back['reason']}”) and is never pushed again; derive a new version instead")
     devices.get(body.device_id)
     mass_overridden = _check_patient(conn, row, body.device_id, "table" if kind == "proposal" else "envelope",
                                      body.override_reason)
@@ -87,8 +91,8 @@ def _push(conn: Connection, devices: DeviceManager, user: User, body: PushReques
                             violations=[v.model_dump() for v in violations])
     if crc is None:
         raise InvalidError(f"{kind} {item_id} cannot be sent: a value does not fit the link")
-    _, override = bench_verdict.require_bench(conn, kind, row, body.override_reason, "pushed")
-    override = override or (body.override_reason if mass_overridden else None)
+    _, signed_off = bench_verdict.require_bench(conn, kind, row, body.override_reason, "pushed", user)
+    override = body.override_reason if signed_off or mass_overridden else None
     with devices.push_slot(body.device_id):
         _check_replaces(conn, devices, body)
         if not devices.online(devices.get(body.device_id)):

@@ -53,6 +53,19 @@ class MassMismatch(BaseModel):
     message: str
 
 
+class WithdrawalNotice(BaseModel):
+    """A withdrawal that concerns what this leg runs (``backend/routers/gate.py``)."""
+
+    state: Literal["runs_withdrawn", "sent_back"] = Field(
+        description="runs_withdrawn: the leg reports a withdrawn version running (it is put in safe mode); sent_back: "
+                    "what it runs or will run was sent because the version before it was withdrawn")
+    label: str = Field(description="runs_withdrawn: the withdrawn version; sent_back: the version sent back to")
+    by: str
+    at: str
+    reason: str
+    words: str = Field(description="the monitor's line")
+
+
 class BenchTask(BaseModel):
     speed_mps: float
     incline_deg: float
@@ -92,6 +105,8 @@ class DeviceOut(BaseModel):
                                                      "(ground truth for the leg's own estimate)")
     recording_session_id: int | None
     link_mode: LinkModeName = Field(description="the prosthetist's choice of what a lost link does to this leg")
+    withdrawal_notice: WithdrawalNotice | None = Field(
+        default=None, description="a withdrawal that concerns what the leg runs, for the monitor")
     link_mode_on_device: LinkModeName | None = Field(
         description="what the device reports it does (null before its first status); the server sends the choice "
                     "whenever the two differ")

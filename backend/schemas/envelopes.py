@@ -13,6 +13,7 @@ from backend.schemas.common import (
     Text,
     require_reason_to_extrapolate,
 )
+from backend.schemas.gate import Withdrawal
 from backend.schemas.proposals import (
     BenchVerdict,
     Boundaries,
@@ -114,6 +115,8 @@ class EnvelopeListItem(DecidedVersion):
 
 class EnvelopeOut(EnvelopeSummary):
     bench: BenchVerdict | None = Field(default=None, description="the bench's verdict on exactly this envelope")
+    withdrawal: Withdrawal | None = Field(default=None, description="the approved envelope was withdrawn: never "
+                                                                    "pushed again; by whom, when, why")
     deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
                         "push_failed"] | None = Field(
         default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it")

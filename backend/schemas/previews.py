@@ -32,7 +32,7 @@ class SafetyFlag(BaseModel):
     """One safety figure of this table's walk outside its bound (backend/bench/safety_figures.py)."""
 
     figure: str = Field(description="the summary key, e.g. toe_catches, loaded_swing_ms_per_stride")
-    severity: Literal["bad", "warn"]
+    severity: Literal["bad"] = Field(description="every figure beyond its bound gates approval and push")
     value: float
     fsmic_value: float | None = Field(description="the FSMIC's figure on the same bench walk")
     unit: str

@@ -15,6 +15,7 @@ from backend.schemas.common import (
     Text,
     require_reason_to_extrapolate,
 )
+from backend.schemas.gate import Signoff, Withdrawal
 from controller_core.table import LimitViolation, SafetyLimits, Thresholds
 from controller_core.task import SPEED_RANGE_MPS
 
@@ -72,7 +73,7 @@ class DecisionRequest(StrictIn):
 
 class BenchFlag(BaseModel):
     figure: str
-    severity: Literal["bad", "warn"]
+    severity: Literal["bad"] = Field(description="every figure beyond its bound gates approval and push")
     value: float | int
     fsmic_value: float | int | None
     unit: str
@@ -85,17 +86,22 @@ class BenchFigure(BaseModel):
     unit: str
     value: float | int | None
     fsmic_value: float | int | None
-    severity: Literal["bad", "warn"] | None = Field(description="its flag, or null within its bound")
+    severity: Literal["bad"] | None = Field(description="'bad': beyond its bound (gates approval and push); null "
+                                                        "within it")
 
 
 class BenchVerdict(BaseModel):
     """The bench's verdict on exactly this version's content: its stored preview's safety flags."""
 
-    status: Literal["clean", "warnings", "unsafe", "not_walked"]
+    status: Literal["clean", "unsafe", "not_walked"] = Field(
+        description="unsafe: a figure beyond its bound; approval and push then need two prosthetists' sign-offs")
     flags: list[BenchFlag]
     figures: list[BenchFigure] = Field(default_factory=list, description="every safety figure of the walk beside the "
                                                                          "FSMIC's (empty before it is walked)")
     words: str = Field(description="for the chip beside 'within parameter limits'")
+    signoffs: list[Signoff] = Field(default_factory=list, description="prosthetists' sign-offs on this content's "
+                                                                      "findings: approval and push need signoffs_needed")
+    signoffs_needed: int = Field(default=2, description="sign-offs by distinct prosthetists that override the gate")
 
 
 class Task(BaseModel):
@@ -224,6 +230,8 @@ class ProposalListItem(DecidedVersion):
 
 class ProposalOut(ProposalSummary):
     bench: BenchVerdict | None = Field(default=None, description="the bench's verdict on exactly this table")
+    withdrawal: Withdrawal | None = Field(default=None, description="the approved table was withdrawn: never pushed "
+                                                                    "again; by whom, when, why")
     deployment: Literal["pushed", "active_on_device", "unconfirmed", "replaced", "not_on_device",
                         "push_failed"] | None = Field(
         default=None, description="from its pushes: active_on_device once a device read back its CRC and runs it; "

@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 
 from backend.schemas.common import OverrideReason, StrictIn
 from backend.schemas.devices import DeviceId
+from backend.schemas.gate import Withdrawal
 
 
 class PushRequest(StrictIn):
@@ -38,7 +39,11 @@ class PushOut(BaseModel):
     body_mass_kg: float = Field(description="the body mass the table or envelope was built for (kg)")
     override_reason: str | None = Field(default=None, description="pushed without a clean bench preview: why")
     approval_override: str | None = Field(
-        default=None, description="the version was approved without a clean bench preview: why")
+        default=None, description="the version was approved without a clean bench preview: the two prosthetists' "
+                                  "sign-offs, 'name: reason; name: reason'")
+    withdrawal: Withdrawal | None = Field(default=None, description="the version was withdrawn: by whom, when, why")
+    sent_back_reason: str | None = Field(
+        default=None, description="sent by the server because the version the leg ran before was withdrawn")
     extrapolation_reason: str | None = Field(
         default=None, description="requested beyond the tasks the model knows: the prosthetist's written reason")
     table_version: int = Field(description="the device's own version number for this push (16-bit, per device)")

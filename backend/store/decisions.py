@@ -31,8 +31,9 @@ def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, com
         entity: ``proposal`` or ``envelope``.
         recheck: the check of the stored content an approval must pass (run only to approve).
         checked_against: what ``recheck`` checks, for the refusal (e.g. "the safety limits").
-        override_reason: an approval without a clean bench preview goes ahead only with this written reason
-            (:mod:`backend.store.bench_verdict`); kept with the decision and audited.
+        override_reason: an approval without a clean bench preview goes ahead only when two prosthetists signed off
+            its findings; this reason is the approver's own sign-off when theirs is the second
+            (:mod:`backend.store.bench_verdict`). Who signed off and why is kept with the decision and audited.
 
     Raises:
         ConflictError: already decided, an approval whose content fails ``recheck``, or one the bench's verdict
@@ -50,7 +51,8 @@ def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, com
             raise ConflictError(f"{entity} {row['id']} cannot be approved: {len(violations)} value(s) outside "
                                 f"{checked_against}: " + "; ".join(v.message for v in violations),
                                 violations=[v.model_dump() for v in violations])
-        verdict, override = require_bench(conn, entity, row, override_reason, "approved")   # type: ignore[arg-type]
+        verdict, override = require_bench(conn, entity, row, override_reason, "approved",   # type: ignore[arg-type]
+                                          actor)
         bench = verdict["status"]
     table = TABLES[entity]
     taken = conn.execute(update(table).where(table.c.id == row["id"], table.c.status == "draft").values(

@@ -21,10 +21,11 @@ from backend.store import audit, devices
 from backend.store.dialect import json_of, unique_violation
 from backend.store.envelopes import envelope_label
 from backend.store.proposals import table_label
-from backend.store.tables import envelopes, patients, proposals, pushes, users
+from backend.store.tables import envelopes, patients, proposals, pushes, users, withdrawals
 from backend.store.users import User
 
 _pu, _pr, _en = pushes, proposals, envelopes
+_wp, _we, _wu = withdrawals.alias("wp"), withdrawals.alias("we"), users.alias("wu")
 _PUSH_SELECT = (
     select(_pu, users.c.username.label("requested_by_name"), _pr.c.version.label("proposal_version"),
            _en.c.version.label("envelope_version"),
@@ -36,10 +37,16 @@ _PUSH_SELECT = (
            .label("incline_deg"),
            func.coalesce(_pr.c.body_mass_kg, _en.c.body_mass_kg).label("built_for_mass_kg"),
            func.coalesce(_pr.c.decision_override, _en.c.decision_override).label("approval_override"),
-           func.coalesce(_pr.c.extrapolation_reason, _en.c.extrapolation_reason).label("extrapolation_reason"))
+           func.coalesce(_pr.c.extrapolation_reason, _en.c.extrapolation_reason).label("extrapolation_reason"),
+           func.coalesce(_wp.c.reason, _we.c.reason).label("withdrawn_reason"),
+           func.coalesce(_wp.c.withdrawn_at, _we.c.withdrawn_at).label("withdrawn_at"),
+           _wu.c.username.label("withdrawn_by_name"))
     .select_from(_pu.join(users, users.c.id == _pu.c.requested_by).outerjoin(_pr, _pr.c.id == _pu.c.proposal_id)
                  .outerjoin(_en, _en.c.id == _pu.c.envelope_id)
-                 .join(patients, patients.c.id == func.coalesce(_pr.c.patient_id, _en.c.patient_id))))
+                 .join(patients, patients.c.id == func.coalesce(_pr.c.patient_id, _en.c.patient_id))
+                 .outerjoin(_wp, _wp.c.proposal_id == _pu.c.proposal_id)
+                 .outerjoin(_we, _we.c.envelope_id == _pu.c.envelope_id)
+                 .outerjoin(_wu, _wu.c.id == func.coalesce(_wp.c.user_id, _we.c.user_id))))
 
 
 def _push(row: RowMapping) -> dict:
@@ -57,7 +64,10 @@ def _push(row: RowMapping) -> dict:
             "table_version": row["table_version"], "crc32": f"{row['crc32']:08x}", "status": row["status"],
             "requested_by": row["requested_by_name"], "requested_at": row["requested_at"],
             "acknowledged_at": row["acknowledged_at"], "active_at": row["active_at"], "ended_at": row["ended_at"],
-            "attempts": row["attempts"], "elapsed_ms": row["elapsed_ms"], "error": row["error"]}
+            "attempts": row["attempts"], "elapsed_ms": row["elapsed_ms"], "error": row["error"],
+            "withdrawal": None if row["withdrawn_at"] is None else {
+                "by": row["withdrawn_by_name"], "at": row["withdrawn_at"], "reason": row["withdrawn_reason"]},
+            "sent_back_reason": row["sent_back_reason"]}
 
 
 def get_push(conn: Connection, push_id: int) -> dict:
@@ -79,7 +89,7 @@ def pushes_of(conn: Connection, item: Pushed) -> list[dict]:
 
 
 def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor: User,
-               override_reason: str | None = None) -> tuple[int, int]:
+               override_reason: str | None = None, sent_back_reason: str | None = None) -> tuple[int, int]:
     """Record a push about to be sent (``sending``) under the device's next table version, and audit it (with the
     prosthetist's reason when it goes ahead without a clean bench preview); returns (push id, version)."""
     kind, item_id = item
@@ -89,7 +99,7 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
             push_id = int(conn.execute(insert(_pu).values(
                 {f"{kind}_id": item_id, "device_id": device_id, "table_version": version, "crc32": crc32,
                  "status": "sending", "requested_by": actor.id, "requested_at": utc_now(),
-                 "override_reason": override_reason})).inserted_primary_key[0])
+                 "override_reason": override_reason, "sent_back_reason": sent_back_reason})).inserted_primary_key[0])
         except IntegrityError as exc:   # the database's one push on its way per device, across instances
             if not unique_violation(exc, "one_push_sending_per_device", "pushes.device_id"):
                 raise
@@ -97,7 +107,8 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
         audit.record(conn, actor.id, actor.username, f"{kind}.push", kind, item_id,
                      after={"push_id": push_id, "device_id": device_id, "table_version": version,
                             "crc32": f"{crc32:08x}", **({"override_reason": override_reason} if override_reason
-                                                        else {})})
+                                                        else {}),
+                            **({"sent_back_reason": sent_back_reason} if sent_back_reason else {})})
     return push_id, version
 
 
@@ -197,6 +208,21 @@ def push_of_version(conn: Connection, device_id: str, version: int | None,
     if crc32 is not None:
         query = query.where(_pu.c.crc32 == crc32)
     row = conn.execute(query.order_by(_pu.c.id.desc()).limit(1)).mappings().first()
+    return None if row is None else _push(row)
+
+
+def last_run_not_withdrawn(conn: Connection, device_id: str, besides: Pushed) -> dict | None:
+    """The newest push of a version that ran on the device (it reported it active once), was not withdrawn, is not
+    ``besides``, and is of the patient the device is assigned to now: where a withdrawal sends the leg back."""
+    assigned = devices.assignment(conn, device_id)
+    if assigned is None:
+        return None
+    kind, item_id = besides
+    row = conn.execute(_PUSH_SELECT.where(
+        _pu.c.device_id == device_id, _pu.c.active_at.is_not(None), _wp.c.id.is_(None), _we.c.id.is_(None),
+        func.coalesce(_pr.c.patient_id, _en.c.patient_id) == assigned["patient_id"],
+        or_(_pu.c[f"{kind}_id"].is_(None), _pu.c[f"{kind}_id"] != item_id))
+        .order_by(_pu.c.id.desc()).limit(1)).mappings().first()
     return None if row is None else _push(row)
 
 

@@ -276,6 +276,7 @@ pushes = Table(
     Column("elapsed_ms", _Float),
     Column("error", Text),
     Column("override_reason", Text),
+    Column("sent_back_reason", Text),   # revision 0016: sent because the version the leg ran was withdrawn: which, why
     CheckConstraint("table_version BETWEEN 1 AND 65535"),
     CheckConstraint("crc32 BETWEEN 0 AND 4294967295"),
     CheckConstraint("status IN ('sending', 'unconfirmed', 'acknowledged', 'active', 'failed', 'superseded', 'lost')"),
@@ -312,4 +313,34 @@ login_failures = Table(
     Index("login_failures_by_user", "username_key", "at_unix"),
     Index("login_failures_by_address", "address", "at_unix"),
     Index("login_failures_by_time", "at_unix"),
+)
+
+# a prosthetist's sign-off on a version's bench findings (revision 0016): a version the bench did not find clean is
+# approved or pushed only when two prosthetists signed off on exactly its content (backend.store.signoffs)
+gate_signoffs = Table(
+    "gate_signoffs", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("proposal_id", Integer, ForeignKey("proposals.id")),
+    Column("envelope_id", Integer, ForeignKey("envelopes.id")),
+    Column("content_sha256", Text, nullable=False),
+    Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
+    Column("reason", Text, nullable=False),
+    Column("signed_at", Text, nullable=False),
+    CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
+    CheckConstraint("length(content_sha256) = 64"),
+    UniqueConstraint("proposal_id", "user_id"),
+    UniqueConstraint("envelope_id", "user_id"),
+)
+
+# an approved version taken back (revision 0016): it is never pushed again, and a leg running it is sent back to the
+# last version it ran that was not withdrawn, or to safe mode (backend.store.withdrawals)
+withdrawals = Table(
+    "withdrawals", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("proposal_id", Integer, ForeignKey("proposals.id"), unique=True),
+    Column("envelope_id", Integer, ForeignKey("envelopes.id"), unique=True),
+    Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
+    Column("reason", Text, nullable=False),
+    Column("withdrawn_at", Text, nullable=False),
+    CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
 )

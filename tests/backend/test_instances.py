@@ -11,7 +11,7 @@ from fastapi.testclient import TestClient
 
 from backend.app import create_app
 from backend.settings import Settings
-from tests.helpers.api import FIXTURE_OVERRIDE, make_api
+from tests.helpers.api import FIXTURE_OVERRIDE, cosign, make_api
 
 
 @pytest.fixture
@@ -55,6 +55,7 @@ def test_two_instances_approving_one_version_at_once_decide_it_once(two, round_,
     monkeypatch.setattr(decisions, "require_bench", slow_bench)
     api, second = two
     proposal = api.propose(api.new_patient(code=f"P-{round_}")["id"])
+    cosign(api, "proposal", proposal["id"])        # not walked: the approver's sign-off is the second
     body = {"comment": "looked at it", "override_reason": FIXTURE_OVERRIDE}
     url = f"/api/proposals/{proposal['id']}/approve"
     headers = api.as_("prosthetist")

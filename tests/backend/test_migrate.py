@@ -90,8 +90,9 @@ def _everything(conn: sqlite3.Connection) -> dict[str, list[tuple]]:
     return {t: [tuple(r) for r in conn.execute(f"SELECT * FROM {t} ORDER BY 1, 2")] for t in tables}
 
 
-LATER = ["0013", "0014", "0015"]                           # the revisions after the baseline
-LATER_TABLES = {"login_failures", "session_sample_seconds"}  # the tables they added
+LATER = ["0013", "0014", "0015", "0016"]                   # the revisions after the baseline
+LATER_TABLES = {"login_failures", "session_sample_seconds", "gate_signoffs", "withdrawals"}  # the tables they added
+LATER_TRIGGERS = {"gate_signoffs_no_update", "gate_signoffs_no_delete", "withdrawals_no_update", "withdrawals_no_delete"}
 
 
 def _triggers(conn: sqlite3.Connection) -> set[str]:
@@ -123,11 +124,12 @@ def test_a_database_of_the_hand_written_migrations_is_stamped_with_every_row_kep
     # every row kept; the samples now a row per second (revision 0014), read back the same; every device supervised
     # when its link is lost, as it was before anyone could choose (revision 0015)
     rows["devices"] = [(*r, "supervised") for r in rows["devices"]]
+    rows["pushes"] = [(*r, None) for r in rows["pushes"]]        # none was sent back from a withdrawn version (0016)
     assert {t: v for t, v in now.items() if t not in LATER_TABLES} == {t: v for t, v in rows.items()
                                                                        if t != "session_samples"}
     assert [r for (blob,) in conn.execute("SELECT samples FROM session_sample_seconds") for r in unpack(blob)] == \
         [tuple(r[1:]) for r in rows["session_samples"]]
-    assert _triggers(conn) == triggers - {"session_samples_append_only"}
+    assert _triggers(conn) == (triggers - {"session_samples_append_only"}) | LATER_TRIGGERS
     assert schema_version(conn) == int(head())
     assert conn.execute("SELECT 1 FROM sqlite_master WHERE name = 'schema_version'").fetchone() is None
     with pytest.raises(sqlite3.IntegrityError, match="append-only"):   # its rules still hold
@@ -210,5 +212,5 @@ def test_two_processes_starting_at_once_upgrade_once(tmp_path):
     assert migrate_at_once(db) == [0, 0, 0]
     conn = connect(db)
     assert [r[0] for r in conn.execute("SELECT version_num FROM alembic_version")] == [head()]
-    assert len(_triggers(conn)) == 17
+    assert len(_triggers(conn)) == 17 + len(LATER_TRIGGERS)
     conn.close()

@@ -18,6 +18,7 @@ def server(tmp_path_factory):
     data = tmp_path_factory.mktemp("browser-server")
     prepare_storage(Settings(data_dir=data))
     add_user(data, "dana", "prosthetist")
+    add_user(data, "eli", "prosthetist")      # the second prosthetist: the bench gate's override takes two
     add_user(data, "vic", "viewer")
     add_user(data, "ada", "admin")
     proc, base = start_server(data, device="sim")

@@ -26,6 +26,7 @@ def server_and_data(tmp_path_factory):
     data = tmp_path_factory.mktemp("refine-server")
     prepare_storage(Settings(data_dir=data))
     add_user(data, "dana", "prosthetist")
+    add_user(data, "eli", "prosthetist")
     proc, base = start_server(data)
     yield base, data
     stop_server(proc)

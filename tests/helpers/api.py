@@ -20,6 +20,7 @@ from device_bridge.clock import WALL_CLOCK, SteppedClock
 from tests.helpers.server import PASSWORD
 
 DEVICE = "sim-leg-1"   # the simulated leg of an app made with device="sim"
+SECOND = "prosthetist-b"   # a second prosthetist: the gate's override takes two
 
 
 @dataclass
@@ -59,7 +60,8 @@ class Api:
 
 def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]:
     """App on ``data_dir`` (or on ``database_url``, a migrated PostgreSQL database, when the settings name one) loading
-    its model with ``model_loader``, with users prosthetist/viewer/admin (password :data:`PASSWORD`), signed in.
+    its model with ``model_loader``, with users prosthetist/viewer/admin and a second prosthetist :data:`SECOND`
+    (password :data:`PASSWORD`), signed in.
     ``template``: an SQLite file already at the newest revision, copied in first; ``clock``: the device stack's (a
     :class:`~device_bridge.clock.SteppedClock` runs the simulated leg in simulated time, moved by :func:`wait_for`)."""
     template = settings.pop("template", None)      # a migrated SQLite file to start from (migrating is slow)
@@ -70,12 +72,13 @@ def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]
     app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader,
                      **({} if clock is None else {"clock": clock}))
     database = settings.get("database_url") or data_dir / "quasitune.sqlite"
+    users = {role: role for role in ROLES} | {SECOND: "prosthetist"}
     with connect(database) as conn:
-        for role in ROLES:
-            create_user(conn, role, role, PASSWORD)
+        for name, role in users.items():
+            create_user(conn, name, role, PASSWORD)
     client = TestClient(app)
     api = Api(client=client, data_dir=data_dir, database=database, clock=clock)
-    for role in ROLES:
+    for role in users:
         r = client.post("/api/auth/token", data={"username": role, "password": PASSWORD})
         assert r.status_code == 200, r.text
         api.headers[role] = {"Authorization": f"Bearer {r.json()['access_token']}"}
@@ -107,9 +110,27 @@ def wait_recorded(api: Api, session_id: int, seconds: float, timeout_s: float = 
         pause(0.5)
 
 
-# approving an envelope needs its bench preview (about ten seconds of the mixed course) or a written override; the
-# tests whose subject is not the approval gate (tests/backend/routers/test_bench_gate.py) take the override
+# approving an envelope needs a clean bench preview (about ten seconds of the mixed course) or two prosthetists'
+# sign-offs; the tests whose subject is not the approval gate (tests/backend/routers/test_bench_gate.py) take the
+# override: :func:`cosign`, then the approval or push with this reason
 FIXTURE_OVERRIDE = "test fixture: this test is about what follows approval, not the bench gate"
+
+
+def cosign(api: Api, kind: str, item_id: int, reason: str = FIXTURE_OVERRIDE) -> dict:
+    """The second prosthetist's sign-off on a version's bench findings (``kind``: proposal or envelope): with it, the
+    prosthetist's approval or push giving its own ``override_reason`` completes the gate's two-person override."""
+    r = api.client.post(f"/api/{kind}s/{item_id}/signoffs", headers=api.as_(SECOND), json={"reason": reason})
+    assert r.status_code == 201, r.text
+    return r.json()
+
+
+def approve_anyway(api: Api, kind: str, item_id: int, comment: str = "ok", reason: str = FIXTURE_OVERRIDE):
+    """Approve a version as the prosthetist whatever its bench preview says (the second prosthetist signs off first
+    where the preview is not clean); returns the response."""
+    if api.client.get(f"/api/{kind}s/{item_id}", headers=api.as_("viewer")).json()["bench"]["status"] != "clean":
+        cosign(api, kind, item_id, reason)
+    return api.client.post(f"/api/{kind}s/{item_id}/approve", headers=api.as_("prosthetist"),
+                           json={"comment": comment, "override_reason": reason})
 
 
 def walk_preview(api: Api, proposal_id: int) -> dict:

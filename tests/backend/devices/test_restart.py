@@ -29,8 +29,8 @@ def _until(fetch, ok, timeout_s: float = 30.0):
     return wait_for(fetch, ok, timeout_s)
 
 
-def _client(base: str) -> httpx.Client:
-    r = httpx.post(f"{base}/api/auth/token", data={"username": "pat", "password": PASSWORD})
+def _client(base: str, user: str = "pat") -> httpx.Client:
+    r = httpx.post(f"{base}/api/auth/token", data={"username": user, "password": PASSWORD})
     assert r.status_code == 200, r.text
     c = httpx.Client(base_url=base, headers={"Authorization": f"Bearer {r.json()['access_token']}"}, timeout=60)
     _until(lambda: c.get("/api/health").json()["model"], lambda m: m == "ready", 120)
@@ -38,10 +38,13 @@ def _client(base: str) -> httpx.Client:
     return c
 
 
-def _approved_envelope(c: httpx.Client, patient_id: int, speeds: list[float]) -> dict:
+def _approved_envelope(c: httpx.Client, second: httpx.Client, patient_id: int, speeds: list[float]) -> dict:
+    """Approved with the gate's override (its preview is not walked): ``second`` prosthetist signs off, then ``c``."""
     e = c.post(f"/api/patients/{patient_id}/envelopes", json={"speed_range_mps": speeds, "incline_range_deg": [-4, 4],
                                                               "grid": [2, 2]})
     assert e.status_code == 201, e.text
+    s = second.post(f"/api/envelopes/{e.json()['id']}/signoffs", json={"reason": FIXTURE_OVERRIDE})
+    assert s.status_code == 201, s.text
     a = c.post(f"/api/envelopes/{e.json()['id']}/approve", json={"comment": "bench check",
                                                                   "override_reason": FIXTURE_OVERRIDE})
     assert a.status_code == 200, a.text
@@ -69,13 +72,14 @@ def _sending(data_dir) -> bool:
 
 def test_after_a_kill_mid_push_the_records_pages_and_next_session_agree_with_the_device(tmp_path):
     add_user(tmp_path, "pat", "prosthetist")
+    add_user(tmp_path, "sam", "prosthetist")
     proc, base = start_server(tmp_path, device="sim")
     try:
-        c = _client(base)
+        c, sam = _client(base), _client(base, "sam")
         patient = c.post("/api/patients", json={"code_name": "RST-1", "body_mass_kg": 75.0, "side": "left"}).json()
         assert c.put(f"/api/devices/{DEVICE}/assignment", json={"patient_id": patient["id"]}).status_code == 200
-        first = _approved_envelope(c, patient["id"], [0.8, 1.4])
-        second = _approved_envelope(c, patient["id"], [0.9, 1.5])
+        first = _approved_envelope(c, sam, patient["id"], [0.8, 1.4])
+        second = _approved_envelope(c, sam, patient["id"], [0.9, 1.5])
         assert _push(c, first["id"], None).status_code == 201
         _until(lambda: c.get(f"/api/envelopes/{first['id']}").json()["deployment"], lambda d: d == "active_on_device")
         # the second push, and the server killed as soon as it is recorded (while it is sent, or just after)

@@ -14,6 +14,7 @@ from tests.helpers.api import (
     FIXTURE_OVERRIDE,
     approved_proposal,
     assign,
+    cosign,
     push_body,
     push_to_leg,
     wait_for,
@@ -126,6 +127,7 @@ def test_a_table_goes_only_to_the_leg_of_its_patient_and_a_session_records_that_
     heavy, light = api.new_patient("P-190", 190.0), api.new_patient("P-045", 45.0)
     heavy_table = api.propose(heavy["id"])
     walk_preview(api, heavy_table["id"])   # approval rests on the bench (a 190 kg body sinks on it: overridden here)
+    cosign(api, "proposal", heavy_table["id"])
     r = c.post(f"/api/proposals/{heavy_table['id']}/approve", headers=pro,
                json={"comment": "ok", "override_reason": FIXTURE_OVERRIDE})
     assert r.status_code == 200, r.text

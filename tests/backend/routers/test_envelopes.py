@@ -12,7 +12,7 @@ from backend.db import write_transaction
 from controller_core.content import canonical_json, content_sha256
 from device_bridge.as_run import as_run
 from device_bridge.envelope_wire import WireEnvelope
-from tests.helpers.api import FIXTURE_OVERRIDE
+from tests.helpers.api import FIXTURE_OVERRIDE, approve_anyway
 from tests.helpers.sql import drop_trigger, sql
 
 
@@ -69,14 +69,15 @@ def test_only_a_prosthetist_builds_or_decides_and_a_decision_is_taken_once(api):
     e = request_envelope(api, patient["id"], grid=[2, 2])
     r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("viewer"), json={"comment": "ok"})
     assert r.status_code == 403
-    r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"),
-                        json={"comment": "reviewed every node", "override_reason": FIXTURE_OVERRIDE})
+    r = approve_anyway(api, "envelope", e["id"], comment="reviewed every node")
     assert r.status_code == 200 and r.json()["status"] == "approved" and r.json()["decision"]["by"] == "prosthetist"
-    assert r.json()["decision"]["override_reason"] == FIXTURE_OVERRIDE   # no preview walked: the reason is kept
+    # no preview walked: both prosthetists' reasons are kept with the approval
+    assert r.json()["decision"]["override_reason"] == f"prosthetist-b: {FIXTURE_OVERRIDE}; prosthetist: {FIXTURE_OVERRIDE}"
     r = api.client.post(f"/api/envelopes/{e['id']}/reject", headers=api.as_("prosthetist"), json={"comment": "no"})
     assert r.status_code == 409 and "already approved" in r.json()["detail"]
     actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]]
-    assert actions[:2] == ["envelope.approve", "envelope.create"]
+    # newest first: the approval, the approver's sign-off stored with it, the second prosthetist's, the envelope made
+    assert actions[:4] == ["envelope.approve", "envelope.gate_signoff", "envelope.gate_signoff", "envelope.create"]
     assert api.client.get("/api/envelopes/999999", headers=api.as_("viewer")).status_code == 404
 
 

@@ -7,12 +7,13 @@ import re
 import pytest
 
 from tests.backend.routers.test_envelopes import request_envelope
-from tests.helpers.api import DEVICE, FIXTURE_OVERRIDE, assign, push_body, wait_for, wait_recorded
+from tests.helpers.api import DEVICE, FIXTURE_OVERRIDE, assign, cosign, push_body, wait_for, wait_recorded
 from tests.helpers.sql import sql
 
 
 def approved_envelope(api, patient_id: int) -> dict:
     e = request_envelope(api, patient_id)
+    cosign(api, "envelope", e["id"])
     r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"),
                         json={"comment": "ok", "override_reason": FIXTURE_OVERRIDE})
     assert r.status_code == 200, r.text

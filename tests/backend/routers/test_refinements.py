@@ -12,7 +12,7 @@ import math
 import pytest
 
 from device_bridge.protocol import Mode
-from tests.helpers.api import walk_preview
+from tests.helpers.api import approve_anyway, walk_preview
 from tests.helpers.sessions import BENCH_DEVICE as DEVICE
 from tests.helpers.sessions import record_offline
 
@@ -28,8 +28,7 @@ def recorded_session(api, model, patient: dict, table: dict, seconds: float = 25
 def approved(api, patient: dict, speed: float = 1.2) -> dict:
     prop = api.propose(patient["id"], speed=speed)
     walk_preview(api, prop["id"])
-    r = api.client.post(f"/api/proposals/{prop['id']}/approve", headers=api.as_("prosthetist"),
-                        json={"comment": "ok", "override_reason": "test: the refinement, not the bench gate"})
+    r = approve_anyway(api, "proposal", prop["id"], reason="test: the refinement, not the bench gate")
     assert r.status_code == 200, r.text
     return api.client.get(f"/api/proposals/{prop['id']}", headers=api.as_("viewer")).json()
 

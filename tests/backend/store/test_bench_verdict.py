@@ -1,12 +1,16 @@
-"""The bench's verdict on a version, and the gate approval and push rest on."""
+"""The bench's verdict on a version, and the gate approval and push rest on: every figure beyond its bound gates, and
+going ahead anyway takes two prosthetists' sign-offs on exactly that content."""
 
 from __future__ import annotations
 
 import pytest
 
+from backend.db import write_transaction
 from backend.errors import ConflictError
-from backend.store import bench_verdict, previews, proposals
+from backend.store import bench_verdict, previews, proposals, signoffs, users
 from tests.backend.store.conftest import CLEAN_WALK
+
+WHY = "seated in the bars, every row checked by hand"
 
 
 def _walked(conn, pid, mine):
@@ -16,27 +20,56 @@ def _walked(conn, pid, mine):
     return proposals.get_row(conn, pid)
 
 
-def test_not_walked_is_refused_with_the_way_to_walk_it_unless_a_reason_is_written(conn, draft):
-    row = proposals.get_row(conn, draft())
-    assert bench_verdict.verdict(conn, "proposal", row)["status"] == "not_walked"
-    with pytest.raises(ConflictError, match=r"not approved: its bench preview has not been walked.*override_reason"):
-        bench_verdict.require_bench(conn, "proposal", row, None, "approved")
-    v, kept = bench_verdict.require_bench(conn, "proposal", row, "seated in the bars, checked by hand", "approved")
-    assert v["status"] == "not_walked" and kept == "seated in the bars, checked by hand"
+@pytest.fixture
+def colleague(conn) -> users.User:
+    made = users.create_user(conn, "kim", "prosthetist", "another long password")
+    return users.User(made["id"], "kim", "prosthetist")
 
 
-def test_a_clean_walk_passes_alone_and_a_warning_never_stops_a_decision(conn, draft):
+def test_a_clean_walk_passes_alone(conn, draft, prosthetist):
     row = _walked(conn, draft(), CLEAN_WALK)
-    v, kept = bench_verdict.require_bench(conn, "proposal", row, None, "pushed")
+    v, kept = bench_verdict.require_bench(conn, "proposal", row, None, "pushed", prosthetist)
     assert v["status"] == "clean" and kept is None and v["words"] == "bench preview clean"
     assert [f["figure"] for f in v["figures"]][:2] == ["falls", "toe_catches"]
-    slow = _walked(conn, draft(), {**CLEAN_WALK, "heel_strike_to_stance_ms_max": 80.0})
-    v, kept = bench_verdict.require_bench(conn, "proposal", slow, None, "approved")
-    assert v["status"] == "warnings" and kept is None
 
 
-def test_a_fall_makes_the_version_unsafe_and_names_it(conn, draft):
-    row = _walked(conn, draft(), {**CLEAN_WALK, "falls": 3})
-    with pytest.raises(ConflictError, match="the leg gave way 3 time") as caught:
-        bench_verdict.require_bench(conn, "proposal", row, None, "approved")
+@pytest.mark.parametrize("figure, value", [("heel_strike_to_stance_ms_max", 80.0), ("hip_sink_max_mm", 87.0),
+                                           ("stance_knee_flexion_peak_max_deg", 44.0), ("loaded_swing_ms_max_stride", 30.0),
+                                           ("support_deficit_max_bw", 1.8), ("falls", 3)])
+def test_every_figure_beyond_its_bound_gates_as_a_fall_does(conn, draft, prosthetist, figure, value):
+    row = _walked(conn, draft(), {**CLEAN_WALK, figure: value})
+    with pytest.raises(ConflictError, match="not approved: its bench preview shows") as caught:
+        bench_verdict.require_bench(conn, "proposal", row, WHY, "approved", prosthetist)   # one person's reason
     assert caught.value.extra["bench"]["status"] == "unsafe"
+    assert [f["figure"] for f in caught.value.extra["bench"]["flags"]] == [figure]
+    assert "2 prosthetists' sign-offs" in caught.value.message and "nobody has signed off yet" in caught.value.message
+
+
+def test_the_override_takes_two_accounts_each_with_its_reason_on_exactly_this_content(conn, draft, prosthetist,
+                                                                                      colleague):
+    row = _walked(conn, draft(), {**CLEAN_WALK, "falls": 2})
+    with write_transaction(conn):
+        signoffs.sign(conn, "proposal", row["id"], row["table_sha256"], prosthetist, WHY)
+    with pytest.raises(ConflictError, match="already signed off"), write_transaction(conn):
+        signoffs.sign(conn, "proposal", row["id"], row["table_sha256"], prosthetist, WHY + " again")
+    with pytest.raises(ConflictError, match="signed off so far by pat"):    # the signer cannot be the second as well
+        bench_verdict.require_bench(conn, "proposal", row, WHY, "approved", prosthetist)
+    with write_transaction(conn):      # the colleague approves: their reason is the second sign-off, kept with it
+        _, kept = bench_verdict.require_bench(conn, "proposal", row, "the falls are on the first step only", "approved",
+                                              colleague)
+    assert kept == f"pat: {WHY}; kim: the falls are on the first step only"
+    assert [s["by"] for s in bench_verdict.verdict(conn, "proposal", row)["signoffs"]] == ["pat", "kim"]
+    # a push of it still needs the pusher's own reason
+    with pytest.raises(ConflictError, match="give override_reason"):
+        bench_verdict.require_bench(conn, "proposal", row, None, "pushed", prosthetist)
+    assert bench_verdict.require_bench(conn, "proposal", row, WHY, "pushed", prosthetist)[1] == kept
+    # sign-offs on other content never count
+    other = _walked(conn, draft('{"rows": [1]}'), {**CLEAN_WALK, "falls": 2})
+    assert bench_verdict.verdict(conn, "proposal", other)["signoffs"] == []
+
+
+def test_not_walked_is_refused_with_the_way_to_walk_it(conn, draft, prosthetist):
+    row = proposals.get_row(conn, draft())
+    assert bench_verdict.verdict(conn, "proposal", row)["status"] == "not_walked"
+    with pytest.raises(ConflictError, match=r"not approved: its bench preview has not been walked.*GET /api/proposals"):
+        bench_verdict.require_bench(conn, "proposal", row, None, "approved", prosthetist)
