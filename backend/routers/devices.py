@@ -94,8 +94,13 @@ def get_viewer(device_id: DeviceIdPath, request: Request, _user: CurrentUser) ->
              responses={**UNAUTHORIZED, **FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def command(device_id: DeviceIdPath, body: CommandRequest, request: Request, conn: Conn, user: Prosthetist) -> dict:
     """Put the device into its passive safe mode, or let it leave safe mode (it does so only with a table and a
-    live host). The device's status reports the outcome."""
+    live host; never onto a withdrawn version). The device's status reports the outcome."""
     m = manager(request)
+    if body.command == "leave_safe_mode":
+        notice = m.view(device_id)["withdrawal_notice"]
+        if notice is not None and notice["state"] == "runs_withdrawn":
+            raise ConflictError(f"the leg holds {notice['label']}, which was withdrawn by {notice['by']} "
+                                f"({notice['reason']}): it stays in safe mode; push a version that was not withdrawn")
     m.command(device_id, _COMMANDS[body.command])
     devices_store.record_command(conn, device_id, body.command, user)
     return m.view(device_id)
