@@ -77,8 +77,8 @@ def require_role(*roles: str) -> Callable[[User], Awaitable[User]]:
 
 Prosthetist = Annotated[User, Depends(require_role("prosthetist"))]
 Admin = Annotated[User, Depends(require_role("admin"))]
-# clinicians monitoring remotely (viewer) may record walking sessions: recording changes nothing on the leg
-Monitor = Annotated[User, Depends(require_role("prosthetist", "viewer"))]
+# the audit log names patients, people and every clinical decision: the prosthetists' and the admins' to read
+Auditor = Annotated[User, Depends(require_role("prosthetist", "admin"))]
 
 
 async def get_model(request: Request) -> QuasiStiffnessModel:

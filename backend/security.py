@@ -14,6 +14,7 @@ import base64
 import functools
 import hashlib
 import hmac
+import re
 import secrets
 
 SCRYPT_N, SCRYPT_R, SCRYPT_P = 2**14, 8, 1
@@ -31,12 +32,25 @@ def _scrypt(password: str, salt: bytes, n: int, r: int, p: int) -> bytes:
     return hashlib.scrypt(password.encode("utf-8"), salt=salt, n=n, r=r, p=p, maxmem=_MAXMEM, dklen=32)
 
 
-def check_password_policy(password: str) -> None:
-    """Refuse passwords that are too short or absurdly long (ValueError with the reason)."""
+def check_password_policy(password: str, username: str) -> None:
+    """Refuse a password that is too short or absurdly long, or is the user's name or a common password (one of
+    zxcvbn's lists of leaked passwords, whole, in any case or with common letter swaps), or guessable in few tries
+    (zxcvbn's score 0): ValueError with the reason, in words the user can act on."""
     if len(password) < MIN_PASSWORD_LENGTH:
         raise ValueError(f"password must be at least {MIN_PASSWORD_LENGTH} characters")
     if len(password) > MAX_PASSWORD_LENGTH:
         raise ValueError(f"password must be at most {MAX_PASSWORD_LENGTH} characters")
+    from zxcvbn import zxcvbn
+
+    found = zxcvbn(password, user_inputs=[username])
+    whole = [m for m in found["sequence"] if m.get("pattern") == "dictionary" and m["token"] == password]
+    letters, name = re.sub(r"[^a-z]", "", password.casefold()), re.sub(r"[^a-z]", "", username.casefold())
+    if password.casefold() == username.casefold() or any(m.get("dictionary_name") == "user_inputs" for m in whole) \
+            or (name and letters and letters == name * (len(letters) // len(name))):   # the name, repeated or dressed
+        raise ValueError("the password must not be the user name (nor the name with digits or signs added)")
+    if any(m.get("dictionary_name") == "passwords" for m in whole) or found["score"] == 0:
+        raise ValueError("that password is one of the most common passwords (or as easy to guess): choose another, "
+                         "e.g. three or four unrelated words")
 
 
 def set_hash_cost(n: int) -> None:

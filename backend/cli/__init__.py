@@ -13,6 +13,7 @@ import argparse
 import sys
 
 from backend.cli import broker, device, model, server, simulation
+from backend.errors import DomainError
 from controller_core import InvalidTaskError, SafetyLimitError
 
 
@@ -28,7 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except (InvalidTaskError, FileNotFoundError, ValueError, SafetyLimitError) as exc:
+    except (InvalidTaskError, FileNotFoundError, ValueError, SafetyLimitError, DomainError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         print(f"quasitune: error: {msg}", file=sys.stderr)
         return 2

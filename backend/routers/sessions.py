@@ -9,7 +9,7 @@ from typing import Annotated
 import numpy as np
 from fastapi import APIRouter, Query, Request, Response, status
 
-from backend.deps import Conn, CurrentUser, Model, Monitor, Prosthetist
+from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.devices import DeviceManager
 from backend.errors import ConflictError, InvalidError
 from backend.report import session_report_pdf
@@ -32,9 +32,10 @@ router = APIRouter(prefix="/api", tags=["sessions"], responses=UNAUTHORIZED)
 
 @router.post("/patients/{patient_id}/sessions", response_model=SessionOut, status_code=status.HTTP_201_CREATED,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
-def start_session(patient_id: IdPath, body: SessionRequest, request: Request, conn: Conn, user: Monitor,
+def start_session(patient_id: IdPath, body: SessionRequest, request: Request, conn: Conn, user: Prosthetist,
                   model: Model) -> dict:
-    """Start recording the device's telemetry for this patient (prosthetist or viewer): the device must be
+    """Start recording the device's telemetry for this patient (prosthetist: on the simulated leg the patient sets
+    off walking, so starting, like stopping, is theirs; a viewer watches): the device must be
     assigned to the patient, and the table or envelope it reports running (if any) be theirs; the session records the
     version and CRC the device reports, never what the records believe. The task defaults to that of the
     table on the device (an envelope's nominal task); the simulated leg starts walking at it, or walks ``course``

@@ -9,8 +9,8 @@ from typing import Literal, get_args
 from sqlalchemy import Connection, RowMapping, bindparam, delete, func, insert, select, update
 
 from backend.db import utc_now, write_transaction
-from backend.errors import ConflictError, NotFoundError
-from backend.security import hash_password, new_token, token_digest
+from backend.errors import ConflictError, InvalidError, NotFoundError
+from backend.security import check_password_policy, hash_password, new_token, token_digest
 from backend.store import audit
 from backend.store.tables import tokens, users
 
@@ -55,6 +55,7 @@ def create_user(conn: Connection, username: str, role: str, password: str,
     for a password someone other than the user chose (nothing else works until the user changes it)."""
     if role not in ROLES:
         raise ValueError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
+    _policy(password, username)
     password_hash = hash_password(password)   # slow on purpose: outside the write lock
     with write_transaction(conn):
         if conn.execute(select(users.c.id).where(_named(username))).first():
@@ -85,6 +86,10 @@ def set_password(conn: Connection, target_id: int, password: str, must_change_pa
 
     A user changing their own password clears ``must_change_password``; an admin or the command line setting
     someone's password usually sets it (the user must then choose their own)."""
+    named = conn.execute(select(users.c.username).where(users.c.id == target_id)).scalar()
+    if named is None:
+        raise NotFoundError(f"user {target_id} not found")
+    _policy(password, named)
     password_hash = hash_password(password)   # slow on purpose: outside the write lock
     with write_transaction(conn):
         changed = conn.execute(update(users).where(users.c.id == target_id).values(
@@ -97,6 +102,13 @@ def set_password(conn: Connection, target_id: int, password: str, must_change_pa
         audit.record(conn, *_actor(actor), "user.password", "user", target_id,
                      after={"must_change_password": must_change_password})
         return _row(conn, target_id)
+
+
+def _policy(password: str, username: str) -> None:
+    try:
+        check_password_policy(password, username)
+    except ValueError as exc:
+        raise InvalidError(str(exc), field="password") from None
 
 
 def list_users(conn: Connection) -> list[dict]:

@@ -43,11 +43,23 @@ def test_a_malformed_or_foreign_hash_never_verifies(stored):
 
 
 def test_the_policy_names_the_bound_it_refuses():
-    check_password_policy("x" * MIN_PASSWORD_LENGTH)
+    check_password_policy("kw9#tq-2", "dana")
     with pytest.raises(ValueError, match=f"at least {MIN_PASSWORD_LENGTH}"):
-        check_password_policy("x" * (MIN_PASSWORD_LENGTH - 1))
+        check_password_policy("kw9#tq-", "dana")
     with pytest.raises(ValueError, match=f"at most {MAX_PASSWORD_LENGTH}"):
-        check_password_policy("x" * (MAX_PASSWORD_LENGTH + 1))
+        check_password_policy("kw9#tq-2" * (MAX_PASSWORD_LENGTH // 8 + 1), "dana")
+
+
+@pytest.mark.parametrize("password", ["password1", "iloveyou", "Password123", "qwertyuiop", "football", "xxxxxxxx"])
+def test_a_common_or_trivially_guessed_password_is_refused(password):
+    with pytest.raises(ValueError, match="most common passwords"):
+        check_password_policy(password, "dana")
+
+
+def test_the_user_name_is_not_a_password():
+    with pytest.raises(ValueError, match="not be the user name"):
+        check_password_policy("Prosthetist", "prosthetist")
+    check_password_policy("correct-horse-battery", "prosthetist")
 
 
 def test_tokens_are_fresh_and_only_their_digest_is_kept():

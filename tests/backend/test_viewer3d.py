@@ -18,7 +18,8 @@ def test_viewer_binds_loopback_on_a_port_it_reads_back_and_follows_telemetry(sim
     assert c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json()["port"] == info["port"]   # one per device
     patient = sim_api.new_patient()
     assign(sim_api, patient["id"])
-    r = c.post(f"/api/patients/{patient['id']}/sessions", headers=viewer, json={"device_id": DEVICE, "speed_mps": 1.2})
+    r = c.post(f"/api/patients/{patient['id']}/sessions", headers=sim_api.as_("prosthetist"),
+               json={"device_id": DEVICE, "speed_mps": 1.2})
     assert r.status_code == 201, r.text   # the simulated leg walks (and streams telemetry) during a session
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}/viewer", headers=viewer).json(), lambda v: v["frames_drawn"] > 5,
              clock=sim_api.clock)

@@ -24,7 +24,7 @@ def test_wrong_password_and_unknown_user_get_the_same_401(api):
     for user, pw in (("viewer", "wrong-password"), ("nobody", PASSWORD)):
         r = api.client.post("/api/auth/token", data={"username": user, "password": pw})
         assert r.status_code == 401 and r.json()["detail"] == "incorrect user name or password"
-    actions = [e["action"] for e in api.client.get("/api/audit", headers=api.as_("viewer")).json()["items"]]
+    actions = [e["action"] for e in api.client.get("/api/audit", headers=api.as_("prosthetist")).json()["items"]]
     assert actions.count("auth.login_failed") == 2
 
 
@@ -156,6 +156,9 @@ def test_a_one_time_password_must_be_changed_before_anything_else_works(api):
     same = c.post("/api/auth/password", headers=h,
                   json={"current_password": "chosen-by-admin", "new_password": "chosen-by-admin"})
     assert same.status_code == 422 and "differ" in same.json()["detail"]
+    for weak, why in (("password1", "most common passwords"), ("newbie-newbie", "user name"), ("newbie12", "user name")):
+        r = c.post("/api/auth/password", headers=h, json={"current_password": "chosen-by-admin", "new_password": weak})
+        assert r.status_code == 422 and why in r.json()["detail"], (weak, r.text)
     other = _sign_in(api, "newbie", "chosen-by-admin")                    # a second session of the same account
     ok = c.post("/api/auth/password", headers=h,
                 json={"current_password": "chosen-by-admin", "new_password": " my own, with spaces "})
@@ -164,7 +167,7 @@ def test_a_one_time_password_must_be_changed_before_anything_else_works(api):
     assert c.get("/api/patients", headers=other).status_code == 401       # every other one ends
     assert c.post("/api/auth/token", data={"username": "newbie", "password": "chosen-by-admin"}).status_code == 401
     _sign_in(api, "newbie", " my own, with spaces ")
-    actions = [e["action"] for e in c.get("/api/audit", headers=api.as_("viewer")).json()["items"]]
+    actions = [e["action"] for e in c.get("/api/audit", headers=api.as_("prosthetist")).json()["items"]]
     assert "user.password" in actions and "auth.login_failed" in actions
 
 

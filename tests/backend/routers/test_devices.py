@@ -52,7 +52,7 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     assert record["status"] == "active" and record["active_at"] is not None
 
     # a session at the active table's task: the simulated patient walks, telemetry streams
-    r = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=viewer, json={"device_id": DEVICE})
+    r = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=api.as_("prosthetist"), json={"device_id": DEVICE})
     assert r.status_code == 201, r.text
     session = r.json()
     assert session["task"]["speed_mps"] == 1.2 and session["proposal_id"] == prop["id"]

@@ -75,7 +75,8 @@ def test_only_a_prosthetist_builds_or_decides_and_a_decision_is_taken_once(api):
     assert r.json()["decision"]["override_reason"] == f"prosthetist-b: {FIXTURE_OVERRIDE}; prosthetist: {FIXTURE_OVERRIDE}"
     r = api.client.post(f"/api/envelopes/{e['id']}/reject", headers=api.as_("prosthetist"), json={"comment": "no"})
     assert r.status_code == 409 and "already approved" in r.json()["detail"]
-    actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]]
+    actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope",
+                                                   headers=api.as_("prosthetist")).json()["items"]]
     # newest first: the approval, the approver's sign-off stored with it, the second prosthetist's, the envelope made
     assert actions[:4] == ["envelope.approve", "envelope.gate_signoff", "envelope.gate_signoff", "envelope.create"]
     assert api.client.get("/api/envelopes/999999", headers=api.as_("viewer")).status_code == 404
@@ -125,7 +126,8 @@ def test_ankle_loading_ten_percent_firmer_everywhere_is_a_new_version_and_its_di
     d = api.client.get(f"/api/envelopes/{v2['id']}/diff/{r.json()['id']}", headers=api.as_("viewer")).json()
     assert [(c["node"], c["speed_mps"], c["incline_deg"]) for c in d["changes"]] == [([1, 1], 1.1, 0.0)]
     assert d["changes"][0]["after"] == pytest.approx(d["changes"][0]["before"] - 2)
-    actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]]
+    actions = [x["action"] for x in api.client.get("/api/audit?entity=envelope",
+                                                   headers=api.as_("prosthetist")).json()["items"]]
     assert actions[:2] == ["envelope.edit", "envelope.edit"]
 
 
@@ -211,7 +213,7 @@ def test_ten_percent_firmer_everywhere_is_refused_or_held_to_the_neighbour_rule_
     assert held["nodes"][nominal]["table"][0]["k_Nm_per_rad"] == pytest.approx(1.1 * k_before, abs=2e-3)
     guarded = [n for n in held["nodes"] if "knee.stance_flexion.k_Nm_per_rad" in n["neighbour_guarded"]]
     assert guarded and all(n["table"][0]["fit_method"] == "neighbour_guard" for n in guarded)
-    [audit] = [a for a in api.client.get("/api/audit?entity=envelope", headers=api.as_("viewer")).json()["items"]
+    [audit] = [a for a in api.client.get("/api/audit?entity=envelope", headers=api.as_("prosthetist")).json()["items"]
                if a["action"] == "envelope.edit"]
     assert any("held_from" in c for c in audit["after"]["changes"])
     # the diff says per cell old, new, change and percent, and marks every value the rule moved (it did not move

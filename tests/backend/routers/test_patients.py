@@ -14,7 +14,7 @@ def test_patient_create_read_update_with_audit(api):
     r = api.client.patch(f"/api/patients/{p['id']}", headers=api.as_("prosthetist"),
                          json={"body_mass_kg": 84.0, "k_level": None})
     assert r.status_code == 200 and r.json()["body_mass_kg"] == 84.0 and r.json()["k_level"] is None
-    entries = api.client.get("/api/audit", headers=api.as_("viewer"),
+    entries = api.client.get("/api/audit", headers=api.as_("prosthetist"),
                              params={"entity": "patient", "entity_id": p["id"]}).json()["items"]
     update = entries[0]
     assert update["action"] == "patient.update" and update["actor"] == "prosthetist"

@@ -66,7 +66,7 @@ def test_concurrent_proposals_are_each_stored_with_consecutive_versions(api):
     stored = {r.json()["id"]: r.json()["task"]["speed_mps"] for r in answers}
     for pid, speed in stored.items():      # each answer is its own stored row
         assert api.client.get(f"/api/proposals/{pid}", headers=api.as_("viewer")).json()["task"]["speed_mps"] == speed
-    actions = [e["action"] for e in api.client.get("/api/audit", headers=api.as_("viewer")).json()["items"]]
+    actions = [e["action"] for e in api.client.get("/api/audit", headers=api.as_("prosthetist")).json()["items"]]
     assert actions.count("proposal.create") == 6
 
 
@@ -186,7 +186,7 @@ def test_reject_records_the_comment(api):
     r = api.client.post(f"/api/proposals/{p['id']}/reject", headers=api.as_("prosthetist"),
                         json={"comment": "swing too stiff"})
     assert r.status_code == 200 and r.json()["decision"]["status"] == "rejected"
-    entry = api.client.get("/api/audit", headers=api.as_("viewer"), params={"entity": "proposal"}).json()["items"][0]
+    entry = api.client.get("/api/audit", headers=api.as_("prosthetist"), params={"entity": "proposal"}).json()["items"][0]
     assert entry["action"] == "proposal.reject" and entry["after"]["comment"] == "swing too stiff"
 
 

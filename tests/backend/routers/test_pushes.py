@@ -49,7 +49,7 @@ def test_an_approved_envelope_runs_on_its_patients_leg_and_a_table_can_replace_i
     assert got["status"] == "approved"
     [record] = c.get(f"/api/envelopes/{env['id']}/pushes", headers=viewer).json()
     assert record["status"] == "active"
-    [entry] = [a for a in c.get("/api/audit?entity=envelope", headers=viewer).json()["items"]
+    [entry] = [a for a in c.get("/api/audit?entity=envelope", headers=api.as_("prosthetist")).json()["items"]
                if a["action"] == "envelope.push"]
     assert entry["entity_id"] == env["id"] and entry["after"]["crc32"] == push["crc32"]
 
@@ -93,7 +93,8 @@ def test_a_course_session_records_the_legs_own_task_estimate_and_summarises_it_b
     push = push_envelope(api, env["id"]).json()
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=viewer).json(),
              lambda d: d["active_crc32"] == push["crc32"], clock=api.clock)
-    r = c.post(f"/api/patients/{patient['id']}/sessions", headers=viewer, json={"device_id": DEVICE, "course": "mixed"})
+    r = c.post(f"/api/patients/{patient['id']}/sessions", headers=api.as_("prosthetist"),
+               json={"device_id": DEVICE, "course": "mixed"})
     assert r.status_code == 201, r.text
     session = r.json()
     assert session["course"] == "mixed" and session["envelope_id"] == env["id"]

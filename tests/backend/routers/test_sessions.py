@@ -61,3 +61,17 @@ def test_strides_in_safe_mode_are_marked_and_left_out_of_the_errors(sim_api):
     assert "safe" in cols["mode"] and "active" in cols["mode"]                   # every sample says its mode
     pdf = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=pro)
     assert pdf.status_code == 200 and pdf.content.startswith(b"%PDF")
+
+
+def test_a_viewer_watches_but_neither_starts_nor_stops_a_session(sim_api):
+    """Starting a session sets the simulated patient walking: the prosthetist's, as stopping is."""
+    api = sim_api
+    prop = approved_proposal(api)
+    assert push_to_leg(api, prop).status_code == 201
+    url = f"/api/patients/{prop['patient_id']}/sessions"
+    r = api.client.post(url, headers=api.as_("viewer"), json={"device_id": DEVICE})
+    assert r.status_code == 403 and "prosthetist" in r.json()["detail"]
+    assert api.count("walking_sessions") == 0
+    session = api.client.post(url, headers=api.as_("prosthetist"), json={"device_id": DEVICE}).json()
+    assert api.client.post(f"/api/sessions/{session['id']}/stop", headers=api.as_("viewer")).status_code == 403
+    assert api.client.get(f"/api/sessions/{session['id']}", headers=api.as_("viewer")).json()["status"] == "recording"
