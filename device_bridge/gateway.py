@@ -55,9 +55,9 @@ class Gateway(BusThreads):
         """The bridge at the leg: its CAN bus to the broker link, telemetry batched over :data:`TELEMETRY_WINDOW_S`."""
         return cls(leg, broker, window_s=TELEMETRY_WINDOW_S, may_wait=is_telemetry)
 
-    def wait(self) -> None:
-        """Block until :meth:`close` (or Ctrl-C in the caller)."""
-        self._stop.wait()
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block until :meth:`close` or for ``timeout_s``; whether it was closed."""
+        return self._stop.wait(timeout_s)
 
     def _pump(self, src: can.BusABC, dst: can.BusABC, key: str) -> None:
         batching = callable(getattr(dst, "send_batch", None))   # the broker link: one message per burst of frames

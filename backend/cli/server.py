@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -12,6 +14,8 @@ from pathlib import Path
 from sqlalchemy import Connection
 
 from backend.settings import Settings
+
+SIGNAL_POLL_S = 0.2   # how often the bridge's main thread wakes to run a signal's handler
 
 DATA_DIR_HELP = "data directory holding quasitune.sqlite (default: $QUASITUNE_DATA_DIR or ~/.local/share/quasitune)"
 
@@ -233,11 +237,17 @@ def cmd_bridge(args: argparse.Namespace) -> int:
         walker.stand(args.mass)
         node = DeviceNode(can.Bus(interface="virtual", channel=leg_bus.split(":", 1)[1]), leg=walker).start()
     gateway = (Gateway.to_broker(open_bus(leg_bus), far) if args.broker else Gateway(open_bus(leg_bus), far)).start()
+    # Ctrl-C or SIGTERM (docker stop) end it cleanly, from the moment it says it runs. The main thread waits in short
+    # rounds: a signal the kernel hands to another of the bridge's threads only runs its Python handler when the main
+    # thread next runs, and a wait without a timeout never returns for it (a loaded CI machine saw a bridge ignore
+    # Ctrl-C for good so).
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
     print(f"QuasiTune bridge: {args.can} <-> {to}", flush=True)
     try:
-        gateway.wait()
-    except KeyboardInterrupt:
-        pass
+        while not stop.is_set() and not gateway.wait(SIGNAL_POLL_S):
+            pass
     finally:
         gateway.close()
         if node is not None:

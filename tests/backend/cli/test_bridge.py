@@ -49,9 +49,10 @@ def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_push
     assert (tmp_path / "late.sqlite").exists()
 
 
-def _interrupt(proc: subprocess.Popen, stderr) -> None:
-    """Ctrl-C, and the bridge stops cleanly; one that does not is aborted and its threads' stacks are the failure."""
-    proc.send_signal(signal.SIGINT)
+def _interrupt(proc: subprocess.Popen, stderr, stop: int = signal.SIGINT) -> None:
+    """Ctrl-C (or ``stop``), and the bridge stops cleanly; one that does not is aborted and its threads' stacks are the
+    failure."""
+    proc.send_signal(stop)
     try:
         proc.wait(30)
     except subprocess.TimeoutExpired:
@@ -67,3 +68,14 @@ def test_a_bridge_refuses_a_buffer_bound_that_is_not_a_size(tmp_path):
                         "mqtts://127.0.0.1:1", "--device-id", "x", "--credentials", str(tmp_path / "none.json"),
                         "--buffer-mb", "0"], capture_output=True, text=True)
     assert r.returncode == 2 and "--buffer-mb" in r.stderr
+
+
+@pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGINT])
+def test_a_bridge_stops_cleanly_on_sigterm_as_on_ctrl_c(tmp_path, stop):
+    """``docker stop`` sends SIGTERM: the bridge closes its buses and exits 0, as on Ctrl-C."""
+    with (tmp_path / "stderr.txt").open("w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "backend.cli", "bridge", "--can", "sim", "--to",
+                                 f"virtual:test-bridge-stop-{os.getpid()}"], stdout=subprocess.PIPE, stderr=err,
+                                text=True, env={**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONFAULTHANDLER": "1"})
+        assert "QuasiTune bridge: sim <->" in proc.stdout.readline(), (tmp_path / "stderr.txt").read_text()
+        _interrupt(proc, tmp_path / "stderr.txt", stop)
