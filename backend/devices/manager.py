@@ -44,6 +44,7 @@ from device_bridge.sim.walker import SimWalker
 ONLINE_WITHIN_S = 1.0        # a device whose status is older than this is offline
 log = logging.getLogger(__name__)
 WITHDRAWAL_RECHECK_S = 5.0   # a leg reporting the same thing is checked again for a withdrawal (another instance's)
+LEAVE_SAFE_TRY_S = 3.0      # a requested LEAVE_SAFE_MODE is repeated while the leg still reports safe mode, this long
 LINK_MODE_RESEND_S = 0.5     # a device still reporting another lost-link mode is sent the choice again after this
 STORED_VIEW_MAX_AGE_S = 1.0  # a live stream's statuses show the assignment and tables as read at most this long ago
 _LINK_COMMANDS = {"supervised": Command.LINK_SUPERVISED, "autonomous": Command.LINK_AUTONOMOUS}
@@ -68,6 +69,8 @@ class ManagedDevice:
     link_mode_sent_s: float = float("-inf")                 # monotonic s the choice was last sent to the device
     stored: tuple | None = None                             # (status key, monotonic s, parts) of the last stored read
     withdrawal_checked: tuple = (None, float("-inf"))       # (status key, wall monotonic s) last checked for a withdrawal
+    leave_safe_until_s: float = float("-inf")                # monotonic s: LEAVE_SAFE_MODE is sent again until then
+    leave_safe_sent_s: float = float("-inf")                 # monotonic s it was last sent
 
 
 class DeviceManager:
@@ -314,9 +317,15 @@ class DeviceManager:
         return dev.link
 
     def command(self, device_id: str, command: Command) -> None:
+        """Send a command now. LEAVE_SAFE_MODE is sent again with each status that still shows safe mode (at most every
+        :data:`LINK_MODE_RESEND_S`, for :data:`LEAVE_SAFE_TRY_S`): the leg leaves only while it hears the host, and just
+        after a cut its first heartbeats may still be on their way; ENTER_SAFE_MODE ends that."""
         dev = self.get(device_id)
         if not self.online(dev) or dev.link is None:
             raise ConflictError(f"device {device_id} is offline; the command was not sent")
+        now = self.clock.monotonic()
+        leaving = command == Command.LEAVE_SAFE_MODE
+        dev.leave_safe_until_s, dev.leave_safe_sent_s = (now + LEAVE_SAFE_TRY_S, now) if leaving else (float("-inf"),) * 2
         dev.link.command(command)
 
     def link_mode_chosen(self, device_id: str, mode: str) -> None:
@@ -341,6 +350,16 @@ class DeviceManager:
             dev.link_mode_sent_s = now
             with contextlib.suppress(can.CanError):   # a full or closed bus: the next status tries again
                 dev.link.command(_LINK_COMMANDS[dev.link_mode])
+
+    def _leave_safe_again(self, dev: ManagedDevice, status: DeviceStatus) -> None:
+        now = self.clock.monotonic()
+        if status.mode.name != "SAFE" or now > dev.leave_safe_until_s:
+            dev.leave_safe_until_s = float("-inf") if status.mode.name != "SAFE" else dev.leave_safe_until_s
+            return
+        if now - dev.leave_safe_sent_s >= LINK_MODE_RESEND_S and dev.link is not None:
+            dev.leave_safe_sent_s = now
+            with contextlib.suppress(can.CanError):   # a full or closed bus: the next status tries again
+                dev.link.command(Command.LEAVE_SAFE_MODE)
 
     def withdrawn(self) -> None:
         """A version was withdrawn: every leg's next status is checked for it (:meth:`_refuse_withdrawn`)."""
@@ -415,6 +434,7 @@ class DeviceManager:
             dev.reconciled = key
         self.recorder.note_status(dev.spec.device_id, status.mode.name.lower(), active)
         self._apply_link_mode(dev, status)
+        self._leave_safe_again(dev, status)
         self._refuse_withdrawn(dev, status)
         if dev.fanout:
             dev.fanout.publish({"type": "status", **self.view(dev.spec.device_id, fresh=False)})

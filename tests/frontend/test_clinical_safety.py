@@ -98,6 +98,7 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     page.wait_for_selector("#recording-chip .chip.bad:has-text('SAFE MODE')")
     assert "not scored" in page.inner_text("#recording-chip")
     assert "SAFE MODE" in page.inner_text("#sample-mode")
+    page.wait_for_selector("#walk-state .chip.bad:has-text('SAFE MODE')")        # never "walking" alone over safe mode
     shot(page, "11-monitor-safe-mode")
     # Stop and Safe mode stay beside the charts on a small laptop and a tablet; each value sits under its label
     for width, height in ((1024, 700), (768, 1024)):
@@ -116,7 +117,12 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
         assert page.evaluate("document.documentElement.scrollWidth - window.innerWidth") <= 0
         page.screenshot(path=str(ARTIFACTS / f"16-monitor-{width}x{height}.png"))   # the window, as scrolled
     page.set_viewport_size({"width": 1366, "height": 900})
-    page.click("#leave-safe")
+    page.click("#leave-safe")                                # the table runs again under the patient: asked first
+    page.wait_for_selector("#leave-safe-dialog")
+    assert "runs this table again" in page.inner_text("#leave-safe-dialog")
+    assert page.is_disabled("#leave-safe-dialog-confirm")
+    page.check("#leave-safe-dialog-ready")
+    page.click("#leave-safe-dialog-confirm")
     page.wait_for_selector("#recording-chip .chip.ok:has-text('recording')", timeout=10_000)
     page.click("#stop-session")
     page.click("#stop-dialog-confirm")

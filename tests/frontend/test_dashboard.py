@@ -264,9 +264,18 @@ def test_body_mass_is_editable_on_the_patient_page(server, page):
     page.click("#edit-mass button[type=submit]")                                       # the form refuses it
     assert page.evaluate("() => document.querySelector('#edit-mass input').validity.rangeOverflow")
     assert "78.0 kg" in page.inner_text("#patient-mass")
-    page.fill("#edit-mass input[name=body_mass_kg]", "81.5")
+    page.fill("#edit-mass input[name=body_mass_kg]", "81.5")                          # within 5 %: saved at once
     page.click("#edit-mass button[type=submit]")
     page.wait_for_selector("#patient-mass:has-text('81.5 kg')")
+    page.fill("#edit-mass input[name=body_mass_kg]", "90")                            # beyond 5 %: confirmed first
+    page.click("#edit-mass button[type=submit]")
+    page.wait_for_selector("#mass-dialog")
+    assert "81.5 kg → 90.0 kg" in page.inner_text("#mass-dialog") and "no leg is assigned" in page.inner_text("#mass-dialog")
+    page.click("#mass-dialog-cancel")
+    assert "81.5 kg" in page.inner_text("#patient-mass")
+    page.click("#edit-mass button[type=submit]")
+    page.click("#mass-dialog-confirm")
+    page.wait_for_selector("#patient-mass:has-text('90.0 kg')")
 
 
 def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(server, browser, page):

@@ -16,7 +16,7 @@ from playwright.sync_api import expect
 
 from tests.helpers.browser import ARTIFACTS, shot, sign_in, watch_errors
 from tests.helpers.device import until
-from tests.helpers.server import PASSWORD
+from tests.helpers.server import PASSWORD, sign_off
 
 VIEWPORTS = {"desktop": (1366, 900), "tablet": (820, 1180)}
 
@@ -93,12 +93,20 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.wait_for_selector("#preview-segments", timeout=120_000)           # reviewed before deciding
 
     # approve with a reason, assign the leg, push with the clinical precondition ticked
-    page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
     page.wait_for_selector("#decision-bench:not(:has-text('has not finished'))")
-    unsafe = "unsafe figure" in page.inner_text("#decision-bench")
-    if unsafe:   # the course preview fell (the learned tables give way at 1.6 m/s: docs/results.md): a written reason
+    unsafe = "beyond their bounds" in page.inner_text("#decision-bench")
+    if unsafe:   # the course preview broke a bound: dana cannot go ahead alone; a colleague signs off from their account
+        page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
+        assert page.is_disabled("#approve") and page.is_visible("#signoff")
+        sign_off(server, "eli", "envelope", int(page.url.rsplit("/", 1)[-1]),
+                 "course preview reviewed with dana; clinic walks stay at the tested speeds")
+        page.reload()
+        page.wait_for_selector("#signoffs:has-text('eli')")
+        assert page.is_hidden("#signoff")                                        # dana's sign-off is the second
+    page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
+    if unsafe:
         assert page.is_disabled("#approve")
-        page.fill("#override-reason", "course preview reviewed: falls on the 1.6 m/s segment; clinic walks stay slower")
+        page.fill("#override-reason", "course preview reviewed: the flagged figures are on segments clinic walks avoid")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
     page.wait_for_selector("#push-assignment:has-text('sim-leg-1 is')")   # the push panel drawn: who wears the leg
@@ -186,6 +194,7 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
         patient = c.post("/api/patients", json={"code_name": "P-EDGE", "body_mass_kg": 80, "side": "right"}).json()
         env = c.post(f"/api/patients/{patient['id']}/envelopes", json={
             "speed_range_mps": [1.3, 1.6], "incline_range_deg": [3, 9], "grid": [2, 2]}).json()
+        sign_off(server, "eli", "envelope", env["id"], "clamping drill: the leg is held at the edge on purpose")
         c.post(f"/api/envelopes/{env['id']}/approve", json={
             "comment": "edge test", "override_reason": "clamping drill: the leg is held at the edge on purpose"}
                ).raise_for_status()
@@ -220,6 +229,8 @@ def test_the_monitor_says_when_the_leg_is_clamped_at_the_edge_and_when_it_is_in_
     assert "SAFE MODE" in page.inner_text("#adaptive-state")
     shot(page, "env-monitor-safe")
     page.click("#leave-safe")
+    page.check("#leave-safe-dialog-ready")
+    page.click("#leave-safe-dialog-confirm")
     page.wait_for_selector("#adaptive-state:not([data-state=safe])", timeout=10_000)
     page.click("#stop-session")
     page.click("#stop-dialog-confirm")

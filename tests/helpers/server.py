@@ -77,3 +77,16 @@ def stop_server(proc: subprocess.Popen, grace_s: float = 3.0) -> None:
     except subprocess.TimeoutExpired:
         proc.kill()
         proc.wait(timeout=10)
+
+
+def sign_off(base: str, user: str, kind: str, item_id: int, reason: str) -> dict:
+    """``user`` (a prosthetist, password :data:`PASSWORD`) signs off a version's bench findings on the server at
+    ``base``: the colleague's half of the bench gate's two-person override."""
+    import httpx
+
+    with httpx.Client(base_url=base, timeout=60) as c:
+        token = c.post("/api/auth/token", data={"username": user, "password": PASSWORD}).json()["access_token"]
+        r = c.post(f"/api/{kind}s/{item_id}/signoffs", headers={"Authorization": f"Bearer {token}"},
+                   json={"reason": reason})
+        r.raise_for_status()
+        return r.json()

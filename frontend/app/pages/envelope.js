@@ -55,6 +55,7 @@ export async function envelopePage(view, id, params) {
       chip(e.safety.ok ? "every node within the parameter limits and the neighbour rule" : "outside the parameter limits", e.safety.ok ? "ok" : "bad"),
       e.bench ? h("span", { id: "bench-chip" }, chip(e.bench.words, BENCH_CHIP[e.bench.status])) : null,
       e.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
+      e.withdrawal ? h("span", { id: "withdrawn-chip" }, chip("WITHDRAWN", "bad")) : null,
       e.extrapolation_reason ? extrapolationChip(e) : null,
       e.source === "edit" ? chip(`edited from v${e.parent_version}`) : chip("model"),
       chip(`${e.grid[0]} × ${e.grid[1]} nodes`)),

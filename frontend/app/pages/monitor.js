@@ -27,13 +27,15 @@ const BENCH_WORDS = { walking: " · the simulated patient walks", standing: " ·
 function walkState(status) {
   const el = document.getElementById("walk-state");
   if (!el || status.recording_session_id === null || status.bench_state === null || status.bench_state === undefined) return;
-  const text = status.bench_state === "walking" ? (status.bench_task?.course ? `walking the “${status.bench_task.course}” course`
+  const safe = status.safe_mode ? " — and the leg is in SAFE MODE: passive and damped, its table does not run" : "";
+  const text = (status.bench_state === "walking" ? (status.bench_task?.course ? `walking the “${status.bench_task.course}” course`
     : "walking") : status.bench_state === "standing" ? "the walk has ended and the patient stands: the session still "
-      + "records (standing adds no strides); stop it to summarise" : "nobody wears the leg";
+      + "records (standing adds no strides); stop it to summarise" : "nobody wears the leg") + safe;
   if (el.dataset.text === text) return;
   el.dataset.text = text;
-  el.replaceChildren(chip(status.bench_state === "walking" ? "walking" : status.bench_state === "standing" ? "standing" : "not worn",
-    status.bench_state === "walking" ? "ok" : "warn"), ` ${text}`);
+  const what = status.bench_state === "walking" ? "walking" : status.bench_state === "standing" ? "standing" : "not worn";
+  el.replaceChildren(chip(status.safe_mode ? `${what} · SAFE MODE` : what,
+    status.safe_mode ? "bad" : status.bench_state === "walking" ? "ok" : "warn"), ` ${text}`);
 }
 
 export async function monitorPage(view, deviceId, params) {
@@ -182,6 +184,13 @@ export async function monitorPage(view, deviceId, params) {
   if (viewerToggle.open) show3d();
 
   async function command(name) {
+    if (name === "leave_safe_mode") {   // the table runs again under the patient: asked, never one stray click
+      const ok = await confirmDialog({ id: "leave-safe-dialog", title: `Leave safe mode on ${deviceId}?`,
+        facts: [["On the leg", tableName(status.active_table, true)],
+          ["What changes", "the leg stops being passive and damped and runs this table again from the next heel strike"]],
+        requires: "The patient is seated or standing in the parallel bars.", confirm: "Leave safe mode" });
+      if (!ok) return;
+    }
     try {
       const answer = await post(`/api/devices/${deviceId}/commands`, { command: name });
       // the device's own status stream is the truth: a reply made before the device answered must not undo it
@@ -208,20 +217,25 @@ function renderStatus(box, d) {
     enter.title = !d.online ? "the device is offline" : d.safe_mode ? "already in safe mode" : "";
   }
   if (leave) {
-    leave.disabled = !d.online || !d.safe_mode;
-    leave.title = !d.online ? "the device is offline" : d.safe_mode ? "" : "not in safe mode";
+    const withdrawn = d.withdrawal_notice?.state === "runs_withdrawn";
+    leave.disabled = !d.online || !d.safe_mode || withdrawn;
+    leave.title = !d.online ? "the device is offline" : withdrawn ? "the leg holds a withdrawn version: push another first"
+      : d.safe_mode ? "" : "not in safe mode";
   }
   box.replaceChildren(h("p", { class: "chips" },
     chip(d.online ? "online" : "offline", d.online ? "ok" : "bad"),
     chip(d.safe_mode ? "SAFE MODE" : modeWords(d.mode), d.safe_mode ? "bad" : d.mode === "active" ? "ok" : "warn"),
     d.faults.length ? chip(`the leg reports: ${d.faults.map((f) => FAULT_WORDS[f] || f).join("; ")}`, "bad") : null),
+  d.withdrawal_notice ? h("p", { id: "withdrawal-notice", class: `banner ${d.withdrawal_notice.state === "runs_withdrawn" ? "bad" : "warn"}` },
+    h("strong", {}, d.withdrawal_notice.state === "runs_withdrawn" ? "Withdrawn version on the leg: " : "Sent back: "),
+    d.withdrawal_notice.words) : null,
   h("dl", { class: "facts" },
     h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
     h("dt", {}, "On the leg"), h("dd", { id: "active-version" }, d.active_version === null ? "none"
       : d.active_table ? tableName(d.active_table, true) : `device version ${d.active_version} (not sent by this server)`,
       d.body_mass_mismatch ? h("span", { id: "mass-mismatch" }, " ", chip(d.body_mass_mismatch.message, "warn")) : null,
       d.active_table?.approval_override ? h("span", { id: "approval-override" }, " ",
-        chip(`approved without a clean bench preview: “${d.active_table.approval_override}”`, "warn")) : null,
+        chip(`approved without a clean bench preview, signed off by ${d.active_table.approval_override}`, "warn")) : null,
       d.active_table?.extrapolation_reason ? h("span", { id: "extrapolated" }, " ",
         chip(`extrapolated beyond the data: “${d.active_table.extrapolation_reason}”`, "bad")) : null,
       d.active_table?.override_reason ? h("span", { id: "push-override" }, " ",
@@ -329,6 +343,10 @@ async function renderSession(box, deviceId, patients, params) {
   box.append(assignment(box, device, patients, deviceId, params));
   if (!device.patient) {
     box.append(error);
+    return;
+  }
+  if (!canCommandOf()) {   // starting sets the simulated patient walking: the prosthetist's, as stopping is
+    box.append(h("p", { class: "muted", id: "session-start-note" }, "No session is recording. A prosthetist starts one."));
     return;
   }
   const speed = h("input", { type: "number", name: "speed", min: 0.1, max: 3, step: 0.01, placeholder: "from the active table",

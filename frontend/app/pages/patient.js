@@ -1,6 +1,6 @@
 import { api, get, post } from "../api.js";
 import { app } from "../state.js";
-import { chip, extrapolationChip, fmt, h, modeWords, rangeText, table, tableName, when } from "../ui.js";
+import { chip, confirmDialog, extrapolationChip, fmt, h, modeWords, rangeText, table, tableName, when } from "../ui.js";
 
 export async function patientPage(view, id) {
   const [patient, proposals, envelopes, sessions, devices, trend, range] = await Promise.all([
@@ -197,8 +197,20 @@ function massForm(patient) {
   form.addEventListener("submit", async (ev) => {
     ev.preventDefault();
     error.textContent = "";
+    const now = Number(mass.value);
+    if (Math.abs(now - patient.body_mass_kg) > 0.05 * patient.body_mass_kg) {   // every torque and threshold scales with it
+      const legs = (await get("/api/devices")).filter((d) => d.patient?.patient_id === patient.id);
+      const ok = await confirmDialog({ id: "mass-dialog", title: `Change ${patient.code_name}'s body mass by more than 5 %?`,
+        facts: [["Body mass", `${fmt(patient.body_mass_kg, 1, "kg")} → ${fmt(now, 1, "kg")}`],
+          ...legs.map((d) => [`On ${d.id} now`, `${tableName(d.pending_table || d.active_table, true)}: built for `
+            + `${fmt((d.pending_table || d.active_table)?.body_mass_kg ?? patient.body_mass_kg, 0, "kg")}; it keeps running, `
+            + "and is pushed again only with a written reason (propose again for the new mass)"]),
+          ...(legs.length ? [] : [["On a leg", "no leg is assigned to this patient"]])],
+        confirm: "Change body mass" });
+      if (!ok) return;
+    }
     try {
-      await api(`/api/patients/${patient.id}`, { method: "PATCH", body: { body_mass_kg: Number(mass.value) } });
+      await api(`/api/patients/${patient.id}`, { method: "PATCH", body: { body_mass_kg: now } });
       await patientPage(document.getElementById("view"), patient.id);
     } catch (err) {
       error.textContent = err.message;

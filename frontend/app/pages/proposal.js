@@ -113,6 +113,7 @@ function headChips(p) {
     chip(p.safety.ok ? "within parameter limits" : "outside parameter limits", p.safety.ok ? "ok" : "bad"),
     p.bench ? h("span", { id: "bench-chip" }, chip(p.bench.words, BENCH_CHIP[p.bench.status])) : null,
     p.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
+      p.withdrawal ? h("span", { id: "withdrawn-chip" }, chip("WITHDRAWN", "bad")) : null,
     p.extrapolation_reason ? extrapolationChip(p) : null,
     p.source === "edit" ? chip(`edited from v${p.parent_version}`) : chip("model"));
 }

@@ -40,7 +40,7 @@ export async function reportPage(view, id) {
       h("dt", {}, s.envelope_id !== null ? "Envelope on the leg" : "Active table"), h("dd", { id: "report-table" }, s.table_label === null ? "none from this server"
         : h("span", {}, h("a", { href: s.envelope_id !== null ? `#/envelopes/${s.envelope_id}` : `#/proposals/${s.proposal_id}` }, s.table_label),
           ` · CRC-32 ${s.table_crc32} · device version ${s.table_version}`,
-          s.approval_override ? h("span", { id: "report-override" }, " ", chip(`approved without a clean bench preview: “${s.approval_override}”`, "warn")) : null,
+          s.approval_override ? h("span", { id: "report-override" }, " ", chip(`approved without a clean bench preview, signed off by ${s.approval_override}`, "warn")) : null,
           s.extrapolation_reason ? h("span", { id: "report-extrapolated" }, " ", chip(`extrapolated beyond the data: “${s.extrapolation_reason}”`, "bad")) : null)),
       h("dt", {}, "Device"), h("dd", {}, s.device_id),
       h("dt", {}, "Recorded"), h("dd", {}, `${when(s.started_at)} → ${when(s.stopped_at)} by ${s.started_by}`)),

@@ -1,11 +1,15 @@
 // The "Decision" card of a table or an envelope: approve or reject a draft once, with the reason (audited). A version
-// outside the parameter limits cannot be approved. Approval rests on the bench: with its preview not walked yet, or
-// showing an unsafe figure, Approve needs a written override (20 characters at least; audited and shown wherever the
-// version is shown). The card follows the preview when it finishes, without losing what was typed.
+// outside the parameter limits cannot be approved. Approval rests on the bench: a preview not walked yet, or any safety
+// figure beyond its bound, is overridden only by two prosthetists' sign-offs from two accounts, each with its written
+// reason (20 characters at least; audited and shown wherever the version is shown): the first signs off here, the
+// second approves with theirs. An approved version can be withdrawn (never pushed again; a leg running it is sent back
+// to the last version it ran, or to safe mode). The card follows the preview when it finishes, without losing what was
+// typed.
 import { get, post } from "../api.js";
-import { fmt, h, notice, table, when } from "../ui.js";
+import { app } from "../state.js";
+import { confirmDialog, fmt, h, notice, table, when } from "../ui.js";
 
-export const BENCH_CHIP = { clean: "ok", warnings: "warn", unsafe: "bad", not_walked: "" };
+export const BENCH_CHIP = { clean: "ok", unsafe: "bad", not_walked: "" };
 
 // The bench's safety figures, compact, beside Approve and Push: this version's and the FSMIC's on the same walk, each
 // flagged on its own bound (the preview card below has the tracking errors)
@@ -29,8 +33,14 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
     box.append(h("p", {}, `${item.decision.status} by ${item.decision.by} ${when(item.decision.at)}`,
       item.decision.comment ? ` — “${item.decision.comment}”` : "", ". An approved or rejected version never changes; edit it into a new draft instead."));
     if (item.decision.override_reason) {
-      box.append(h("p", { class: "banner warn", id: "decision-override" }, h("strong", {}, "Approved without a clean bench preview: "),
-        `“${item.decision.override_reason}”`));
+      box.append(h("p", { class: "banner warn", id: "decision-override" },
+        h("strong", {}, "Approved without a clean bench preview, signed off by two prosthetists: "), item.decision.override_reason));
+    }
+    if (item.withdrawal) {
+      box.append(h("p", { class: "banner bad", id: "withdrawn" }, h("strong", {}, "Withdrawn "),
+        `by ${item.withdrawal.by} ${when(item.withdrawal.at)}: “${item.withdrawal.reason}”. It is never pushed again.`));
+    } else if (item.status === "approved" && canDecide) {
+      box.append(withdrawControl({ name, path, reload }));
     }
     return;
   }
@@ -42,9 +52,15 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   const error = h("p", { class: "error", role: "alert" });
   const comment = h("input", { name: "comment", maxlength: 2000, size: 50, "aria-label": "Decision comment" });
   const override = h("textarea", { name: "override_reason", id: "override-reason", rows: 2, cols: 60, maxlength: 2000,
-    "aria-label": "Why approve without a clean bench preview" });
+    "aria-label": "Why go ahead without a clean bench preview" });
   const gate = h("div", { id: "bench-gate" });
   const needsOverride = () => bench.status === "unsafe" || bench.status === "not_walked";
+  const signed = () => bench.signoffs || [];
+  const mine = () => signed().some((x) => x.by === app.me?.username);
+  const others = () => signed().filter((x) => x.by !== app.me?.username);
+  const complete = () => signed().length >= (bench.signoffs_needed || 2);
+  // what this prosthetist may do about an unclean bench: sign off first, approve as the second, or wait for a colleague
+  const step = () => (!needsOverride() || complete() ? "approve" : mine() ? "wait" : others().length ? "second" : "first");
   let unsaved = false;   // cells typed into the table and not saved: Approve would approve the stored values
   const unsavedNote = h("p", { class: "banner warn", id: "unsaved-edits", hidden: true },
     "The table has unsaved edits: save them as a new version, or discard them, before deciding.");
@@ -52,7 +68,7 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
     error.textContent = "";
     try {
       const body = { comment: comment.value };
-      if (what === "approve" && needsOverride()) body.override_reason = override.value.trim();
+      if (what === "approve" && step() === "second") body.override_reason = override.value.trim();
       await post(`${path}/${what}`, body);
       notice(`${name} ${what === "approve" ? "approved" : "rejected"}`, "ok");
       await reload();
@@ -65,29 +81,54 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
       error.textContent = err.message;
     }
   };
+  const signOff = async () => {
+    error.textContent = "";
+    try {
+      await post(`${path}/signoffs`, { reason: override.value.trim() });
+      notice(`${name}: your sign-off is recorded; a second prosthetist must sign off from their own account`, "warn");
+      await reload();
+    } catch (err) {
+      error.textContent = err.message;
+    }
+  };
+  const signOffButton = h("button", { id: "signoff", class: "secondary", onclick: signOff, disabled: true },
+    "Sign off (first of two)");
   const approve = h("button", { id: "approve", onclick: decide("approve"), disabled: true }, "Approve");
   const reject = h("button", { id: "reject", class: "secondary", onclick: decide("reject"), disabled: true,
     title: "say why first" }, "Reject");
-  const update = () => {       // a decision needs its reason, like an edit; an unclean bench needs a written override
+  const update = () => {       // a decision needs its reason, like an edit; an unclean bench needs two sign-offs
     const said = comment.value.trim().length > 0;
-    const overridden = !needsOverride() || override.value.trim().length >= MIN_OVERRIDE;
-    approve.disabled = !said || !item.safety.ok || !overridden || unsaved;
+    const written = override.value.trim().length >= MIN_OVERRIDE;
+    const now = step();
+    approve.disabled = !said || !item.safety.ok || unsaved || now === "first" || now === "wait" || (now === "second" && !written);
+    signOffButton.hidden = now !== "first";
+    signOffButton.disabled = !written || !item.safety.ok;
     unsavedNote.hidden = !unsaved;
     approve.title = unsaved ? "unsaved edits in the table: save them as a new version, or discard them"
       : !item.safety.ok ? "outside the parameter limits: cannot be approved"
-      : !overridden ? `the bench preview is ${bench.status === "unsafe" ? "unsafe" : "not walked yet"}: write why you approve anyway`
+      : now === "first" ? "the bench preview is not clean: two prosthetists must sign off; sign off first, then a colleague approves"
+      : now === "wait" ? "you signed off: a second prosthetist must sign off from their own account"
+      : now === "second" && !written ? "write why you go ahead anyway: your sign-off is the second"
         : "say why first (what you reviewed)";
     reject.disabled = !said;
-    const warnings = bench.flags.filter((f) => f.severity === "warn").map((f) => f.message);
+    const badFlags = bench.flags.map((f) => f.message);
+    const signatures = signed().length ? h("ul", { id: "signoffs" }, signed().map((x) => h("li", {},
+      h("strong", {}, x.by), ` ${when(x.at)}: “${x.reason}”`))) : null;
+    const ask = { first: `Sign off the bench's findings, the first of two (at least ${MIN_OVERRIDE} characters; audited and shown with this version) `,
+      second: `Your sign-off, the second: approve anyway because (at least ${MIN_OVERRIDE} characters; audited and shown with this version) ` };
     gate.replaceChildren(benchFigures(bench, "decision-figures"), h("p", { id: "decision-bench" }, h("strong", {}, "Bench: "),
-      bench.status === "clean" ? "the preview walked clean: no safety figure outside its bound."
-        : bench.status === "warnings" ? `the preview walked with warnings: ${warnings.join("; ")}.`
-          : bench.status === "unsafe" ? "the preview shows an unsafe figure (below)." : "the preview has not finished walking."),
+      bench.status === "clean" ? "the preview walked clean: no safety figure beyond its bound."
+        : bench.status === "unsafe" ? `the preview shows ${badFlags.length} figure(s) beyond their bounds (below).`
+          : "the preview has not finished walking."),
     ...(needsOverride() ? [
       h("p", { class: `banner ${bench.status === "unsafe" ? "bad" : "warn"}` }, h("strong", {}, "Approval rests on the bench: "),
-        bench.status === "unsafe" ? bench.flags.filter((f) => f.severity === "bad").map((f) => f.message).join("; ")
-          : "its preview is still walking (or has not been walked). Wait for it, or write why you approve without it."),
-      h("label", {}, `Approve anyway because (at least ${MIN_OVERRIDE} characters; audited and shown with this version) `, override)]
+        bench.status === "unsafe" ? badFlags.join("; ")
+          : "its preview is still walking (or has not been walked). Wait for it, or two prosthetists sign off going ahead without it.",
+        ". Going ahead anyway takes two prosthetists' sign-offs, each from their own account with their own reason."),
+      signatures,
+      now === "wait" ? h("p", { class: "banner warn", id: "signoff-wait" }, "You signed off. A second prosthetist must sign off from their own account before this version can be approved.")
+        : now === "approve" ? h("p", { id: "signoff-complete" }, "Two prosthetists signed off: it can be approved.")
+          : h("label", {}, ask[now], override)]
       : []));
   };
   comment.addEventListener("input", update);
@@ -107,6 +148,30 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   };
   window.addEventListener("quasitune:unsaved-edits", edited);
   update();
-  box.append(gate, h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), approve, reject),
-    unsavedNote, error);
+  box.append(gate, h("div", { class: "inline" }, signOffButton), h("div", { class: "inline" },
+    h("label", {}, "Why (required, audited) ", comment), approve, reject), unsavedNote, error);
+}
+
+// Withdraw an approved version (prosthetist): asks why, then says what happened to every leg that ran it
+function withdrawControl({ name, path, reload }) {
+  const error = h("p", { class: "error", role: "alert" });
+  const go = async () => {
+    const reason = await confirmDialog({ id: "withdraw-dialog", title: `Withdraw ${name}?`, danger: true, confirm: "Withdraw",
+      facts: [["What it does", "It is never pushed again. A leg running it is sent back to the last version it ran that was not withdrawn, or put in safe mode."],
+        ["The approval", "stays as it was decided; the withdrawal is recorded beside it (audited)."]],
+      reason: { label: "Why it is withdrawn", min: 10 } });
+    if (!reason) return;
+    error.textContent = "";
+    try {
+      const out = await post(`${path}/withdraw`, { reason });
+      const legs = out.legs.map((l) => `${l.device_id}: ${l.detail}`).join("; ");
+      notice(`${name} withdrawn${legs ? ` — ${legs}` : " (no leg ran it)"}`, "warn");
+      await reload();
+    } catch (err) {
+      error.textContent = err.message;
+    }
+  };
+  return h("div", { id: "withdraw-box" }, h("p", { class: "muted small" },
+    "Withdraw it if it should not be worn any more (a fault found, a patient's report): every leg running it goes back."),
+  h("button", { id: "withdraw", class: "danger", onclick: go }, "Withdraw…"), error);
 }

@@ -18,9 +18,10 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
           : x.status === "unconfirmed" ? "warn" : x.status === "superseded" ? "" : "ok")),
         h("td", {}, when(x.requested_at)), h("td", {}, when(x.acknowledged_at)), h("td", {}, when(x.active_at))))));
   }
-  if (item.status !== "approved" || !canPush || !devices.length) {
+  if (item.status !== "approved" || item.withdrawal || !canPush || !devices.length) {
     box.append(h("p", { class: "muted" }, item.status !== "approved" ? "Only an approved version can be pushed to a device."
-      : !devices.length ? "No device on this server." : "Only a prosthetist can push."), status);
+      : item.withdrawal ? "Withdrawn: it is never pushed again."
+        : !devices.length ? "No device on this server." : "Only a prosthetist can push."), status);
     return;
   }
   const wearer = (d) => (d.patient ? `worn by ${d.patient.patient_code}` : "assigned to nobody");
@@ -84,7 +85,7 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
         ["Replaced by", what],
         ["Bench preview", bench.status === "unsafe" ? `UNSAFE: ${bench.flags.filter((f) => f.severity === "bad").map((f) => f.message).join("; ")}`
           : bench.words],
-        ...(item.decision?.override_reason ? [["Approved without a clean preview", `“${item.decision.override_reason}”`]] : []),
+        ...(item.decision?.override_reason ? [["Approved without a clean preview, signed off by", item.decision.override_reason]] : []),
         ...(item.extrapolation_reason ? [["Extrapolated", `requested beyond what the model knows: “${item.extrapolation_reason}”`]]
           : item.extrapolation ? [["Extrapolation", "a little outside the walking data (flagged on its page)"]] : []),
         ...(massOff ? [["Body mass", `built for ${fmt(builtFor, 0, "kg")}; ${patient.code_name} now weighs ${fmt(patient.body_mass_kg, 0, "kg")} (more than 5 % apart)`]] : []),
