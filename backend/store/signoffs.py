@@ -11,10 +11,12 @@ from __future__ import annotations
 from typing import Literal
 
 from sqlalchemy import Connection, bindparam, insert, select
+from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now
 from backend.errors import ConflictError
 from backend.store import audit
+from backend.store.dialect import unique_violation
 from backend.store.tables import gate_signoffs, users
 from backend.store.users import User
 
@@ -41,8 +43,15 @@ def sign(conn: Connection, kind: Kind, item_id: int, content_sha256: str, actor:
     if any(s["user_id"] == actor.id for s in signoffs(conn, kind, item_id, content_sha256)):
         raise ConflictError(f"you ({actor.username}) already signed off {kind} {item_id}'s bench findings; the "
                             "second sign-off must come from another prosthetist's account")
-    conn.execute(insert(gate_signoffs).values(**{f"{kind}_id": item_id}, content_sha256=content_sha256,
-                                              user_id=actor.id, reason=reason, signed_at=utc_now()))
+    try:
+        conn.execute(insert(gate_signoffs).values(**{f"{kind}_id": item_id}, content_sha256=content_sha256,
+                                                  user_id=actor.id, reason=reason, signed_at=utc_now()))
+    except IntegrityError as exc:   # the same person's other request (another instance) signed a moment ago
+        if not unique_violation(exc, f"gate_signoffs_{kind}_id_user_id_key", f"gate_signoffs.{kind}_id, "
+                                "gate_signoffs.user_id"):
+            raise
+        raise ConflictError(f"your ({actor.username}) sign-off on {kind} {item_id} was recorded a moment ago by another "
+                            "request; reload it to see where it stands") from None
     audit.record(conn, actor.id, actor.username, f"{kind}.gate_signoff", kind, item_id, before=None,
                  after={"content_sha256": content_sha256, "reason": reason})
     return signoffs(conn, kind, item_id, content_sha256)

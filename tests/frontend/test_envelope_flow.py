@@ -98,7 +98,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     if unsafe:   # the course preview broke a bound: dana cannot go ahead alone; a colleague signs off from their account
         page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
         assert page.is_disabled("#approve") and page.is_visible("#signoff")
-        sign_off(server, "eli", "envelope", int(page.url.rsplit("/", 1)[-1]),
+        sign_off(server, "eli", "envelope", int(re.search(r"#/envelopes/(\d+)", page.url).group(1)),
                  "course preview reviewed with dana; clinic walks stay at the tested speeds")
         page.reload()
         page.wait_for_selector("#signoffs:has-text('eli')")

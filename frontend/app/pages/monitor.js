@@ -226,9 +226,9 @@ function renderStatus(box, d) {
     chip(d.online ? "online" : "offline", d.online ? "ok" : "bad"),
     chip(d.safe_mode ? "SAFE MODE" : modeWords(d.mode), d.safe_mode ? "bad" : d.mode === "active" ? "ok" : "warn"),
     d.faults.length ? chip(`the leg reports: ${d.faults.map((f) => FAULT_WORDS[f] || f).join("; ")}`, "bad") : null),
-  d.withdrawal_notice ? h("p", { id: "withdrawal-notice", class: `banner ${d.withdrawal_notice.state === "runs_withdrawn" ? "bad" : "warn"}` },
+  ...(d.withdrawal_notice ? [h("p", { id: "withdrawal-notice", class: `banner ${d.withdrawal_notice.state === "runs_withdrawn" ? "bad" : "warn"}` },
     h("strong", {}, d.withdrawal_notice.state === "runs_withdrawn" ? "Withdrawn version on the leg: " : "Sent back: "),
-    d.withdrawal_notice.words) : null,
+    d.withdrawal_notice.words)] : []),
   h("dl", { class: "facts" },
     h("dt", {}, "Worn by"), h("dd", { id: "device-patient" }, d.patient ? `${d.patient.patient_code} (${fmt(d.patient.body_mass_kg, 0, "kg")})` : "nobody (not assigned)"),
     h("dt", {}, "On the leg"), h("dd", { id: "active-version" }, d.active_version === null ? "none"

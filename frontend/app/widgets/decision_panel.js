@@ -125,7 +125,7 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
         bench.status === "unsafe" ? badFlags.join("; ")
           : "its preview is still walking (or has not been walked). Wait for it, or two prosthetists sign off going ahead without it.",
         ". Going ahead anyway takes two prosthetists' sign-offs, each from their own account with their own reason."),
-      signatures,
+      ...(signatures ? [signatures] : []),
       now === "wait" ? h("p", { class: "banner warn", id: "signoff-wait" }, "You signed off. A second prosthetist must sign off from their own account before this version can be approved.")
         : now === "approve" ? h("p", { id: "signoff-complete" }, "Two prosthetists signed off: it can be approved.")
           : h("label", {}, ask[now], override)]

@@ -24,6 +24,13 @@ def prosthetist(conn) -> users.User:
 
 
 @pytest.fixture
+def colleague(conn) -> users.User:
+    """A second prosthetist: the bench gate's override takes two."""
+    made = users.create_user(conn, "kim", "prosthetist", "another long password")
+    return users.User(made["id"], "kim", "prosthetist")
+
+
+@pytest.fixture
 def patient(conn, prosthetist) -> dict:
     return patients.create_patient(conn, {"code_name": "P-1", "body_mass_kg": 80.0, "height_m": 1.8, "side": "left",
                                           "k_level": 3, "notes": ""}, prosthetist)

@@ -7,7 +7,7 @@ import pytest
 
 from backend.db import write_transaction
 from backend.errors import ConflictError
-from backend.store import bench_verdict, previews, proposals, signoffs, users
+from backend.store import bench_verdict, previews, proposals, signoffs
 from tests.backend.store.conftest import CLEAN_WALK
 
 WHY = "seated in the bars, every row checked by hand"
@@ -18,12 +18,6 @@ def _walked(conn, pid, mine):
     previews.store_preview(conn, pid, row["table_sha256"], {"seconds": 10.0, "controllers": {
         "table": mine, "fsmic": CLEAN_WALK}})
     return proposals.get_row(conn, pid)
-
-
-@pytest.fixture
-def colleague(conn) -> users.User:
-    made = users.create_user(conn, "kim", "prosthetist", "another long password")
-    return users.User(made["id"], "kim", "prosthetist")
 
 
 def test_a_clean_walk_passes_alone(conn, draft, prosthetist):

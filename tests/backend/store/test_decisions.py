@@ -7,12 +7,18 @@ from sqlalchemy import literal, select
 
 from backend.db import connect, write_transaction
 from backend.errors import ConflictError
-from backend.store import audit, proposals
+from backend.store import audit, proposals, signoffs
 from backend.store.decisions import decide_once, summary_columns, version_page
 from backend.store.tables import proposals as proposals_table
 from controller_core.table import LimitViolation
 
 REASON = "walked with the patient in the parallel bars"
+
+
+def _signed(conn, pid, colleague):
+    """The colleague's sign-off on the draft's content (it has no preview walked): the approver's is then the second."""
+    with write_transaction(conn):
+        signoffs.sign(conn, "proposal", pid, proposals.get_row(conn, pid)["table_sha256"], colleague, REASON)
 
 
 def _decide(conn, pid, actor, status, recheck=list, override=REASON):
@@ -21,11 +27,13 @@ def _decide(conn, pid, actor, status, recheck=list, override=REASON):
                     "the safety limits", {"note": 1}, override)
 
 
-def test_a_draft_is_decided_once_and_audited(conn, prosthetist, draft):
+def test_a_draft_is_decided_once_and_audited(conn, prosthetist, colleague, draft):
     pid = draft()
+    _signed(conn, pid, colleague)
     _decide(conn, pid, prosthetist, "approved")
     row = proposals.get_row(conn, pid)
-    assert (row["status"], row["decided_by_name"], row["decision_override"]) == ("approved", "pat", REASON)
+    assert (row["status"], row["decided_by_name"], row["decision_override"]) == ("approved", "pat",
+                                                                                 f"kim: {REASON}; pat: {REASON}")
     entry = audit.list_entries(conn, entity="proposal", entity_id=pid)[0]
     assert entry["action"] == "proposal.approve" and entry["after"]["bench"] == "not_walked"
     with pytest.raises(ConflictError, match="already approved by pat"):
@@ -58,10 +66,11 @@ def test_versions_page_newest_first_and_read_only_their_summary_columns(conn, pa
 
 
 def test_a_decision_made_on_a_row_read_before_another_server_decided_it_writes_nothing(conn, database, prosthetist,
-                                                                                      draft):
+                                                                                      colleague, draft):
     """Two instances read the same draft; the other one's decision commits first. The second's update, made only
     while the version is still a draft, changes nothing, and it is refused: no second decision, no second audit."""
     pid = draft()
+    _signed(conn, pid, colleague)
     stale = proposals.get_row(conn, pid)            # read while still a draft
     other = connect(database)
     try:
@@ -73,4 +82,5 @@ def test_a_decision_made_on_a_row_read_before_another_server_decided_it_writes_n
                     REASON)
     assert proposals.get_row(conn, pid)["status"] == "rejected"
     decisions = [e["action"] for e in audit.list_entries(conn, entity="proposal", entity_id=pid)]
-    assert decisions == ["proposal.reject"]
+    assert decisions == ["proposal.reject", "proposal.gate_signoff"]          # the approver's sign-off was not kept
+    assert [s["by"] for s in signoffs.signoffs(conn, "proposal", pid, stale["table_sha256"])] == ["kim"]
