@@ -67,6 +67,8 @@ def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
     rmse = " · ".join(f"{_LABELS[c].split(' (')[0]} {_fmt(s.get(rmse_key(c)), _UNITS[c], 1 if _UNITS[c] == 'deg' else 3)}"
                       for c in GAIT_CHANNELS)
     return [
+        *([("SIMULATED", "walked by the simulated patient on the simulated leg (the bench), not by a person")]
+          if session.get("simulated") else []),
         ("Patient", f"{patient['code_name']} · {patient['body_mass_kg']:.1f} kg · {patient['side']} side"),
         ("Task", f"{session['task_words']} · device {session['device_id']}"),
         ("Envelope that ran" if session.get("envelope_id") is not None else "Table that ran",
@@ -165,10 +167,13 @@ def report_figure(session: dict, patient: dict) -> Figure:
     """The report page as a matplotlib figure (A4 portrait)."""
     s = session["summary"] or {}
     fig = plt.figure(figsize=(8.27, 11.69))
-    fig.text(0.06, 0.955, f"QuasiTune session report · session {session['id']}", fontsize=15, weight="bold")
+    simulated = " · SIMULATED WALK" if session.get("simulated") else ""
+    fig.text(0.06, 0.955, f"QuasiTune session report · session {session['id']}{simulated}", fontsize=15, weight="bold",
+             color="#b3261e" if simulated else "black")
     y = 0.925
     for label, value in report_facts(session, patient):
-        warn = (label == "Leg off its table" and value != "never") or label in ("Bench override", "Extrapolated")
+        warn = (label == "Leg off its table" and value != "never") or label in ("Bench override", "Extrapolated",
+                                                                                   "SIMULATED")
         fig.text(0.06, y, label, fontsize=8, color="0.35")
         for k, line in enumerate(textwrap.wrap(value, 88) or [""]):
             fig.text(0.27, y - k * 0.014, line, fontsize=8, color="#b3261e" if warn else "black",

@@ -72,7 +72,8 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
     task = {"speed_mps": speed, "incline_deg": incline, "body_mass_kg": mass}
     ran = {"proposal_id": active and active["proposal_id"], "envelope_id": active and active["envelope_id"],
            "table_version": leg["version"], "crc32": leg["crc32"]}
-    session_id = store.start_session(conn, patient_id, body.device_id, task, ran, user, body.course)
+    session_id = store.start_session(conn, patient_id, body.device_id, task, ran, user, body.course,
+                                     simulated=devices.get(body.device_id).spec.kind == "simulated")
     devices.start_recording(body.device_id, session_id, reference, mass, course)
     return store.get_session(conn, session_id)
 

@@ -35,8 +35,12 @@ class SessionOut(BaseModel):
     proposal_id: int | None
     envelope_id: int | None
     table_label: str | None = Field(description="what the leg ran: 'patient code · table vN' or '… · envelope vN'")
+    simulated: bool | None = Field(default=None, description="walked by the simulated patient on the simulated leg "
+                                                             "(true), by a person (false); null: recorded before this "
+                                                             "was kept")
     approval_override: str | None = Field(
-        default=None, description="that version was approved without a clean bench preview: the written reason")
+        default=None, description="that version was approved without a clean bench preview: the two prosthetists' "
+                                  "sign-offs, 'name: reason; name: reason'")
     extrapolation_reason: str | None = Field(
         default=None, description="requested beyond the tasks the model knows: the prosthetist's written reason")
     table_version: int | None = Field(description="the device's own version number of that table or envelope")

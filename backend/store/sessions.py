@@ -57,6 +57,7 @@ def _session(row: RowMapping) -> dict:
     return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
             "device_id": row["device_id"], "proposal_id": row["proposal_id"], "envelope_id": row["envelope_id"],
             "table_label": _label(row), "course": row["course"],
+            "simulated": None if row["simulated"] is None else bool(row["simulated"]),
             "task_words": task_words(row["course"], row["speed_mps"], row["incline_deg"]),
             "approval_override": row["approval_override"],
             "extrapolation_reason": row["extrapolation_reason"], "table_version": row["table_version"],
@@ -81,7 +82,7 @@ def sessions_of_patient(conn: Connection, patient_id: int) -> list[dict]:
 
 
 def start_session(conn: Connection, patient_id: int, device_id: str, task: dict, ran: dict,
-                  actor: User, course: str | None = None) -> int:
+                  actor: User, course: str | None = None, simulated: bool | None = None) -> int:
     """Open a recording session (409 when the device already records one). ``ran``: what the device reports running
     (``table_version`` and ``crc32`` as reported, None for no table; ``proposal_id`` or ``envelope_id`` when this
     server sent it)."""
@@ -94,13 +95,15 @@ def start_session(conn: Connection, patient_id: int, device_id: str, task: dict,
                 patient_id=patient_id, device_id=device_id, proposal_id=ran["proposal_id"],
                 envelope_id=ran["envelope_id"], table_version=ran["table_version"], table_crc32=ran["crc32"],
                 speed_mps=task["speed_mps"], incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"],
-                course=course, status="recording", started_by=actor.id, started_at=utc_now())).inserted_primary_key[0])
+                course=course, status="recording", started_by=actor.id, started_at=utc_now(),
+                simulated=None if simulated is None else int(simulated))).inserted_primary_key[0])
         except IntegrityError as exc:   # another instance started one a moment ago: the database's one per device
             if not unique_violation(exc, "one_recording_session_per_device", "walking_sessions.device_id"):
                 raise
             raise busy from None
         audit.record(conn, actor.id, actor.username, "session.start", "session", session_id,
                      after={"patient_id": patient_id, "device_id": device_id, "task": task, "course": course,
+                            "simulated": simulated,
                             "proposal_id": ran["proposal_id"], "envelope_id": ran["envelope_id"],
                             "device_reported": {"table_version": ran["table_version"],
                                                 "crc32": None if ran["crc32"] is None else f"{ran['crc32']:08x}"}})

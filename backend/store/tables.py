@@ -211,6 +211,9 @@ walking_sessions = Table(
     Column("summary_json", Text),
     Column("envelope_id", Integer, ForeignKey("envelopes.id")),
     Column("course", Text),
+    # revision 0016: walked by the simulated patient on the simulated leg (1), a person on a real leg (0), or not known
+    # (sessions recorded before it was kept)
+    Column("simulated", Integer, CheckConstraint("simulated IN (0, 1)")),
     CheckConstraint("speed_mps > 0 AND speed_mps <= 3"),
     CheckConstraint("incline_deg BETWEEN -20 AND 20"),
     CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),

@@ -7,6 +7,8 @@
   sent back to the last version it ran that was not withdrawn, or to safe mode (``backend.store.withdrawals``).
 * ``pushes.sent_back_reason``: a push the server made because the version the leg ran was withdrawn (which, by whom,
   why), for the monitor.
+* ``walking_sessions.simulated``: walked by the simulated patient on the simulated leg (1) or by a person (0); NULL for
+  the sessions recorded before (not known). Every report and PDF of a simulated walk says so in its header.
 
 Both are append-only (triggers, as the audit log).
 
@@ -64,6 +66,8 @@ def upgrade() -> None:
         sa.UniqueConstraint("proposal_id"),
     )
     op.add_column("pushes", sa.Column("sent_back_reason", sa.Text(), nullable=True))
+    op.add_column("walking_sessions", sa.Column("simulated", sa.Integer(), sa.CheckConstraint("simulated IN (0, 1)"),
+                                                nullable=True))
     postgres = op.get_bind().dialect.name == "postgresql"
     for table, message in _APPEND_ONLY.items():
         for event in ("UPDATE", "DELETE"):

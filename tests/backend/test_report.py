@@ -32,3 +32,11 @@ def test_too_few_strides_are_said_so_and_times_read_locally():
     assert headline_words(few) == "too few strides to judge (3 scored; at least 5 needed)"
     assert headline_words(None) == "—" and local_time(None) == "—"
     assert local_time("2026-01-01T10:00:00Z").startswith("2026-01-01")
+
+
+def test_a_simulated_walk_says_so_first_and_a_persons_does_not():
+    simulated = report_facts({**SESSION, "simulated": True}, PATIENT)
+    assert simulated[0] == ("SIMULATED", "walked by the simulated patient on the simulated leg (the bench), not by a "
+                                         "person")
+    assert "SIMULATED" not in dict(report_facts({**SESSION, "simulated": False}, PATIENT))
+    assert "SIMULATED" not in dict(report_facts(SESSION, PATIENT))       # recorded before it was kept: not claimed

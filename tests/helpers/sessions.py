@@ -54,7 +54,7 @@ def record_offline(db_path: Path | str, model, patient: dict, proposal_id: int, 
         task = {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"], "body_mass_kg": patient["body_mass_kg"]}
         sid = sessions_store.start_session(conn, patient["id"], BENCH_DEVICE, task,
                                            {"proposal_id": proposal_id, "envelope_id": None, "table_version": 1,
-                                            "crc32": 1}, user)
+                                            "crc32": 1}, user, simulated=True)
         samples = bench_samples(proposals_store.stored_table(row), row["speed_mps"], row["incline_deg"], model,
                                 patient["body_mass_kg"], seconds, **walk)
         sessions_store.add_samples(conn, sid, samples)

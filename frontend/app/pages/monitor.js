@@ -223,6 +223,7 @@ function renderStatus(box, d) {
       : d.safe_mode ? "" : "not in safe mode";
   }
   box.replaceChildren(h("p", { class: "chips" },
+    d.kind === "simulated" ? h("span", { id: "simulated-chip" }, chip("SIMULATED leg and patient", "warn")) : "",
     chip(d.online ? "online" : "offline", d.online ? "ok" : "bad"),
     chip(d.safe_mode ? "SAFE MODE" : modeWords(d.mode), d.safe_mode ? "bad" : d.mode === "active" ? "ok" : "warn"),
     d.faults.length ? chip(`the leg reports: ${d.faults.map((f) => FAULT_WORDS[f] || f).join("; ")}`, "bad") : null),

@@ -30,7 +30,8 @@ export async function patientPage(view, id) {
     h("td", {}, when(e.created_at))));
 
   const sessRows = sessions.map((s) => h("tr", {},
-    h("td", {}, `#${s.id}`), h("td", {}, s.device_id), h("td", {}, s.table_label ?? "—"),
+    h("td", {}, `#${s.id}`, s.simulated ? h("span", { class: "simulated-chip" }, " ", chip("simulated", "warn")) : ""),
+    h("td", {}, s.device_id), h("td", {}, s.table_label ?? "—"),
     h("td", {}, s.task_words), h("td", {}, chip(s.status, s.status)),
     h("td", { class: "num" }, s.summary ? s.summary.strides : "—"), h("td", { class: "num" }, sessionErrors(s.summary)),
     h("td", {}, when(s.started_at)),

@@ -32,7 +32,9 @@ export async function reportPage(view, id) {
   });
   const head = [
     h("p", { class: "crumbs no-print" }, h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `session #${id}`),
-    h("h1", {}, `Session report #${id}`),
+    h("h1", {}, `Session report #${id}`, s.simulated ? h("span", { id: "report-simulated" }, " ", chip("SIMULATED WALK", "bad")) : ""),
+    ...(s.simulated ? [h("p", { class: "banner warn", id: "simulated-banner" }, h("strong", {}, "Simulated: "),
+      "the simulated patient walked the simulated leg (the bench); no person walked this session.")] : []),
     h("div", { class: "inline no-print" }, h("button", { onclick: () => print() }, "Print"), pdf),
     h("dl", { class: "facts", id: "report-facts" },
       h("dt", {}, "Patient"), h("dd", {}, `${patient.code_name} · ${fmt(patient.body_mass_kg, 1, "kg")} · ${patient.side}`),

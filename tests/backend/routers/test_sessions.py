@@ -73,5 +73,6 @@ def test_a_viewer_watches_but_neither_starts_nor_stops_a_session(sim_api):
     assert r.status_code == 403 and "prosthetist" in r.json()["detail"]
     assert api.count("walking_sessions") == 0
     session = api.client.post(url, headers=api.as_("prosthetist"), json={"device_id": DEVICE}).json()
+    assert session["simulated"] is True                     # the simulated leg's walk says so, wherever it is shown
     assert api.client.post(f"/api/sessions/{session['id']}/stop", headers=api.as_("viewer")).status_code == 403
     assert api.client.get(f"/api/sessions/{session['id']}", headers=api.as_("viewer")).json()["status"] == "recording"
