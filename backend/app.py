@@ -50,7 +50,7 @@ from backend.settings import Settings
 from backend.throttle import LoginThrottle
 from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
-from device_bridge.clock import WALL_CLOCK, Clock
+from device_bridge.clock import WALL_CLOCK, Clock, PacedClock
 from device_bridge.mqtt_connection import MqttConnection
 from device_bridge.sim.leg_file import load_leg
 from device_bridge.sim.leg_model import LegGeometry
@@ -106,10 +106,12 @@ def prepare_storage(settings: Settings) -> None:
 
 
 def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessModel] | None = None,
-               clock: Clock = WALL_CLOCK) -> FastAPI:
+               clock: Clock | None = None) -> FastAPI:
     """Build the app for ``settings`` (migrates the database now; the model loads in the background). ``clock``: what
-    the device stack runs on; a stepped one (:mod:`device_bridge.clock`, for tests) runs a simulated leg and its link
-    in simulated time, moved by whoever waits on it."""
+    the device stack runs on. None: simulated legs only run on a :class:`~device_bridge.clock.PacedClock` (the leg and
+    its link on one clock kept with the wall clock: a busy machine slows the simulated patient, it cannot make the
+    leg miss its host's heartbeat), anything else on the wall clock; a stepped one (tests) runs a simulated leg and its
+    link in simulated time, moved by whoever waits on it."""
     set_hash_cost(settings.password_hash_cost)
     prepare_storage(settings)
 
@@ -122,6 +124,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         yield
         if app.state.viewers is not None:
             app.state.viewers.close()
+        if isinstance(app.state.clock, PacedClock):
+            app.state.clock.close()
         app.state.devices.close()
         if app.state.broker is not None:
             app.state.broker.close()
@@ -146,6 +150,11 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
             raise ValueError(f"device {settings.device} is reached through the broker: set QUASITUNE_BROKER_URL, "
                              "QUASITUNE_BROKER_USERNAME and QUASITUNE_BROKER_PASSWORD (this instance's identity there)")
     bus_options = {} if app.state.broker is None else {"mqtt": {"role": "server", "connection": app.state.broker}}
+    paced = None
+    if clock is None:
+        simulated_only = bool(specs) and all(spec.kind == "simulated" for spec in specs)
+        paced = PacedClock() if simulated_only else None
+        clock = paced or WALL_CLOCK
     try:
         app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg, bus_options=bus_options,
                                           clock=clock).start()
@@ -153,6 +162,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         if app.state.broker is not None:
             app.state.broker.close()
         raise
+    app.state.clock = paced.start() if paced is not None else clock
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)

@@ -145,3 +145,54 @@ class SteppedClock:
         if not self.until(lambda: not items.empty(), timeout_s):
             raise queue.Empty
         return items.get_nowait()
+
+
+class PacedClock(SteppedClock):
+    """A stepped clock kept in step with the wall clock by a thread of its own: the server's simulated leg.
+
+    The leg, its firmware and the host's side of its link (heartbeat included) all run on this one clock, so a starved
+    server runs the whole simulated world late, never one end of the link without the other: a busy machine can slow
+    the simulated patient down, but cannot make the simulated leg miss a heartbeat that its host sent on time. A
+    thread that waits on it steps it too (a push waiting for its acknowledgement runs ahead of the wall clock; the
+    pacer then waits for the wall clock to catch up). Behind by more than ``max_behind_s`` (a stalled process), it
+    slips rather than racing to catch up, as the device node does.
+    """
+
+    def __init__(self, step_s: float = 0.001, max_behind_s: float = 0.5, wake_s: float = 0.005) -> None:
+        super().__init__(step_s, start_unix_s=time.time())
+        self.max_behind_s = max_behind_s
+        self.wake_s = wake_s
+        self.slipped_s = 0.0            # simulated time given up to a stalled process
+        self._origin = time.monotonic()
+        self._closed = threading.Event()
+        self._pacer = threading.Thread(target=self._run, name="paced-clock", daemon=True)
+
+    def start(self) -> PacedClock:
+        self._origin = time.monotonic() - self.monotonic()
+        self._pacer.start()
+        return self
+
+    def time(self) -> float:
+        return self.start_unix_s + self.monotonic() + self.slipped_s
+
+    def _due(self) -> int:
+        """The step the wall clock says is due now."""
+        return round((time.monotonic() - self._origin) / self.step_s)
+
+    def _run(self) -> None:
+        behind_max = round(self.max_behind_s / self.step_s)
+        while not self._closed.is_set():
+            due = self._due()
+            if due - self.steps > behind_max:                   # stalled: slip, keep the steps already due
+                lost = due - self.steps - behind_max
+                self._origin += lost * self.step_s
+                self.slipped_s += lost * self.step_s
+                due -= lost
+            while self.steps < due and not self._closed.is_set():
+                self.step()
+            self._closed.wait(self.wake_s)
+
+    def close(self) -> None:
+        self._closed.set()
+        if self._pacer.is_alive() and self._pacer is not threading.current_thread():
+            self._pacer.join(timeout=2.0)

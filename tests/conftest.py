@@ -133,7 +133,8 @@ def sim_api(request, tmp_path, model, migrated_sqlite):
     """In-process API with the simulated leg (device ``sim-leg-1``) stepped with its link in simulated time: it walks
     only while something waits on ``api.clock`` (a push, :func:`tests.helpers.api.wait_for` with ``clock=api.clock``,
     ``api.clock.advance``). One signed-in user per role. Parametrized indirectly with ``"wall"`` (marked ``live``), the
-    leg runs on its own threads against the wall clock as ``quasitune serve`` runs it, and ``api.clock`` is None."""
+    app chooses its clock as ``quasitune serve`` does (the simulated leg paced by the wall clock on a thread of its
+    own), and ``api.clock`` is None."""
     from device_bridge.clock import SteppedClock
     from tests.helpers.api import make_api
 
