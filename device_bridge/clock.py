@@ -13,10 +13,11 @@ acknowledgement, or a test waiting for a status, drives the simulation itself, o
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Protocol, TypeVar
 
 T = TypeVar("T")
@@ -122,6 +123,13 @@ class SteppedClock:
                     stepper(now)
             finally:
                 self._stepping = None
+
+    @contextlib.contextmanager
+    def between_steps(self) -> Iterator[None]:
+        """Hold the clock between two steps: change what its steppers step (a simulated patient set walking) without a
+        step running meanwhile on another thread. Not from inside a step."""
+        with self._lock:
+            yield
 
     def advance(self, seconds: float) -> None:
         """Run the steps of ``seconds`` of simulated time."""

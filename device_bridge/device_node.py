@@ -92,6 +92,11 @@ class DeviceNode(BusThreads):
         self.overruns = 0
         self.errors = 0
 
+    @property
+    def ticking(self) -> threading.Lock:
+        """Held through every control tick: hold it to change the leg between two ticks."""
+        return self._lock
+
     def snapshot(self) -> Snapshot:
         with self._lock:
             fw = self.firmware

@@ -140,10 +140,11 @@ class DeviceManager:
         walker = self.get(device_id).walker
         if walker is None or walker.walking:
             return
-        if mass_kg is None:
-            walker.stop()
-        else:
-            walker.stand(mass_kg)
+        with self._leg_still(self.get(device_id)):
+            if mass_kg is None:
+                walker.stop()
+            else:
+                walker.stand(mass_kg)
 
     def close(self) -> None:
         self.recorder.close()
@@ -383,6 +384,13 @@ class DeviceManager:
             with contextlib.suppress(can.CanError):   # a full or closed bus: the next status tries again
                 dev.link.command(Command.ENTER_SAFE_MODE)
 
+    def _leg_still(self, dev: ManagedDevice) -> contextlib.AbstractContextManager:
+        """Hold a simulated leg between two of its control ticks while its patient is told to walk, stand or stop (the
+        tick runs on another thread: the paced or stepped clock's, or the node's control thread)."""
+        if isinstance(self.clock, SteppedClock):
+            return self.clock.between_steps()
+        return dev.node.ticking if dev.node is not None else contextlib.nullcontext()
+
     def start_recording(self, device_id: str, session_id: int, reference: WalkingReference | None,
                         mass_kg: float, course: Course | None = None) -> None:
         """Record the device's telemetry into ``session_id``; a simulated leg starts walking at the task, or walks
@@ -390,10 +398,11 @@ class DeviceManager:
         dev = self.get(device_id)
         # the simulated patient sets off first (planning a course takes a moment, stood still), then the recording
         # begins: the session holds the walk, not the stance before it
-        if dev.walker is not None and course is not None:
-            dev.walker.start_course(course, mass_kg)
-        elif dev.walker is not None and reference is not None:
-            dev.walker.start(reference, mass_kg)
+        with self._leg_still(dev):
+            if dev.walker is not None and course is not None:
+                dev.walker.start_course(course, mass_kg)
+            elif dev.walker is not None and reference is not None:
+                dev.walker.start(reference, mass_kg)
         self.recorder.begin(device_id, session_id)
 
     def stop_recording(self, device_id: str) -> tuple[list[dict], int]:
@@ -408,7 +417,8 @@ class DeviceManager:
         if dev.walker is not None:
             with pooled(self.db) as conn:
                 worn = devices_store.assignment(conn, device_id)
-            dev.walker.stop()
+            with self._leg_still(dev):
+                dev.walker.stop()
             self.worn_by(device_id, None if worn is None else worn["body_mass_kg"])   # the patient stands
         total = sum(reports.values()) or 1
         out = []

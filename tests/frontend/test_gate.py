@@ -33,6 +33,7 @@ def test_an_unsafe_table_takes_two_prosthetists_and_a_withdrawn_one_is_never_pus
         sign_in(eli, server, "eli")
         eli.goto(f"{server}/#/proposals/{pid}")
         eli.wait_for_selector("#signoffs:has-text('dana')")
+        eli.wait_for_selector("#decision-bench:has-text('beyond their bounds')")   # the card drawn for good first
         assert eli.is_hidden("#signoff")                                          # eli's sign-off is the second
         eli.fill("#decision input[name=comment]", "looked at the figures with dana")
         assert eli.is_disabled("#approve")
