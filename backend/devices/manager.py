@@ -377,10 +377,9 @@ class DeviceManager:
             return
         dev.withdrawal_checked = (key, now)
         with pooled(self.db) as conn:
-            active = pushes_store.push_of_version(conn, dev.spec.device_id, status.active_version, status.active_crc32)
-            pending = pushes_store.push_of_version(conn, dev.spec.device_id, status.pending_version)
-        if active is not None and active["withdrawal"] is not None and (pending is None or pending["withdrawal"]):
-            log.warning("device %s runs %s, which was withdrawn: safe mode", dev.spec.device_id, active["label"])
+            notice = _withdrawal_notice(conn, dev.spec.device_id, status)
+        if notice is not None and notice["state"] == "runs_withdrawn":   # the monitor's rule, the same reads
+            log.warning("device %s runs %s, which was withdrawn: safe mode", dev.spec.device_id, notice["label"])
             with contextlib.suppress(can.CanError):   # a full or closed bus: the next status tries again
                 dev.link.command(Command.ENTER_SAFE_MODE)
 
