@@ -248,4 +248,6 @@ def test_one_instance_serves_several_legs_through_the_broker(own_broker, own_adm
             assert sorted(d["id"] for d in listed) == ["leg-a", "leg-b"]
             prop = approved_proposal(api)
             assert push_to_leg(api, prop, device="leg-b").status_code == 201   # to one leg, the other untouched
-            assert b.node.snapshot().active is not None and a.node.snapshot().active is None
+            # acknowledged when staged; the leg makes it active on its next tick (later on a starved machine)
+            wait_for(lambda: b.node.snapshot().active, lambda active: active is not None)
+            assert a.node.snapshot().active is None and a.node.snapshot().staged is None
