@@ -92,10 +92,23 @@ class QuasiStiffnessModel:
                        else incline_points(self.incline_, lambda v: level_curves_at(reference, v), reference.phase))
         self.feature_model_ = copy.deepcopy(self.feature_model or FeatureModel()).fit(
             reference, tasks, self.published_, ramp_points)
-        landmarks = np.array([[f[name][0] for name in LANDMARKS] for f in self.feature_model_.train_features_])
         self.joint_reference_ = copy.deepcopy(self.joint_reference or JointReference()).fit(
-            reference, tasks, landmarks, self.incline_)
+            reference, tasks, self._train_landmarks(), self.incline_)
         return self
+
+    def _train_landmarks(self) -> np.ndarray:
+        """The training records' landmark phases, a row per record (what the joint reference is registered on)."""
+        return np.array([[f[name][0] for name in LANDMARKS] for f in self.feature_model_.train_features_])
+
+    def with_joint_reference(self, joint_reference: JointReference) -> QuasiStiffnessModel:
+        """A copy of this fitted model whose features → curves part is ``joint_reference``, fitted on the same data;
+        the feature model is shared, not fitted again (a baseline that differs only in its curves costs one fit)."""
+        joint_reference.check()
+        other = copy.copy(self)
+        other.joint_reference = joint_reference
+        other.joint_reference_ = copy.deepcopy(joint_reference).fit(self.reference_, self.train_tasks_,
+                                                                    self._train_landmarks(), self.incline_)
+        return other
 
     @property
     def s_query_(self) -> np.ndarray:

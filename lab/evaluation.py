@@ -80,7 +80,7 @@ def evaluate(reference: ReferenceSet | None = None, ramps: ReferenceSet | None =
         keep = [j for j in range(len(ref.records)) if j != i]
         train_ref = ref.subset(keep)
         model = train(train_ref, use_published=True, ramps=ramps, **params)
-        pooled = train(train_ref, use_published=True, ramps=ramps, **(params | {"joint_reference": pooled_reference}))
+        pooled = model.with_joint_reference(pooled_reference)   # the same features, one reference for all tasks
         task, incline = held.task["speed_mps"], held.task.get("incline_deg", 0.0)
         prop = model.propose(task, incline, 75.0)
         base = model.propose(task, incline, 75.0, with_vias=False)

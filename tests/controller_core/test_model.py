@@ -180,3 +180,24 @@ def test_least_squares_swing_rule_gives_back_the_plain_fits(model):
 def test_bad_swing_settings_are_refused_before_fitting(params, message):
     with pytest.raises(ValueError, match=message):
         QuasiStiffnessModel(table_rules=TableRules(**params)).fit(reference=None)   # refused before the data is touched
+
+
+def test_a_model_with_another_joint_reference_is_the_model_fitted_with_it(reference):
+    """The GMR baseline of the evaluation: the same fitted features, the curves from a pooled reference; the same as
+    fitting the whole model with that reference, at the cost of the curves' fit alone."""
+    from controller_core.feature_model import FeatureModel
+    from controller_core.joint_reference import JointReference
+
+    data = reference.subset([0, 2, 4])
+    settings = {"feature_model": FeatureModel(n_restarts=0)}
+    base = QuasiStiffnessModel(**settings, joint_reference=JointReference(n_components=6)).fit(data)
+    pooled = JointReference(n_components=6, reference_mode="pooled")
+    swapped = base.with_joint_reference(pooled)
+    whole = QuasiStiffnessModel(**settings, joint_reference=pooled).fit(data)
+    assert swapped.feature_model_ is base.feature_model_ and swapped.joint_reference_ is not base.joint_reference_
+    for a, b in [(swapped.propose(1.3, 0.0, 75.0, with_vias=False), whole.propose(1.3, 0.0, 75.0, with_vias=False))]:
+        for c in a.means:
+            np.testing.assert_allclose(a.means[c], b.means[c], rtol=1e-9, atol=1e-12)
+    assert base.joint_reference_.reference_mode == "registered"        # the original is left as it was
+    with pytest.raises(ValueError, match="reference_mode"):
+        base.with_joint_reference(JointReference(reference_mode="nope"))
