@@ -27,6 +27,9 @@ elif [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   trap 'rm -rf "$QUASITUNE_CACHE_DIR"' EXIT
   export QUASITUNE_CACHE_DIR
 fi
+# one BLAS/OpenMP thread per process: two processes on a 2-core machine each spinning two math threads ran the model's
+# fits several times slower than one process alone (the server does the same: backend/serve.py)
+export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
 pytest=(.venv/bin/python -m pytest -q -n 2)
 # two processes (pytest-xdist); every `live` test (a simulated leg, a broker link or threads on the wall clock:
 # tests/README.md) goes to one of them, one after the other (`--dist loadgroup`, tests/conftest.py), so that never two
