@@ -27,6 +27,7 @@ from backend.frontend import mount_frontend
 from backend.headers import RefuseAnonymousWrites, add_security_headers, mount_docs
 from backend.migrate import migrate, require_current
 from backend.model_service import ModelService
+from backend.refusal_words import sentence
 from backend.routers import (
     audit,
     auth,
@@ -62,10 +63,11 @@ def _field(loc: tuple) -> str:
 
 
 def _validation_body(exc: RequestValidationError) -> dict:
-    errors = [{"field": _field(tuple(e.get("loc", ()))), "message": e.get("msg", "invalid"), "type": e.get("type")}
+    """The refusal in clinical words (``detail``); per error the field's code and type for scripts (``errors``)."""
+    errors = [{"field": _field(tuple(e.get("loc", ()))), "message": sentence(e), "type": e.get("type")}
               for e in exc.errors()]
-    summary = "; ".join(f"{e['field']}: {e['message']}" for e in errors[:5])
-    return {"detail": f"invalid request: {summary}", "errors": errors}
+    summary = "; ".join(dict.fromkeys(e["message"] for e in errors[:5]))
+    return {"detail": f"Not accepted: {summary}.", "errors": errors}
 
 
 def _allowed_methods(app: FastAPI, request: Request) -> list[str]:

@@ -102,5 +102,5 @@ ExtrapolationReason = Annotated[Text | None, Field(
 def require_reason_to_extrapolate(extrapolate: bool, reason: str | None) -> None:
     """``extrapolate`` needs its written reason (raised as a validation error naming both fields)."""
     if extrapolate and reason is None:
-        raise ValueError('"extrapolate": true needs a "reason" of at least 20 characters: why this task is requested '
-                         "beyond what the model knows")
+        raise ValueError("a task beyond what the model knows needs a written reason of at least 20 characters: why "
+                         "it is requested")

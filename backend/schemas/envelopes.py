@@ -52,16 +52,17 @@ class EnvelopeRequest(StrictIn):
         require_reason_to_extrapolate(self.extrapolate, self.reason)
         (s0, s1), (g0, g1), (ns, ni) = self.speed_range_mps, self.incline_range_deg, self.grid
         if not (SPEED_RANGE_MPS[0] <= s0 < s1 <= SPEED_RANGE_MPS[1]):
-            raise ValueError(f"speed_range_mps must be increasing within [{SPEED_RANGE_MPS[0]:g}, "
-                             f"{SPEED_RANGE_MPS[1]:g}] m/s, got {list(self.speed_range_mps)}")
+            raise ValueError(f"the speed range must go from a slower to a faster speed within {SPEED_RANGE_MPS[0]:g}–"
+                             f"{SPEED_RANGE_MPS[1]:g} m/s (asked from {s0:g} to {s1:g} m/s)")
         if not (-INCLINE_LIMIT_DEG <= g0 < g1 <= INCLINE_LIMIT_DEG):
-            raise ValueError("incline_range_deg must be increasing within [-20, 20] deg, "
-                             f"got {list(self.incline_range_deg)}")
+            raise ValueError(f"the incline range must go from a lower to a higher incline within −{INCLINE_LIMIT_DEG:g}° "
+                             f"and +{INCLINE_LIMIT_DEG:g}° (asked from {g0:g}° to {g1:g}°)")
         if not (2 <= ns <= 15 and 2 <= ni <= 15 and ns * ni <= MAX_NODES):
-            raise ValueError(f"grid must have 2-15 nodes per axis and at most {MAX_NODES} in all, got {list(self.grid)}")
+            raise ValueError(f"the grid must have 2–15 nodes along each axis and at most {MAX_NODES} in all (asked "
+                             f"{ns} × {ni}): what one transfer to the leg carries")
         if not (SPEED_RANGE_MPS[0] <= self.nominal_speed_mps <= SPEED_RANGE_MPS[1]
                 and abs(self.nominal_incline_deg) <= INCLINE_LIMIT_DEG):
-            raise ValueError("the nominal task must be a walking task: speed within [0.1, 3] m/s, incline within ±20 deg")
+            raise ValueError("the nominal task must be a walking task: a speed within 0.1–3 m/s and an incline within ±20°")
         return self
 
 

@@ -15,7 +15,8 @@ class RefinementRequest(StrictIn):
     def ids(self) -> list[int]:
         bad = [i for i in self.session_ids if not 1 <= i <= MAX_ID]
         if bad:
-            raise ValueError(f"session ids must be database ids, got {bad}")
+            raise ValueError(f"walking sessions are named by their numbers (1 or more): {', '.join(map(str, bad))} "
+                             f"{'is' if len(bad) == 1 else 'are'} not")
         return list(self.session_ids)
 
 

@@ -13,7 +13,8 @@ def test_a_validation_error_names_the_field_and_what_was_wrong(api):
                         json={"code_name": "P-9", "body_mass_kg": -3.0, "side": "left", "height_m": 1.8, "k_level": 3})
     assert r.status_code == 422
     body = r.json()
-    assert "body_mass_kg" in body["detail"] and any("body_mass_kg" in str(e) for e in body["errors"])
+    assert "body mass must be at least 20 kg" in body["detail"]                 # in words on the page
+    assert [(e["field"], e["type"]) for e in body["errors"]] == [("body_mass_kg", "greater_than_equal")]   # scripts
 
 
 def test_a_wrong_method_is_405_with_the_methods_allowed(api):

@@ -46,8 +46,8 @@ def test_an_envelope_is_built_for_the_patient_with_every_node_checked_and_its_cr
 
 
 @pytest.mark.parametrize(("body", "why"), [
-    ({"speed_range_mps": [1.4, 0.8]}, "speed_range_mps"),
-    ({"incline_range_deg": [-30, 6]}, "incline_range_deg"),
+    ({"speed_range_mps": [1.4, 0.8]}, "the speed range must go from a slower to a faster speed"),
+    ({"incline_range_deg": [-30, 6]}, "the incline range must go from a lower to a higher incline"),
     ({"grid": [9, 9]}, "grid"),
     ({"grid": [1, 3]}, "grid"),
     ({"speed_range_mps": [0.8, float("nan")]}, ""),   # not JSON at all

@@ -49,6 +49,6 @@ def test_paging_headers_point_at_the_next_page_only_when_there_is_one():
 def test_extrapolating_needs_a_reason():
     require_reason_to_extrapolate(False, None)
     require_reason_to_extrapolate(True, "a reason of at least twenty characters")
-    with pytest.raises(ValueError, match='"extrapolate": true needs a "reason"'):
+    with pytest.raises(ValueError, match="beyond what the model knows needs a written reason"):
         require_reason_to_extrapolate(True, None)
     assert issubclass(_Body, BaseModel)
