@@ -42,7 +42,9 @@ class RowEdit(StrictIn):
     joint: Joint
     subphase: Subphase
     k_Nm_per_rad: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
-                                       description="quasi-stiffness (N·m/rad; negative = restoring)")
+                                       description="quasi-stiffness k of the paper's τ = k(θ − θe) (N·m/rad): "
+                                                   "negative resists (restoring), positive pushes; the dashboard "
+                                                   "shows the resistance K = −k, larger = firmer")
     theta_e_deg: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
                                       description="equilibrium angle (deg)")
     b_Nm_s_per_rad: float | None = Field(default=None, ge=-EDIT_BOUND, le=EDIT_BOUND,
@@ -90,6 +92,24 @@ class BenchFigure(BaseModel):
                                                         "within it")
 
 
+class WorseFigure(BaseModel):
+    figure: str
+    label: str
+    unit: str
+    parent_value: float | int
+    value: float | int
+
+
+class WorseThanParent(BaseModel):
+    """This version's bench walk against its parent's (the version it was edited or refined from), on the same walk."""
+
+    parent_id: int
+    parent_version: int
+    walked: bool = Field(description="false: the parent's preview has not been walked, nothing compared")
+    figures: list[WorseFigure] = Field(description="the safety figures this version makes worse than its parent "
+                                                   "(beyond the bench's resolution per unit): said before anything else")
+
+
 class BenchVerdict(BaseModel):
     """The bench's verdict on exactly this version's content: its stored preview's safety flags."""
 
@@ -102,6 +122,8 @@ class BenchVerdict(BaseModel):
     signoffs: list[Signoff] = Field(default_factory=list, description="prosthetists' sign-offs on this content's "
                                                                       "findings: approval and push need signoffs_needed")
     signoffs_needed: int = Field(default=2, description="sign-offs by distinct prosthetists that override the gate")
+    worse_than_parent: WorseThanParent | None = Field(default=None, description="null: no parent, or this version "
+                                                                                "not walked yet")
 
 
 class Task(BaseModel):
@@ -127,8 +149,10 @@ class Decision(BaseModel):
 class TableRowOut(BaseModel):
     joint: Joint
     subphase: Subphase
-    k_Nm_per_rad: float
-    k_Nm_per_deg: float
+    k_Nm_per_rad: float = Field(description="quasi-stiffness k of the paper's τ = k(θ − θe) − b·θ̇ (N·m/rad): negative "
+                                          "resists (restoring), positive pushes. The dashboard shows the resistance "
+                                          "K = −k (larger = firmer), as τ = −K(θ − θe) − b·θ̇")
+    k_Nm_per_deg: float = Field(description="the same k per degree (N·m/deg), signed as k_Nm_per_rad")
     theta_e_deg: float
     b_Nm_s_per_rad: float
     r2: float | None

@@ -13,11 +13,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Literal
 
-from sqlalchemy import Connection
+from sqlalchemy import Connection, select
 
 from backend.bench.safety_figures import safety_figures, safety_flags
 from backend.errors import ConflictError
 from backend.store import previews, signoffs
+from backend.store.tables import envelopes, proposals
 from backend.store.users import User
 
 MIN_OVERRIDE_CHARS = 20
@@ -31,6 +32,41 @@ def content_sha256(kind: Kind, row: Mapping) -> str:
     return str(row["table_sha256"] if kind == "proposal" else row["envelope_sha256"])
 
 
+# how much larger a safety figure must be than the parent's to count as worse, per unit: any count; otherwise a step
+# beyond what one bench stride's timing (5 ms at 200 Hz control ticks, doubled), a millimetre-scale sink or a degree
+# tells apart
+WORSE_BY = {"falls": 0.0, "catches": 0.0, "strides": 0.0, "ms": 10.0, "mm": 5.0, "BW": 0.02, "deg": 1.0}
+
+
+def _stored(conn: Connection, kind: Kind, version_id: int, sha: str) -> dict | None:
+    return (previews.get_preview(conn, version_id, sha) if kind == "proposal"
+            else previews.get_envelope_preview(conn, version_id, sha))
+
+
+def worse_than_parent(conn: Connection, kind: Kind, row: Mapping, figures: list[dict]) -> dict | None:
+    """The safety figures in which this version's bench walk is worse than its parent's (an edit's or a refinement's
+    starting version) on the same walk: what a draft must say before anything else. None without a parent; ``walked``
+    False while the parent's preview has not been walked."""
+    parent_id = row.get("parent_id")
+    if parent_id is None:
+        return None
+    table = proposals if kind == "proposal" else envelopes
+    sha_col = table.c.table_sha256 if kind == "proposal" else table.c.envelope_sha256
+    parent = conn.execute(select(table.c.version, sha_col.label("sha")).where(table.c.id == parent_id)).mappings().first()
+    if parent is None:
+        return None
+    stored = _stored(conn, kind, parent_id, str(parent["sha"]))
+    if stored is None:
+        return {"parent_id": parent_id, "parent_version": parent["version"], "walked": False, "figures": []}
+    own = "table" if kind == "proposal" else "envelope"
+    theirs = {f["figure"]: f["value"] for f in safety_figures(stored["controllers"][own], stored["controllers"]["fsmic"])}
+    worse = [{"figure": f["figure"], "label": f["label"], "unit": f["unit"], "parent_value": theirs.get(f["figure"]),
+              "value": f["value"]} for f in figures
+             if f["value"] is not None and theirs.get(f["figure"]) is not None
+             and f["value"] - theirs[f["figure"]] > WORSE_BY.get(str(f["unit"]), 0.0)]
+    return {"parent_id": parent_id, "parent_version": parent["version"], "walked": True, "figures": worse}
+
+
 def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
     """``status`` clean / unsafe / not_walked, the ``flags`` (one per figure beyond its bound), every safety ``figure``
     beside the FSMIC's, ``words`` for the chip, and the prosthetists' ``signoffs`` on exactly this content."""
@@ -42,13 +78,15 @@ def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
         stored, own = previews.get_envelope_preview(conn, row["id"], sha), "envelope"
     if stored is None:
         return {"status": "not_walked", "flags": [], "figures": [], "words": _WORDS["not_walked"],
-                "signoffs": signed, "signoffs_needed": signoffs.NEEDED}
+                "signoffs": signed, "signoffs_needed": signoffs.NEEDED, "worse_than_parent": None}
     mine, fsmic = stored["controllers"][own], stored["controllers"]["fsmic"]
     flags = safety_flags(mine, fsmic)
     status = "unsafe" if flags else "clean"
     words = _WORDS[status] if not flags else f"{_WORDS[status]}: {len(flags)} figure(s) beyond their bounds"
-    return {"status": status, "flags": flags, "figures": safety_figures(mine, fsmic), "words": words,
-            "signoffs": signed, "signoffs_needed": signoffs.NEEDED}
+    figures = safety_figures(mine, fsmic)
+    return {"status": status, "flags": flags, "figures": figures, "words": words,
+            "signoffs": signed, "signoffs_needed": signoffs.NEEDED,
+            "worse_than_parent": worse_than_parent(conn, kind, row, figures)}
 
 
 def require_bench(conn: Connection, kind: Kind, row: Mapping, override_reason: str | None, action: str,

@@ -41,10 +41,11 @@ def draft(conn, prosthetist, patient):
     """A function making a draft proposal row with a given table text (its sha256 as stored), returning its id."""
     from controller_core.content import content_sha256
 
-    def make(table_json: str = '{"rows": []}', version: int | None = None) -> int:
+    def make(table_json: str = '{"rows": []}', version: int | None = None, parent_id: int | None = None) -> int:
         v = version or conn.execute(select(func.coalesce(func.max(proposals.c.version), 0) + 1)).scalar_one()
         return int(conn.execute(insert(proposals).values(
-            patient_id=patient["id"], version=v, source="model", speed_mps=1.2, incline_deg=0, body_mass_kg=80,
+            patient_id=patient["id"], parent_id=parent_id, version=v, source="model" if parent_id is None else "edit",
+            speed_mps=1.2, incline_deg=0, body_mass_kg=80,
             extrapolation=0, safety_ok=1, model_json="{}", table_json=table_json,
             table_sha256=content_sha256(table_json), created_by=prosthetist.id, created_at="2026-01-01T00:00:00Z",
         )).inserted_primary_key[0])

@@ -67,3 +67,24 @@ def test_not_walked_is_refused_with_the_way_to_walk_it(conn, draft, prosthetist)
     assert bench_verdict.verdict(conn, "proposal", row)["status"] == "not_walked"
     with pytest.raises(ConflictError, match=r"not approved: its bench preview has not been walked.*GET /api/proposals"):
         bench_verdict.require_bench(conn, "proposal", row, None, "approved", prosthetist)
+
+
+def test_a_version_worse_than_its_parent_on_the_bench_says_in_which_figures(conn, draft, prosthetist):
+    """A refinement or an edit that the bench finds worse is not offered as an improvement: each figure it makes
+    worse than its parent's, beyond the bench's resolution (any count; 10 ms, 5 mm, 1°), even within its bound."""
+    parent = _walked(conn, draft('{"rows": [1]}'), {**CLEAN_WALK, "toe_catches": 0, "hip_sink_max_mm": 20.0})
+    child_id = draft('{"rows": [2]}', parent_id=parent["id"])
+    assert bench_verdict.verdict(conn, "proposal", proposals.get_row(conn, child_id))["worse_than_parent"] is None
+    child = _walked(conn, child_id, {**CLEAN_WALK, "toe_catches": 1, "hip_sink_max_mm": 24.0,
+                                     "heel_strike_to_stance_ms_max": CLEAN_WALK["heel_strike_to_stance_ms_max"] + 25})
+    worse = bench_verdict.verdict(conn, "proposal", child)["worse_than_parent"]
+    assert worse["walked"] and worse["parent_version"] == parent["version"]
+    assert {f["figure"]: (f["parent_value"], f["value"]) for f in worse["figures"]} == {
+        "toe_catches": (0, 1),
+        "heel_strike_to_stance_ms_max": (CLEAN_WALK["heel_strike_to_stance_ms_max"],
+                                         CLEAN_WALK["heel_strike_to_stance_ms_max"] + 25)}   # 4 mm: within resolution
+    # better or equal everywhere: nothing said; a parent not walked yet: said so, nothing compared
+    assert bench_verdict.verdict(conn, "proposal", parent)["worse_than_parent"] is None      # no parent of its own
+    orphan = draft('{"rows": [3]}', parent_id=draft('{"rows": [4]}'))
+    unwalked = bench_verdict.verdict(conn, "proposal", _walked(conn, orphan, CLEAN_WALK))["worse_than_parent"]
+    assert unwalked["walked"] is False and unwalked["figures"] == []
