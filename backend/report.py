@@ -56,16 +56,20 @@ def headline_words(head: dict | None) -> str:
     n = head["strides_scored"]
     if not head["enough_strides"]:
         return f"too few strides to judge ({n} scored; at least {head['min_strides']} needed)"
+    on_table, unknown = head.get("strides_on_table", n), head.get("strides_without_task", 0)
+    why = "" if on_table == n else (f"; of the {on_table} strides on the table {on_table - n} are not scored"
+                                   + (f", {unknown} without a task estimate" if unknown else ""))
     return (f"knee {head['knee_angle_rmse_deg']:.1f} deg, ankle {head['ankle_angle_rmse_deg']:.1f} deg (RMSE of each "
-            f"of {n} strides against the reference at {head['against']}, averaged)")
+            f"of {n} strides against the reference at {head['against']}, averaged{why})")
 
 
 def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
     """The report's first block, (label, words) pairs: task, what ran (and any override), when, how much."""
     s = session["summary"] or {}
     modes = s.get("mode_s") or {}
-    rmse = " · ".join(f"{_LABELS[c].split(' (')[0]} {_fmt(s.get(rmse_key(c)), _UNITS[c], 1 if _UNITS[c] == 'deg' else 3)}"
-                      for c in GAIT_CHANNELS)
+    # the angles' one error is the headline (each stride at its own task); the mean stride adds the moments only
+    rmse = " · ".join(f"{_LABELS[c].split(' (')[0]} {_fmt(s.get(rmse_key(c)), _UNITS[c], 3)}"
+                      for c in GAIT_CHANNELS if _UNITS[c] != "deg")
     return [
         *([("SIMULATED", "walked by the simulated patient on the simulated leg (the bench), not by a person")]
           if session.get("simulated") else []),
@@ -83,36 +87,33 @@ def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
                      f"by {session['started_by']}"),
         ("Samples", f"{s.get('samples', 0)} over {_fmt(s.get('duration_s'), 's', 1)}; "
                     f"{s.get('missing_samples', '—')} missing"),
+        *([("Walking / standing", f"{s['walking_s']:.1f} s walking (the strides), {s['standing_s']:.1f} s standing "
+                                  "or paused")] if s.get("walking_s") is not None else []),
         ("Leg off its table", "never" if not s.get("off_table_s") else
          f"{s['off_table_s']:.1f} s (safe mode {modes.get('safe', 0):.1f} s, no table {modes.get('no_table', 0):.1f} s): "
          f"{s.get('strides_off_table', 0)} strides left out of the errors"),
-        ("Strides scored / walked", f"{s.get('strides_scored', s.get('strides', 0))} / {s.get('strides', 0)} · cadence "
-                                    f"{_fmt(s.get('cadence_steps_per_min'), 'steps/min', 1)}"),
+        ("Strides on the table / counted", f"{s.get('strides_scored', s.get('strides', 0))} / {s.get('strides', 0)} · "
+                                           f"cadence on the table {_fmt(s.get('cadence_steps_per_min'), 'steps/min', 1)}"),
         ("Stride time", f"{_fmt(s.get('stride_time_s'), 's', 3)} "
                         f"(reference {_fmt(s.get('reference_stride_time_s'), 's', 3)})"),
         ("Angle error per stride", headline_words(s.get("headline"))),
-        *([] if session.get("course") else [("Mean stride vs reference", rmse)]),
+        *([] if session.get("course") else [("Moments, mean stride vs reference", rmse)]),
         ("Reference", f"{REFERENCE_KIND.get(s.get('reference_kind'), 'reference')}"
                       + (" [EXTRAPOLATION]" if s.get("reference_extrapolation") else "")),
     ]
 
 
 def _adaptive_facts(a: dict | None) -> list[tuple[str, str]]:
-    """Where in its envelope the leg walked, in a line (the second page draws it)."""
+    """Where in its envelope the leg walked, in a line (the second page draws it). Its per-stride angle error is the
+    headline's ("Angle error per stride"), said once on the page."""
     if not a:
         return []
     cells = sorted(((a["time_s"][i][j], a["strides"][i][j], v, g) for i, v in enumerate(a["speeds_mps"])
                     for j, g in enumerate(a["inclines_deg"]) if a["time_s"][i][j] > 0), reverse=True)
     where = "; ".join(f"{v:.2f} m/s {g:+.0f}°: {t:.0f} s, {n} strides" for t, n, v, g in cells[:4]) or "no estimate"
     modes = ", ".join(f"{k} {v:.0f} s" for k, v in (a.get("adaptive_mode_s") or {}).items())
-    overall = a["errors_by_region"].get("overall") or {}
-    each = ("no stride scored" if not overall.get("strides") else
-            f"knee {overall['knee_angle_per_stride_rmse_deg']:.1f} deg, ankle "
-            f"{overall['ankle_angle_per_stride_rmse_deg']:.1f} deg over {overall['strides']} strides")
     return [("Where in the envelope", f"{where} (the leg's own estimate; not yet estimated {a['unestimated_s']:.0f} s, "
-                                      f"beyond its edge {a['outside_s']:.0f} s) · rows: {modes}"),
-            ("Per-stride RMSE", f"{each} (angle RMSE of each stride against the reference at the stride's "
-                                              "estimated task, averaged)")]
+                                      f"beyond its edge {a['outside_s']:.0f} s) · rows: {modes}")]
 
 
 def session_report_pdf(session: dict, patient: dict) -> bytes:
@@ -195,8 +196,11 @@ def report_figure(session: dict, patient: dict) -> Figure:
             ax.text(0.5, 0.5, "no scored stride", ha="center", transform=ax.transAxes)
         ax.set_xlabel("gait cycle (%)", fontsize=8)
         ax.set_ylabel(_LABELS[ch], fontsize=8)
-        digits = 1 if _UNITS[ch] == "deg" else 3
-        ax.set_title(f"{_LABELS[ch].split(' (')[0]}: RMSE {_fmt(s.get(rmse_key(ch)), _UNITS[ch], digits)}", fontsize=9)
+        # angles: their error is the headline's, given once above; a course's strides are at several tasks, so no
+        # single reference's RMSE is printed over them
+        name = _LABELS[ch].split(" (")[0]
+        ax.set_title(name if _UNITS[ch] == "deg" or session.get("course") else
+                     f"{name}: RMSE of the mean stride {_fmt(s.get(rmse_key(ch)), _UNITS[ch], 3)}", fontsize=9)
         ax.tick_params(labelsize=7)
         ax.legend(fontsize=6, loc="best")
     fig.text(0.06, 0.02, f"Generated {datetime.now().astimezone().strftime('%Y-%m-%d %H:%M %Z')} · strides between heel "

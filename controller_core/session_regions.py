@@ -163,6 +163,9 @@ def own_task_errors(knee_angle_rad: np.ndarray, ankle_angle_rad: np.ndarray, str
                   for task in stride_tasks]
     overall = errors_by_region(curves, per_stride, (1, 1), reference_at, scored=scored)["overall"]
     n = int(overall["strides"])
+    counted = [True] * len(stride_tasks) if scored is None else [bool(x) for x in scored]
+    unknown = sum(1 for task, c in zip(stride_tasks, counted, strict=True) if c and task is None)
     return {"knee_angle_rmse_deg": overall["knee_angle_per_stride_rmse_deg"],
             "ankle_angle_rmse_deg": overall["ankle_angle_per_stride_rmse_deg"], "strides_scored": n,
+            "strides_on_table": sum(counted), "strides_without_task": unknown,
             "enough_strides": n >= MIN_STRIDES_TO_JUDGE, "min_strides": MIN_STRIDES_TO_JUDGE, "against": against}

@@ -28,6 +28,9 @@ from controller_core.gait_metrics import (
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 
+LONGEST_STRIDE_S = 2.5   # a longer time between two heel strikes is a pause (standing), not a stride: 0.4 m/s walking
+                         # takes about 2 s per stride
+
 
 def device_times(seq: np.ndarray, received_s: np.ndarray, period_s: float) -> np.ndarray:
     """Sample times (s) on the device's clock: the first sample's receive time, then its sequence numbers at the
@@ -81,17 +84,26 @@ def summarize_session(t_s: np.ndarray, knee_angle_rad: np.ndarray, ankle_angle_r
     errors = {k: None if v is None else round(v, 4) for k, v in raw_errors.items()}
     means = {name: [round(float(v), 3) for v in mean_curves[name]] if name in mean_curves else None
              for name in GAIT_CHANNELS}
-    stride_time = float(np.mean(np.diff(t[strikes]))) if strides else None
+    # the cadence of the strides on the table: in safe mode or without a table the load flickers and splits one step
+    # into several "strides" (174 steps/min from one safe-mode session), which no patient walked
+    durations = np.diff(t[strikes])[on_table] if strides else np.array([])
+    stride_time = float(np.mean(durations)) if durations.size else None
+    # walking time: the strides, each no longer than a pause; the rest of the recording is standing (or sitting)
+    all_durations = np.diff(t[strikes]) if strides else np.array([])
+    walking_s = float(all_durations[all_durations <= LONGEST_STRIDE_S].sum())
+    duration_s = float(t[-1] - t[0]) if n > 1 else 0.0
     return {
         "samples": n,
-        "duration_s": round(float(t[-1] - t[0]), 3) if n > 1 else 0.0,
+        "duration_s": round(duration_s, 3),
+        "walking_s": round(walking_s, 3),
+        "standing_s": round(max(duration_s - walking_s, 0.0), 3),
         "strides": strides,
         "strides_scored": int(on_table.sum()),
         "strides_off_table": int(strides - on_table.sum()),
         # samples × the reported sample period, as callers count time per mode: a part never exceeds the whole
         "off_table_s": round(float(np.count_nonzero(~running)) * round(dt, 5), 3) if n > 1 else 0.0,
         "stride_time_s": None if stride_time is None else round(stride_time, 4),
-        "cadence_steps_per_min": None if stride_time is None else round(120.0 / stride_time, 2),
+        "cadence_steps_per_min": None if stride_time is None else round(120.0 / stride_time, 2),   # scored strides
         "reference_stride_time_s": round(reference.stride_time_s, 4),
         **errors,
         "mean_curves": means,

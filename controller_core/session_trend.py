@@ -54,11 +54,13 @@ def session_trend(sessions: Iterable[dict]) -> list[dict]:
             else:
                 i = int(region_index(np.array([s["task"]["speed_mps"]]), TASK_CLASS_SPEEDS_MPS)[0])
                 j = int(region_index(np.array([s["task"]["incline_deg"]]), TASK_CLASS_INCLINES_DEG)[0])
-                time_by_class[i, j] += m.get("duration_s") or 0.0
+                time_by_class[i, j] += m.get("walking_s", m.get("duration_s")) or 0.0
         heads = [_headline(s["summary"]) for s in group]
         out.append({
             "day": day, "sessions": len(group), "strides": sum(s["summary"].get("strides") or 0 for s in group),
-            "walking_s": round(sum(s["summary"].get("duration_s") or 0.0 for s in group), 1),
+            # walking only (summaries from before walking_s existed: their whole recording)
+            "walking_s": round(sum(s["summary"].get("walking_s", s["summary"].get("duration_s")) or 0.0
+                                   for s in group), 1),
             "cadence_steps_per_min": _weighted([(s["summary"].get("cadence_steps_per_min"), s["summary"].get("strides") or 0)
                                                 for s in group]),
             "knee_angle_rmse_deg": _weighted([(h["knee_angle_rmse_deg"], h["strides_scored"]) for h in heads]),

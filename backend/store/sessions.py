@@ -50,7 +50,9 @@ def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
     inclines = [seg.incline_deg for seg in walked.segments]
     slope = (f"incline {min(inclines):+.0f}° to {max(inclines):+.0f}°" if min(inclines) != max(inclines)
              else f"incline {inclines[0]:+.0f}°")
-    return f"'{course}' course: {min(speeds):.2f}–{max(speeds):.2f} m/s, {slope}"
+    pace = (f"{min(speeds):.2f}–{max(speeds):.2f} m/s" if min(speeds) != max(speeds)   # never "1.00–1.00 m/s"
+            else f"{speeds[0]:.2f} m/s")
+    return f"'{course}' course: {pace}, {slope}"
 
 
 def _session(row: RowMapping) -> dict:

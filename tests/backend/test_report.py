@@ -23,7 +23,7 @@ def test_the_facts_say_what_ran_how_it_went_and_any_override():
     assert facts["Patient"] == "P-1 · 80.0 kg · left side"
     assert facts["Table that ran"] == "P-1 · table v2 (CRC-32 00abc123, device version 7)"
     assert "checked by hand" in facts["Bench override"] and "Extrapolated" not in facts
-    assert facts["Leg off its table"] == "never" and facts["Strides scored / walked"].startswith("8 / 9")
+    assert facts["Leg off its table"] == "never" and facts["Strides on the table / counted"].startswith("8 / 9")
     assert facts["Angle error per stride"].startswith("knee 6.0 deg, ankle 10.2 deg")
 
 
@@ -40,3 +40,17 @@ def test_a_simulated_walk_says_so_first_and_a_persons_does_not():
                                          "person")
     assert "SIMULATED" not in dict(report_facts({**SESSION, "simulated": False}, PATIENT))
     assert "SIMULATED" not in dict(report_facts(SESSION, PATIENT))       # recorded before it was kept: not claimed
+
+
+def test_the_page_gives_one_knee_error_and_the_counts_agree():
+    """The angles' error is the headline's alone (not also the mean stride's nor the envelope's per-stride figure);
+    a headline scoring fewer strides than ran on the table says why; standing is counted apart from walking."""
+    summary = {**SESSION["summary"], "walking_s": 7.5, "standing_s": 2.5, "knee_angle_rmse_deg": 5.1,
+               "headline": {**SESSION["summary"]["headline"], "strides_scored": 6, "strides_on_table": 8,
+                            "strides_without_task": 2}}
+    facts = report_facts({**SESSION, "summary": summary}, PATIENT)
+    said = " ".join(words for _label, words in facts)
+    assert said.count("knee 6.0 deg") == 1 and "5.1" not in said and "knee angle" not in said
+    assert "of the 8 strides on the table 2 are not scored, 2 without a task estimate" in dict(facts)[
+        "Angle error per stride"]
+    assert dict(facts)["Walking / standing"] == "7.5 s walking (the strides), 2.5 s standing or paused"

@@ -57,6 +57,7 @@ def test_task_words_name_a_course_by_its_range_and_a_fixed_task_by_its_values():
     assert sessions.task_words("unknown", 1.0, 0.0) == "1.00 m/s, incline +0.0°"
     words = sessions.task_words("mixed", 1.0, 0.0)
     assert "0.85–1.60 m/s" in words and "incline -8° to +8°" in words
+    assert sessions.task_words("terrain", 1.0, 0.0) == "'terrain' course: 1.00 m/s, incline -8° to +8°"   # one speed
 
 
 def test_a_second_recording_started_past_the_check_is_refused_by_the_database(conn, prosthetist, patient, session_id,
