@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from fastapi import APIRouter, Query, Request, Response, status
+from sqlalchemy import Connection
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.devices import DeviceManager
@@ -16,6 +17,7 @@ from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest, TrendDay
+from backend.session_export import samples_csv, samples_parquet
 from backend.session_strides import stride_tasks
 from backend.store import devices as devices_store
 from backend.store import envelopes, patients
@@ -169,12 +171,8 @@ _DISPLAY = {"knee_angle_rad": ("knee_angle_deg", _DEG), "knee_velocity_rad_s": (
             "ankle_angle_rad": ("ankle_angle_deg", _DEG), "ankle_velocity_rad_s": ("ankle_velocity_deg_s", _DEG)}
 
 
-@router.get("/sessions/{session_id}/samples", response_model=SamplesOut, responses=NOT_FOUND)
-def get_samples(session_id: IdPath, conn: Conn, _user: CurrentUser,
-                every: Annotated[int, Query(ge=1, le=1000, description="keep every n-th sample")] = 1) -> dict:
-    """The recorded telemetry in display units (deg, deg/s, N·m, N), columns of equal length; ``mode`` per sample
-    says whether the leg ran its table (``active``), was in ``safe`` mode or had ``no_table``."""
-    store.get_session(conn, session_id)
+def _display_columns(conn: Connection, session_id: int, every: int = 1) -> dict[str, list]:
+    """The recorded telemetry in display units, with the unit in each column's name (deg, deg/s, N·m, N, s)."""
     cols = store.samples(conn, session_id)
     out: dict[str, list] = {}
     for name, values in cols.items():
@@ -184,4 +182,33 @@ def get_samples(session_id: IdPath, conn: Conn, _user: CurrentUser,
             out[new] = [Mode(v).name.lower() for v in kept]
         else:
             out[new] = [round(v * scale, 3) for v in kept] if scale else kept
+    return out
+
+
+@router.get("/sessions/{session_id}/samples", response_model=SamplesOut, responses=NOT_FOUND)
+def get_samples(session_id: IdPath, conn: Conn, _user: CurrentUser,
+                every: Annotated[int, Query(ge=1, le=1000, description="keep every n-th sample")] = 1) -> dict:
+    """The recorded telemetry in display units (deg, deg/s, N·m, N), columns of equal length; ``mode`` per sample
+    says whether the leg ran its table (``active``), was in ``safe`` mode or had ``no_table``."""
+    store.get_session(conn, session_id)
+    out = _display_columns(conn, session_id, every)
     return {"session_id": session_id, "count": len(out["seq"]), "every": every, "columns": out}
+
+
+@router.get("/sessions/{session_id}/samples.{fmt}", response_class=Response,
+            responses={**NOT_FOUND, 200: {"content": {"text/csv": {}, "application/vnd.apache.parquet": {}},
+                                          "description": "every recorded sample, one row each"}})
+def export_samples(session_id: IdPath, fmt: Literal["csv", "parquet"], conn: Conn, _user: CurrentUser) -> Response:
+    """Every recorded sample of the session as CSV or Parquet (what engineers open in their own tools): the columns
+    of ``/samples`` with the unit in each name; the Parquet file also carries the session's facts as metadata
+    (patient code, version on the leg with its CRC, whether the walk was simulated)."""
+    session = store.get_session(conn, session_id)
+    facts = {"session_id": str(session_id), "simulated": str(session.get("simulated")),
+             "version_on_leg": str(session.get("table_label")), "crc32": str(session.get("table_crc32")),
+             "started_at": str(session.get("started_at")), "source": "QuasiTune session recording"}
+    columns = _display_columns(conn, session_id)
+    name = f"quasitune-session-{session_id}-samples.{fmt}"
+    headers = {"Content-Disposition": f'attachment; filename="{name}"'}
+    if fmt == "csv":
+        return Response(samples_csv(columns), media_type="text/csv; charset=utf-8", headers=headers)
+    return Response(samples_parquet(columns, facts), media_type="application/vnd.apache.parquet", headers=headers)

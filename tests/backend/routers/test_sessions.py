@@ -34,6 +34,38 @@ def test_session_report_pdf(sim_api):
     assert facts["Task"].startswith(stopped["task_words"]) and stopped["task_words"] == "1.20 m/s, incline +0.0°"
 
 
+def test_the_raw_telemetry_exports_as_csv_and_parquet_sample_for_sample(sim_api):
+    import csv
+    import io
+
+    import pyarrow.parquet as pq
+
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    prop = approved_proposal(api)
+    assert push_to_leg(api, prop).status_code == 201
+    session = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
+    wait_recorded(api, session["id"], 1.0)
+    assert c.post(f"/api/sessions/{session['id']}/stop", headers=pro).status_code == 200
+    cols = c.get(f"/api/sessions/{session['id']}/samples", headers=pro).json()["columns"]
+    r = c.get(f"/api/sessions/{session['id']}/samples.csv", headers=api.as_("viewer"))
+    assert r.status_code == 200 and r.headers["content-type"].startswith("text/csv")
+    assert f"quasitune-session-{session['id']}-samples.csv" in r.headers["content-disposition"]
+    rows = list(csv.reader(io.StringIO(r.text)))
+    assert rows[0] == list(cols) and "knee_angle_deg" in rows[0] and len(rows) - 1 == len(cols["seq"]) >= 100
+    knee = rows[0].index("knee_angle_deg")
+    assert [float(x[knee]) for x in rows[1:]] == cols["knee_angle_deg"]          # the same numbers, in degrees
+    p = c.get(f"/api/sessions/{session['id']}/samples.parquet", headers=pro)
+    assert p.status_code == 200 and p.content.startswith(b"PAR1")
+    table = pq.read_table(io.BytesIO(p.content))
+    assert table.column_names == list(cols) and table.column("seq").to_pylist() == cols["seq"]
+    assert table.column("mode").to_pylist() == cols["mode"]
+    meta = {k.decode(): v.decode() for k, v in table.schema.metadata.items() if k.startswith(b"quasitune.")}
+    assert meta["quasitune.session_id"] == str(session["id"]) and meta["quasitune.simulated"] == "True"
+    assert c.get(f"/api/sessions/{session['id']}/samples.xlsx", headers=pro).status_code == 422   # said, not guessed
+    assert c.get("/api/sessions/999999/samples.csv", headers=pro).status_code == 404
+
+
 def test_strides_in_safe_mode_are_marked_and_left_out_of_the_errors(sim_api):
     api = sim_api
     c, pro = api.client, api.as_("prosthetist")
