@@ -15,22 +15,28 @@ from backend.errors import ConflictError
 from backend.settings import Settings
 from backend.store.users import create_user, list_users
 
-BOOTSTRAP_USER = "prosthetist"
+# the first start's accounts: an admin who manages users in the dashboard, and a prosthetist for the clinical work
+BOOTSTRAP_USERS = (("admin", "admin", "adds, disables and resets accounts in the dashboard's Users page"),
+                   ("prosthetist", "prosthetist", "patients, versions, approvals, pushes and sessions"))
 
 
-def bootstrap_user(settings: Settings) -> str | None:
-    """On a database with no users, create ``prosthetist`` with a random one-time password (changed at the first
-    sign-in, like an initial admin password) and return it to print once; None when users exist."""
+def bootstrap_users(settings: Settings) -> list[tuple[str, str, str, str]]:
+    """On a database with no users, create :data:`BOOTSTRAP_USERS`, each with a random one-time password (changed at
+    the first sign-in, like an initial admin password); return (name, role, what it does, password) to print once.
+    Empty when users exist (or another process starting at the same moment created them)."""
     conn = connect(settings.database)
     try:
         if list_users(conn):
-            return None
-        password = secrets.token_urlsafe(12)
-        try:
-            create_user(conn, BOOTSTRAP_USER, "prosthetist", password, must_change_password=True)
-        except ConflictError:   # another process starting at the same moment created it first
-            return None
-        return password
+            return []
+        made = []
+        for name, role, what in BOOTSTRAP_USERS:
+            password = secrets.token_urlsafe(12)
+            try:
+                create_user(conn, name, role, password, must_change_password=True)
+            except ConflictError:   # another process starting at the same moment created it first
+                continue
+            made.append((name, role, what, password))
+        return made
     finally:
         conn.close()
 
@@ -67,17 +73,18 @@ def serve(settings: Settings, host: str = "127.0.0.1", port: int = 8000, bootstr
 
     one_blas_thread()
     app = create_app(settings)
-    password = bootstrap_user(settings) if bootstrap else None
+    made = bootstrap_users(settings) if bootstrap else []
     sock = bind(host, port)
     real_host, real_port = sock.getsockname()[:2]
     shown = f"[{real_host}]" if ":" in real_host else real_host
     print(f"QuasiTune listening on http://{shown}:{real_port}", flush=True)
     print(f"  dashboard: http://{shown}:{real_port}/   API docs: http://{shown}:{real_port}/docs", flush=True)
     print(f"  database: {settings.database_shown}", flush=True)
-    if password:
-        print(f"  first start: created user '{BOOTSTRAP_USER}' (role prosthetist) with password {password}\n"
-              "  (shown once, and one-time: sign in and choose your own password before anything else; add "
-              "users with 'quasitune users add NAME --role ROLE')", flush=True)
+    if made:
+        print("  first start: created these accounts, each with a one-time password shown only now (sign in and "
+              "choose your own before anything else):", flush=True)
+        for name, role, what, password in made:
+            print(f"    user '{name}' (role {role}: {what}) password {password}", flush=True)
     if host not in ("127.0.0.1", "::1", "localhost"):
         print("  WARNING: listening beyond loopback; put TLS in front of it", file=sys.stderr, flush=True)
     try:

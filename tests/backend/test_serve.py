@@ -41,10 +41,22 @@ def test_first_start_prints_a_password_once_and_a_restart_keeps_everything(tmp_p
         assert base.startswith("http://127.0.0.1:")
         assert "dashboard: http://127.0.0.1:" in proc.stdout.readline()
         assert "database:" in proc.stdout.readline()
-        line = proc.stdout.readline()
-        assert "created user 'prosthetist'" in line
-        password = line.split("password ", 1)[1].strip()
+        assert "first start" in proc.stdout.readline()
+        printed = {}
+        for _ in range(2):            # an admin who manages accounts in the dashboard, and a prosthetist
+            line = proc.stdout.readline()
+            name = line.split("user '", 1)[1].split("'", 1)[0]
+            printed[name] = line.rsplit("password ", 1)[1].strip()
+        assert set(printed) == {"admin", "prosthetist"}
         _wait_ready(base)
+        admin = _login(base, "admin", printed["admin"])
+        assert httpx.get(f"{base}/api/users", headers=admin).status_code == 403     # one-time: its own password first
+        assert httpx.post(f"{base}/api/auth/password", headers=admin, json={
+            "current_password": printed["admin"], "new_password": "the clinic's admin passphrase"}).status_code == 200
+        added = httpx.post(f"{base}/api/users", headers=admin,
+                           json={"username": "kim", "role": "prosthetist", "password": "a first password for kim"})
+        assert added.status_code == 201, added.text                       # the first account manages users
+        password = printed["prosthetist"]
         h = _login(base, "prosthetist", password)
         # the printed password is one-time: nothing but changing it works
         assert httpx.get(f"{base}/api/patients", headers=h).status_code == 403
