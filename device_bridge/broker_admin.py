@@ -3,7 +3,9 @@
 Each leg gets a user name (its device id) and a random password, and a role that lets it publish only its own frames
 (``…/{id}/up``, and ``…/{id}/late`` for what it buffered while away) and subscribe only to its own commands
 (``…/{id}/down``); API server instances get a role that publishes commands to any leg and reads every leg's frames.
-Nothing else may publish or subscribe (the plugin's defaults deny both; QuasiTune's roles are the only grants).
+Nothing else may publish or subscribe (the plugin's defaults deny both; QuasiTune's roles are the only grants). Each
+identity has its one client id bound (``device-{id}``, ``server-{name}``): a leg's credentials cannot connect as the
+server's client id and inherit its persistent session, nor as another leg's and knock it off.
 
 Why passwords and not client certificates: the plugin stores them hashed (salted PBKDF2-SHA512) and revokes one at
 once (``deleteClient`` or ``disableClient`` disconnects a connected client the same moment), where a certificate
@@ -18,7 +20,7 @@ import secrets
 import threading
 import uuid
 
-from device_bridge.mqtt_bus import TOPIC_PREFIX, broker_client, topic
+from device_bridge.mqtt_bus import TOPIC_PREFIX, broker_client, client_id_of, topic
 
 CONTROL = "$CONTROL/dynamic-security/v1"
 SERVER_ROLE = "quasitune-server"
@@ -87,27 +89,45 @@ class BrokerAdmin:
                 if "already exists" not in str(exc):
                     raise
 
-    def _client_with(self, username: str, role: str) -> str:
+    def _client_with(self, username: str, role: str, client_id: str) -> str:
+        """A new identity with its role and its one client id bound (it may connect under no other, and no other
+        identity under it); its random password, returned once."""
         password = secrets.token_urlsafe(24)
-        self._command("createClient", username=username, password=password, roles=[{"rolename": role}])
+        self._command("createClient", username=username, password=password, clientid=client_id,
+                      roles=[{"rolename": role}])
         return password
+
+    def bind_client_id(self, username: str, role: str) -> None:
+        """Bind an identity made before client ids were bound to its one client id (:func:`client_id_of`)."""
+        self._command("setClientId", username=username, clientid=client_id_of(role, username))
 
     def add_server(self, name: str) -> str:
         """An identity for one API instance (its password, shown once): commands to every leg, every leg's frames."""
         self._role(SERVER_ROLE, [("publishClientSend", f"{TOPIC_PREFIX}/+/down"),
                                  ("subscribePattern", f"{TOPIC_PREFIX}/+/up"),
                                  ("subscribePattern", f"{TOPIC_PREFIX}/+/late")])
-        return self._client_with(name, SERVER_ROLE)
+        return self._client_with(name, SERVER_ROLE, client_id_of("server", name))
 
     def add_device(self, device_id: str) -> str:
         """The leg's identity (its password, shown once): its own frames out, its own commands in, nothing else."""
         self._role(device_role(device_id), [("publishClientSend", topic(device_id, "up")),
                                             ("publishClientSend", topic(device_id, "late")),
                                             ("subscribeLiteral", topic(device_id, "down"))])
-        return self._client_with(device_id, device_role(device_id))
+        return self._client_with(device_id, device_role(device_id), client_id_of("device", device_id))
+
+    def require_device(self, device_id: str) -> None:
+        """Refuse (BrokerAdminError) unless ``device_id`` is a leg's identity, made by :meth:`add_device` with exactly
+        its own role: a server's identity or the broker's admin is never replaced nor revoked as if it were a leg."""
+        client = self._command("getClient", username=device_id).get("data", {}).get("client", {})
+        roles = [r.get("rolename") for r in client.get("roles", [])]
+        if roles != [device_role(device_id)]:
+            raise BrokerAdminError(f"{device_id} is not a leg's identity at the broker (a server's or the admin's "
+                                   "identity is never replaced or revoked as a leg)")
 
     def replace_device(self, device_id: str) -> str:
-        """A new password for the leg; the old one stops working and a bridge connected with it is disconnected."""
+        """A new password for the leg; the old one stops working and a bridge connected with it is disconnected.
+        Only a leg's identity (:meth:`require_device`)."""
+        self.require_device(device_id)
         password = secrets.token_urlsafe(24)
         self._command("setClientPassword", username=device_id, password=password)
         self._command("disableClient", username=device_id)      # drops the connection made with the old password
@@ -115,7 +135,8 @@ class BrokerAdmin:
         return password
 
     def revoke_device(self, device_id: str) -> None:
-        """The leg's identity removed: refused from now on, disconnected now if connected."""
+        """The leg's identity removed: refused from now on, disconnected now if connected. Only a leg's identity."""
+        self.require_device(device_id)
         self._command("deleteClient", username=device_id)
 
     def close(self) -> None:

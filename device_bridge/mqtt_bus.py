@@ -37,6 +37,7 @@ paho-mqtt (the Eclipse client) keeps the connection: TLS, reconnection with back
 
 from __future__ import annotations
 
+import math
 import queue
 import ssl
 import struct
@@ -141,6 +142,32 @@ def unpack_late(payload: bytes) -> list[tuple[float, list[can.Message]]]:
     return out
 
 
+# A leg's time stamps are its bridge's clock, not the server's: the server never lets one decide whether it hears the
+# leg. A record stamped more than CLOCK_AHEAD_S after it arrived (a bridge clock set ahead, or a forged time) is taken
+# at its arrival time and counted: less than the host's STALE_STATUS_S (1 s), so no time a leg sends can make its real
+# statuses look more than a second late (one status 2 s ahead made them "stale" for 98 s). A time that is not a finite
+# number, or older than OLDEST_RECORD_S (no buffer keeps a record that long), is refused and counted.
+CLOCK_AHEAD_S = 0.5
+OLDEST_RECORD_S = 30 * 24 * 3600.0
+
+
+def checked_records(records: list[tuple[float, list[can.Message]]], arrived_s: float
+                    ) -> tuple[list[tuple[float, list[can.Message]]], int, int]:
+    """(the records a server may use, how many were refused for their time, how many were taken at their arrival
+    time instead of a time ahead of it): see :data:`CLOCK_AHEAD_S`. Frames are stamped with their record's time."""
+    kept, refused, clamped = [], 0, 0
+    for at, frames in records:
+        if not math.isfinite(at) or at < arrived_s - OLDEST_RECORD_S:
+            refused += 1
+            continue
+        if at > arrived_s + CLOCK_AHEAD_S:
+            at, clamped = arrived_s, clamped + 1
+            for f in frames:
+                f.timestamp = at
+        kept.append((float(at), frames))
+    return kept, refused, clamped
+
+
 @dataclass(frozen=True)
 class BrokerAddress:
     """``mqtts://HOST:PORT`` (TLS, the deployment) or ``mqtt://HOST:PORT`` (plain: only with ``insecure=True``, for a
@@ -156,6 +183,14 @@ class BrokerAddress:
         if parts.scheme not in ("mqtts", "mqtt") or not parts.hostname:
             raise ValueError(f"broker must be mqtts://HOST:PORT (or mqtt:// on an isolated bench), got {url!r}")
         return cls(parts.hostname, parts.port or (8883 if parts.scheme == "mqtts" else 1883), parts.scheme == "mqtts")
+
+
+def client_id_of(role: str, username: str) -> str:
+    """The one client id an identity connects with: ``device-{device id}`` for a leg's bridge, ``server-{name}`` for
+    an API instance. The broker binds it to the identity when the identity is made
+    (:meth:`~device_bridge.broker_admin.BrokerAdmin.add_device`), so no identity can connect under another's client
+    id and inherit its session, its subscriptions or knock it off the broker."""
+    return f"{role}-{username}"
 
 
 def broker_client(broker: str, client_id: str, username: str, password: str, ca_file: str | None = None,
@@ -184,8 +219,8 @@ class MqttBus(can.BusABC):
         broker: ``mqtts://HOST:PORT``.
         username, password: this client's identity at the broker (the device's, or the server's).
         ca_file: the CA that signed the broker's certificate (QuasiTune's own); None for the system's.
-        instance: the server instance's name: its client id is ``server-{instance}-{device_id}``, so several instances
-            each keep a session of their own and each reads every frame of the leg (default: one server).
+        instance: unused by a bus of its own (its client id is its identity's, :func:`client_id_of`: several
+            instances each need an identity of their own, as each keeps a session of its own and reads every frame).
         connect_timeout_s: how long the constructor waits for the first connection before it fails loudly.
         late_buffer: the leg's side only: where its messages wait while the broker is out of reach (see the module);
             None: paho keeps them in memory and sends them on reconnection as if they were new.
@@ -228,6 +263,8 @@ class MqttBus(can.BusABC):
         self._rx: queue.Queue[can.Message] = queue.Queue()
         self._connected = threading.Event()
         self.malformed = 0
+        self.refused_times = 0      # the leg's records refused for an impossible time (checked_records)
+        self.clamped_times = 0      # … taken at their arrival time instead of a time ahead of it
         self.refused: str | None = None
         self._connection = connection
         self._client: mqtt.Client | None = None
@@ -237,9 +274,8 @@ class MqttBus(can.BusABC):
         else:
             if broker is None or username is None or password is None:
                 raise ValueError("a broker link needs the broker's address and an identity (or a shared connection)")
-            client_id = f"{role}-{instance}-{channel}" if instance and role == "server" else f"{role}-{channel}"
-            self._client, address = broker_client(broker, client_id, username, password, ca_file, insecure,
-                                                  clean_session=False)
+            self._client, address = broker_client(broker, client_id_of(role, username), username, password, ca_file,
+                                                  insecure, clean_session=False)
             self.channel_info = f"mqtt {role} {channel} @ {address.host}:{address.port}"
             self._start_client(address)
         if not self._connected.wait(connect_timeout_s):
@@ -311,20 +347,25 @@ class MqttBus(can.BusABC):
         :attr:`on_frames` or the receive queue (the leg's stamped with the time they left its bus); a malformed one is
         counted and dropped whole."""
         try:
-            if direction == "late":
-                records = unpack_late(payload)
-            elif self.role == "server":      # the leg's frames: records of (when they left its bus, frames)
-                frames = [f for _, run in unpack_late(payload) for f in run]
+            if direction == "late" or self.role == "server":   # the leg's: records of (when they left its bus, frames)
+                records, refused, clamped = checked_records(unpack_late(payload), time.time())
+                self.refused_times += refused
+                self.clamped_times += clamped
+                frames = [f for _, run in records for f in run]
             else:
                 frames = unpack_frames(payload)
         except ValueError:
             self.malformed += 1
             return
         if direction == "late":
+            if not records:
+                return
             if self.on_late is None:
                 self.late_unclaimed += 1
             else:
                 self.on_late(records)
+            return
+        if not frames:
             return
         if self.on_frames is not None:
             self.on_frames(frames)

@@ -7,8 +7,9 @@ with ``connection=``) and one dispatch thread hands each message to its leg: pah
 what arrives, so a slow callback of one leg (a database write on a status) never holds back the network, the
 acknowledgements of the QoS 1 messages or the heartbeats the instance sends.
 
-The client id is ``server-{instance}`` with a persistent session, so each instance reads every frame of its legs and
-the broker keeps the QoS 1 frames that arrive while it reconnects.
+The client id is its identity's, ``server-{name}`` (bound to the identity at the broker, :func:`client_id_of`), with a
+persistent session when the instance is named, so each instance (each with an identity of its own) reads every frame of
+its legs and the broker keeps the QoS 1 frames that arrive while it reconnects.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import threading
 
 import paho.mqtt.client as mqtt
 
-from device_bridge.mqtt_bus import TOPIC_PREFIX, MqttBus, broker_client, topic
+from device_bridge.mqtt_bus import TOPIC_PREFIX, MqttBus, broker_client, client_id_of, topic
 
 log = logging.getLogger(__name__)
 
@@ -31,13 +32,13 @@ class MqttConnection:
         broker: ``mqtts://HOST:PORT`` (``mqtt://`` only with ``insecure=True``, an isolated bench).
         username, password: this instance's identity at the broker (``quasitune broker add-server``).
         ca_file: the CA that signed the broker's certificate; None for the system's.
-        instance: this instance's name (its client id ``server-{instance}``).
+        instance: this instance's name; given, the broker keeps its session while it reconnects.
         connect_timeout_s: how long the constructor waits for the connection before it fails loudly.
     """
 
     def __init__(self, broker: str, username: str, password: str, ca_file: str | None = None,
                  instance: str | None = None, insecure: bool = False, connect_timeout_s: float = 10.0) -> None:
-        self._client, address = broker_client(broker, f"server-{instance}" if instance else "", username, password,
+        self._client, address = broker_client(broker, client_id_of("server", username), username, password,
                                               ca_file, insecure, clean_session=not instance)
         self.description = f"mqtt server{f' {instance}' if instance else ''} @ {address.host}:{address.port}"
         self._buses: dict[str, MqttBus] = {}
