@@ -55,6 +55,7 @@ from device_bridge.protocol import (
 _DEG = math.pi / 180.0
 STALE_STATUS_S = 1.0     # a status this much later than the link's usual delay is history, not the leg's state now
 LAG_FLOOR_RISE = 0.01    # the usual delay (the smallest seen) may rise this much a second (s/s)
+RELEARN_S = 5.0          # every frame this long later than the usual delay: the leg's clock stepped back, relearn it
 GAP_MEMORY = 1000        # a skipped sample arriving within this many newer ones was overtaken, not lost (10 s)
 LONG_SILENCE_S = 300.0   # telemetry back after a silence this long is placed by time (a 16-bit sequence wraps in 655 s)
 log = logging.getLogger(__name__)
@@ -272,6 +273,8 @@ class DeviceLink(BusThreads):
         self.stale_statuses = 0           # statuses that arrived too late to be the leg's state (see _current)
         self._lag_floor: float | None = None
         self._lag_at = 0.0
+        self._late_run: tuple[float, float] | None = None   # every frame late since (arrival, smallest lag): _current
+        self.relearned_delays = 0          # times the link's usual delay was learned again (a clock step back)
         if hasattr(bus, "on_late"):
             bus.on_late = self._on_late
         self._heartbeat_counter = 0
@@ -416,6 +419,18 @@ class DeviceLink(BusThreads):
         else:
             self._lag_floor = min(self._lag_floor + LAG_FLOOR_RISE * max(now - self._lag_at, 0.0), lag)
         self._lag_at = now
+        # what a link delivers late after a cut drains in a burst among live frames; when every frame for RELEARN_S is
+        # late, it is the leg's clock that stepped back (or a slower path): learn the delay again rather than go deaf
+        # for 100 s per second of the step. (A clock set forward lowers the floor at once; a time ahead of its arrival
+        # by more than CLOCK_AHEAD_S never reaches here: the broker link takes it at its arrival.)
+        if lag - self._lag_floor <= STALE_STATUS_S:
+            self._late_run = None
+        else:
+            since, smallest = self._late_run if self._late_run is not None else (now, lag)
+            self._late_run = (since, min(smallest, lag))
+            if now - since >= RELEARN_S:
+                self._lag_floor, self._late_run = min(smallest, lag), None
+                self.relearned_delays += 1
         return lag - self._lag_floor <= STALE_STATUS_S
 
     def _count(self, seq: int) -> None:

@@ -265,3 +265,37 @@ def test_a_status_that_was_in_flight_when_the_link_broke_is_history_not_the_legs
         assert link.status.mode == Mode.SAFE and link.stale_statuses == 1
     finally:
         link.close()
+
+
+def test_a_bridge_clock_step_either_way_is_learned_and_the_leg_is_heard_again():
+    """The leg's clock (its bridge's) set forward: its statuses are current at once. Set back 10 s: every status looks
+    10 s late; once every frame has been late for RELEARN_S the delay is learned again and the leg is heard, instead
+    of 100 s per second of the step (990 s here) before."""
+    from device_bridge.clock import SteppedClock
+    from device_bridge.host import RELEARN_S
+
+    clock = SteppedClock()
+    bus = _PushingBus()
+    link = DeviceLink(bus, clock=clock).start()
+
+    def status(mode: Mode, lag_s: float) -> Mode:
+        bus.on_frames([_status_frame(mode, clock.time() - lag_s)])
+        return link.status.mode
+
+    try:
+        assert status(Mode.ACTIVE, 0.02) == Mode.ACTIVE
+        assert status(Mode.SAFE, -0.4) == Mode.SAFE                         # its clock 0.42 s ahead: current
+        clock.advance(0.1)
+        assert status(Mode.ACTIVE, -0.38) == Mode.ACTIVE
+        late_since = clock.time()                                            # its clock set back by 10 s
+        heard = None
+        while clock.time() - late_since < 2 * RELEARN_S:
+            clock.advance(0.1)
+            mode = Mode.SAFE if heard is None else Mode.ACTIVE
+            if status(mode, 9.62) == mode and heard is None:
+                heard = clock.time() - late_since
+        assert heard is not None and RELEARN_S - 0.2 <= heard <= RELEARN_S + 0.2, heard
+        assert link.status.mode == Mode.ACTIVE and link.relearned_delays == 1
+        assert link.stale_statuses >= 40                                     # the first 5 s counted as history
+    finally:
+        link.close()

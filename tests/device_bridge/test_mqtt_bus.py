@@ -15,7 +15,7 @@ from paho.mqtt.enums import CallbackAPIVersion
 from device_bridge.device_node import DeviceNode
 from device_bridge.gateway import Gateway
 from device_bridge.host import DeviceLink, PushError
-from device_bridge.mqtt_bus import MqttBus, pack_frames, topic, unpack_frames
+from device_bridge.mqtt_bus import MqttBus, client_id_of, pack_frames, topic, unpack_frames
 from device_bridge.protocol import WireTable, frame_id
 from tests.helpers.device import until
 
@@ -70,8 +70,9 @@ def test_server_and_leg_exchange_frames_batched_both_ways(broker, broker_admin, 
 
 
 def _raw_client(broker, username: str, password: str) -> tuple[mqtt.Client, list, threading.Event]:
+    """A plain paho client with a leg's identity (and so its one bound client id)."""
     received, subscribed = [], threading.Event()
-    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=f"raw-{next(_ids)}")
+    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id_of("device", username))
     c.username_pw_set(username, password)
     c.tls_set(ca_certs=broker.ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
     c.on_message = lambda _c, _u, m: received.append(m.topic)
@@ -104,6 +105,45 @@ def test_a_device_reads_only_its_own_commands_and_cannot_send_any(broker, broker
         spy.disconnect()
         server.shutdown()
         leg_a.shutdown()
+
+
+def _connect_as(broker, username: str, password: str, client_id: str) -> tuple[bool, mqtt.Client]:
+    """Whether the broker accepts this identity under this client id (a persistent session asked for, as an attacker
+    taking over a session would); the client, connected or not, to be stopped by the caller."""
+    answered, accepted = threading.Event(), []
+    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=False)
+    c.username_pw_set(username, password)
+    c.tls_set(ca_certs=broker.ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
+    c.on_connect = lambda _c, _u, _f, code, _p: (accepted.append(not code.is_failure), answered.set())
+    c.connect("127.0.0.1", broker.port)
+    c.loop_start()
+    assert answered.wait(5), "the broker did not answer the connection"
+    return accepted[0], c
+
+
+def test_no_identity_connects_under_another_identitys_client_id(broker, broker_admin, server_identity):
+    """Each identity's client id is bound at the broker: a leg's credentials under the server's client id (which would
+    inherit its persistent session and subscriptions, and knock it off once a second) or under another leg's are
+    refused, and the server's link is not disturbed."""
+    a, _a_password = _leg(broker_admin, "leg-a")
+    b, b_password = _leg(broker_admin, "leg-b")
+    name, _ = server_identity
+    server = MqttBus(a, broker.url, *server_identity, role="server", ca_file=broker.ca_file)
+    clients = []
+    try:
+        for stolen in (client_id_of("server", name), client_id_of("device", a), f"raw-{next(_ids)}"):
+            accepted, c = _connect_as(broker, b, b_password, stolen)
+            clients.append(c)
+            assert not accepted, f"{b} connected as {stolen}"
+        accepted, c = _connect_as(broker, b, b_password, client_id_of("device", b))
+        clients.append(c)
+        assert accepted                                                   # its own client id works
+        assert server.connected and server._client.is_connected()         # never knocked off
+    finally:
+        for c in clients:
+            c.loop_stop()
+            c.disconnect()
+        server.shutdown()
 
 
 def test_a_revoked_device_is_disconnected_at_once_and_refused_afterwards(broker, broker_admin):
@@ -233,3 +273,20 @@ def test_a_batch_kept_while_disconnected_is_one_record_per_burst_at_its_own_time
         f.timestamp = at
     runs = [(at, [f.arbitration_id for f in run]) for at, run in _bursts(frames)]
     assert runs == [(10.000, [0x300, 0x301]), (10.010, [0x300, 0x301]), (10.040, [0x080])]
+
+
+def test_a_legs_time_stamps_never_decide_whether_the_server_hears_it():
+    """A record stamped ahead of its arrival (a bridge clock set forward, or a forged time) is taken at its arrival
+    time, counted; a time that is not finite or older than any buffer keeps is refused, counted; the rest pass as sent.
+    Before, one status stamped 2 s ahead made every real status look stale for 98 s, and 1e300 stopped recording."""
+    from device_bridge.mqtt_bus import CLOCK_AHEAD_S, OLDEST_RECORD_S, checked_records, pack_late, unpack_late
+
+    now = 1_800_000_000.0
+    sent = [now - 0.5, now + CLOCK_AHEAD_S + 1.0, float("inf"), float("nan"), 1e300, -1e300,
+            now - OLDEST_RECORD_S - 1.0, now + 0.3, now - 3600.0]
+    payload = pack_late((at, pack_frames([_frame(0x100 + i)])) for i, at in enumerate(sent))
+    kept, refused, clamped = checked_records(unpack_late(payload), now)
+    assert refused == 4 and clamped == 2                # inf, nan, -1e300 and the too old; +1.5 s and 1e300 clamped
+    assert [at for at, _ in kept] == [now - 0.5, now, now, now + 0.3, now - 3600.0]
+    assert all(f.timestamp == at for at, frames in kept for f in frames)
+    assert [frames[0].arbitration_id for _, frames in kept] == [0x100, 0x101, 0x104, 0x107, 0x108]
