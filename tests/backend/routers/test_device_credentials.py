@@ -61,3 +61,18 @@ def test_only_an_admin_may_and_only_with_a_broker(broker_api, api):
     assert r.status_code == 409 and "no broker is configured" in r.json()["detail"]
     r = broker_api.client.post("/api/devices/leg%2Fx/credentials", headers=broker_api.as_("admin"))
     assert r.status_code in (404, 422)
+
+
+def test_only_a_legs_identity_is_issued_replaced_or_revoked_here(broker_api, broker, broker_admin):
+    """A server instance's identity and the broker's admin are not legs: replacing one would hand out a server-role
+    password (every leg's frames) or cut the running instance off, and the admin's would leave no one able to revoke
+    a stolen leg. Each is refused (409) and keeps working."""
+    api = broker_api
+    server_password = broker_admin.add_server("api-two")
+    for name in ("api-two", ADMIN):
+        for method in ("post", "delete"):
+            r = getattr(api.client, method)(f"/api/devices/{name}/credentials", headers=api.as_("admin"))
+            assert r.status_code == 409 and "is not a leg's identity" in r.json()["detail"], (name, method, r.text)
+    still = MqttBus("any-leg", broker.url, "api-two", server_password, role="server", ca_file=broker.ca_file)
+    still.shutdown()                                                   # the server's password still works
+    assert broker_admin.add_device("leg-after") and broker_admin.replace_device("leg-after")   # the admin still can
