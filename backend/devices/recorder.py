@@ -26,12 +26,17 @@ from sqlalchemy import Engine
 from backend.db import pooled
 from backend.store import sessions as store
 from backend.store.sample_pack import second_of
+from backend.store.sample_pack import validate_row as pack_one
 from device_bridge.clock import WALL_CLOCK, Clock
 
 FLUSH_PERIOD_S = 0.25
 SYNC_PERIOD_S = 1.0   # how often the sessions open in the database are looked up (several instances)
 log = logging.getLogger(__name__)
 STALE_S = 1.0     # a second still filling is written anyway once no sample has come for this long
+
+
+class RecorderWriteError(RuntimeError):
+    """Some sessions' samples could not be written this time (named); they are kept for the next flush."""
 
 
 class SessionRecorder:
@@ -50,6 +55,7 @@ class SessionRecorder:
         self._last_sample: dict[str, float] = {}    # device id → when its newest sample arrived (monotonic s)
         self._lock = threading.Lock()
         self._write_lock = threading.Lock()
+        self.refused_samples: Counter[str] = Counter()   # per device: samples the store refused as malformed
         self._stop = threading.Event()
         self._next_sync = float("-inf")
         self._thread = threading.Thread(target=self._run, name="session-recorder", daemon=True)
@@ -138,18 +144,40 @@ class SessionRecorder:
                     self._buffers[d] = keep
             if not batches:
                 return
-            written = 0
-            try:
-                with pooled(self._db) as conn:
-                    for _, session_id, rows in batches:
-                        store.add_samples(conn, session_id, rows)
-                        written += 1
-            except BaseException:
-                with self._lock:   # back in front of what arrived meanwhile; the store merges by sequence number
-                    for d, session_id, rows in batches[written:]:
+            # each session on its own: one leg's bad sample or failed write never holds back another's recording
+            failed: list[tuple[int, BaseException]] = []
+            for d, session_id, rows in batches:
+                try:
+                    self._write(d, session_id, rows)
+                except Exception as exc:   # the database away for a moment: back in front of what arrived meanwhile
+                    failed.append((session_id, exc))
+                    with self._lock:       # (the store merges by sequence number)
                         if self._recording.get(d) == session_id:
                             self._late[d] = rows + self._late[d]
-                raise
+            if failed:
+                raise RecorderWriteError(f"writing the samples of session(s) {', '.join(str(i) for i, _ in failed)} "
+                                         f"failed ({failed[0][1]!r}); the others were written") from failed[0][1]
+
+    def _write(self, device_id: str, session_id: int, rows: list[tuple]) -> None:
+        """One session's batch. Samples the store refuses as malformed (ValueError naming the value: a time no leg can
+        have sent) are dropped one by one and counted in :attr:`refused_samples`, so they never block the batch."""
+        try:
+            with pooled(self._db) as conn:
+                store.add_samples(conn, session_id, rows)
+            return
+        except (ValueError, OverflowError):
+            pass
+        good = []
+        for row in rows:
+            try:
+                pack_one(row)
+                good.append(row)
+            except (ValueError, OverflowError, TypeError):
+                self.refused_samples[device_id] += 1
+        log.warning("session %s: %d malformed sample(s) of %s refused", session_id, len(rows) - len(good), device_id)
+        if good:
+            with pooled(self._db) as conn:
+                store.add_samples(conn, session_id, good)
 
     def sync(self) -> None:
         """Take up the sessions the database has open for this instance's devices (started on another instance) and

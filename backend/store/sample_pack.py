@@ -118,6 +118,14 @@ def _decode_column(blob: memoryview, offset: int, n: int) -> tuple[np.ndarray, i
     return np.bitwise_xor.accumulate(xored).view("<f8"), offset + 8 * n
 
 
+def validate_row(row: tuple) -> None:
+    """One sample as :func:`pack` checks it (ValueError naming the value; nothing else is done with it)."""
+    if len(row) != len(COLUMNS):
+        raise ValueError(f"a sample has {len(COLUMNS)} values ({', '.join(COLUMNS)}), got {len(row)}")
+    for c, v in zip(COLUMNS, row, strict=True):
+        _encode(c, v)
+
+
 def pack(rows: Sequence[tuple]) -> bytes:
     """The rows (tuples in :data:`COLUMNS` order, one second's, in any order, no sequence number twice) as one value,
     in sequence order."""

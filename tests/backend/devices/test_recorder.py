@@ -146,3 +146,30 @@ def test_a_failed_write_keeps_its_samples_for_the_next_flush(recording, monkeypa
     recorder.flush()
     with pooled(pool) as conn:
         assert sessions.samples(conn, sid)["seq"] == list(range(5))
+
+
+def test_one_legs_bad_sample_never_stops_another_legs_recording(recording):
+    """A sample the store refuses (a NaN time, a missing load: synthetic, as a broken bridge could send) is refused
+    and counted; its leg's other samples and every other leg's are written, and nothing raises."""
+    pool, recorder, sid = recording
+    with pooled(pool) as conn:
+        actor = users.User(1, "pat", "prosthetist")
+        devices.register_device(conn, "leg-2", "simulated", "virtual", "b")
+        other = sessions.start_session(conn, 1, "leg-2", {"speed_mps": 1.0, "incline_deg": 0.0, "body_mass_kg": 80.0},
+                                       {"proposal_id": None, "envelope_id": None, "table_version": None,
+                                        "crc32": None}, actor)
+    recorder.begin("leg", sid)
+    recorder.begin("leg-2", other)
+    for seq in range(5):
+        recorder.add("leg", _sample(seq))
+        bad = _sample(seq)
+        if seq == 2:
+            bad = (*bad[:1], float("nan"), *bad[2:])
+        elif seq == 3:
+            bad = (*bad[:10], None, *bad[11:])
+        recorder.add("leg-2", bad)
+    recorder.flush()                                                            # no exception
+    with pooled(pool) as conn:
+        assert sessions.samples(conn, sid)["seq"] == list(range(5))
+        assert sessions.samples(conn, other)["seq"] == [0, 1, 4]
+    assert recorder.refused_samples == {"leg-2": 2}
