@@ -275,11 +275,10 @@ def test_a_bridge_clock_step_either_way_is_learned_and_the_leg_is_heard_again():
     from device_bridge.host import RELEARN_S
 
     clock = SteppedClock()
-    bus = _PushingBus()
-    link = DeviceLink(bus, clock=clock).start()
+    link = DeviceLink(_PushingBus(), clock=clock)    # its receive path alone: no thread of its own moves the time
 
     def status(mode: Mode, lag_s: float) -> Mode:
-        bus.on_frames([_status_frame(mode, clock.time() - lag_s)])
+        link.receive([_status_frame(mode, clock.time() - lag_s)])
         return link.status.mode
 
     try:

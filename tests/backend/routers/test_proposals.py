@@ -89,7 +89,9 @@ def test_task_outside_the_data_is_flagged_with_larger_std(api):
 def test_bad_task_is_refused_and_nothing_stored(api, body, field):
     patient = api.new_patient()
     r = api.client.post(f"/api/patients/{patient['id']}/proposals", headers=api.as_("prosthetist"), json=body)
-    assert r.status_code == 422 and field in r.json()["detail"]
+    words = {"speed_mps": "speed", "incline_deg": "incline"}[field]
+    assert r.status_code == 422 and words in r.json()["detail"]                 # in words on the page
+    assert field in [e["field"] for e in r.json()["errors"]]                     # by its code for scripts
     assert api.count("proposals") == 0
 
 
