@@ -62,7 +62,7 @@ export const ROW_WORDS = {
   "ankle.swing_flexion": "ankle swing (toe clearance)",
   "ankle.swing_extension": "ankle late swing (ready for heel strike)",
 };
-const PARAMETER_WORDS = { k_Nm_per_rad: "stiffness", theta_e_deg: "equilibrium angle", b_Nm_s_per_rad: "damping",
+const PARAMETER_WORDS = { k_Nm_per_rad: "resistance K", theta_e_deg: "equilibrium angle", b_Nm_s_per_rad: "damping",
   fit_method: "where the value comes from", r2: "fit quality R²" };
 // the server's threshold (controller_core.table.WEAK_FIT_R2): a line fit below it is marked a weak fit
 export const WEAK_FIT_R2 = 0.5;
@@ -84,7 +84,7 @@ const THRESHOLD_WORDS = {
   sf_to_se_knee_extension_deg_per_s: "stance extension also begins: loaded knee extending faster than (0 = off)",
 };
 
-// "knee.stance_flexion.k_Nm_per_rad" -> "knee stance flexion resistance (loading response): stiffness"
+// "knee.stance_flexion.k_Nm_per_rad" -> "knee stance flexion resistance (loading response): resistance K"
 export function fieldWords(field) {
   const [a, b, c] = field.split(".");
   if (a === "thresholds") return THRESHOLD_WORDS[b] || field;
@@ -200,6 +200,9 @@ export function momentToggle(mass, onChange) {
 }
 
 // an envelope's grid in words: "0.6–1.6 m/s × -10…10°"
+// the range an envelope covers, as requested: "0.85–1.6 m/s × −6…+6°" (no rounding of 0.85 to "0.8")
 export function rangeText(e) {
-  return `${fmt(e.speeds_mps[0], 1)}–${fmt(e.speeds_mps.at(-1), 1)} m/s × ${fmt(e.inclines_deg[0], 0)}…${fmt(e.inclines_deg.at(-1), 0)}°`;
+  const n = (x, digits) => String(Number(x.toFixed(digits)));
+  const deg = (x) => (x > 0 ? `+${n(x, 1)}` : n(x, 1).replace("-", "−"));
+  return `${n(e.speeds_mps[0], 2)}–${n(e.speeds_mps.at(-1), 2)} m/s × ${deg(e.inclines_deg[0])}…${deg(e.inclines_deg.at(-1))}°`;
 }

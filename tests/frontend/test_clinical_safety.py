@@ -16,7 +16,7 @@ def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server
     k_cell = "#param-table input[data-field='knee.stance_flexion.k_Nm_per_rad']"
     original = page.input_value(k_cell)
     page.fill("#edit-form input[name=comment]", "try a springy knee")
-    page.fill(k_cell, "150")                        # energy-injecting: the knee collapses into flexion under load
+    page.fill(k_cell, "-150")                       # a negative resistance pushes: the knee collapses into flexion
     live = page.inner_text("#edit-live")
     assert "pushes the joint instead of resisting it" in live and "knee gives way into flexion" in live, live
     expect(page.locator("td[data-cell='knee.stance_flexion.k_Nm_per_rad'].out")).to_have_count(1)   # the cell touched
@@ -131,15 +131,16 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
 
 
 def test_a_knee_too_soft_to_carry_the_patient_is_refused_as_typed_and_by_the_server(server, page):
-    """The stance support floor: 1.2 N·m/rad per kg × 78 kg = −93.6 N·m/rad for the knee's stance flexion, stated
-    with the limits; a softer value is marked as typed and refused by the server."""
+    """The stance support floor: 1.2 N·m/rad per kg × 78 kg = 93.6 N·m/rad of resistance at least for the knee's stance
+    flexion (k ≤ −93.6 in the API), stated with the limits; a softer value is marked as typed and refused by the
+    server."""
     sign_in(page, server, "dana")
     pid = create_patient_and_propose(page, "P-430")
     floor_text = page.inner_text("#support-floor")
-    assert "-93.6 N·m/rad" in floor_text and "1.2 N·m/rad per kg × 78.0 kg" in floor_text, floor_text
+    assert "at least 93.6 N·m/rad" in floor_text and "1.2 N·m/rad per kg × 78.0 kg" in floor_text, floor_text
     k_cell = "#param-table input[data-field='knee.stance_flexion.k_Nm_per_rad']"
     page.fill("#edit-form input[name=comment]", "softer knee on the ramp")
-    page.fill(k_cell, "-40")
+    page.fill(k_cell, "40")                         # 40 N·m/rad of resistance: softer than the floor
     live = page.inner_text("#edit-live")
     assert "softer than the stance support floor" in live and "buckle" in live, live
     assert page.is_disabled("#edit-form button[type=submit]")

@@ -9,16 +9,18 @@ import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
 import { safetyFigures } from "../widgets/proposal_views.js";
+import { shownChange, shownNumber, signed, toSI, units } from "../quantities.js";
 import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
 
-// darker reads the same way on every map: firmer (k more negative, more damping), or more flexion / dorsiflexion
+// darker reads the same way on every map: firmer (more resistance K = −k, more damping), or more flexion /
+// dorsiflexion; scale: from the API's value to the shown one (resistance positive, as on every page)
 const QUANTITIES = {
-  k_Nm_per_rad: { label: "quasi-stiffness k", short: "k", unit: "N·m/rad", digits: 0, darker: "low",
-    keyWords: () => "darker = firmer" },
-  theta_e_deg: { label: "equilibrium angle θe", short: "θe", unit: "deg", digits: 1, darker: "high",
+  k_Nm_per_rad: { label: "resistance K (larger = firmer)", short: "K", unit: "N·m/rad", digits: 0, darker: "high",
+    scale: -1, keyWords: () => "darker = firmer" },
+  theta_e_deg: { label: "equilibrium angle θe", short: "θe", unit: "deg", digits: 1, darker: "high", scale: 1,
     keyWords: (joint) => (joint === "knee" ? "darker = more flexed" : "darker = more dorsiflexed") },
   b_Nm_s_per_rad: { label: "damping b (a default per kg, not fitted)", short: "b", unit: "N·m·s/rad", digits: 2,
-    darker: "high", keyWords: () => "darker = firmer" },
+    darker: "high", scale: 1, keyWords: () => "darker = firmer" },
 };
 const HELD_WORDS = { range_guard: "θe held in the joint range", passivity_guard: "held resistive",
   support_floor: "held at the stance support floor", neighbour_guard: "held within a step of its neighbours" };
@@ -47,10 +49,12 @@ export async function envelopePage(view, id, params) {
   const nExtra = e.nodes.filter((n) => n.extrapolation).length;
   const guarded = e.nodes.filter((n) => Object.keys(n.neighbour_guarded).length);
   const [words, kind] = DEPLOYMENT_WORDS[e.deployment] || [];
+  const worseSlot = h("div", { id: "worse-slot" });   // worse on the bench than its parent: said first
   const head = [
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ",
       h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `envelope v${e.version}`),
     h("h1", {}, `${e.envelope_label} · ${rangeText(e)}`),
+    worseSlot,
     h("p", { class: "chips", id: "envelope-chips" }, chip(e.status, e.status), words ? chip(words, kind) : null,
       chip(e.safety.ok ? "every node within the parameter limits and the neighbour rule" : "outside the parameter limits", e.safety.ok ? "ok" : "bad"),
       e.bench ? h("span", { id: "bench-chip" }, chip(e.bench.words, BENCH_CHIP[e.bench.status])) : null,
@@ -100,7 +104,10 @@ export async function envelopePage(view, id, params) {
         maps.append(fig);
         envelopeMap(fig, { title: `${joint} ${SUBPHASE_LABEL[sp]} · ${d.short} (${d.unit})`, id: `map-${joint}-${sp}`,
           speeds: e.speeds_mps, inclines: e.inclines_deg, unit: d.unit, digits: d.digits, measured,
-          values: nodeGrid(e, (n) => n.table.find((r) => r.joint === joint && r.subphase === sp)?.[q] ?? null),
+          values: nodeGrid(e, (n) => {
+            const v = n.table.find((r) => r.joint === joint && r.subphase === sp)?.[q];
+            return v === null || v === undefined ? null : v * d.scale + 0;
+          }),
           extrapolated: nodeGrid(e, (n) => n.extrapolation), darker: d.darker, keyWords: d.keyWords(joint),
           marks: nodeGrid(e, (n) => valueMark(n, joint, sp, q)),
           onPick: (i, j) => { location.hash = `#/envelopes/${e.id}/nodes/${i}/${j}`; } });
@@ -121,7 +128,7 @@ export async function envelopePage(view, id, params) {
   draw(quantity);
   renderRefine(refineBox, { kind: "envelope", item: e, canRefine: canDecide,
     grid: { speeds: e.speeds_mps, inclines: e.inclines_deg } });
-  renderDecision(decisionBox, { item: e, name: e.envelope_label, path: `/api/envelopes/${e.id}`, canDecide,
+  renderDecision(decisionBox, { item: e, name: e.envelope_label, path: `/api/envelopes/${e.id}`, canDecide, worseSlot,
     reload: () => envelopePage(document.getElementById("view"), e.id) });
   renderPush(pushBox, { item: e, kind: "envelope", name: e.envelope_label, canPush: canDecide, patient,
     what: `${e.envelope_label} (adapts over ${rangeText(e)}; nominal ${fmt(e.nominal.speed_mps, 2, "m/s")}, ${fmt(e.nominal.incline_deg, 1, "°")})`,
@@ -153,8 +160,16 @@ function editCard(e, canEdit) {
   const field = h("select", { name: "field", id: "edit-field", "aria-label": "Setting" },
     fields.map((f) => h("option", { value: f }, fieldWords(f))));
   const how = h("select", { name: "how", id: "edit-how", "aria-label": "Change by" },
-    h("option", { value: "percent" }, "percent (k: + is firmer)"), h("option", { value: "offset" }, "offset, in the setting's unit"),
-    h("option", { value: "set_to" }, "set to, in the setting's unit"));
+    h("option", { value: "percent" }, "percent (resistance: + is firmer)"), h("option", { value: "offset" }, "offset, in the unit shown"),
+    h("option", { value: "set_to" }, "set to, in the unit shown"));
+  const unitNote = h("span", { class: "muted small", id: "edit-unit" });
+  const showUnit = () => {
+    const u = units(field.value, e.body_mass_kg);
+    unitNote.textContent = how.value === "percent" ? "% of the value" : u.unit;
+  };
+  field.addEventListener("change", showUnit);
+  how.addEventListener("change", showUnit);
+  showUnit();
   const amount = h("input", { name: "amount", id: "edit-amount", type: "number", step: "any", required: true, size: 6, "aria-label": "Amount" });
   const where = h("select", { name: "where", id: "edit-where", "aria-label": "Where" },
     h("option", { value: "" }, "every node"),
@@ -162,7 +177,7 @@ function editCard(e, canEdit) {
   const comment = h("input", { name: "comment", id: "edit-comment", required: true, size: 40, maxlength: 2000, "aria-label": "Why" });
   const error = h("p", { class: "error", role: "alert", id: "edit-error" });
   const form = h("form", { id: "envelope-edit" },
-    h("div", { class: "inline" }, h("label", {}, "Setting ", field), h("label", {}, "by ", how), h("label", {}, "amount ", amount),
+    h("div", { class: "inline" }, h("label", {}, "Setting ", field), h("label", {}, "by ", how), h("label", {}, "amount ", amount, " ", unitNote),
       h("label", {}, "at ", where)),
     h("div", { class: "inline" }, h("label", {}, "Why (required, audited) ", comment), h("button", { type: "submit" }, "Make new draft")),
     h("p", { class: "muted small" }, "Every node's limits and the neighbour rule are checked again as the device runs them; a refused edit stores nothing. ",
@@ -171,7 +186,9 @@ function editCard(e, canEdit) {
     error);
   const send = async (hold) => {
     error.replaceChildren();
-    const edit = { field: field.value, [how.value]: Number(amount.value) };
+    // the server takes SI and the paper's signed k: an offset or a value typed in the shown unit is turned back
+    const typed = Number(amount.value);
+    const edit = { field: field.value, [how.value]: how.value === "percent" ? typed : toSI(field.value, typed, e.body_mass_kg) };
     if (where.value !== "") edit.node = [Math.floor(Number(where.value) / e.inclines_deg.length), Number(where.value) % e.inclines_deg.length];
     try {
       const made = await post(`/api/envelopes/${e.id}/edits`, { edits: [edit], comment: comment.value, hold_to_neighbour_rule: hold });
@@ -213,12 +230,12 @@ async function renderVersions(box, e) {
       table(["Node", "Setting", `v${d.from_version}`, `v${d.to_version} (this)`, "Change", "%", "Unit", ""],
         d.changes.map((c) => h("tr", { class: c.held_by_neighbour_rule ? "warn-row" : "" },
           h("td", {}, `${fmt(c.speed_mps, 2)} m/s, ${fmt(c.incline_deg, 1)}°`),
-          h("td", { title: c.field }, c.setting), h("td", { class: "num" }, fmt(c.before, 3)),
-          h("td", { class: "num changed" }, fmt(c.after, 3)),
-          h("td", { class: "num" }, `${c.change > 0 ? "+" : ""}${fmt(c.change, 3)}`),
-          h("td", { class: "num" }, c.percent === null ? "—" : `${c.percent > 0 ? "+" : ""}${fmt(c.percent, 1)} %`),
-          h("td", {}, c.unit),
-          h("td", {}, c.held_by_neighbour_rule ? chip(`held by the neighbour rule (asked for ${fmt(c.wanted, 3)})`, "warn") : ""))),
+          h("td", { title: c.field }, c.setting), h("td", { class: "num" }, shownNumber(c.field, c.before, e.body_mass_kg)),
+          h("td", { class: "num changed" }, shownNumber(c.field, c.after, e.body_mass_kg)),
+          ...((ch) => [h("td", { class: "num" }, signed(ch.change, ch.digits)),
+            h("td", { class: "num" }, ch.percent === null ? "—" : `${signed(ch.percent, 1)} %`),
+            h("td", {}, ch.unit)])(shownChange(c.field, c.before, c.after, e.body_mass_kg)),
+          h("td", {}, c.held_by_neighbour_rule ? chip(`held by the neighbour rule (asked for ${shownNumber(c.field, c.wanted, e.body_mass_kg)})`, "warn") : ""))),
         { id: "diff-table" })].filter(Boolean) : [h("p", {}, "No differences.")]));
   };
   other.addEventListener("change", show);

@@ -40,7 +40,7 @@ export async function envelopeNodePage(view, id, i, j) {
       legend([["#1f4e99", "model prediction (KMP mean) with ±1 SD band", "band"],
         ["#999", atTask ? `grey: measured level walking; bold: reference at this task — ${atTask.label}` : "grey: measured level walking"],
         ["#222", "via-points: the GPR's predicted peaks at this task", "star"],
-        ...SUBPHASES.map((sp) => [SUBPHASE_COLOUR[sp], `${SUBPHASE_LABEL[sp]}: this node's τ = k(θ − θe)`, "dash"])]),
+        ...SUBPHASES.map((sp) => [SUBPHASE_COLOUR[sp], `${SUBPHASE_LABEL[sp]}: this node's τ = −K(θ − θe)`, "dash"])]),
       h("p", { class: "small", id: "via-note" })),
     h("section", { class: "card" }, h("h2", {}, "Over the gait cycle"), curveBox),
     h("section", { class: "card" }, h("h2", {}, "Predicted features (GPR, ±1 SD)"), featureTable(p),

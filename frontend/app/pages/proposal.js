@@ -5,6 +5,7 @@ import { app, onLeave } from "../state.js";
 import { legend, phaseChart } from "../widgets/charts.js";
 import { drawCurves, drawLoops, explainVias, featureTable, reference, safetyFigures } from "../widgets/proposal_views.js";
 import { parameterTable, tableView } from "../widgets/parameter_table.js";
+import { shownChange, shownNumber, signed } from "../quantities.js";
 import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
@@ -18,10 +19,12 @@ export async function proposalPage(view, id) {
   const canDecide = app.me.role === "prosthetist";
   const atTask = ref.at_task;   // null: nothing measured this steep
 
+  const worseSlot = h("div", { id: "worse-slot" });   // worse on the bench than its parent: said first
   const head = [
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ",
       h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `table v${p.version}`),
     h("h1", {}, `${p.table_label} · ${fmt(p.task.speed_mps, 2, "m/s")} · incline ${fmt(p.task.incline_deg, 1, "°")}`),
+    worseSlot,
     headChips(p),
     h("p", { class: "provenance" }, `Model ${p.model.version} · training data sha256 ${p.model.data_sha256.slice(0, 12)}… · `,
       `patient mass ${fmt(mass, 1, "kg")} · created by ${p.created_by} ${when(p.created_at)} · table sha256 `,
@@ -48,7 +51,7 @@ export async function proposalPage(view, id) {
     ["#999", atTask ? `grey: measured level walking; bold: reference at this task — ${atTask.label}`
       : "grey: measured level walking (no curves were measured this steep: the proposal is the model's prediction)"],
     ["#222", "via-points: the GPR's predicted peaks at this task; the loop passes close to a confident one, only near an uncertain one", "star"],
-    ...SUBPHASES.map((sp) => [SUBPHASE_COLOUR[sp], `${SUBPHASE_LABEL[sp]} fit τ = k(θ − θe)`, "dash"])]);
+    ...SUBPHASES.map((sp) => [SUBPHASE_COLOUR[sp], `${SUBPHASE_LABEL[sp]} fit τ = −K(θ − θe)`, "dash"])]);
   const curveBox = h("div", { class: "four", id: "curves" });
   const decisionBox = h("section", { class: "card", id: "decision" });
   const pushBox = h("section", { class: "card", id: "push" });
@@ -75,7 +78,7 @@ export async function proposalPage(view, id) {
   drawLoops(p, ref, atTask);
   explainVias(p, document.getElementById("via-note"));
   drawCurves(p, atTask, curveBox);
-  renderDecision(decisionBox, { item: p, name: p.table_label, path: `/api/proposals/${p.id}`, canDecide,
+  renderDecision(decisionBox, { item: p, name: p.table_label, path: `/api/proposals/${p.id}`, canDecide, worseSlot,
     reload: () => proposalPage(document.getElementById("view"), p.id) });
   renderPush(pushBox, { item: p, kind: "table", name: p.table_label, canPush: canDecide, patient,
     what: `${p.table_label} (${fmt(p.task.speed_mps, 2, "m/s")}, incline ${fmt(p.task.incline_deg, 1, "°")})`,
@@ -129,9 +132,18 @@ async function renderVersions(box, p) {
   const show = async () => {
     if (!other.value) return;
     const d = await get(`/api/proposals/${other.value}/diff/${p.id}`);
-    out.replaceChildren(d.changes.length ? table([`Field`, `v${d.from_version}`, `v${d.to_version} (this)`, "Unit"],
-      d.changes.map((c) => h("tr", {}, h("td", { title: c.field }, tableView.view === "clinical" ? fieldWords(c.field) : c.field), h("td", { class: "num" }, shownValue(c.field, c.before)),
-        h("td", { class: "num changed" }, shownValue(c.field, c.after)), h("td", {}, c.unit || "")))) : h("p", {}, "No differences."));
+    const mass = p.task.body_mass_kg;
+    out.replaceChildren(d.changes.length ? table([`Setting`, `v${d.from_version}`, `v${d.to_version} (this)`, "Change", "%", "Unit"],
+      d.changes.map((c) => {
+        const numeric = typeof c.before === "number" && typeof c.after === "number";
+        const ch = numeric ? shownChange(c.field, c.before, c.after, mass) : null;
+        return h("tr", {}, h("td", { title: c.field }, tableView.view === "clinical" ? fieldWords(c.field) : c.field),
+          h("td", { class: "num" }, shownValue(c.field, c.before, mass)),
+          h("td", { class: "num changed" }, shownValue(c.field, c.after, mass)),
+          h("td", { class: "num" }, ch ? signed(ch.change, ch.digits) : ""),
+          h("td", { class: "num" }, ch?.percent === null || !ch ? "—" : `${signed(ch.percent, 1)} %`),
+          h("td", {}, ch ? ch.unit : ""));
+      }), { id: "diff-table" }) : h("p", {}, "No differences."));
   };
   other.addEventListener("change", show);
   box.replaceChildren(h("h2", {}, "Versions and differences"),
@@ -140,12 +152,9 @@ async function renderVersions(box, p) {
   await show();
 }
 
-function shownValue(field, v) {
-  return field.endsWith(".fit_method") && tableView.view === "clinical" ? FIT_METHOD_WORDS[v] ?? v : fmtAny(v);
-}
-
-function fmtAny(v) {
-  return typeof v === "number" ? (Math.abs(v) >= 100 ? v.toFixed(1) : v.toFixed(3)) : v ?? "—";
+function shownValue(field, v, mass) {
+  if (field.endsWith(".fit_method")) return tableView.view === "clinical" ? FIT_METHOD_WORDS[v] ?? v : v;
+  return typeof v === "number" ? shownNumber(field, v, mass) : v ?? "—";
 }
 
 async function renderPreview(box, p) {

@@ -53,10 +53,10 @@ export function adaptivePanel(box, envelope) {
   let map;
   const drawMap = () => {
     const [joint, sp] = rowPick.value.split(".");
-    map = envelopeMap(mapBox, { title: `${joint} ${SUBPHASE_LABEL[sp]}: k (N·m/rad)`, id: "live-map", speeds: envelope.speeds_mps,
+    map = envelopeMap(mapBox, { title: `${joint} ${SUBPHASE_LABEL[sp]}: resistance K (N·m/rad)`, id: "live-map", speeds: envelope.speeds_mps,
       inclines: envelope.inclines_deg, unit: "N·m/rad", digits: 0, extrapolated: nodeGrid(envelope, (n) => n.extrapolation),
-      darker: "low", keyWords: "darker = firmer",
-      values: nodeGrid(envelope, (n) => n.table.find((r) => r.joint === joint && r.subphase === sp).k_Nm_per_rad) });
+      darker: "high", keyWords: "darker = firmer",
+      values: nodeGrid(envelope, (n) => -n.table.find((r) => r.joint === joint && r.subphase === sp).k_Nm_per_rad + 0) });
     map.setTrail(trail);
   };
   const trail = [];
@@ -75,13 +75,20 @@ export function adaptivePanel(box, envelope) {
         }
       }
       const safe = status.safe_mode;
-      const [cls, words] = safe ? ["safe", "SAFE MODE: the leg is passive and damped; the envelope does not run"]
-        : m.adaptive_mode ? STATES[m.adaptive_mode] || ["nominal", `mode ${m.adaptive_mode}`] : ["nominal", "no adaptive telemetry yet"];
+      const nominal = envelope.nominal;
+      // on nominal because its estimate is the nominal task is not "unsure"; standing is neither
+      const atNominal = Number.isFinite(m.estimated_speed_mps) && Math.abs(m.estimated_speed_mps - nominal.speed_mps) <= 0.05
+        && Math.abs((m.estimated_incline_deg ?? 0) - nominal.incline_deg) <= 1.0;
+      const [cls, words, state] = safe ? ["safe", "SAFE MODE: the leg is passive and damped; the envelope does not run", "safe"]
+        : status.bench_state === "standing" ? ["nominal", "STANDING: the patient stands; the leg keeps its rows until walking resumes", "standing"]
+          : m.adaptive_mode === "nominal" && atNominal ? ["nominal", `ON NOMINAL: the leg's estimate is its nominal task (${fmt(nominal.speed_mps, 2)} m/s, ${fmt(nominal.incline_deg, 1)}°)`, "nominal"]
+            : m.adaptive_mode ? [...(STATES[m.adaptive_mode] || ["nominal", `mode ${m.adaptive_mode}`]), m.adaptive_mode]
+              : ["nominal", "no adaptive telemetry yet", "nominal"];
       const key = `${cls}|${words}`;
       if (key !== shown) {
         shown = key;
         banner.className = `state-banner ${cls}`;
-        banner.dataset.state = cls;
+        banner.dataset.state = state;
         banner.textContent = words;
       }
       if (m.running_speed_mps === undefined) return;
@@ -99,8 +106,8 @@ export function adaptivePanel(box, envelope) {
         ...(bench ? item("Bench (true task)", `${fmt(bench.speed_mps, 2, "m/s")}, ${fmt(bench.incline_deg, 1, "°")}`
           + (bench.course ? ` · course ${bench.course}` : ""), "bench-task") : []));
       const rows = blendedRows(envelope, m.running_speed_mps, m.running_incline_deg);
-      values.replaceChildren(table(["Row", "k (N·m/rad)", "θe (deg)", "b (N·m·s/rad)"],
-        rows.map((r) => h("tr", {}, h("td", {}, ROW_WORDS[`${r.joint}.${r.subphase}`]), h("td", { class: "num" }, fmt(r.k_Nm_per_rad, 0)),
+      values.replaceChildren(table(["Row", "Resistance K (N·m/rad)", "θe (deg)", "b (N·m·s/rad)"],
+        rows.map((r) => h("tr", {}, h("td", {}, ROW_WORDS[`${r.joint}.${r.subphase}`]), h("td", { class: "num" }, fmt(-r.k_Nm_per_rad + 0, 0)),
           h("td", { class: "num" }, fmt(r.theta_e_deg, 1)), h("td", { class: "num" }, fmt(r.b_Nm_s_per_rad, 2)))), { id: "active-values-table" }));
     },
   };

@@ -70,7 +70,7 @@ export function liveChart(el, { title, yLabel, lines, windowS = 5, rateHz = 100,
   const n = Math.round(windowS * rateHz);
   const buf = [[], ...lines.map(() => [])];
   const series = [{ label: "t (s)" }, ...lines.map((l) => ({ label: l.label, stroke: l.color, width: 1.5,
-    points: { show: false } }))];
+    points: { show: false }, ...(l.dash ? { dash: [6, 4] } : {}) }))];
   const opts = {
     title, ...sized(el, height), series, legend: { show: false },
     scales: { x: { time: false }, ...(yRange ? { y: { range: yRange } } : {}) },
@@ -78,7 +78,7 @@ export function liveChart(el, { title, yLabel, lines, windowS = 5, rateHz = 100,
   };
   const plot = new uPlot(opts, buf, el);
   keepSized(el, plot, height);
-  el.append(legend(lines.map((l) => [l.color, l.label])));
+  el.append(legend(lines.map((l) => [l.color, l.label, l.dash ? "dash" : "line"])));
   let dirty = false;
   return {
     plot,

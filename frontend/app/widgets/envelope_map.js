@@ -15,8 +15,8 @@ function s(tag, attrs = {}, text) {
 }
 
 // Colour of a value between lo and hi: light to dark blue (one hue: the map shows size, not good or bad). Darkness
-// reads the same way on every map: ``darker`` "low" makes the lowest value darkest (k: the most negative, the firmest),
-// "high" the highest (damping: the firmest; angles: the most flexed or dorsiflexed)
+// reads the same way on every map: ``darker`` "low" makes the lowest value darkest, "high" the highest (resistance K
+// and damping: the firmest; angles: the most flexed or dorsiflexed)
 function darkness(v, lo, hi, darker) {
   const f = hi > lo ? (v - lo) / (hi - lo) : 0.5;
   return darker === "low" ? 1 - f : f;
@@ -98,7 +98,8 @@ export function envelopeMap(el, { title, speeds, inclines, values, unit, digits 
   }
   // axes: node positions as ticks
   speeds.forEach((v) => svg.append(s("text", { x: x(v), y: H - B + 14, class: "tick", "text-anchor": "middle" }, fmt(v, 2))));
-  inclines.forEach((g) => svg.append(s("text", { x: L - 4, y: y(g) + 4, class: "tick", "text-anchor": "end" }, fmt(g, 0))));
+  // each node's own incline (an 8-node axis over ±10° has −7.1°, not "−7")
+  inclines.forEach((g) => svg.append(s("text", { x: L - 4, y: y(g) + 4, class: "tick", "text-anchor": "end" }, String(Number(g.toFixed(1))))));
   // the colour key: the map's range, its unit, and which way darker reads
   const gid = `key-${id || title.replace(/\W/g, "")}`;
   const grad = s("linearGradient", { id: gid, x1: 0, x2: 1, y1: 0, y2: 0 });

@@ -1,14 +1,10 @@
 // A proposal's parameter table: read in clinical words (default) or engineering codes, edited into a new draft
 // version with every value checked against the safety limits as it is typed (the server checks again on save).
 import { post } from "../api.js";
-import { bodyWeightN, chip, fieldWords, FIT_METHOD_WORDS, fmt, h, inWords, notice, ROW_WORDS, SUBPHASE_COLOUR, table, WEAK_FIT_R2 } from "../ui.js";
+import { EQUATION, EQUATION_WORDS, shownRange, tableView, units } from "../quantities.js";
+import { chip, fieldWords, FIT_METHOD_WORDS, fmt, h, inWords, notice, ROW_WORDS, SUBPHASE_COLOUR, table, WEAK_FIT_R2 } from "../ui.js";
 
-const RAD = Math.PI / 180;
-// kept across versions and visits: the stiffness unit and the clinical / engineering view
-export const tableView = {
-  kUnit: localStorage.getItem("quasitune.kUnit") || "rad",
-  view: localStorage.getItem("quasitune.view") || "clinical",
-};
+export { tableView };
 
 const FIT_METHOD_HELP = {
   least_squares: "least-squares line τ = kθ + c through the predicted loop",
@@ -22,21 +18,6 @@ const FIT_METHOD_HELP = {
   support_floor: "the person does positive work here (the knee extends under load, which a spring cannot); the leg holds the knee firm instead: k at the stance support floor, θe re-fitted",
   refined: "moved by a refinement from the patient's own strides: the version's evidence says from what and why",
 };
-
-// How each field is shown: scale from SI to the shown unit, the unit, and digits. Loads are % body weight in the
-// clinical view (thresholds depend on the patient's weight), N in the engineering view.
-function units(field, mass) {
-  const deg = tableView.kUnit === "deg";
-  const clinical = tableView.view === "clinical";
-  if (field.endsWith("k_Nm_per_rad")) return deg ? { scale: RAD, unit: "N·m/deg", digits: 3 } : { scale: 1, unit: "N·m/rad", digits: 1 };
-  if (field.endsWith("b_Nm_s_per_rad")) return deg ? { scale: RAD, unit: "N·m·s/deg", digits: 4 } : { scale: 1, unit: "N·m·s/rad", digits: 2 };
-  if (field.endsWith("_deg")) return { scale: 1, unit: "deg", digits: 2 };
-  if (field.endsWith("_load_N")) return clinical ? { scale: 100 / bodyWeightN(mass), unit: "% body weight", digits: 1 }
-    : { scale: 1, unit: "N", digits: 0 };
-  if (field.endsWith("_Nm")) return { scale: 1, unit: "N·m", digits: 1 };
-  if (field.endsWith("_deg_per_s")) return { scale: 1, unit: "deg/s", digits: 0 };
-  return { scale: 1, unit: "s", digits: 3 };
-}
 
 // The knee's stance-flexion ceiling (N·m/rad, negative): the stance support floor for the body mass
 export function supportFloor(L, mass) {
@@ -67,21 +48,21 @@ function label(field) {
 // What is wrong with the values as typed (SI), in the words of the current view; mirrors the server's checks
 export function liveViolations(values, L, mass) {
   const out = [];
-  const range = (lim, u) => `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)} ${u.unit}`;
   for (const [field, v] of Object.entries(values)) {
     const u = units(field, mass), lim = limitOf(field, L, mass);
+    const shown = `${fmt(v * u.scale + 0, u.digits)} ${u.unit}`;
     if (!Number.isFinite(v)) out.push({ field, message: `${label(field)}: not a number` });
     else if (field === "knee.stance_flexion.k_Nm_per_rad" && v > lim.high && v <= L.stance_k_Nm_per_rad.high) {
-      out.push({ field, message: `${label(field)} = ${fmt(v * u.scale, u.digits)} ${u.unit} is softer than the stance `
-        + `support floor, ${fmt(lim.high * u.scale, u.digits)} ${u.unit} (${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} `
-        + `N·m/rad per kg × ${fmt(mass, 1)} kg): the knee could buckle under the patient's weight` });
+      out.push({ field, message: `${label(field)} = ${shown} is softer than the stance support floor: at least `
+        + `${fmt(lim.high * u.scale, u.digits)} ${u.unit} (${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} `
+        + `N·m/rad per kg × ${fmt(mass, 1)} kg), or the knee could buckle under the patient's weight` });
     } else if (field.endsWith("k_Nm_per_rad") && field.includes(".stance_") && v > lim.high) {
       const joint = field.split(".")[0];
-      out.push({ field, message: `${label(field)} = ${fmt(v * u.scale, u.digits)} ${u.unit} pushes the joint instead of `
-        + `resisting it (${joint === "knee" ? "the knee gives way into flexion under load" : "the ankle is pushed off its equilibrium under load"}): `
-        + `a stance setting must resist, at most ${fmt(lim.high, 0)}` });
+      out.push({ field, message: `${label(field)} = ${shown} pushes the joint instead of resisting it (${joint === "knee"
+        ? "the knee gives way into flexion under load" : "the ankle is pushed off its equilibrium under load"}): a stance `
+        + `setting must resist, at least ${fmt(lim.high * u.scale + 0, u.digits)} ${u.unit}` });
     } else if (v < lim.low || v > lim.high) {
-      out.push({ field, message: `${label(field)} = ${fmt(v * u.scale, u.digits)} ${u.unit} is outside ${range(lim, u)}` });
+      out.push({ field, message: `${label(field)} = ${shown} is outside ${shownRange(lim, u)} ${u.unit}` });
     }
   }
   const t = (k) => values[`thresholds.${k}`];
@@ -112,13 +93,13 @@ export function parameterTable(p, canEdit) {
         (v) => { tableView.kUnit = v; localStorage.setItem("quasitune.kUnit", v); }))));
   const cell = (field, si, held = false) => {
     const u = units(field, mass);
-    const shown = (si * u.scale).toFixed(u.digits);
+    const shown = (si * u.scale + 0).toFixed(u.digits);
     const lim = limitOf(field, L, mass);
     const out = violated.has(field) || si < lim.low || si > lim.high;
     return h("td", { class: `num${out ? " out" : ""}${held ? " held" : ""}`, dataset: { cell: field },
       title: held ? "held at a limit, the stance support floor or a neighbour's step, not the plain fit (see where the value comes from)" : null }, canEdit
       ? h("input", { type: "number", step: "any", value: shown, "aria-label": `${label(field)} (${u.unit})`,
-        dataset: { field, original: shown, scale: u.scale } })
+        dataset: { field, original: shown, si, scale: u.scale } })
       : `${shown}`);
   };
   const fit = (r) => {
@@ -145,30 +126,31 @@ export function parameterTable(p, canEdit) {
   const thRows = THRESHOLD_KEYS.map((k) => {
     const field = `thresholds.${k}`, u = units(field, mass), lim = limitOf(field, L, mass);
     return h("tr", {}, h("td", {}, label(field)), cell(field, th[k]), h("td", {}, u.unit),
-      h("td", { class: "muted" }, `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)}`));
+      h("td", { class: "muted" }, shownRange(lim, u)));
   });
-  const ku = units("k_Nm_per_rad", mass), bu = units("b_Nm_s_per_rad", mass);
-  const heads = clinical ? ["Joint", "Phase of gait", `Stiffness k (${ku.unit})`, "Equilibrium angle θe (deg)",
+  const ku = units("k_Nm_per_rad", mass), bu = units("b_Nm_s_per_rad", mass), au = units("theta_e_deg", mass);
+  const heads = clinical ? ["Joint", "Phase of gait", `Resistance K (${ku.unit}; larger = firmer)`, "Equilibrium angle θe (deg)",
     `Damping b (${bu.unit}; a default per kg, not fitted)`, "Fit quality R²", "Where the value comes from"]
-    : ["joint", "subphase", `k (${ku.unit})`, "theta_e (deg)", `b (${bu.unit}; default, not fitted)`, "R²", "fit_method"];
-  const range = (lim, u) => `${fmt(lim.low * u.scale, u.digits)} … ${fmt(lim.high * u.scale, u.digits)}`;
+    : ["joint", "subphase", `K = −k (${ku.unit})`, "theta_e (deg)", `b (${bu.unit}; default, not fitted)`, "R²", "fit_method"];
+  const stanceLim = units("knee.stance_flexion.k_Nm_per_rad", mass);
   const box = h("div", {},
-    h("h2", {}, "Parameter table: τ = k(θ − θe) − b·θ̇ per phase of gait"), toggles,
+    h("h2", {}, "Parameter table per phase of gait"), toggles,
+    h("p", { id: "equation" }, h("strong", {}, EQUATION), ` — ${EQUATION_WORDS}`),
     table(heads, rows, { id: "param-table" }),
-    h("p", { class: "muted small" }, `Limits: stiffness ${range(L.k_Nm_per_rad, ku)} ${ku.unit}, in stance at most `,
-      `${fmt(L.stance_k_Nm_per_rad.high, 0)} (a stance setting must resist: negative k resists, positive pushes); `,
-      h("span", { id: "support-floor" }, `the knee in stance flexion at least as firm as ${fmt(supportFloor(L, mass) * ku.scale, ku.digits)} `
-        + `${ku.unit} (k ≤ that): the stance support floor, ${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} N·m/rad per kg × `
+    h("p", { class: "muted small" }, `Limits: resistance ${shownRange(L.k_Nm_per_rad, ku)} ${ku.unit}; in stance at least `,
+      `${fmt(L.stance_k_Nm_per_rad.high * stanceLim.scale + 0, stanceLim.digits)} ${ku.unit} (a stance setting must resist, never push); `,
+      h("span", { id: "support-floor" }, `the knee in stance flexion at least ${fmt(supportFloor(L, mass) * ku.scale, ku.digits)} `
+        + `${ku.unit}: the stance support floor, ${fmt(L.knee_stance_support_Nm_per_rad_per_kg, 1)} N·m/rad per kg × `
         + `${fmt(mass, 1)} kg (the Open Source Leg's published early-stance knee stiffness), softer than which the knee `
         + "could buckle under load; "),
-      `θe knee ${range(L.knee_theta_e_deg, { scale: 1, digits: 0 })}°, ankle ${range(L.ankle_theta_e_deg, { scale: 1, digits: 0 })}°; `,
-      `damping ${range(L.b_Nm_s_per_rad, bu)} ${bu.unit}. Values outside the limits are marked red as you type. `,
+      `θe knee ${shownRange(L.knee_theta_e_deg, { ...au, digits: 0 })}°, ankle ${shownRange(L.ankle_theta_e_deg, { ...au, digits: 0 })}°; `,
+      `damping ${shownRange(L.b_Nm_s_per_rad, bu)} ${bu.unit}. Values outside the limits are marked red as you type. `,
       "R² (fit quality): how well the row's straight line explains the predicted torque-angle loop in that phase; ",
       `below ${WEAK_FIT_R2} it is marked a weak fit. Values held at a limit, the stance support floor or a neighbour's step are `,
       "marked ◥ (their row says why). Damping is never fitted: a default per kg of body mass, editable. ",
       "Swing rows are not fits (R² —): in swing the foot is unloaded, so θe is the predicted swing target (knee: ",
-      "swing-flexion peak, then heel-strike angle; ankle: swing dorsiflexion plus a toe-clearance margin) and k a set ",
-      "swing stiffness."),
+      "swing-flexion peak, then heel-strike angle; ankle: swing dorsiflexion plus a toe-clearance margin) and K a set ",
+      "swing resistance. The API keeps the paper's signed k (τ = k(θ − θe), negative resists); this page shows K = −k."),
     h("h3", {}, "When the leg changes phase (state-machine thresholds)"),
     table(["Transition", "Value", "Unit", "Limits"], thRows, { id: "thresholds" }),
     h("p", { class: "muted small" }, "Phases: stance flexion (loading response, knee bends under the weight) → stance ",
@@ -182,11 +164,17 @@ export function parameterTable(p, canEdit) {
   return box;
 }
 
-// the values as typed, in SI, for every editable cell
+// a cell whose typed number is not the one shown (retyping the shown "15" changes nothing)
+function changed(input) {
+  return input.value.trim() === "" || Number(input.value) !== Number(input.dataset.original);
+}
+
+// the values as typed, in SI, for every editable cell (an unchanged cell keeps its stored value exactly)
 function typedValues() {
   const values = {};
   for (const input of document.querySelectorAll("#table-card input[data-field]")) {
-    values[input.dataset.field] = input.value.trim() === "" ? NaN : Number(input.value) / Number(input.dataset.scale);
+    values[input.dataset.field] = !changed(input) ? Number(input.dataset.si)
+      : input.value.trim() === "" ? NaN : Number(input.value) / Number(input.dataset.scale);
   }
   return values;
 }
@@ -206,14 +194,14 @@ function editForm(p) {
     for (const td of document.querySelectorAll("#table-card td[data-cell]")) {
       const input = td.querySelector("input");
       td.classList.toggle("out", bad.has(td.dataset.cell));
-      td.classList.toggle("changed", Boolean(input) && input.value !== input.dataset.original);
+      td.classList.toggle("changed", Boolean(input) && changed(input));
       td.title = found.filter((v) => v.field === td.dataset.cell).map((v) => v.message).join("; ");
     }
     live.replaceChildren(...found.map((v) => h("li", { dataset: { field: v.field } }, v.message)));
     save.disabled = found.length > 0;
     save.title = found.length ? "fix the values marked red first" : "";
     // typed but not saved: the page's Approve and Push must not act on the stored values as if they were these
-    const unsaved = [...document.querySelectorAll("#table-card input[data-field]")].some((i) => i.value !== i.dataset.original);
+    const unsaved = [...document.querySelectorAll("#table-card input[data-field]")].some(changed);
     window.dispatchEvent(new CustomEvent("quasitune:unsaved-edits", { detail: { unsaved } }));
     return found;
   };
@@ -231,7 +219,7 @@ function editForm(p) {
     const thresholds = {};
     const values = typedValues();
     for (const input of document.querySelectorAll("#table-card input[data-field]")) {
-      if (input.value === input.dataset.original) continue;
+      if (!changed(input)) continue;
       const [a, b, c] = input.dataset.field.split(".");
       if (a === "thresholds") thresholds[b] = values[input.dataset.field];
       else {

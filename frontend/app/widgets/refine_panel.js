@@ -2,6 +2,7 @@
 // a refinement (strides per node, per node the errors measured on the leg, what the step expects and what the bench
 // expects, what changed and why, nodes left alone and why). The draft is decided like any version.
 import { get, post } from "../api.js";
+import { shownChange, units } from "../quantities.js";
 import { chip, fieldWords, fmt, h, table, when } from "../ui.js";
 
 const UNIT = { deg: "°", "% gait cycle": "% cycle" };
@@ -44,8 +45,8 @@ function nodeCard(n, ev) {
   });
   return h("details", { class: "refine-node", open: n.changed, dataset: { node: n.node.join(",") } },
     h("summary", {}, `${fmt(n.speed_mps, 2, "m/s")}, ${n.incline_deg > 0 ? "+" : ""}${fmt(n.incline_deg, 1, "°")}: `,
-      `${fmt(n.stride_weight, 1)} strides · `, n.changed ? chip("changed", "warn") : chip(n.left_alone || "left alone")),
-    table(["Quantity", "Strides", "Measured", "Target", "Error [95 % interval]", "Expected after (step)",
+      `${fmt(n.stride_weight, 1)} strides (blend-weighted, as on the map) · `, n.changed ? chip("changed", "warn") : chip(n.left_alone || "left alone")),
+    table(["Quantity", "Strides with this quantity (blend-weighted)", "Measured", "Target", "Error [95 % interval]", "Expected after (step)",
       "Bench: change", "Acted on?"], rows),
     n.step_refused ? h("p", { class: "small" }, chip(`step at ${fmt(n.step_scale * 100, 0)} %`, "warn"),
       ` The bench refused a larger step here: ${n.step_refused}.`) : null,
@@ -54,10 +55,21 @@ function nodeCard(n, ev) {
 }
 
 // the evidence and the changes of one refinement
-export function refinementView(ev, grid = {}) {
+// a change in the table's units (resistance positive, loads in % body weight), with digits enough to show it
+function changeWords(c, mass) {
+  const u = units(c.field, mass);
+  const ch = shownChange(c.field, c.before, c.after, mass);
+  let digits = u.digits;
+  while (Math.abs(ch.change) > 0 && Math.abs(ch.change) < 10 ** -digits && digits < 4) digits += 1;
+  const v = (x) => fmt(x * u.scale + 0, digits);
+  return `${fieldWords(c.field)} ${v(c.before)} → ${v(c.after)} ${u.unit} (${signed(ch.change, digits)}`
+    + `${ch.percent === null ? "" : `, ${signed(ch.percent, 1)} %`})`
+    + (c.held_from !== undefined ? ` (held within a step of its neighbours; the step gave ${v(c.held_from)})` : "");
+}
+
+export function refinementView(ev, grid = {}, mass = null) {
   const changes = ev.changes.map((c) => h("li", {}, h("strong", {}, `${fmt(c.speed_mps, 2)} m/s, ${c.incline_deg > 0 ? "+" : ""}${fmt(c.incline_deg, 1)}°: `),
-    `${fieldWords(c.field)} ${fmt(c.before, 2)} → ${fmt(c.after, 2)}`, c.held_from !== undefined ? ` (held within a step of its neighbours; the step gave ${fmt(c.held_from, 2)})` : "",
-    h("span", { class: "muted" }, ` — ${c.why}`)));
+    changeWords(c, mass), h("span", { class: "muted" }, ` — ${c.why}`)));
   const errs = Object.entries(ev.feature_abs_error).map(([k, v]) => `${ev.quantities[k]?.label || k} ${fmt(v, 1)}${UNIT[ev.quantities[k]?.unit] || ""}`);
   return h("div", { id: "refinement" },
     h("p", {}, `From session(s) ${ev.session_ids.map((s) => `#${s}`).join(", ")}: ${ev.strides} strides, ${ev.strides_on_version} on the version, `,
@@ -79,11 +91,12 @@ export function refinementView(ev, grid = {}) {
 // the card on an envelope's or a table's page (kind "envelope" or "proposal")
 export async function renderRefine(box, { kind, item, canRefine, grid }) {
   box.replaceChildren(h("h2", {}, "Refine from walking"));
+  const mass = item.task?.body_mass_kg ?? item.body_mass_kg ?? null;
   const made = await get(`/api/${kind}s/${item.id}/refinement`);   // null: not made by a refinement
   if (made) {
     box.append(h("p", { class: "banner warn", id: "refined-from" }, h("strong", {}, "Made by a refinement from walking: "),
       `derived from the approved version by ${made.created_by} ${when(made.created_at)}. Review it like any draft: `,
-      "the diff below, its bench preview, then approve or reject."), refinementView(made, grid));
+      "the diff below, its bench preview, then approve or reject."), refinementView(made, grid, mass));
   }
   if (item.status !== "approved") {
     if (!made) box.append(h("p", { class: "muted" }, "A refinement derives from the approved version the leg walked; this one is ", item.status, "."));
@@ -114,7 +127,7 @@ export async function renderRefine(box, { kind, item, canRefine, grid }) {
       const r = await post(`/api/${kind}s/${item.id}/refinements`, { session_ids: ids, comment: comment.value });
       const id = kind === "envelope" ? r.envelope_id : r.proposal_id;
       out.replaceChildren(h("p", {}, h("a", { href: `#/${kind}s/${id}`, id: "refined-link" }, `Open the refined draft v${r.version.version}`)),
-        refinementView(r, grid));
+        refinementView(r, grid, mass));
     } catch (err) {
       out.replaceChildren();
       error.append(err.message);
