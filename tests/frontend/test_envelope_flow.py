@@ -96,17 +96,15 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.wait_for_selector("#decision-bench:not(:has-text('has not finished'))")
     unsafe = "beyond their bounds" in page.inner_text("#decision-bench")
     if unsafe:   # the course preview broke a bound: dana cannot go ahead alone; a colleague signs off from their account
-        page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
-        assert page.is_disabled("#approve") and page.is_visible("#signoff")
+        assert page.is_hidden("#approve") and page.is_visible("#signoff")
         sign_off(server, "eli", "envelope", int(re.search(r"#/envelopes/(\d+)", page.url).group(1)),
                  "course preview reviewed with dana; clinic walks stay at the tested speeds")
         page.reload()
         page.wait_for_selector("#signoffs:has-text('eli')")
         assert page.is_hidden("#signoff")                                        # dana's sign-off is the second
-    page.fill("#decision input[name=comment]", "maps, node tables and course preview reviewed")
-    if unsafe:
-        assert page.is_disabled("#approve")
-        page.fill("#override-reason", "course preview reviewed: the flagged figures are on segments clinic walks avoid")
+    # one reason box: what was reviewed, and with an unclean bench dana's sign-off, the second
+    page.fill("#decision-reason", "maps, node tables and course preview reviewed: the flagged figures are on segments "
+              "clinic walks avoid")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
     page.wait_for_selector("#push-assignment:has-text('sim-leg-1 is')")   # the push panel drawn: who wears the leg

@@ -22,12 +22,14 @@ def test_an_unsafe_table_takes_two_prosthetists_and_a_withdrawn_one_is_never_pus
         pid = create_patient_and_propose(dana, f"P-GATE-{size}", speed="1.5")
         dana.wait_for_selector("#decision-bench:has-text('beyond their bounds')", timeout=60_000)
         assert "two prosthetists' sign-offs" in dana.inner_text("#bench-gate")
-        dana.fill("#decision input[name=comment]", "reviewed the bench's figures")
-        assert dana.is_disabled("#approve") and dana.is_disabled("#signoff")      # alone, nobody goes ahead
-        dana.fill("#override-reason", "seated trial only; the knee flexion is watched by hand")
+        assert dana.locator("#decision textarea, #decision input").count() == 1   # one reason box on the card
+        assert dana.is_hidden("#approve")                                         # alone, nobody goes ahead
+        dana.fill("#decision-reason", "reviewed the bench")
+        assert dana.is_disabled("#signoff")                                       # a sign-off's reason: 20 characters
+        dana.fill("#decision-reason", "seated trial only; the knee flexion is watched by hand")
         dana.click("#signoff")
         dana.wait_for_selector("#signoff-wait")
-        assert dana.is_disabled("#approve") and "dana" in dana.inner_text("#signoffs")
+        assert dana.is_hidden("#approve") and "dana" in dana.inner_text("#signoffs")
         shot(dana, f"gate-{size}-01-first-signoff")
 
         sign_in(eli, server, "eli")
@@ -35,9 +37,10 @@ def test_an_unsafe_table_takes_two_prosthetists_and_a_withdrawn_one_is_never_pus
         eli.wait_for_selector("#signoffs:has-text('dana')")
         eli.wait_for_selector("#decision-bench:has-text('beyond their bounds')")   # the card drawn for good first
         assert eli.is_hidden("#signoff")                                          # eli's sign-off is the second
-        eli.fill("#decision input[name=comment]", "looked at the figures with dana")
-        assert eli.is_disabled("#approve")
-        eli.fill("#override-reason", "agreed: seated trial, the flexion is within what the patient controls")
+        assert "the second of two" in eli.inner_text("#decision label")
+        eli.fill("#decision-reason", "with dana")
+        assert eli.is_disabled("#approve")                                        # the second sign-off: 20 characters
+        eli.fill("#decision-reason", "agreed: seated trial, the flexion is within what the patient controls")
         eli.click("#approve")
         eli.wait_for_selector("#decision:has-text('approved by eli')")
         override = eli.inner_text("#decision-override")

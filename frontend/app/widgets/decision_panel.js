@@ -24,11 +24,28 @@ export function benchFigures(bench, id) {
     h("td", { class: "num" }, value(f.fsmic_value, f.unit)))), { id, class: "compact" });
 }
 const MIN_OVERRIDE = 20;
+// what a prosthetist typed in a version's reason box, by its API path: a redraw of the card (the preview finishing,
+// a sign-off elsewhere) or of the page never loses it
+const typedReasons = new Map();
+
+// A version the bench finds worse than the one it was made from (an edit or a refinement) says so before anything
+// else: each safety figure it makes worse, parent → this
+export function worseBanner(bench) {
+  const w = bench?.worse_than_parent;
+  if (!w?.figures?.length) return null;
+  const value = (v, unit) => `${fmt(v, unit === "BW" ? 2 : 0)} ${unit}`;
+  return h("div", { class: "banner bad", role: "alert", id: "worse-than-parent" },
+    h("strong", {}, `Worse on the bench than v${w.parent_version}, the version it was made from: `),
+    w.figures.map((f) => `${f.label} ${value(f.parent_value, f.unit)} → ${value(f.value, f.unit)}`).join("; "),
+    ". It is not an improvement on these; look at them before anything else.");
+}
 
 // item: the proposal or envelope (status, decision, safety, bench); name: its one name; path: its API path;
 // reload: redraw the page after a decision
-export function renderDecision(box, { item, name, path, canDecide, reload }) {
+export function renderDecision(box, { item, name, path, canDecide, reload, worseSlot = null }) {
   box.replaceChildren(h("h2", {}, "Decision"));
+  const sayWorse = (bench) => worseSlot?.replaceChildren(...[worseBanner(bench)].filter(Boolean));
+  sayWorse(item.bench);
   if (item.status !== "draft") {
     box.append(h("p", {}, `${item.decision.status} by ${item.decision.by} ${when(item.decision.at)}`,
       item.decision.comment ? ` — “${item.decision.comment}”` : "", ". An approved or rejected version never changes; edit it into a new draft instead."));
@@ -50,9 +67,11 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   }
   let bench = item.bench || { status: "not_walked", words: "bench preview not walked yet", flags: [] };
   const error = h("p", { class: "error", role: "alert" });
-  const comment = h("input", { name: "comment", maxlength: 2000, size: 50, "aria-label": "Decision comment" });
-  const override = h("textarea", { name: "override_reason", id: "override-reason", rows: 2, cols: 60, maxlength: 2000,
-    "aria-label": "Why go ahead without a clean bench preview" });
+  // one reason box: what was reviewed (a clean bench), or the sign-off's reason (an unclean one), or why it is rejected
+  const reason = h("textarea", { name: "comment", id: "decision-reason", rows: 2, cols: 60, maxlength: 2000 });
+  reason.value = typedReasons.get(path) ?? "";        // kept across a redraw of the card or the page
+  reason.addEventListener("input", () => typedReasons.set(path, reason.value));
+  const reasonLabel = h("span", {});
   const gate = h("div", { id: "bench-gate" });
   const needsOverride = () => bench.status === "unsafe" || bench.status === "not_walked";
   const signed = () => bench.signoffs || [];
@@ -67,9 +86,11 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   const decide = (what) => async () => {
     error.textContent = "";
     try {
-      const body = { comment: comment.value };
-      if (what === "approve" && step() === "second") body.override_reason = override.value.trim();
+      const text = reason.value.trim();
+      const body = { comment: text };
+      if (what === "approve" && step() === "second") body.override_reason = text;   // the second sign-off is its reason
       await post(`${path}/${what}`, body);
+      typedReasons.delete(path);
       notice(`${name} ${what === "approve" ? "approved" : "rejected"}`, "ok");
       await reload();
     } catch (err) {
@@ -84,38 +105,45 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   const signOff = async () => {
     error.textContent = "";
     try {
-      await post(`${path}/signoffs`, { reason: override.value.trim() });
+      await post(`${path}/signoffs`, { reason: reason.value.trim() });
+      typedReasons.delete(path);
       notice(`${name}: your sign-off is recorded; a second prosthetist must sign off from their own account`, "warn");
       await reload();
     } catch (err) {
       error.textContent = err.message;
     }
   };
-  const signOffButton = h("button", { id: "signoff", class: "secondary", onclick: signOff, disabled: true },
-    "Sign off (first of two)");
+  const signOffButton = h("button", { id: "signoff", onclick: signOff, disabled: true }, "Sign off (first of two)");
   const approve = h("button", { id: "approve", onclick: decide("approve"), disabled: true }, "Approve");
   const reject = h("button", { id: "reject", class: "secondary", onclick: decide("reject"), disabled: true,
     title: "say why first" }, "Reject");
+  const LABELS = {
+    approve: "Why (required, audited): what you reviewed ",
+    first: `Why go ahead without a clean bench preview: your sign-off, the first of two (at least ${MIN_OVERRIDE} characters; audited and shown with this version) `,
+    second: `Why approve anyway: your sign-off, the second of two (at least ${MIN_OVERRIDE} characters; audited and shown with this version) `,
+    wait: "Why reject (required, audited) ",
+  };
   const update = () => {       // a decision needs its reason, like an edit; an unclean bench needs two sign-offs
-    const said = comment.value.trim().length > 0;
-    const written = override.value.trim().length >= MIN_OVERRIDE;
+    const said = reason.value.trim().length > 0;
+    const written = reason.value.trim().length >= MIN_OVERRIDE;
     const now = step();
-    approve.disabled = !said || !item.safety.ok || unsaved || now === "first" || now === "wait" || (now === "second" && !written);
+    reasonLabel.textContent = LABELS[now];
+    approve.hidden = now === "first" || now === "wait";
+    approve.disabled = !said || !item.safety.ok || unsaved || (now === "second" && !written);
+    approve.textContent = now === "second" ? "Sign off and approve (second of two)" : "Approve";
     signOffButton.hidden = now !== "first";
     signOffButton.disabled = !written || !item.safety.ok;
     unsavedNote.hidden = !unsaved;
     approve.title = unsaved ? "unsaved edits in the table: save them as a new version, or discard them"
       : !item.safety.ok ? "outside the parameter limits: cannot be approved"
-      : now === "first" ? "the bench preview is not clean: two prosthetists must sign off; sign off first, then a colleague approves"
-      : now === "wait" ? "you signed off: a second prosthetist must sign off from their own account"
-      : now === "second" && !written ? "write why you go ahead anyway: your sign-off is the second"
+      : now === "second" && !written ? `write why you go ahead anyway (at least ${MIN_OVERRIDE} characters): your sign-off is the second`
         : "say why first (what you reviewed)";
+    signOffButton.title = !item.safety.ok ? "outside the parameter limits: cannot be approved"
+      : `write why you go ahead anyway (at least ${MIN_OVERRIDE} characters)`;
     reject.disabled = !said;
     const badFlags = bench.flags.map((f) => f.message);
     const signatures = signed().length ? h("ul", { id: "signoffs" }, signed().map((x) => h("li", {},
       h("strong", {}, x.by), ` ${when(x.at)}: “${x.reason}”`))) : null;
-    const ask = { first: `Sign off the bench's findings, the first of two (at least ${MIN_OVERRIDE} characters; audited and shown with this version) `,
-      second: `Your sign-off, the second: approve anyway because (at least ${MIN_OVERRIDE} characters; audited and shown with this version) ` };
     gate.replaceChildren(benchFigures(bench, "decision-figures"), h("p", { id: "decision-bench" }, h("strong", {}, "Bench: "),
       bench.status === "clean" ? "the preview walked clean: no safety figure beyond its bound."
         : bench.status === "unsafe" ? `the preview shows ${badFlags.length} figure(s) beyond their bounds (below).`
@@ -123,22 +151,20 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
     ...(needsOverride() ? [
       h("p", { class: `banner ${bench.status === "unsafe" ? "bad" : "warn"}` }, h("strong", {}, "Approval rests on the bench: "),
         bench.status === "unsafe" ? badFlags.join("; ")
-          : "its preview is still walking (or has not been walked). Wait for it, or two prosthetists sign off going ahead without it.",
+          : "its preview is still walking (or has not been walked). Wait for it, or two prosthetists sign off going ahead without it",
         ". Going ahead anyway takes two prosthetists' sign-offs, each from their own account with their own reason."),
       ...(signatures ? [signatures] : []),
       now === "wait" ? h("p", { class: "banner warn", id: "signoff-wait" }, "You signed off. A second prosthetist must sign off from their own account before this version can be approved.")
-        : now === "approve" ? h("p", { id: "signoff-complete" }, "Two prosthetists signed off: it can be approved.")
-          : h("label", {}, ask[now], override)]
-      : []));
+        : now === "approve" ? h("p", { id: "signoff-complete" }, "Two prosthetists signed off: it can be approved.") : null]
+      : []).filter(Boolean));
   };
-  comment.addEventListener("input", update);
-  override.addEventListener("input", update);
+  reason.addEventListener("input", update);
   // the preview finished (on this page): follow the bench's verdict in place
   const walked = async (ev) => {
     if (!box.isConnected) { window.removeEventListener("quasitune:bench-walked", walked); return; }   // page left
     if (ev.detail?.path !== path) return;
     const now = await get(path).catch(() => null);
-    if (now?.bench) { bench = now.bench; update(); }
+    if (now?.bench) { bench = now.bench; sayWorse(bench); update(); }
   };
   window.addEventListener("quasitune:bench-walked", walked);
   const edited = (ev) => {
@@ -148,8 +174,8 @@ export function renderDecision(box, { item, name, path, canDecide, reload }) {
   };
   window.addEventListener("quasitune:unsaved-edits", edited);
   update();
-  box.append(gate, h("div", { class: "inline" }, signOffButton), h("div", { class: "inline" },
-    h("label", {}, "Why (required, audited) ", comment), approve, reject), unsavedNote, error);
+  box.append(gate, h("label", { class: "block" }, reasonLabel, reason),
+    h("div", { class: "inline" }, approve, signOffButton, reject), unsavedNote, error);
 }
 
 // Withdraw an approved version (prosthetist): asks why, then says what happened to every leg that ran it
