@@ -61,6 +61,7 @@ if TYPE_CHECKING:
 FRAME = struct.Struct("<HB8s")          # id, dlc, data
 LATE_RECORD = struct.Struct("<dB")      # when the frames left the leg's bus (Unix s), how many follow
 LATE_CHUNK_BYTES = 48 * 1024            # a late message carries at most about this much
+MAX_MESSAGE_BYTES = 64 * 1024           # nothing larger is read (the broker's max_packet_size refuses it first)
 TOPIC_PREFIX = "quasitune/v1/devices"
 Role = str   # "server" (sends down, reads up) or "device" (sends up, reads down)
 
@@ -263,6 +264,7 @@ class MqttBus(can.BusABC):
         self._rx: queue.Queue[can.Message] = queue.Queue()
         self._connected = threading.Event()
         self.malformed = 0
+        self.oversized = 0          # messages over MAX_MESSAGE_BYTES, dropped unread
         self.refused_times = 0      # the leg's records refused for an impossible time (checked_records)
         self.clamped_times = 0      # … taken at their arrival time instead of a time ahead of it
         self.refused: str | None = None
@@ -346,6 +348,9 @@ class MqttBus(can.BusABC):
         """One message from the broker: a late one (``direction`` ``late``) to :attr:`on_late`, else its frames to
         :attr:`on_frames` or the receive queue (the leg's stamped with the time they left its bus); a malformed one is
         counted and dropped whole."""
+        if len(payload) > MAX_MESSAGE_BYTES:
+            self.oversized += 1
+            return
         try:
             if direction == "late" or self.role == "server":   # the leg's: records of (when they left its bus, frames)
                 records, refused, clamped = checked_records(unpack_late(payload), time.time())

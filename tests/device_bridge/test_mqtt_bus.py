@@ -290,3 +290,24 @@ def test_a_legs_time_stamps_never_decide_whether_the_server_hears_it():
     assert [at for at, _ in kept] == [now - 0.5, now, now, now + 0.3, now - 3600.0]
     assert all(f.timestamp == at for at, frames in kept for f in frames)
     assert [frames[0].arbitration_id for _, frames in kept] == [0x100, 0x101, 0x104, 0x107, 0x108]
+
+
+def test_an_oversized_message_is_refused_at_the_broker_and_never_reaches_the_server(broker, broker_admin,
+                                                                                     server_identity):
+    """The broker's max_packet_size (64 KiB, above any late chunk) disconnects a client that sends more, before the
+    message reaches anyone; the server's link stays up (a 10 MB message sent another leg offline for 5 s)."""
+    b, b_password = _leg(broker_admin, "leg-big")
+    server = MqttBus(b, broker.url, *server_identity, role="server", ca_file=broker.ca_file)
+    accepted, c = _connect_as(broker, b, b_password, client_id_of("device", b))
+    gone = threading.Event()
+    c.on_disconnect = lambda *_: gone.set()
+    try:
+        assert accepted
+        c.publish(topic(b, "up"), b"\0" * 100_000, qos=1)
+        assert gone.wait(5)                                                # the sender is cut off
+        assert server.recv(0.5) is None and server.malformed == 0 and server.oversized == 0
+        assert server.connected
+    finally:
+        c.loop_stop()
+        c.disconnect()
+        server.shutdown()

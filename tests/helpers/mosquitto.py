@@ -61,7 +61,7 @@ class MosquittoBroker:
         (self.root / "mosquitto.conf").write_text(
             f"per_listener_settings false\nallow_anonymous false\n{user}"
             f"persistence true\npersistence_location {self.root}/\nlog_dest file {self.root}/mosquitto.log\n"
-            "max_queued_messages 100000\n"
+            "max_queued_messages 100000\nmax_packet_size 65536\n"
             f"listener {self.port} 127.0.0.1\ncafile {self.root}/ca.crt\ncertfile {self.root}/server.crt\n"
             f"keyfile {self.root}/server.key\nplugin {DYNSEC_PLUGIN}\n"
             f"plugin_opt_config_file {self.root}/dynsec.json\n")
