@@ -76,20 +76,20 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     # an edit outside the limits is refused as it is typed: the cell painted, the reason in words, Save held back
     page.fill("#param-table input[data-field='knee.stance_flexion.theta_e_deg']", "150")
     page.fill("#edit-form input[name=comment]", "try too much")
-    assert "knee stance flexion resistance (loading response): equilibrium angle = 150.00 deg is outside" in \
+    assert "knee stance flexion resistance (loading response): equilibrium angle = 150.0 deg is outside" in \
         page.inner_text("#edit-live")
     expect(page.locator("#param-table td.out")).to_have_count(1)
     assert page.is_disabled("#edit-form button[type=submit]")
     assert f"#/proposals/{first_id}" in page.url
 
     # typed but not saved: Approve would approve the stored values, so it waits (and says why) until saved or discarded
-    page.fill("#decision input[name=comment]", "reviewed")
+    page.fill("#decision-reason", "reviewed")
     page.wait_for_selector("#unsaved-edits:not([hidden])")
     assert page.is_disabled("#approve") and "unsaved edits" in page.get_attribute("#approve", "title")
     page.click("#discard-edits")
     page.wait_for_selector("#unsaved-edits[hidden]", state="attached")
     assert page.input_value("#param-table input[data-field='knee.stance_flexion.theta_e_deg']") != "150"
-    page.fill("#decision input[name=comment]", "")
+    page.fill("#decision-reason", "")
 
     # a valid edit becomes draft v2; its diff against v1 shows the changed cell
     page.fill("#param-table input[data-field='knee.stance_flexion.theta_e_deg']", "12")
@@ -103,9 +103,9 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
 
     # approve, then push to the simulated leg and see it become active with the CRC read back
     assert page.is_disabled("#approve") and page.is_disabled("#reject")     # a decision needs its reason
-    page.fill("#decision input[name=comment]", "   ")
+    page.fill("#decision-reason", "   ")
     assert page.is_disabled("#approve")
-    page.fill("#decision input[name=comment]", "reviewed loops and preview")
+    page.fill("#decision-reason", "reviewed loops and preview")
     page.click("#approve")
     page.wait_for_selector("#decision:has-text('approved by dana')")
     # a table goes only to its patient's leg: a leg worn by nobody is assigned in the push's own dialog (one step),
@@ -143,6 +143,10 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     first = page.inner_text("#knee-angle")
     page.wait_for_function("(first) => document.querySelector('#knee-angle').textContent !== first", arg=first,
                            timeout=10_000)                                   # the numbers move
+    # the target beside the measured angles: the reference at the table's task, placed in each stride (after the
+    # first full stride); said in words under the chart
+    page.wait_for_function("() => (window.quasitune.monitor.targets || 0) > 100", timeout=20_000)
+    assert "Target: measured able-bodied level walking (1.25 m/s, 0.0°)" in page.inner_text("#target-note")
     stats = page.evaluate("window.quasitune.monitor")
     assert stats["gaps"] == 0 and stats["frames"] > 10
     assert min(canvas_ink(page, "#view .three canvas")) > 200
@@ -304,6 +308,8 @@ def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(serv
         newbie.fill("#password-form input[name=new_password]", "my own secret")
         newbie.fill("#password-form input[name=again]", "my own secret")
         newbie.click("#password-form button[type=submit]")
+        newbie.wait_for_selector("#password-changed:has-text('Password changed')")     # said on the page
+        newbie.click("#password-continue")
         newbie.wait_for_selector("h1:has-text('Patients')")
 
         page.reload()

@@ -28,8 +28,15 @@ export async function passwordPage(view) {
     try {
       app.me = await post("/api/auth/password", { current_password: d.get("current_password"),
         new_password: d.get("new_password") });
-      notice("Password changed. Every other session of this account has ended.", "ok");
-      location.hash = "#/patients";
+      // said on the page itself, not only in a passing notice: the one-time password no longer works
+      const home = app.me.role === "admin" ? "#/users" : "#/patients";
+      const go = h("a", { class: "button", href: home, id: "password-continue" }, app.me.role === "admin" ? "Continue to the accounts" : "Continue to the patients");
+      view.replaceChildren(h("section", { class: "card narrow", id: "password-changed", role: "status" },
+        h("h1", {}, "Password changed"),
+        h("p", {}, `${app.me.username}: your own password is set${forced ? "; the one-time password no longer works" : ""}. `,
+          "Every other session of this account has ended; this one goes on."), go));
+      notice("Password changed", "ok");
+      go.focus();
     } catch (err) {
       error.textContent = err.message;
     }

@@ -2,6 +2,7 @@
 import { del, get, post, put, token } from "../api.js";
 import { app, onLeave } from "../state.js";
 import { liveChart } from "../widgets/charts.js";
+import { liveTarget } from "../widgets/live_target.js";
 import { legView } from "../widgets/leg_view.js";
 import { adaptivePanel } from "../widgets/adaptive_panel.js";
 import { headline, offTable } from "../widgets/session_views.js";
@@ -72,8 +73,13 @@ export async function monitorPage(view, deviceId, params) {
   const leg = legView(legFigure);
   const figs = [0, 1, 2].map(() => h("figure", { class: "chart" }));
   charts.append(...figs);
-  const angle = liveChart(figs[0], { title: "joint angles (deg)", yLabel: "deg",
-    lines: [{ label: "knee (flexion +)", color: "#0072B2" }, { label: "ankle (dorsiflexion +)", color: "#D55E00" }] });
+  const angle = liveChart(figs[0], { title: "joint angles (deg): measured, and the target at the leg's task (dashed)", yLabel: "deg",
+    lines: [{ label: "knee (flexion +)", color: "#0072B2" }, { label: "ankle (dorsiflexion +)", color: "#D55E00" },
+      { label: "knee target: the reference at the leg's task", color: "#0072B2", dash: true },
+      { label: "ankle target", color: "#D55E00", dash: true }] });
+  const target = liveTarget();
+  const targetNote = h("p", { class: "muted small", id: "target-note" }, "Target: waiting for the leg's task and a full stride.");
+  figs[0].append(targetNote);
   const torque = liveChart(figs[1], { title: "joint torques (N·m)", yLabel: "N·m",
     lines: [{ label: "knee", color: "#0072B2" }, { label: "ankle", color: "#D55E00" }] });
   const fsm = liveChart(figs[2], { title: "FSM state and pylon load", yLabel: "state / load (kN)",
@@ -118,7 +124,10 @@ export async function monitorPage(view, deviceId, params) {
     stats.samples += 1;
     t0 ??= m.received_unix_s;
     const t = m.received_unix_s - t0;
-    angle.push(t, [m.knee_angle_deg, m.ankle_angle_deg]);
+    target.follow(status, m);
+    const [kneeTarget, ankleTarget] = target.at(t, m.fsm_state);
+    if (kneeTarget !== null) stats.targets = (stats.targets ?? 0) + 1;
+    angle.push(t, [m.knee_angle_deg, m.ankle_angle_deg, kneeTarget, ankleTarget]);
     torque.push(t, [m.knee_torque_Nm, m.ankle_torque_Nm]);
     fsm.push(t, [m.fsm_state, m.load_N / 1000]);
     latest = m;
@@ -153,6 +162,10 @@ export async function monitorPage(view, deviceId, params) {
       if (latest) {
         const weightN = bodyWeightN(status.patient?.body_mass_kg);
         renderReadout(readout, latest, stats, weightN);
+        const words = target.state.task ? `Target: ${target.state.label ?? "no measured reference at this task"} `
+          + `(${target.state.task.speed_mps.toFixed(2)} m/s, ${target.state.task.incline_deg.toFixed(1)}°), placed in each stride from `
+          + "the last heel strike and the last stride's duration; none while standing." : targetNote.textContent;
+        if (targetNote.textContent !== words) targetNote.textContent = words;
         leg.draw(latest, weightN);
         panel?.update(latest, status);
       }
@@ -421,7 +434,7 @@ function summaryTable(s) {
   return h("div", { id: "session-summary" },
     offTable(m),
     headline(m.headline),
-    table(["Strides scored / walked", "Cadence (steps/min)", "Missing samples"],
+    table(["Strides on the table / counted", "Cadence on the table (steps/min)", "Missing samples"],
       [h("tr", {}, h("td", { class: "num" }, `${m.strides_scored ?? m.strides} / ${m.strides}`), h("td", { class: "num" }, fmt(m.cadence_steps_per_min, 1)),
         h("td", { class: "num" }, m.missing_samples))]),
     h("p", {}, h("a", { href: `#/sessions/${s.id}/report`, id: "report-link" }, "Open the session report")));
