@@ -62,7 +62,8 @@ def test_every_page_fits_the_screen_without_script_errors(server, browser, pages
             next_frames(page)   # charts draw on the next frames
             overflow = page.evaluate("document.documentElement.scrollWidth - window.innerWidth")
             assert overflow <= 0, f"{name} is {overflow}px wider than a {width} × {height} screen"
-            leaked = re.findall(r"\b(?:null|undefined|NaN)\b", page.inner_text("body"))
+            body = page.inner_text("body")
+            leaked = [body[max(m.start() - 60, 0):m.end() + 20] for m in re.finditer(r"\b(?:null|undefined|NaN)\b", body)]
             assert not leaked, f"{name} shows a programming value to people: {leaked}"
             if name in ("report", "monitor"):      # the simulated leg's walk never passes for a person's
                 assert "SIMULATED" in page.inner_text("h1" if name == "report" else "#device-status"), name

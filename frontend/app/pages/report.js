@@ -16,26 +16,35 @@ export async function reportPage(view, id) {
   const s = await get(`/api/sessions/${id}`);
   const patient = await get(`/api/patients/${s.patient_id}`);
   const m = s.summary;
-  const pdf = h("button", { id: "pdf", class: "secondary" }, "Download PDF");
-  pdf.addEventListener("click", async () => {
-    const r = await fetch(`/api/sessions/${id}/report.pdf`, { headers: { Authorization: `Bearer ${token()}` } });
+  // files through the signed-in fetch (a plain link would carry no token): the PDF, and the raw telemetry for engineers
+  const download = (button, path, filename, what) => button.addEventListener("click", async () => {
+    const r = await fetch(path, { headers: { Authorization: `Bearer ${token()}` } });
     if (!r.ok) {
-      notice((await r.json().catch(() => ({}))).detail || `PDF failed (${r.status})`);
+      notice((await r.json().catch(() => ({}))).detail || `${what} failed (${r.status})`);
       return;
     }
     const url = URL.createObjectURL(await r.blob());
-    const a = h("a", { href: url, download: `quasitune-session-${id}.pdf` });
+    const a = h("a", { href: url, download: filename });
     document.body.append(a);
     a.click();
     a.remove();
     setTimeout(() => URL.revokeObjectURL(url), 10000);
+  });
+  const pdf = h("button", { id: "pdf", class: "secondary" }, "Download PDF");
+  download(pdf, `/api/sessions/${id}/report.pdf`, `quasitune-session-${id}.pdf`, "PDF");
+  const exports = ["csv", "parquet"].map((fmtName) => {
+    const b = h("button", { id: `samples-${fmtName}`, class: "secondary",
+      title: "every recorded sample: time, mode, state, joint angles (deg), velocities (deg/s), torques (N·m), load (N)" },
+    `Telemetry (${fmtName === "csv" ? "CSV" : "Parquet"})`);
+    download(b, `/api/sessions/${id}/samples.${fmtName}`, `quasitune-session-${id}-samples.${fmtName}`, "Export");
+    return b;
   });
   const head = [
     h("p", { class: "crumbs no-print" }, h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `session #${id}`),
     h("h1", {}, `Session report #${id}`, s.simulated ? h("span", { id: "report-simulated" }, " ", chip("SIMULATED WALK", "bad")) : ""),
     ...(s.simulated ? [h("p", { class: "banner warn", id: "simulated-banner" }, h("strong", {}, "Simulated: "),
       "the simulated patient walked the simulated leg (the bench); no person walked this session.")] : []),
-    h("div", { class: "inline no-print" }, h("button", { onclick: () => print() }, "Print"), pdf),
+    h("div", { class: "inline no-print" }, h("button", { onclick: () => print() }, "Print"), pdf, ...exports),
     h("dl", { class: "facts", id: "report-facts" },
       h("dt", {}, "Patient"), h("dd", {}, `${patient.code_name} · ${fmt(patient.body_mass_kg, 1, "kg")} · ${patient.side}`),
       h("dt", {}, "Task"), h("dd", { id: "report-task" }, s.course ? `the bench's ${s.task_words} (speed and incline change)` : s.task_words),
@@ -51,16 +60,19 @@ export async function reportPage(view, id) {
     view.replaceChildren(...head, h("p", { class: "muted" }, "Still recording: stop the session for its summary."));
     return;
   }
-  const metrics = table(["Strides scored / walked", "Cadence (steps/min)", "Stride time (s)", "Reference stride time (s)", "Samples",
+  const metrics = table(["Strides on the table / counted", "Cadence on the table (steps/min)", "Stride time on the table (s)", "Reference stride time (s)", "Samples",
     "Missing samples"], [h("tr", {}, h("td", { class: "num", id: "report-strides" }, `${m.strides_scored ?? m.strides} / ${m.strides}`),
     h("td", { class: "num", id: "report-cadence" }, fmt(m.cadence_steps_per_min, 1)), h("td", { class: "num" }, fmt(m.stride_time_s, 3)),
     h("td", { class: "num" }, fmt(m.reference_stride_time_s, 3)), h("td", { class: "num" }, m.samples),
     h("td", { class: "num" }, m.missing_samples))]);
-  const errors = s.course ? null : h("div", {}, h("h3", {}, `Mean stride against the reference at ${s.task_words}`),
-    table(["Channel", "RMSE of the mean stride"], CHANNELS.map(([, label, key, unit]) =>
+  const standing = m.walking_s === undefined ? null : h("p", { id: "report-walking" }, `${fmt(m.walking_s, 1)} s walking (the strides) and `
+    + `${fmt(m.standing_s, 1)} s standing or paused, of ${fmt(m.duration_s, 1)} s recorded.`);
+  // the angles' error is the headline's (each stride at its own task), given once; the mean stride adds the moments
+  const errors = s.course ? null : h("div", {}, h("h3", {}, `Moments: the mean stride against the reference at ${s.task_words}`),
+    table(["Channel", "RMSE of the mean stride"], CHANNELS.filter(([, , , unit]) => unit !== "deg").map(([, label, key, unit]) =>
       h("tr", {}, h("td", {}, label), h("td", { class: "num" }, fmt(m[key], unit === "deg" ? 1 : 3, unit)))), { id: "report-errors" }));
   const charts = h("div", { class: "two", id: "report-charts" });
-  view.replaceChildren(...[...head, h("h2", {}, "Strides and errors"), headline(m.headline), offTable(m), metrics, errors,
+  view.replaceChildren(...[...head, h("h2", {}, "Strides and errors"), headline(m.headline), offTable(m), metrics, standing, errors,
     h("p", { class: "muted small", id: "report-reference" }, `Reference: ${referenceLabel(m)} (${m.reference_source})${m.reference_extrapolation ? " (extrapolated)" : ""}. `,
       "Strides between heel strikes (load above 10 % of body weight), averaged on the gait-cycle grid."),
     m.adaptive ? adaptiveSection(m.adaptive) : null,

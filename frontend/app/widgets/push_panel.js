@@ -87,7 +87,7 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
           : bench.words],
         ...(item.decision?.override_reason ? [["Approved without a clean preview, signed off by", item.decision.override_reason]] : []),
         ...(item.extrapolation_reason ? [["Extrapolated", `requested beyond what the model knows: “${item.extrapolation_reason}”`]]
-          : item.extrapolation ? [["Extrapolation", "a little outside the walking data (flagged on its page)"]] : []),
+          : item.extrapolation ? [["Extrapolation", outsideWords(item)]] : []),
         ...(massOff ? [["Body mass", `built for ${fmt(builtFor, 0, "kg")}; ${patient.code_name} now weighs ${fmt(patient.body_mass_kg, 0, "kg")} (more than 5 % apart)`]] : []),
         ["When", kind === "envelope" ? "at the next heel strike after the device re-checks every node; from then on the "
           + "leg changes its rows with the task it estimates, at heel strikes only" : "at the next heel strike after the device verifies it"]],
@@ -127,4 +127,11 @@ export async function renderPush(box, { item, kind, name, what, path, canPush, p
   box.append(benchFigures(item.bench || { figures: [] }, "push-figures"),
     h("p", { class: "muted small" }, `Sends ${name} to the leg.`), h("div", { class: "inline" }, select, button),
     assignBox, steps, error, status);
+}
+
+// how far outside the walking data a version lies, counted: an envelope's nodes, or the one task of a table
+function outsideWords(item) {
+  if (!item.nodes) return "its task lies outside the walking data the model was trained on, within the margin it predicts (flagged on its page)";
+  const out = item.nodes.filter((n) => n.extrapolation).length;
+  return `${out} of ${item.nodes.length} nodes lie outside the walking data the model was trained on (hatched on its maps)`;
 }

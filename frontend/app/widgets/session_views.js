@@ -8,7 +8,8 @@ export function offTable(m) {
   const modes = m.mode_s || {};
   return h("p", { class: "notice-inline bad", id: "off-table" }, `The leg did not run its table for ${fmt(m.off_table_s, 1, "s")}`,
     modes.safe ? ` (safe mode ${fmt(modes.safe, 1, "s")})` : "", modes.no_table ? ` (no table ${fmt(modes.no_table, 1, "s")})` : "",
-    `: ${m.strides_off_table} of ${m.strides} strides are left out of the errors below, which describe the table only.`);
+    `: ${m.strides_off_table} of ${m.strides} strides are left out of the errors and the cadence below, which describe `,
+    "the table only (in safe mode the load flickers, so those \"strides\" are not steps a patient took).");
 }
 
 // The session's headline: each stride's angle error against the reference at its own task, averaged; too few
@@ -23,5 +24,14 @@ export function headline(head) {
     h("p", {}, h("strong", {}, "Angle error per stride: "), `knee ${fmt(head.knee_angle_rmse_deg, 1, "deg")}, `
       + `ankle ${fmt(head.ankle_angle_rmse_deg, 1, "deg")}`),
     h("p", { class: "muted small" }, `RMSE of each of ${head.strides_scored} strides against the able-bodied reference `
-      + `at ${head.against}, averaged.`));
+      + `at ${head.against}, averaged.${notScored(head)}`));
+}
+
+// why the headline scores fewer strides than ran on the table (no task estimate for some), so the counts agree
+export function notScored(head) {
+  const onTable = head.strides_on_table;
+  if (onTable === undefined || onTable === head.strides_scored) return "";
+  const unknown = head.strides_without_task || 0;
+  return ` Of the ${onTable} strides on the table, ${onTable - head.strides_scored} are not scored`
+    + (unknown ? ` (${unknown} without a task estimate)` : "") + ".";
 }
