@@ -186,12 +186,14 @@ def report_figure(session: dict, patient: dict) -> Figure:
     height = (top - 0.06 - 0.07) / 2
     for i, ch in enumerate(GAIT_CHANNELS):
         ax = fig.add_axes((0.09 + (i % 2) * 0.47, top - height - (i // 2) * (height + 0.07), 0.38, height))
-        ref = (s.get("reference_curves") or {}).get(ch)
+        # a course's strides are at several tasks: their mean is drawn alone, never against one task's reference
+        ref = None if session.get("course") else (s.get("reference_curves") or {}).get(ch)
         mean = (s.get("mean_curves") or {}).get(ch)
         if ref:
             ax.plot(phase, ref, color="k", lw=2, label=REFERENCE_LEGEND.get(s.get("reference_kind"), "reference"))
         if mean:
-            ax.plot(phase, mean, color="tab:blue", lw=1.5, label="measured (mean of scored strides)")
+            ax.plot(phase, mean, color="tab:blue", lw=1.5, label="measured (mean of the strides across the course's "
+                    "tasks)" if session.get("course") else "measured (mean of scored strides)")
         else:
             ax.text(0.5, 0.5, "no scored stride", ha="center", transform=ax.transAxes)
         ax.set_xlabel("gait cycle (%)", fontsize=8)

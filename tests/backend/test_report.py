@@ -14,7 +14,7 @@ SESSION = {"summary": {"samples": 1000, "duration_s": 10.0, "missing_samples": 0
            "table_label": "P-1 · table v2", "table_crc32": "00abc123", "table_version": 7,
            "approval_override": "checked by hand in the parallel bars", "extrapolation_reason": None,
            "started_at": "2026-01-01T10:00:00Z", "stopped_at": "2026-01-01T10:00:10Z", "started_by": "pat",
-           "course": None}
+           "course": None, "id": 7}
 PATIENT = {"code_name": "P-1", "body_mass_kg": 80.0, "side": "left"}
 
 
@@ -54,3 +54,24 @@ def test_the_page_gives_one_knee_error_and_the_counts_agree():
     assert "of the 8 strides on the table 2 are not scored, 2 without a task estimate" in dict(facts)[
         "Angle error per stride"]
     assert dict(facts)["Walking / standing"] == "7.5 s walking (the strides), 2.5 s standing or paused"
+
+
+def test_a_course_is_drawn_without_one_tasks_reference_and_a_fixed_task_with_it():
+    """A course's strides are at several tasks: the PDF draws their mean alone (no ramps averaged against a level
+    reference) and prints no single reference's error over the angles."""
+    from backend.report import report_figure
+
+    grid = [i / 10 for i in range(11)]
+    curves = {c: [float(i) for i in range(11)] for c in ("knee_angle_deg", "ankle_angle_deg", "knee_moment_Nm_per_kg",
+                                                          "ankle_moment_Nm_per_kg")}
+    summary = {**SESSION["summary"], "phase_grid": grid, "reference_curves": curves, "mean_curves": curves}
+
+    def lines(session):
+        fig = report_figure({**session, "summary": summary}, PATIENT)
+        return [(ax.get_title(), len(ax.get_lines())) for ax in fig.axes if ax.get_lines()]
+
+    fixed = lines(SESSION)
+    course = lines({**SESSION, "course": "terrain", "task_words": "'terrain' course: 1.00 m/s, incline -8° to +8°"})
+    assert [n for _, n in fixed] == [2, 2, 2, 2] and [n for _, n in course] == [1, 1, 1, 1]
+    assert all("RMSE" not in title for title, _ in course)
+    assert [("RMSE" in title) for title, _ in fixed] == [False, False, True, True]   # the angles' is the headline's

@@ -77,14 +77,17 @@ export async function reportPage(view, id) {
       "Strides between heel strikes (load above 10 % of body weight), averaged on the gait-cycle grid."),
     m.adaptive ? adaptiveSection(m.adaptive) : null,
     refineSection(s, m),
-    h("h2", {}, "Joint trajectories against the reference"), charts].filter(Boolean));   // no "null" text nodes
+    // a course's strides are at several tasks: their mean is drawn alone, never against one task's reference
+    h("h2", {}, s.course ? "Joint trajectories: the mean of the strides across the course's tasks (each stride's error "
+      + "against its own task is the headline above)" : "Joint trajectories against the reference"), charts].filter(Boolean));
   const x = m.phase_grid.map((p) => p * 100);
   for (const [key, label, , unit] of CHANNELS) {
     const el = h("figure", { class: "chart" });
     charts.append(el);
-    phaseChart(el, { title: label, yLabel: unit, x, height: 200, lines: [
-      { label: `reference: ${referenceLabel(m)}`, values: m.reference_curves[key], color: "#222222" },
-      { label: "measured (stride mean)", values: m.mean_curves[key] || x.map(() => null), color: "#0072B2" }] });
+    const measured = { label: s.course ? "measured (mean of the strides across tasks)" : "measured (stride mean)",
+      values: m.mean_curves[key] || x.map(() => null), color: "#0072B2" };
+    phaseChart(el, { title: label, yLabel: unit, x, height: 200, lines: s.course ? [measured] : [
+      { label: `reference: ${referenceLabel(m)}`, values: m.reference_curves[key], color: "#222222" }, measured] });
   }
 }
 
