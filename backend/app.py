@@ -50,6 +50,7 @@ from backend.schemas.errors import FieldError
 from backend.security import set_hash_cost
 from backend.settings import Settings
 from backend.throttle import LoginThrottle
+from backend.unhandled import AnswerFaults
 from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
 from device_bridge.clock import WALL_CLOCK, Clock, PacedClock
@@ -195,6 +196,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     mount_docs(app)
     app.add_middleware(RefuseAnonymousWrites)   # its 401 carries the security headers itself
     app.add_middleware(LimitBodies)             # a stated bound, before any body is read (its 413 inside the headers)
+    app.add_middleware(AnswerFaults)            # a 500 that keeps the connection open (inside the security headers)
     add_security_headers(app)
     app.openapi = lambda: _openapi(app)
     return app
