@@ -10,6 +10,7 @@ N being the proposal's version for that patient (:func:`backend.store.proposals.
 
 from __future__ import annotations
 
+from datetime import UTC, datetime, timedelta
 from typing import Literal
 
 from sqlalchemy import Connection, RowMapping, bindparam, case, func, insert, or_, select, update
@@ -94,6 +95,7 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
     prosthetist's reason when it goes ahead without a clean bench preview); returns (push id, version)."""
     kind, item_id = item
     with write_transaction(conn):
+        _abandoned_to_unconfirmed(conn, device_id)
         version = devices.next_wire_version(conn, device_id)
         try:
             push_id = int(conn.execute(insert(_pu).values(
@@ -110,6 +112,23 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
                                                         else {}),
                             **({"sent_back_reason": sent_back_reason} if sent_back_reason else {})})
     return push_id, version
+
+
+# a push ends within seconds (the host gives up after 2-3 s, a broker link's resends included); one still "sending" after
+# this long was left by an instance that died mid-push, and would block every other instance's push to the leg
+ABANDONED_AFTER_S = 60.0
+
+
+def _abandoned_to_unconfirmed(conn: Connection, device_id: str) -> None:
+    """A push to ``device_id`` left ``sending`` for :data:`ABANDONED_AFTER_S` by an instance that died becomes
+    ``unconfirmed`` (the device's next status decides it, :func:`reconcile`), so that it no longer blocks a new push
+    from any instance; the instance that left it would do the same at its restart (:func:`interrupted_pushes`)."""
+    cutoff = (datetime.now(UTC) - timedelta(seconds=ABANDONED_AFTER_S)).isoformat(timespec="milliseconds") \
+        .replace("+00:00", "Z")
+    conn.execute(update(_pu).where(_pu.c.device_id == device_id, _pu.c.status == "sending",
+                                   _pu.c.requested_at < cutoff).values(
+        status="unconfirmed", error=f"left sending for over {ABANDONED_AFTER_S:.0f} s by an instance that stopped; the "
+                                    "device's next status tells whether it holds it"))
 
 
 def finish_push(conn: Connection, push_id: int, outcome: Literal["acknowledged", "failed", "unconfirmed"],

@@ -138,3 +138,25 @@ def test_one_push_on_its_way_per_device_is_the_databases_rule(conn, prosthetist,
     assert sql(conn, "SELECT count(*) FROM pushes").scalar_one() == 1     # nothing of the refused one
     pushes.finish_push(conn, first, "acknowledged", 1, 3.0, None)
     pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
+
+
+def test_a_push_a_dead_instance_left_sending_no_longer_blocks_the_others(conn, prosthetist, draft):
+    """An instance killed mid-push leaves its record ``sending``; once it is older than any push can take, the next
+    push from any instance makes it ``unconfirmed`` (the device's next status decides it) and goes ahead. A push
+    still within that time keeps blocking."""
+    from sqlalchemy import update
+
+    from backend.store.tables import pushes as table
+
+    devices.register_device(conn, "leg", "simulated", "virtual", "x")
+    dead, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x1234, prosthetist)
+    with pytest.raises(ConflictError, match="still in progress"):             # 0 s old: its sender may be alive
+        pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
+    conn.execute(update(table).where(table.c.id == dead).values(requested_at="2026-01-01T00:00:00.000Z"))
+    conn.commit()
+    fresh, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
+    left = pushes.get_push(conn, dead)
+    assert left["status"] == "unconfirmed" and "instance that stopped" in left["error"]
+    assert pushes.get_push(conn, fresh)["status"] == "sending"
+    changed = pushes.reconcile(conn, "leg", (2, 0x5678), None, set())          # the leg reports the new one running
+    assert pushes.get_push(conn, dead)["status"] == "failed" and changed
