@@ -37,6 +37,12 @@ class ServiceUnavailableError(DomainError):
     status = 503
 
 
+class TooManyError(DomainError):
+    """One user asked for more of a shared, bounded resource than their share (the bench's queue)."""
+
+    status = 429
+
+
 class DeviceError(DomainError):
     """The device did not do what was asked (no acknowledgement, refused): the body carries the record."""
 

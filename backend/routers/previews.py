@@ -12,10 +12,10 @@ from backend.bench.safety_figures import safety_flags
 from backend.deps import Conn, CurrentUser, Model
 from backend.errors import ConflictError
 from backend.schemas.common import IdPath
-from backend.schemas.errors import CONFLICT, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
+from backend.schemas.errors import CONFLICT, NOT_FOUND, TOO_MANY, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.previews import EnvelopePreviewOut, PreviewOut
 from backend.store import envelopes, previews, proposals
-from backend.threads import run_waiting
+from backend.threads import run_bench, run_waiting
 from controller_core.model import QuasiStiffnessModel
 from device_bridge.as_run import as_run
 from device_bridge.sim.course import COURSES
@@ -31,18 +31,24 @@ _COURSE_PREVIEW = threading.Lock()
 
 
 @router.get("/proposals/{proposal_id}/preview", response_model=PreviewOut,
-            responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, _user: CurrentUser, model: Model) -> dict:
+            responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE, **TOO_MANY})
+async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, user: CurrentUser, model: Model) -> dict:
     """Walk this proposal's table and the FSMIC benchmark for 10 s each on the simulated bench at the proposal's
     task (computed on first request, about a second, then stored: a proposal never changes). Falls, strides and
     joint RMSE against the able-bodied reference, and the stride-averaged trajectories; ``safety`` flags the
     table's safety figures (falls, toe catches, time on swing settings under load) on their own bounds."""
-    return await run_waiting(_table_preview, proposal_id, conn, model, request.app.state.bench_leg)
+    stored = await run_waiting(_table_preview, proposal_id, conn, model, request.app.state.bench_leg, walk=False)
+    return stored if stored is not None else await run_bench(   # a walk waits its turn on the bench's queue
+        user.username, _table_preview, proposal_id, conn, model, request.app.state.bench_leg)
 
 
-def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry) -> dict:
+def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
+                   walk: bool = True) -> dict | None:
+    """The stored preview, walked first if there is none (``walk=False``: None instead)."""
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
+    if stored is None and not walk:
+        return None
     if stored is None:
         checked = as_run(proposals.stored_table(row))   # walked as the device would run it
         _refuse_unsafe(checked.violations, f"proposal {proposal_id}")
@@ -55,22 +61,26 @@ def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessMode
 
 
 @router.get("/envelopes/{envelope_id}/preview", response_model=EnvelopePreviewOut,
-            responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn, _user: CurrentUser,
+            responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE, **TOO_MANY})
+async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn, user: CurrentUser,
                                model: Model) -> dict:
     """Walk the bench's ``mixed`` course (speed changes, ramps up and down ±8°) with this envelope, the leg estimating
     its task and adapting, and with the FSMIC (computed on first request, about ten seconds, five when the server
     has walked the FSMIC at this body mass already, then stored). Safety figures (``safety``: flags on their own
     bounds), errors per segment against the reference at each stride's true task, the leg's estimation accuracy, and
     the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
-    return await run_waiting(_envelope_preview, envelope_id, conn, model, request.app.state.bench_leg,
-                             request.app.state.benchmark_walks)
+    args = (envelope_id, conn, model, request.app.state.bench_leg, request.app.state.benchmark_walks)
+    stored = await run_waiting(_envelope_preview, *args, walk=False)
+    return stored if stored is not None else await run_bench(user.username, _envelope_preview, *args)
 
 
 def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
-                      benchmark: BenchmarkCourseWalks) -> dict:
+                      benchmark: BenchmarkCourseWalks, walk: bool = True) -> dict | None:
+    """The stored preview, walked first if there is none (``walk=False``: None instead)."""
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
+    if stored is None and not walk:
+        return None
     if stored is None:
         with _COURSE_PREVIEW:
             stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])   # walked meanwhile?

@@ -8,11 +8,13 @@ from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
 from backend.refinement import refine_envelope_version, refine_proposal_version
 from backend.schemas.common import IdPath
-from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
+from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, TOO_MANY, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.refinements import RefinementOut, RefinementRequest
 from backend.store import envelopes, proposals, refinements
+from backend.threads import run_bench
 
 router = APIRouter(prefix="/api", tags=["refinements"], responses=UNAUTHORIZED)
+_REFUSALS = {**FORBIDDEN, **NOT_FOUND, **CONFLICT, **UNAVAILABLE, **TOO_MANY}
 
 
 def _ids(body: RefinementRequest) -> list[int]:
@@ -23,22 +25,27 @@ def _ids(body: RefinementRequest) -> list[int]:
 
 
 @router.post("/envelopes/{envelope_id}/refinements", response_model=RefinementOut,
-             status_code=status.HTTP_201_CREATED, responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-def refine_envelope(envelope_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
+             status_code=status.HTTP_201_CREATED, responses=_REFUSALS)
+async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist,
+                          model: Model) -> dict:
     """Refine an approved envelope from the patient's stopped sessions on it (prosthetist): each stride's features
     against the model's targets at the leg's own estimate of its task, gathered per node by the leg's blend weights,
     a damped step of the rows where the strides agree. The result is a new draft (diff, edit, preview, approve or
     reject, push as any), stored with its evidence and audited. Refused with why, storing nothing: sessions of another
     patient or version, still recording, in safe mode all along, no strides, nothing to change."""
-    return refine_envelope_version(conn, envelope_id, _ids(body), body.comment, user, model)
+    # it walks the bench: on the bench's queue, never in the request threads a command to a leg needs
+    return await run_bench(user.username, refine_envelope_version, conn, envelope_id, _ids(body), body.comment, user,
+                           model)
 
 
 @router.post("/proposals/{proposal_id}/refinements", response_model=RefinementOut,
-             status_code=status.HTTP_201_CREATED, responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT, **UNAVAILABLE})
-def refine_proposal(proposal_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
+             status_code=status.HTTP_201_CREATED, responses=_REFUSALS)
+async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist,
+                          model: Model) -> dict:
     """Refine an approved table from the patient's stopped sessions on it (prosthetist), as an envelope's node at the
     table's task; the same rules and refusals."""
-    return refine_proposal_version(conn, proposal_id, _ids(body), body.comment, user, model)
+    return await run_bench(user.username, refine_proposal_version, conn, proposal_id, _ids(body), body.comment, user,
+                           model)
 
 
 @router.get("/refinements/{refinement_id}", response_model=RefinementOut, responses=NOT_FOUND)

@@ -1,4 +1,5 @@
-"""Waiting work runs on threads of its own."""
+"""The bench's queue: walks one at a time, at most BENCH_QUEUE waiting or walking, BENCH_PER_USER per user; beyond,
+refused at once with a Retry-After (503 for everyone, 429 for one user's share), never left to pile up."""
 
 from __future__ import annotations
 
@@ -7,26 +8,46 @@ import threading
 import anyio
 import pytest
 
-from backend.threads import WAITING_THREADS, run_waiting
+from backend import threads
+from backend.errors import ServiceUnavailableError, TooManyError
 
 
-def test_waiting_work_runs_off_the_event_loops_thread_and_returns_its_value():
-    loop_thread = threading.get_ident()
+def test_walks_go_one_at_a_time_and_the_queue_is_bounded_per_user_and_in_all(monkeypatch):
+    monkeypatch.setattr(threads, "BENCH_QUEUE", 4)
+    release = threading.Event()
+    walking: list[int] = []
+    most = [0]
+    lock = threading.Lock()
 
-    async def main() -> tuple[int, int]:
-        return await run_waiting(lambda a, b=0: (threading.get_ident(), a + b), 2, b=3)
-
-    ident, total = anyio.run(main)
-    assert ident != loop_thread and total == 5
-
-
-def test_an_error_in_waiting_work_reaches_the_caller():
-    def fails() -> None:
-        raise ValueError("the device did not answer")
+    def walk(i: int) -> int:
+        with lock:
+            walking.append(i)
+            most[0] = max(most[0], len(walking))
+        release.wait(10)
+        with lock:
+            walking.remove(i)
+        return i
 
     async def main() -> None:
-        await run_waiting(fails)
+        done: list[int] = []
 
-    with pytest.raises(ValueError, match="did not answer"):
-        anyio.run(main)
-    assert WAITING_THREADS >= 2
+        async def one(user: str, i: int) -> None:
+            done.append(await threads.run_bench(user, walk, i))
+
+        async with anyio.create_task_group() as tg:
+            for i, user in enumerate(["ann", "ann", "bob", "cal"]):
+                tg.start_soon(one, user, i)
+            with anyio.fail_after(5):                              # all four queued (one walking, three waiting)
+                while sum(threads.bench_queue().values()) < 4 or not walking:
+                    await anyio.sleep(0.01)
+            assert threads.bench_queue() == {"ann": 2, "bob": 1, "cal": 1}
+            with pytest.raises(TooManyError, match="ann has 2 bench walks queued"):
+                await threads.run_bench("ann", walk, 9)
+            with pytest.raises(ServiceUnavailableError, match="the bench is busy: 4 walks are queued") as busy:
+                await threads.run_bench("dee", walk, 9)
+            assert busy.value.extra["retry_after_s"] == threads.BENCH_RETRY_S
+            release.set()
+        assert sorted(done) == [0, 1, 2, 3] and threads.bench_queue() == {}
+
+    anyio.run(main)
+    assert most[0] == threads.BENCH_WALKS == 1                      # never two walks at once
