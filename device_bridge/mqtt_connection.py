@@ -5,7 +5,10 @@ at 10 legs an instance spent more than half a core switching between them (``pyt
 paho client subscribes to the ``up`` and ``late`` topics of each attached leg (:class:`~device_bridge.mqtt_bus.MqttBus`
 with ``connection=``) and one dispatch thread hands each message to its leg: paho's network thread only queues
 what arrives, so a slow callback of one leg (a database write on a status) never holds back the network, the
-acknowledgements of the QoS 1 messages or the heartbeats the instance sends.
+acknowledgements of the QoS 1 messages or the heartbeats the instance sends. Live messages go before late ones (what a
+bridge kept while its link was down), and late ones are taken one leg at a time in turn, each leg holding at most
+:data:`LATE_QUEUED_PER_LEG` (beyond, dropped and counted): one leg's backlog never delays another leg's status (300
+late messages of one leg kept another offline for 28.6 s).
 
 The client id is its identity's, ``server-{name}`` (bound to the identity at the broker, :func:`client_id_of`), with a
 persistent session when the instance is named, so each instance (each with an identity of its own) reads every frame of
@@ -15,14 +18,15 @@ its legs and the broker keeps the QoS 1 frames that arrive while it reconnects.
 from __future__ import annotations
 
 import logging
-import queue
 import threading
+from collections import Counter, deque
 
 import paho.mqtt.client as mqtt
 
 from device_bridge.mqtt_bus import TOPIC_PREFIX, MqttBus, broker_client, client_id_of, topic
 
 log = logging.getLogger(__name__)
+LATE_QUEUED_PER_LEG = 512     # late messages of one leg waiting to be handed over (about 24 MB at most)
 
 
 class MqttConnection:
@@ -46,13 +50,13 @@ class MqttConnection:
         self._lock = threading.Lock()
         self._connected = threading.Event()
         self.refused: str | None = None
-        self._inbox: queue.SimpleQueue[tuple[str, bytes] | None] = queue.SimpleQueue()
+        self._mailbox = LegMailbox()
         self._client.reconnect_delay_set(min_delay=1, max_delay=8)
         self._client.max_queued_messages_set(0)
         self._client.on_connect = self._on_connect
         self._client.on_disconnect = self._on_disconnect
         self._client.on_subscribe = self._on_subscribe
-        self._client.on_message = lambda _c, _u, m: self._inbox.put((m.topic, m.payload))
+        self._client.on_message = lambda _c, _u, m: self._mailbox.put(m.topic, m.payload)
         self._client.connect_async(address.host, address.port, keepalive=5)
         self._client.loop_start()
         if not self._connected.wait(connect_timeout_s):
@@ -122,11 +126,9 @@ class MqttConnection:
             bus.link_down()
 
     def _dispatch(self) -> None:
-        """Each message to its leg, in arrival order (one thread for all legs: see the module)."""
-        prefix = TOPIC_PREFIX + "/"
-        while (item := self._inbox.get()) is not None:
-            name, payload = item
-            device_id, _, direction = name.removeprefix(prefix).rpartition("/")
+        """Each message to its leg (one thread for all legs: see the module)."""
+        while (item := self._mailbox.take()) is not None:
+            device_id, direction, payload = item
             bus = self._buses.get(device_id)
             if bus is None:
                 continue
@@ -135,8 +137,66 @@ class MqttConnection:
             except Exception:     # one leg's failing callback must not stop the others' frames
                 log.exception("broker link: delivering a message of %s failed", device_id)
 
+    @property
+    def late_dropped(self) -> Counter[str]:
+        """Per leg: late messages beyond its share, dropped."""
+        return self._mailbox.dropped
+
     def close(self) -> None:
-        self._inbox.put(None)
+        self._mailbox.close()
         self._dispatcher.join(timeout=5.0)
         self._client.disconnect()
         self._client.loop_stop()
+
+
+class LegMailbox:
+    """What the network thread received, for the dispatch thread: live messages first, in arrival order; then late
+    ones, one leg at a time in turn, each leg holding at most :data:`LATE_QUEUED_PER_LEG` (see the module)."""
+
+    def __init__(self) -> None:
+        self._live: deque[tuple[str, bytes]] = deque()      # up messages, in arrival order
+        self._late: dict[str, deque[bytes]] = {}             # late messages per leg
+        self._turn: deque[str] = deque()                     # legs with late messages waiting, in turn
+        self._arrived = threading.Condition()
+        self._closing = False
+        self.dropped: Counter[str] = Counter()               # per leg: late messages beyond its share
+
+    def put(self, name: str, payload: bytes) -> None:
+        """A message on topic ``name`` (from paho's network thread)."""
+        with self._arrived:
+            if name.endswith("/late"):
+                device_id = name.removeprefix(TOPIC_PREFIX + "/").rpartition("/")[0]
+                waiting = self._late.setdefault(device_id, deque())
+                if len(waiting) >= LATE_QUEUED_PER_LEG:
+                    self.dropped[device_id] += 1
+                    return
+                if not waiting:
+                    self._turn.append(device_id)
+                waiting.append(payload)
+            else:
+                self._live.append((name, payload))
+            self._arrived.notify()
+
+    def take(self, timeout_s: float | None = None) -> tuple[str, str, bytes] | None:
+        """The next message, (device id, direction, payload): a live one if any, else one late message of the next
+        leg in turn; None once closed (or after ``timeout_s`` with nothing)."""
+        with self._arrived:
+            if not self._arrived.wait_for(lambda: self._live or self._turn or self._closing, timeout_s):
+                return None
+            if self._live:
+                name, payload = self._live.popleft()
+                device_id, _, direction = name.removeprefix(TOPIC_PREFIX + "/").rpartition("/")
+                return device_id, direction, payload
+            if self._closing:
+                return None
+            device_id = self._turn.popleft()
+            waiting = self._late[device_id]
+            payload = waiting.popleft()
+            if waiting:
+                self._turn.append(device_id)     # its next late message after the other legs' turn
+            return device_id, "late", payload
+
+    def close(self) -> None:
+        with self._arrived:
+            self._closing = True
+            self._arrived.notify_all()

@@ -111,3 +111,25 @@ def test_every_leg_is_down_while_the_broker_is_and_back_after_it():
             conn.close()
             for leg in far:
                 leg.shutdown()
+
+
+def test_live_messages_go_first_and_late_ones_take_turns_per_leg_within_a_share(monkeypatch):
+    """One leg's backlog of late messages never delays another leg's live status, nor its own late turn; beyond a
+    leg's share its late messages are dropped and counted (300 late messages of one leg kept another offline 28.6 s)."""
+    from device_bridge import mqtt_connection
+    from device_bridge.mqtt_bus import topic
+    from device_bridge.mqtt_connection import LegMailbox
+
+    monkeypatch.setattr(mqtt_connection, "LATE_QUEUED_PER_LEG", 3)
+    box = LegMailbox()
+    for i in range(5):
+        box.put(topic("leg-2", "late"), b"late-2-%d" % i)             # a flood of one leg's backlog …
+    box.put(topic("leg-3", "late"), b"late-3-0")
+    box.put(topic("leg-1", "up"), b"status-1")                         # … then another leg's live status
+    assert box.dropped == {"leg-2": 2}
+    taken = [box.take(0) for _ in range(5)]
+    assert taken == [("leg-1", "up", b"status-1"), ("leg-2", "late", b"late-2-0"), ("leg-3", "late", b"late-3-0"),
+                     ("leg-2", "late", b"late-2-1"), ("leg-2", "late", b"late-2-2")]
+    assert box.take(0) is None                                          # nothing left
+    box.close()
+    assert box.take() is None
