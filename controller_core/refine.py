@@ -229,14 +229,16 @@ def _words(evidence: NodeEvidence, skip: frozenset[str] = frozenset()) -> str:
                      if (ev := evidence.quantities[q.key]).act and ev.error is not None and q.key not in skip)
 
 
-def _value_words(e: np.ndarray, J: np.ndarray, delta: np.ndarray, column: int) -> str:
+def _value_words(e: np.ndarray, J: np.ndarray, delta: np.ndarray, column: int, joint: str | None = None) -> str:
     """Why one value changed, in clinical words: the acted-on quantities its own change moves towards their targets
-    (each at least a third of the value's largest such contribution, in tolerances), or, when it moves none, that it
-    holds what the other changes would disturb."""
+    (each at least a third of the value's largest such contribution, in tolerances), those of the value's own
+    ``joint`` named first (a knee row is explained by the knee where it moves the knee), or, when it moves none, that
+    it holds what the other changes would disturb."""
     towards = -np.sign(e) * J[:, column] * delta[column] / TOLERANCES   # > 0: this change moves q towards its target
     towards[e == 0.0] = 0.0
     if np.max(towards, initial=0.0) > 0.0:
         keep = [k for k in np.argsort(-towards) if towards[k] >= max(towards) / 3.0]
+        keep.sort(key=lambda k: QUANTITIES[k].feature.split("_")[0] != joint)   # stable: own joint first
         return "; ".join(_quantity_words(QUANTITIES[k], float(e[k])) for k in keep)
     side = -J[:, column] * delta[column] / TOLERANCES                   # what it counters of the others' side effects
     k = int(np.argmax(np.abs(side)))
@@ -373,7 +375,7 @@ def _stepped(table: ParameterTable, evidence: NodeEvidence, delta: np.ndarray, J
         edits.setdefault((p.joint, p.subphase), {"joint": p.joint, "subphase": p.subphase})[p.attr] = new
         change = f"{100 * (new / old - 1):+.0f} %" if p.relative else f"{new - old:+.1f}°"
         at = f"{evidence.speed_mps:.2f} m/s, {evidence.incline_deg:+.1f}°"
-        why[p.field] = f"{_value_words(e, J, delta, c)} at {at}: {p.label} {change}"
+        why[p.field] = f"{_value_words(e, J, delta, c, p.joint)} at {at}: {p.label} {change}"
     thresholds = _swing_threshold(table, evidence, actual, rules, J)
     if not edits and not thresholds:
         return f"{words}, but the step rounds to nothing within the limits"

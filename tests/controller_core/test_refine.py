@@ -219,3 +219,21 @@ def test_bad_rules_are_refused():
         RefineRules(theta_step_deg=-1.0)
     with pytest.raises(ValueError, match="k_step_fraction"):
         RefineRules(k_step_fraction=1.5)
+
+
+def test_a_rows_reason_names_its_own_joints_quantities_first():
+    """An ankle row that moves both push-off plantarflexion and (more) the swing knee flexion towards their targets is
+    explained by the ankle's first; the knee's is still said. Synthetic sensitivities (test data)."""
+    import numpy as np
+
+    from controller_core.refine import _value_words
+    from controller_core.refine_evidence import QUANTITIES
+
+    e = np.zeros(len(QUANTITIES))
+    e[1], e[3] = -6.0, 4.0                 # swing knee flexion 6° short; push-off plantarflexion 4° too little
+    J = np.zeros((len(QUANTITIES), 1))
+    J[1, 0], J[3, 0] = 3.0, -2.0           # one unit of the row: +3° knee flexion, −2° (more plantarflexion)
+    said = _value_words(e, J, np.array([1.0]), 0, "ankle")
+    assert said.index("push-off plantarflexion") < said.index("swing knee flexion"), said
+    said = _value_words(e, J, np.array([1.0]), 0, "knee")
+    assert said.index("swing knee flexion") < said.index("push-off plantarflexion"), said
