@@ -24,8 +24,8 @@ export function benchFigures(bench, id) {
     h("td", { class: "num" }, value(f.fsmic_value, f.unit)))), { id, class: "compact" });
 }
 const MIN_OVERRIDE = 20;
-// what a prosthetist typed in a version's reason box, by its API path: a redraw of the card (the preview finishing,
-// a sign-off elsewhere) or of the page never loses it
+// what a prosthetist typed in a version's reason box, by who and the version's API path: a redraw of the card (the
+// preview finishing, a sign-off elsewhere) or of the page never loses it
 const typedReasons = new Map();
 
 // A version the bench finds worse than the one it was made from (an edit or a refinement) says so before anything
@@ -69,8 +69,9 @@ export function renderDecision(box, { item, name, path, canDecide, reload, worse
   const error = h("p", { class: "error", role: "alert" });
   // one reason box: what was reviewed (a clean bench), or the sign-off's reason (an unclean one), or why it is rejected
   const reason = h("textarea", { name: "comment", id: "decision-reason", rows: 2, cols: 60, maxlength: 2000 });
-  reason.value = typedReasons.get(path) ?? "";        // kept across a redraw of the card or the page
-  reason.addEventListener("input", () => typedReasons.set(path, reason.value));
+  const typedKey = `${app.me?.username}|${path}`;    // one person's words, never shown to the next who signs in here
+  reason.value = typedReasons.get(typedKey) ?? "";    // kept across a redraw of the card or the page
+  reason.addEventListener("input", () => typedReasons.set(typedKey, reason.value));
   const reasonLabel = h("span", {});
   const gate = h("div", { id: "bench-gate" });
   const needsOverride = () => bench.status === "unsafe" || bench.status === "not_walked";
@@ -90,7 +91,7 @@ export function renderDecision(box, { item, name, path, canDecide, reload, worse
       const body = { comment: text };
       if (what === "approve" && step() === "second") body.override_reason = text;   // the second sign-off is its reason
       await post(`${path}/${what}`, body);
-      typedReasons.delete(path);
+      typedReasons.delete(typedKey);
       notice(`${name} ${what === "approve" ? "approved" : "rejected"}`, "ok");
       await reload();
     } catch (err) {
@@ -106,7 +107,7 @@ export function renderDecision(box, { item, name, path, canDecide, reload, worse
     error.textContent = "";
     try {
       await post(`${path}/signoffs`, { reason: reason.value.trim() });
-      typedReasons.delete(path);
+      typedReasons.delete(typedKey);
       notice(`${name}: your sign-off is recorded; a second prosthetist must sign off from their own account`, "warn");
       await reload();
     } catch (err) {
