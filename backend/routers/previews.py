@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 
+import anyio
 from fastapi import APIRouter, Request
 from sqlalchemy import Connection
 
@@ -30,6 +32,25 @@ PREVIEW_SECONDS = 10.0
 _COURSE_PREVIEW = threading.Lock()
 
 
+# one walk per version however many pages ask for it at once (a page redrawn while its preview walks asks again):
+# the others wait for it here, not in the bench's queue, and read what it stored
+_walks: dict[tuple[str, int], anyio.Lock] = {}
+
+
+async def _walk_once(key: tuple[str, int], user: str, preview: Callable[..., dict | None], *args: object) -> dict:
+    """The stored preview of ``key``; walked first, on the bench's queue, if there is none."""
+    lock = _walks.setdefault(key, anyio.Lock())
+    try:
+        async with lock:
+            stored = await run_waiting(preview, *args, walk=False)
+            if stored is None:
+                stored = await run_bench(user, preview, *args)
+            return stored
+    finally:
+        if not lock.locked() and lock.statistics().tasks_waiting == 0:
+            _walks.pop(key, None)
+
+
 @router.get("/proposals/{proposal_id}/preview", response_model=PreviewOut,
             responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE, **TOO_MANY})
 async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, user: CurrentUser, model: Model) -> dict:
@@ -37,9 +58,8 @@ async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, user: C
     task (computed on first request, about a second, then stored: a proposal never changes). Falls, strides and
     joint RMSE against the able-bodied reference, and the stride-averaged trajectories; ``safety`` flags the
     table's safety figures (falls, toe catches, time on swing settings under load) on their own bounds."""
-    stored = await run_waiting(_table_preview, proposal_id, conn, model, request.app.state.bench_leg, walk=False)
-    return stored if stored is not None else await run_bench(   # a walk waits its turn on the bench's queue
-        user.username, _table_preview, proposal_id, conn, model, request.app.state.bench_leg)
+    return await _walk_once(("proposal", proposal_id), user.username, _table_preview, proposal_id, conn, model,
+                            request.app.state.bench_leg)
 
 
 def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
@@ -69,9 +89,8 @@ async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn
     has walked the FSMIC at this body mass already, then stored). Safety figures (``safety``: flags on their own
     bounds), errors per segment against the reference at each stride's true task, the leg's estimation accuracy, and
     the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
-    args = (envelope_id, conn, model, request.app.state.bench_leg, request.app.state.benchmark_walks)
-    stored = await run_waiting(_envelope_preview, *args, walk=False)
-    return stored if stored is not None else await run_bench(user.username, _envelope_preview, *args)
+    return await _walk_once(("envelope", envelope_id), user.username, _envelope_preview, envelope_id, conn, model,
+                            request.app.state.bench_leg, request.app.state.benchmark_walks)
 
 
 def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,

@@ -49,5 +49,17 @@ def test_walks_go_one_at_a_time_and_the_queue_is_bounded_per_user_and_in_all(mon
             release.set()
         assert sorted(done) == [0, 1, 2, 3] and threads.bench_queue() == {}
 
-    anyio.run(main)
+    failed: list[BaseException] = []     # on a thread of its own: a test before may have left an event loop here
+
+    def run() -> None:
+        try:
+            anyio.run(main)
+        except BaseException as exc:   # handed back to the test's thread
+            failed.append(exc)
+
+    runner = threading.Thread(target=run)
+    runner.start()
+    runner.join(30)
+    if failed:
+        raise failed[0]
     assert most[0] == threads.BENCH_WALKS == 1                      # never two walks at once

@@ -67,3 +67,47 @@ def test_a_server_started_with_a_leg_file_previews_on_that_leg(tmp_path, model):
         r = client.get(f"/api/proposals/{prop['id']}/preview", headers=api.as_("viewer"))
         assert r.status_code == 200, r.text
         assert r.json()["leg"] == "short person (1.58 m)"
+
+
+def test_one_walk_per_version_however_many_pages_ask_at_once():
+    """A page redrawn while its preview walks asks again; five asks at once make one walk on the bench's queue (the
+    others wait for it and read what it stored), never five, nor a 429 for the user's share."""
+    import threading
+
+    import anyio
+
+    from backend.routers import previews as router
+    from backend.threads import BENCH_PER_USER, bench_queue
+
+    walks, release, stored = [], threading.Event(), {}
+
+    def preview(key: str, walk: bool = True) -> dict | None:
+        if key in stored or not walk:
+            return stored.get(key)
+        walks.append(key)
+        release.wait(10)
+        stored[key] = {"walked": key}
+        return stored[key]
+
+    async def main() -> list[dict]:
+        got: list[dict] = []
+
+        async def ask() -> None:
+            got.append(await router._walk_once(("proposal", 7), "dana", preview, "v7"))
+
+        async with anyio.create_task_group() as tg:
+            for _ in range(BENCH_PER_USER + 3):
+                tg.start_soon(ask)
+            with anyio.fail_after(5):
+                while not walks:
+                    await anyio.sleep(0.01)
+            assert bench_queue() == {"dana": 1}                   # one walk queued for the user, not five
+            release.set()
+        return got
+
+    out: list = []       # on a thread of its own: a test before may have left an event loop in this one
+    runner = threading.Thread(target=lambda: out.append(anyio.run(main)))
+    runner.start()
+    runner.join(30)
+    [got] = out
+    assert walks == ["v7"] and got == [{"walked": "v7"}] * (BENCH_PER_USER + 3) and router._walks == {}
