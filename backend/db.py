@@ -150,4 +150,9 @@ def write_transaction(conn: Connection) -> Iterator[Connection]:
 
 def utc_now() -> str:
     """Current UTC time as ISO-8601 text with a ``Z`` suffix (millisecond resolution)."""
-    return datetime.now(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return utc_text(datetime.now(UTC))
+
+
+def utc_text(at: datetime) -> str:
+    """An aware time as the stored ISO-8601 text (UTC, ``Z``, milliseconds): ordered as the times are."""
+    return at.astimezone(UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")

@@ -16,7 +16,7 @@ from typing import Literal
 from sqlalchemy import Connection, RowMapping, bindparam, case, func, insert, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
-from backend.db import utc_now, write_transaction
+from backend.db import utc_now, utc_text, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit, devices
 from backend.store.dialect import json_of, unique_violation
@@ -123,8 +123,7 @@ def _abandoned_to_unconfirmed(conn: Connection, device_id: str) -> None:
     """A push to ``device_id`` left ``sending`` for :data:`ABANDONED_AFTER_S` by an instance that died becomes
     ``unconfirmed`` (the device's next status decides it, :func:`reconcile`), so that it no longer blocks a new push
     from any instance; the instance that left it would do the same at its restart (:func:`interrupted_pushes`)."""
-    cutoff = (datetime.now(UTC) - timedelta(seconds=ABANDONED_AFTER_S)).isoformat(timespec="milliseconds") \
-        .replace("+00:00", "Z")
+    cutoff = utc_text(datetime.now(UTC) - timedelta(seconds=ABANDONED_AFTER_S))
     conn.execute(update(_pu).where(_pu.c.device_id == device_id, _pu.c.status == "sending",
                                    _pu.c.requested_at < cutoff).values(
         status="unconfirmed", error=f"left sending for over {ABANDONED_AFTER_S:.0f} s by an instance that stopped; the "
