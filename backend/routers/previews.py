@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 
 import anyio
@@ -26,14 +25,10 @@ from device_bridge.sim.leg_model import LegGeometry
 router = APIRouter(prefix="/api", tags=["previews"], responses=UNAUTHORIZED)
 
 PREVIEW_SECONDS = 10.0
-# one course preview at a time: each walks ~90 s of bench time (several CPU-seconds); two tabs opening the same new
-# envelope then wait for one walk instead of each starting its own, and many new envelopes queue instead of starving
-# the device loop of CPU
-_COURSE_PREVIEW = threading.Lock()
-
-
-# one walk per version however many pages ask for it at once (a page redrawn while its preview walks asks again):
-# the others wait for it here, not in the bench's queue, and read what it stored
+# one walk per version however many pages ask for it at once (a page redrawn while its preview walks asks again, two
+# tabs open the same new envelope): the others wait for it here, not in the bench's queue, and read what it stored;
+# walks of different versions take their turn on the bench's queue (backend.threads.run_bench: one at a time), so many
+# new envelopes queue instead of starving the device loop of CPU
 _walks: dict[tuple[str, int], anyio.Lock] = {}
 
 
@@ -101,14 +96,10 @@ def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessM
     if stored is None and not walk:
         return None
     if stored is None:
-        with _COURSE_PREVIEW:
-            stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])   # walked meanwhile?
-            if stored is None:
-                checked = as_run(envelopes.stored_envelope(row))
-                _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
-                envelope = checked.item
-                result = preview_envelope(envelope, model, COURSES[PREVIEW_COURSE], leg, benchmark)
-                stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
+        checked = as_run(envelopes.stored_envelope(row))
+        _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
+        result = preview_envelope(checked.item, model, COURSES[PREVIEW_COURSE], leg, benchmark)
+        stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["envelope"], runs["fsmic"])}
 

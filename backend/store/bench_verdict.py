@@ -38,7 +38,11 @@ def content_sha256(kind: Kind, row: Mapping) -> str:
 WORSE_BY = {"falls": 0.0, "catches": 0.0, "strides": 0.0, "ms": 10.0, "mm": 5.0, "BW": 0.02, "deg": 1.0}
 
 
+_OWN = {"proposal": "table", "envelope": "envelope"}     # the version's own walk in a stored preview
+
+
 def _stored(conn: Connection, kind: Kind, version_id: int, sha: str) -> dict | None:
+    """The stored preview of exactly this content of a version (None: not walked)."""
     return (previews.get_preview(conn, version_id, sha) if kind == "proposal"
             else previews.get_envelope_preview(conn, version_id, sha))
 
@@ -58,8 +62,8 @@ def worse_than_parent(conn: Connection, kind: Kind, row: Mapping, figures: list[
     stored = _stored(conn, kind, parent_id, str(parent["sha"]))
     if stored is None:
         return {"parent_id": parent_id, "parent_version": parent["version"], "walked": False, "figures": []}
-    own = "table" if kind == "proposal" else "envelope"
-    theirs = {f["figure"]: f["value"] for f in safety_figures(stored["controllers"][own], stored["controllers"]["fsmic"])}
+    theirs = {f["figure"]: f["value"] for f in safety_figures(stored["controllers"][_OWN[kind]],
+                                                              stored["controllers"]["fsmic"])}
     worse = [{"figure": f["figure"], "label": f["label"], "unit": f["unit"], "parent_value": theirs.get(f["figure"]),
               "value": f["value"]} for f in figures
              if f["value"] is not None and theirs.get(f["figure"]) is not None
@@ -72,10 +76,7 @@ def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
     beside the FSMIC's, ``words`` for the chip, and the prosthetists' ``signoffs`` on exactly this content."""
     sha = content_sha256(kind, row)
     signed = [{k: s[k] for k in ("by", "reason", "at")} for s in signoffs.signoffs(conn, kind, row["id"], sha)]
-    if kind == "proposal":
-        stored, own = previews.get_preview(conn, row["id"], sha), "table"
-    else:
-        stored, own = previews.get_envelope_preview(conn, row["id"], sha), "envelope"
+    stored, own = _stored(conn, kind, row["id"], sha), _OWN[kind]
     if stored is None:
         return {"status": "not_walked", "flags": [], "figures": [], "words": _WORDS["not_walked"],
                 "signoffs": signed, "signoffs_needed": signoffs.NEEDED, "worse_than_parent": None}
