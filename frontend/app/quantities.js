@@ -65,7 +65,9 @@ export function shownChange(field, before, after, mass) {
   return { change: b - a, percent, unit: u.unit, digits: u.digits };
 }
 
-export function signed(v, digits) {
+// a change with its sign ("+2.0", "-1.5", "0.0" for what rounds to nothing; "—" for none)
+export function signed(v, digits = 1) {
+  if (v === null || v === undefined) return "—";
   const s = fmt(v + 0, digits);
   return v > 0 && s !== fmt(0, digits) ? `+${s}` : s;
 }

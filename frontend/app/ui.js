@@ -24,6 +24,15 @@ export function bodyWeightN(massKg) {
   return massKg ? massKg * G_MPS2 : null;
 }
 
+// y at x, linearly between the points (xs increasing), held at the ends
+export function interp(x, xs, ys) {
+  if (x <= xs[0]) return ys[0];
+  if (x >= xs[xs.length - 1]) return ys[ys.length - 1];
+  let lo = 0, hi = xs.length - 1;
+  while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (xs[mid] <= x) lo = mid; else hi = mid; }
+  return ys[lo] + ((x - xs[lo]) / (xs[hi] - xs[lo])) * (ys[hi] - ys[lo]);
+}
+
 export function fmt(value, digits = 1, unit = "") {
   if (value === null || value === undefined || Number.isNaN(value)) return "—";
   const s = Number(value).toFixed(digits);

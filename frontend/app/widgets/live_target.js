@@ -3,18 +3,10 @@
 // the time since the last heel strike (the leg's state going from swing extension to stance flexion) over the last
 // stride's duration; none before the first full stride, nor while standing (more than 1.3 strides since a heel strike).
 import { get } from "../api.js";
+import { interp } from "../ui.js";
 
 const SWING_EXTENSION = 3, STANCE_FLEXION = 0;
 const LONGEST_STRIDE_FRACTION = 1.3;
-
-function interp(x, xs, ys) {
-  if (x <= xs[0]) return ys[0];
-  if (x >= xs[xs.length - 1]) return ys[ys.length - 1];
-  let lo = 0, hi = xs.length - 1;
-  while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (xs[mid] <= x) lo = mid; else hi = mid; }
-  const f = (x - xs[lo]) / (xs[hi] - xs[lo]);
-  return ys[lo] + f * (ys[hi] - ys[lo]);
-}
 
 export function liveTarget() {
   let ref = null, refKey = null, fetching = false;

@@ -2,7 +2,7 @@
 // the via-points explained, the GPR features, and the bench's safety figures (one place, used by both pages).
 import { get } from "../api.js";
 import { loopChart, phaseChart } from "./charts.js";
-import { chip, fmt, h, momentScale, momentUnit, momentView, pm, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table } from "../ui.js";
+import { chip, fmt, h, interp, momentScale, momentUnit, momentView, pm, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table } from "../ui.js";
 
 const RAD = Math.PI / 180;
 
@@ -102,14 +102,6 @@ export function drawCurves(p, atTask, box, what = "proposal") {
     phaseChart(el, { title: label, yLabel: label.match(/\((.*)\)/)[1], x, markers,
       bands: [{ label: what, mean, sd, color: "#1f4e99" }], lines });
   }
-}
-
-function interp(x, xs, ys) {
-  if (x <= xs[0]) return ys[0];
-  for (let i = 1; i < xs.length; i++) {
-    if (x <= xs[i]) return ys[i - 1] + (ys[i] - ys[i - 1]) * (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
-  }
-  return ys[ys.length - 1];
 }
 
 export function featureTable(p) {

@@ -2,14 +2,10 @@
 // a refinement (strides per node, per node the errors measured on the leg, what the step expects and what the bench
 // expects, what changed and why, nodes left alone and why). The draft is decided like any version.
 import { get, post } from "../api.js";
-import { shownChange, units } from "../quantities.js";
+import { shownChange, signed, units } from "../quantities.js";
 import { chip, fieldWords, fmt, h, table, when } from "../ui.js";
 
 const UNIT = { deg: "°", "% gait cycle": "% cycle" };
-
-function signed(v, digits = 1) {
-  return v === null || v === undefined ? "—" : `${v > 0 ? "+" : ""}${fmt(v, digits)}`;
-}
 
 // strides per node as the leg blended them (incline rows top-down), changed nodes marked
 function strideMap(ev, speeds, inclines) {
