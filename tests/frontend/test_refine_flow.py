@@ -36,6 +36,7 @@ def test_a_prosthetist_refines_a_table_from_a_session_and_reviews_the_draft(serv
     base, data = server_and_data
     sign_in(page, base, "dana")
     pid = create_patient_and_propose(page, "P-REF", speed="1.2")
+    assert api_call(page, "GET", f"/api/proposals/{pid}/preview")["status"] == 200   # walked (or its walk waited for)
     prop = api_call(page, "GET", f"/api/proposals/{pid}")["body"]
     if prop["bench"]["status"] != "clean":      # the gate's override takes a colleague's sign-off first
         sign_off(base, "eli", "proposal", pid, "test: the refinement, not the bench gate")
