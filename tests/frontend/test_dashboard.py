@@ -8,7 +8,15 @@ import re
 import pytest
 from playwright.sync_api import expect
 
-from tests.helpers.browser import canvas_ink, create_patient, create_patient_and_propose, shot, sign_in
+from tests.helpers.browser import (
+    canvas_ink,
+    choose_own_password,
+    create_patient,
+    create_patient_and_propose,
+    shot,
+    sign_in,
+    sign_in_one_time,
+)
 from tests.helpers.server import PASSWORD
 
 _CONTRAST_JS = """(selectors) => {
@@ -295,20 +303,12 @@ def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(serv
     other = browser.new_context(viewport={"width": 1366, "height": 900})
     newbie = other.new_page()
     try:
-        newbie.goto(server + "/")
-        newbie.fill("input[name=username]", "newbie")
-        newbie.fill("input[name=password]", "given-in-person")
-        newbie.click("#login-form button[type=submit]")
-        newbie.wait_for_selector("h1:has-text('Choose your own password')")       # forced, before anything else
+        sign_in_one_time(newbie, server, "newbie", "given-in-person")                # forced, before anything else
         assert newbie.locator("#nav a").count() == 0
         shot(newbie, "13-forced-password-change")
         newbie.goto(server + "/#/patients")
         newbie.wait_for_selector("#password-form")                                 # no way round it
-        newbie.fill("#password-form input[name=current_password]", "given-in-person")
-        newbie.fill("#password-form input[name=new_password]", "my own secret")
-        newbie.fill("#password-form input[name=again]", "my own secret")
-        newbie.click("#password-form button[type=submit]")
-        newbie.wait_for_selector("#password-changed:has-text('Password changed')")     # said on the page
+        choose_own_password(newbie, "given-in-person", "my own secret")             # said on the page
         newbie.click("#password-continue")
         newbie.wait_for_selector("h1:has-text('Patients')")
 

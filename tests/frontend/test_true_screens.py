@@ -9,7 +9,15 @@ import math
 
 import pytest
 
-from tests.helpers.browser import api_call, create_patient_and_propose, shot, sign_in, watch_errors
+from tests.helpers.browser import (
+    api_call,
+    choose_own_password,
+    create_patient_and_propose,
+    shot,
+    sign_in,
+    sign_in_one_time,
+    watch_errors,
+)
 
 SIZES = {"1280x800": (1280, 800), "768x1024": (768, 1024)}
 KNEE_SF_K = "knee.stance_flexion.k_Nm_per_rad"
@@ -95,16 +103,8 @@ def test_a_one_time_password_change_says_it_happened(server, browser, size):
         made = api_call(admin, "POST", "/api/users", {"username": name, "role": "viewer",
                                                       "password": "a first password, given in person"})
         assert made["status"] == 201, made
-        user.goto(server + "/")
-        user.fill("input[name=username]", name)
-        user.fill("input[name=password]", "a first password, given in person")
-        user.click("#login-form button[type=submit]")
-        user.wait_for_selector("h1:has-text('Choose your own password')")
-        user.fill("#password-form input[name=current_password]", "a first password, given in person")
-        user.fill("#password-form input[name=new_password]", "kim's own long passphrase")
-        user.fill("#password-form input[name=again]", "kim's own long passphrase")
-        user.click("#password-form button[type=submit]")
-        user.wait_for_selector("#password-changed")
+        sign_in_one_time(user, server, name, "a first password, given in person")
+        choose_own_password(user, "a first password, given in person", "kim's own long passphrase")
         said = user.inner_text("#password-changed")
         assert "Password changed" in said and "one-time password no longer works" in said
         shot(user, f"screens-{size}-03-password-changed")

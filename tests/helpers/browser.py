@@ -46,6 +46,24 @@ def sign_in(page, base: str, username: str, password: str = PASSWORD) -> None:
     page.wait_for_selector("h1:has-text('Patients')")
 
 
+def sign_in_one_time(page, base: str, username: str, given: str) -> None:
+    """Sign in with a password someone else chose: the page asks for one's own before anything else."""
+    page.goto(base + "/")
+    page.fill("input[name=username]", username)
+    page.fill("input[name=password]", given)
+    page.click("#login-form button[type=submit]")
+    page.wait_for_selector("h1:has-text('Choose your own password')")
+
+
+def choose_own_password(page, given: str, own: str) -> None:
+    """On the password page: replace ``given`` by ``own``; waits for the page to say it is changed."""
+    page.fill("#password-form input[name=current_password]", given)
+    page.fill("#password-form input[name=new_password]", own)
+    page.fill("#password-form input[name=again]", own)
+    page.click("#password-form button[type=submit]")
+    page.wait_for_selector("#password-changed:has-text('Password changed')")
+
+
 ARTIFACTS = Path(os.environ.get("QUASITUNE_ARTIFACTS", Path(__file__).resolve().parents[2] / "artifacts")) / "browser"
 
 

@@ -8,14 +8,20 @@ from backend.report import report_facts
 from tests.helpers.api import DEVICE, approved_proposal, push_to_leg, wait_for, wait_recorded
 
 
+def _walking(api) -> tuple[dict, dict]:
+    """An approved table pushed to the simulated leg and a session started on it: (the proposal, the session)."""
+    prop = approved_proposal(api)
+    assert push_to_leg(api, prop).status_code == 201
+    started = api.client.post(f"/api/patients/{prop['patient_id']}/sessions", headers=api.as_("prosthetist"),
+                              json={"device_id": DEVICE})
+    assert started.status_code == 201, started.text
+    return prop, started.json()
+
+
 def test_session_report_pdf(sim_api):
     api = sim_api
     c, pro = api.client, api.as_("prosthetist")
-    prop = approved_proposal(api)
-    assert push_to_leg(api, prop).status_code == 201
-    started = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE})
-    assert started.status_code == 201, started.text
-    session = started.json()
+    prop, session = _walking(api)
     early = c.get(f"/api/sessions/{session['id']}/report.pdf", headers=pro)
     assert early.status_code == 409 and "still recording" in early.json()["detail"]
     wait_recorded(api, session["id"], 2.5)
@@ -42,9 +48,7 @@ def test_the_raw_telemetry_exports_as_csv_and_parquet_sample_for_sample(sim_api)
 
     api = sim_api
     c, pro = api.client, api.as_("prosthetist")
-    prop = approved_proposal(api)
-    assert push_to_leg(api, prop).status_code == 201
-    session = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
+    _prop, session = _walking(api)
     wait_recorded(api, session["id"], 1.0)
     assert c.post(f"/api/sessions/{session['id']}/stop", headers=pro).status_code == 200
     cols = c.get(f"/api/sessions/{session['id']}/samples", headers=pro).json()["columns"]
@@ -69,9 +73,7 @@ def test_the_raw_telemetry_exports_as_csv_and_parquet_sample_for_sample(sim_api)
 def test_strides_in_safe_mode_are_marked_and_left_out_of_the_errors(sim_api):
     api = sim_api
     c, pro = api.client, api.as_("prosthetist")
-    prop = approved_proposal(api)
-    assert push_to_leg(api, prop).status_code == 201
-    session = c.post(f"/api/patients/{prop['patient_id']}/sessions", headers=pro, json={"device_id": DEVICE}).json()
+    _prop, session = _walking(api)
     modes = lambda: c.get(f"/api/sessions/{session['id']}/samples", headers=pro).json()["columns"]["mode"]  # noqa: E731
     wait_for(modes, lambda m: m.count("active") >= 250, 30, clock=api.clock)   # 2.5 s of walking, by the device's clock
     assert c.post(f"/api/devices/{DEVICE}/commands", headers=pro, json={"command": "enter_safe_mode"}).status_code == 202
