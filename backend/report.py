@@ -92,12 +92,12 @@ def report_facts(session: dict, patient: dict) -> list[tuple[str, str]]:
         ("Leg off its table", "never" if not s.get("off_table_s") else
          f"{s['off_table_s']:.1f} s (safe mode {modes.get('safe', 0):.1f} s, no table {modes.get('no_table', 0):.1f} s): "
          f"{s.get('strides_off_table', 0)} strides left out of the errors"),
-        ("Strides on the table / counted", f"{s.get('strides_scored', s.get('strides', 0))} / {s.get('strides', 0)} · "
-                                           f"cadence on the table {_fmt(s.get('cadence_steps_per_min'), 'steps/min', 1)}"),
+        ("Strides, table / all", f"{s.get('strides_scored', s.get('strides', 0))} on the table of {s.get('strides', 0)} · "
+                                 f"cadence on the table {_fmt(s.get('cadence_steps_per_min'), 'steps/min', 1)}"),
         ("Stride time", f"{_fmt(s.get('stride_time_s'), 's', 3)} "
                         f"(reference {_fmt(s.get('reference_stride_time_s'), 's', 3)})"),
         ("Angle error per stride", headline_words(s.get("headline"))),
-        *([] if session.get("course") else [("Moments, mean stride vs reference", rmse)]),
+        *([] if session.get("course") else [("Moments, mean stride", f"{rmse} (RMSE against the reference)")]),
         ("Reference", f"{REFERENCE_KIND.get(s.get('reference_kind'), 'reference')}"
                       + (" [EXTRAPOLATION]" if s.get("reference_extrapolation") else "")),
     ]

@@ -23,7 +23,7 @@ def test_the_facts_say_what_ran_how_it_went_and_any_override():
     assert facts["Patient"] == "P-1 · 80.0 kg · left side"
     assert facts["Table that ran"] == "P-1 · table v2 (CRC-32 00abc123, device version 7)"
     assert "checked by hand" in facts["Bench override"] and "Extrapolated" not in facts
-    assert facts["Leg off its table"] == "never" and facts["Strides on the table / counted"].startswith("8 / 9")
+    assert facts["Leg off its table"] == "never" and facts["Strides, table / all"].startswith("8 on the table of 9")
     assert facts["Angle error per stride"].startswith("knee 6.0 deg, ankle 10.2 deg")
 
 
