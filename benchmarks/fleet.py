@@ -108,11 +108,11 @@ def _cpu_s(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file: str,
+def _replay(legs: list[tuple[int, str, str, str]], n_legs: int, broker: str, ca_file: str,
             walk: list[tuple[float, tuple[tuple[int, float], ...], tuple[tuple[float, bytes], ...]]], start_at: float,
             out_file: str) -> None:
-    """One replayer process: its legs (index, id, password) publish the recorded walk on the firmware's schedule from
-    ``start_at`` (Unix s), each leg offset by its index over the 10 ms; the publish time of each sample and the
+    """One replayer process: its legs (index, id, user name, password) publish the recorded walk on the firmware's
+    schedule from ``start_at`` (Unix s), each leg offset by its index over the 10 ms; the publish time of each sample and the
     heartbeats each leg received are written to ``out_file``.
 
     Each leg is its own MQTT client with its own identity, as at a patient's home, publishing QoS 1 as the bridge
@@ -130,13 +130,13 @@ def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file:
     heartbeat = struct.pack("<H", frame_id("HOST_HEARTBEAT"))
     beats: list[list[float]] = [[] for _ in legs]
     clients = []
-    for j, (_, leg_id, password) in enumerate(legs):
-        c, address = broker_client(broker, f"device-{leg_id}", leg_id, password, ca_file)
+    for j, (_, leg_id, username, password) in enumerate(legs):
+        c, address = broker_client(broker, username, username, password, ca_file)
         c.on_message = lambda _c, _u, m, j=j: beats[j].append(time.time()) if m.payload[:2] == heartbeat else None
         c.connect(address.host, address.port, keepalive=30)
         c.subscribe(topic(leg_id, "down"), qos=0)
         clients.append(c)
-    up = [topic(leg_id, "up") for _, leg_id, _ in legs]
+    up = [topic(leg_id, "up") for _, leg_id, _, _ in legs]
     by_socket = {c.socket(): c for c in clients}
 
     def pump(until: float) -> None:
@@ -170,7 +170,7 @@ def _replay(legs: list[tuple[int, str, str]], n_legs: int, broker: str, ca_file:
     pump(time.time() + 1.0)
     for c in clients:
         c.disconnect()
-    np.savez(out_file, sent=sent, index=np.array([i for i, _, _ in legs]),
+    np.savez(out_file, sent=sent, index=np.array([i for i, *_ in legs]),
              beats=np.array([np.array(b) for b in beats], dtype=object))
 
 
@@ -252,8 +252,8 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
     with running_broker() as broker, tempfile.TemporaryDirectory(prefix="quasitune-fleet-") as tmp:
         folder = Path(tmp)
         with admin_of(broker) as admin:
-            passwords = [admin.add_device(leg) for leg in leg_ids]
-            servers_pw = {name: admin.add_server(f"fleet-{name}") for name in ("api1", "api2")}
+            identities = [admin.add_device(leg) for leg in leg_ids]
+            servers_id = {name: admin.add_server(f"fleet-{name}") for name in ("api1", "api2")}
         migrate(folder / "quasitune.sqlite")
         conn = connect(folder / "quasitune.sqlite")
         try:
@@ -262,9 +262,9 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
             conn.close()
         device = ",".join(f"mqtt:{leg}" for leg in leg_ids)
         servers = {name: Instance(folder, None, device, {
-            "QUASITUNE_BROKER_URL": broker.url, "QUASITUNE_BROKER_USERNAME": f"fleet-{name}",
-            "QUASITUNE_BROKER_PASSWORD": pw, "QUASITUNE_BROKER_CA_FILE": broker.ca_file,
-            "QUASITUNE_INSTANCE_NAME": name}) for name, pw in servers_pw.items()}
+            "QUASITUNE_BROKER_URL": broker.url, "QUASITUNE_BROKER_USERNAME": who.username,
+            "QUASITUNE_BROKER_PASSWORD": who.password, "QUASITUNE_BROKER_CA_FILE": broker.ca_file,
+            "QUASITUNE_INSTANCE_NAME": name}) for name, who in servers_id.items()}
         procs: list[multiprocessing.Process] = []
         try:
             for s in servers.values():
@@ -273,7 +273,7 @@ def run(legs: int = 50, monitors: int = 20, seconds: float = 30.0, replayers: in
                 s.ready()
             start_at = time.time() + 5.0 + 0.2 * legs / replayers    # every replayer connected by then
             ctx = multiprocessing.get_context("spawn")
-            groups = [[(i, leg_ids[i], passwords[i]) for i in range(r, legs, replayers)] for r in range(replayers)]
+            groups = [[(i, leg_ids[i], *identities[i]) for i in range(r, legs, replayers)] for r in range(replayers)]
             for r, group in enumerate(groups):
                 p = ctx.Process(target=_replay, args=(group, legs, broker.url, broker.ca_file, walk, start_at,
                                                       str(folder / f"replay-{r}.npz")))

@@ -41,7 +41,7 @@ def _topology(broker, admin, faults: tuple[float, float, float] | None = None, s
     from device_bridge.mqtt_bus import MqttBus
 
     device_id = f"bench-leg-{next(_legs)}"
-    password = admin.add_device(device_id)
+    identity = admin.add_device(device_id)
     channel = f"bench-link-{time.monotonic_ns()}"
 
     def leg_bus(offset: int):
@@ -49,11 +49,10 @@ def _topology(broker, admin, faults: tuple[float, float, float] | None = None, s
         return bus if faults is None else FaultInjectingBus(bus, *faults, seed=seed + offset)
 
     node = DeviceNode(leg_bus(0)).start()
-    far = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file,
+    far = MqttBus(device_id, broker.url, *identity, role="device", ca_file=broker.ca_file,
                   connect_timeout_s=30.0)
     gateway = Gateway.to_broker(leg_bus(1), far).start()
-    name = f"bench-server-{next(_legs)}"
-    link = DeviceLink(MqttBus(device_id, broker.url, name, admin.add_server(name), role="server",
+    link = DeviceLink(MqttBus(device_id, broker.url, *admin.add_server(f"bench-{next(_legs)}"), role="server",
                               ca_file=broker.ca_file, connect_timeout_s=30.0)).start()
     return node, gateway, link
 

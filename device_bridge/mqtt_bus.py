@@ -186,12 +186,16 @@ class BrokerAddress:
         return cls(parts.hostname, parts.port or (8883 if parts.scheme == "mqtts" else 1883), parts.scheme == "mqtts")
 
 
-def client_id_of(role: str, username: str) -> str:
-    """The one client id an identity connects with: ``device-{device id}`` for a leg's bridge, ``server-{name}`` for
-    an API instance. The broker binds it to the identity when the identity is made
+def identity_name(role: str, name: str) -> str:
+    """An identity's user name at the broker, which is also its one client id: ``device-{device id}`` for a leg's
+    bridge, ``server-{name}`` for an API instance. The prefix is the namespace: a leg's identity can never be named
+    like a server's or the broker's admin (whose name is in neither), so issuing a leg's credentials cannot replace
+    theirs. The broker binds the client id to the identity when it is made
     (:meth:`~device_bridge.broker_admin.BrokerAdmin.add_device`), so no identity can connect under another's client
     id and inherit its session, its subscriptions or knock it off the broker."""
-    return f"{role}-{username}"
+    if role not in ("device", "server"):
+        raise ValueError(f"an identity's role is 'device' or 'server', got {role!r}")
+    return f"{role}-{name}"
 
 
 def broker_client(broker: str, client_id: str, username: str, password: str, ca_file: str | None = None,
@@ -220,7 +224,7 @@ class MqttBus(can.BusABC):
         broker: ``mqtts://HOST:PORT``.
         username, password: this client's identity at the broker (the device's, or the server's).
         ca_file: the CA that signed the broker's certificate (QuasiTune's own); None for the system's.
-        instance: unused by a bus of its own (its client id is its identity's, :func:`client_id_of`: several
+        instance: unused by a bus of its own (its client id is its identity's user name, :func:`identity_name`: several
             instances each need an identity of their own, as each keeps a session of its own and reads every frame).
         connect_timeout_s: how long the constructor waits for the first connection before it fails loudly.
         late_buffer: the leg's side only: where its messages wait while the broker is out of reach (see the module);
@@ -276,7 +280,7 @@ class MqttBus(can.BusABC):
         else:
             if broker is None or username is None or password is None:
                 raise ValueError("a broker link needs the broker's address and an identity (or a shared connection)")
-            self._client, address = broker_client(broker, client_id_of(role, username), username, password, ca_file,
+            self._client, address = broker_client(broker, username, username, password, ca_file,
                                                   insecure, clean_session=False)
             self.channel_info = f"mqtt {role} {channel} @ {address.host}:{address.port}"
             self._start_client(address)

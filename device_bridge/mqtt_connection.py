@@ -10,7 +10,7 @@ bridge kept while its link was down), and late ones are taken one leg at a time 
 :data:`LATE_QUEUED_PER_LEG` (beyond, dropped and counted): one leg's backlog never delays another leg's status (300
 late messages of one leg kept another offline for 28.6 s).
 
-The client id is its identity's, ``server-{name}`` (bound to the identity at the broker, :func:`client_id_of`), with a
+The client id is its identity's user name, ``server-{name}`` (bound to it at the broker, :func:`identity_name`), with a
 persistent session when the instance is named, so each instance (each with an identity of its own) reads every frame of
 its legs and the broker keeps the QoS 1 frames that arrive while it reconnects.
 """
@@ -23,7 +23,7 @@ from collections import Counter, deque
 
 import paho.mqtt.client as mqtt
 
-from device_bridge.mqtt_bus import TOPIC_PREFIX, MqttBus, broker_client, client_id_of, topic
+from device_bridge.mqtt_bus import TOPIC_PREFIX, MqttBus, broker_client, topic
 
 log = logging.getLogger(__name__)
 LATE_QUEUED_PER_LEG = 512     # late messages of one leg waiting to be handed over (about 24 MB at most)
@@ -42,7 +42,7 @@ class MqttConnection:
 
     def __init__(self, broker: str, username: str, password: str, ca_file: str | None = None,
                  instance: str | None = None, insecure: bool = False, connect_timeout_s: float = 10.0) -> None:
-        self._client, address = broker_client(broker, client_id_of("server", username), username, password,
+        self._client, address = broker_client(broker, username, username, password,
                                               ca_file, insecure, clean_session=not instance)
         self.description = f"mqtt server{f' {instance}' if instance else ''} @ {address.host}:{address.port}"
         self._buses: dict[str, MqttBus] = {}

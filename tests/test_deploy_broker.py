@@ -72,17 +72,17 @@ def test_first_start_makes_its_own_ca_and_a_restart_keeps_it_and_every_identity(
         first_ca = Path(ca).read_bytes()
         assert b"BEGIN CERTIFICATE" in first_ca and not (root / "ca" / "ca.key").exists()
         admin = BrokerAdmin(url, env["QUASITUNE_BROKER_ADMIN_USERNAME"], env["QUASITUNE_BROKER_ADMIN_PASSWORD"], ca)
-        password = admin.add_device("deploy-leg")
+        identity = admin.add_device("deploy-leg")
         admin.close()
-        MqttBus("deploy-leg", url, "deploy-leg", password, role="device", ca_file=ca).shutdown()
+        MqttBus("deploy-leg", url, *identity, role="device", ca_file=ca).shutdown()
     finally:
         _stop(proc)
     proc = _start(env, port)                 # a restart: nothing made again, nothing forgotten
     try:
         assert Path(ca).read_bytes() == first_ca
-        MqttBus("deploy-leg", url, "deploy-leg", password, role="device", ca_file=ca).shutdown()
+        MqttBus("deploy-leg", url, *identity, role="device", ca_file=ca).shutdown()
         with pytest.raises(can.CanInitializationError):   # anyone else is refused
-            MqttBus("deploy-leg", url, "deploy-leg", "not the password", role="device", ca_file=ca,
+            MqttBus("deploy-leg", url, identity.username, "not the password", role="device", ca_file=ca,
                     connect_timeout_s=2).shutdown()
     finally:
         _stop(proc)

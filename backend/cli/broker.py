@@ -42,13 +42,13 @@ def cmd_broker_add(args: argparse.Namespace) -> int:
         raise ValueError(f"--out {args.out} exists: an identity is already written there")
     admin, ca = _admin()
     try:
-        password = admin.add_server(args.name) if args.broker_command == "add-server" else admin.add_device(args.name)
+        identity = admin.add_server(args.name) if args.broker_command == "add-server" else admin.add_device(args.name)
     except BrokerAdminError as exc:
         raise ValueError(str(exc)) from None
     finally:
         admin.close()
-    _write_private(args.out, {"username": args.name, "password": password, "ca_file": ca})
-    print(f"{args.name}: identity created at the broker; credentials written to {args.out} (owner only)")
+    _write_private(args.out, {"username": identity.username, "password": identity.password, "ca_file": ca})
+    print(f"{identity.username}: identity created at the broker; credentials written to {args.out} (owner only)")
     return 0
 
 

@@ -56,18 +56,18 @@ def issue_credentials(device_id: DeviceIdPath, conn: Conn, user: Admin,
     credentials file (``quasitune bridge --credentials``)."""
     with _broker(settings) as broker:
         try:
-            password, replaced = broker.add_device(device_id), False
+            identity, replaced = broker.add_device(device_id), False
         except BrokerAdminError as exc:
             if "already exists" not in str(exc):
                 raise ConflictError(str(exc)) from None
             try:      # only a leg's own identity is replaced: never a server's nor the broker's admin
-                password, replaced = broker.replace_device(device_id), True
+                identity, replaced = broker.replace_device(device_id), True
             except BrokerAdminError as refused:
                 raise ConflictError(str(refused)) from None
     devices_store.register_device(conn, device_id, "can", "mqtt", device_id)
     devices_store.record_command(conn, device_id, "credentials_replace" if replaced else "credentials_issue", user)
-    return {"device_id": device_id, "username": device_id, "password": password, "broker_url": settings.broker_url,
-            "replaced": replaced,
+    return {"device_id": device_id, "username": identity.username, "password": identity.password,
+            "broker_url": settings.broker_url, "replaced": replaced,
             "words": ("new credentials; the old ones no longer work" if replaced else "credentials issued") +
                      ": shown once, write them into the leg's bridge credentials file now"}
 

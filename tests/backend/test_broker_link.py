@@ -193,9 +193,10 @@ def two_instances(home, own_admin, tmp_path, model):
     from backend.settings import Settings
 
     broker, leg, api = home
+    two = own_admin.add_server("two")
     second = TestClient(create_app(Settings(
-        data_dir=tmp_path / "one", device=f"mqtt:{LEG}", broker_url=broker.url, broker_username="server-two",
-        broker_password=own_admin.add_server("server-two"), broker_ca_file=broker.ca_file, instance_name="two"),
+        data_dir=tmp_path / "one", device=f"mqtt:{LEG}", broker_url=broker.url, broker_username=two.username,
+        broker_password=two.password, broker_ca_file=broker.ca_file, instance_name="two"),
         model_loader=lambda: model))
     with second:
         yield leg, api, second
@@ -239,9 +240,10 @@ def test_one_instance_serves_several_legs_through_the_broker(own_broker, own_adm
 
     with bridged_leg(own_broker, own_admin, tmp_path, "leg-a") as a, bridged_leg(own_broker, own_admin, tmp_path,
                                                                                  "leg-b") as b:
+        many = own_admin.add_server("many")
         api, client = make_api(tmp_path / "many", lambda: model, template=migrated_sqlite,
-                               device="mqtt:leg-a,mqtt:leg-b", broker_url=own_broker.url, broker_username="many",
-                               broker_password=own_admin.add_server("many"), broker_ca_file=own_broker.ca_file)
+                               device="mqtt:leg-a,mqtt:leg-b", broker_url=own_broker.url, broker_username=many.username,
+                               broker_password=many.password, broker_ca_file=own_broker.ca_file)
         with client:
             listed = wait_for(lambda: client.get("/api/devices", headers=api.as_("viewer")).json(),
                               lambda ds: len(ds) == 2 and all(d["online"] for d in ds))

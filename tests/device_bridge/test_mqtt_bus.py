@@ -12,10 +12,11 @@ import paho.mqtt.client as mqtt
 import pytest
 from paho.mqtt.enums import CallbackAPIVersion
 
+from device_bridge.broker_admin import Identity
 from device_bridge.device_node import DeviceNode
 from device_bridge.gateway import Gateway
 from device_bridge.host import DeviceLink, PushError
-from device_bridge.mqtt_bus import MqttBus, client_id_of, pack_frames, topic, unpack_frames
+from device_bridge.mqtt_bus import MqttBus, pack_frames, topic, unpack_frames
 from device_bridge.protocol import WireTable, frame_id
 from tests.helpers.device import until
 
@@ -26,15 +27,14 @@ def _frame(i: int, data: bytes = b"\x01\x02\x03") -> can.Message:
     return can.Message(arbitration_id=i, data=data, is_extended_id=False)
 
 
-def _leg(broker_admin, name: str) -> tuple[str, str]:
+def _leg(broker_admin, name: str) -> tuple[str, Identity]:
     device_id = f"{name}-{next(_ids)}"
     return device_id, broker_admin.add_device(device_id)
 
 
 @pytest.fixture
-def server_identity(broker_admin) -> tuple[str, str]:
-    name = f"server-{next(_ids)}"
-    return name, broker_admin.add_server(name)
+def server_identity(broker_admin) -> Identity:
+    return broker_admin.add_server(f"{next(_ids)}")
 
 
 def test_frames_travel_whole_and_a_payload_that_is_not_whole_frames_is_refused():
@@ -55,9 +55,9 @@ def test_the_link_is_tls_only_unless_a_bench_says_otherwise(broker):
 
 
 def test_server_and_leg_exchange_frames_batched_both_ways(broker, broker_admin, server_identity):
-    device_id, password = _leg(broker_admin, "leg")
+    device_id, identity = _leg(broker_admin, "leg")
     server = MqttBus(device_id, broker.url, *server_identity, role="server", ca_file=broker.ca_file)
-    leg = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file)
+    leg = MqttBus(device_id, broker.url, *identity, role="device", ca_file=broker.ca_file)
     try:
         server.send(_frame(0x100))
         got = leg.recv(5)
@@ -72,7 +72,7 @@ def test_server_and_leg_exchange_frames_batched_both_ways(broker, broker_admin, 
 def _raw_client(broker, username: str, password: str) -> tuple[mqtt.Client, list, threading.Event]:
     """A plain paho client with a leg's identity (and so its one bound client id)."""
     received, subscribed = [], threading.Event()
-    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id_of("device", username))
+    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=username)
     c.username_pw_set(username, password)
     c.tls_set(ca_certs=broker.ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
     c.on_message = lambda _c, _u, m: received.append(m.topic)
@@ -84,11 +84,11 @@ def _raw_client(broker, username: str, password: str) -> tuple[mqtt.Client, list
 
 
 def test_a_device_reads_only_its_own_commands_and_cannot_send_any(broker, broker_admin, server_identity):
-    a, a_password = _leg(broker_admin, "leg-a")
-    b, b_password = _leg(broker_admin, "leg-b")
+    a, a_id = _leg(broker_admin, "leg-a")
+    b, b_id = _leg(broker_admin, "leg-b")
     server = MqttBus(a, broker.url, *server_identity, role="server", ca_file=broker.ca_file)
-    leg_a = MqttBus(a, broker.url, a, a_password, role="device", ca_file=broker.ca_file)
-    spy, seen, subscribed = _raw_client(broker, b, b_password)     # leg b's identity, trying a's topics
+    leg_a = MqttBus(a, broker.url, *a_id, role="device", ca_file=broker.ca_file)
+    spy, seen, subscribed = _raw_client(broker, *b_id)     # leg b's identity, trying a's topics
     try:
         spy.subscribe(topic(a, "down"), qos=1)
         assert subscribed.wait(5)
@@ -125,17 +125,16 @@ def test_no_identity_connects_under_another_identitys_client_id(broker, broker_a
     """Each identity's client id is bound at the broker: a leg's credentials under the server's client id (which would
     inherit its persistent session and subscriptions, and knock it off once a second) or under another leg's are
     refused, and the server's link is not disturbed."""
-    a, _a_password = _leg(broker_admin, "leg-a")
-    b, b_password = _leg(broker_admin, "leg-b")
-    name, _ = server_identity
+    a, a_id = _leg(broker_admin, "leg-a")
+    b, b_id = _leg(broker_admin, "leg-b")
     server = MqttBus(a, broker.url, *server_identity, role="server", ca_file=broker.ca_file)
     clients = []
     try:
-        for stolen in (client_id_of("server", name), client_id_of("device", a), f"raw-{next(_ids)}"):
-            accepted, c = _connect_as(broker, b, b_password, stolen)
+        for stolen in (server_identity.username, a_id.username, f"raw-{next(_ids)}"):
+            accepted, c = _connect_as(broker, *b_id, stolen)
             clients.append(c)
             assert not accepted, f"{b} connected as {stolen}"
-        accepted, c = _connect_as(broker, b, b_password, client_id_of("device", b))
+        accepted, c = _connect_as(broker, *b_id, b_id.username)
         clients.append(c)
         assert accepted                                                   # its own client id works
         assert server.connected and server._client.is_connected()         # never knocked off
@@ -147,8 +146,8 @@ def test_no_identity_connects_under_another_identitys_client_id(broker, broker_a
 
 
 def test_a_revoked_device_is_disconnected_at_once_and_refused_afterwards(broker, broker_admin):
-    device_id, password = _leg(broker_admin, "leg")
-    leg = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file)
+    device_id, identity = _leg(broker_admin, "leg")
+    leg = MqttBus(device_id, broker.url, *identity, role="device", ca_file=broker.ca_file)
     try:
         assert leg.connected
         broker_admin.revoke_device(device_id)
@@ -156,7 +155,7 @@ def test_a_revoked_device_is_disconnected_at_once_and_refused_afterwards(broker,
     finally:
         leg.shutdown()
     with pytest.raises(can.CanInitializationError, match="could not connect"):
-        MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file,
+        MqttBus(device_id, broker.url, *identity, role="device", ca_file=broker.ca_file,
                 connect_timeout_s=2)
 
 
@@ -164,8 +163,8 @@ def test_a_replaced_password_shuts_the_old_one_out(broker, broker_admin):
     device_id, old = _leg(broker_admin, "leg")
     new = broker_admin.replace_device(device_id)
     with pytest.raises(can.CanInitializationError):
-        MqttBus(device_id, broker.url, device_id, old, role="device", ca_file=broker.ca_file, connect_timeout_s=2)
-    MqttBus(device_id, broker.url, device_id, new, role="device", ca_file=broker.ca_file).shutdown()
+        MqttBus(device_id, broker.url, *old, role="device", ca_file=broker.ca_file, connect_timeout_s=2)
+    MqttBus(device_id, broker.url, *new, role="device", ca_file=broker.ca_file).shutdown()
 
 
 class _Tamper(can.BusABC):
@@ -198,10 +197,10 @@ class _Tamper(can.BusABC):
 
 def _bridged(broker, broker_admin, server_identity, tamper: bool = False):
     """A simulated leg on its own virtual bus, its bridge to the broker, and the server's link through the broker."""
-    device_id, password = _leg(broker_admin, "leg")
+    device_id, identity = _leg(broker_admin, "leg")
     leg_bus = f"test-mqtt-leg-{next(_ids)}"
     node = DeviceNode(can.Bus(interface="virtual", channel=leg_bus)).start()
-    far = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file)
+    far = MqttBus(device_id, broker.url, *identity, role="device", ca_file=broker.ca_file)
     gateway = Gateway(can.Bus(interface="virtual", channel=leg_bus), _Tamper(far) if tamper else far).start()
     link = DeviceLink(MqttBus(device_id, broker.url, *server_identity, role="server", ca_file=broker.ca_file)).start()
     return node, gateway, link
@@ -242,16 +241,15 @@ def test_a_frame_altered_in_transit_never_yields_a_mixed_table(broker, broker_ad
 
 def test_two_server_instances_both_read_one_legs_frames(broker, broker_admin, tables):
     """Each API instance has its own session at the broker: both see the leg's status (and telemetry)."""
-    device_id, password = _leg(broker_admin, "leg")
+    device_id, identity = _leg(broker_admin, "leg")
     leg_bus = f"test-mqtt-leg-{next(_ids)}"
     node = DeviceNode(can.Bus(interface="virtual", channel=leg_bus)).start()
-    far = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file)
+    far = MqttBus(device_id, broker.url, *identity, role="device", ca_file=broker.ca_file)
     gateway = Gateway(can.Bus(interface="virtual", channel=leg_bus), far).start()
     links = []
     try:
         for instance in ("one", "two"):
-            name = f"server-{instance}-{next(_ids)}"
-            bus = MqttBus(device_id, broker.url, name, broker_admin.add_server(name), role="server",
+            bus = MqttBus(device_id, broker.url, *broker_admin.add_server(f"{instance}-{next(_ids)}"), role="server",
                           ca_file=broker.ca_file, instance=instance)
             links.append(DeviceLink(bus).start())
         until(lambda: all(link.status is not None for link in links), 5.0, poll_s=0.05)
@@ -296,9 +294,9 @@ def test_an_oversized_message_is_refused_at_the_broker_and_never_reaches_the_ser
                                                                                      server_identity):
     """The broker's max_packet_size (64 KiB, above any late chunk) disconnects a client that sends more, before the
     message reaches anyone; the server's link stays up (a 10 MB message sent another leg offline for 5 s)."""
-    b, b_password = _leg(broker_admin, "leg-big")
+    b, b_id = _leg(broker_admin, "leg-big")
     server = MqttBus(b, broker.url, *server_identity, role="server", ca_file=broker.ca_file)
-    accepted, c = _connect_as(broker, b, b_password, client_id_of("device", b))
+    accepted, c = _connect_as(broker, *b_id, b_id.username)
     gone = threading.Event()
     c.on_disconnect = lambda *_: gone.set()
     try:

@@ -28,14 +28,14 @@ def _legs(broker, admin, n: int) -> list[MqttBus]:
     out = []
     for _ in range(n):
         device_id = f"shared-leg-{next(_ids)}"
-        out.append(MqttBus(device_id, broker.url, device_id, admin.add_device(device_id), role="device",
+        out.append(MqttBus(device_id, broker.url, *admin.add_device(device_id), role="device",
                            ca_file=broker.ca_file))
     return out
 
 
 def _connection(broker, admin) -> MqttConnection:
     name = f"shared-server-{next(_ids)}"
-    return MqttConnection(broker.url, name, admin.add_server(name), ca_file=broker.ca_file, instance=name)
+    return MqttConnection(broker.url, *admin.add_server(name), ca_file=broker.ca_file, instance=name)
 
 
 def test_one_connection_serves_several_legs_each_on_its_own_bus(broker, broker_admin):
@@ -73,14 +73,19 @@ def test_one_connection_serves_several_legs_each_on_its_own_bus(broker, broker_a
             leg.shutdown()
 
 
-def test_a_legs_identity_cannot_open_a_servers_connection(broker, broker_admin):
-    """A leg's credentials are bound to the leg's client id: used as a server's connection (to read other legs'
-    frames) they are refused at the broker, loudly, before any subscription."""
+def test_a_legs_identity_cannot_read_any_leg_through_a_servers_connection(broker, broker_admin):
+    """A leg's credentials used as a server's connection (to read other legs' frames): the broker lets the leg in
+    under its own client id only, and refuses it every leg's ``up`` topic, its own included: attaching a leg fails
+    loudly, saying so."""
     mine = f"shared-leg-{next(_ids)}"
-    password = broker_admin.add_device(mine)
-    with pytest.raises(ConnectionError, match="could not connect"):
-        MqttConnection(broker.url, mine, password, ca_file=broker.ca_file, instance=f"as-a-leg-{next(_ids)}",
-                       connect_timeout_s=3.0)
+    conn = MqttConnection(broker.url, *broker_admin.add_device(mine), ca_file=broker.ca_file,
+                          instance=f"as-a-leg-{next(_ids)}", connect_timeout_s=3.0)
+    try:
+        for leg in (mine, "someone-else"):
+            with pytest.raises(can.CanInitializationError, match="not allowed to read"):
+                MqttBus(leg, connection=conn, connect_timeout_s=2.0)
+    finally:
+        conn.close()
 
 
 def test_every_leg_is_down_while_the_broker_is_and_back_after_it():

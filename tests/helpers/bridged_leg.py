@@ -35,12 +35,12 @@ class BridgedLeg:
 def bridged_leg(broker, admin, folder: Path, device_id: str = "home-leg", mass_kg: float = 80.0
                 ) -> Iterator[BridgedLeg]:
     """The leg (a patient of ``mass_kg`` standing on it) and its bridge, connected to ``broker`` as ``device_id``."""
-    password = admin.add_device(device_id)
+    identity = admin.add_device(device_id)
     channel = f"bridged-{device_id}-{next(_ids)}"
     walker = SimWalker()
     walker.stand(mass_kg)
     node = DeviceNode(can.Bus(interface="virtual", channel=channel), leg=walker).start()
-    far = MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file,
+    far = MqttBus(device_id, broker.url, *identity, role="device", ca_file=broker.ca_file,
                   late_buffer=LateBuffer(folder / f"{device_id}-late.sqlite"))
     gateway = Gateway.to_broker(can.Bus(interface="virtual", channel=channel), far).start()
     try:
@@ -54,9 +54,9 @@ def bridged_leg(broker, admin, folder: Path, device_id: str = "home-leg", mass_k
 def broker_app(broker, admin, folder: Path, model, template: Path, device_id: str, instance: str = "one"
                ) -> Iterator[Api]:
     """An API instance whose one device is ``mqtt:device_id``, with a server identity of its own at the broker."""
-    name = f"server-{instance}-{next(_ids)}"
+    server = admin.add_server(f"{instance}-{next(_ids)}")
     api, client = make_api(folder / instance, lambda: model, template=template, device=f"mqtt:{device_id}",
-                           broker_url=broker.url, broker_username=name, broker_password=admin.add_server(name),
+                           broker_url=broker.url, broker_username=server.username, broker_password=server.password,
                            broker_ca_file=broker.ca_file, instance_name=instance)
     with client:     # the app's lifespan opens the broker link and closes it
         yield api

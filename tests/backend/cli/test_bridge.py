@@ -23,8 +23,8 @@ pytestmark = [pytest.mark.broker, pytest.mark.wallclock, pytest.mark.live]
 def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_pushes_to_it(broker, broker_admin,
                                                                                           tmp_path):
     credentials = tmp_path / "leg.json"
-    credentials.write_text(json.dumps({"username": "cli-bridge-leg", "password": broker_admin.add_device("cli-bridge-leg"),
-                                       "ca_file": broker.ca_file}))
+    username, password = broker_admin.add_device("cli-bridge-leg")
+    credentials.write_text(json.dumps({"username": username, "password": password, "ca_file": broker.ca_file}))
     err = (tmp_path / "stderr.txt").open("w")      # a file, not a pipe: a full pipe would stop the bridge
     proc = subprocess.Popen([sys.executable, "-m", "backend.cli", "bridge", "--can", "sim", "--broker", broker.url,
                              "--device-id", "cli-bridge-leg", "--credentials", str(credentials),
@@ -35,8 +35,7 @@ def test_a_bridge_process_puts_the_simulated_leg_on_the_broker_and_a_server_push
     try:
         line = proc.stdout.readline()
         assert "QuasiTune bridge: sim <->" in line and "at most 4 MiB" in line, (tmp_path / "stderr.txt").read_text()
-        link = DeviceLink(MqttBus("cli-bridge-leg", broker.url, "cli-bridge-server",
-                                  broker_admin.add_server("cli-bridge-server"), role="server",
+        link = DeviceLink(MqttBus("cli-bridge-leg", broker.url, *broker_admin.add_server("cli-bridge-server"), role="server",
                                   ca_file=broker.ca_file)).start()
         result = link.push(fsmic_table(75.0), version=3)
         until(lambda: link.status and link.status.mode == Mode.ACTIVE and link.status.active_crc32 == result.crc32,

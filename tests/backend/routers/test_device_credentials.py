@@ -23,7 +23,7 @@ def broker_api(tmp_path, model, migrated_sqlite, broker):
 
 
 def _connect(broker, device_id: str, password: str, timeout_s: float = 5.0) -> MqttBus:
-    return MqttBus(device_id, broker.url, device_id, password, role="device", ca_file=broker.ca_file,
+    return MqttBus(device_id, broker.url, f"device-{device_id}", password, role="device", ca_file=broker.ca_file,
                    connect_timeout_s=timeout_s)
 
 
@@ -31,6 +31,7 @@ def test_an_admin_issues_replaces_and_revokes_a_legs_credentials(broker_api, bro
     api, url = broker_api, "/api/devices/leg-api-1/credentials"
     first = api.client.post(url, headers=api.as_("admin"))
     assert first.status_code == 201 and not first.json()["replaced"] and "shown once" in first.json()["words"]
+    assert first.json()["username"] == "device-leg-api-1"                        # in the legs' namespace
     _connect(broker, "leg-api-1", first.json()["password"]).shutdown()          # the bridge gets in with it
     second = api.client.post(url, headers=api.as_("admin"))
     assert second.status_code == 201 and second.json()["replaced"]
@@ -63,16 +64,38 @@ def test_only_an_admin_may_and_only_with_a_broker(broker_api, api):
     assert r.status_code in (404, 422)
 
 
-def test_only_a_legs_identity_is_issued_replaced_or_revoked_here(broker_api, broker, broker_admin):
-    """A server instance's identity and the broker's admin are not legs: replacing one would hand out a server-role
-    password (every leg's frames) or cut the running instance off, and the admin's would leave no one able to revoke
-    a stolen leg. Each is refused (409) and keeps working."""
+def test_a_legs_credentials_never_touch_a_servers_or_the_admins_identity(broker_api, broker, broker_admin):
+    """Legs have a namespace of their own (``device-…``): credentials issued for a device id spelled like a server's
+    name or the broker's admin make a new leg identity beside it, never a server-role password (every leg's frames),
+    never cutting the running instance off, never leaving no one able to revoke a stolen leg. Replacing or revoking an
+    identity that is not a leg's (made without its own role) is refused (409) and changes nothing."""
     api = broker_api
-    server_password = broker_admin.add_server("api-two")
-    for name in ("api-two", ADMIN):
-        for method in ("post", "delete"):
-            r = getattr(api.client, method)(f"/api/devices/{name}/credentials", headers=api.as_("admin"))
-            assert r.status_code == 409 and "is not a leg's identity" in r.json()["detail"], (name, method, r.text)
-    still = MqttBus("any-leg", broker.url, "api-two", server_password, role="server", ca_file=broker.ca_file)
-    still.shutdown()                                                   # the server's password still works
+    server = broker_admin.add_server("api-two")
+    for name in ("api-two", "server-api-two", ADMIN):
+        r = api.client.post(f"/api/devices/{name}/credentials", headers=api.as_("admin"))
+        assert r.status_code == 201 and r.json()["username"] == f"device-{name}", r.text
+        far = _connect(broker, name, r.json()["password"])
+        try:
+            assert far.connected
+        finally:
+            far.shutdown()
+    MqttBus("any-leg", broker.url, *server, role="server", ca_file=broker.ca_file).shutdown()   # still works
+    MqttBus("any-leg", broker.url, ADMIN, broker.admin_password, role="server", ca_file=broker.ca_file).shutdown()
+    broker_admin._command("createClient", username="device-not-a-leg", password="x" * 24)   # no leg role
+    for method in ("post", "delete"):
+        r = getattr(api.client, method)("/api/devices/not-a-leg/credentials", headers=api.as_("admin"))
+        assert r.status_code == 409 and "is not a leg's identity" in r.json()["detail"], (method, r.text)
+    got = broker_admin._command("getClient", username="device-not-a-leg")["data"]["client"]
+    assert got.get("disabled") is not True and got.get("roles", []) == []               # left as it was
     assert broker_admin.add_device("leg-after") and broker_admin.replace_device("leg-after")   # the admin still can
+
+
+def test_a_refused_identity_leaves_no_role_behind(broker_admin):
+    """Issuing an identity that exists is refused whole: the leg's role made for it is removed again."""
+    from device_bridge.broker_admin import BrokerAdminError, device_role
+
+    broker_admin._command("createClient", username="device-taken", password="x" * 24)
+    with pytest.raises(BrokerAdminError, match="createClient"):
+        broker_admin.add_device("taken")
+    with pytest.raises(BrokerAdminError, match="getRole"):
+        broker_admin._command("getRole", rolename=device_role("taken"))
