@@ -20,7 +20,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
 from backend.bench.preview import BenchmarkCourseWalks
-from backend.body_limit import LimitBodies
+from backend.body_limit import GateBodies, body_rules
 from backend.db import open_engine
 from backend.devices import DeviceManager, parse_device_specs
 from backend.errors import DomainError
@@ -195,7 +195,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)
     app.add_middleware(RefuseAnonymousWrites)   # its 401 carries the security headers itself
-    app.add_middleware(LimitBodies)             # a stated bound, before any body is read (its 413 inside the headers)
+    app.add_middleware(GateBodies, rules=body_rules(app))   # each route's bound and role, before its body is read
     app.add_middleware(AnswerFaults)            # a 500 that keeps the connection open (inside the security headers)
     add_security_headers(app)
     app.openapi = lambda: _openapi(app)

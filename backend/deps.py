@@ -72,6 +72,7 @@ def require_role(*roles: str) -> Callable[[User], Awaitable[User]]:
             raise HTTPException(status.HTTP_403_FORBIDDEN,
                                 f"this action needs the role {' or '.join(roles)}; {user.username} is {user.role}")
         return user
+    check.roles = roles      # read by backend.body_limit: the role is checked before a body is read
     return check
 
 
