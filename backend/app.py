@@ -26,6 +26,7 @@ from backend.devices import DeviceManager, parse_device_specs
 from backend.errors import DomainError
 from backend.frontend import mount_frontend
 from backend.headers import RefuseAnonymousWrites, add_security_headers, mount_docs
+from backend.instance_beat import InstanceBeat
 from backend.migrate import migrate, require_current
 from backend.model_service import ModelService
 from backend.refusal_words import sentence
@@ -130,6 +131,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
             app.state.viewers.close()
         if isinstance(app.state.clock, PacedClock):
             app.state.clock.close()
+        app.state.instance_beat.close()
         app.state.devices.close()
         if app.state.broker is not None:
             app.state.broker.close()
@@ -167,6 +169,8 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
             app.state.broker.close()
         raise
     app.state.clock = paced.start() if paced is not None else clock
+    app.state.devices.instance_name = settings.instance_name
+    app.state.instance_beat = InstanceBeat(app.state.db, settings.instance_name).start()
     app.state.viewers = ViewerRegistry(app.state.devices) if settings.viewer3d else None
 
     @app.exception_handler(RequestValidationError)

@@ -87,6 +87,7 @@ class DeviceManager:
         self._heartbeats: HeartbeatClock | None = None   # one heartbeat thread for the legs of a shared broker connection
         self.recorder = SessionRecorder(db, tuple(spec.device_id for spec in specs), clock=clock)
         self._withdrawals = 0     # counts withdrawals made through this process
+        self.instance_name: str | None = None    # this API instance's (its pushes name it: backend.store.pushes)
 
     def start(self) -> DeviceManager:
         with pooled(self.db) as conn:

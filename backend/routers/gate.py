@@ -145,7 +145,7 @@ def _resend(conn: Connection, devices: DeviceManager, device_id: str, back: dict
         raise ConflictError(f"{back['label']} no longer passes the safety limits")
     with devices.push_slot(device_id):
         push_id, version = pushes_store.begin_push(conn, item, device_id, checked.wire_crc32, user,
-                                                   sent_back_reason=why)
+                                                   sent_back_reason=why, instance_name=devices.instance_name)
         devices.push_started(device_id, push_id)
         try:
             result = (devices.push(device_id, content, version) if item[0] == "proposal"   # type: ignore[arg-type]

@@ -97,7 +97,8 @@ def _push(conn: Connection, devices: DeviceManager, user: User, body: PushReques
         _check_replaces(conn, devices, body)
         if not devices.online(devices.get(body.device_id)):
             raise ConflictError(f"device {body.device_id} is offline (no status in the last second); nothing was sent")
-        push_id, version = store.begin_push(conn, item, body.device_id, crc, user, override)
+        push_id, version = store.begin_push(conn, item, body.device_id, crc, user, override,
+                                             instance_name=devices.instance_name)
         devices.push_started(body.device_id, push_id)
         t0 = time.monotonic()
         try:

@@ -13,7 +13,7 @@ from __future__ import annotations
 from datetime import UTC, datetime, timedelta
 from typing import Literal
 
-from sqlalchemy import Connection, RowMapping, bindparam, case, func, insert, or_, select, update
+from sqlalchemy import Connection, RowMapping, and_, bindparam, case, func, insert, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now, utc_text, write_transaction
@@ -21,6 +21,7 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import audit, devices
 from backend.store.dialect import json_of, unique_violation
 from backend.store.envelopes import envelope_label
+from backend.store.instance_beats import is_dead
 from backend.store.proposals import table_label
 from backend.store.tables import envelopes, patients, proposals, pushes, users, withdrawals
 from backend.store.users import User
@@ -90,9 +91,11 @@ def pushes_of(conn: Connection, item: Pushed) -> list[dict]:
 
 
 def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor: User,
-               override_reason: str | None = None, sent_back_reason: str | None = None) -> tuple[int, int]:
-    """Record a push about to be sent (``sending``) under the device's next table version, and audit it (with the
-    prosthetist's reason when it goes ahead without a clean bench preview); returns (push id, version)."""
+               override_reason: str | None = None, sent_back_reason: str | None = None,
+               instance_name: str | None = None) -> tuple[int, int]:
+    """Record a push about to be sent (``sending``) by ``instance_name`` under the device's next table version, and
+    audit it (with the prosthetist's reason when it goes ahead without a clean bench preview); returns (push id,
+    version)."""
     kind, item_id = item
     with write_transaction(conn):
         _abandoned_to_unconfirmed(conn, device_id)
@@ -101,6 +104,7 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
             push_id = int(conn.execute(insert(_pu).values(
                 {f"{kind}_id": item_id, "device_id": device_id, "table_version": version, "crc32": crc32,
                  "status": "sending", "requested_by": actor.id, "requested_at": utc_now(),
+                 "instance_name": instance_name,
                  "override_reason": override_reason, "sent_back_reason": sent_back_reason})).inserted_primary_key[0])
         except IntegrityError as exc:   # the database's one push on its way per device, across instances
             if not unique_violation(exc, "one_push_sending_per_device", "pushes.device_id"):
@@ -114,20 +118,22 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
     return push_id, version
 
 
-# a push ends within seconds (the host gives up after 2-3 s, a broker link's resends included); one still "sending" after
-# this long was left by an instance that died mid-push, and would block every other instance's push to the leg
+# a push ends within seconds (the host gives up after 2-3 s, a broker link's resends included); one recorded before
+# pushes named their instance (revision 0017) and still "sending" after this long was left by an instance that died
 ABANDONED_AFTER_S = 60.0
 
 
 def _abandoned_to_unconfirmed(conn: Connection, device_id: str) -> None:
-    """A push to ``device_id`` left ``sending`` for :data:`ABANDONED_AFTER_S` by an instance that died becomes
-    ``unconfirmed`` (the device's next status decides it, :func:`reconcile`), so that it no longer blocks a new push
-    from any instance; the instance that left it would do the same at its restart (:func:`interrupted_pushes`)."""
+    """A push to ``device_id`` left ``sending`` by an instance that stopped beating (``backend.store.instance_beats``;
+    a push recorded without its instance: after :data:`ABANDONED_AFTER_S`) becomes ``unconfirmed``: the device's next
+    status decides it (:func:`reconcile`), and it no longer blocks a new push from any instance. The instance that
+    left it would do the same at its restart (:func:`interrupted_pushes`)."""
     cutoff = utc_text(datetime.now(UTC) - timedelta(seconds=ABANDONED_AFTER_S))
-    conn.execute(update(_pu).where(_pu.c.device_id == device_id, _pu.c.status == "sending",
-                                   _pu.c.requested_at < cutoff).values(
-        status="unconfirmed", error=f"left sending for over {ABANDONED_AFTER_S:.0f} s by an instance that stopped; the "
-                                    "device's next status tells whether it holds it"))
+    left = or_(and_(_pu.c.instance_name.is_not(None), is_dead(_pu.c.instance_name)),
+               and_(_pu.c.instance_name.is_(None), _pu.c.requested_at < cutoff))
+    conn.execute(update(_pu).where(_pu.c.device_id == device_id, _pu.c.status == "sending", left).values(
+        status="unconfirmed", error="left sending by an instance that stopped; the device's next status tells whether "
+                                    "it holds it"))
 
 
 def finish_push(conn: Connection, push_id: int, outcome: Literal["acknowledged", "failed", "unconfirmed"],

@@ -280,6 +280,7 @@ pushes = Table(
     Column("error", Text),
     Column("override_reason", Text),
     Column("sent_back_reason", Text),   # revision 0016: sent because the version the leg ran was withdrawn: which, why
+    Column("instance_name", Text),      # revision 0017: the instance sending it (NULL: recorded before)
     CheckConstraint("table_version BETWEEN 1 AND 65535"),
     CheckConstraint("crc32 BETWEEN 0 AND 4294967295"),
     CheckConstraint("status IN ('sending', 'unconfirmed', 'acknowledged', 'active', 'failed', 'superseded', 'lost')"),
@@ -304,6 +305,13 @@ refinements = Table(
     Column("created_at", Text, nullable=False),
     _json_check("session_ids_json"), _json_check("evidence_json"),
     CheckConstraint("(envelope_id IS NULL) <> (proposal_id IS NULL)"),
+)
+
+# each API instance's last heartbeat (revision 0017, backend.instance_beat): one that stopped beating is dead
+instance_beats = Table(
+    "instance_beats", metadata,
+    Column("name", Text, primary_key=True),
+    Column("beat_at_unix", _Float, nullable=False),
 )
 
 # failed sign-ins in the last minutes (revision 0013): counted by every API instance (backend.throttle)

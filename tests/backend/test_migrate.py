@@ -90,8 +90,9 @@ def _everything(conn: sqlite3.Connection) -> dict[str, list[tuple]]:
     return {t: [tuple(r) for r in conn.execute(f"SELECT * FROM {t} ORDER BY 1, 2")] for t in tables}
 
 
-LATER = ["0013", "0014", "0015", "0016"]                   # the revisions after the baseline
-LATER_TABLES = {"login_failures", "session_sample_seconds", "gate_signoffs", "withdrawals"}  # the tables they added
+LATER = ["0013", "0014", "0015", "0016", "0017"]                   # the revisions after the baseline
+LATER_TABLES = {"login_failures", "session_sample_seconds", "gate_signoffs", "withdrawals",   # the tables they added
+                "instance_beats"}
 LATER_TRIGGERS = {"gate_signoffs_no_update", "gate_signoffs_no_delete", "withdrawals_no_update", "withdrawals_no_delete"}
 
 
@@ -124,7 +125,8 @@ def test_a_database_of_the_hand_written_migrations_is_stamped_with_every_row_kep
     # every row kept; the samples now a row per second (revision 0014), read back the same; every device supervised
     # when its link is lost, as it was before anyone could choose (revision 0015)
     rows["devices"] = [(*r, "supervised") for r in rows["devices"]]
-    rows["pushes"] = [(*r, None) for r in rows["pushes"]]        # none was sent back from a withdrawn version (0016)
+    rows["pushes"] = [(*r, None, None) for r in rows["pushes"]]   # none sent back from a withdrawn version (0016);
+    # which instance sent each is not known (0017)
     rows["walking_sessions"] = [(*r, None) for r in rows["walking_sessions"]]   # who walked them is not known (0016)
     assert {t: v for t, v in now.items() if t not in LATER_TABLES} == {t: v for t, v in rows.items()
                                                                        if t != "session_samples"}

@@ -140,23 +140,41 @@ def test_one_push_on_its_way_per_device_is_the_databases_rule(conn, prosthetist,
     pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
 
 
-def test_a_push_a_dead_instance_left_sending_no_longer_blocks_the_others(conn, prosthetist, draft):
-    """An instance killed mid-push leaves its record ``sending``; once it is older than any push can take, the next
-    push from any instance makes it ``unconfirmed`` (the device's next status decides it) and goes ahead. A push
-    still within that time keeps blocking."""
-    from sqlalchemy import update
+def test_a_push_an_instance_left_sending_blocks_the_others_only_while_it_beats(conn, prosthetist, draft):
+    """An instance killed mid-push leaves its record ``sending``: while the instance beats (it may still be sending),
+    every other instance's push is refused; once it has missed its beats for ``DEAD_AFTER_S``, the next push from
+    any instance makes it ``unconfirmed`` at once (the device's next status decides it) and goes ahead (it blocked
+    them for a minute or until that instance restarted)."""
+    import time
 
-    from backend.store.tables import pushes as table
+    from backend.store.instance_beats import DEAD_AFTER_S, beat
 
     devices.register_device(conn, "leg", "simulated", "virtual", "x")
-    dead, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x1234, prosthetist)
-    with pytest.raises(ConflictError, match="still in progress"):             # 0 s old: its sender may be alive
-        pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
-    conn.execute(update(table).where(table.c.id == dead).values(requested_at="2026-01-01T00:00:00.000Z"))
-    conn.commit()
-    fresh, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
+    beat(conn, "api1")
+    beat(conn, "api2")
+    dead, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x1234, prosthetist, instance_name="api1")
+    with pytest.raises(ConflictError, match="still in progress"):             # api1 beats: it may be sending
+        pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist, instance_name="api2")
+    beat(conn, "api1", at_unix=time.time() - DEAD_AFTER_S - 1.0)              # api1 stopped beating
+    fresh, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist, instance_name="api2")
     left = pushes.get_push(conn, dead)
     assert left["status"] == "unconfirmed" and "instance that stopped" in left["error"]
     assert pushes.get_push(conn, fresh)["status"] == "sending"
     changed = pushes.reconcile(conn, "leg", (2, 0x5678), None, set())          # the leg reports the new one running
     assert pushes.get_push(conn, dead)["status"] == "failed" and changed
+
+
+def test_a_push_recorded_without_its_instance_is_left_for_a_minute(conn, prosthetist, draft):
+    """Pushes recorded before they named their instance: their age decides (a minute), as it did."""
+    from sqlalchemy import update
+
+    from backend.store.tables import pushes as table
+
+    devices.register_device(conn, "leg", "simulated", "virtual", "x")
+    old, _ = pushes.begin_push(conn, ("proposal", draft()), "leg", 0x1234, prosthetist)
+    with pytest.raises(ConflictError, match="still in progress"):
+        pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
+    conn.execute(update(table).where(table.c.id == old).values(requested_at="2026-01-01T00:00:00.000Z"))
+    conn.commit()
+    pushes.begin_push(conn, ("proposal", draft()), "leg", 0x5678, prosthetist)
+    assert pushes.get_push(conn, old)["status"] == "unconfirmed"
