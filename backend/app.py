@@ -38,6 +38,7 @@ from backend.routers import (
     envelopes,
     gate,
     health,
+    jobs,
     patients,
     previews,
     proposals,
@@ -194,7 +195,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
 
     for router in (health.router, auth.router, users.router, patients.router, proposals.router, envelopes.router,
                    previews.router, reference.router, pushes.router, sessions.router, devices.router, audit.router,
-                   refinements.router, device_credentials.router, gate.router):
+                   refinements.router, device_credentials.router, gate.router, jobs.router):
         app.include_router(router)
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)

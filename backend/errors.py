@@ -21,6 +21,12 @@ class NotFoundError(DomainError):
     status = 404
 
 
+class ForbiddenError(DomainError):
+    """The signed-in user may not do this to this item (someone else's)."""
+
+    status = 403
+
+
 class ConflictError(DomainError):
     """The request is well-formed but clashes with the stored state (duplicate name, already decided …)."""
 

@@ -1,9 +1,9 @@
 """Where a request's blocking work runs.
 
 Walks on the simulated bench (previews, refinements) are CPU work, not waiting: they run one at a time on a queue of
-their own (:func:`run_bench`: at most :data:`BENCH_QUEUE` waiting, :data:`BENCH_PER_USER` per user, refused beyond
-with 503 or 429 and a Retry-After), so ten refinements at once never take the request threads a command to a leg
-needs (safe mode took 42 s behind them).
+their own as jobs with progress and cancel (:func:`run_bench`, ``backend.jobs``: at most :data:`BENCH_QUEUE` waiting,
+:data:`BENCH_PER_USER` per user, refused beyond with 503 or 429 and a Retry-After), so ten refinements at once never
+take the request threads a command to a leg needs (safe mode took 42 s behind them).
 
 Request handlers run in a small pool of worker threads (``Settings.request_threads``, anyio's default limiter): the
 process is bound by one interpreter lock, so more threads add no throughput and make the event loop, which streams
@@ -23,7 +23,9 @@ from typing import TypeVar
 import anyio
 import anyio.to_thread
 
-from backend.errors import ServiceUnavailableError, TooManyError
+from backend.errors import ConflictError, ServiceUnavailableError, TooManyError
+from backend.jobs import BOARD, JobCancelled
+from device_bridge.sim import progress
 
 T = TypeVar("T")
 WAITING_THREADS = 16
@@ -46,34 +48,60 @@ BENCH_WALKS = 1        # walks at once: each is CPU-bound under one interpreter 
 BENCH_QUEUE = 8        # walks waiting or walking at most, all users together
 BENCH_PER_USER = 2     # … of one user
 BENCH_RETRY_S = 10     # what a refused request is told to wait (about one preview)
-_bench: anyio.CapacityLimiter | None = None
-_bench_count: Counter[str] = Counter()
+_bench: anyio.CapacityLimiter | None = None      # the queue's turn (first come, first served)
+_walker: anyio.CapacityLimiter | None = None     # the thread the walk runs on (not a request thread)
 _bench_lock = threading.Lock()
 
 
 def bench_queue() -> dict[str, int]:
     """Walks waiting or walking now, per user (for the API's status and the tests)."""
-    with _bench_lock:
-        return dict(_bench_count)
+    return dict(Counter(j.user for j in BOARD.jobs() if j.state in ("queued", "walking")))
 
 
-async def run_bench(user: str, fn: Callable[..., T], *args: object, **kwargs: object) -> T:
-    """``fn(*args, **kwargs)`` (a walk on the bench, or work that starts one) on the bench's queue, for ``user``."""
-    global _bench
+def _limiters() -> tuple[anyio.CapacityLimiter, anyio.CapacityLimiter]:
+    global _bench, _walker
+    if _bench is None or _walker is None:
+        _bench, _walker = anyio.CapacityLimiter(BENCH_WALKS), anyio.CapacityLimiter(BENCH_WALKS)
+    return _bench, _walker
+
+
+async def run_bench(user: str, job: tuple[str, str, str], fn: Callable[..., T], *args: object,
+                    **kwargs: object) -> T:
+    """``fn(*args, **kwargs)`` (a walk on the bench, or work that starts one) as a job on the bench's queue, for
+    ``user``; ``job``: its kind, what it walks in words and as the API's path (``backend.jobs``). A cancelled job
+    answers 409 and stores nothing."""
+    kind, target, path = job
     with _bench_lock:
-        if _bench_count[user] >= BENCH_PER_USER:
-            raise TooManyError(f"{user} has {_bench_count[user]} bench walks queued already; wait for them first",
+        queued = bench_queue()
+        if queued.get(user, 0) >= BENCH_PER_USER:
+            raise TooManyError(f"{user} has {queued[user]} bench walks queued already; wait for them first",
                                retry_after_s=BENCH_RETRY_S)
-        if sum(_bench_count.values()) >= BENCH_QUEUE:
-            raise ServiceUnavailableError(f"the bench is busy: {sum(_bench_count.values())} walks are queued; try "
+        if sum(queued.values()) >= BENCH_QUEUE:
+            raise ServiceUnavailableError(f"the bench is busy: {sum(queued.values())} walks are queued; try "
                                           f"again in {BENCH_RETRY_S} s", retry_after_s=BENCH_RETRY_S)
-        _bench_count[user] += 1
-        if _bench is None:
-            _bench = anyio.CapacityLimiter(BENCH_WALKS)
+        record = BOARD.new(kind, target, path, user)
+    turn, walker = _limiters()
+
+    def walk() -> T:
+        with progress.reporting(record.tick):
+            return fn(*args, **kwargs)
+
     try:
-        return await anyio.to_thread.run_sync(functools.partial(fn, *args, **kwargs), limiter=_bench)
-    finally:
-        with _bench_lock:
-            _bench_count[user] -= 1
-            if _bench_count[user] <= 0:
-                del _bench_count[user]
+        with anyio.CancelScope() as scope:
+            record._scope = scope        # cancelled while it waits: it leaves the queue at once
+            async with turn:
+                record._scope = None     # walking: the walk stops at its next simulated second instead
+                if record.cancelled_by is not None:
+                    raise JobCancelled(record.cancelled_by)
+                BOARD.started(record)
+                result = await anyio.to_thread.run_sync(walk, limiter=walker)
+        if scope.cancelled_caught:
+            raise JobCancelled(record.cancelled_by or "someone")
+    except JobCancelled as exc:
+        BOARD.finished(record, "cancelled")
+        raise ConflictError(f"the {kind} of {target} was cancelled by {exc.by}; nothing was stored") from None
+    except BaseException as exc:
+        BOARD.finished(record, "failed", str(exc) or type(exc).__name__)
+        raise
+    BOARD.finished(record, "done")
+    return result

@@ -33,13 +33,15 @@ _walks: dict[tuple[str, int], anyio.Lock] = {}
 
 
 async def _walk_once(key: tuple[str, int], user: str, preview: Callable[..., dict | None], *args: object) -> dict:
-    """The stored preview of ``key``; walked first, on the bench's queue, if there is none."""
+    """The stored preview of ``key``; walked first, as a job on the bench's queue, if there is none."""
     lock = _walks.setdefault(key, anyio.Lock())
     try:
         async with lock:
             stored = await run_waiting(preview, *args, walk=False)
             if stored is None:
-                stored = await run_bench(user, preview, *args)
+                words = "table" if key[0] == "proposal" else "envelope"
+                job = (f"{words} preview", f"{words} {key[1]}", f"/api/{key[0]}s/{key[1]}")
+                stored = await run_bench(user, job, preview, *args)
             return stored
     finally:
         if not lock.locked() and lock.statistics().tasks_waiting == 0:

@@ -34,7 +34,8 @@ async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, conn: Co
     reject, push as any), stored with its evidence and audited. Refused with why, storing nothing: sessions of another
     patient or version, still recording, in safe mode all along, no strides, nothing to change."""
     # it walks the bench: on the bench's queue, never in the request threads a command to a leg needs
-    return await run_bench(user.username, refine_envelope_version, conn, envelope_id, _ids(body), body.comment, user,
+    job = ("refinement", f"envelope {envelope_id}", f"/api/envelopes/{envelope_id}")
+    return await run_bench(user.username, job, refine_envelope_version, conn, envelope_id, _ids(body), body.comment, user,
                            model)
 
 
@@ -44,7 +45,8 @@ async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, conn: Co
                           model: Model) -> dict:
     """Refine an approved table from the patient's stopped sessions on it (prosthetist), as an envelope's node at the
     table's task; the same rules and refusals."""
-    return await run_bench(user.username, refine_proposal_version, conn, proposal_id, _ids(body), body.comment, user,
+    job = ("refinement", f"table {proposal_id}", f"/api/proposals/{proposal_id}")
+    return await run_bench(user.username, job, refine_proposal_version, conn, proposal_id, _ids(body), body.comment, user,
                            model)
 
 

@@ -54,6 +54,7 @@ from controller_core.gait_metrics import (
 )
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
+from device_bridge.sim import progress
 from device_bridge.sim.bench_trajectory import BenchTrajectory, plan_bench_trajectory
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.person import Person
@@ -163,8 +164,11 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
     tx, tz = traj.x_m, traj.z_m
     nx, nz = normals
     saturated = 0
+    report_every = max(round(1.0 / leg.timestep_s), 1)       # once per simulated second: a caller's progress, cancel
     t0 = time.perf_counter()
     for i in range(n):
+        if i and i % report_every == 0:
+            progress.walked(report_every * leg.timestep_s)
         cmd = controller.step(x)
         t_col[i], st_col[i] = x.time_s, cmd.state
         kq[i], kv[i], aq[i], av[i] = x.knee_angle_rad, x.knee_velocity_rad_s, x.ankle_angle_rad, x.ankle_velocity_rad_s

@@ -48,8 +48,14 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     assert "outside the walking data" in page.inner_text("#extrapolation")
     page.check("input[name=quantity][value=theta_e_deg]")
     assert "(deg)" in page.text_content("#map-knee-stance_flexion .map-title")
+    # while the bench walks: the job's progress bar with the time left, and Cancel for its owner (backend.jobs)
+    page.wait_for_selector("#bench-progress-words:has-text('s left')", timeout=60_000)
+    assert re.search(r"(walking, \d+ %|queued behind \d+ walks?): about \d+ s left",
+                     page.inner_text("#bench-progress-words"))
+    expect(page.locator("#bench-cancel")).to_be_visible()
     # safety figures first, then per-segment errors, once the bench has walked the course
     page.wait_for_selector("#preview-segments", timeout=120_000)
+    expect(page.locator("#bench-progress")).to_have_count(0)                    # gone once it has walked
     expect(page.locator("#preview-safety")).to_have_count(1)
     expect(page.locator("#preview-segments tbody tr")).to_have_count(8)
     assert re.search(r"within ±0\.1 m/s on \d+ %", page.inner_text("#preview-estimation"))

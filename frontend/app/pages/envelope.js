@@ -11,6 +11,7 @@ import { renderRefine } from "../widgets/refine_panel.js";
 import { safetyFigures } from "../widgets/proposal_views.js";
 import { shownChange, shownNumber, signed, toSI, units } from "../quantities.js";
 import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+import { watchBench } from "../widgets/bench_progress.js";
 
 // darker reads the same way on every map: firmer (more resistance K = −k, more damping), or more flexion /
 // dorsiflexion; scale: from the API's value to the shown one (resistance positive, as on every page)
@@ -249,14 +250,18 @@ async function renderPreview(box, e) {
   let alive = true;
   onLeave(() => { alive = false; });
   let pv;
+  const stopWatching = watchBench(box, `/api/envelopes/${e.id}`, "envelope preview");
   try {
     pv = await get(`/api/envelopes/${e.id}/preview`);
     window.dispatchEvent(new CustomEvent("quasitune:bench-walked", { detail: { path: `/api/envelopes/${e.id}` } }));
     const now = await get(`/api/envelopes/${e.id}`).catch(() => null);   // the header's bench chip follows
     if (now?.bench) document.getElementById("bench-chip")?.replaceChildren(chip(now.bench.words, BENCH_CHIP[now.bench.status]));
   } catch (err) {
-    if (alive) box.querySelector("#preview-status").textContent = `Preview failed: ${err.message}`;
+    if (alive) box.querySelector("#preview-status").textContent = err.status === 409 && /cancelled by/.test(err.message)
+      ? `Preview not walked: ${err.message}. Open this page again to walk it.` : `Preview failed: ${err.message}`;
     return;
+  } finally {
+    stopWatching();
   }
   if (!alive) return;
   const t = pv.controllers.envelope, f = pv.controllers.fsmic;

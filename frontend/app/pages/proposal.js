@@ -11,6 +11,7 @@ import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
 import { chip, extrapolationChip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, momentScale, momentToggle, momentUnit, momentView,
   referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+import { watchBench } from "../widgets/bench_progress.js";
 
 export async function proposalPage(view, id) {
   const p = await get(`/api/proposals/${id}`);
@@ -161,12 +162,16 @@ async function renderPreview(box, p) {
   let alive = true;
   onLeave(() => { alive = false; });
   let pv;
+  const stopWatching = watchBench(box, `/api/proposals/${p.id}`, "table preview");
   try {
     pv = await get(`/api/proposals/${p.id}/preview`);
     window.dispatchEvent(new CustomEvent("quasitune:bench-walked", { detail: { path: `/api/proposals/${p.id}` } }));
   } catch (err) {
-    if (alive) box.querySelector("#preview-status").textContent = `Preview failed: ${err.message}`;
+    if (alive) box.querySelector("#preview-status").textContent = err.status === 409 && /cancelled by/.test(err.message)
+      ? `Preview not walked: ${err.message}. Open this page again to walk it.` : `Preview failed: ${err.message}`;
     return;
+  } finally {
+    stopWatching();
   }
   if (!alive) return;
   const t = pv.controllers.table, f = pv.controllers.fsmic, vs = t.vs_fsmic || {};

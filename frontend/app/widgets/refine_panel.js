@@ -4,6 +4,7 @@
 import { get, post } from "../api.js";
 import { shownChange, signed, units } from "../quantities.js";
 import { chip, fieldWords, fmt, h, table, when } from "../ui.js";
+import { watchBench } from "./bench_progress.js";
 
 const UNIT = { deg: "°", "% gait cycle": "% cycle" };
 
@@ -119,6 +120,7 @@ export async function renderRefine(box, { kind, item, canRefine, grid }) {
     error.replaceChildren();
     out.replaceChildren(h("p", { class: "muted" }, "Reading the strides and walking the changed nodes on the bench…"));
     const ids = [...form.querySelectorAll("input[name=session]:checked")].map((c) => Number(c.value));
+    const stopWatching = watchBench(out, `/api/${kind}s/${item.id}`, "refinement");
     try {
       const r = await post(`/api/${kind}s/${item.id}/refinements`, { session_ids: ids, comment: comment.value });
       const id = kind === "envelope" ? r.envelope_id : r.proposal_id;
@@ -130,6 +132,8 @@ export async function renderRefine(box, { kind, item, canRefine, grid }) {
       if (err.body?.nodes) out.append(refinementView({ session_ids: ids, strides: 0, strides_on_version: 0, strides_used: 0,
         feature_abs_error: {}, strides_without_feature: {}, quantities: {}, nodes: err.body.nodes, changes: [],
         rules: { min_consistent_strides: 10, theta_step_deg: 5, k_step_fraction: 0.25 }, sensitivity: "—" }, grid));
+    } finally {
+      stopWatching();
     }
   });
   if (!canRefine) box.append(h("p", { class: "muted" }, "Only a prosthetist can refine."));
