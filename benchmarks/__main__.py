@@ -1,5 +1,5 @@
-"""``python -m benchmarks {model,api,device,envelope,fleet,instances,link,refine,storage,ui} [options]``: one benchmark, its
-figures as JSON."""
+"""``python -m benchmarks {model,api,commands,device,envelope,fleet,instances,link,refine,storage,ui} [options]``:
+one benchmark, its figures as JSON."""
 
 from __future__ import annotations
 
@@ -16,6 +16,9 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("api", help="proposals from concurrent clients against one server process, telemetry beside")
     p.add_argument("--clients", type=int, default=20)
     p.add_argument("--seconds", type=float, default=10.0, help="measured duration (s) after a warm-up")
+    p = sub.add_parser("commands", help="safe mode and the device list while ten bench walks are queued (target: "
+                                        "safe mode ≤ 200 ms)")
+    p.add_argument("--seconds", type=float, default=15.0, help="commands timed this long, idle and busy (s)")
     p = sub.add_parser("device", help="push latency through the API and telemetry rate with the simulated leg")
     p.add_argument("--seconds", type=float, default=10.0, help="telemetry measured for this long (s)")
     p.add_argument("--pushes", type=int, default=50, help="approved proposals pushed through the API")
@@ -85,6 +88,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.envelope import run
 
         result = run(args.repeats, args.pushes, args.trials)
+    elif args.name == "commands":
+        from benchmarks.commands import run
+
+        result = run(args.seconds)
     elif args.name == "device":
         from benchmarks.device import run
 
