@@ -1,4 +1,4 @@
-"""``python -m benchmarks {model,api,commands,device,envelope,fleet,instances,link,refine,storage,ui} [options]``:
+"""``python -m benchmarks {model,api,commands,device,envelope,fleet,instances,link,redteam,refine,storage,ui} [options]``:
 one benchmark, its figures as JSON."""
 
 from __future__ import annotations
@@ -19,6 +19,8 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("commands", help="safe mode and the device list while ten bench walks are queued (target: "
                                         "safe mode ≤ 200 ms)")
     p.add_argument("--seconds", type=float, default=15.0, help="commands timed this long, idle and busy (s)")
+    sub.add_parser("redteam", help="issue 52's broker attacks end to end with a stolen leg identity: takeovers, "
+                                   "impossible times, huge messages, floods; what leg 1 and its session saw")
     p = sub.add_parser("device", help="push latency through the API and telemetry rate with the simulated leg")
     p.add_argument("--seconds", type=float, default=10.0, help="telemetry measured for this long (s)")
     p.add_argument("--pushes", type=int, default=50, help="approved proposals pushed through the API")
@@ -92,6 +94,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.commands import run
 
         result = run(args.seconds)
+    elif args.name == "redteam":
+        from benchmarks.redteam import run
+
+        result = run()
     elif args.name == "device":
         from benchmarks.device import run
 

@@ -7,8 +7,9 @@ with ``connection=``) and one dispatch thread hands each message to its leg: pah
 what arrives, so a slow callback of one leg (a database write on a status) never holds back the network, the
 acknowledgements of the QoS 1 messages or the heartbeats the instance sends. Live messages go before late ones (what a
 bridge kept while its link was down), and late ones are taken one leg at a time in turn, each leg holding at most
-:data:`LATE_QUEUED_PER_LEG` (beyond, dropped and counted): one leg's backlog never delays another leg's status (300
-late messages of one leg kept another offline for 28.6 s).
+:data:`LATE_QUEUED_PER_LEG` (beyond, dropped and counted) and handed over within a budget of bytes per second
+(:data:`LATE_BYTES_PER_S_PER_LEG`): one leg's backlog never delays another leg's status (300 late messages of one leg
+kept another offline for 28.6 s).
 
 The client id is its identity's user name, ``server-{name}`` (bound to it at the broker, :func:`identity_name`), with a
 persistent session when the instance is named, so each instance (each with an identity of its own) reads every frame of
@@ -19,7 +20,9 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections import Counter, deque
+from collections.abc import Callable
 
 import paho.mqtt.client as mqtt
 
@@ -27,6 +30,11 @@ from device_bridge.mqtt_bus import TOPIC_PREFIX, MqttBus, broker_client, topic
 
 log = logging.getLogger(__name__)
 LATE_QUEUED_PER_LEG = 512     # late messages of one leg waiting to be handed over (about 24 MB at most)
+# late bytes handed over per leg per second: 40 times what a walking leg sends live (about 6.6 kB/s), so a 4-hour
+# backlog drains in about 6 minutes, while one leg's flood of late messages takes at most this much of the dispatch
+# thread's time (300 late messages of 58 kB, parsed back to back, kept another leg's status stale past a second)
+LATE_BYTES_PER_S_PER_LEG = 256 * 1024
+LATE_BURST_BYTES = 64 * 1024   # what a leg may hand over at once after a pause (the broker's largest message)
 
 
 class MqttConnection:
@@ -151,12 +159,15 @@ class MqttConnection:
 
 class LegMailbox:
     """What the network thread received, for the dispatch thread: live messages first, in arrival order; then late
-    ones, one leg at a time in turn, each leg holding at most :data:`LATE_QUEUED_PER_LEG` (see the module)."""
+    ones, one leg at a time in turn, each leg holding at most :data:`LATE_QUEUED_PER_LEG` and handed over at most
+    :data:`LATE_BYTES_PER_S_PER_LEG` (see the module). ``clock``: monotonic seconds (the budget's)."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
         self._live: deque[tuple[str, bytes]] = deque()      # up messages, in arrival order
         self._late: dict[str, deque[bytes]] = {}             # late messages per leg
         self._turn: deque[str] = deque()                     # legs with late messages waiting, in turn
+        self._budget: dict[str, tuple[float, float]] = {}    # per leg: (bytes it may hand over, when last counted)
+        self._clock = clock
         self._arrived = threading.Condition()
         self._closing = False
         self.dropped: Counter[str] = Counter()               # per leg: late messages beyond its share
@@ -177,24 +188,54 @@ class LegMailbox:
                 self._live.append((name, payload))
             self._arrived.notify()
 
-    def take(self, timeout_s: float | None = None) -> tuple[str, str, bytes] | None:
-        """The next message, (device id, direction, payload): a live one if any, else one late message of the next
-        leg in turn; None once closed (or after ``timeout_s`` with nothing)."""
-        with self._arrived:
-            if not self._arrived.wait_for(lambda: self._live or self._turn or self._closing, timeout_s):
-                return None
-            if self._live:
-                name, payload = self._live.popleft()
-                device_id, _, direction = name.removeprefix(TOPIC_PREFIX + "/").rpartition("/")
-                return device_id, direction, payload
-            if self._closing:
-                return None
+    def _wait_for_budget_s(self, device_id: str, size: int) -> float:
+        """Seconds until ``device_id`` may hand over ``size`` late bytes (0: now, and they are counted)."""
+        now = self._clock()
+        has, at = self._budget.get(device_id, (LATE_BURST_BYTES, now))
+        has = min(LATE_BURST_BYTES, has + (now - at) * LATE_BYTES_PER_S_PER_LEG)
+        cost = min(size, LATE_BURST_BYTES)
+        if has < cost:
+            self._budget[device_id] = (has, now)
+            return (cost - has) / LATE_BYTES_PER_S_PER_LEG
+        self._budget[device_id] = (has - cost, now)
+        return 0.0
+
+    def _next_late(self) -> tuple[tuple[str, str, bytes] | None, float | None]:
+        """(the next late message of a leg within its budget, or None; then how long until one is)."""
+        soonest = None
+        for _ in range(len(self._turn)):
             device_id = self._turn.popleft()
             waiting = self._late[device_id]
-            payload = waiting.popleft()
-            if waiting:
-                self._turn.append(device_id)     # its next late message after the other legs' turn
-            return device_id, "late", payload
+            wait_s = self._wait_for_budget_s(device_id, len(waiting[0]))
+            if wait_s == 0.0:
+                payload = waiting.popleft()
+                if waiting:
+                    self._turn.append(device_id)     # its next late message after the other legs' turn
+                return (device_id, "late", payload), None
+            self._turn.append(device_id)
+            soonest = wait_s if soonest is None else min(soonest, wait_s)
+        return None, soonest
+
+    def take(self, timeout_s: float | None = None) -> tuple[str, str, bytes] | None:
+        """The next message, (device id, direction, payload): a live one if any, else one late message of the next
+        leg in turn within its budget; None once closed (or after ``timeout_s`` with nothing to hand over)."""
+        deadline = None if timeout_s is None else self._clock() + timeout_s
+        with self._arrived:
+            while True:
+                if self._live:
+                    name, payload = self._live.popleft()
+                    device_id, _, direction = name.removeprefix(TOPIC_PREFIX + "/").rpartition("/")
+                    return device_id, direction, payload
+                if self._closing:
+                    return None
+                late, budget_wait_s = self._next_late()
+                if late is not None:
+                    return late
+                left_s = None if deadline is None else deadline - self._clock()
+                if left_s is not None and left_s <= 0:
+                    return None
+                waits = [w for w in (budget_wait_s, left_s) if w is not None]
+                self._arrived.wait(min(waits) if waits else None)
 
     def close(self) -> None:
         with self._arrived:

@@ -138,3 +138,31 @@ def test_live_messages_go_first_and_late_ones_take_turns_per_leg_within_a_share(
     assert box.take(0) is None                                          # nothing left
     box.close()
     assert box.take() is None
+
+
+def test_a_legs_late_messages_are_handed_over_within_its_budget_and_live_ones_never_wait(monkeypatch):
+    """A leg's late bytes are handed over at most LATE_BYTES_PER_S_PER_LEG (after a burst of one large message): a
+    flood of them cannot take the dispatch thread from the other legs, whose live messages and own late turn come
+    first; the flood's messages wait their turn, none is lost. Time here is the mailbox's own clock, moved by hand."""
+    from device_bridge import mqtt_connection
+    from device_bridge.mqtt_bus import topic
+    from device_bridge.mqtt_connection import LegMailbox
+
+    monkeypatch.setattr(mqtt_connection, "LATE_BYTES_PER_S_PER_LEG", 100_000)
+    monkeypatch.setattr(mqtt_connection, "LATE_BURST_BYTES", 60_000)
+    now = [0.0]
+    box = LegMailbox(clock=lambda: now[0])
+    for i in range(3):
+        box.put(topic("leg-2", "late"), bytes([i]) * 50_000)            # 150 kB of one leg's backlog
+    assert box.take(0)[2][0] == 0                                       # the burst: the first at once
+    assert box.take(0) is None                                          # the second waits for its budget …
+    box.put(topic("leg-1", "up"), b"status-1")
+    box.put(topic("leg-3", "late"), b"late-3")
+    assert box.take(0) == ("leg-1", "up", b"status-1")                  # … never another leg's live message
+    assert box.take(0) == ("leg-3", "late", b"late-3")                  # … nor another leg's late turn
+    now[0] += 0.39
+    assert box.take(0) is None                                          # 49 kB of budget: not yet
+    now[0] += 0.02
+    assert box.take(0)[2][0] == 1                                       # 50 kB after 0.41 s
+    now[0] += 0.5
+    assert box.take(0)[2][0] == 2 and box.take(0) is None and box.dropped == {}

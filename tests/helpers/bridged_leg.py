@@ -12,6 +12,7 @@ from pathlib import Path
 
 import can
 
+from device_bridge.broker_admin import Identity
 from device_bridge.device_node import DeviceNode
 from device_bridge.gateway import Gateway
 from device_bridge.late_buffer import LateBuffer
@@ -29,6 +30,7 @@ class BridgedLeg:
     walker: SimWalker
     far: MqttBus
     gateway: Gateway
+    identity: Identity                 # the leg's at the broker (a red team uses it as a stolen one)
 
 
 @contextmanager
@@ -44,7 +46,7 @@ def bridged_leg(broker, admin, folder: Path, device_id: str = "home-leg", mass_k
                   late_buffer=LateBuffer(folder / f"{device_id}-late.sqlite"))
     gateway = Gateway.to_broker(can.Bus(interface="virtual", channel=channel), far).start()
     try:
-        yield BridgedLeg(device_id, node, walker, far, gateway)
+        yield BridgedLeg(device_id, node, walker, far, gateway, identity)
     finally:
         gateway.close()
         node.close()
