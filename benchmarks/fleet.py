@@ -151,7 +151,7 @@ def _replay(legs: list[tuple[int, str, str, str]], n_legs: int, broker: str, ca_
 
     n_samples = 1 + max(seq for _, made, _ in walk for seq, _ in made)
     sent = np.full((len(legs), n_samples), np.nan)
-    schedule = sorted((t + index * 0.01 / n_legs, k, j) for j, (index, _, _) in enumerate(legs)
+    schedule = sorted((t + index * 0.01 / n_legs, k, j) for j, (index, *_) in enumerate(legs)
                       for k, (t, _, _) in enumerate(walk))
     next_misc = 0.0
     for offset, k, j in schedule:
