@@ -107,7 +107,10 @@ def test_after_a_kill_mid_push_the_records_pages_and_next_session_agree_with_the
                                            for p in ps))
         assert {p["status"] for p in pushes} <= {"lost", "failed", "superseded"}
         newest = max(pushes, key=lambda p: p["id"])
-        assert newest["status"] in ("lost", "failed") and "no table" in newest["error"]
+        # decided at the restart against the leg's report (no table), or, when the kill came a moment late, already
+        # by the killed server against the leg's report then (the first envelope still running): either way not taken
+        assert newest["status"] in ("lost", "failed") and ("no table" in newest["error"] or
+                                                           "did not take this push" in newest["error"]), newest
         for env in (first, second):   # neither page says the leg runs it
             assert c.get(f"/api/envelopes/{env['id']}").json()["deployment"] in ("not_on_device", "push_failed",
                                                                                  "replaced")
