@@ -18,7 +18,8 @@ buffer being received: the active table runs on untouched, so a mixed table cann
 The host's heartbeat is watched on every tick: when none arrived for ``heartbeat_timeout_s``, the device raises
 HEARTBEAT_LOST on that tick, and what else it does is the device's link mode (:class:`~device_bridge.protocol.LinkMode`,
 set by the host's LINK_SUPERVISED / LINK_AUTONOMOUS commands and reported in DEVICE_HEALTH). *Supervised* (the
-default, tuning in the clinic): it drops into safe mode (passive: τ = −b_safe·θ̇, clipped) and leaves it only on a
+default, tuning in the clinic): it drops into safe mode (passive, holding a loaded knee against flexion:
+:mod:`controller_core.safe_mode`) and leaves it only on a
 new valid table (committed after safe mode was entered) or an explicit LEAVE_SAFE_MODE command while the host is
 alive and a table is held. *Autonomous* (daily life, far from any server): it runs on with the table or envelope it
 holds, and clears the fault when heartbeats come back. Either way a staged table waits for a live host. The link
@@ -43,8 +44,8 @@ from controller_core.fsm import (
     ImpedanceSchedule,
     SensorSample,
     StateMachineController,
-    clip_torque,
 )
+from controller_core.safe_mode import SafeModeController, SafeModeParameters
 from controller_core.table import DEFAULT_LIMITS, SafetyLimitError, SafetyLimits, check_table
 from controller_core.task_estimator import TaskEstimator
 from device_bridge.envelope_wire import DeviceEnvelope, EnvelopeReceiver
@@ -79,7 +80,9 @@ class FirmwareConfig:
         idle_switch_s: without a load-triggered heel strike for this long the leg is not walking, and a staged
             table becomes active at once.
         status_period_s, telemetry_period_s: DEVICE_STATUS/HEALTH and TELEMETRY periods.
-        safe_damping_knee, safe_damping_ankle: damping in safe mode and without a table.
+        safe_mode: what the leg does in safe mode and without a table: it holds a loaded knee against flexion, lets
+            it extend, extends it in swing and holds the ankle near neutral
+            (:class:`~controller_core.safe_mode.SafeModeParameters`; a damper alone let a loaded knee fold).
         limits: the safety limits the device enforces itself (the same defaults as the host's).
         neighbour_steps: the envelope neighbour rule the device enforces itself.
         actuator: torque and range limits.
@@ -94,8 +97,7 @@ class FirmwareConfig:
     idle_switch_s: float = 2.0
     status_period_s: float = 0.1
     telemetry_period_s: float = TELEMETRY_PERIOD_S
-    safe_damping_knee: float = 8.0
-    safe_damping_ankle: float = 4.0
+    safe_mode: SafeModeParameters = field(default_factory=SafeModeParameters)
     limits: SafetyLimits = DEFAULT_LIMITS
     neighbour_steps: NeighbourSteps = DEFAULT_STEPS
     actuator: ActuatorLimits = field(default_factory=ActuatorLimits)
@@ -159,6 +161,7 @@ class DeviceFirmware:
         self.last_heartbeat_s_ = now_s   # the host gets one timeout from boot to appear
         self.link_mode_ = LinkMode.SUPERVISED
         self.controller_: StateMachineController | AdaptiveController | None = None
+        self._safe = SafeModeController(self.config.safe_mode, self.config.actuator)   # safe mode, and no table
         self._rx: _Transfer | EnvelopeReceiver | None = None
         self._last_commit: _LastCommit | None = None
         self._last_heel_strike_s = -math.inf
@@ -329,6 +332,7 @@ class DeviceFirmware:
         if self.mode_ != Mode.SAFE:
             self.mode_ = Mode.SAFE
             self.safe_mode_entered_s_ = now_s
+            self._safe.reset()      # the load and the knee's hold found afresh
 
     def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
         cfg = self.config
@@ -441,13 +445,10 @@ class DeviceFirmware:
         return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
 
     def _safe_torques(self, x: SensorSample) -> tuple[float, float, GaitState]:
-        """Passive and damped (safe mode, and no table), clipped to the actuator and range limits."""
-        cfg, lim = self.config, self.config.actuator
-        tk, _ = clip_torque(-cfg.safe_damping_knee * x.knee_velocity_rad_s, x.knee_angle_rad, lim.knee_torque_Nm,
-                            *lim.knee_range_rad)
-        ta, _ = clip_torque(-cfg.safe_damping_ankle * x.ankle_velocity_rad_s, x.ankle_angle_rad, lim.ankle_torque_Nm,
-                            *lim.ankle_range_rad)
-        return tk, ta, GaitState.SWING_EXTENSION
+        """Safe mode's passive torques (safe mode, and no table; :mod:`controller_core.safe_mode`), clipped to the
+        actuator and range limits."""
+        cmd = self._safe.step(x)
+        return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
 
     # ------------------------------------------------------------------------------------------ frames out
 

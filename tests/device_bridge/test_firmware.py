@@ -212,8 +212,10 @@ def test_heartbeat_loss_enters_safe_mode_on_the_first_tick_past_the_timeout(tabl
     _, _, out = fw.tick(standing(1.201), 1.201)
     assert fw.mode_ == Mode.SAFE and fw.safe_mode_entered_s_ == pytest.approx(1.201)
     assert status(out)["mode"] == Mode.SAFE and Fault.HEARTBEAT_LOST in fw.faults_
-    knee, ankle, _ = fw.tick(standing(1.202), 1.202)   # passive and damped: only -b·θ̇
-    assert knee == pytest.approx(-cfg.safe_damping_knee * 0.5) and ankle == pytest.approx(cfg.safe_damping_ankle * 0.2)
+    knee, ankle, _ = fw.tick(standing(1.202), 1.202)   # safe mode's: the loaded, flexing knee is resisted
+    p = cfg.safe_mode
+    assert knee == pytest.approx(-p.knee_flexion_b_Nm_s_per_rad * 0.5)            # held where the load found it
+    assert ankle == pytest.approx(-p.ankle_k_Nm_per_rad * 0.05 + p.ankle_b_Nm_s_per_rad * 0.2)   # toward neutral
 
 
 def health(frames: list[can.Message]) -> dict:
@@ -241,7 +243,7 @@ def test_an_autonomous_leg_runs_on_through_a_lost_link_and_clears_the_fault_when
     t, reported = 0.5, []
     while t < 60.0:                        # a minute with no host at all
         knee, _, out = fw.tick(standing(t), t)
-        assert fw.mode_ == Mode.ACTIVE and knee != pytest.approx(-cfg.safe_damping_knee * 0.5)
+        assert fw.mode_ == Mode.ACTIVE and knee != pytest.approx(-cfg.safe_mode.knee_flexion_b_Nm_s_per_rad * 0.5)
         reported += [health(out)] if any(decode(m)[0] == "DEVICE_HEALTH" for m in out) else []
         t = round(t + 0.01, 6)
     assert Fault.HEARTBEAT_LOST in fw.faults_ and fw.active_.version == 1

@@ -28,7 +28,7 @@ const BENCH_WORDS = { walking: " · the simulated patient walks", standing: " ·
 function walkState(status) {
   const el = document.getElementById("walk-state");
   if (!el || status.recording_session_id === null || status.bench_state === null || status.bench_state === undefined) return;
-  const safe = status.safe_mode ? " — and the leg is in SAFE MODE: passive and damped, its table does not run" : "";
+  const safe = status.safe_mode ? " — and the leg is in SAFE MODE: passive, it holds the loaded knee against bending and lets it straighten; its table does not run" : "";
   const text = (status.bench_state === "walking" ? (status.bench_task?.course ? `walking the “${status.bench_task.course}” course`
     : "walking") : status.bench_state === "standing" ? "the walk has ended and the patient stands: the session still "
       + "records (standing adds no strides); stop it to summarise" : "nobody wears the leg") + safe;
@@ -200,7 +200,7 @@ export async function monitorPage(view, deviceId, params) {
     if (name === "leave_safe_mode") {   // the table runs again under the patient: asked, never one stray click
       const ok = await confirmDialog({ id: "leave-safe-dialog", title: `Leave safe mode on ${deviceId}?`,
         facts: [["On the leg", tableName(status.active_table, true)],
-          ["What changes", "the leg stops being passive and damped and runs this table again from the next heel strike"]],
+          ["What changes", "the leg leaves its passive safe mode and runs this table again from the next heel strike"]],
         requires: "The patient is seated or standing in the parallel bars.", confirm: "Leave safe mode" });
       if (!ok) return;
     }
@@ -212,7 +212,7 @@ export async function monitorPage(view, deviceId, params) {
         renderStatus(statusBox, status);
       }
       // a change of what the leg does is a caution, never a green "done"
-      notice(name === "enter_safe_mode" ? "Safe mode requested: the leg goes passive and damped; the table does not run."
+      notice(name === "enter_safe_mode" ? "Safe mode requested: the leg goes passive (it holds the loaded knee against bending); the table does not run."
         : "Leaving safe mode: the leg runs its table again from the next heel strike.", "warn");
     } catch (err) {
       notice(err.message);

@@ -79,7 +79,7 @@ export function adaptivePanel(box, envelope) {
       // on nominal because its estimate is the nominal task is not "unsure"; standing is neither
       const atNominal = Number.isFinite(m.estimated_speed_mps) && Math.abs(m.estimated_speed_mps - nominal.speed_mps) <= 0.05
         && Math.abs((m.estimated_incline_deg ?? 0) - nominal.incline_deg) <= 1.0;
-      const [cls, words, state] = safe ? ["safe", "SAFE MODE: the leg is passive and damped; the envelope does not run", "safe"]
+      const [cls, words, state] = safe ? ["safe", "SAFE MODE: the leg is passive (it holds the loaded knee against bending); the envelope does not run", "safe"]
         : status.bench_state === "standing" ? ["nominal", "STANDING: the patient stands; the leg keeps its rows until walking resumes", "standing"]
           : m.adaptive_mode === "nominal" && atNominal ? ["nominal", `ON NOMINAL: the leg's estimate is its nominal task (${fmt(nominal.speed_mps, 2)} m/s, ${fmt(nominal.incline_deg, 1)}°)`, "nominal"]
             : m.adaptive_mode ? [...(STATES[m.adaptive_mode] || ["nominal", `mode ${m.adaptive_mode}`]), m.adaptive_mode]
