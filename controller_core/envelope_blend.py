@@ -34,7 +34,7 @@ _SCALARS = ("sf_to_se_ankle_moment_Nm", "se_to_wf_load_N", "wf_to_we_knee_angle_
 _SCHEDULE_FIELDS = tuple(f.name for f in fields(ImpedanceSchedule))
 
 
-def _schedule(values: list[float], fixed: tuple[float, float, float]) -> ImpedanceSchedule:
+def _schedule(values: list[float], fixed: tuple[float, ...]) -> ImpedanceSchedule:
     """An ImpedanceSchedule from a blended vector, without the frozen dataclass's 16 checked assignments (7 µs of a
     20 µs budget): the values are blends of schedules that passed every check."""
     v = values
@@ -127,7 +127,8 @@ class EnvelopeBlender:
         self._cells = [[np.stack([v[i * n_i + j], v[i * n_i + j + 1], v[(i + 1) * n_i + j], v[(i + 1) * n_i + j + 1]])
                         for j in range(n_i - 1)] for i in range(len(speeds) - 1)]
         first = schedules[0]
-        self._fixed = (first.swing_slowing_rad_s, first.event_hold_s, first.heel_strike_hold_s)
+        # what every node shares (not blended): the fields after the thresholds, in the schedule's own order
+        self._fixed = tuple(getattr(first, name) for name in _SCHEDULE_FIELDS[13:])
 
     def contains(self, speed_mps: float, incline_deg: float, margin_mps: float = 0.0, margin_deg: float = 0.0) -> bool:
         """The task lies inside the grid (edges included), or within the margins (m/s, deg) beyond its edges."""

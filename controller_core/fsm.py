@@ -21,6 +21,18 @@ only: a false heel strike puts the leg in its stiffer stance settings, where a f
 leg in swing; and the toe-off threshold lies below the heel-strike threshold (the safety limits require it), so
 the two cannot chatter.
 
+**Standing.** A person standing still on the leg is neither walking nor in any one sub-phase: run as walking, the
+maximum-time guard cycled the states every 1.5 s, put a leg carrying half the body weight into swing flexion and
+stepped the knee torque by tens of N·m at each change. So a stance state whose knee and ankle have both been still
+(slower than ``standing_still_rad_s``) for ``standing_enter_s`` while the leg carries at least the toe-off load becomes
+*standing*: no event and no guard moves the state; the knee is held where standing found it (its stance-flexion
+stiffness against further flexion, the hold following it as it extends: it may straighten, it cannot fold), the
+ankle is held about where standing found it with its stance-flexion stiffness. Standing ends when the knee moves
+faster than ``standing_leave_rad_s`` (the person starts walking on it, or sits: back to stance flexion, its dwell
+restarted) or when the load falls below the toe-off threshold for ``event_hold_s`` (the leg is lifted: swing
+flexion). Separately, the maximum-time guard never moves a leg that carries at least the heel-strike load into swing
+flexion: only its toe-off does.
+
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
 plain floats (no numpy in the loop) because it runs at 1 kHz or faster.
@@ -137,6 +149,12 @@ class ImpedanceSchedule:
         event_hold_s: a transition's condition must hold this long, uninterrupted, before it fires (s).
         heel_strike_hold_s: heel strike (load above its threshold in either swing state) needs only this long
             (s) and no minimum time in the state: see the module docstring.
+        standing_still_rad_s, standing_enter_s, standing_leave_rad_s: standing (see the module docstring): entered
+            from a loaded stance state once knee and ankle have both moved slower than the first (rad/s) for the
+            second (s); left when the knee moves faster than the third (rad/s) for ``event_hold_s``, or the leg is
+            unloaded (a step).
+        standing_blend_s: the torques go over from the row's to standing's in this long (s), so entering standing
+            is no step in torque (a step jolted the knee out of standing at once).
     """
 
     knee_k: tuple[float, float, float, float]
@@ -155,6 +173,10 @@ class ImpedanceSchedule:
     swing_slowing_rad_s: float = 0.05
     event_hold_s: float = 0.02
     heel_strike_hold_s: float = 0.005
+    standing_still_rad_s: float = 0.2
+    standing_enter_s: float = 0.5
+    standing_leave_rad_s: float = 0.6
+    standing_blend_s: float = 0.2
 
     @classmethod
     def from_table(cls, table: ImpedanceTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
@@ -219,6 +241,10 @@ class StateMachineController:
         heel_load_since_s_: since when a swing state has seen heel-strike load (s); None while it has not.
         transitions_: number of transitions taken.
         guard_transitions_: how many of them the maximum-time guard forced.
+        standing_: whether the leg is standing (see the module docstring); the state stays the stance state it was.
+        still_since_s_: since when knee and ankle have been still in a loaded stance state (s); None while not.
+        standing_knee_rad_, standing_ankle_rad_: where standing holds the knee (against flexion) and the ankle (rad).
+        standing_since_s_: when standing was entered (s; the blend from the row's torques runs from it).
     """
 
     schedule: ImpedanceSchedule
@@ -230,6 +256,11 @@ class StateMachineController:
     heel_load_since_s_: float | None = field(init=False, default=None)
     transitions_: int = field(init=False, default=0)
     guard_transitions_: int = field(init=False, default=0)
+    standing_: bool = field(init=False, default=False)
+    still_since_s_: float | None = field(init=False, default=None)
+    standing_knee_rad_: float = field(init=False, default=0.0)
+    standing_ankle_rad_: float = field(init=False, default=0.0)
+    standing_since_s_: float = field(init=False, default=0.0)
 
     def __post_init__(self) -> None:
         self.state_ = GaitState(self.initial_state)
@@ -242,6 +273,8 @@ class StateMachineController:
         self.heel_load_since_s_ = None
         self.transitions_ = 0
         self.guard_transitions_ = 0
+        self.standing_ = False
+        self.still_since_s_ = None
 
     def load(self, schedule: ImpedanceSchedule) -> None:
         """Swap the impedance schedule (the caller decides when: the device does it at heel strike)."""
@@ -269,6 +302,53 @@ class StateMachineController:
             self.heel_load_since_s_ = x.time_s
         return x.time_s - self.heel_load_since_s_ >= sch.heel_strike_hold_s - 1e-9
 
+    def _standing(self, x: SensorSample) -> bool:
+        """Update standing (see the module docstring) with this sample; whether the leg stands now."""
+        sch = self.schedule
+        if self.standing_:
+            moving, lifted = abs(x.knee_velocity_rad_s) > sch.standing_leave_rad_s, x.load_N < sch.se_to_wf_load_N
+            if moving or lifted:
+                if self.event_since_s_ is None:
+                    self.event_since_s_ = x.time_s
+                if x.time_s - self.event_since_s_ >= sch.event_hold_s - 1e-9:
+                    self.standing_ = False          # lifted: a step; moving: walking (or sitting) on it
+                    self._enter(GaitState.SWING_FLEXION if lifted else GaitState.STANCE_FLEXION, x.time_s, guard=False)
+            else:
+                self.event_since_s_ = None
+            return self.standing_
+        still = self.state_ in (GaitState.STANCE_FLEXION, GaitState.STANCE_EXTENSION) and \
+            x.load_N >= sch.se_to_wf_load_N and abs(x.knee_velocity_rad_s) < sch.standing_still_rad_s and \
+            abs(x.ankle_velocity_rad_s) < sch.standing_still_rad_s
+        if not still:
+            self.still_since_s_ = None
+            return False
+        if self.still_since_s_ is None:
+            self.still_since_s_ = x.time_s
+        if x.time_s - self.still_since_s_ >= sch.standing_enter_s - 1e-9:
+            self.standing_, self.event_since_s_, self.standing_since_s_ = True, None, x.time_s
+            self.standing_knee_rad_, self.standing_ankle_rad_ = x.knee_angle_rad, x.ankle_angle_rad
+        return self.standing_
+
+    def _row_torques(self, x: SensorSample) -> tuple[float, float]:
+        sch, i = self.schedule, int(self.state_)
+        tk = sch.knee_k[i] * (x.knee_angle_rad - sch.knee_theta_e[i]) - sch.knee_b[i] * x.knee_velocity_rad_s
+        ta = sch.ankle_k[i] * (x.ankle_angle_rad - sch.ankle_theta_e[i]) - sch.ankle_b[i] * x.ankle_velocity_rad_s
+        return tk, ta
+
+    def _standing_torques(self, x: SensorSample) -> tuple[float, float]:
+        """The knee held against flexion where standing found it (the hold follows it as it extends), the ankle about
+        where it was: the stance-flexion row's stiffness and damping, both joints; blended in from the row's torques
+        over ``standing_blend_s``."""
+        sch = self.schedule
+        self.standing_knee_rad_ = min(self.standing_knee_rad_, x.knee_angle_rad)
+        tk = sch.knee_k[0] * (x.knee_angle_rad - self.standing_knee_rad_) - sch.knee_b[0] * x.knee_velocity_rad_s
+        ta = sch.ankle_k[0] * (x.ankle_angle_rad - self.standing_ankle_rad_) - sch.ankle_b[0] * x.ankle_velocity_rad_s
+        w = (x.time_s - self.standing_since_s_) / sch.standing_blend_s if sch.standing_blend_s > 0 else 1.0
+        if w < 1.0:
+            rk, ra = self._row_torques(x)
+            tk, ta = w * tk + (1.0 - w) * rk, w * ta + (1.0 - w) * ra
+        return tk, ta
+
     def _enter(self, state: GaitState, now_s: float, guard: bool) -> None:
         self.state_ = state
         self.state_entry_time_s_ = now_s
@@ -283,10 +363,15 @@ class StateMachineController:
             self.state_entry_time_s_ = x.time_s
         sch = self.schedule
         dwell = x.time_s - self.state_entry_time_s_
-        if self._heel_strike(x):
+        was_standing = self.standing_
+        if self._standing(x) or was_standing:
+            pass                                     # standing (no event, no guard), or it ended on this sample
+        elif self._heel_strike(x):
             self._enter(GaitState.STANCE_FLEXION, x.time_s, guard=False)
         elif dwell >= sch.min_state_time_s:
             guard = dwell >= sch.max_state_time_s
+            if guard and self.state_ == GaitState.STANCE_EXTENSION and x.load_N >= sch.we_to_sf_load_N:
+                guard = False                        # never into swing carrying the heel-strike load: only toe-off
             if self._event(x):
                 if self.event_since_s_ is None:
                     self.event_since_s_ = x.time_s
@@ -296,10 +381,8 @@ class StateMachineController:
                 held = False
             if guard or held:
                 self._enter(GaitState((int(self.state_) + 1) % 4), x.time_s, guard)
-        i = int(self.state_)
         lim = self.limits
-        tk = sch.knee_k[i] * (x.knee_angle_rad - sch.knee_theta_e[i]) - sch.knee_b[i] * x.knee_velocity_rad_s
-        ta = sch.ankle_k[i] * (x.ankle_angle_rad - sch.ankle_theta_e[i]) - sch.ankle_b[i] * x.ankle_velocity_rad_s
+        tk, ta = self._standing_torques(x) if self.standing_ else self._row_torques(x)
         tk, sk = clip_torque(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
         ta, sa = clip_torque(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])
         return TorqueCommand(self.state_, tk, ta, sk or sa)

@@ -173,3 +173,36 @@ def test_schedule_from_table_rechecks_safety_limits(model):
     bad = table.model_copy(update={"rows": rows})
     with pytest.raises(SafetyLimitError, match=r"swing_flexion\.k_Nm_per_rad"):
         ImpedanceSchedule.from_table(bad)
+
+
+def test_a_leg_still_in_stance_stands_and_holds_its_knee_until_it_moves_or_is_lifted():
+    """Standing: entered after standing_enter_s still and loaded in stance; no event nor guard moves the state; the
+    knee is held against flexion where standing found it (free to extend, the hold following it); left on knee
+    motion (back to stance flexion) or on unloading (a step: swing flexion)."""
+    sch = schedule(standing_enter_s=0.5, standing_blend_s=0.0)
+    c = StateMachineController(sch, initial_state=SE)
+    t = 0.0
+    while t < 0.49:
+        assert c.step(sample(t, load=400.0, knee=0.05)).state == SE and not c.standing_
+        t = round(t + 0.01, 6)
+    c.step(sample(0.5, load=400.0, knee=0.05))
+    assert c.standing_ and c.standing_knee_rad_ == 0.05
+    cmd = c.step(sample(3.0, load=400.0, knee=0.07))                    # past the 1.5 s guard: still standing
+    assert cmd.state == SE and c.standing_ and c.guard_transitions_ == 0
+    assert cmd.knee_torque_Nm == pytest.approx(sch.knee_k[0] * 0.02)      # held against flexion, the SF stiffness
+    c.step(sample(3.01, load=400.0, knee=0.03, knee_v=-0.1))             # extends: the hold follows
+    assert c.standing_knee_rad_ == 0.03
+    assert c.step(sample(3.02, load=400.0, knee=0.03, knee_v=1.0)).state == SF and not c.standing_   # moves: walks
+    d = StateMachineController(sch, initial_state=SF)
+    for k in range(60):
+        d.step(sample(k * 0.01, load=400.0))
+    assert d.standing_
+    assert d.step(sample(0.7, load=10.0)).state == WF and not d.standing_   # lifted: a step
+
+
+def test_the_guard_never_puts_a_leg_carrying_the_heel_strike_load_into_swing():
+    c = StateMachineController(schedule(max_state_time_s=1.0), initial_state=SE)
+    c.step(sample(0.0, load=600.0, knee=0.3, knee_v=1.0))               # moving: never standing
+    assert c.step(sample(1.2, load=600.0, knee=0.3, knee_v=1.0)).state == SE and c.guard_transitions_ == 0
+    assert c.step(sample(1.3, load=60.0, knee=0.3, knee_v=1.0)).state == WF     # below it, the guard may act
+    assert c.guard_transitions_ == 1
