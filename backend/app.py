@@ -200,7 +200,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     mount_frontend(app, settings.frontend_dir)
     mount_docs(app)
     app.add_middleware(RefuseAnonymousWrites)   # its 401 carries the security headers itself
-    app.add_middleware(GateBodies, rules=body_rules(app))   # each route's bound and role, before its body is read
+    app.add_middleware(GateBodies, rules=body_rules(app), db=lambda: app.state.db)   # bound and role, body unread
     app.add_middleware(AnswerFaults)            # a 500 that keeps the connection open (inside the security headers)
     add_security_headers(app)
     app.openapi = lambda: _openapi(app)

@@ -11,10 +11,12 @@ leave to the application.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from fastapi import FastAPI
 from fastapi.routing import APIRoute
+from sqlalchemy import Engine
 from starlette.concurrency import run_in_threadpool
 from starlette.responses import JSONResponse
 from starlette.routing import Match
@@ -91,11 +93,13 @@ class GateBodies:
     Args:
         app: the inner application.
         rules: the write routes' rules (:func:`body_rules`), given once the app's routers are included.
+        db: the app's database engine, when asked (the token's holder is looked up there).
         default_bytes: the bound of a write no rule covers (a path that is not an operation: answered 404/405 later).
     """
 
-    def __init__(self, app: ASGIApp, rules: list[BodyRule], default_bytes: int = BODY_BYTES) -> None:
-        self.app, self.rules, self.default_bytes = app, rules, default_bytes
+    def __init__(self, app: ASGIApp, rules: list[BodyRule], db: Callable[[], Engine],
+                 default_bytes: int = BODY_BYTES) -> None:
+        self.app, self.rules, self.db, self.default_bytes = app, rules, db, default_bytes
 
     def _rule(self, scope: Scope) -> BodyRule | None:
         for rule in self.rules:
@@ -111,7 +115,7 @@ class GateBodies:
                            **{"WWW-Authenticate": "Bearer"})
 
         def holder() -> User | None:
-            with pooled(scope["app"].state.db) as conn:
+            with pooled(self.db()) as conn:
                 return user_for_token(conn, token)
 
         user = await run_in_threadpool(holder)

@@ -28,8 +28,9 @@ stepped the knee torque by tens of N·m at each change. So a stance state whose 
 *standing*: no event and no guard moves the state; the knee is held where standing found it (its stance-flexion
 stiffness against further flexion, the hold following it as it extends: it may straighten, it cannot fold), the
 ankle is held about where standing found it with its stance-flexion stiffness. Standing ends when the knee moves
-faster than ``standing_leave_rad_s`` (the person starts walking on it, or sits: back to stance flexion, its dwell
-restarted) or when the load falls below the toe-off threshold for ``event_hold_s`` (the leg is lifted: swing
+faster than ``standing_leave_rad_s`` (the person walks on from it: on in the stance state it stood in, its dwell
+restarted; a knee flexing into pre-swing from stance extension put back in stance flexion was held stiff through
+its toe-off and swing) or when the load falls below the toe-off threshold for ``event_hold_s`` (the leg is lifted: swing
 flexion). Separately, the maximum-time guard never moves a leg that carries at least the heel-strike load into swing
 flexion: only its toe-off does.
 
@@ -311,8 +312,8 @@ class StateMachineController:
                 if self.event_since_s_ is None:
                     self.event_since_s_ = x.time_s
                 if x.time_s - self.event_since_s_ >= sch.event_hold_s - 1e-9:
-                    self.standing_ = False          # lifted: a step; moving: walking (or sitting) on it
-                    self._enter(GaitState.SWING_FLEXION if lifted else GaitState.STANCE_FLEXION, x.time_s, guard=False)
+                    self.standing_ = False          # lifted: a step; moving: on in the stance state it stood in
+                    self._enter(GaitState.SWING_FLEXION if lifted else self.state_, x.time_s, guard=False)
             else:
                 self.event_since_s_ = None
             return self.standing_

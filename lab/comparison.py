@@ -18,9 +18,9 @@ COMPARED: tuple[str, ...] = ("quasi-stiffness", "fsmic")
 
 def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_SPEEDS_MPS,
             inclines_deg: tuple[float, ...] = (0.0,), seconds: float = 20.0, mass_kg: float = 75.0,
-            geometry: LegGeometry | None = None) -> list[tuple[WalkScore, str]]:
-    """Both controllers over the task grid on the leg ``geometry`` (default the nominal bench); returns (score,
-    controller) pairs in grid order.
+            geometry: LegGeometry | None = None, start: str = "swing") -> list[tuple[WalkScore, str]]:
+    """Both controllers over the task grid on the leg ``geometry`` (default the nominal bench), each walk from
+    ``start`` (``swing`` or ``standing``); returns (score, controller) pairs in grid order.
 
     Each learned walk's summary also carries ``vs_fsmic`` (:func:`device_bridge.bench.versus.against_fsmic`): how its
     RMSEs differ from the FSMIC's at the same task, and whether the strides walked resolve the difference.
@@ -28,7 +28,7 @@ def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_
     out = []
     for incline in inclines_deg:
         for speed in speeds_mps:
-            pair = {name: simulate(name, speed, incline, seconds, mass_kg, model, geometry=geometry)
+            pair = {name: simulate(name, speed, incline, seconds, mass_kg, model, geometry=geometry, start=start)
                     for name in COMPARED}
             pair["quasi-stiffness"].summary["vs_fsmic"] = against_fsmic(pair["quasi-stiffness"], pair["fsmic"])
             out.extend((pair[name], name) for name in COMPARED)

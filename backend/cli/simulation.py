@@ -66,7 +66,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         return 0
     from lab.comparison import compare, format_compare, plot_compare
 
-    results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass, _leg(args))
+    results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass, _leg(args),
+                      start=args.start)
     rows = [score.to_dict() for score, _ in results]
     print(format_compare(rows))
     if args.out:
@@ -202,6 +203,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
     p.add_argument("--leg", default=None, help=LEG_HELP)
+    p.add_argument("--start", choices=("swing", "standing"), default="swing",
+                   help="each walk starts in late swing at belt speed (the bench's first start), or from a second of "
+                        "quiet standing through gait initiation")
     p.set_defaults(func=cmd_compare)
     p = sub.add_parser("refine", help="the refinement loop on the bench: a leg walks a course with the envelope, the "
                                       "envelope is refined from its strides, repeated; then an evaluation course with "

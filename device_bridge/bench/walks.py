@@ -24,21 +24,23 @@ from device_bridge.sim.video import VideoRecorder
 def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, seconds: float = 20.0,
              mass_kg: float = 75.0, model: QuasiStiffnessModel | None = None, record: Path | None = None,
              video: Path | None = None, table: ImpedanceTable | None = None, skip_limits: bool = False,
-             geometry: LegGeometry | None = None) -> WalkScore:
+             geometry: LegGeometry | None = None, start: str = "swing") -> WalkScore:
     """Walk one controller at one task (``quasi-stiffness``: the model's table at that task; ``table``: the given
-    table, with ``skip_limits`` unchecked for bench studies) on the leg ``geometry`` (default the nominal bench);
-    optionally save the trajectories (.csv or .parquet) and a video."""
+    table, with ``skip_limits`` unchecked for bench studies) on the leg ``geometry`` (default the nominal bench),
+    from ``start`` (``swing`` or ``standing``: :func:`~device_bridge.sim.simulate.run_walk`); optionally save the
+    trajectories (.csv or .parquet) and a video."""
     validate_task(speed_mps, incline_deg, mass_kg)
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
     ctrl = make_controller(controller, mass_kg, model, (speed_mps, incline_deg), table=table, skip_limits=skip_limits)
     recorder = VideoRecorder(video) if video is not None else None
     log = run_walk(ctrl, ref, mass_kg, seconds, geometry, frame_callback=recorder,
-                   frame_every=recorder.every if recorder else 0)
+                   frame_every=recorder.every if recorder else 0, start=start)
     if recorder is not None:
         recorder.close()
     score = score_walk(log, ref)
     score.summary["controller"] = controller
     score.summary["leg"] = (geometry or LegGeometry()).name
+    score.summary["start"] = start
     if record is not None:
         frame = log.to_frame()
         if record.suffix == ".parquet":

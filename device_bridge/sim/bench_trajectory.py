@@ -225,3 +225,65 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
     return BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=th, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=dth / T,
                            height_m=h, other_leg_N=other, other_foot_down=foot_down,
                            stance=s <= ref.toe_off_phase, stride_time_s=T)
+
+
+# a start from quiet standing (issue 53): the bench used to start every walk in late swing at belt speed with the
+# joints' velocities zero, so the foot landed ~90 ms early on a knee bent ~30° and downhill every controller fell
+STANDING_START_PHASE = 0.1      # the prosthesis early in its stance when the first step (the other leg's) begins
+INITIATION_STRIDES = 0.45       # the ramp into walking, done before the prosthesis's first toe-off (about 0.6)
+STANDING_KNEE_RAD = math.radians(3.0)
+STANDING_SHARE_BW = 0.5         # the prosthesis's share of the weight while standing
+
+
+def standing_pose_rad(incline_deg: float) -> tuple[float, float, float]:
+    """(thigh, knee, ankle) of quiet standing on a floor of ``incline_deg``: thigh vertical, knee at 3°, the foot
+    flat on the floor (thigh − knee + ankle = incline)."""
+    thigh = 0.0
+    return thigh, STANDING_KNEE_RAD, math.radians(incline_deg) - thigh + STANDING_KNEE_RAD
+
+
+def plan_standing_start(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float,
+                        timestep_s: float = 0.001, stand_s: float = 1.0, harmonics: int = HARMONICS,
+                        t0_s: float = 0.0) -> BenchTrajectory:
+    """Quiet standing for ``stand_s``, then gait initiation into the reference's task: over
+    :data:`INITIATION_STRIDES` of a stride (a cosine ramp ``w`` from 0 to 1, done before the prosthesis's first
+    toe-off) the body accelerates to belt speed and the thigh, the hip's height and the other leg's push go over from
+    standing's to the walking pattern's, which starts with the prosthesis early in its stance (the other leg steps
+    first); from then on it is the walk of :func:`plan_bench_trajectory`. A later chunk (``t0_s``) continues the
+    earlier one exactly."""
+    pattern = task_pattern_series(ref, geometry, harmonics)
+    h2 = pattern.thigh.shape[0] // 2
+    T, v, alpha = ref.stride_time_s, ref.speed_mps, math.radians(ref.incline_deg)
+    ramp = INITIATION_STRIDES * T
+    n = round(seconds / timestep_s)
+    t = t0_s + np.arange(n) * timestep_s
+    tau = t - stand_s
+    ramp_tau = np.clip(tau, 0.0, ramp)
+    w = np.where(tau <= 0, 0.0, np.where(tau >= ramp, 1.0, 0.5 * (1.0 - np.cos(np.pi * ramp_tau / ramp))))
+    dw = np.where((tau > 0) & (tau < ramp), 0.5 * np.pi / ramp * np.sin(np.pi * ramp_tau / ramp), 0.0)
+    s = (STANDING_START_PHASE + np.maximum(tau, 0.0) / T) % 1.0
+    ds = np.where(tau > 0, 1.0 / T, 0.0)
+    progressed = np.where(tau <= 0, 0.0, np.where(
+        tau >= ramp, tau - ramp / 2, ramp_tau / 2 - ramp / (2 * np.pi) * np.sin(np.pi * ramp_tau / ramp)))
+    thigh0, knee0, ankle0 = standing_pose_rad(ref.incline_deg)
+    h0 = float(touching_hip_height_m(np.array([thigh0]), np.array([knee0]), np.array([ankle0]), geometry,
+                                     ref.incline_deg)[0])
+    th_w, dth_w, _ = eval_fourier(pattern.thigh[:h2], pattern.thigh[h2:], s)
+    h_w, dh_w, ddh_w = eval_fourier(pattern.height[:h2], pattern.height[h2:], s)
+    th = (1 - w) * thigh0 + w * th_w
+    h = (1 - w) * h0 + w * h_w
+    dth = w * dth_w * ds + dw * (th_w - thigh0)
+    hd = w * dh_w * ds + dw * (h_w - h0)
+    u = v * progressed
+    x = u * math.cos(alpha) - h * math.sin(alpha)
+    z = u * math.sin(alpha) + h * math.cos(alpha)
+    xd = v * w * math.cos(alpha) - hd * math.sin(alpha)
+    zd = v * w * math.sin(alpha) + hd * math.cos(alpha)
+    share = np.interp(s, ref.phase, pattern.other_bw)
+    walk_push, walk_down = other_leg_push_N(s, ref.toe_off_phase, share, w * ddh_w / (T * T), alpha, mass_kg)
+    stand_push = (1.0 - STANDING_SHARE_BW) * mass_kg * G_MPS2
+    other = (1 - w) * stand_push + w * walk_push
+    stance = np.where(tau <= 0, True, s <= ref.toe_off_phase)
+    return BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=th, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=dth,
+                           height_m=h, other_leg_N=other, other_foot_down=np.where(w < 1.0, True, walk_down),
+                           stance=stance, stride_time_s=T)

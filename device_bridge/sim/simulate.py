@@ -55,7 +55,12 @@ from controller_core.gait_metrics import (
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim import progress
-from device_bridge.sim.bench_trajectory import BenchTrajectory, plan_bench_trajectory
+from device_bridge.sim.bench_trajectory import (
+    BenchTrajectory,
+    plan_bench_trajectory,
+    plan_standing_start,
+    standing_pose_rad,
+)
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.person import Person
 from device_bridge.sim.plant import SimulatedLeg
@@ -114,7 +119,7 @@ class StepController(Protocol):
 
 def run_walk(controller: StepController, reference: WalkingReference, mass_kg: float, seconds: float,
              geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0,
-             person: Person | None = None) -> WalkLog:
+             person: Person | None = None, start: str = "swing") -> WalkLog:
     """Walk ``controller`` on the bench for ``seconds`` at the reference's task.
 
     Args:
@@ -126,16 +131,25 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
         frame_callback: called with the plant every ``frame_every`` ticks (rendering), if given.
         person: the person around the prosthesis (default :class:`Person` of ``mass_kg`` as stated there); bench
             studies give another to see what the person's stated strengths hide.
+        start: ``"swing"``: in late swing at belt speed (the bench's first start); ``"standing"``: a second of
+            quiet standing, then gait initiation into the task
+            (:func:`~device_bridge.sim.bench_trajectory.plan_standing_start`).
     """
     if not (math.isfinite(seconds) and 0.0 < seconds <= 600.0):
         raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")
     if person is not None and person.mass_kg != mass_kg:
         raise ValueError(f"the person's mass ({person.mass_kg:g} kg) is not the walk's ({mass_kg:g} kg)")
+    if start not in ("swing", "standing"):
+        raise ValueError(f"start must be 'swing' or 'standing', got {start!r}")
     leg = SimulatedLeg(geometry, reference.incline_deg, person=person or Person(mass_kg))
-    traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, seconds, leg.timestep_s)
-    s0 = traj.phase[0]
-    knee0 = float(np.interp(s0, reference.phase, reference.knee_angle_rad))
-    ankle0 = float(np.interp(s0, reference.phase, reference.ankle_angle_rad))
+    if start == "standing":
+        traj = plan_standing_start(reference, leg.geometry, mass_kg, seconds, leg.timestep_s)
+        _, knee0, ankle0 = standing_pose_rad(reference.incline_deg)
+    else:
+        traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, seconds, leg.timestep_s)
+        s0 = traj.phase[0]
+        knee0 = float(np.interp(s0, reference.phase, reference.knee_angle_rad))
+        ankle0 = float(np.interp(s0, reference.phase, reference.ankle_angle_rad))
     alpha = math.radians(reference.incline_deg)
     n = traj.time_s.shape[0]
     log = walk_loop(controller, leg, traj, (knee0, ankle0), (np.full(n, -math.sin(alpha)), np.full(n, math.cos(alpha))),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import atexit
+import itertools
 import tempfile
 from concurrent.futures import Future
 from pathlib import Path
@@ -14,6 +16,10 @@ from schemathesis.checks import positive_data_acceptance
 from tests.helpers.api import make_api
 
 _tmp = tempfile.TemporaryDirectory(prefix="quasitune-fuzz-")
+# removed when the process ends, not when the module's fixture ends: under --dist worksteal a worker may set the
+# fixture up again for the operations it takes later, and the app's database must still be there
+atexit.register(_tmp.cleanup)
+_setups = itertools.count(1)
 # the app is built when the file is collected (schemathesis reads its schema then; its fixture-based loader does not
 # run under pytest 9); its model is the run's own, handed over when the test starts, so collecting costs no model load
 _model: Future = Future()
@@ -28,12 +34,11 @@ def fuzz_api(model):
     if not _model.done():
         _model.set_result(model)
     with _client:
-        patient = _api.new_patient("FUZZ-1")
+        patient = _api.new_patient(f"FUZZ-{next(_setups)}")      # set up again by a worker: a patient of its own
         first = _api.propose(patient["id"])
         _api.client.post(f"/api/proposals/{first['id']}/edits", headers=_api.as_("prosthetist"), json={
             "rows": [{"joint": "knee", "subphase": "swing_flexion", "b_Nm_s_per_rad": 1.0}], "comment": "seed"})
         yield _api
-    _tmp.cleanup()
 
 
 # one test per operation, by its label: schemathesis's own parametrize gives all 58 items one node id under pytest 9,

@@ -192,7 +192,8 @@ def test_a_leg_still_in_stance_stands_and_holds_its_knee_until_it_moves_or_is_li
     assert cmd.knee_torque_Nm == pytest.approx(sch.knee_k[0] * 0.02)      # held against flexion, the SF stiffness
     c.step(sample(3.01, load=400.0, knee=0.03, knee_v=-0.1))             # extends: the hold follows
     assert c.standing_knee_rad_ == 0.03
-    assert c.step(sample(3.02, load=400.0, knee=0.03, knee_v=1.0)).state == SF and not c.standing_   # moves: walks
+    moved = c.step(sample(3.02, load=400.0, knee=0.03, knee_v=1.0))      # moves: on in the state it stood in
+    assert moved.state == SE and not c.standing_ and c.state_entry_time_s_ == 3.02
     d = StateMachineController(sch, initial_state=SF)
     for k in range(60):
         d.step(sample(k * 0.01, load=400.0))

@@ -76,3 +76,42 @@ def test_on_a_slope_the_path_follows_the_floor():
     traj = plan_bench_trajectory(ref, LegGeometry(), 75.0, 2.0, start_phase=0.0)
     climb = (traj.z_m[-1] - traj.z_m[0]) / (traj.x_m[-1] - traj.x_m[0])
     assert math.degrees(math.atan(climb)) == pytest.approx(10.0, abs=1.0)
+
+
+def test_a_start_from_standing_stands_still_then_reaches_the_walk_and_continues_across_chunks():
+    """Quiet standing (the hip still, the other leg pushing half the weight), then gait initiation that is done before
+    the prosthesis's first toe-off, after which it is the walk itself at belt speed; a later chunk continues the
+    first exactly."""
+    from controller_core.units import G_MPS2
+    from device_bridge.sim.bench_trajectory import INITIATION_STRIDES, plan_standing_start
+
+    ref, g, mass = level_walking_reference(1.2), LegGeometry(), 75.0
+    traj = plan_standing_start(ref, g, mass, 6.0, stand_s=1.0)
+    still = traj.time_s < 1.0
+    assert np.ptp(traj.x_m[still]) == 0 and np.ptp(traj.hip_rad[still]) == 0 and traj.stance[still].all()
+    assert traj.other_leg_N[still] == pytest.approx(0.5 * mass * G_MPS2)
+    ramp_end = 1.0 + INITIATION_STRIDES * ref.stride_time_s
+    walking = traj.time_s >= ramp_end
+    assert traj.phase[np.argmax(walking)] < ref.toe_off_phase                  # done before the first toe-off
+    assert np.allclose(np.gradient(traj.x_m, traj.time_s)[walking][5:-5], traj.xd_m_s[walking][5:-5], atol=1e-3)
+    assert abs(np.mean(traj.xd_m_s[traj.time_s > ramp_end + ref.stride_time_s]) - 1.2) < 0.05   # belt speed
+    later = plan_standing_start(ref, g, mass, 2.0, stand_s=1.0, t0_s=4.0)
+    i = round(4.0 / 0.001)
+    for name in ("x_m", "z_m", "hip_rad", "other_leg_N", "phase"):
+        assert np.allclose(getattr(later, name)[:100], getattr(traj, name)[i:i + 100]), name
+
+
+def test_from_standing_the_learned_table_walks_downhill_where_the_swing_start_made_it_fall(model):
+    """The bench's first start (late swing at belt speed, joints still) landed the foot early on a knee bent 30°:
+    downhill every controller fell, once per bench stride. From quiet standing through gait initiation the same
+    tables at the same tasks walk without falling."""
+    from controller_core.fsm import ImpedanceSchedule, StateMachineController
+    from controller_core.walking_reference import sloped_walking_reference
+    from device_bridge.sim.simulate import run_walk, score_walk
+
+    for speed in (1.0, 1.2):
+        ref = sloped_walking_reference(speed, -10.0)
+        table = model.propose(speed, -10.0, 75.0).table
+        falls = {start: score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(table)), ref, 75.0,
+                                            15.0, start=start), ref).summary["falls"] for start in ("swing", "standing")}
+        assert falls["swing"] >= 5 and falls["standing"] == 0, (speed, falls)
