@@ -118,6 +118,10 @@ class AdaptiveController:
     def state_(self) -> GaitState:
         return self.machine_.state_
 
+    def stand(self) -> None:
+        """A person stands on the leg now (:meth:`~controller_core.fsm.StateMachineController.stand`)."""
+        self.machine_.stand()
+
     def reset(self, state: GaitState | None = None) -> None:
         """A new walk (or a new envelope): back to the nominal task, the estimator and history cleared, the machine
         in ``state`` (its initial state by default)."""

@@ -246,6 +246,8 @@ class StateMachineController:
         still_since_s_: since when knee and ankle have been still in a loaded stance state (s); None while not.
         standing_knee_rad_, standing_ankle_rad_: where standing holds the knee (against flexion) and the ankle (rad).
         standing_since_s_: when standing was entered (s; the blend from the row's torques runs from it).
+        stand_next_: :meth:`stand` was called: standing from the next sample.
+        standing_loaded_: standing has seen the toe-off load (only then does unloading end it).
     """
 
     schedule: ImpedanceSchedule
@@ -262,6 +264,8 @@ class StateMachineController:
     standing_knee_rad_: float = field(init=False, default=0.0)
     standing_ankle_rad_: float = field(init=False, default=0.0)
     standing_since_s_: float = field(init=False, default=0.0)
+    stand_next_: bool = field(init=False, default=False)
+    standing_loaded_: bool = field(init=False, default=False)
 
     def __post_init__(self) -> None:
         self.state_ = GaitState(self.initial_state)
@@ -276,6 +280,15 @@ class StateMachineController:
         self.guard_transitions_ = 0
         self.standing_ = False
         self.still_since_s_ = None
+        self.stand_next_ = False
+
+    def stand(self) -> None:
+        """A person stands on the leg now (a leg switched on or given a table under them, the bench's standing start):
+        from the next sample the machine stands (in stance extension, whose exit is the toe-off the first step ends
+        with), holding the joints where it finds them, instead of starting on the walking rows (which bent an uphill
+        standing knee to 23° and unloaded the leg in the half second standing takes to notice). An unloaded leg is
+        not taken for lifted until the person's weight has come onto it."""
+        self.stand_next_ = True
 
     def load(self, schedule: ImpedanceSchedule) -> None:
         """Swap the impedance schedule (the caller decides when: the device does it at heel strike)."""
@@ -307,7 +320,9 @@ class StateMachineController:
         """Update standing (see the module docstring) with this sample; whether the leg stands now."""
         sch = self.schedule
         if self.standing_:
-            moving, lifted = abs(x.knee_velocity_rad_s) > sch.standing_leave_rad_s, x.load_N < sch.se_to_wf_load_N
+            self.standing_loaded_ = self.standing_loaded_ or x.load_N >= sch.se_to_wf_load_N
+            moving = abs(x.knee_velocity_rad_s) > sch.standing_leave_rad_s
+            lifted = self.standing_loaded_ and x.load_N < sch.se_to_wf_load_N   # once the person's weight came
             if moving or lifted:
                 if self.event_since_s_ is None:
                     self.event_since_s_ = x.time_s
@@ -327,6 +342,7 @@ class StateMachineController:
             self.still_since_s_ = x.time_s
         if x.time_s - self.still_since_s_ >= sch.standing_enter_s - 1e-9:
             self.standing_, self.event_since_s_, self.standing_since_s_ = True, None, x.time_s
+            self.standing_loaded_ = True
             self.standing_knee_rad_, self.standing_ankle_rad_ = x.knee_angle_rad, x.ankle_angle_rad
         return self.standing_
 
@@ -363,6 +379,12 @@ class StateMachineController:
         if self.state_entry_time_s_ is None:
             self.state_entry_time_s_ = x.time_s
         sch = self.schedule
+        if self.stand_next_:
+            self.stand_next_ = False
+            self.state_, self.state_entry_time_s_ = GaitState.STANCE_EXTENSION, x.time_s
+            self.standing_, self.event_since_s_, self.standing_loaded_ = True, None, False
+            self.standing_since_s_ = x.time_s - sch.standing_blend_s              # nothing walked to blend from
+            self.standing_knee_rad_, self.standing_ankle_rad_ = x.knee_angle_rad, x.ankle_angle_rad
         dwell = x.time_s - self.state_entry_time_s_
         was_standing = self.standing_
         if self._standing(x) or was_standing:

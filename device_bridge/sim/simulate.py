@@ -153,20 +153,23 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
     alpha = math.radians(reference.incline_deg)
     n = traj.time_s.shape[0]
     log = walk_loop(controller, leg, traj, (knee0, ankle0), (np.full(n, -math.sin(alpha)), np.full(n, math.cos(alpha))),
-                    mass_kg, frame_callback, frame_every)
+                    mass_kg, frame_callback, frame_every, standing=start == "standing")
     return log
 
 
 def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajectory, start_angles_rad: tuple[float, float],
-              normals: tuple[np.ndarray, np.ndarray], mass_kg: float, frame_callback=None, frame_every: int = 0
-              ) -> WalkLog:
+              normals: tuple[np.ndarray, np.ndarray], mass_kg: float, frame_callback=None, frame_every: int = 0,
+              standing: bool = False) -> WalkLog:
     """The 1 kHz loop: bench targets → physics → sensors → controller → torques, logged every tick.
 
     ``normals`` (x, z per tick) is the floor's normal under the socket: the socket's error along it is the
     ``hip_height_error_m`` (actual − path, m: negative when the hip has sunk) the sink and the falls read.
+    ``standing``: the person stands on the leg as the run begins (the controller is told so: ``stand()``).
     """
     x: SensorSample = leg.reset(traj, *start_angles_rad)
     controller.reset()
+    if standing and hasattr(controller, "stand"):     # the person stands on the leg as the walk begins
+        controller.stand()
     n = traj.time_s.shape[0]
     log = {name: np.empty(n) for name in LOG_CHANNELS}
     log["bench_phase"][:] = traj.phase

@@ -63,7 +63,7 @@ def run_standing(controller: StepController, mass_kg: float, seconds: float, geo
     traj = plan_standing(leg.geometry, mass_kg, seconds, leg.timestep_s, **shifts)
     n = traj.time_s.shape[0]
     start = (math.radians(STANDING_KNEE_DEG), math.radians(STANDING_ANKLE_DEG))
-    return walk_loop(controller, leg, traj, start, (np.zeros(n), np.ones(n)), mass_kg)
+    return walk_loop(controller, leg, traj, start, (np.zeros(n), np.ones(n)), mass_kg, standing=True)
 
 
 __all__ = ["SensorSample", "plan_standing", "run_standing"]

@@ -207,3 +207,17 @@ def test_the_guard_never_puts_a_leg_carrying_the_heel_strike_load_into_swing():
     assert c.step(sample(1.2, load=600.0, knee=0.3, knee_v=1.0)).state == SE and c.guard_transitions_ == 0
     assert c.step(sample(1.3, load=60.0, knee=0.3, knee_v=1.0)).state == WF     # below it, the guard may act
     assert c.guard_transitions_ == 1
+
+
+def test_told_a_person_stands_on_it_the_machine_stands_from_the_next_sample():
+    """stand(): standing at once (stance extension, the joints held where found), not the walking rows first; an
+    unloaded leg is taken for lifted only once the person's weight has come onto it."""
+    sch = schedule(standing_blend_s=0.2)
+    c = StateMachineController(sch)
+    c.reset()
+    c.stand()
+    first = c.step(sample(0.0, load=20.0, knee=0.05))                  # the weight not yet on it: not a lift
+    assert first.state == SE and c.standing_ and first.knee_torque_Nm == pytest.approx(0.0)   # no blend: held
+    assert c.step(sample(0.05, load=20.0, knee=0.05)).state == SE and c.standing_
+    c.step(sample(0.1, load=400.0, knee=0.05))                          # the person's weight comes
+    assert c.step(sample(0.2, load=10.0, knee=0.05)).state == WF and not c.standing_   # then lifted: a step
