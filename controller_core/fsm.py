@@ -30,9 +30,10 @@ stiffness against further flexion, the hold following it as it extends: it may s
 ankle is held about where standing found it with its stance-flexion stiffness. Standing ends when the knee moves
 faster than ``standing_leave_rad_s`` (the person walks on from it: on in the stance state it stood in, its dwell
 restarted; a knee flexing into pre-swing from stance extension put back in stance flexion was held stiff through
-its toe-off and swing) or when the load falls below the toe-off threshold for ``event_hold_s`` (the leg is lifted: swing
-flexion). Separately, the maximum-time guard never moves a leg that carries at least the heel-strike load into swing
-flexion: only its toe-off does.
+its toe-off and swing) or when the load falls below the toe-off threshold for ``event_hold_s`` (the leg is
+lifted: swing flexion if the knee bends, else swing extension: a leg lifted straight waited 0.8 s in swing flexion
+for a flexion that never came, and missed its heel strikes). Separately, the maximum-time guard never moves a leg that
+carries at least the heel-strike load into swing flexion: only its toe-off does.
 
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
@@ -328,7 +329,9 @@ class StateMachineController:
                     self.event_since_s_ = x.time_s
                 if x.time_s - self.event_since_s_ >= sch.event_hold_s - 1e-9:
                     self.standing_ = False          # lifted: a step; moving: on in the stance state it stood in
-                    self._enter(GaitState.SWING_FLEXION if lifted else self.state_, x.time_s, guard=False)
+                    swing = GaitState.SWING_FLEXION if x.knee_velocity_rad_s > sch.standing_still_rad_s else \
+                        GaitState.SWING_EXTENSION     # lifted on a knee that does not bend: nothing to flex first
+                    self._enter(swing if lifted else self.state_, x.time_s, guard=False)
             else:
                 self.event_since_s_ = None
             return self.standing_

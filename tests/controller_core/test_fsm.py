@@ -198,7 +198,11 @@ def test_a_leg_still_in_stance_stands_and_holds_its_knee_until_it_moves_or_is_li
     for k in range(60):
         d.step(sample(k * 0.01, load=400.0))
     assert d.standing_
-    assert d.step(sample(0.7, load=10.0)).state == WF and not d.standing_   # lifted: a step
+    assert d.step(sample(0.7, load=10.0, knee_v=0.5)).state == WF and not d.standing_   # lifted, bending: a step
+    e = StateMachineController(sch, initial_state=SF)
+    for k in range(60):
+        e.step(sample(k * 0.01, load=400.0))
+    assert e.step(sample(0.7, load=10.0)).state == WE        # lifted on a straight knee: nothing to flex first
 
 
 def test_the_guard_never_puts_a_leg_carrying_the_heel_strike_load_into_swing():
@@ -220,4 +224,4 @@ def test_told_a_person_stands_on_it_the_machine_stands_from_the_next_sample():
     assert first.state == SE and c.standing_ and first.knee_torque_Nm == pytest.approx(0.0)   # no blend: held
     assert c.step(sample(0.05, load=20.0, knee=0.05)).state == SE and c.standing_
     c.step(sample(0.1, load=400.0, knee=0.05))                          # the person's weight comes
-    assert c.step(sample(0.2, load=10.0, knee=0.05)).state == WF and not c.standing_   # then lifted: a step
+    assert c.step(sample(0.2, load=10.0, knee=0.05, knee_v=0.5)).state == WF and not c.standing_   # then a step
