@@ -19,6 +19,7 @@ logs every tick; :func:`score_walk` turns the log into the metrics ``quasitune s
 * ``falls``: episodes a person could not recover from: the hip more than :data:`FALL_SINK_M` below its path (about a
   sixth of the leg's length: the other leg cannot catch that in a step), or the knee beyond :data:`FALL_KNEE_DEG`
   while the leg carries more than half the body weight (a knee buckling under the body);
+* ``fall_events``: each fall's time, the leg's state, the bench's phase, the knee and the load then, and why it counts;
 * ``toe_catches``: episodes of foot contact in mid-swing (bench phase between toe-off + 8 % and 92 %), the
   stumbles a person would feel;
 * how late the machine noticed each heel strike: ``heel_strike_to_stance_ms_median`` and ``_max`` run from
@@ -49,6 +50,7 @@ from controller_core.gait_metrics import (
     gait_channels,
     heel_strikes,
     reference_curves,
+    rising_edges,
     state_entry_delays,
     strided_errors,
 )
@@ -236,6 +238,25 @@ def fall_mask(c: dict[str, np.ndarray], weight_N: float) -> np.ndarray:
     return sank | buckled
 
 
+def fall_events(c: dict[str, np.ndarray], weight_N: float, min_gap_samples: int) -> list[dict[str, object]]:
+    """Where and how each fall began (the episodes :func:`fall_mask` counts as ``falls``): its time (s), the leg's
+    state, the bench's phase, the knee angle (deg) and the load (body weights) then, and why it counts (the hip sank,
+    or the knee buckled under load)."""
+    mask = fall_mask(c, weight_N)
+    starts = [int(i) for i in rising_edges(mask.astype(float), 0.5, min_gap_samples)]
+    if mask.shape[0] and mask[0]:
+        starts.insert(0, 0)
+    out = []
+    for i in starts:
+        sank = bool(c["hip_height_error_m"][i] < -FALL_SINK_M)
+        out.append({"time_s": round(float(c["time_s"][i]), 3), "state": GaitState(int(c["state"][i])).subphase,
+                    "bench_phase": round(float(c["bench_phase"][i]), 3),
+                    "knee_angle_deg": round(float(np.degrees(c["knee_angle_rad"][i])), 1),
+                    "load_bw": round(float(c["load_N"][i] / weight_N), 2),
+                    "why": "the hip sank" if sank else "the knee buckled under load"})
+    return out
+
+
 def windowed_support_N(support_N: np.ndarray, dt: float) -> np.ndarray:
     """The person's compensation per tick as it is read: its mean over SUPPORT_WINDOW_S around each tick (N)."""
     width = max(round(SUPPORT_WINDOW_S / dt), 1)
@@ -306,6 +327,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
         "seconds": seconds,
         "strides": n_strides,
         "falls": episodes(fall_mask(c, weight), gap),
+        "fall_events": fall_events(c, weight, gap),
         "toe_catches": episodes(toe_catch, gap),
         **errors,
         "stride_time_s": float(np.mean(stride_times)) if stride_times.size else None,

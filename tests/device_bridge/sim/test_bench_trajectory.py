@@ -115,3 +115,23 @@ def test_from_standing_the_learned_table_walks_downhill_where_the_swing_start_ma
         falls = {start: score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(table)), ref, 75.0,
                                             15.0, start=start), ref).summary["falls"] for start in ("swing", "standing")}
         assert falls["swing"] >= 5 and falls["standing"] == 0, (speed, falls)
+
+
+def test_each_fall_says_when_in_which_state_and_why(model):
+    """A walk that falls (downhill from the old late-swing start) lists each fall it counts: its time, the leg's
+    state, the bench's phase, the knee and the load then, and which of the two rules it broke."""
+    from controller_core.fsm import ImpedanceSchedule, StateMachineController
+    from controller_core.walking_reference import sloped_walking_reference
+    from device_bridge.sim.simulate import run_walk, score_walk
+
+    ref = sloped_walking_reference(1.0, -10.0)
+    summary = score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(
+        model.propose(1.0, -10.0, 75.0).table)), ref, 75.0, 8.0), ref).summary
+    events = summary["fall_events"]
+    assert summary["falls"] == len(events) > 0
+    assert [e["time_s"] for e in events] == sorted(e["time_s"] for e in events)
+    assert all(e["why"] in ("the hip sank", "the knee buckled under load") and 0 <= e["bench_phase"] < 1 and
+               e["state"] in ("stance_flexion", "stance_extension", "swing_flexion", "swing_extension")
+               for e in events)
+    assert any(e["why"] == "the knee buckled under load" and e["knee_angle_deg"] >= 60 and e["load_bw"] > 0.5
+               for e in events) or any(e["why"] == "the hip sank" for e in events)
