@@ -15,29 +15,12 @@ from __future__ import annotations
 
 import contextlib
 import math
-import ssl
 import tempfile
 import threading
 import time
 from pathlib import Path
 
 CHUNK = 58 * 1024
-
-
-def _connect_as(broker, username: str, password: str, client_id: str, clean_session: bool = False):
-    """(accepted, the client) for this identity under ``client_id`` (a persistent session asked for)."""
-    import paho.mqtt.client as mqtt
-    from paho.mqtt.enums import CallbackAPIVersion
-
-    answered, accepted = threading.Event(), []
-    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=clean_session)
-    c.username_pw_set(username, password)
-    c.tls_set(ca_certs=broker.ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
-    c.on_connect = lambda _c, _u, _f, code, _p: (accepted.append(not code.is_failure), answered.set())
-    c.connect("127.0.0.1", broker.port)
-    c.loop_start()
-    answered.wait(5)
-    return bool(accepted and accepted[0]), c
 
 
 def _stop(c) -> None:
@@ -85,6 +68,7 @@ def _scenarios(broker, admin, api, leg1, leg2, server_username: str, spans: dict
 
     from device_bridge.mqtt_bus import pack_frames, pack_late, topic
     from device_bridge.protocol import encode
+    from tests.helpers.mosquitto import connect_as
 
     thief = leg2.identity
     out: dict[str, dict] = {}
@@ -93,7 +77,7 @@ def _scenarios(broker, admin, api, leg1, leg2, server_username: str, spans: dict
     # 1 session takeover by client id
     taken = {}
     for cid in (server_username, "device-leg-1"):
-        accepted, c = _connect_as(broker, *thief, cid)
+        accepted, c = connect_as(broker, *thief, cid)
         taken[cid] = accepted
         time.sleep(1.0)
         _stop(c)
@@ -110,7 +94,7 @@ def _scenarios(broker, admin, api, leg1, leg2, server_username: str, spans: dict
         "issued": issued, "server_connected_after": api.client.app.state.broker.connected,
         "admin_still_works": bool(admin.add_device("after-redteam"))}
     # 3-6 the stolen leg's own traffic: records with impossible times, a huge message, a flood of late messages
-    accepted, c = _connect_as(broker, *thief, thief.username, clean_session=True)
+    accepted, c = connect_as(broker, *thief, thief.username, clean_session=True)
     status = pack_frames([encode("DEVICE_STATUS", {"counter": 1, "mode": 2, "fsm_state": 0, "active_version": 0,
                                                    "active_crc32": 0})])
     now = time.time()
@@ -127,7 +111,7 @@ def _scenarios(broker, admin, api, leg1, leg2, server_username: str, spans: dict
     spans["ten_megabytes"], t = (t, mark()), mark()
     out["ten_megabytes"] = {"sender_still_connected": c.is_connected()}
     _stop(c)
-    accepted, c = _connect_as(broker, *thief, thief.username, clean_session=True)
+    accepted, c = connect_as(broker, *thief, thief.username, clean_session=True)
     record = pack_frames([can.Message(arbitration_id=0x7F0, data=b"\0" * 8, is_extended_id=False)] * 255)
     junk = pack_late([(time.time() - 1.0, record)] * (CHUNK // len(record)))
     t0 = time.monotonic()

@@ -344,10 +344,15 @@ class StateMachineController:
         if self.still_since_s_ is None:
             self.still_since_s_ = x.time_s
         if x.time_s - self.still_since_s_ >= sch.standing_enter_s - 1e-9:
-            self.standing_, self.event_since_s_, self.standing_since_s_ = True, None, x.time_s
-            self.standing_loaded_ = True
-            self.standing_knee_rad_, self.standing_ankle_rad_ = x.knee_angle_rad, x.ankle_angle_rad
+            self._begin_standing(x, loaded=True, blend=True)
         return self.standing_
+
+    def _begin_standing(self, x: SensorSample, loaded: bool, blend: bool) -> None:
+        """Stand from sample ``x``: the joints held where they are; ``loaded``: the person's weight is already on
+        the leg; ``blend``: the row's torques go over to standing's over ``standing_blend_s``."""
+        self.standing_, self.event_since_s_, self.standing_loaded_ = True, None, loaded
+        self.standing_since_s_ = x.time_s - (0.0 if blend else self.schedule.standing_blend_s)
+        self.standing_knee_rad_, self.standing_ankle_rad_ = x.knee_angle_rad, x.ankle_angle_rad
 
     def _row_torques(self, x: SensorSample) -> tuple[float, float]:
         sch, i = self.schedule, int(self.state_)
@@ -385,9 +390,7 @@ class StateMachineController:
         if self.stand_next_:
             self.stand_next_ = False
             self.state_, self.state_entry_time_s_ = GaitState.STANCE_EXTENSION, x.time_s
-            self.standing_, self.event_since_s_, self.standing_loaded_ = True, None, False
-            self.standing_since_s_ = x.time_s - sch.standing_blend_s              # nothing walked to blend from
-            self.standing_knee_rad_, self.standing_ankle_rad_ = x.knee_angle_rad, x.ankle_angle_rad
+            self._begin_standing(x, loaded=False, blend=False)                  # nothing walked to blend from
         dwell = x.time_s - self.state_entry_time_s_
         was_standing = self.standing_
         if self._standing(x) or was_standing:

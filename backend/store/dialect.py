@@ -1,5 +1,5 @@
-"""The few Core constructs that differ per database: an insert that leaves an existing row alone, and a field of a
-JSON text column.
+"""The few Core constructs that differ per database: an insert that knows ``ON CONFLICT`` (one that leaves an existing
+row alone), and a field of a JSON text column.
 
 ``INSERT … ON CONFLICT (…) DO NOTHING`` is the same SQL on SQLite and PostgreSQL, but SQLAlchemy builds it from each
 dialect's own ``insert``; :func:`insert_or_ignore` picks the one of the connection's database.
@@ -14,10 +14,14 @@ from sqlalchemy.ext.compiler import compiles
 from sqlalchemy.sql.functions import FunctionElement
 
 
+def dialect_insert(conn: Connection, table: Table):
+    """The connection's database's own ``INSERT`` on ``table``, which knows ``ON CONFLICT`` (add ``.values(...)``)."""
+    return (postgresql if conn.dialect.name == "postgresql" else sqlite).insert(table)
+
+
 def insert_or_ignore(conn: Connection, table: Table, key: list[str]):
     """``INSERT INTO table … ON CONFLICT (key) DO NOTHING`` for the connection's database (add ``.values(...)``)."""
-    dialect = postgresql if conn.dialect.name == "postgresql" else sqlite
-    return dialect.insert(table).on_conflict_do_nothing(index_elements=key)
+    return dialect_insert(conn, table).on_conflict_do_nothing(index_elements=key)
 
 
 class json_of(FunctionElement):   # noqa: N801 (a SQL function, named as SQL names them)

@@ -7,10 +7,10 @@ from __future__ import annotations
 import time
 
 from sqlalchemy import Connection, and_, exists, not_, select
-from sqlalchemy.dialects import postgresql, sqlite
 from sqlalchemy.sql.elements import ColumnElement
 
 from backend.db import write_transaction
+from backend.store.dialect import dialect_insert
 from backend.store.tables import instance_beats
 
 BEAT_PERIOD_S = 2.0
@@ -20,9 +20,8 @@ DEAD_AFTER_S = 10.0     # five beats missed: an instance starved that long has f
 def beat(conn: Connection, name: str, at_unix: float | None = None) -> None:
     """Instance ``name`` is alive now (or at ``at_unix``)."""
     at = time.time() if at_unix is None else at_unix
-    dialect = postgresql if conn.dialect.name == "postgresql" else sqlite
     with write_transaction(conn):
-        conn.execute(dialect.insert(instance_beats).values(name=name, beat_at_unix=at).on_conflict_do_update(
+        conn.execute(dialect_insert(conn, instance_beats).values(name=name, beat_at_unix=at).on_conflict_do_update(
             index_elements=["name"], set_={"beat_at_unix": at}))
 
 

@@ -72,10 +72,10 @@ def thigh_angle_rad(ref: WalkingReference, incline_deg: float) -> np.ndarray:
     return ref.hip_angle_rad - c
 
 
-def touching_hip_height_m(thigh: np.ndarray, knee: np.ndarray, ankle: np.ndarray, geometry: LegGeometry,
-                          incline_deg: float) -> np.ndarray:
+def touching_hip_height_m(thigh: np.ndarray | float, knee: np.ndarray | float, ankle: np.ndarray | float,
+                          geometry: LegGeometry, incline_deg: float) -> np.ndarray:
     """Hip height above the floor (m, along the normal) at which the leg's lowest contact (heel or forefoot sphere)
-    touches it."""
+    touches it (per phase for arrays; one pose for plain angles)."""
     g = geometry
     alpha = math.radians(incline_deg)
     shank = thigh - knee
@@ -266,8 +266,7 @@ def plan_standing_start(ref: WalkingReference, geometry: LegGeometry, mass_kg: f
     progressed = np.where(tau <= 0, 0.0, np.where(
         tau >= ramp, tau - ramp / 2, ramp_tau / 2 - ramp / (2 * np.pi) * np.sin(np.pi * ramp_tau / ramp)))
     thigh0, knee0, ankle0 = standing_pose_rad(ref.incline_deg)
-    h0 = float(touching_hip_height_m(np.array([thigh0]), np.array([knee0]), np.array([ankle0]), geometry,
-                                     ref.incline_deg)[0])
+    h0 = float(touching_hip_height_m(thigh0, knee0, ankle0, geometry, ref.incline_deg))
     th_w, dth_w, _ = eval_fourier(pattern.thigh[:h2], pattern.thigh[h2:], s)
     h_w, dh_w, ddh_w = eval_fourier(pattern.height[:h2], pattern.height[h2:], s)
     th = (1 - w) * thigh0 + w * th_w

@@ -239,9 +239,9 @@ def fall_mask(c: dict[str, np.ndarray], weight_N: float) -> np.ndarray:
 
 
 def fall_events(c: dict[str, np.ndarray], weight_N: float, min_gap_samples: int) -> list[dict[str, object]]:
-    """Where and how each fall began (the episodes :func:`fall_mask` counts as ``falls``): its time (s), the leg's
-    state, the bench's phase, the knee angle (deg) and the load (body weights) then, and why it counts (the hip sank,
-    or the knee buckled under load)."""
+    """Where and how each fall began (the episodes of :func:`fall_mask`, closer than ``min_gap_samples`` counting as
+    one: ``falls`` is how many): its time (s), the leg's state, the bench's phase, the knee angle (deg) and the load
+    (body weights) then, and why it counts (the hip sank, or the knee buckled under load)."""
     mask = fall_mask(c, weight_N)
     starts = [int(i) for i in rising_edges(mask.astype(float), 0.5, min_gap_samples)]
     if mask.shape[0] and mask[0]:
@@ -322,12 +322,13 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     time_in_state = {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)}
     stance_entry = stance_entry_metrics(states, c["load_N"], strikes, weight, dt)
     seconds = float(c["time_s"].shape[0] * dt)
+    falls = fall_events(c, weight, gap)
     summary: dict[str, object] = {
         "speed_mps": reference.speed_mps, "incline_deg": reference.incline_deg, "mass_kg": mass,
         "seconds": seconds,
         "strides": n_strides,
-        "falls": episodes(fall_mask(c, weight), gap),
-        "fall_events": fall_events(c, weight, gap),
+        "falls": len(falls),
+        "fall_events": falls,
         "toe_catches": episodes(toe_catch, gap),
         **errors,
         "stride_time_s": float(np.mean(stride_times)) if stride_times.size else None,

@@ -17,7 +17,6 @@ import math
 
 import numpy as np
 
-from controller_core.fsm import SensorSample
 from controller_core.units import G_MPS2
 from device_bridge.sim.bench_trajectory import BenchTrajectory, touching_hip_height_m
 from device_bridge.sim.leg_model import LegGeometry
@@ -44,7 +43,7 @@ def plan_standing(geometry: LegGeometry, mass_kg: float, seconds: float, timeste
     t = np.arange(n) * timestep_s
     knee, ankle = math.radians(STANDING_KNEE_DEG), math.radians(STANDING_ANKLE_DEG)
     thigh = knee - ankle                                   # the foot flat: thigh − knee + ankle = 0
-    height = float(touching_hip_height_m(np.array([thigh]), np.array([knee]), np.array([ankle]), geometry, 0.0)[0])
+    height = float(touching_hip_height_m(thigh, knee, ankle, geometry, 0.0))
     mid, half = (share_low + share_high) / 2, (share_high - share_low) / 2
     share = mid + half * np.sin(2 * math.pi * shift_hz * t)
     zeros = np.zeros(n)
@@ -65,5 +64,3 @@ def run_standing(controller: StepController, mass_kg: float, seconds: float, geo
     start = (math.radians(STANDING_KNEE_DEG), math.radians(STANDING_ANKLE_DEG))
     return walk_loop(controller, leg, traj, start, (np.zeros(n), np.ones(n)), mass_kg, standing=True)
 
-
-__all__ = ["SensorSample", "plan_standing", "run_standing"]

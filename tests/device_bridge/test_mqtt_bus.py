@@ -19,6 +19,7 @@ from device_bridge.host import DeviceLink, PushError
 from device_bridge.mqtt_bus import MqttBus, pack_frames, topic, unpack_frames
 from device_bridge.protocol import WireTable, frame_id
 from tests.helpers.device import until
+from tests.helpers.mosquitto import connect_as
 
 _ids = itertools.count()
 
@@ -107,20 +108,6 @@ def test_a_device_reads_only_its_own_commands_and_cannot_send_any(broker, broker
         leg_a.shutdown()
 
 
-def _connect_as(broker, username: str, password: str, client_id: str) -> tuple[bool, mqtt.Client]:
-    """Whether the broker accepts this identity under this client id (a persistent session asked for, as an attacker
-    taking over a session would); the client, connected or not, to be stopped by the caller."""
-    answered, accepted = threading.Event(), []
-    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=False)
-    c.username_pw_set(username, password)
-    c.tls_set(ca_certs=broker.ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
-    c.on_connect = lambda _c, _u, _f, code, _p: (accepted.append(not code.is_failure), answered.set())
-    c.connect("127.0.0.1", broker.port)
-    c.loop_start()
-    assert answered.wait(5), "the broker did not answer the connection"
-    return accepted[0], c
-
-
 def test_no_identity_connects_under_another_identitys_client_id(broker, broker_admin, server_identity):
     """Each identity's client id is bound at the broker: a leg's credentials under the server's client id (which would
     inherit its persistent session and subscriptions, and knock it off once a second) or under another leg's are
@@ -131,10 +118,10 @@ def test_no_identity_connects_under_another_identitys_client_id(broker, broker_a
     clients = []
     try:
         for stolen in (server_identity.username, a_id.username, f"raw-{next(_ids)}"):
-            accepted, c = _connect_as(broker, *b_id, stolen)
+            accepted, c = connect_as(broker, *b_id, stolen)
             clients.append(c)
             assert not accepted, f"{b} connected as {stolen}"
-        accepted, c = _connect_as(broker, *b_id, b_id.username)
+        accepted, c = connect_as(broker, *b_id, b_id.username)
         clients.append(c)
         assert accepted                                                   # its own client id works
         assert server.connected and server._client.is_connected()         # never knocked off
@@ -296,7 +283,7 @@ def test_an_oversized_message_is_refused_at_the_broker_and_never_reaches_the_ser
     message reaches anyone; the server's link stays up (a 10 MB message sent another leg offline for 5 s)."""
     b, b_id = _leg(broker_admin, "leg-big")
     server = MqttBus(b, broker.url, *server_identity, role="server", ca_file=broker.ca_file)
-    accepted, c = _connect_as(broker, *b_id, b_id.username)
+    accepted, c = connect_as(broker, *b_id, b_id.username)
     gone = threading.Event()
     c.on_disconnect = lambda *_: gone.set()
     try:

@@ -120,3 +120,23 @@ def admin_of(server: MosquittoBroker) -> Iterator[BrokerAdmin]:
         yield admin
     finally:
         admin.close()
+
+
+def connect_as(broker: MosquittoBroker, username: str, password: str, client_id: str, clean_session: bool = False):
+    """(whether the broker accepts this identity under ``client_id``, the paho client, connected or not, for the
+    caller to stop). By default a persistent session is asked for, as an attacker taking over a session would."""
+    import ssl
+    import threading
+
+    import paho.mqtt.client as mqtt
+    from paho.mqtt.enums import CallbackAPIVersion
+
+    answered, accepted = threading.Event(), []
+    c = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=clean_session)
+    c.username_pw_set(username, password)
+    c.tls_set(ca_certs=broker.ca_file, cert_reqs=ssl.CERT_REQUIRED, tls_version=ssl.PROTOCOL_TLS_CLIENT)
+    c.on_connect = lambda _c, _u, _f, code, _p: (accepted.append(not code.is_failure), answered.set())
+    c.connect("127.0.0.1", broker.port)
+    c.loop_start()
+    assert answered.wait(5), "the broker did not answer the connection"
+    return accepted[0], c
