@@ -229,8 +229,13 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
 
 # a start from quiet standing (issue 53): the bench used to start every walk in late swing at belt speed with the
 # joints' velocities zero, so the foot landed ~90 ms early on a knee bent ~30° and downhill every controller fell
-STANDING_START_PHASE = 0.1      # the prosthesis early in its stance when the first step (the other leg's) begins
-INITIATION_STRIDES = 0.45       # the ramp into walking, done before the prosthesis's first toe-off (about 0.6)
+# The walk begins at the prosthesis's heel strike: the walking pattern's double support, which standing's two loaded
+# feet become; the other leg lifts at its toe-off (prosthesis phase ~0.1) and takes the first step. The ramp ends
+# before that leg lands again (phase 0.5), so the prosthesis's unloading and toe-off are the walking pattern's: begun
+# at 0.1, the ramp ran past the other leg's landing, the prosthesis stayed loaded late (toe-off at 0.62 against
+# 0.56 at 1.4 m/s −10°), its first swing was short, it landed early on a 22° knee and folded.
+STANDING_START_PHASE = 0.0
+INITIATION_STRIDES = 0.45       # the ramp into walking: done before the other leg's first landing (phase 0.5)
 STANDING_KNEE_RAD = math.radians(3.0)
 STANDING_SHARE_BW = 0.5         # the prosthesis's share of the weight while standing
 
@@ -246,10 +251,10 @@ def plan_standing_start(ref: WalkingReference, geometry: LegGeometry, mass_kg: f
                         timestep_s: float = 0.001, stand_s: float = 1.0, harmonics: int = HARMONICS,
                         t0_s: float = 0.0) -> BenchTrajectory:
     """Quiet standing for ``stand_s``, then gait initiation into the reference's task: over
-    :data:`INITIATION_STRIDES` of a stride (a cosine ramp ``w`` from 0 to 1, done before the prosthesis's first
-    toe-off) the body accelerates to belt speed and the thigh, the hip's height and the other leg's push go over from
-    standing's to the walking pattern's, which starts with the prosthesis early in its stance (the other leg steps
-    first); from then on it is the walk of :func:`plan_bench_trajectory`. A later chunk (``t0_s``) continues the
+    :data:`INITIATION_STRIDES` of a stride (a cosine ramp ``w`` from 0 to 1, done before the other leg's first
+    landing) the body accelerates to belt speed and the thigh, the hip's height and the other leg's push go over from
+    standing's to the walking pattern's, which starts at the prosthesis's heel strike (double support; the other leg
+    steps first); from then on it is the walk of :func:`plan_bench_trajectory`. A later chunk (``t0_s``) continues the
     earlier one exactly."""
     pattern = task_pattern_series(ref, geometry, harmonics)
     h2 = pattern.thigh.shape[0] // 2

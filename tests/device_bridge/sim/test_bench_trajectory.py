@@ -80,7 +80,7 @@ def test_on_a_slope_the_path_follows_the_floor():
 
 def test_a_start_from_standing_stands_still_then_reaches_the_walk_and_continues_across_chunks():
     """Quiet standing (the hip still, the other leg pushing half the weight), then gait initiation that is done before
-    the prosthesis's first toe-off, after which it is the walk itself at belt speed; a later chunk continues the
+    the other leg's first landing (so the prosthesis's unloading is the walk's), after which it is the walk itself at belt speed; a later chunk continues the
     first exactly."""
     from controller_core.units import G_MPS2
     from device_bridge.sim.bench_trajectory import INITIATION_STRIDES, plan_standing_start
@@ -92,7 +92,7 @@ def test_a_start_from_standing_stands_still_then_reaches_the_walk_and_continues_
     assert traj.other_leg_N[still] == pytest.approx(0.5 * mass * G_MPS2)
     ramp_end = 1.0 + INITIATION_STRIDES * ref.stride_time_s
     walking = traj.time_s >= ramp_end
-    assert traj.phase[np.argmax(walking)] < ref.toe_off_phase                  # done before the first toe-off
+    assert traj.phase[np.argmax(walking)] < 0.5                    # done before the other leg lands (phase 0.5)
     assert np.allclose(np.gradient(traj.x_m, traj.time_s)[walking][5:-5], traj.xd_m_s[walking][5:-5], atol=1e-3)
     assert abs(np.mean(traj.xd_m_s[traj.time_s > ramp_end + ref.stride_time_s]) - 1.2) < 0.05   # belt speed
     later = plan_standing_start(ref, g, mass, 2.0, stand_s=1.0, t0_s=4.0)
