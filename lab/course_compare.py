@@ -21,12 +21,14 @@ COURSE_CONTROLLERS: tuple[str, ...] = ("adaptive", "quasi-stiffness", "fsmic")
 
 
 def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 75.0,
-                   envelope: Envelope | None = None, geometry: LegGeometry | None = None) -> dict[str, object]:
-    """All three controllers over the course on the leg ``geometry`` (default the nominal bench), and the adaptive
-    one's per-stride errors against each other's."""
+                   envelope: Envelope | None = None, geometry: LegGeometry | None = None,
+                   start: str = "swing") -> dict[str, object]:
+    """All three controllers over the course on the leg ``geometry`` (default the nominal bench), each from ``start``
+    (``swing`` or ``standing``), and the adaptive one's per-stride errors against each other's."""
     env = envelope or default_envelope(model, mass_kg)
-    scores = {name: walk_course(name, course, model, mass_kg, env, geometry=geometry) for name in COURSE_CONTROLLERS}
-    return {"course": course.to_json(), "leg": (geometry or LegGeometry()).name,
+    scores = {name: walk_course(name, course, model, mass_kg, env, geometry=geometry, start=start)
+              for name in COURSE_CONTROLLERS}
+    return {"course": course.to_json(), "leg": (geometry or LegGeometry()).name, "start": start,
             "envelope": {"speeds_mps": env.speeds_mps, "inclines_deg": env.inclines_deg,
                          "wire_crc32": as_run(env).wire_crc32,
                          "nominal": [env.nominal_speed_mps, env.nominal_incline_deg]},

@@ -59,7 +59,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.course is not None:
         from lab.course_compare import compare_course, format_course_compare
 
-        result = compare_course(load(args), _course(args), args.mass, geometry=_leg(args))
+        result = compare_course(load(args), _course(args), args.mass, geometry=_leg(args), start=args.start)
         print(format_course_compare(result))
         if args.out:
             write_json(args.out, result)

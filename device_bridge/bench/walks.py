@@ -55,19 +55,21 @@ def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, second
 
 def walk_course(controller: str, course: Course, model: QuasiStiffnessModel | None, mass_kg: float = 75.0,
                 envelope: Envelope | None = None, task: tuple[float, float] = NOMINAL_TASK,
-                video: Path | None = None, geometry: LegGeometry | None = None) -> CourseScore:
-    """Walk one controller over the course on the leg ``geometry`` (default the nominal bench) and score it (the
-    adaptive one also for its task estimates)."""
+                video: Path | None = None, geometry: LegGeometry | None = None, start: str = "swing") -> CourseScore:
+    """Walk one controller over the course on the leg ``geometry`` (default the nominal bench) from ``start``
+    (:func:`~device_bridge.sim.course_walk.course_leg`) and score it (the adaptive one also for its task
+    estimates)."""
     geometry = geometry or LegGeometry()
     ctrl = make_controller(controller, mass_kg, model, task, envelope=envelope, geometry=geometry)
     recorder = VideoRecorder(video) if video is not None else None
     log, traj = run_course(ctrl, course, mass_kg, geometry, frame_callback=recorder,
-                           frame_every=recorder.every if recorder else 0)
+                           frame_every=recorder.every if recorder else 0, start=start)
     if recorder is not None:
         recorder.close()
     score = score_course(log, traj, course, getattr(ctrl, "decisions_", None))
     score.summary["controller"] = controller
     score.summary["leg"] = geometry.name
+    score.summary["start"] = start
     if controller == "quasi-stiffness":
         score.summary["table_task"] = {"speed_mps": task[0], "incline_deg": task[1]}
     if video is not None:

@@ -228,7 +228,7 @@ def plan_bench_trajectory(ref: WalkingReference, geometry: LegGeometry, mass_kg:
 
 
 # a start from quiet standing (issue 53): the bench used to start every walk in late swing at belt speed with the
-# joints' velocities zero, so the foot landed ~90 ms early on a knee bent ~30° and downhill every controller fell
+# joints' velocities zero, so the foot landed ~90 ms early on a knee bent ~30° and downhill every controller fell.
 # The walk begins at the prosthesis's heel strike: the walking pattern's double support, which standing's two loaded
 # feet become; the other leg lifts at its toe-off (prosthesis phase ~0.1) and takes the first step. The ramp ends
 # before that leg lands again (phase 0.5), so the prosthesis's unloading and toe-off are the walking pattern's: begun
@@ -238,6 +238,7 @@ STANDING_START_PHASE = 0.0
 INITIATION_STRIDES = 0.45       # the ramp into walking: done before the other leg's first landing (phase 0.5)
 STANDING_KNEE_RAD = math.radians(3.0)
 STANDING_SHARE_BW = 0.5         # the prosthesis's share of the weight while standing
+STAND_S = 1.0                   # quiet standing before the first step (s)
 
 
 def standing_pose_rad(incline_deg: float) -> tuple[float, float, float]:
@@ -247,47 +248,66 @@ def standing_pose_rad(incline_deg: float) -> tuple[float, float, float]:
     return thigh, STANDING_KNEE_RAD, math.radians(incline_deg) - thigh + STANDING_KNEE_RAD
 
 
-def plan_standing_start(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float,
-                        timestep_s: float = 0.001, stand_s: float = 1.0, harmonics: int = HARMONICS,
-                        t0_s: float = 0.0) -> BenchTrajectory:
-    """Quiet standing for ``stand_s``, then gait initiation into the reference's task: over
-    :data:`INITIATION_STRIDES` of a stride (a cosine ramp ``w`` from 0 to 1, done before the other leg's first
-    landing) the body accelerates to belt speed and the thigh, the hip's height and the other leg's push go over from
-    standing's to the walking pattern's, which starts at the prosthesis's heel strike (double support; the other leg
-    steps first); from then on it is the walk of :func:`plan_bench_trajectory`. A later chunk (``t0_s``) continues the
-    earlier one exactly."""
-    pattern = task_pattern_series(ref, geometry, harmonics)
-    h2 = pattern.thigh.shape[0] // 2
-    T, v, alpha = ref.stride_time_s, ref.speed_mps, math.radians(ref.incline_deg)
-    ramp = INITIATION_STRIDES * T
-    n = round(seconds / timestep_s)
-    t = t0_s + np.arange(n) * timestep_s
-    tau = t - stand_s
+def held_until(walk: BenchTrajectory, n: int) -> BenchTrajectory:
+    """``walk`` preceded by ``n`` ticks of its first row (the times re-counted from 0): the walk's pattern held
+    still while the person stands (:func:`lead_in_from_standing` replaces those rows)."""
+    dt = float(walk.time_s[1] - walk.time_s[0])
+    held = {name: np.concatenate([np.repeat(getattr(walk, name)[:1], n), getattr(walk, name)])
+            for name in ("phase", "x_m", "z_m", "hip_rad", "xd_m_s", "zd_m_s", "hipd_rad_s", "height_m",
+                         "other_leg_N", "other_foot_down", "stance")}
+    return BenchTrajectory(time_s=np.arange(n + walk.time_s.shape[0]) * dt, stride_time_s=walk.stride_time_s, **held)
+
+
+def lead_in_from_standing(walk: BenchTrajectory, walk_from_s: float, speed_mps: float, incline_deg: float,
+                          stride_time_s: float, geometry: LegGeometry, mass_kg: float) -> BenchTrajectory:
+    """Quiet standing until ``walk_from_s``, then gait initiation into ``walk``, a walk that begins at its phase
+    :data:`STANDING_START_PHASE` at ``walk_from_s`` (held still before it: :func:`held_until`) at the task
+    (``speed_mps``, ``incline_deg``, ``stride_time_s``) it keeps at least for the ramp.
+
+    Over :data:`INITIATION_STRIDES` of a stride (a cosine ramp ``w`` from 0 to 1) the body accelerates to the walk's
+    speed and the thigh, the hip's height and the other leg's push go over from standing's to the walk's. The person
+    stands ahead of the walk's start by the distance the ramp loses, so from the ramp's end the trajectory *is*
+    ``walk`` (the same positions on the same floor, at the same times)."""
+    t = walk.time_s
+    alpha, v = math.radians(incline_deg), speed_mps
+    tangent, normal = (math.cos(alpha), math.sin(alpha)), (-math.sin(alpha), math.cos(alpha))
+    ramp = INITIATION_STRIDES * stride_time_s
+    tau = t - walk_from_s
     ramp_tau = np.clip(tau, 0.0, ramp)
     w = np.where(tau <= 0, 0.0, np.where(tau >= ramp, 1.0, 0.5 * (1.0 - np.cos(np.pi * ramp_tau / ramp))))
     dw = np.where((tau > 0) & (tau < ramp), 0.5 * np.pi / ramp * np.sin(np.pi * ramp_tau / ramp), 0.0)
-    s = (STANDING_START_PHASE + np.maximum(tau, 0.0) / T) % 1.0
-    ds = np.where(tau > 0, 1.0 / T, 0.0)
-    progressed = np.where(tau <= 0, 0.0, np.where(
-        tau >= ramp, tau - ramp / 2, ramp_tau / 2 - ramp / (2 * np.pi) * np.sin(np.pi * ramp_tau / ramp)))
-    thigh0, knee0, ankle0 = standing_pose_rad(ref.incline_deg)
-    h0 = float(touching_hip_height_m(thigh0, knee0, ankle0, geometry, ref.incline_deg))
-    th_w, dth_w, _ = eval_fourier(pattern.thigh[:h2], pattern.thigh[h2:], s)
-    h_w, dh_w, ddh_w = eval_fourier(pattern.height[:h2], pattern.height[h2:], s)
-    th = (1 - w) * thigh0 + w * th_w
+    # the distance still to make up: v·ramp/2 while standing (∫(1 − w)·v over the ramp), 0 from the ramp's end
+    lost = ramp_tau - (ramp_tau / 2 - ramp / (2 * np.pi) * np.sin(np.pi * ramp_tau / ramp))
+    ahead = v * (ramp / 2 - lost)
+    thigh0, knee0, ankle0 = standing_pose_rad(incline_deg)
+    h0 = float(touching_hip_height_m(thigh0, knee0, ankle0, geometry, incline_deg))
+    h_w = walk.height_m
+    hd_w = walk.xd_m_s * normal[0] + walk.zd_m_s * normal[1]       # the walk's height rate along the normal
     h = (1 - w) * h0 + w * h_w
-    dth = w * dth_w * ds + dw * (th_w - thigh0)
-    hd = w * dh_w * ds + dw * (h_w - h0)
-    u = v * progressed
-    x = u * math.cos(alpha) - h * math.sin(alpha)
-    z = u * math.sin(alpha) + h * math.cos(alpha)
-    xd = v * w * math.cos(alpha) - hd * math.sin(alpha)
-    zd = v * w * math.sin(alpha) + hd * math.cos(alpha)
-    share = np.interp(s, ref.phase, pattern.other_bw)
-    walk_push, walk_down = other_leg_push_N(s, ref.toe_off_phase, share, w * ddh_w / (T * T), alpha, mass_kg)
+    hd = w * hd_w + dw * (h_w - h0)
+    floor_x, floor_z = walk.x_m - h_w * normal[0], walk.z_m - h_w * normal[1]
+    ramping = tau < ramp
+    x = floor_x + ahead * tangent[0] + h * normal[0]
+    z = floor_z + ahead * tangent[1] + h * normal[1]
+    xd = np.where(ramping, w * v * tangent[0] + hd * normal[0], walk.xd_m_s)
+    zd = np.where(ramping, w * v * tangent[1] + hd * normal[1], walk.zd_m_s)
     stand_push = (1.0 - STANDING_SHARE_BW) * mass_kg * G_MPS2
-    other = (1 - w) * stand_push + w * walk_push
-    stance = np.where(tau <= 0, True, s <= ref.toe_off_phase)
-    return BenchTrajectory(time_s=t, phase=s, x_m=x, z_m=z, hip_rad=th, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=dth,
-                           height_m=h, other_leg_N=other, other_foot_down=np.where(w < 1.0, True, walk_down),
-                           stance=stance, stride_time_s=T)
+    return BenchTrajectory(
+        time_s=t, phase=walk.phase, x_m=x, z_m=z, hip_rad=(1 - w) * thigh0 + w * walk.hip_rad,
+        xd_m_s=xd, zd_m_s=zd, hipd_rad_s=w * walk.hipd_rad_s + dw * (walk.hip_rad - thigh0), height_m=h,
+        other_leg_N=(1 - w) * stand_push + w * walk.other_leg_N,
+        other_foot_down=np.where(w < 1.0, True, walk.other_foot_down),
+        stance=np.where(tau <= 0, True, walk.stance), stride_time_s=walk.stride_time_s)
+
+
+def plan_standing_start(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float,
+                        timestep_s: float = 0.001, stand_s: float = STAND_S, harmonics: int = HARMONICS
+                        ) -> BenchTrajectory:
+    """``seconds`` in all: quiet standing for ``stand_s``, then gait initiation into the walk of
+    :func:`plan_bench_trajectory` at the reference's task from the prosthesis's heel strike
+    (:func:`lead_in_from_standing`)."""
+    n_stand = round(stand_s / timestep_s)
+    walk = plan_bench_trajectory(ref, geometry, mass_kg, seconds - n_stand * timestep_s, timestep_s,
+                                 start_phase=STANDING_START_PHASE, harmonics=harmonics)
+    return lead_in_from_standing(held_until(walk, n_stand), n_stand * timestep_s, ref.speed_mps, ref.incline_deg,
+                                 ref.stride_time_s, geometry, mass_kg)

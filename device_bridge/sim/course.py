@@ -225,10 +225,13 @@ def _series(coef: np.ndarray, s: np.ndarray, second: bool = False) -> tuple[np.n
 
 
 def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float, timestep_s: float = 0.001,
-                           start_phase: float = 0.85) -> CourseTrajectory:
-    """Sample the socket targets, load and true task for the whole course (see the module docstring)."""
+                           start_phase: float = 0.85, walk_from_s: float = 0.0) -> CourseTrajectory:
+    """Sample the socket targets, load and true task for the whole course (see the module docstring). With
+    ``walk_from_s`` the walk (its phase and its progress along the floor) begins then, held at its start before it:
+    the time a start from standing stands (:func:`~device_bridge.sim.bench_trajectory.lead_in_from_standing`)."""
     n = round(course.duration_s / timestep_s)
     t = np.arange(n) * timestep_s
+    walking = (t >= walk_from_s - 1e-9).astype(float)
     # the pattern at the task every TASK_SAMPLE_S, blended linearly in between
     t_knots = np.arange(0.0, course.duration_s + TASK_SAMPLE_S, TASK_SAMPLE_S)
     v_knots, g_knots = course.task_at(t_knots)
@@ -245,7 +248,7 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
     period = period_knots[i0] * (1.0 - w) + period_knots[i0 + 1] * w
     toe_off = toe_off_knots[i0] * (1.0 - w) + toe_off_knots[i0 + 1] * w
     speed, incline = course.task_at(t)
-    s = (start_phase + np.concatenate([[0.0], np.cumsum(timestep_s / period[:-1])])) % 1.0
+    s = (start_phase + np.concatenate([[0.0], np.cumsum(walking[:-1] * timestep_s / period[:-1])])) % 1.0
     half = coef.shape[1] // 2
     thigh, dthigh, _ = _series(coef[:, :half], s)
     height, dheight, ddheight = _series(coef[:, half:], s, second=True)
@@ -261,8 +264,8 @@ def plan_course_trajectory(course: Course, geometry: LegGeometry, mass_kg: float
     share = at_knot[0] * (1.0 - w) + at_knot[1] * w
     # the floor: its slope at the arc length walked by time t is the incline at t
     gamma = np.radians(incline)
-    floor_x = np.concatenate([[0.0], np.cumsum(np.cos(gamma[:-1]) * speed[:-1] * timestep_s)])
-    floor_z = np.concatenate([[0.0], np.cumsum(np.sin(gamma[:-1]) * speed[:-1] * timestep_s)])
+    floor_x = np.concatenate([[0.0], np.cumsum(walking[:-1] * np.cos(gamma[:-1]) * speed[:-1] * timestep_s)])
+    floor_z = np.concatenate([[0.0], np.cumsum(walking[:-1] * np.sin(gamma[:-1]) * speed[:-1] * timestep_s)])
     nx, nz = -np.sin(gamma), np.cos(gamma)
     x = floor_x + height * nx
     z = floor_z + height * nz

@@ -20,7 +20,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -38,6 +38,13 @@ from controller_core.gait_metrics import (
     rmse,
 )
 from controller_core.units import G_MPS2
+from device_bridge.sim.bench_trajectory import (
+    INITIATION_STRIDES,
+    STAND_S,
+    STANDING_START_PHASE,
+    lead_in_from_standing,
+    standing_pose_rad,
+)
 from device_bridge.sim.course import Course, CourseTrajectory, plan_course_trajectory, task_pattern
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.person import Person
@@ -46,7 +53,7 @@ from device_bridge.sim.simulate import (
     StepController,
     WalkLog,
     carrying_figures,
-    fall_mask,
+    fall_events,
     stance_entry_metrics,
     walk_loop,
 )
@@ -55,26 +62,44 @@ SPEED_TOLERANCE_MPS = 0.1
 INCLINE_TOLERANCE_DEG = 1.5
 
 
-def course_leg(course: Course, mass_kg: float, geometry: LegGeometry | None = None
+def course_leg(course: Course, mass_kg: float, geometry: LegGeometry | None = None, start: str = "swing"
                ) -> tuple[CourseTrajectory, SimulatedLeg, tuple[float, float]]:
-    """The course's trajectory, a leg on its floor, and the knee and ankle angles (rad) it starts from: late swing
-    at the first segment's task."""
+    """The course's trajectory, a leg on its floor, and the knee and ankle angles (rad) it starts from, at the first
+    segment's task: ``start`` ``"swing"``, in late swing at belt speed; ``"standing"``, quiet standing for
+    :data:`~device_bridge.sim.bench_trajectory.STAND_S` of the first segment, then gait initiation into it.
+
+    Raises:
+        ValueError: an unknown start, or a first segment too short to stand and start walking in.
+    """
+    if start not in ("swing", "standing"):
+        raise ValueError(f"start must be 'swing' or 'standing', got {start!r}")
     geometry = geometry or LegGeometry()
-    traj = plan_course_trajectory(course, geometry, mass_kg)
-    leg = SimulatedLeg(geometry, timestep_s=0.001, terrain=traj.terrain, person=Person(mass_kg))
     first = course.segments[0]
     ref = task_pattern(first.speed_mps, first.incline_deg)
-    s0 = float(traj.bench.phase[0])
-    return traj, leg, (float(np.interp(s0, ref.phase, ref.knee_angle_rad)),
-                       float(np.interp(s0, ref.phase, ref.ankle_angle_rad)))
+    if start == "standing":
+        needed = STAND_S + INITIATION_STRIDES * ref.stride_time_s
+        if first.duration_s < needed:
+            raise ValueError(f"the course's first segment lasts {first.duration_s:g} s: a start from standing needs "
+                             f"{needed:.2f} s of it (standing {STAND_S:g} s and the first steps)")
+        traj = plan_course_trajectory(course, geometry, mass_kg, start_phase=STANDING_START_PHASE, walk_from_s=STAND_S)
+        traj = replace(traj, bench=lead_in_from_standing(traj.bench, STAND_S, first.speed_mps, first.incline_deg,
+                                                         ref.stride_time_s, geometry, mass_kg))
+        _, knee0, ankle0 = standing_pose_rad(first.incline_deg)
+    else:
+        traj = plan_course_trajectory(course, geometry, mass_kg)
+        s0 = float(traj.bench.phase[0])
+        knee0 = float(np.interp(s0, ref.phase, ref.knee_angle_rad))
+        ankle0 = float(np.interp(s0, ref.phase, ref.ankle_angle_rad))
+    leg = SimulatedLeg(geometry, timestep_s=0.001, terrain=traj.terrain, person=Person(mass_kg))
+    return traj, leg, (knee0, ankle0)
 
 
 def run_course(controller: StepController, course: Course, mass_kg: float, geometry: LegGeometry | None = None,
-               frame_callback=None, frame_every: int = 0) -> tuple[WalkLog, CourseTrajectory]:
-    """Walk the course once (the leg starts in late swing at the first segment's task)."""
-    traj, leg, angles = course_leg(course, mass_kg, geometry)
+               frame_callback=None, frame_every: int = 0, start: str = "swing") -> tuple[WalkLog, CourseTrajectory]:
+    """Walk the course once from ``start`` (:func:`course_leg`)."""
+    traj, leg, angles = course_leg(course, mass_kg, geometry, start)
     log = walk_loop(controller, leg, traj.bench, angles, (traj.normal_x, traj.normal_z), mass_kg, frame_callback,
-                    frame_every)
+                    frame_every, standing=start == "standing")
     return log, traj
 
 
@@ -162,6 +187,25 @@ def estimation_accuracy(decisions: Sequence[StrideDecision], traj: CourseTraject
     }
 
 
+def course_fall_events(c: dict[str, np.ndarray], weight_N: float, min_gap_samples: int, course: Course,
+                       decisions: Sequence[StrideDecision] | None) -> list[dict[str, object]]:
+    """Every fall of the walk from its first tick (one at a start from standing is a fall too), as
+    :func:`~device_bridge.sim.simulate.fall_events` lists them, with the course segment it happened in and, for the
+    adaptive leg, the task it was running then and its estimate (the last heel strike's decision before it)."""
+    events = fall_events(c, weight_N, min_gap_samples)
+    for e in events:
+        e["segment"] = course.segment_index(float(e["time_s"]))
+        before = [d for d in decisions or () if d.time_s <= float(e["time_s"])]
+        if before:
+            d = before[-1]
+            e["running_speed_mps"], e["running_incline_deg"] = round(d.speed_mps, 3), round(d.incline_deg, 2)
+            e["mode"] = d.mode
+            if d.estimate is not None and math.isfinite(d.estimate.speed_mps):
+                e["estimate_speed_mps"] = round(d.estimate.speed_mps, 3)
+                e["estimate_incline_deg"] = round(d.estimate.incline_deg, 2)
+    return events
+
+
 def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
                  decisions: Sequence[StrideDecision] | None = None, settle_s: float = 2.0) -> CourseScore:
     """Per-stride errors against each stride's own task, per segment, safety and (adaptive) estimation accuracy."""
@@ -197,10 +241,12 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
     gap = round(0.2 / dt)
     states = c["state"].astype(int)
     after = c["time_s"] >= settle_s
+    falls = course_fall_events(c, weight, gap, course, decisions)
     summary: dict[str, object] = {
         "course": course.name, "course_seconds": course.duration_s, "mass_kg": mass,
         **_channel_summary(per_stride, everything, rng),
-        "falls": episodes(fall_mask(c, weight) & after, gap),
+        "falls": len(falls),
+        "fall_events": falls,
         "toe_catches": episodes(mid_swing & (c["contact_N"] > 0.02 * weight) & after, gap),
         **stance_entry_metrics(states, c["load_N"], strikes, weight, dt),
         **carrying_figures(c, strikes, dt, weight, settle_s),

@@ -38,7 +38,7 @@ def adaptive_walk(model):
         return cmd
 
     ctrl.step = recording_step
-    log, traj = run_course(ctrl, SHORT, 75.0)
+    log, traj = run_course(ctrl, SHORT, 75.0, start="standing")   # a person stands, then walks the course
     return ctrl, changes, score_course(log, traj, SHORT, ctrl.decisions_)
 
 
@@ -53,6 +53,43 @@ def test_the_adaptive_leg_follows_the_ramp_and_changes_rows_only_at_heel_strike(
     e = s["estimation"]
     assert e["strides_counted"] >= 8 and e["incline_within_1_5_deg_fraction"] >= 0.9
     assert e["speed_within_0_1_mps_fraction"] >= 0.8
+
+
+def test_a_course_walked_from_standing_stands_first_and_needs_a_first_segment_to_start_in():
+    """The course's first second is quiet standing on its first floor (the hip still, the foot loaded); a course whose
+    first segment is too short to stand and take the first steps in is refused, saying why."""
+    from device_bridge.sim.course_walk import course_leg
+
+    traj, _, (knee0, _) = course_leg(SHORT, 75.0, start="standing")
+    still = traj.bench.time_s < 1.0
+    assert np.ptp(traj.bench.x_m[still]) == 0 and traj.bench.stance[still].all() and knee0 == pytest.approx(
+        np.radians(3.0))
+    assert np.mean(traj.bench.xd_m_s[traj.bench.time_s > 3.0]) > 0.9          # walking by then
+    brief = Course("brief", (Segment(1.2, 1.0, 0.0), Segment(6.0, 1.0, 0.0)))
+    with pytest.raises(ValueError, match=r"first segment lasts 1\.2 s"):
+        course_leg(brief, 75.0, start="standing")
+    with pytest.raises(ValueError, match="start must be"):
+        course_leg(SHORT, 75.0, start="running")
+
+
+def test_a_course_fall_says_its_segment_and_what_the_leg_was_running():
+    """Synthetic channels (said so): the hip sinks past the fall line at 7 s, in the course's second segment, after a
+    heel strike at which the adaptive leg ran 1.1 m/s +6° on an estimate of 1.08 m/s +5.5°."""
+    from controller_core.adaptive import StrideDecision
+    from controller_core.task_estimator import TaskEstimate
+    from device_bridge.sim.course_walk import course_fall_events
+
+    n, dt = 10_000, 0.001
+    c = {"time_s": np.arange(n) * dt, "hip_height_error_m": np.zeros(n), "knee_angle_rad": np.zeros(n),
+         "load_N": np.zeros(n), "state": np.zeros(n), "bench_phase": np.zeros(n)}
+    c["hip_height_error_m"][7000:7300] = -0.2
+    est = TaskEstimate(time_s=6.8, speed_mps=1.08, incline_deg=5.5, speed_confidence=0.9, incline_confidence=0.9,
+                       speed_confident=True, incline_confident=True, stride=None)
+    decisions = [StrideDecision(6.8, est, 1.08, 5.5, 1.1, 6.0, "adaptive")]
+    (event,) = course_fall_events(c, 735.0, 200, SHORT, decisions)
+    assert event["time_s"] == pytest.approx(7.0) and event["segment"] == 1 and event["why"] == "the hip sank"
+    assert (event["running_speed_mps"], event["running_incline_deg"], event["mode"]) == (1.1, 6.0, "adaptive")
+    assert (event["estimate_speed_mps"], event["estimate_incline_deg"]) == (1.08, 5.5)
 
 
 def test_each_stride_is_scored_against_its_own_task(adaptive_walk):
