@@ -18,7 +18,7 @@ COMPARED: tuple[str, ...] = ("quasi-stiffness", "fsmic")
 
 def compare(model: QuasiStiffnessModel, speeds_mps: tuple[float, ...] = COMPARE_SPEEDS_MPS,
             inclines_deg: tuple[float, ...] = (0.0,), seconds: float = 20.0, mass_kg: float = 75.0,
-            geometry: LegGeometry | None = None, start: str = "swing") -> list[tuple[WalkScore, str]]:
+            geometry: LegGeometry | None = None, start: str = "standing") -> list[tuple[WalkScore, str]]:
     """Both controllers over the task grid on the leg ``geometry`` (default the nominal bench), each walk from
     ``start`` (``swing`` or ``standing``); returns (score, controller) pairs in grid order.
 

@@ -22,7 +22,7 @@ COURSE_CONTROLLERS: tuple[str, ...] = ("adaptive", "quasi-stiffness", "fsmic")
 
 def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 75.0,
                    envelope: Envelope | None = None, geometry: LegGeometry | None = None,
-                   start: str = "swing") -> dict[str, object]:
+                   start: str = "standing") -> dict[str, object]:
     """All three controllers over the course on the leg ``geometry`` (default the nominal bench), each from ``start``
     (``swing`` or ``standing``), and the adaptive one's per-stride errors against each other's."""
     env = envelope or default_envelope(model, mass_kg)

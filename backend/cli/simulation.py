@@ -203,7 +203,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
     p.add_argument("--leg", default=None, help=LEG_HELP)
-    p.add_argument("--start", choices=("swing", "standing"), default="swing",
+    p.add_argument("--start", choices=("swing", "standing"), default="standing",
                    help="each walk starts in late swing at belt speed (the bench's first start), or from a second of "
                         "quiet standing through gait initiation")
     p.set_defaults(func=cmd_compare)

@@ -24,7 +24,7 @@ from device_bridge.sim.video import VideoRecorder
 def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, seconds: float = 20.0,
              mass_kg: float = 75.0, model: QuasiStiffnessModel | None = None, record: Path | None = None,
              video: Path | None = None, table: ImpedanceTable | None = None, skip_limits: bool = False,
-             geometry: LegGeometry | None = None, start: str = "swing") -> WalkScore:
+             geometry: LegGeometry | None = None, start: str = "standing") -> WalkScore:
     """Walk one controller at one task (``quasi-stiffness``: the model's table at that task; ``table``: the given
     table, with ``skip_limits`` unchecked for bench studies) on the leg ``geometry`` (default the nominal bench),
     from ``start`` (``swing`` or ``standing``: :func:`~device_bridge.sim.simulate.run_walk`); optionally save the
@@ -55,7 +55,7 @@ def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, second
 
 def walk_course(controller: str, course: Course, model: QuasiStiffnessModel | None, mass_kg: float = 75.0,
                 envelope: Envelope | None = None, task: tuple[float, float] = NOMINAL_TASK,
-                video: Path | None = None, geometry: LegGeometry | None = None, start: str = "swing") -> CourseScore:
+                video: Path | None = None, geometry: LegGeometry | None = None, start: str = "standing") -> CourseScore:
     """Walk one controller over the course on the leg ``geometry`` (default the nominal bench) from ``start``
     (:func:`~device_bridge.sim.course_walk.course_leg`) and score it (the adaptive one also for its task
     estimates)."""

@@ -62,7 +62,7 @@ SPEED_TOLERANCE_MPS = 0.1
 INCLINE_TOLERANCE_DEG = 1.5
 
 
-def course_leg(course: Course, mass_kg: float, geometry: LegGeometry | None = None, start: str = "swing"
+def course_leg(course: Course, mass_kg: float, geometry: LegGeometry | None = None, start: str = "standing"
                ) -> tuple[CourseTrajectory, SimulatedLeg, tuple[float, float]]:
     """The course's trajectory, a leg on its floor, and the knee and ankle angles (rad) it starts from, at the first
     segment's task: ``start`` ``"swing"``, in late swing at belt speed; ``"standing"``, quiet standing for
@@ -95,7 +95,7 @@ def course_leg(course: Course, mass_kg: float, geometry: LegGeometry | None = No
 
 
 def run_course(controller: StepController, course: Course, mass_kg: float, geometry: LegGeometry | None = None,
-               frame_callback=None, frame_every: int = 0, start: str = "swing") -> tuple[WalkLog, CourseTrajectory]:
+               frame_callback=None, frame_every: int = 0, start: str = "standing") -> tuple[WalkLog, CourseTrajectory]:
     """Walk the course once from ``start`` (:func:`course_leg`)."""
     traj, leg, angles = course_leg(course, mass_kg, geometry, start)
     log = walk_loop(controller, leg, traj.bench, angles, (traj.normal_x, traj.normal_z), mass_kg, frame_callback,

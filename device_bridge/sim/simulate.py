@@ -121,7 +121,7 @@ class StepController(Protocol):
 
 def run_walk(controller: StepController, reference: WalkingReference, mass_kg: float, seconds: float,
              geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0,
-             person: Person | None = None, start: str = "swing") -> WalkLog:
+             person: Person | None = None, start: str = "standing") -> WalkLog:
     """Walk ``controller`` on the bench for ``seconds`` at the reference's task.
 
     Args:

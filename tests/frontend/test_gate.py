@@ -1,5 +1,5 @@
-"""The bench gate as two prosthetists click it, and a withdrawal: a table whose bench preview breaks a bound (at 1.5 m/s
-the hip sinks and the knee flexes under the body) is signed off by one and approved by the other, each with their
+"""The bench gate as two prosthetists click it, and a withdrawal: a table whose bench preview breaks a bound (at 1.6 m/s
+the hip sinks under the body) is signed off by one and approved by the other, each with their
 reason; then it is withdrawn and the page says it is never pushed again. At 1280 × 800 and 768 × 1024."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def test_an_unsafe_table_takes_two_prosthetists_and_a_withdrawn_one_is_never_pus
     errors = [watch_errors(dana), watch_errors(eli)]
     try:
         sign_in(dana, server, "dana")
-        pid = create_patient_and_propose(dana, f"P-GATE-{size}", speed="1.5")
+        pid = create_patient_and_propose(dana, f"P-GATE-{size}", speed="1.6")
         dana.wait_for_selector("#decision-bench:has-text('beyond their bounds')", timeout=60_000)
         assert "two prosthetists' sign-offs" in dana.inner_text("#bench-gate")
         assert dana.locator("#decision textarea, #decision input").count() == 1   # one reason box on the card

@@ -110,9 +110,9 @@ def test_a_session_on_a_version_approved_by_override_carries_the_reason_into_its
 
 
 def test_a_leg_that_does_not_carry_the_body_is_not_approved_without_the_override(api):
-    """Once only a warning, approved by one click: at 1.5 m/s the learned table lets the hip sink and the knee flex
-    under the body on the bench (no fall, no toe catch); each figure beyond its bound now gates as a fall does."""
-    p = api.propose(api.new_patient("P-075", 75.0)["id"], speed=1.5)
+    """Once only a warning, approved by one click: at 1.6 m/s the learned table lets the hip sink under the body on
+    the bench (no fall, no toe catch); each figure beyond its bound now gates as a fall does."""
+    p = api.propose(api.new_patient("P-075", 75.0)["id"], speed=1.6)
     assert api.client.get(f"/api/proposals/{p['id']}/preview", headers=api.as_("viewer")).status_code == 200
     bench = api.client.get(f"/api/proposals/{p['id']}", headers=api.as_("viewer")).json()["bench"]
     figures = {f["figure"] for f in bench["flags"]}

@@ -25,13 +25,15 @@ def test_a_bad_task_is_refused_before_walking(model):
 
 
 def test_a_knee_with_no_stance_support_lets_the_body_fall_where_the_learned_table_carries_it(model):
-    table = model.propose(1.2, 0.0, 75.0).table
+    """Downhill (1.2 m/s −10°), where the stance knee must yield under the body and hold it. On the level the bench's
+    person walks a limp knee straight-legged about as well as the table (sink 27 against 25 mm at 1.2 m/s from
+    standing, as passive-knee users do); the old late-swing start's bent-knee landing made it fall there too."""
+    table = model.propose(1.2, -10.0, 75.0).table
     soft = _knee(table, stance_flexion=-1.0, stance_extension=-1.0)
-    limp = simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=soft, skip_limits=True).summary
-    assert limp["falls"] >= 1 or limp["hip_sink_max_mm"] >= 50.0       # the bench is not blind in stance
-    carried = simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=table).summary
+    limp = simulate("table", 1.2, -10.0, seconds=12.0, mass_kg=75.0, table=soft, skip_limits=True).summary
+    assert limp["falls"] >= 1                                           # the bench is not blind in stance
+    carried = simulate("table", 1.2, -10.0, seconds=12.0, mass_kg=75.0, table=table).summary
     assert carried["falls"] == 0
-    # after the first step the person carries a straight-landing limp knee on their hip and other leg, and it shows:
     # the hip lower, more of the person's push, the loaded knee further flexed (docs/results.md)
     assert carried["hip_sink_max_mm"] < limp["hip_sink_max_mm"]
     assert carried["support_deficit_max_bw"] < limp["support_deficit_max_bw"]

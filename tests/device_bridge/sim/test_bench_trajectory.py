@@ -127,7 +127,7 @@ def test_each_fall_says_when_in_which_state_and_why(model):
 
     ref = sloped_walking_reference(1.0, -10.0)
     summary = score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(
-        model.propose(1.0, -10.0, 75.0).table)), ref, 75.0, 8.0), ref).summary
+        model.propose(1.0, -10.0, 75.0).table)), ref, 75.0, 8.0, start="swing"), ref).summary
     events = summary["fall_events"]
     assert summary["falls"] == len(events) > 0
     assert [e["time_s"] for e in events] == sorted(e["time_s"] for e in events)
