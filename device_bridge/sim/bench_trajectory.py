@@ -311,3 +311,55 @@ def plan_standing_start(ref: WalkingReference, geometry: LegGeometry, mass_kg: f
                                  start_phase=STANDING_START_PHASE, harmonics=harmonics)
     return lead_in_from_standing(held_until(walk, n_stand), n_stand * timestep_s, ref.speed_mps, ref.incline_deg,
                                  ref.stride_time_s, geometry, mass_kg)
+
+
+STOPPING_STRIDES = 0.45   # the last step: begun at a prosthesis heel strike, done as the other leg lands beside it
+
+
+def plan_walk_and_stop(ref: WalkingReference, geometry: LegGeometry, mass_kg: float, seconds: float, stop_s: float,
+                       timestep_s: float = 0.001, stand_s: float = STAND_S) -> BenchTrajectory:
+    """``seconds`` in all: from standing (:func:`plan_standing_start`), walking, and from the prosthesis's first heel
+    strike at or after ``stop_s`` the last step: over :data:`STOPPING_STRIDES` of a stride (a cosine ramp ``u`` from
+    1 to 0) the body slows to a halt and the thigh, the hip's height and the other leg's push go over from the walk's
+    to standing's, ending as the other leg lands beside the prosthesis (its landing is at phase 0.5); then quiet
+    standing to the end.
+
+    Raises:
+        ValueError: no heel strike between ``stop_s`` and the end leaves time for the last step.
+    """
+    walk = plan_standing_start(ref, geometry, mass_kg, seconds, timestep_s, stand_s)
+    t, s = walk.time_s, walk.phase
+    ramp = STOPPING_STRIDES * ref.stride_time_s
+    strikes = np.flatnonzero((np.diff(s) < -0.5) & (t[1:] >= stop_s) & (t[1:] + ramp <= t[-1])) + 1
+    if not strikes.size:
+        raise ValueError(f"no heel strike after stop_s={stop_s:g} s leaves {ramp:.2f} s for the last step before "
+                         f"the walk's end ({seconds:g} s)")
+    i0 = int(strikes[0])
+    tau = np.clip(t - t[i0], 0.0, ramp)
+    u = np.where(t < t[i0], 1.0, 0.5 * (1.0 + np.cos(np.pi * tau / ramp)))
+    du = np.where((t > t[i0]) & (tau < ramp), -0.5 * np.pi / ramp * np.sin(np.pi * tau / ramp), 0.0)
+    alpha, v = math.radians(ref.incline_deg), ref.speed_mps
+    tangent, normal = np.array([math.cos(alpha), math.sin(alpha)]), np.array([-math.sin(alpha), math.cos(alpha)])
+    thigh0, knee0, ankle0 = standing_pose_rad(ref.incline_deg)
+    h0 = float(touching_hip_height_m(thigh0, knee0, ankle0, geometry, ref.incline_deg))
+    h_w = walk.height_m
+    hd_w = walk.xd_m_s * normal[0] + walk.zd_m_s * normal[1]
+    h = u * h_w + (1 - u) * h0
+    hd = u * hd_w + du * (h_w - h0)
+    # progress along the floor from the stop's heel strike: v·∫u dt (the walk's own from there is v·τ)
+    slowed = v * (tau / 2 + ramp / (2 * np.pi) * np.sin(np.pi * tau / ramp))
+    floor0 = np.array([walk.x_m[i0], walk.z_m[i0]]) - h_w[i0] * normal
+    after = t >= t[i0]
+    x = np.where(after, floor0[0] + slowed * tangent[0] + h * normal[0], walk.x_m)
+    z = np.where(after, floor0[1] + slowed * tangent[1] + h * normal[1], walk.z_m)
+    xd = np.where(after, u * v * tangent[0] + hd * normal[0], walk.xd_m_s)
+    zd = np.where(after, u * v * tangent[1] + hd * normal[1], walk.zd_m_s)
+    stand_push = (1.0 - STANDING_SHARE_BW) * mass_kg * G_MPS2
+    stopped = t >= t[i0] + ramp
+    return BenchTrajectory(
+        time_s=t, phase=np.where(stopped, s[min(i0 + round(ramp / timestep_s), s.shape[0] - 1)], s), x_m=x, z_m=z,
+        hip_rad=u * walk.hip_rad + (1 - u) * thigh0, xd_m_s=xd, zd_m_s=zd,
+        hipd_rad_s=u * walk.hipd_rad_s + du * (walk.hip_rad - thigh0), height_m=h,
+        other_leg_N=u * walk.other_leg_N + (1 - u) * stand_push,
+        other_foot_down=np.where(u < 1.0, True, walk.other_foot_down),
+        stance=np.where(after, True, walk.stance), stride_time_s=walk.stride_time_s)

@@ -61,6 +61,7 @@ from device_bridge.sim.bench_trajectory import (
     BenchTrajectory,
     plan_bench_trajectory,
     plan_standing_start,
+    plan_walk_and_stop,
     standing_pose_rad,
 )
 from device_bridge.sim.leg_model import LegGeometry
@@ -121,7 +122,7 @@ class StepController(Protocol):
 
 def run_walk(controller: StepController, reference: WalkingReference, mass_kg: float, seconds: float,
              geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0,
-             person: Person | None = None, start: str = "standing") -> WalkLog:
+             person: Person | None = None, start: str = "standing", stop_s: float | None = None) -> WalkLog:
     """Walk ``controller`` on the bench for ``seconds`` at the reference's task.
 
     Args:
@@ -136,6 +137,8 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
         start: ``"swing"``: in late swing at belt speed (the bench's first start); ``"standing"``: a second of
             quiet standing, then gait initiation into the task
             (:func:`~device_bridge.sim.bench_trajectory.plan_standing_start`).
+        stop_s: from standing, stop at the first heel strike after this time and stand to the end
+            (:func:`~device_bridge.sim.bench_trajectory.plan_walk_and_stop`).
     """
     if not (math.isfinite(seconds) and 0.0 < seconds <= 600.0):
         raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")
@@ -144,7 +147,12 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
     if start not in ("swing", "standing"):
         raise ValueError(f"start must be 'swing' or 'standing', got {start!r}")
     leg = SimulatedLeg(geometry, reference.incline_deg, person=person or Person(mass_kg))
-    if start == "standing":
+    if stop_s is not None and start != "standing":
+        raise ValueError("a walk that stops starts from standing")
+    if stop_s is not None:
+        traj = plan_walk_and_stop(reference, leg.geometry, mass_kg, seconds, stop_s, leg.timestep_s)
+        _, knee0, ankle0 = standing_pose_rad(reference.incline_deg)
+    elif start == "standing":
         traj = plan_standing_start(reference, leg.geometry, mass_kg, seconds, leg.timestep_s)
         _, knee0, ankle0 = standing_pose_rad(reference.incline_deg)
     else:

@@ -71,3 +71,42 @@ def test_the_standing_bench_is_still_and_shifts_the_weight_as_stated():
     with pytest.raises(ValueError, match="share"):
         plan_standing(LegGeometry(), MASS_KG, 10.0, share_low=0.8, share_high=0.5)
     assert math.isfinite(float(traj.height_m[0])) and traj.height_m[0] > 0.5
+
+
+# what holds today: level on every leg, −10° on all but heavy_foot (its standing load sits at the toe-off threshold
+# there and flickers into swing); uphill +10° at 1.2 m/s no leg stands yet (docs/results.md, "Stopping")
+STOPS = [(leg, 0.0) for leg in LEGS] + [(leg, -10.0) for leg in LEGS if leg != "heavy_foot"]
+
+
+@pytest.mark.parametrize(("leg", "incline_deg"), STOPS)
+def test_the_last_step_ends_in_standing(model, leg, incline_deg):
+    """Walk from standing at 1.2 m/s, stop at the first heel strike after 6 s (the last step: the body slows to a halt
+    over 45 % of a stride while the other leg comes down beside the prosthesis), stand to 12 s: no fall, and from a
+    second after the last step no swing state, the leg standing, its knee within 10° of straight."""
+    from device_bridge.bench.task_reference import task_reference
+    from device_bridge.sim.simulate import run_walk
+
+    geometry = LegGeometry() if leg == "nominal" else load_leg(leg)
+    ref = task_reference(1.2, incline_deg, model, MASS_KG)
+    controller = StateMachineController(ImpedanceSchedule.from_table(model.propose(1.2, incline_deg, MASS_KG).table))
+    log = run_walk(controller, ref, MASS_KG, 12.0, geometry, stop_s=6.0)
+    c = log.channels
+    assert not fall_mask(c, MASS_KG * G_MPS2).any()
+    last_step = np.flatnonzero(np.diff(c["bench_phase"]) != 0)[-1] * log.timestep_s
+    assert last_step < 8.0                                                   # it did stop
+    later = c["time_s"] >= last_step + 1.0
+    assert not np.isin(c["state"][later].astype(int), (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION)).any()
+    assert controller.standing_
+    assert math.degrees(float(np.max(c["knee_angle_rad"][later]))) < 10.0
+
+
+def test_a_stop_needs_time_for_its_last_step(model):
+    from device_bridge.bench.task_reference import task_reference
+    from device_bridge.sim.simulate import run_walk
+
+    ref = task_reference(1.2, 0.0, model, MASS_KG)
+    controller = StateMachineController(ImpedanceSchedule.from_table(model.propose(1.2, 0.0, MASS_KG).table))
+    with pytest.raises(ValueError, match="no heel strike after stop_s=5"):
+        run_walk(controller, ref, MASS_KG, 5.2, stop_s=5.0)
+    with pytest.raises(ValueError, match="starts from standing"):
+        run_walk(controller, ref, MASS_KG, 8.0, start="swing", stop_s=5.0)
