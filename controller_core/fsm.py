@@ -35,6 +35,17 @@ lifted: swing flexion if the knee bends, else swing extension: a leg lifted stra
 for a flexion that never came, and missed its heel strikes). Separately, the maximum-time guard never moves a leg that
 carries at least the heel-strike load into swing flexion: only its toe-off does.
 
+**Stumbles.** A toe caught in swing, or a foot that lands early on a bent knee, left the leg with no support: the
+swing-extension row pressed a planted toe down while the pylon's axial load (the force mostly across the tilted shank)
+never reached the heel-strike threshold, and stance extension's weak row let a knee that was still flexing under the
+body fold. So a swing-extension knee still well flexed that has stopped extending (``stumble_knee_margin_rad`` above
+the row's equilibrium, slower than ``stumble_knee_rate_rad_s``, for ``event_hold_s`` after the state's minimum time:
+the foot is held by the floor) goes to stance flexion; so does a loaded stance-extension knee that flexes faster than
+``fold_knee_rate_rad_s`` early in stance (before ``fold_window_of_stance`` of the last stance's length: later, the flexion is
+pre-swing's; once per stance). That stance flexion is *recovering*: it does not leave on the ankle moment (which already says
+"late stance" in a fold) but when the knee is back within the margin of the stance-flexion equilibrium, or on
+toe-off's unloading; the next heel strike returns the leg to the table's usual rows and events.
+
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
 plain floats (no numpy in the loop) because it runs at 1 kHz or faster.
@@ -157,6 +168,13 @@ class ImpedanceSchedule:
             unloaded (a step).
         standing_blend_s: the torques go over from the row's to standing's in this long (s), so entering standing
             is no step in torque (a step jolted the knee out of standing at once).
+        stumble_knee_margin_rad, stumble_knee_rate_rad_s, fold_knee_rate_rad_s, fold_window_of_stance: stumbles
+            (see the module docstring): a swing-extension knee more than the margin (rad) above its equilibrium that
+            extends slower than the stumble rate (rad/s; a free knee extends at 2–4 rad/s there) is held by the
+            floor; a loaded stance-extension knee flexing faster than the fold rate (rad/s; a downhill knee yields at
+            up to about 1 rad/s, a folding one at 2–5) within this fraction of the last stance (pre-swing's flexion
+            begins at about 80 % of it) is giving way; the support holds until the knee is back within the margin of
+            the stance-flexion equilibrium.
     """
 
     knee_k: tuple[float, float, float, float]
@@ -179,6 +197,10 @@ class ImpedanceSchedule:
     standing_enter_s: float = 0.5
     standing_leave_rad_s: float = 0.6
     standing_blend_s: float = 0.2
+    stumble_knee_margin_rad: float = math.radians(15.0)
+    stumble_knee_rate_rad_s: float = 0.5
+    fold_knee_rate_rad_s: float = 1.5
+    fold_window_of_stance: float = 0.5
 
     @classmethod
     def from_table(cls, table: ImpedanceTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
@@ -249,6 +271,9 @@ class StateMachineController:
         standing_since_s_: when standing was entered (s; the blend from the row's torques runs from it).
         stand_next_: :meth:`stand` was called: standing from the next sample.
         standing_loaded_: standing has seen the toe-off load (only then does unloading end it).
+        recovering_: the stance flexion now is a stumble's support (see the module docstring).
+        stance_entry_s_, last_stance_s_: when this stance began at heel strike, and how long the last one lasted (s).
+        folding_since_s_: since when a loaded stance-extension knee has been flexing early in stance (s).
     """
 
     schedule: ImpedanceSchedule
@@ -267,6 +292,10 @@ class StateMachineController:
     standing_since_s_: float = field(init=False, default=0.0)
     stand_next_: bool = field(init=False, default=False)
     standing_loaded_: bool = field(init=False, default=False)
+    recovering_: bool = field(init=False, default=False)
+    stance_entry_s_: float | None = field(init=False, default=None)
+    last_stance_s_: float = field(init=False, default=0.6)
+    folding_since_s_: float | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         self.state_ = GaitState(self.initial_state)
@@ -282,6 +311,9 @@ class StateMachineController:
         self.standing_ = False
         self.still_since_s_ = None
         self.stand_next_ = False
+        self.recovering_ = False
+        self.stance_entry_s_ = None
+        self.folding_since_s_ = None
 
     def stand(self) -> None:
         """A person stands on the leg now (a leg switched on or given a table under them, the bench's standing start):
@@ -299,13 +331,35 @@ class StateMachineController:
         sch, st = self.schedule, self.state_
         if st == GaitState.STANCE_FLEXION:  # gated on load: a swinging foot's inertia also makes a moment
             ext = sch.sf_to_se_knee_extension_rad_s
+            if self.recovering_:            # held in stance flexion until the knee is back near its equilibrium
+                back = x.knee_angle_rad <= sch.knee_theta_e[0] + sch.stumble_knee_margin_rad
+                return x.load_N < sch.se_to_wf_load_N or back
             return x.load_N >= sch.we_to_sf_load_N and (
                 x.ankle_moment_Nm <= sch.sf_to_se_ankle_moment_Nm or (ext > 0.0 and x.knee_velocity_rad_s <= -ext))
         if st == GaitState.STANCE_EXTENSION:
             return x.load_N < sch.se_to_wf_load_N
         if st == GaitState.SWING_FLEXION:
             return x.knee_angle_rad >= sch.wf_to_we_knee_angle_rad and x.knee_velocity_rad_s <= sch.swing_slowing_rad_s
-        return x.load_N > sch.we_to_sf_load_N
+        return x.load_N > sch.we_to_sf_load_N or self._stalled(x)
+
+    def _folding(self, x: SensorSample) -> bool:
+        """Stance extension early in stance, loaded, the knee flexing: the knee is giving way under the body."""
+        sch = self.schedule
+        early = self.stance_entry_s_ is not None and \
+            x.time_s - self.stance_entry_s_ < sch.fold_window_of_stance * self.last_stance_s_
+        if not (self.state_ == GaitState.STANCE_EXTENSION and early and not self.recovering_
+                and x.load_N >= sch.we_to_sf_load_N and x.knee_velocity_rad_s > sch.fold_knee_rate_rad_s):
+            self.folding_since_s_ = None
+            return False
+        if self.folding_since_s_ is None:
+            self.folding_since_s_ = x.time_s
+        return x.time_s - self.folding_since_s_ >= sch.event_hold_s - 1e-9
+
+    def _stalled(self, x: SensorSample) -> bool:
+        """Swing extension's knee, still well flexed, has stopped extending: the foot is held (planted or caught)."""
+        sch = self.schedule
+        return x.knee_angle_rad > sch.knee_theta_e[3] + sch.stumble_knee_margin_rad and \
+            x.knee_velocity_rad_s > -sch.stumble_knee_rate_rad_s
 
     def _heel_strike(self, x: SensorSample) -> bool:
         """The foot has been loaded in a swing state for ``heel_strike_hold_s`` (no minimum time: see the module)."""
@@ -351,6 +405,7 @@ class StateMachineController:
         """Stand from sample ``x``: the joints held where they are; ``loaded``: the person's weight is already on
         the leg; ``blend``: the row's torques go over to standing's over ``standing_blend_s``."""
         self.standing_, self.event_since_s_, self.standing_loaded_ = True, None, loaded
+        self.stance_entry_s_ = None        # a stance that stood is no measure of a walking one
         self.standing_since_s_ = x.time_s - (0.0 if blend else self.schedule.standing_blend_s)
         self.standing_knee_rad_, self.standing_ankle_rad_ = x.knee_angle_rad, x.ankle_angle_rad
 
@@ -375,6 +430,11 @@ class StateMachineController:
         return tk, ta
 
     def _enter(self, state: GaitState, now_s: float, guard: bool) -> None:
+        if state == GaitState.STANCE_FLEXION and self.state_ in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION):
+            self.stance_entry_s_ = now_s
+        elif state == GaitState.SWING_FLEXION and self.stance_entry_s_ is not None:
+            self.last_stance_s_ = min(max(now_s - self.stance_entry_s_, 0.3), 1.5)   # a stance's plausible length
+        self.folding_since_s_ = None
         self.state_ = state
         self.state_entry_time_s_ = now_s
         self.event_since_s_ = None
@@ -396,6 +456,10 @@ class StateMachineController:
         if self._standing(x) or was_standing:
             pass                                     # standing (no event, no guard), or it ended on this sample
         elif self._heel_strike(x):
+            self.recovering_ = False
+            self._enter(GaitState.STANCE_FLEXION, x.time_s, guard=False)
+        elif self._folding(x):
+            self.recovering_ = True
             self._enter(GaitState.STANCE_FLEXION, x.time_s, guard=False)
         elif dwell >= sch.min_state_time_s:
             guard = dwell >= sch.max_state_time_s
@@ -409,6 +473,8 @@ class StateMachineController:
                 self.event_since_s_ = None
                 held = False
             if guard or held:
+                if self.state_ == GaitState.SWING_EXTENSION:     # stance again: caught by a stall, or a heel strike
+                    self.recovering_ = not guard and x.load_N <= sch.we_to_sf_load_N
                 self._enter(GaitState((int(self.state_) + 1) % 4), x.time_s, guard)
         lim = self.limits
         tk, ta = self._standing_torques(x) if self.standing_ else self._row_torques(x)

@@ -100,6 +100,34 @@ def cmd_stance_response(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_stumble(args: argparse.Namespace) -> int:
+    """Each controller through each obstacle at each task on the leg (``device_bridge/sim/stumble.py``)."""
+    from device_bridge.bench.controllers import make_controller
+    from device_bridge.bench.task_reference import task_reference
+    from device_bridge.sim.leg_model import LegGeometry
+    from device_bridge.sim.stumble import run_stumble
+
+    if len(args.speeds) != len(args.inclines):
+        raise ValueError(f"stumble walks paired tasks: give one --inclines value per --speeds value "
+                         f"({len(args.speeds)} speeds, {len(args.inclines)} inclines)")
+    model, geometry = load(args), _leg(args) or LegGeometry()
+    rows = []
+    for controller in args.controllers:
+        for kind in args.kinds:
+            for speed, incline in zip(args.speeds, args.inclines, strict=True):
+                ref = task_reference(speed, incline, model, args.mass)
+                rows.append({"controller": controller, **run_stumble(
+                    lambda c=controller, t=(speed, incline): make_controller(c, args.mass, model, t), ref, args.mass,
+                    kind, geometry=geometry)})
+    for r in rows:
+        print(f"{r['controller']:16s} {r['kind']:13s} {r['speed_mps']:.2f} m/s {r['incline_deg']:+.0f}°  falls "
+              f"{r['falls']}  back to clean strides after {r['strides_to_recover']}  "
+              + "".join("✓" if c else "✗" for c in r["clean"]))
+    if args.out is not None:
+        write_json(args.out, rows)
+    return 0
+
+
 def cmd_sensitivity(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -237,6 +265,18 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", type=Path, default=None)
     p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     p.set_defaults(func=cmd_stance_response)
+    p = sub.add_parser("stumble", help="bench study: a block that catches the toe in mid-swing and a platform the foot "
+                                       "lands on early, at paired tasks; falls and strides until clean again")
+    p.add_argument("--speeds", type=float, nargs="+", default=[1.2, 1.0])
+    p.add_argument("--inclines", type=float, nargs="+", default=[0.0, -6.0], help="one per speed")
+    p.add_argument("--kinds", nargs="+", choices=("toe_catch", "early_landing"), default=["toe_catch", "early_landing"])
+    p.add_argument("--controllers", nargs="+", choices=("quasi-stiffness", "fsmic"),
+                   default=["quasi-stiffness", "fsmic"])
+    p.add_argument("--mass", type=float, default=75.0)
+    p.add_argument("--model", type=Path, default=None)
+    p.add_argument("--leg", default=None, help=LEG_HELP)
+    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
+    p.set_defaults(func=cmd_stumble)
     p = sub.add_parser("calibrate", help="walk the reference's own joint angles on the bench over a task grid: how far "
                                          "the body strays from where people's is")
     p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])

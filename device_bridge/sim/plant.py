@@ -12,15 +12,22 @@ dorsiflexion direction.
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import mujoco
 import numpy as np
 
 from controller_core.fsm import SensorSample
 from device_bridge.sim.bench_trajectory import BenchTrajectory
-from device_bridge.sim.course import Terrain
 from device_bridge.sim.leg_model import LegGeometry, build_mjcf
 from device_bridge.sim.person import Person
+
+
+class FloorProfile(Protocol):
+    """A floor as straight pieces: a course's :class:`~device_bridge.sim.course.Terrain`, or a plane with an obstacle
+    (:class:`~device_bridge.sim.stumble.FloorWithObstacle`)."""
+
+    def polyline(self) -> tuple[tuple[float, float], ...]: ...
 
 
 class SimulatedLeg:
@@ -30,7 +37,7 @@ class SimulatedLeg:
         geometry: segment lengths and masses.
         incline_deg: floor incline (deg, + uphill); ignored with ``terrain``.
         timestep_s: physics and control period (s); 0.001 for the 1 kHz controller.
-        terrain: a course's floor profile instead of the tilted plane.
+        terrain: a floor profile (a course's, or a plane with an obstacle) instead of the tilted plane.
         person: the person around the prosthesis (their mass, hip and other leg); default a 75 kg
             :class:`device_bridge.sim.person.Person`.
 
@@ -42,7 +49,7 @@ class SimulatedLeg:
     """
 
     def __init__(self, geometry: LegGeometry | None = None, incline_deg: float = 0.0, timestep_s: float = 0.001,
-                 terrain: Terrain | None = None, person: Person | None = None) -> None:
+                 terrain: FloorProfile | None = None, person: Person | None = None) -> None:
         if not (math.isfinite(incline_deg) and abs(incline_deg) <= 20.0):
             raise ValueError(f"incline_deg must be within ±20 deg, got {incline_deg!r}")
         self.geometry = geometry or LegGeometry()

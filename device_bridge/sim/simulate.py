@@ -66,7 +66,7 @@ from device_bridge.sim.bench_trajectory import (
 )
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.person import Person
-from device_bridge.sim.plant import SimulatedLeg
+from device_bridge.sim.plant import FloorProfile, SimulatedLeg
 
 STANCE_ENTRY_LEAD_S = 0.1  # an entry into stance up to this long before the foot touches counts for that strike
 FALL_SINK_M = 0.15         # the hip this far below its path: a fall
@@ -122,7 +122,8 @@ class StepController(Protocol):
 
 def run_walk(controller: StepController, reference: WalkingReference, mass_kg: float, seconds: float,
              geometry: LegGeometry | None = None, frame_callback=None, frame_every: int = 0,
-             person: Person | None = None, start: str = "standing", stop_s: float | None = None) -> WalkLog:
+             person: Person | None = None, start: str = "standing", stop_s: float | None = None,
+             terrain: FloorProfile | None = None) -> WalkLog:
     """Walk ``controller`` on the bench for ``seconds`` at the reference's task.
 
     Args:
@@ -139,6 +140,8 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
             (:func:`~device_bridge.sim.bench_trajectory.plan_standing_start`).
         stop_s: from standing, stop at the first heel strike after this time and stand to the end
             (:func:`~device_bridge.sim.bench_trajectory.plan_walk_and_stop`).
+        terrain: a floor profile instead of the task's plane, one that keeps the task's slope where the feet go
+            (an obstacle on it: :mod:`device_bridge.sim.stumble`).
     """
     if not (math.isfinite(seconds) and 0.0 < seconds <= 600.0):
         raise ValueError(f"seconds must be in (0, 600], got {seconds!r}")
@@ -146,7 +149,7 @@ def run_walk(controller: StepController, reference: WalkingReference, mass_kg: f
         raise ValueError(f"the person's mass ({person.mass_kg:g} kg) is not the walk's ({mass_kg:g} kg)")
     if start not in ("swing", "standing"):
         raise ValueError(f"start must be 'swing' or 'standing', got {start!r}")
-    leg = SimulatedLeg(geometry, reference.incline_deg, person=person or Person(mass_kg))
+    leg = SimulatedLeg(geometry, reference.incline_deg, terrain=terrain, person=person or Person(mass_kg))
     if stop_s is not None and start != "standing":
         raise ValueError("a walk that stops starts from standing")
     if stop_s is not None:

@@ -121,11 +121,11 @@ class SimWalker:
             self._chunk_end_tick, self._ticks, self._sample = traj.time_s.shape[0], 0, sample
 
     def start_course(self, course: Course, mass_kg: float) -> None:
-        """Walk ``course`` once from late swing at its first task, on its floor; walking stops at its end. (Still the
-        bench's first start: the leg's firmware is not yet told that a person stands on it when a walk begins.)"""
+        """Walk ``course`` once on its floor from standing (a second of it, then the first steps into its first task);
+        walking stops at its end."""
         if not (np.isfinite(mass_kg) and 20.0 <= mass_kg <= 200.0):
             raise ValueError(f"mass_kg must be within [20, 200] kg, got {mass_kg!r}")
-        traj, leg, angles = course_leg(course, mass_kg, self.geometry, start="swing")
+        traj, leg, angles = course_leg(course, mass_kg, self.geometry, start="standing")
         sample = leg.reset(traj.bench, *angles)
         with self._lock:
             self._standing_kg = None

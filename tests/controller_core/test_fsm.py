@@ -225,3 +225,67 @@ def test_told_a_person_stands_on_it_the_machine_stands_from_the_next_sample():
     assert c.step(sample(0.05, load=20.0, knee=0.05)).state == SE and c.standing_
     c.step(sample(0.1, load=400.0, knee=0.05))                          # the person's weight comes
     assert c.step(sample(0.2, load=10.0, knee=0.05, knee_v=0.5)).state == WF and not c.standing_   # then a step
+
+
+def _to_swing_extension(c: StateMachineController) -> float:
+    """A scripted stride up to swing extension (heel strike at 0.1 s, toe-off at 0.7 s); returns the time there."""
+    c.step(sample(0.0))
+    c.step(sample(0.10, load=500.0))
+    c.step(sample(0.30, load=600.0, moment=-6.0))
+    c.step(sample(0.70, load=20.0))
+    c.step(sample(0.80, knee=math.radians(60.0), knee_v=0.0))
+    assert c.state_ == WE
+    return 0.80
+
+
+def test_a_swing_knee_held_flexed_by_the_floor_gets_stance_support_at_once():
+    """A toe caught in late swing: the knee, 40° above swing extension's equilibrium, stops extending while the pylon
+    reads too little axial load for a heel strike. After the state's minimum time the machine goes to stance flexion,
+    recovering, and stays there while the ankle moment says "late stance"; it leaves when the knee is back near stance
+    flexion's equilibrium. The next heel strike is an ordinary one."""
+    c = StateMachineController(schedule())
+    t = _to_swing_extension(c)
+    knee = math.radians(45.0)                                  # θe 0.1 rad ≈ 5.7°: 39° above it
+    assert c.step(sample(t + 0.02, load=60.0, knee=knee, knee_v=-0.2)).state == WE    # before the minimum time
+    assert c.step(sample(t + 0.06, load=60.0, knee=knee, knee_v=-0.2)).state == SF    # stalled: the floor holds it
+    assert c.recovering_ and c.guard_transitions_ == 0
+    assert c.step(sample(t + 0.20, load=600.0, moment=-60.0, knee=knee)).state == SF  # the moment does not end it
+    assert c.step(sample(t + 0.30, load=600.0, moment=-60.0, knee=math.radians(18.0))).state == SE  # back within 15°
+    c.step(sample(t + 0.50, load=20.0))                                                # toe-off
+    assert c.state_ == WF
+    c.step(sample(t + 0.60, knee=math.radians(60.0)))
+    assert c.step(sample(t + 0.80, load=500.0)).state == SF and not c.recovering_     # an ordinary heel strike
+
+
+def test_a_free_swing_knee_that_extends_is_not_taken_for_a_stumble():
+    c = StateMachineController(schedule())
+    t = _to_swing_extension(c)
+    for k in range(1, 10):                                     # extending at 3 rad/s from 60°
+        knee = math.radians(60.0) - 3.0 * 0.02 * k
+        assert c.step(sample(t + 0.02 * k, knee=max(knee, 0.1), knee_v=-3.0)).state == WE
+    assert c.step(sample(t + 0.30, knee=0.12, knee_v=0.0)).state == WE    # extended and still: waits for the heel
+
+
+def test_a_loaded_knee_giving_way_early_in_stance_goes_back_to_stance_flexion_but_pre_swing_does_not():
+    """Stance extension entered while the knee still flexes under the body: flexing faster than 1.5 rad/s (a
+    downhill knee yields slower), loaded, within half the last stance, it returns to stance flexion (recovering). The
+    same flexion late in stance is pre-swing's and changes nothing."""
+    c = StateMachineController(schedule())
+    c.step(sample(0.0))
+    c.step(sample(0.10, load=500.0))                            # heel strike: stance begins
+    c.step(sample(0.30, load=600.0, moment=-6.0))
+    c.step(sample(0.80, load=20.0))                             # toe-off: this stance lasted 0.7 s
+    c.step(sample(0.90, knee=math.radians(60.0)))
+    c.step(sample(1.20, load=500.0))                            # heel strike at 1.2 s
+    c.step(sample(1.30, load=800.0, moment=-6.0))               # stance extension at 1.3 s
+    assert c.state_ == SE
+    yielding = dict(load=800.0, moment=-40.0, knee=math.radians(30.0), knee_v=1.0)
+    assert c.step(sample(1.31, **yielding)).state == SE          # a downhill knee yielding under load: the table's
+    fold = dict(load=800.0, moment=-40.0, knee=math.radians(35.0), knee_v=2.5)
+    assert c.step(sample(1.32, **fold)).state == SF and c.recovering_      # (the event hold is 0 here)
+    late = StateMachineController(schedule())
+    for x in (sample(0.0), sample(0.10, load=500.0), sample(0.30, load=600.0, moment=-6.0), sample(0.80, load=20.0),
+              sample(0.90, knee=math.radians(60.0)), sample(1.20, load=500.0), sample(1.30, load=800.0, moment=-6.0)):
+        late.step(x)
+    assert late.step(sample(1.60, **fold)).state == SE          # 0.4 s into a 0.7 s stance: pre-swing
+    assert late.step(sample(1.62, **fold)).state == SE and not late.recovering_

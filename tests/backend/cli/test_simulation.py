@@ -119,3 +119,14 @@ def test_cli_stance_response_prints_the_study_and_writes_it(capsys, tmp_path):
     assert "bench study (limits not checked)" in text and "| the bench's person | learned |" in text
     rows = json.loads(out.read_text())
     assert {r["person"] for r in rows} >= {"the bench's person", "soft progression (2 kN/m)"}
+
+
+def test_cli_stumble_prints_each_stumble_and_writes_them_and_refuses_unpaired_tasks(capsys, tmp_path):
+    out = tmp_path / "stumble.json"
+    assert main(["stumble", "--speeds", "1.2", "--inclines", "0", "--kinds", "early_landing",
+                 "--controllers", "fsmic", "--out", str(out)]) == 0
+    assert "early_landing" in capsys.readouterr().out
+    (row,) = json.loads(out.read_text())
+    assert row["controller"] == "fsmic" and row["disturbed"] and "strides_to_recover" in row and row["clean"]
+    assert main(["stumble", "--speeds", "1.2", "1.0", "--inclines", "0"]) == 2
+    assert "one --inclines value per --speeds value" in capsys.readouterr().err

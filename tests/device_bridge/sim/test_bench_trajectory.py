@@ -104,8 +104,8 @@ def test_a_start_from_standing_stands_still_then_becomes_the_walk_itself():
 
 def test_from_standing_the_learned_table_walks_downhill_where_the_swing_start_made_it_fall(model):
     """The bench's first start (late swing at belt speed, joints still) landed the foot early on a knee bent 30°:
-    downhill every controller fell, once per bench stride. From quiet standing through gait initiation the same
-    tables at the same tasks walk without falling."""
+    downhill every controller fell, once per bench stride (now fewer times: the stumble support recovers it). From
+    quiet standing through gait initiation the same tables at the same tasks walk without falling."""
     from controller_core.fsm import ImpedanceSchedule, StateMachineController
     from controller_core.walking_reference import sloped_walking_reference
     from device_bridge.sim.simulate import run_walk, score_walk
@@ -115,7 +115,7 @@ def test_from_standing_the_learned_table_walks_downhill_where_the_swing_start_ma
         table = model.propose(speed, -10.0, 75.0).table
         falls = {start: score_walk(run_walk(StateMachineController(ImpedanceSchedule.from_table(table)), ref, 75.0,
                                             15.0, start=start), ref).summary["falls"] for start in ("swing", "standing")}
-        assert falls["swing"] >= 5 and falls["standing"] == 0, (speed, falls)
+        assert falls["swing"] >= 1 and falls["standing"] == 0, (speed, falls)
 
 
 def test_each_fall_says_when_in_which_state_and_why(model):

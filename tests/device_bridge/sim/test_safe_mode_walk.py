@@ -31,6 +31,9 @@ class EntersSafeMode:
         self.entered_s: float | None = None
         self.transitions_ = self.guard_transitions_ = 0
 
+    def stand(self) -> None:
+        self.table.stand()
+
     def reset(self) -> None:
         self.table.reset()
         self.safe.reset()

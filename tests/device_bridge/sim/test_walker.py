@@ -40,7 +40,7 @@ def test_the_walking_simulated_leg_streams_telemetry_without_gaps(tables):
 
 
 def test_a_course_is_walked_once_at_its_true_task_and_the_patient_then_stands():
-    course = Course("short", (Segment(1.5, 1.0, 0.0), Segment(1.5, 1.0, 6.0)), transition_s=1.0)
+    course = Course("short", (Segment(2.5, 1.0, 0.0), Segment(1.5, 1.0, 6.0)), transition_s=1.0)   # from standing
     walker = SimWalker()
     walker.start_course(course, 75.0)
     assert walker.walking and walker.course == "short" and walker.task == (1.0, 0.0)
@@ -50,7 +50,7 @@ def test_a_course_is_walked_once_at_its_true_task_and_the_patient_then_stands():
         assert sample is not None and np.isfinite(sample.thigh_angle_rad)   # the socket IMU the estimator reads
         walker.step(0.0, 0.0)
         steps += 1
-        if steps == 2900:
+        if steps == 3900:
             assert walker.task == pytest.approx((1.0, 6.0))        # the ramp, after the transition
     assert steps == round(course.duration_s / 0.001) and walker.task is None
     # the course walked, the patient stands on the leg: live readings of quiet stance (about half the body weight,
