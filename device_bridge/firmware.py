@@ -485,6 +485,14 @@ class DeviceFirmware:
             "running_speed": ctrl.speed_mps_, "running_incline": ctrl.incline_deg_,
             "adaptive_mode": ADAPTIVE_MODES[ctrl.mode_]})]
 
+    def _behaviour(self) -> int:
+        """TELEMETRY_GAIT's behaviour: 0 walking on the rows (or not running a table), 1 standing, 2 stumble support."""
+        ctrl = self.controller_
+        machine = getattr(ctrl, "machine_", ctrl)
+        if self.mode_ != Mode.ACTIVE or not isinstance(machine, StateMachineController):
+            return 0
+        return 1 if machine.standing_ else 2 if machine.recovering_ else 0
+
     def _telemetry(self, x: SensorSample, state: GaitState, knee_Nm: float, ankle_Nm: float) -> list[can.Message]:
         seq = self._telemetry_seq
         self._telemetry_seq = (seq + 1) & 0xFFFF
@@ -492,7 +500,8 @@ class DeviceFirmware:
         fsm = int(state) if self.mode_ == Mode.ACTIVE else 15
         return [*self._task_telemetry(seq),
             encode_scaled("TELEMETRY_GAIT", {"seq": seq, "fsm_state": fsm, "mode": int(self.mode_),
-                                             "load": x.load_N, "ankle_moment": x.ankle_moment_Nm}),
+                                             "load": x.load_N, "ankle_moment": x.ankle_moment_Nm,
+                                             "behaviour": self._behaviour(), "reserved": 0}),
             encode_scaled("TELEMETRY_KNEE", {"seq": seq, "angle": x.knee_angle_rad * deg,
                                              "velocity": x.knee_velocity_rad_s * deg, "torque": knee_Nm}),
             encode_scaled("TELEMETRY_ANKLE", {"seq": seq, "angle": x.ankle_angle_rad * deg,

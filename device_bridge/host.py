@@ -97,6 +97,7 @@ class DeviceStatus:
 
 
 ADAPTIVE_MODE_NAMES = {1: "nominal", 2: "partial", 3: "adaptive", 4: "clamped"}
+LEG_BEHAVIOURS = {0: "walking", 1: "standing", 2: "stumble support"}   # TELEMETRY_GAIT's behaviour
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,7 @@ class TelemetrySample:
     ankle_moment_Nm: float
     received_unix_s: float
     task: TaskTelemetry | None = None
+    behaviour: str = "walking"
 
     def to_json(self) -> dict:
         """Display units with the unit in each name (deg, deg/s, N·m, N, m/s)."""
@@ -152,6 +154,7 @@ class TelemetrySample:
             "ankle_velocity_deg_s": round(self.ankle_velocity_rad_s * d, 1),
             "ankle_torque_Nm": round(self.ankle_torque_Nm, 2),
             "load_N": round(self.load_N, 1), "ankle_moment_Nm": round(self.ankle_moment_Nm, 2),
+            "leg_behaviour": self.behaviour,
             "received_unix_s": round(self.received_unix_s, 4),
         }
 
@@ -198,7 +201,8 @@ class _TelemetryJoiner:
             knee_angle_rad=k["angle"] * _DEG, knee_velocity_rad_s=k["velocity"] * _DEG, knee_torque_Nm=k["torque"],
             ankle_angle_rad=a["angle"] * _DEG, ankle_velocity_rad_s=a["velocity"] * _DEG, ankle_torque_Nm=a["torque"],
             load_N=g["load"], ankle_moment_Nm=g["ankle_moment"],
-            received_unix_s=at_unix_s, task=self._tasks.pop(seq16, None))
+            received_unix_s=at_unix_s, task=self._tasks.pop(seq16, None),
+            behaviour=LEG_BEHAVIOURS.get(int(g.get("behaviour", 0)), "walking"))
 
 
 def _check_version(version: int, what: str) -> None:

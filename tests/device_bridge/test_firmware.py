@@ -392,6 +392,23 @@ def test_telemetry_carries_the_sample_in_display_units(tables):
     assert len({decode(m)[1]["seq"] for m in out if decode(m)[0].startswith("TELEMETRY")}) == 1
 
 
+def test_telemetry_says_when_the_leg_stands_and_the_host_reads_it(tables):
+    """TELEMETRY_GAIT's behaviour: walking on the rows, then standing once the loaded leg has been still for the
+    machine's standing time (the monitor shows it; the FSM state alone stays the stance state)."""
+    from device_bridge.host import LEG_BEHAVIOURS
+
+    fw = DeviceFirmware()
+    install(fw, tables[0], 1)
+    behaviours = []
+    for i in range(1, 1200):                              # 1.2 s: a heel strike, then the loaded leg still
+        t = 0.001 * i
+        if i % 100 == 0:
+            heartbeat(fw, t)
+        _, _, out = fw.tick(SensorSample(t, 0.05, 0.0, 0.0, 0.0, 600.0, -2.0), t)
+        behaviours += [physical(*decode(m))["behaviour"] for m in out if decode(m)[0] == "TELEMETRY_GAIT"]
+    assert LEG_BEHAVIOURS[int(behaviours[0])] == "walking" and LEG_BEHAVIOURS[int(behaviours[-1])] == "standing"
+
+
 def test_a_host_lost_during_commanded_safe_mode_is_flagged_and_no_table_switches_in(tables):
     fw = DeviceFirmware(FirmwareConfig(heartbeat_timeout_s=0.2))
     old = install(fw, tables[0], 1)

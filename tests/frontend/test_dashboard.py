@@ -151,6 +151,7 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
     first = page.inner_text("#knee-angle")
     page.wait_for_function("(first) => document.querySelector('#knee-angle').textContent !== first", arg=first,
                            timeout=10_000)                                   # the numbers move
+    assert page.inner_text("#leg-behaviour") in ("walking", "standing", "stumble support")   # what the leg says it does
     # the target beside the measured angles: the reference at the table's task, placed in each stride (after the
     # first full stride); said in words under the chart
     page.wait_for_function("() => (window.quasitune.monitor.targets || 0) > 100", timeout=20_000)

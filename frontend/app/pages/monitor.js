@@ -321,6 +321,7 @@ function renderReadout(box, m, stats, weightN) {
       : fmt(m.load_N, 0, "N"), "load"),
     ...item("Mode", modeWords(m.mode), "sample-mode"),
     ...item("FSM state", m.fsm_state === null ? "—" : FSM_STATES[m.fsm_state], "fsm-state"),
+    ...item("The leg is", m.mode === "active" && m.leg_behaviour ? m.leg_behaviour : "—", "leg-behaviour"),
     ...item("Drawn", `${fmt(stats.fps, 0)} frames/s · ${stats.samples} samples · ${stats.gaps} gaps`, "fps"));
 }
 
