@@ -41,10 +41,10 @@ never reached the heel-strike threshold, and stance extension's weak row let a k
 body fold. So a swing-extension knee still well flexed that has stopped extending (``stumble_knee_margin_rad`` above
 the row's equilibrium, slower than ``stumble_knee_rate_rad_s``, for ``event_hold_s`` after the state's minimum time:
 the foot is held by the floor) goes to stance flexion; so does a loaded stance-extension knee that flexes faster than
-``fold_knee_rate_rad_s`` early in stance (before ``fold_window_of_stance`` of the last stance's length: later, the flexion is
-pre-swing's; once per stance). That stance flexion is *recovering*: it does not leave on the ankle moment (which already says
-"late stance" in a fold) but when the knee is back within the margin of the stance-flexion equilibrium, or on
-toe-off's unloading; the next heel strike returns the leg to the table's usual rows and events.
+``fold_knee_rate_rad_s`` early in stance (before ``fold_window_of_stance`` of the last stance's length: later, the
+flexion is pre-swing's; once per stance). That stance flexion is *recovering*: it does not leave on the ankle moment
+(which already says "late stance" in a fold) but when the knee is back within the margin of the stance-flexion
+equilibrium, or on toe-off's unloading; the next heel strike returns the leg to the table's usual rows and events.
 
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
