@@ -129,6 +129,8 @@ def run_stumble(make: Callable[[], StepController], reference: WalkingReference,
     in the stride after ``after_s``, walk it again, and say how the leg came through: ``falls`` and their events,
     ``strides_to_recover`` (strides from the disturbed one until every stride to the end is clean; None if it never
     is), whether the obstacle was touched at all (``disturbed``), and the obstacle."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
     geometry = geometry or LegGeometry()
     log, toe, heel = _foot_paths(make(), reference, mass_kg, seconds, geometry, None)
     floor = place_obstacle(kind, log, toe, heel, reference.incline_deg, after_s, geometry)
