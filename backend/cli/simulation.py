@@ -231,9 +231,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
     p.add_argument("--leg", default=None, help=LEG_HELP)
-    p.add_argument("--start", choices=("swing", "standing"), default="standing",
-                   help="each walk starts in late swing at belt speed (the bench's first start), or from a second of "
-                        "quiet standing through gait initiation")
+    p.add_argument("--start", choices=("standing", "level", "swing"), default="standing",
+                   help="each walk starts from a second of quiet standing through gait initiation (standing), the "
+                        "same and then 6 s of level walking that changes to the task (level: strides scored after "
+                        "the change), or in late swing at belt speed (swing: the bench's first start); a course "
+                        "takes standing or swing")
     p.set_defaults(func=cmd_compare)
     p = sub.add_parser("refine", help="the refinement loop on the bench: a leg walks a course with the envelope, the "
                                       "envelope is refined from its strides, repeated; then an evaluation course with "

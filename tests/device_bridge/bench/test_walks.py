@@ -49,3 +49,15 @@ def test_the_stance_knee_flexes_more_on_a_softer_stance_flexion_row():
     peaks = {k: simulate("table", 1.2, 0.0, seconds=12.0, mass_kg=75.0, table=_knee(base, stance_flexion=k),
                          skip_limits=True).summary["stance_knee_flexion_peak_deg"] for k in (-50.0, -300.0)}
     assert peaks[-50.0] >= peaks[-300.0] + 3.0
+
+
+def test_a_task_reached_from_level_walking_is_scored_after_the_change(model):
+    """The second start: from standing, 6 s of level walking at the task's speed, the 2 s change to −10°, then the
+    task; the strides scored are the task's (after the change and a second), a fall anywhere would count. The table
+    for −10° walks it without a fall (the table's level lead-in included)."""
+    summary = simulate("quasi-stiffness", 1.0, -10.0, seconds=8.0, mass_kg=75.0, model=model, start="level").summary
+    assert summary["start"] == "level" and summary["settle_s"] == pytest.approx(9.0)
+    assert summary["seconds"] == pytest.approx(14.0) and summary["falls"] == 0
+    assert 3 <= summary["strides"] <= 5                      # 5 s of the task at about 1.1 s a stride
+    with pytest.raises(ValueError, match="start must be one of"):
+        simulate("fsmic", 1.2, 0.0, seconds=2.0, start="running")
