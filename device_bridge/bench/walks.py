@@ -20,7 +20,6 @@ from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import WalkScore, run_walk, score_walk
 from device_bridge.sim.video import VideoRecorder
 
-
 STARTS = ("standing", "level", "swing")
 LEVEL_LEAD_S = 6.0       # level walking before the change to the task (a few strides after the first steps)
 LEVEL_SETTLE_S = 1.0     # strides scored from this long after the change to the task is complete
