@@ -237,6 +237,18 @@ class ImpedanceSchedule:
             sf_to_se_knee_extension_rad_s=t.sf_to_se_knee_extension_deg_per_s * deg)
 
 
+def held_since(since_s: float | None, holds: bool, now_s: float) -> float | None:
+    """Since when a condition has held without a break (s): ``now_s`` when it starts holding, None while it does not."""
+    if not holds:
+        return None
+    return now_s if since_s is None else since_s
+
+
+def held_for(since_s: float | None, now_s: float, hold_s: float) -> bool:
+    """The condition held since ``since_s`` (:func:`held_since`) has lasted ``hold_s`` by ``now_s``."""
+    return since_s is not None and now_s - since_s >= hold_s - 1e-9
+
+
 def clip_torque(tau: float, theta: float, limit: float, lo: float, hi: float) -> tuple[float, bool]:
     """Clip a torque to ±limit, and refuse any torque that drives the joint further past a range end."""
     out = tau
@@ -347,13 +359,10 @@ class StateMachineController:
         sch = self.schedule
         early = self.stance_entry_s_ is not None and \
             x.time_s - self.stance_entry_s_ < sch.fold_window_of_stance * self.last_stance_s_
-        if not (self.state_ == GaitState.STANCE_EXTENSION and early and not self.recovering_
-                and x.load_N >= sch.we_to_sf_load_N and x.knee_velocity_rad_s > sch.fold_knee_rate_rad_s):
-            self.folding_since_s_ = None
-            return False
-        if self.folding_since_s_ is None:
-            self.folding_since_s_ = x.time_s
-        return x.time_s - self.folding_since_s_ >= sch.event_hold_s - 1e-9
+        folding = self.state_ == GaitState.STANCE_EXTENSION and early and not self.recovering_ and \
+            x.load_N >= sch.we_to_sf_load_N and x.knee_velocity_rad_s > sch.fold_knee_rate_rad_s
+        self.folding_since_s_ = held_since(self.folding_since_s_, folding, x.time_s)
+        return held_for(self.folding_since_s_, x.time_s, sch.event_hold_s)
 
     def _stalled(self, x: SensorSample) -> bool:
         """Swing extension's knee, still well flexed, has stopped extending: the foot is held (planted or caught)."""
@@ -364,12 +373,9 @@ class StateMachineController:
     def _heel_strike(self, x: SensorSample) -> bool:
         """The foot has been loaded in a swing state for ``heel_strike_hold_s`` (no minimum time: see the module)."""
         sch, st = self.schedule, self.state_
-        if st not in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) or x.load_N <= sch.we_to_sf_load_N:
-            self.heel_load_since_s_ = None
-            return False
-        if self.heel_load_since_s_ is None:
-            self.heel_load_since_s_ = x.time_s
-        return x.time_s - self.heel_load_since_s_ >= sch.heel_strike_hold_s - 1e-9
+        loaded = st in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) and x.load_N > sch.we_to_sf_load_N
+        self.heel_load_since_s_ = held_since(self.heel_load_since_s_, loaded, x.time_s)
+        return held_for(self.heel_load_since_s_, x.time_s, sch.heel_strike_hold_s)
 
     def _standing(self, x: SensorSample) -> bool:
         """Update standing (see the module docstring) with this sample; whether the leg stands now."""
@@ -378,26 +384,18 @@ class StateMachineController:
             self.standing_loaded_ = self.standing_loaded_ or x.load_N >= sch.se_to_wf_load_N
             moving = abs(x.knee_velocity_rad_s) > sch.standing_leave_rad_s
             lifted = self.standing_loaded_ and x.load_N < sch.se_to_wf_load_N   # once the person's weight came
-            if moving or lifted:
-                if self.event_since_s_ is None:
-                    self.event_since_s_ = x.time_s
-                if x.time_s - self.event_since_s_ >= sch.event_hold_s - 1e-9:
-                    self.standing_ = False          # lifted: a step; moving: on in the stance state it stood in
-                    swing = GaitState.SWING_FLEXION if x.knee_velocity_rad_s > sch.standing_still_rad_s else \
-                        GaitState.SWING_EXTENSION     # lifted on a knee that does not bend: nothing to flex first
-                    self._enter(swing if lifted else self.state_, x.time_s, guard=False)
-            else:
-                self.event_since_s_ = None
+            self.event_since_s_ = held_since(self.event_since_s_, moving or lifted, x.time_s)
+            if held_for(self.event_since_s_, x.time_s, sch.event_hold_s):
+                self.standing_ = False              # lifted: a step; moving: on in the stance state it stood in
+                swing = GaitState.SWING_FLEXION if x.knee_velocity_rad_s > sch.standing_still_rad_s else \
+                    GaitState.SWING_EXTENSION         # lifted on a knee that does not bend: nothing to flex first
+                self._enter(swing if lifted else self.state_, x.time_s, guard=False)
             return self.standing_
         still = self.state_ in (GaitState.STANCE_FLEXION, GaitState.STANCE_EXTENSION) and \
             x.load_N >= sch.se_to_wf_load_N and abs(x.knee_velocity_rad_s) < sch.standing_still_rad_s and \
             abs(x.ankle_velocity_rad_s) < sch.standing_still_rad_s
-        if not still:
-            self.still_since_s_ = None
-            return False
-        if self.still_since_s_ is None:
-            self.still_since_s_ = x.time_s
-        if x.time_s - self.still_since_s_ >= sch.standing_enter_s - 1e-9:
+        self.still_since_s_ = held_since(self.still_since_s_, still, x.time_s)
+        if held_for(self.still_since_s_, x.time_s, sch.standing_enter_s):
             self._begin_standing(x, loaded=True, blend=True)
         return self.standing_
 
@@ -465,13 +463,8 @@ class StateMachineController:
             guard = dwell >= sch.max_state_time_s
             if guard and self.state_ == GaitState.STANCE_EXTENSION and x.load_N >= sch.we_to_sf_load_N:
                 guard = False                        # never into swing carrying the heel-strike load: only toe-off
-            if self._event(x):
-                if self.event_since_s_ is None:
-                    self.event_since_s_ = x.time_s
-                held = x.time_s - self.event_since_s_ >= sch.event_hold_s - 1e-9
-            else:
-                self.event_since_s_ = None
-                held = False
+            self.event_since_s_ = held_since(self.event_since_s_, self._event(x), x.time_s)
+            held = held_for(self.event_since_s_, x.time_s, sch.event_hold_s)
             if guard or held:
                 if self.state_ == GaitState.SWING_EXTENSION:     # stance again: caught by a stall, or a heel strike
                     self.recovering_ = not guard and x.load_N <= sch.we_to_sf_load_N
