@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -258,6 +259,33 @@ def held_until(walk: BenchTrajectory, n: int) -> BenchTrajectory:
     return BenchTrajectory(time_s=np.arange(n + walk.time_s.shape[0]) * dt, stride_time_s=walk.stride_time_s, **held)
 
 
+class _Blended(NamedTuple):
+    """The walk's thigh (rad, rad/s), hip height along the floor's normal (m, m/s) and the other leg's push (N, foot
+    down) blended with quiet standing's."""
+
+    thigh: np.ndarray
+    thigh_rate: np.ndarray
+    height: np.ndarray
+    height_rate: np.ndarray
+    other_leg_N: np.ndarray
+    other_foot_down: np.ndarray
+
+
+def _with_standing(walk: BenchTrajectory, w: np.ndarray, dw: np.ndarray, normal: tuple[float, float],
+                   incline_deg: float, geometry: LegGeometry, mass_kg: float) -> _Blended:
+    """``walk`` weighted ``w`` (0: quiet standing, 1: the walk; ``dw`` its rate, 1/s) against standing on a floor of
+    ``incline_deg`` whose normal is ``normal``: the start's lead-in and the stop's last step blend alike."""
+    thigh0, knee0, ankle0 = standing_pose_rad(incline_deg)
+    h0 = float(touching_hip_height_m(thigh0, knee0, ankle0, geometry, incline_deg))
+    h_w = walk.height_m
+    hd_w = walk.xd_m_s * normal[0] + walk.zd_m_s * normal[1]       # the walk's height rate along the normal
+    stand_push = (1.0 - STANDING_SHARE_BW) * mass_kg * G_MPS2
+    return _Blended(thigh=(1 - w) * thigh0 + w * walk.hip_rad, thigh_rate=w * walk.hipd_rad_s + dw * (walk.hip_rad - thigh0),
+                    height=(1 - w) * h0 + w * h_w, height_rate=w * hd_w + dw * (h_w - h0),
+                    other_leg_N=(1 - w) * stand_push + w * walk.other_leg_N,
+                    other_foot_down=np.where(w < 1.0, True, walk.other_foot_down))
+
+
 def lead_in_from_standing(walk: BenchTrajectory, walk_from_s: float, speed_mps: float, incline_deg: float,
                           stride_time_s: float, geometry: LegGeometry, mass_kg: float) -> BenchTrajectory:
     """Quiet standing until ``walk_from_s``, then gait initiation into ``walk``, a walk that begins at its phase
@@ -279,24 +307,16 @@ def lead_in_from_standing(walk: BenchTrajectory, walk_from_s: float, speed_mps: 
     # the distance still to make up: v·ramp/2 while standing (∫(1 − w)·v over the ramp), 0 from the ramp's end
     lost = ramp_tau - (ramp_tau / 2 - ramp / (2 * np.pi) * np.sin(np.pi * ramp_tau / ramp))
     ahead = v * (ramp / 2 - lost)
-    thigh0, knee0, ankle0 = standing_pose_rad(incline_deg)
-    h0 = float(touching_hip_height_m(thigh0, knee0, ankle0, geometry, incline_deg))
-    h_w = walk.height_m
-    hd_w = walk.xd_m_s * normal[0] + walk.zd_m_s * normal[1]       # the walk's height rate along the normal
-    h = (1 - w) * h0 + w * h_w
-    hd = w * hd_w + dw * (h_w - h0)
-    floor_x, floor_z = walk.x_m - h_w * normal[0], walk.z_m - h_w * normal[1]
+    b = _with_standing(walk, w, dw, normal, incline_deg, geometry, mass_kg)
+    floor_x, floor_z = walk.x_m - walk.height_m * normal[0], walk.z_m - walk.height_m * normal[1]
     ramping = tau < ramp
-    x = floor_x + ahead * tangent[0] + h * normal[0]
-    z = floor_z + ahead * tangent[1] + h * normal[1]
-    xd = np.where(ramping, w * v * tangent[0] + hd * normal[0], walk.xd_m_s)
-    zd = np.where(ramping, w * v * tangent[1] + hd * normal[1], walk.zd_m_s)
-    stand_push = (1.0 - STANDING_SHARE_BW) * mass_kg * G_MPS2
+    x = floor_x + ahead * tangent[0] + b.height * normal[0]
+    z = floor_z + ahead * tangent[1] + b.height * normal[1]
+    xd = np.where(ramping, w * v * tangent[0] + b.height_rate * normal[0], walk.xd_m_s)
+    zd = np.where(ramping, w * v * tangent[1] + b.height_rate * normal[1], walk.zd_m_s)
     return BenchTrajectory(
-        time_s=t, phase=walk.phase, x_m=x, z_m=z, hip_rad=(1 - w) * thigh0 + w * walk.hip_rad,
-        xd_m_s=xd, zd_m_s=zd, hipd_rad_s=w * walk.hipd_rad_s + dw * (walk.hip_rad - thigh0), height_m=h,
-        other_leg_N=(1 - w) * stand_push + w * walk.other_leg_N,
-        other_foot_down=np.where(w < 1.0, True, walk.other_foot_down),
+        time_s=t, phase=walk.phase, x_m=x, z_m=z, hip_rad=b.thigh, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=b.thigh_rate,
+        height_m=b.height, other_leg_N=b.other_leg_N, other_foot_down=b.other_foot_down,
         stance=np.where(tau <= 0, True, walk.stance), stride_time_s=walk.stride_time_s)
 
 
@@ -339,27 +359,19 @@ def plan_walk_and_stop(ref: WalkingReference, geometry: LegGeometry, mass_kg: fl
     u = np.where(t < t[i0], 1.0, 0.5 * (1.0 + np.cos(np.pi * tau / ramp)))
     du = np.where((t > t[i0]) & (tau < ramp), -0.5 * np.pi / ramp * np.sin(np.pi * tau / ramp), 0.0)
     alpha, v = math.radians(ref.incline_deg), ref.speed_mps
-    tangent, normal = np.array([math.cos(alpha), math.sin(alpha)]), np.array([-math.sin(alpha), math.cos(alpha)])
-    thigh0, knee0, ankle0 = standing_pose_rad(ref.incline_deg)
-    h0 = float(touching_hip_height_m(thigh0, knee0, ankle0, geometry, ref.incline_deg))
-    h_w = walk.height_m
-    hd_w = walk.xd_m_s * normal[0] + walk.zd_m_s * normal[1]
-    h = u * h_w + (1 - u) * h0
-    hd = u * hd_w + du * (h_w - h0)
+    tangent, normal = (math.cos(alpha), math.sin(alpha)), (-math.sin(alpha), math.cos(alpha))
+    b = _with_standing(walk, u, du, normal, ref.incline_deg, geometry, mass_kg)
     # progress along the floor from the stop's heel strike: v·∫u dt (the walk's own from there is v·τ)
     slowed = v * (tau / 2 + ramp / (2 * np.pi) * np.sin(np.pi * tau / ramp))
-    floor0 = np.array([walk.x_m[i0], walk.z_m[i0]]) - h_w[i0] * normal
+    floor0 = (walk.x_m[i0] - walk.height_m[i0] * normal[0], walk.z_m[i0] - walk.height_m[i0] * normal[1])
     after = t >= t[i0]
-    x = np.where(after, floor0[0] + slowed * tangent[0] + h * normal[0], walk.x_m)
-    z = np.where(after, floor0[1] + slowed * tangent[1] + h * normal[1], walk.z_m)
-    xd = np.where(after, u * v * tangent[0] + hd * normal[0], walk.xd_m_s)
-    zd = np.where(after, u * v * tangent[1] + hd * normal[1], walk.zd_m_s)
-    stand_push = (1.0 - STANDING_SHARE_BW) * mass_kg * G_MPS2
+    x = np.where(after, floor0[0] + slowed * tangent[0] + b.height * normal[0], walk.x_m)
+    z = np.where(after, floor0[1] + slowed * tangent[1] + b.height * normal[1], walk.z_m)
+    xd = np.where(after, u * v * tangent[0] + b.height_rate * normal[0], walk.xd_m_s)
+    zd = np.where(after, u * v * tangent[1] + b.height_rate * normal[1], walk.zd_m_s)
     stopped = t >= t[i0] + ramp
     return BenchTrajectory(
         time_s=t, phase=np.where(stopped, s[min(i0 + round(ramp / timestep_s), s.shape[0] - 1)], s), x_m=x, z_m=z,
-        hip_rad=u * walk.hip_rad + (1 - u) * thigh0, xd_m_s=xd, zd_m_s=zd,
-        hipd_rad_s=u * walk.hipd_rad_s + du * (walk.hip_rad - thigh0), height_m=h,
-        other_leg_N=u * walk.other_leg_N + (1 - u) * stand_push,
-        other_foot_down=np.where(u < 1.0, True, walk.other_foot_down),
+        hip_rad=b.thigh, xd_m_s=xd, zd_m_s=zd, hipd_rad_s=b.thigh_rate, height_m=b.height,
+        other_leg_N=b.other_leg_N, other_foot_down=b.other_foot_down,
         stance=np.where(after, True, walk.stance), stride_time_s=walk.stride_time_s)
