@@ -32,7 +32,6 @@ from controller_core.gait_metrics import (
     channel_strides,
     episodes,
     gait_channels,
-    heel_strikes,
     percentile_interval,
     reference_curves,
     rmse,
@@ -53,8 +52,10 @@ from device_bridge.sim.simulate import (
     StepController,
     WalkLog,
     carrying_figures,
+    contact_strikes,
     fall_events,
     stance_entry_metrics,
+    toe_catch_mask,
     walk_loop,
 )
 
@@ -211,7 +212,7 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
     """Per-stride errors against each stride's own task, per segment, safety and (adaptive) estimation accuracy."""
     c, dt, mass = log.channels, log.timestep_s, log.mass_kg
     weight = mass * G_MPS2
-    strikes = heel_strikes(c["contact_N"], 0.02 * weight, round(0.15 / dt))
+    strikes = contact_strikes(log)
     strikes = strikes[c["time_s"][strikes] >= settle_s] if strikes.size else strikes
     measured = gait_channels(c["knee_angle_rad"], c["ankle_angle_rad"], c["knee_torque_Nm"], c["ankle_torque_Nm"], mass)
     strided = channel_strides(measured, strikes)
@@ -233,11 +234,9 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
         by_segment.append({"segment": idx, "speed_mps": seg.speed_mps, "incline_deg": seg.incline_deg,
                            **_channel_summary(per_stride, rows, rng)})
     # safety, as on a fixed-task walk; a toe catch is contact in mid-swing of the bench's pattern
-    phase = c["bench_phase"]
     toe_off = np.array([task_pattern(round(v, 3), round(g, 2)).toe_off_phase
                         for v, g in zip(traj.speed_mps[::100], traj.incline_deg[::100], strict=True)])
-    toe_off_tick = np.repeat(toe_off, 100)[: phase.shape[0]]
-    mid_swing = (phase > toe_off_tick + 0.08) & (phase < 0.92)
+    toe_catch = toe_catch_mask(c, np.repeat(toe_off, 100)[: c["bench_phase"].shape[0]], weight)
     gap = round(0.2 / dt)
     states = c["state"].astype(int)
     after = c["time_s"] >= settle_s
@@ -247,7 +246,7 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
         **_channel_summary(per_stride, everything, rng),
         "falls": len(falls),
         "fall_events": falls,
-        "toe_catches": episodes(mid_swing & (c["contact_N"] > 0.02 * weight) & after, gap),
+        "toe_catches": episodes(toe_catch & after, gap),
         **stance_entry_metrics(states, c["load_N"], strikes, weight, dt),
         **carrying_figures(c, strikes, dt, weight, settle_s),
         "time_in_state_s": {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)},

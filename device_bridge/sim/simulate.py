@@ -241,6 +241,19 @@ def stance_entry_metrics(states: np.ndarray, load_N: np.ndarray, strikes: np.nda
     ), strict=True))
 
 
+def contact_strikes(log: WalkLog) -> np.ndarray:
+    """Tick indices of the walk's heel strikes: the foot's contact rising above 2 % body weight after at least 150 ms
+    without contact (module docstring)."""
+    weight = log.mass_kg * G_MPS2
+    return heel_strikes(log.channels["contact_N"], 0.02 * weight, round(0.15 / log.timestep_s))
+
+
+def toe_catch_mask(c: dict[str, np.ndarray], toe_off_phase: np.ndarray | float, weight_N: float) -> np.ndarray:
+    """Ticks of foot contact in mid-swing of the bench's pattern (phase between toe-off + 8 % and 92 %): a stumble."""
+    phase = c["bench_phase"]
+    return (phase > toe_off_phase + 0.08) & (phase < 0.92) & (c["contact_N"] > 0.02 * weight_N)
+
+
 def fall_mask(c: dict[str, np.ndarray], weight_N: float) -> np.ndarray:
     """Ticks a person could not recover from (module docstring: the hip sunk past FALL_SINK_M, or a knee beyond
     FALL_KNEE_DEG under more than half the body weight)."""
@@ -314,7 +327,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     """Turn a walk log into metrics against ``reference`` (strides starting before ``settle_s`` are skipped)."""
     c, dt, mass = log.channels, log.timestep_s, log.mass_kg
     weight = mass * G_MPS2
-    strikes = heel_strikes(c["contact_N"], 0.02 * weight, round(0.15 / dt))
+    strikes = contact_strikes(log)
     strikes = strikes[c["time_s"][strikes] >= settle_s] if strikes.size else strikes
     per_channel = gait_channels(c["knee_angle_rad"], c["ankle_angle_rad"], c["knee_torque_Nm"], c["ankle_torque_Nm"],
                                 mass)
@@ -325,9 +338,7 @@ def score_walk(log: WalkLog, reference: WalkingReference, settle_s: float = 2.0)
     means, errors = strided_errors(strided, list(per_channel), ref_curves, rng=np.random.default_rng(0),
                                    per_stride=True)
     stride_times = np.diff(c["time_s"][strikes]) if n_strides else np.array([])
-    phase = c["bench_phase"]
-    mid_swing = (phase > reference.toe_off_phase + 0.08) & (phase < 0.92)
-    toe_catch = mid_swing & (c["contact_N"] > 0.02 * weight)
+    toe_catch = toe_catch_mask(c, reference.toe_off_phase, weight)
     gap = round(0.2 / dt)
     states = c["state"].astype(int)
     time_in_state = {GaitState(k).subphase: float(np.count_nonzero(states == k) * dt) for k in range(4)}

@@ -21,11 +21,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from controller_core.fsm import GaitState
-from controller_core.gait_metrics import heel_strikes
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
 from device_bridge.sim.leg_model import LegGeometry
-from device_bridge.sim.simulate import StepController, WalkLog, fall_events, fall_mask, run_walk
+from device_bridge.sim.simulate import (
+    StepController,
+    WalkLog,
+    contact_strikes,
+    fall_events,
+    fall_mask,
+    run_walk,
+    toe_catch_mask,
+)
 
 KINDS = ("toe_catch", "early_landing")
 TOE_CATCH_PHASE = 0.8            # where in the bench's swing the block stands (phase)
@@ -94,8 +101,7 @@ def place_obstacle(kind: str, log: WalkLog, toe: np.ndarray, heel: np.ndarray, i
         return FloorWithObstacle(incline_deg, float(x) - TOE_BLOCK_LENGTH_M / 2, TOE_BLOCK_LENGTH_M,
                                  float(max(clearance, 0.0) + TOE_BLOCK_REACH_M), met_s=float(t[at[0] + 1]))
     if kind == "early_landing":
-        weight = log.mass_kg * G_MPS2
-        strikes = heel_strikes(c["contact_N"], 0.02 * weight, round(0.15 / log.timestep_s))
+        strikes = contact_strikes(log)
         strikes = strikes[t[strikes] >= after_s]
         if not strikes.size:
             raise ValueError(f"no heel strike after {after_s:g} s to put the platform under")
@@ -109,9 +115,8 @@ def clean_strides(log: WalkLog, toe_off_phase: float) -> tuple[np.ndarray, np.nd
     """Heel strikes (tick indices) and, per stride between them, whether it was clean (module docstring)."""
     c, dt = log.channels, log.timestep_s
     weight = log.mass_kg * G_MPS2
-    strikes = heel_strikes(c["contact_N"], 0.02 * weight, round(0.15 / dt))
-    phase = c["bench_phase"]
-    toe_catch = (phase > toe_off_phase + 0.08) & (phase < 0.92) & (c["contact_N"] > 0.02 * weight)
+    strikes = contact_strikes(log)
+    toe_catch = toe_catch_mask(c, toe_off_phase, weight)
     fallen = fall_mask(c, weight)
     loaded_bent = (c["load_N"] > 0.5 * weight) & (c["knee_angle_rad"] > math.radians(CLEAN_LOADED_KNEE_DEG))
     stance = c["state"].astype(int) == int(GaitState.STANCE_FLEXION)
