@@ -27,14 +27,15 @@ elif [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   trap 'rm -rf "$QUASITUNE_CACHE_DIR"' EXIT
   export QUASITUNE_CACHE_DIR
 fi
-# one BLAS/OpenMP thread per process: two processes on a 2-core machine each spinning two math threads ran the model's
-# fits several times slower than one process alone (the server does the same: backend/serve.py)
+# one BLAS/OpenMP thread per process: test processes on a 2-core machine each spinning two math threads ran the
+# model's fits several times slower than one process alone (the server does the same: backend/serve.py)
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
-pytest=(.venv/bin/python -m pytest -q -n 2)
-# two processes (pytest-xdist); every `live` test (a simulated leg, a broker link or threads on the wall clock:
-# tests/README.md) goes to one of them, one after the other (`--dist loadgroup`, tests/conftest.py), so that never two
-# live legs or browsers share the machine, while the other process works through the rest
-if [ "$fast" -eq 1 ]; then
-  exec "${pytest[@]}" --dist worksteal -m "not browser and not postgres and not broker and not wallclock" "$@"
+pytest=(.venv/bin/python -m pytest -q)
+if [ "$fast" -eq 1 ]; then     # CPU-bound tests: one process per core, each taking the next test as it frees up
+  exec "${pytest[@]}" -n 2 --dist worksteal -m "not browser and not postgres and not broker and not wallclock" "$@"
 fi
-exec "${pytest[@]}" --dist loadgroup "$@"
+# the whole suite: three processes on two cores, because a third of the browser, server and broker tests' time is
+# spent waiting (a page, a real-time leg, a broker); each process takes whole files (`--dist loadfile`: a file's server
+# or browser is started once), the files with servers, browsers, brokers and PostgreSQL first (tests/conftest.py) so
+# that short files fill the end
+exec "${pytest[@]}" -n 3 --dist loadfile --no-loadscope-reorder "$@"

@@ -22,7 +22,7 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 # what a fixture needs, as markers (pyproject.toml): `-m "not browser and not postgres and not broker and not wallclock"`
-# is the fast subset (scripts/test.sh --fast); the `live` tests run one at a time in one process (below)
+# is the fast subset (scripts/test.sh --fast); `-m live` the tests whose subject is timing on the wall clock
 _MARKS_BY_FIXTURE = {
     "page": ("browser", "wallclock"), "browser": ("browser", "wallclock"),
     "server": ("wallclock", "live"),        # the browser tests' server process, with its simulated leg in real time
@@ -41,10 +41,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             marks.add("postgres")
         for m in sorted(marks):
             item.add_marker(m)
-        if item.get_closest_marker("live") is not None:
-            # one process takes every live test, one after the other (`--dist loadgroup`): never two live legs or
-            # browsers at once, while the other process works through the rest
-            item.add_marker(pytest.mark.xdist_group("live"))
+    # `--dist loadfile` hands out whole files, in this order: the files that start servers, browsers and brokers
+    # (the longest) first, so that the short ones fill in at the end instead of one long file running alone
+    slow = {item.path for item in items if item.get_closest_marker("wallclock") or item.get_closest_marker("postgres")}
+    items.sort(key=lambda item: item.path not in slow)
 
 
 @pytest.fixture(scope="session")

@@ -1,5 +1,7 @@
-"""Browser fixtures: one real server with the simulated leg per test module, one Debian Chromium for the run (each
-test has a browser context of its own), a page that fails its test on any console error the test did not provoke."""
+"""Browser fixtures: one real server with the simulated leg per test module, one Debian Chromium per test module
+(each test has a browser context of its own; Playwright's sync API holds the thread's event loop while it runs, so a
+browser kept for the whole run would break any later test of that process that runs asyncio), a page that fails its
+test on any console error the test did not provoke."""
 
 from __future__ import annotations
 
@@ -26,7 +28,7 @@ def server(tmp_path_factory):
     stop_server(proc)
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser():
     with playwright_api.sync_playwright() as pw:
         b = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS)
