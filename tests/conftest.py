@@ -41,8 +41,8 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             marks.add("postgres")
         for m in sorted(marks):
             item.add_marker(m)
-    # `--dist loadfile` hands out whole files, in this order: the files that start servers, browsers and brokers
-    # (the longest) first, so that the short ones fill in at the end instead of one long file running alone
+    # `--dist loadfile` hands out whole files, in this order: the files that start servers, browsers, brokers or
+    # PostgreSQL (the longest) first, so that the short ones fill in at the end instead of one long file running alone
     slow = {item.path for item in items if item.get_closest_marker("wallclock") or item.get_closest_marker("postgres")}
     items.sort(key=lambda item: item.path not in slow)
 
