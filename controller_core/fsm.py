@@ -162,6 +162,8 @@ class ImpedanceSchedule:
         event_hold_s: a transition's condition must hold this long, uninterrupted, before it fires (s).
         heel_strike_hold_s: heel strike (load above its threshold in either swing state) needs only this long
             (s) and no minimum time in the state: see the module docstring.
+        heel_contact_hold_s: a landing below the heel-strike load (see the module docstring): swing extension's
+            knee near its equilibrium and the load above the toe-off threshold this long (s).
         standing_still_rad_s, standing_enter_s, standing_leave_rad_s: standing (see the module docstring): entered
             from a loaded stance state once knee and ankle have both moved slower than the first (rad/s) for the
             second (s); left when the knee moves faster than the third (rad/s) for ``event_hold_s``, or the leg is
@@ -193,6 +195,7 @@ class ImpedanceSchedule:
     swing_slowing_rad_s: float = 0.05
     event_hold_s: float = 0.02
     heel_strike_hold_s: float = 0.005
+    heel_contact_hold_s: float = 0.010
     standing_still_rad_s: float = 0.2
     standing_enter_s: float = 0.5
     standing_leave_rad_s: float = 0.6
@@ -275,6 +278,7 @@ class StateMachineController:
         state_entry_time_s_: when the current state was entered (s); None before the first sample.
         event_since_s_: since when the current state's exit condition has held (s); None while it does not.
         heel_load_since_s_: since when a swing state has seen heel-strike load (s); None while it has not.
+        contact_since_s_: since when swing extension has seen a landing below the heel-strike load (s), or None.
         transitions_: number of transitions taken.
         guard_transitions_: how many of them the maximum-time guard forced.
         standing_: whether the leg is standing (see the module docstring); the state stays the stance state it was.
@@ -295,6 +299,7 @@ class StateMachineController:
     state_entry_time_s_: float | None = field(init=False, default=None)
     event_since_s_: float | None = field(init=False, default=None)
     heel_load_since_s_: float | None = field(init=False, default=None)
+    contact_since_s_: float | None = field(init=False, default=None)
     transitions_: int = field(init=False, default=0)
     guard_transitions_: int = field(init=False, default=0)
     standing_: bool = field(init=False, default=False)
@@ -318,6 +323,7 @@ class StateMachineController:
         self.state_entry_time_s_ = None
         self.event_since_s_ = None
         self.heel_load_since_s_ = None
+        self.contact_since_s_ = None
         self.transitions_ = 0
         self.guard_transitions_ = 0
         self.standing_ = False
@@ -371,11 +377,16 @@ class StateMachineController:
             x.knee_velocity_rad_s > -sch.stumble_knee_rate_rad_s
 
     def _heel_strike(self, x: SensorSample) -> bool:
-        """The foot has been loaded in a swing state for ``heel_strike_hold_s`` (no minimum time: see the module)."""
+        """The foot has been loaded in a swing state for ``heel_strike_hold_s``, or has landed on an extended knee
+        in swing extension above the toe-off load for ``heel_contact_hold_s`` (no minimum time: see the module)."""
         sch, st = self.schedule, self.state_
         loaded = st in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) and x.load_N > sch.we_to_sf_load_N
+        landed = st == GaitState.SWING_EXTENSION and x.load_N > sch.se_to_wf_load_N and \
+            x.knee_angle_rad <= sch.knee_theta_e[3] + sch.stumble_knee_margin_rad
         self.heel_load_since_s_ = held_since(self.heel_load_since_s_, loaded, x.time_s)
-        return held_for(self.heel_load_since_s_, x.time_s, sch.heel_strike_hold_s)
+        self.contact_since_s_ = held_since(self.contact_since_s_, landed, x.time_s)
+        return held_for(self.heel_load_since_s_, x.time_s, sch.heel_strike_hold_s) or \
+            held_for(self.contact_since_s_, x.time_s, sch.heel_contact_hold_s)
 
     def _standing(self, x: SensorSample) -> bool:
         """Update standing (see the module docstring) with this sample; whether the leg stands now."""
@@ -437,6 +448,7 @@ class StateMachineController:
         self.state_entry_time_s_ = now_s
         self.event_since_s_ = None
         self.heel_load_since_s_ = None
+        self.contact_since_s_ = None
         self.transitions_ += 1
         self.guard_transitions_ += int(guard)
 
