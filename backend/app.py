@@ -19,6 +19,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
+from backend.bench.node_previews import NodeWalks
 from backend.bench.preview import BenchmarkCourseWalks
 from backend.body_limit import GateBodies, body_rules
 from backend.db import open_engine
@@ -134,6 +135,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
             app.state.clock.close()
         app.state.instance_beat.close()
         app.state.devices.close()
+        app.state.node_walks.close()
         if app.state.broker is not None:
             app.state.broker.close()
         app.state.db.dispose()
@@ -150,6 +152,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     specs = parse_device_specs(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
     app.state.benchmark_walks = BenchmarkCourseWalks()   # the FSMIC's course walk per body mass, for the previews
+    app.state.node_walks = NodeWalks(settings.bench_processes)   # envelope nodes walked alone, kept by content
     app.state.broker = None
     if any(spec.interface == "mqtt" for spec in specs):
         app.state.broker = broker_connection(settings)

@@ -71,6 +71,8 @@ class Settings(BaseSettings):
         trusted_proxies: addresses of reverse proxies whose ``X-Forwarded-For`` / ``X-Forwarded-Proto`` are believed
             (uvicorn's ``forwarded_allow_ips``; in the environment comma- or space-separated). None by default: every
             other client could otherwise claim any address and dodge, or aim, the sign-in throttle.
+        bench_processes: processes that walk an envelope's nodes side by side (``backend.bench.node_previews``);
+            default one fewer than the machine's cores, at most 8; 1: in turn on the bench's own thread.
         request_threads: request handlers run at once in worker threads. The process is bound by one interpreter
             lock: more threads add no throughput and starve the event loop that streams live telemetry.
         login_per_user_per_minute, login_per_address_per_minute, login_per_user_anywhere_per_minute: failed
@@ -103,6 +105,7 @@ class Settings(BaseSettings):
     viewer3d: bool = False
     trusted_proxies: Annotated[tuple[str, ...], NoDecode] = ()
     request_threads: int = Field(default=2, ge=1, le=64)
+    bench_processes: int = Field(default_factory=lambda: max(min((os.cpu_count() or 1) - 1, 8), 1), ge=1, le=64)
     login_per_user_per_minute: int = Field(default=5, ge=1)
     login_per_address_per_minute: int = Field(default=20, ge=1)
     login_per_user_anywhere_per_minute: int = Field(default=100, ge=1)

@@ -1,7 +1,9 @@
 """The dashboard's simulated preview of a version: its table (or envelope) and the FSMIC walked on the bench.
 
 A table walks at its task for ten seconds; an envelope walks the mixed course (the leg estimating its task and
-adapting), both against the FSMIC on the same plant, reference and metrics as ``quasitune simulate``.
+adapting), both against the FSMIC on the same plant, reference and metrics as ``quasitune simulate``, and every node of
+the envelope walks alone at its own task, from standing and reached from level walking
+(:mod:`backend.bench.node_previews`).
 """
 
 from __future__ import annotations
@@ -10,12 +12,14 @@ import functools
 
 import numpy as np
 
+from backend.bench.node_previews import NodeWalks
 from controller_core.envelope import Envelope
 from controller_core.gait_metrics import PHASE_GRID, reference_curves
 from controller_core.model import QuasiStiffnessModel
 from controller_core.table import ImpedanceTable
 from controller_core.task import validate_task
 from device_bridge.bench.controllers import make_controller
+from device_bridge.bench.node_walks import NODE_LEVEL_LEAD_S, NODE_WALK_S
 from device_bridge.bench.task_reference import task_reference
 from device_bridge.bench.versus import against_fsmic, versus
 from device_bridge.bench.walks import walk_course
@@ -25,6 +29,13 @@ from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import run_walk, score_walk
 
 PREVIEW_COURSE = "mixed"
+NODE_WALKS_SAID = {
+    "seconds_at_task": NODE_WALK_S, "level_lead_s": NODE_LEVEL_LEAD_S,
+    "starts": {"standing": "from quiet standing: the first steps, then walking at the node's task",
+               "level": "reached from level walking at the node's speed (the envelope's most level node), the node's "
+                        "rows from the first heel strike after the slope begins"},
+    "controller": "the node's own table on the four-state machine: what the leg runs when its estimate sits on the node",
+    "bounds": "the same bounds as every bench walk, without the FSMIC-relative one (the FSMIC is not walked per node)"}
 
 
 class BenchmarkCourseWalks:
@@ -74,15 +85,20 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
 
 def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course,
                      geometry: LegGeometry | None = None,
-                     benchmark: BenchmarkCourseWalks | None = None) -> dict[str, object]:
+                     benchmark: BenchmarkCourseWalks | None = None,
+                     nodes: NodeWalks | None = None) -> dict[str, object]:
     """The envelope's preview for its page: the course walked with the envelope (the leg estimating its task and
     adapting) and with the FSMIC (from ``benchmark`` when it holds that walk), at the envelope's body mass. Per
     controller its summary (safety figures, errors by segment, estimation accuracy for the envelope);
-    ``envelope_minus_fsmic``: per channel the mean per-stride RMSE difference with its 95 % interval and verdict."""
+    ``envelope_minus_fsmic``: per channel the mean per-stride RMSE difference with its 95 % interval and verdict;
+    ``nodes``: every node walked alone at its task (from ``nodes``' kept walks where it has them), its figures and
+    flags; ``node_walks``: what those walks are."""
     geometry = geometry or LegGeometry()
+    walked_nodes = (nodes or NodeWalks()).walk(envelope, model, geometry)
     fsmic = (benchmark or BenchmarkCourseWalks(maxsize=1)).score(course, envelope.mass_kg, geometry, model)
     scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope, geometry=geometry),
               "fsmic": fsmic}
     return {"course": course.to_json(), "mass_kg": envelope.mass_kg, "leg": geometry.name,
             "controllers": {name: s.to_dict() for name, s in scores.items()},
-            "envelope_minus_fsmic": versus(scores["envelope"], scores["fsmic"], "envelope", "FSMIC")}
+            "envelope_minus_fsmic": versus(scores["envelope"], scores["fsmic"], "envelope", "FSMIC"),
+            "nodes": walked_nodes, "node_walks": NODE_WALKS_SAID}

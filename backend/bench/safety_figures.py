@@ -83,7 +83,8 @@ def safety_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) -> li
         behind = fsmic_entry is not None and float(entry) > float(fsmic_entry) + STANCE_ENTRY_BEHIND_FSMIC_MS
         if late or behind:
             versus = f" (FSMIC {float(fsmic_entry):.0f} ms)" if fsmic_entry is not None else ""
-            bound = f"bound {STANCE_ENTRY_MAX_MS:.0f} ms, or {STANCE_ENTRY_BEHIND_FSMIC_MS:.0f} ms behind the FSMIC"
+            bound = f"bound {STANCE_ENTRY_MAX_MS:.0f} ms" + (
+                f", or {STANCE_ENTRY_BEHIND_FSMIC_MS:.0f} ms behind the FSMIC" if fsmic_entry is not None else "")
             flags.append(_flag("heel_strike_to_stance_ms_max", "bad", float(entry), fsmic_entry, "ms",
                                f"up to {float(entry):.0f} ms from foot contact to the stance settings{versus} "
                                f"({bound})"))

@@ -8,6 +8,7 @@ import anyio
 from fastapi import APIRouter, Request
 from sqlalchemy import Connection
 
+from backend.bench.node_previews import NodeWalks, envelope_flags
 from backend.bench.preview import PREVIEW_COURSE, BenchmarkCourseWalks, preview_envelope, preview_table
 from backend.bench.safety_figures import safety_flags
 from backend.deps import Conn, CurrentUser, Model
@@ -82,16 +83,19 @@ def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessMode
 async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn, user: CurrentUser,
                                model: Model) -> dict:
     """Walk the bench's ``mixed`` course (speed changes, ramps up and down ±8°) with this envelope, the leg estimating
-    its task and adapting, and with the FSMIC (computed on first request, about ten seconds, five when the server
-    has walked the FSMIC at this body mass already, then stored). Safety figures (``safety``: flags on their own
-    bounds), errors per segment against the reference at each stride's true task, the leg's estimation accuracy, and
-    the envelope's per-stride RMSE minus the FSMIC's with 95 % intervals."""
+    its task and adapting, and with the FSMIC; and walk every node alone at its own task, from quiet standing and
+    reached from level walking (``nodes``; computed on first request, about ten seconds plus half a CPU-second per
+    node, then stored; node walks the server has made before are not walked again). Safety figures (``safety``: the
+    course walk's flags, then each node's, each on its own bound), errors per segment against the reference at each
+    stride's true task, the leg's estimation accuracy, and the envelope's per-stride RMSE minus the FSMIC's with 95 %
+    intervals."""
     return await _walk_once(("envelope", envelope_id), user.username, _envelope_preview, envelope_id, conn, model,
-                            request.app.state.bench_leg, request.app.state.benchmark_walks)
+                            request.app.state.bench_leg, request.app.state.benchmark_walks,
+                            request.app.state.node_walks)
 
 
 def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
-                      benchmark: BenchmarkCourseWalks, walk: bool = True) -> dict | None:
+                      benchmark: BenchmarkCourseWalks, nodes: NodeWalks, walk: bool = True) -> dict | None:
     """The stored preview, walked first if there is none (``walk=False``: None instead)."""
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
@@ -100,10 +104,9 @@ def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessM
     if stored is None:
         checked = as_run(envelopes.stored_envelope(row))
         _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
-        result = preview_envelope(checked.item, model, COURSES[PREVIEW_COURSE], leg, benchmark)
+        result = preview_envelope(checked.item, model, COURSES[PREVIEW_COURSE], leg, benchmark, nodes)
         stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
-    runs = stored["controllers"]
-    return {**stored, "safety": safety_flags(runs["envelope"], runs["fsmic"])}
+    return {**stored, "safety": envelope_flags(stored)}
 
 
 def _refuse_unsafe(violations: list, what: str) -> None:

@@ -37,6 +37,11 @@ class SafetyFlag(BaseModel):
     fsmic_value: float | None = Field(description="the FSMIC's figure on the same bench walk")
     unit: str
     message: str
+    node_speed_mps: float | None = Field(default=None, description="an envelope node's flag: the node's speed")
+    node_incline_deg: float | None = Field(default=None, description="an envelope node's flag: the node's incline")
+    start: Literal["standing", "level"] | None = Field(
+        default=None, description="an envelope node's flag: the walk it came from (from quiet standing, or reached "
+                                  "from level walking)")
 
 
 class PreviewOut(BaseModel):
@@ -66,6 +71,24 @@ class CourseDifference(BaseModel):
     verdict: str | None
 
 
+class NodeWalk(BaseModel):
+    """One walk of one node (``device_bridge.bench.node_walks``): its safety figures (more figures are allowed)."""
+
+    model_config = {"extra": "allow"}
+
+    start: Literal["standing", "level"]
+    strides: int
+    falls: int
+    toe_catches: int
+
+
+class NodeWalks(BaseModel):
+    speed_mps: float
+    incline_deg: float
+    walks: dict[Literal["standing", "level"], NodeWalk]
+    flags: list[SafetyFlag] = Field(description="this node's figures beyond their bounds, each with its walk's start")
+
+
 class EnvelopePreviewOut(BaseModel):
     envelope_id: int
     created_at: str
@@ -76,4 +99,9 @@ class EnvelopePreviewOut(BaseModel):
     controllers: dict[Literal["envelope", "fsmic"], CourseControllerPreview] = Field(
         description="envelope: the leg estimating its task and adapting inside this envelope; fsmic: the benchmark")
     envelope_minus_fsmic: dict[str, CourseDifference]
-    safety: list[SafetyFlag] = Field(description="the envelope walk's safety figures outside their bounds, bad first")
+    nodes: list[NodeWalks] | None = Field(default=None, description="every node walked alone at its own task (speed-"
+                                                                   "major, as the envelope's nodes)")
+    node_walks: dict | None = Field(default=None, description="what the node walks are: their starts, seconds and "
+                                                              "controller, in words")
+    safety: list[SafetyFlag] = Field(description="the course walk's safety figures outside their bounds, then each "
+                                                 "node's")

@@ -15,6 +15,7 @@ from typing import Literal
 
 from sqlalchemy import Connection, select
 
+from backend.bench.node_previews import envelope_flags, flagged_nodes
 from backend.bench.safety_figures import safety_figures, safety_flags
 from backend.errors import ConflictError
 from backend.store import previews, signoffs
@@ -22,6 +23,7 @@ from backend.store.tables import envelopes, proposals
 from backend.store.users import User
 
 MIN_OVERRIDE_CHARS = 20
+MESSAGES_SAID = 6      # a refusal names this many of the bench's findings, then counts the rest
 Kind = Literal["proposal", "envelope"]
 _WORDS = {"clean": "bench preview clean", "unsafe": "bench preview UNSAFE",
           "not_walked": "bench preview not walked yet"}
@@ -35,7 +37,7 @@ def content_sha256(kind: Kind, row: Mapping) -> str:
 # how much larger a safety figure must be than the parent's to count as worse, per unit: any count; otherwise a step
 # beyond what one bench stride's timing (5 ms at 200 Hz control ticks, doubled), a millimetre-scale sink or a degree
 # tells apart
-WORSE_BY = {"falls": 0.0, "catches": 0.0, "strides": 0.0, "ms": 10.0, "mm": 5.0, "BW": 0.02, "deg": 1.0}
+WORSE_BY = {"falls": 0.0, "catches": 0.0, "strides": 0.0, "nodes": 0.0, "ms": 10.0, "mm": 5.0, "BW": 0.02, "deg": 1.0}
 
 
 _OWN = {"proposal": "table", "envelope": "envelope"}     # the version's own walk in a stored preview
@@ -62,13 +64,23 @@ def worse_than_parent(conn: Connection, kind: Kind, row: Mapping, figures: list[
     stored = _stored(conn, kind, parent_id, str(parent["sha"]))
     if stored is None:
         return {"parent_id": parent_id, "parent_version": parent["version"], "walked": False, "figures": []}
-    theirs = {f["figure"]: f["value"] for f in safety_figures(stored["controllers"][_OWN[kind]],
-                                                              stored["controllers"]["fsmic"])}
+    parents = safety_figures(stored["controllers"][_OWN[kind]], stored["controllers"]["fsmic"])
+    if kind == "envelope":
+        parents.append(_nodes_figure(stored))
+    theirs = {f["figure"]: f["value"] for f in parents}
     worse = [{"figure": f["figure"], "label": f["label"], "unit": f["unit"], "parent_value": theirs.get(f["figure"]),
               "value": f["value"]} for f in figures
              if f["value"] is not None and theirs.get(f["figure"]) is not None
              and f["value"] - theirs[f["figure"]] > WORSE_BY.get(str(f["unit"]), 0.0)]
     return {"parent_id": parent_id, "parent_version": parent["version"], "walked": True, "figures": worse}
+
+
+def _nodes_figure(stored: Mapping) -> dict:
+    """The envelope's node walks as one safety figure: how many nodes have a figure beyond its bound."""
+    n = flagged_nodes(stored)
+    return {"figure": "nodes_beyond_bounds", "label": "nodes beyond a bound, each walked alone at its task",
+            "unit": "nodes", "value": n, "fsmic_value": None,
+            "severity": "bad" if n is None or n > 0 else None}
 
 
 def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
@@ -81,10 +93,12 @@ def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
         return {"status": "not_walked", "flags": [], "figures": [], "words": _WORDS["not_walked"],
                 "signoffs": signed, "signoffs_needed": signoffs.NEEDED, "worse_than_parent": None}
     mine, fsmic = stored["controllers"][own], stored["controllers"]["fsmic"]
-    flags = safety_flags(mine, fsmic)
+    flags = envelope_flags(stored) if kind == "envelope" else safety_flags(mine, fsmic)
     status = "unsafe" if flags else "clean"
     words = _WORDS[status] if not flags else f"{_WORDS[status]}: {len(flags)} figure(s) beyond their bounds"
     figures = safety_figures(mine, fsmic)
+    if kind == "envelope":
+        figures.append(_nodes_figure(stored))
     return {"status": status, "flags": flags, "figures": figures, "words": words,
             "signoffs": signed, "signoffs_needed": signoffs.NEEDED,
             "worse_than_parent": worse_than_parent(conn, kind, row, figures)}
@@ -110,7 +124,9 @@ def require_bench(conn: Connection, kind: Kind, row: Mapping, override_reason: s
     if v["status"] == "not_walked":
         why = f"its bench preview has not been walked yet (open its preview, GET {preview}, and look at it first)"
     else:
-        why = "its bench preview shows: " + "; ".join(str(f["message"]) for f in v["flags"])
+        shown = [str(f["message"]) for f in v["flags"][:MESSAGES_SAID]]
+        more = len(v["flags"]) - len(shown)
+        why = "its bench preview shows: " + "; ".join(shown) + (f"; and {more} more (see its preview)" if more else "")
     so_far = ("nobody has signed off yet" if not signed else
               "signed off so far by " + ", ".join(s["by"] for s in signed))
     if len(signed) >= signoffs.NEEDED:       # a push of an overridden version: the pusher says why too

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -39,6 +40,7 @@ def test_defaults_are_the_embedded_ones():
     s = Settings(data_dir=Path("/tmp/x"))
     assert s.db_path == Path("/tmp/x") / DB_FILE and s.device == "none" and not s.viewer3d
     assert s.token_ttl_s == 8 * 3600 and s.request_threads == 2 and s.trusted_proxies == ()
+    assert 1 <= s.bench_processes <= 8 and s.bench_processes < max(os.cpu_count() or 1, 2)   # a core left to serve
     assert Settings.model_fields["password_hash_cost"].default == 2**14     # the run's own is lowered (conftest)
     assert (s.migrations_dir / "env.py").exists() and not s.given("device")
 
@@ -53,7 +55,7 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
            "BROKER_URL": "mqtts://broker.example:8883", "BROKER_USERNAME": "server-a", "BROKER_PASSWORD": "pw",
            "BROKER_CA_FILE": str(tmp_path / "ca.crt"), "BROKER_ADMIN_USERNAME": "admin",
            "BROKER_ADMIN_PASSWORD": "admin pw", "INSTANCE_NAME": "api-a",
-           "BROKER_CREDENTIALS": str(tmp_path / "identity.json")}
+           "BROKER_CREDENTIALS": str(tmp_path / "identity.json"), "BENCH_PROCESSES": "3"}
     (tmp_path / "identity.json").write_text('{"username": "from-file", "password": "file pw"}')
     for name, value in env.items():
         monkeypatch.setenv(f"QUASITUNE_{name}", value)
@@ -62,6 +64,7 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
     assert (s.token_ttl_s, s.model_wait_s, s.device, s.viewer3d, s.request_threads) == (60, 5.0, "socketcan:can0",
                                                                                            True, 4)
     assert s.trusted_proxies == ("10.0.0.2", "10.0.0.3") and s.bench_leg == Path("heavy_foot")
+    assert s.bench_processes == 3
     assert (s.login_per_user_per_minute, s.login_per_address_per_minute,
             s.login_per_user_anywhere_per_minute, s.password_hash_cost) == (3, 9, 50, 1024)
     assert s.database_url == "postgresql+psycopg://qt:secret@db.example:5432/quasitune"   # psycopg 3 always
@@ -73,7 +76,7 @@ def test_every_knob_comes_from_the_environment_and_the_command_line_wins(monkeyp
     assert flags.device == "none" and flags.token_ttl_s == 120 and flags.request_threads == 4
 
 
-@pytest.mark.parametrize(("name", "value"), [("TOKEN_TTL_S", "-1"), ("REQUEST_THREADS", "0"),
+@pytest.mark.parametrize(("name", "value"), [("TOKEN_TTL_S", "-1"), ("REQUEST_THREADS", "0"), ("BENCH_PROCESSES", "0"),
                                              ("MODEL_WAIT_S", "soon"), ("VIEWER3D", "perhaps"),
                                              ("DATABASE_URL", "mysql://db/quasitune"), ("DATABASE_URL", "/a/file"),
                                              ("INSTANCE_NAME", "two words")])

@@ -5,7 +5,7 @@
 import { get, post } from "../api.js";
 import { app, onLeave } from "../state.js";
 import { envelopeMap, nodeGrid } from "../widgets/envelope_map.js";
-import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
+import { BENCH_CHIP, flagWords, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
 import { safetyFigures } from "../widgets/proposal_views.js";
@@ -286,7 +286,7 @@ async function renderPreview(box, e) {
       pv.course.segments.map((s) => `${fmt(s.speed_mps, 2)} m/s ${s.incline_deg >= 0 ? "+" : ""}${fmt(s.incline_deg, 0)}° for ${fmt(s.duration_s, 0)} s`).join(" → "),
       `) twice at ${fmt(pv.mass_kg, 0, "kg")}: with this envelope (the leg estimating its own task and changing its rows at heel strikes) and with the FSMIC. `,
       "Each stride is scored against the reference at its true task. ", `Simulated ${when(pv.created_at)}.`),
-    safetyFigures(pv.safety || [], t, f, "This envelope"),
+    safetyFigures(courseAndNodeFlags(pv), t, f, "This envelope"),
     h("h3", {}, "Errors per segment (RMSE, deg; [95 % interval])"),
     table(["Segment", "Task", "Strides (envelope / FSMIC)", "Knee: envelope", "Knee: FSMIC", "Ankle: envelope", "Ankle: FSMIC"], segRows,
       { id: "preview-segments" }),
@@ -298,6 +298,56 @@ async function renderPreview(box, e) {
       fmt((est.speed_within_0_1_mps_fraction ?? NaN) * 100, 0), " % and incline within ±1.5° on ",
       fmt((est.incline_within_1_5_deg_fraction ?? NaN) * 100, 0), ` % of ${est.strides_counted ?? 0} strides. Rows per stride: `,
       Object.entries(t.strides_by_mode || {}).map(([m, n]) => `${m} ${n}`).join(", "), "."),
-    (pv.safety || []).length ? h("p", { class: "notice-inline warn small" }, "Lower tracking errors do not outweigh the safety flags above.") : null]
+    (pv.safety || []).length ? h("p", { class: "notice-inline warn small" }, "Lower tracking errors do not outweigh the safety flags above.") : null,
+    nodeWalks(pv, e)]
     .filter(Boolean));
+}
+
+// the course walk's flags, and one for the nodes walked alone (their own section below names each): the banner's
+// findings, while the course's figures table marks only the course's own
+function courseAndNodeFlags(pv) {
+  const safety = pv.safety || [];
+  const course = safety.filter((f) => f.node_speed_mps === null || f.node_speed_mps === undefined);
+  const words = flagWords(safety).slice(course.length);
+  return [...course, ...words.map((message) => ({ figure: "nodes_beyond_bounds", severity: "bad", message }))];
+}
+
+// a node flag's message begins with its walk's start (backend/bench/node_previews.py): the table's column says it
+const START_PREFIX = { standing: "from standing: ", level: "reached from level walking: " };
+
+// Every node walked alone at its own task (from standing, and reached from level walking): a map of how many figures
+// each node has beyond a bound (0: clean), and one row per node that has any, naming the figures
+function nodeWalks(pv, e) {
+  const box = h("div", { id: "preview-nodes" }, h("h3", {}, "Each node alone at its own task"));
+  if (!pv.nodes) {
+    box.append(h("p", { class: "notice-inline bad" }, "Its nodes were not walked alone: this preview predates node walks."));
+    return box;
+  }
+  const said = pv.node_walks || {};
+  const flagged = pv.nodes.filter((n) => n.flags.length);
+  box.append(h("p", { class: flagged.length ? "notice-inline bad" : "notice-inline ok", id: "preview-nodes-summary" },
+    flagged.length ? `${flagged.length} of ${pv.nodes.length} nodes have a figure beyond its bound when walked alone at their own task; each gates this envelope like a fall on the course.`
+      : `All ${pv.nodes.length} nodes walked alone at their own task stay within every bound.`),
+  h("p", { class: "muted small" }, `Each node's own rows on the leg (${said.controller || "its table"}), walked twice at its task: `,
+    `${said.starts?.standing || "from standing"}; and ${said.starts?.level || "reached from level walking"}; `,
+    `${fmt(said.seconds_at_task, 0, "s")} scored at the task each, at ${fmt(pv.mass_kg, 0, "kg")}. Bounds: ${said.bounds || "as above"}.`));
+  const fig = h("figure", { class: "map node-walk-map" });
+  box.append(fig);
+  envelopeMap(fig, { title: "figures beyond a bound per node (0 = clean)", id: "map-node-walks", speeds: e.speeds_mps,
+    inclines: e.inclines_deg, unit: "figures", digits: 0, darker: "high", keyWords: "darker = more beyond a bound",
+    values: nodeGrid({ ...e, nodes: pv.nodes }, (n) => n.flags.length),
+    onPick: (i, j) => { location.hash = `#/envelopes/${e.id}/nodes/${i}/${j}`; } });
+  if (flagged.length) {
+    const cell = (n, start) => {
+      const mine = n.flags.filter((f) => f.start === start);
+      return h("td", { class: mine.length ? "bad" : "ok" }, mine.length
+        ? h("ul", { class: "tight" }, mine.map((f) => h("li", {},
+          f.message.startsWith(START_PREFIX[start]) ? f.message.slice(START_PREFIX[start].length) : f.message)))
+        : "within every bound");
+    };
+    box.append(table(["Node (task)", "From standing", "Reached from level walking"], flagged.map((n) => h("tr", {},
+      h("td", {}, `${fmt(n.speed_mps, 2, "m/s")}, ${n.incline_deg > 0 ? "+" : ""}${fmt(n.incline_deg, 1, "°")}`),
+      cell(n, "standing"), cell(n, "level"))), { id: "preview-node-flags" }));
+  }
+  return box;
 }

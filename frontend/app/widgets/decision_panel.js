@@ -24,6 +24,15 @@ export function benchFigures(bench, id) {
     h("td", { class: "num" }, value(f.fsmic_value, f.unit)))), { id, class: "compact" });
 }
 const MIN_OVERRIDE = 20;
+
+// The bench's findings in words: the course's or the table's walk in full, an envelope's node walks counted (the
+// preview's "Each node alone" names every one)
+export function flagWords(flags) {
+  const nodes = flags.filter((f) => f.node_speed_mps !== null && f.node_speed_mps !== undefined);
+  const at = new Set(nodes.map((f) => `${f.node_speed_mps},${f.node_incline_deg}`)).size;
+  return [...flags.filter((f) => !nodes.includes(f)).map((f) => f.message),
+    ...(nodes.length ? [`${nodes.length} figure(s) beyond a bound at ${at} node(s) walked alone at their own task (listed in the preview's “Each node alone”)`] : [])];
+}
 // what a prosthetist typed in a version's reason box, by who and the version's API path: a redraw of the card (the
 // preview finishing, a sign-off elsewhere) or of the page never loses it
 const typedReasons = new Map();
@@ -142,12 +151,12 @@ export function renderDecision(box, { item, name, path, canDecide, reload, worse
     signOffButton.title = !item.safety.ok ? "outside the parameter limits: cannot be approved"
       : `write why you go ahead anyway (at least ${MIN_OVERRIDE} characters)`;
     reject.disabled = !said;
-    const badFlags = bench.flags.map((f) => f.message);
+    const badFlags = flagWords(bench.flags);
     const signatures = signed().length ? h("ul", { id: "signoffs" }, signed().map((x) => h("li", {},
       h("strong", {}, x.by), ` ${when(x.at)}: “${x.reason}”`))) : null;
     gate.replaceChildren(benchFigures(bench, "decision-figures"), h("p", { id: "decision-bench" }, h("strong", {}, "Bench: "),
       bench.status === "clean" ? "the preview walked clean: no safety figure beyond its bound."
-        : bench.status === "unsafe" ? `the preview shows ${badFlags.length} figure(s) beyond their bounds (below).`
+        : bench.status === "unsafe" ? `the preview shows ${bench.flags.length} figure(s) beyond their bounds (below).`
           : "the preview has not finished walking."),
     ...(needsOverride() ? [
       h("p", { class: `banner ${bench.status === "unsafe" ? "bad" : "warn"}` }, h("strong", {}, "Approval rests on the bench: "),

@@ -7,6 +7,7 @@ import json
 import pytest
 from sqlalchemy.exc import IntegrityError
 
+from backend.bench.node_previews import START_WORDS
 from backend.bench.safety_figures import safety_flags
 from backend.db import write_transaction
 from controller_core.content import canonical_json, content_sha256
@@ -165,6 +166,11 @@ def test_a_node_opens_like_a_proposal_with_its_own_table_and_the_models_curves_t
     assert r.status_code == 404 and "[0..2] × [0..2]" in r.json()["detail"]
 
 
+def given(flag: dict) -> dict:
+    """A flag's fields that say something (the API's schema writes the rest as null)."""
+    return {k: v for k, v in flag.items() if v is not None}
+
+
 def test_the_preview_walks_the_course_with_the_envelope_and_the_fsmic_once(api):
     patient = api.new_patient()
     e = request_envelope(api, patient["id"])
@@ -180,9 +186,24 @@ def test_the_preview_walks_the_course_with_the_envelope_and_the_fsmic_once(api):
     assert env["estimation"]["strides_counted"] > 10 and "estimation" not in fsmic
     d = p["envelope_minus_fsmic"]["knee_angle_deg"]
     assert d["ci95"][0] <= d["rmse_difference"] <= d["ci95"][1]
-    # the flags are the summary's, on their own bounds (this envelope falls and catches its toe on the course's
-    # fast segment on a bench that carries the body: docs/results.md)
-    assert p["safety"] == safety_flags(env, fsmic)
+    # every node walked alone at its own task, from standing and reached from level walking, in the envelope's order
+    assert [(n["speed_mps"], n["incline_deg"]) for n in p["nodes"]] == \
+        [(v, g) for v in e["speeds_mps"] for g in e["inclines_deg"]]
+    for node in p["nodes"]:
+        assert set(node["walks"]) == {"standing", "level"} and all(w["strides"] >= 3 for w in node["walks"].values())
+        assert [given(f) for f in node["flags"]] == \
+            [given({**f, "start": start, "message": f"{START_WORDS[start]}: {f['message']}"})
+             for start, w in node["walks"].items() for f in safety_flags(w, {})]
+    assert p["node_walks"]["seconds_at_task"] > 0 and set(p["node_walks"]["starts"]) == {"standing", "level"}
+    # the flags: the course walk's on their own bounds, then each node's, the node named (this envelope falls and
+    # catches its toe on the course's fast segment on a bench that carries the body: docs/results.md)
+    course_flags = safety_flags(env, fsmic)
+    assert [given(f) for f in p["safety"][:len(course_flags)]] == [given(f) for f in course_flags]
+    node_flags = p["safety"][len(course_flags):]
+    assert len(node_flags) == sum(len(n["flags"]) for n in p["nodes"])
+    for f in node_flags:
+        assert f["node_speed_mps"] in e["speeds_mps"] and f["node_incline_deg"] in e["inclines_deg"]
+        assert f["message"].startswith(f"at {f['node_speed_mps']:g} m/s, ") and f["start"] in ("standing", "level")
     assert all(f["message"] and f["unit"] and f["value"] is not None for f in p["safety"])
     again = api.client.get(f"/api/envelopes/{e['id']}/preview", headers=api.as_("viewer")).json()
     assert again["created_at"] == p["created_at"]                  # stored, not walked again

@@ -7,7 +7,7 @@ import pytest
 
 from backend.db import write_transaction
 from backend.errors import ConflictError
-from backend.store import bench_verdict, previews, proposals, signoffs
+from backend.store import bench_verdict, envelopes, previews, proposals, signoffs
 from tests.backend.store.conftest import CLEAN_WALK
 
 WHY = "seated in the bars, every row checked by hand"
@@ -88,3 +88,41 @@ def test_a_version_worse_than_its_parent_on_the_bench_says_in_which_figures(conn
     orphan = draft('{"rows": [3]}', parent_id=draft('{"rows": [4]}'))
     unwalked = bench_verdict.verdict(conn, "proposal", _walked(conn, orphan, CLEAN_WALK))["worse_than_parent"]
     assert unwalked["walked"] is False and unwalked["figures"] == []
+
+
+def _envelope_walked(conn, model, patient, prosthetist, nodes):
+    """An envelope whose stored preview walked the course clean, with these node walks (None: none, as stored before
+    nodes were walked alone)."""
+    created = envelopes.create_from_model(conn, patient["id"], model.propose_envelope([0.8, 1.4], [-5.0, 5.0], 80.0),
+                                          prosthetist)
+    row = envelopes.get_row(conn, created["id"])
+    result = {"course": {"name": "mixed"}, "controllers": {"envelope": CLEAN_WALK, "fsmic": CLEAN_WALK}}
+    previews.store_envelope_preview(conn, row["id"], row["envelope_sha256"],
+                                    result if nodes is None else {**result, "nodes": nodes})
+    return envelopes.get_row(conn, row["id"])
+
+
+def test_an_envelope_node_beyond_a_bound_gates_the_envelope_and_is_named(conn, model, patient, prosthetist):
+    fall = {"figure": "falls", "severity": "bad", "value": 2, "fsmic_value": None, "unit": "falls",
+            "message": "from standing: the leg gave way 2 time(s) on the simulated bench", "start": "standing"}
+    nodes = [{"speed_mps": v, "incline_deg": g, "walks": {}, "flags": [fall] if (v, g) == (0.8, -5.0) else []}
+             for v in (0.8, 1.4) for g in (-5.0, 5.0)]
+    row = _envelope_walked(conn, model, patient, prosthetist, nodes)
+    v = bench_verdict.verdict(conn, "envelope", row)
+    assert v["status"] == "unsafe" and len(v["flags"]) == 1
+    flag = v["flags"][0]
+    assert (flag["node_speed_mps"], flag["node_incline_deg"], flag["start"]) == (0.8, -5.0, "standing")
+    assert flag["message"] == "at 0.8 m/s, −5°, from standing: the leg gave way 2 time(s) on the simulated bench"
+    assert {f["figure"]: f["value"] for f in v["figures"]}["nodes_beyond_bounds"] == 1
+    with pytest.raises(ConflictError, match=r"at 0\.8 m/s, −5°, from standing: the leg gave way"):
+        bench_verdict.require_bench(conn, "envelope", row, WHY, "approved", prosthetist)
+    clean = _envelope_walked(conn, model, patient, prosthetist, [{**n, "flags": []} for n in nodes])
+    assert bench_verdict.verdict(conn, "envelope", clean)["status"] == "clean"
+
+
+def test_an_envelope_preview_without_node_walks_is_not_clean(conn, model, patient, prosthetist):
+    """A preview stored before the nodes were walked alone judged part of the envelope: it gates until walked again."""
+    row = _envelope_walked(conn, model, patient, prosthetist, None)
+    v = bench_verdict.verdict(conn, "envelope", row)
+    assert v["status"] == "unsafe" and [f["figure"] for f in v["flags"]] == ["nodes_walked"]
+    assert "walk the preview again" in v["flags"][0]["message"]
