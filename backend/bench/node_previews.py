@@ -1,7 +1,8 @@
 """Every node of an envelope walked at its own task, for the envelope's preview and its bench gate.
 
 What a node walk is: :mod:`device_bridge.bench.node_walks` (the node's table from quiet standing, and reached from
-level walking on the envelope's most level node at that speed). Each node's walks are judged on the same bounds as
+level walking on the envelope's most level node at that speed; the most level nodes themselves walk from standing
+only, their level walking being that walk). Each node's walks are judged on the same bounds as
 any bench walk (:func:`backend.bench.safety_figures.safety_flags`, without the FSMIC-relative rule: the benchmark is
 not walked per node), and every flag gates the envelope.
 
@@ -76,8 +77,9 @@ class NodeWalks:
 
     def walk(self, envelope: Envelope, model: QuasiStiffnessModel | None,
              geometry: LegGeometry | None = None) -> list[dict[str, object]]:
-        """Per node (speed-major, as ``envelope.nodes``): its task, its ``walks`` (``standing``, ``level``: the
-        figures of :mod:`device_bridge.bench.node_walks`) and ``flags`` (each with the ``start`` it came from).
+        """Per node (speed-major, as ``envelope.nodes``): its task, its ``walks`` (``standing``, and ``level`` but at
+        the most level nodes: the figures of :mod:`device_bridge.bench.node_walks`) and ``flags`` (each with the
+        ``start`` it came from).
         Walks it has kept are not walked again. The caller's progress hook hears each walk's simulated seconds."""
         geometry = geometry or LegGeometry()
         j0 = level_index(envelope)
@@ -88,6 +90,8 @@ class NodeWalks:
             level = envelope.node(i, j0).table
             mine = {}
             for start in NODE_STARTS:
+                if start == "level" and idx % len(envelope.inclines_deg) == j0:
+                    continue       # a level node's walk from standing is its level walking: the same rows, floor, speed
                 lead = level if start == "level" else None
                 key = (_sha(node.table), _sha(lead) if lead is not None else None, node.speed_mps, node.incline_deg,
                        envelope.mass_kg, geometry, start)

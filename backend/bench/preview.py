@@ -33,7 +33,8 @@ NODE_WALKS_SAID = {
     "seconds_at_task": NODE_WALK_S, "level_lead_s": NODE_LEVEL_LEAD_S,
     "starts": {"standing": "from quiet standing: the first steps, then walking at the node's task",
                "level": "reached from level walking at the node's speed (the envelope's most level node), the node's "
-                        "rows from the first heel strike after the slope begins"},
+                        "rows from the first heel strike after the slope begins (the most level nodes: their walk from "
+                        "standing is their level walking)"},
     "controller": "the node's own table on the four-state machine: what the leg runs when its estimate sits on the node",
     "bounds": "the same bounds as every bench walk, without the FSMIC-relative one (the FSMIC is not walked per node)"}
 

@@ -102,7 +102,7 @@ def _carrying_flags(table: Mapping[str, object], fsmic: Mapping[str, object]) ->
     deficit = table.get("support_deficit_max_bw")
     if deficit is not None and float(deficit) > SUPPORT_DEFICIT_WARN_BW:
         out.append(_flag("support_deficit_max_bw", "bad", float(deficit), fsmic.get("support_deficit_max_bw"), "BW",
-                         f"the person had to push up to {float(deficit):.1f} body weights through their other leg "
+                         f"the person had to push up to {float(deficit):.2f} body weights through their other leg "
                          f"beyond its usual share (bound {SUPPORT_DEFICIT_WARN_BW:.1f})"))
     knee = table.get("stance_knee_flexion_peak_max_deg")
     if knee is not None and float(knee) > STANCE_KNEE_WARN_DEG:

@@ -29,8 +29,8 @@ from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import run_walk, score_walk
 
 NODE_STARTS = ("standing", "level")
-NODE_WALK_S = 6.0          # walking at the node's task (s): five or more strides at every speed of the data
-NODE_LEVEL_LEAD_S = 4.0    # level walking before the change to the node's incline (s): the first steps and two strides
+NODE_WALK_S = 5.0          # scored at the node's task (s): three strides or more from 0.75 m/s, two at 0.6
+NODE_LEVEL_LEAD_S = 3.0    # level walking before the change to the node's incline (s): the first steps and a stride
 NODE_CHANGE_S = 2.0        # the change from level to the node's incline (s): the courses' raised cosine
 NODE_SETTLE_S = 2.0        # from standing, strides scored from here (as every fixed-task walk of the bench)
 # the figures a node walk keeps (the safety figures the gate reads, the strides behind them, the two angle errors)

@@ -326,19 +326,20 @@ function nodeWalks(pv, e) {
   const said = pv.node_walks || {};
   const flagged = pv.nodes.filter((n) => n.flags.length);
   box.append(h("p", { class: flagged.length ? "notice-inline bad" : "notice-inline ok", id: "preview-nodes-summary" },
-    flagged.length ? `${flagged.length} of ${pv.nodes.length} nodes have a figure beyond its bound when walked alone at their own task; each gates this envelope like a fall on the course.`
+    flagged.length ? `${flagged.length} of ${pv.nodes.length} nodes have figures beyond their bounds when walked alone at their own task; each gates this envelope like a fall on the course.`
       : `All ${pv.nodes.length} nodes walked alone at their own task stay within every bound.`),
   h("p", { class: "muted small" }, `Each node's own rows on the leg (${said.controller || "its table"}), walked twice at its task: `,
     `${said.starts?.standing || "from standing"}; and ${said.starts?.level || "reached from level walking"}; `,
     `${fmt(said.seconds_at_task, 0, "s")} scored at the task each, at ${fmt(pv.mass_kg, 0, "kg")}. Bounds: ${said.bounds || "as above"}.`));
   const fig = h("figure", { class: "map node-walk-map" });
   box.append(fig);
-  envelopeMap(fig, { title: "figures beyond a bound per node (0 = clean)", id: "map-node-walks", speeds: e.speeds_mps,
+  envelopeMap(fig, { title: "figures beyond a bound (0 = clean)", id: "map-node-walks", speeds: e.speeds_mps,
     inclines: e.inclines_deg, unit: "figures", digits: 0, darker: "high", keyWords: "darker = more beyond a bound",
     values: nodeGrid({ ...e, nodes: pv.nodes }, (n) => n.flags.length),
     onPick: (i, j) => { location.hash = `#/envelopes/${e.id}/nodes/${i}/${j}`; } });
   if (flagged.length) {
     const cell = (n, start) => {
+      if (!n.walks[start]) return h("td", { class: "muted" }, "a level node: its walk from standing is its level walking");
       const mine = n.flags.filter((f) => f.start === start);
       return h("td", { class: mine.length ? "bad" : "ok" }, mine.length
         ? h("ul", { class: "tight" }, mine.map((f) => h("li", {},
@@ -346,7 +347,7 @@ function nodeWalks(pv, e) {
         : "within every bound");
     };
     box.append(table(["Node (task)", "From standing", "Reached from level walking"], flagged.map((n) => h("tr", {},
-      h("td", {}, `${fmt(n.speed_mps, 2, "m/s")}, ${n.incline_deg > 0 ? "+" : ""}${fmt(n.incline_deg, 1, "°")}`),
+      h("td", {}, `${fmt(n.speed_mps, 2, "m/s")}, ${n.incline_deg > 0 ? "+" : ""}${fmt(n.incline_deg, 1)}°`),
       cell(n, "standing"), cell(n, "level"))), { id: "preview-node-flags" }));
   }
   return box;

@@ -17,7 +17,7 @@ export function benchFigures(bench, id) {
   if (!bench.figures?.length) {
     return h("p", { class: "muted small", id }, "Bench safety figures: the preview has not finished walking.");
   }
-  const value = (v, unit) => (v === null || v === undefined ? "—" : `${fmt(v, unit === "BW" ? 1 : 0)} ${unit}`);
+  const value = (v, unit) => (v === null || v === undefined ? "—" : `${fmt(v, unit === "BW" ? 2 : 0)} ${unit}`);
   return table(["Bench safety figure", "This version", "FSMIC"], bench.figures.map((f) => h("tr",
     { class: f.severity ? `flag-${f.severity}` : "", dataset: { figure: f.figure } },
     h("td", {}, f.label), h("td", { class: `num${f.severity ? ` ${f.severity}` : ""}` }, value(f.value, f.unit)),

@@ -147,7 +147,7 @@ export function safetyFigures(flags, t, f, what = "This table") {
       row("hip sink below a person's in stance, largest", "hip_sink_max_mm", (run) => fmt(run.hip_sink_max_mm, 0, "mm"),
         "≤ 50 mm"),
       row("extra push from the other leg, largest", "support_deficit_max_bw",
-        (run) => fmt(run.support_deficit_max_bw, 1, "body weights"), "≤ 1.5 body weights"),
+        (run) => fmt(run.support_deficit_max_bw, 2, "body weights"), "≤ 1.5 body weights"),
       row("knee flexion under the body in early stance: mean / largest stride", "stance_knee_flexion_peak_max_deg",
         (run) => (run.stance_knee_flexion_peak_deg === undefined || run.stance_knee_flexion_peak_deg === null ? "—"
           : `${fmt(run.stance_knee_flexion_peak_deg, 0)} / ${fmt(run.stance_knee_flexion_peak_max_deg, 0)}°`),
