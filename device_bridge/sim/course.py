@@ -190,9 +190,11 @@ class CourseTrajectory:
 
 
 @lru_cache(maxsize=4096)
+@lru_cache(maxsize=4096)
 def _pattern(speed_mps: float, incline_deg: float, body_height_m: float) -> tuple[np.ndarray, np.ndarray, float, float]:
     """At a task: the Fourier coefficients of thigh angle and hip height (one row), the other leg's
-    share on LOAD_GRID (body weights), toe-off (phase) and the stride time (s)."""
+    share on LOAD_GRID (body weights), toe-off (phase) and the stride time (s). Kept per task (a course samples
+    the same task every 20 ms of a segment); the arrays are shared: read them, never change them."""
     ref = task_pattern(speed_mps, incline_deg)
     p = task_pattern_series(ref, LegGeometry(body_height_m=body_height_m))
     return (np.concatenate([p.thigh, p.height]), np.interp(LOAD_GRID, ref.phase, p.other_bw),

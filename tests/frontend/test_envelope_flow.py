@@ -21,6 +21,9 @@ from tests.helpers.server import PASSWORD, sign_off
 VIEWPORTS = {"desktop": (1366, 900), "tablet": (820, 1180)}
 
 
+# the whole clinic flow walks two 5 x 5 envelopes on the bench (the course and 45 node walks each, ~30 CPU-s) beside
+# the run's other processes on two cores
+@pytest.mark.timeout(300)
 @pytest.mark.parametrize("size", list(VIEWPORTS))
 def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser, size):
     width, height = VIEWPORTS[size]
@@ -59,6 +62,11 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     expect(page.locator("#preview-safety")).to_have_count(1)
     expect(page.locator("#preview-segments tbody tr")).to_have_count(8)
     assert re.search(r"within ±0\.1 m/s on \d+ %", page.inner_text("#preview-estimation"))
+    # every node walked alone at its task: a map of 25 nodes, and a row for each node with a figure beyond a bound
+    expect(page.locator("#map-node-walks g.node")).to_have_count(25)
+    summary = page.inner_text("#preview-nodes-summary")
+    flagged = int(re.match(r"(\d+) of 25 nodes", summary).group(1)) if "of 25 nodes" in summary else 0
+    expect(page.locator("#preview-node-flags tbody tr")).to_have_count(flagged)
     shot(page, f"env-{size}-01-envelope")
 
     # a node opens like a proposal: loops, curves, its own table

@@ -64,6 +64,6 @@ def test_a_leg_that_does_not_carry_the_body_is_flagged_in_a_prosthetists_words()
     assert figures(flags) == {"hip_sink_max_mm": "bad", "support_deficit_max_bw": "bad",
                               "stance_knee_flexion_peak_max_deg": "bad"}     # each gates approval and push
     words = {f["figure"]: f["message"] for f in flags}
-    assert "92 mm" in words["hip_sink_max_mm"] and "2.3 body weights" in words["support_deficit_max_bw"]
+    assert "92 mm" in words["hip_sink_max_mm"] and "2.30 body weights" in words["support_deficit_max_bw"]
     assert "46°" in words["stance_knee_flexion_peak_max_deg"] and "people: 19°" in words["stance_knee_flexion_peak_max_deg"]
     assert next(f for f in flags if f["figure"] == "hip_sink_max_mm")["fsmic_value"] == 30.0
