@@ -6,12 +6,14 @@ and a one-time password change that says it happened."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
 from tests.helpers.browser import (
     api_call,
     choose_own_password,
+    create_patient,
     create_patient_and_propose,
     shot,
     sign_in,
@@ -114,3 +116,45 @@ def test_a_one_time_password_change_says_it_happened(server, browser, size):
         admin_context.close()
         user_context.close()
     assert not any(errors), errors
+
+
+_BOXES = """(selector) => [...document.querySelectorAll(selector)].map((el) => {
+  const r = el.getBoundingClientRect();
+  return { text: el.textContent, left: r.left, right: r.right, top: r.top, bottom: r.bottom };
+})"""
+
+
+def _overlapping(boxes: list[dict]) -> list[tuple[str, str]]:
+    return [(a["text"], b["text"]) for k, a in enumerate(boxes) for b in boxes[k + 1:]
+            if a["left"] < b["right"] and b["left"] < a["right"] and a["top"] < b["bottom"] and b["top"] < a["bottom"]]
+
+
+@pytest.mark.parametrize("size", list(SIZES))
+def test_an_8_by_8_envelopes_maps_are_labelled_with_its_own_nodes_and_nothing_overlaps(server, browser, size):
+    width, height = SIZES[size]
+    context = browser.new_context(viewport={"width": width, "height": height})
+    page = context.new_page()
+    errors = watch_errors(page)
+    try:
+        sign_in(page, server, "dana")
+        create_patient(page, f"P-8X8-{size}")
+        pid = int(re.search(r"#/patients/(\d+)", page.url).group(1))
+        made = api_call(page, "POST", f"/api/patients/{pid}/envelopes",
+                        {"speed_range_mps": [0.6, 1.6], "incline_range_deg": [-10, 10], "grid": [8, 8]})
+        assert made["status"] == 201, made
+        env = made["body"]
+        page.goto(f"{server}/#/envelopes/{env['id']}")
+        page.wait_for_selector("#map-knee-stance_flexion")
+        page.click("#bench-cancel")          # its 64 nodes' walks are not what this test looks at
+        fig = "#map-knee-stance_flexion"
+        ticks = page.evaluate(_BOXES, f"{fig} text.tick:not(.key-lo):not(.key-hi):not(.key-words)")
+        speeds = [f"{v:.2f}" for v in env["speeds_mps"]]
+        inclines = [str(round(g, 1)).removesuffix(".0") for g in env["inclines_deg"]]
+        assert [t["text"] for t in ticks] == speeds + inclines             # the axes read the nodes' own values
+        assert _overlapping(ticks) == []
+        values = page.evaluate(_BOXES, f"{fig} text.cell-value")
+        assert len(values) == 64 and _overlapping(values) == []
+        shot(page, f"screens-{size}-04-envelope-8x8")
+        assert errors == []
+    finally:
+        context.close()
