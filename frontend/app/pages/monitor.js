@@ -44,7 +44,8 @@ export async function monitorPage(view, deviceId, params) {
   const canCommand = app.me.role === "prosthetist";
   const statusBox = h("div", { id: "device-status", "aria-live": "polite" });
   const readout = h("dl", { class: "readout", id: "readout" });
-  const sessionBox = h("section", { class: "card", id: "session" });
+  const sessionBox = h("section", { class: "card", id: "session" }, h("h2", {}, "Walking session"),
+    h("p", { class: "muted" }, "Reading the leg's sessions…"));   // never an empty card while the API answers
   const adaptiveBox = h("section", { class: "card", id: "adaptive", hidden: true });
   const viewerBox = h("figure", { class: "viewer", id: "viewer3d" });
   // viser's 3D scene: only where the server was started with --viewer3d (viser has no login); WebGL, so it opens
