@@ -2,10 +2,11 @@
 
 :class:`SimWalker` is the leg a :class:`device_bridge.device_node.DeviceNode` drives when there is no hardware.
 While stopped there are no sensor readings (the patient is not wearing the leg); :meth:`SimWalker.start` plans the
-bench for a task (the able-bodied hip trajectory and load at that speed and incline) and from then on every
-:meth:`SimWalker.step` advances the physics by one millisecond; the next chunk of the trajectory continues the
-previous one exactly, so a session can last any length of time. :meth:`SimWalker.start_course` walks a varying-task
-course (:mod:`device_bridge.sim.course`) once instead, on its own floor, and stops at its end.
+bench for a task (quiet standing, the first steps, then the able-bodied hip trajectory and load at that speed and
+incline) and from then on every :meth:`SimWalker.step` advances the physics by one millisecond; the next chunk of
+the trajectory continues the previous one exactly, so a session can last any length of time.
+:meth:`SimWalker.start_course` walks a varying-task course (:mod:`device_bridge.sim.course`) once instead, on its own
+floor, and stops at its end.
 
 Between walks a patient who wears the leg **stands** (:meth:`SimWalker.stand`; after a course, on its own): the
 sensors then read a quiet stance, half the body weight through the pylon with the knee near extension and the foot
@@ -24,7 +25,13 @@ import numpy as np
 from controller_core.fsm import SensorSample
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
-from device_bridge.sim.bench_trajectory import plan_bench_trajectory
+from device_bridge.sim.bench_trajectory import (
+    STAND_S,
+    STANDING_START_PHASE,
+    plan_bench_trajectory,
+    plan_standing_start,
+    standing_pose_rad,
+)
 from device_bridge.sim.course import Course, CourseTrajectory
 from device_bridge.sim.course_walk import course_leg
 from device_bridge.sim.leg_model import LegGeometry
@@ -58,6 +65,7 @@ class SimWalker:
         # to follow the last one given (a clock that jumped back would freeze the state machine's dwell times)
         self._offset_s = 0.0
         self._last_s = 0.0
+        self._walk_from_s = 0.0    # a fixed-task walk's first step, on its physics clock (s)
 
     @property
     def walking(self) -> bool:
@@ -106,19 +114,21 @@ class SimWalker:
         return None if ref is None else (ref.speed_mps, ref.incline_deg)
 
     def start(self, reference: WalkingReference, mass_kg: float) -> None:
-        """Start walking at the reference's task (restarts from late swing if already walking)."""
+        """Start walking at the reference's task from quiet standing (a second of it, then the first steps into the
+        task, as every walk of the bench begins: :func:`~device_bridge.sim.bench_trajectory.plan_standing_start`);
+        a walk under way starts again from standing."""
         if not (np.isfinite(mass_kg) and 20.0 <= mass_kg <= 200.0):
             raise ValueError(f"mass_kg must be within [20, 200] kg, got {mass_kg!r}")
         leg = SimulatedLeg(self.geometry, incline_deg=reference.incline_deg, person=Person(mass_kg))
-        traj = plan_bench_trajectory(reference, leg.geometry, mass_kg, CHUNK_S, leg.timestep_s)
-        s0 = traj.phase[0]
-        sample = leg.reset(traj, float(np.interp(s0, reference.phase, reference.knee_angle_rad)),
-                           float(np.interp(s0, reference.phase, reference.ankle_angle_rad)))
+        traj = plan_standing_start(reference, leg.geometry, mass_kg, CHUNK_S, leg.timestep_s)
+        _, knee0, ankle0 = standing_pose_rad(reference.incline_deg)
+        sample = leg.reset(traj, knee0, ankle0)
         with self._lock:
             self._standing_kg = None
             self._offset_s = self._last_s + leg.timestep_s - sample.time_s
             self._leg, self._ref, self._mass, self._course = leg, reference, float(mass_kg), None
             self._chunk_end_tick, self._ticks, self._sample = traj.time_s.shape[0], 0, sample
+            self._walk_from_s = round(STAND_S / leg.timestep_s) * leg.timestep_s   # the walk's time 0 on the leg's
 
     def start_course(self, course: Course, mass_kg: float) -> None:
         """Walk ``course`` once on its floor from standing (a second of it, then the first steps into its first task);
@@ -164,8 +174,8 @@ class SimWalker:
                 return
             if self._ticks >= self._chunk_end_tick:
                 assert self._ref is not None
-                t0 = self._chunk_end_tick * leg.timestep_s
+                t0 = self._chunk_end_tick * leg.timestep_s - self._walk_from_s    # on the walk's own clock
                 leg.continue_with(plan_bench_trajectory(self._ref, leg.geometry, self._mass, CHUNK_S, leg.timestep_s,
-                                                        t0_s=t0))
+                                                        start_phase=STANDING_START_PHASE, t0_s=t0))
                 self._chunk_end_tick += round(CHUNK_S / leg.timestep_s)
             self._sample = leg.step(knee_torque_Nm, ankle_torque_Nm)

@@ -28,15 +28,40 @@ def test_the_walking_simulated_leg_streams_telemetry_without_gaps(tables):
     try:
         link.push(tables[0], version=3)
         walker.start(level_walking_reference(1.2), 75.0)
-        until(lambda: len(got) >= 150, timeout_s=10.0, clock=link.clock)
+        until(lambda: len(got) >= 300, timeout_s=10.0, clock=link.clock)
     finally:
         link.close()
         node.close()
     seqs = [s.seq for s in got]
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
     knee = [s.knee_angle_rad for s in got]
-    assert max(knee) - min(knee) > 0.2   # the knee moves (about 11° or more of swing in 1.5 s of walking)
+    assert max(knee) - min(knee) > 0.2   # the knee moves (a second of standing, then 11° or more of swing in 2 s)
     assert {s.mode for s in got} == {Mode.ACTIVE} and {s.fsm_state for s in got} >= {0, 1}
+
+
+def test_a_walk_starts_from_standing_and_its_chunks_continue_the_benchs_walk_exactly(model):
+    """The simulated patient walks a task as the bench does (a second of standing, the first steps, walking): 25 s
+    of it in three 10 s chunks read what one bench walk from standing reads, tick for tick."""
+    from controller_core.fsm import ImpedanceSchedule, StateMachineController
+    from device_bridge.bench.task_reference import task_reference
+    from device_bridge.sim.simulate import run_walk
+
+    ref = task_reference(1.2, -6.0, model, 75.0)
+    schedule = ImpedanceSchedule.from_table(model.propose(1.2, -6.0, 75.0).table)
+    bench = run_walk(StateMachineController(schedule), ref, 75.0, 25.0).channels
+    walker, leg = SimWalker(), StateMachineController(schedule)
+    walker.start(ref, 75.0)
+    leg.reset()
+    leg.stand()
+    knee, state = [], []
+    for _ in range(25_000):
+        x = walker.sample()
+        cmd = leg.step(x)
+        knee.append(x.knee_angle_rad)
+        state.append(int(cmd.state))
+        walker.step(cmd.knee_torque_Nm, cmd.ankle_torque_Nm)
+    assert np.allclose(knee, bench["knee_angle_rad"], atol=1e-9) and state == bench["state"].astype(int).tolist()
+    assert np.ptp(bench["knee_angle_rad"][:900]) < np.radians(2.0)      # it stood first
 
 
 def test_a_course_is_walked_once_at_its_true_task_and_the_patient_then_stands():
