@@ -58,6 +58,9 @@ def test_stiffness_reads_as_resistance_and_the_diff_speaks_the_tables_units(serv
         assert "at least" in floor and float(floor.split("at least ", 1)[1].split()[0]) > 0
         assert page.inner_text(f"#thresholds tr:has(input[data-field='{HEEL_STRIKE_LOAD}'])").count("% body weight") == 1
         shot(page, f"screens-{size}-01-resistance")
+        # its bench preview walked before the edit asks for the next one: the user's share of the bench is two walks,
+        # and a loaded machine may still be walking the previous test's
+        page.wait_for_selector("#preview-metrics", timeout=60_000)
 
         # firmer by typing a larger resistance; the toe-off load retyped as shown (must change nothing); the heel-strike
         # load in % body weight; θe moved (an angle: no percent)
@@ -87,6 +90,7 @@ def test_stiffness_reads_as_resistance_and_the_diff_speaks_the_tables_units(serv
         assert theta_row[-1] == "deg" and theta_row[3] == "+2.0" and theta_row[4] == "—"   # no percent of an angle
         assert page.locator(f"#diff-table td[title='{TOE_OFF_LOAD}']").count() == 0
         shot(page, f"screens-{size}-02-diff")
+        page.wait_for_selector("#preview-metrics", timeout=60_000)          # nothing left walking for the next test
     finally:
         context.close()
     assert not errors, errors
