@@ -72,7 +72,8 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     device = c.get(f"/api/devices/{DEVICE}", headers=viewer).json()     # the instance's count of the live stream
     assert device["telemetry_samples_received"] >= 300 and device["telemetry_samples_missing"] == 0
     assert max(s["knee_angle_deg"] for s in samples) - min(s["knee_angle_deg"] for s in samples) > 10
-    wait_recorded(api, session["id"], 3.6)                                   # the 300 seen, and more
+    # the 300 seen, and more: the patient stands a second and takes the first steps, then two strides or more
+    wait_recorded(api, session["id"], 5.0)
     refused = c.post(f"/api/sessions/{session['id']}/stop", headers=viewer)   # the prosthetist's recording
     assert refused.status_code == 403, refused.text
     assert c.get(f"/api/sessions/{session['id']}", headers=viewer).json()["status"] == "recording"
