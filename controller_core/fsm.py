@@ -30,7 +30,7 @@ stiffness against further flexion, the hold following it as it extends: it may s
 ankle is held about where standing found it with its stance-flexion stiffness. Standing ends when the knee moves
 faster than ``standing_leave_rad_s`` (the person walks on from it: on in the stance state it stood in, its dwell
 restarted; a knee flexing into pre-swing from stance extension put back in stance flexion was held stiff through
-its toe-off and swing) or when the load falls below the toe-off threshold for ``event_hold_s`` (the leg is
+its toe-off and swing) or when the load falls below about a third of the toe-off threshold for ``event_hold_s`` (the leg is
 lifted: swing flexion if the knee bends, else swing extension: a leg lifted straight waited 0.8 s in swing flexion
 for a flexion that never came, and missed its heel strikes). Separately, the maximum-time guard never moves a leg that
 carries at least the heel-strike load into swing flexion: only its toe-off does.
@@ -167,9 +167,13 @@ class ImpedanceSchedule:
         standing_still_rad_s, standing_enter_s, standing_leave_rad_s: standing (see the module docstring): entered
             from a loaded stance state once knee and ankle have both moved slower than the first (rad/s) for the
             second (s); left when the knee moves faster than the third (rad/s) for ``event_hold_s``, or the leg is
-            unloaded (a step).
+            unloaded (a step: see ``standing_lift_of_toe_off``).
         standing_blend_s: the torques go over from the row's to standing's in this long (s), so entering standing
             is no step in torque (a step jolted the knee out of standing at once).
+        standing_lift_of_toe_off: standing ends on a lift when the load falls below this share of the toe-off
+            threshold (a real lift unloads the leg fully within tens of milliseconds; a person shifting their weight to
+            the other leg leaves some: at the toe-off threshold itself, standing on a bent uphill knee or a heavy foot
+            downhill flickered into swing with every shift).
         stumble_knee_margin_rad, stumble_knee_rate_rad_s, fold_knee_rate_rad_s, fold_window_of_stance: stumbles
             (see the module docstring): a swing-extension knee more than the margin (rad) above its equilibrium that
             extends slower than the stumble rate (rad/s; a free knee extends at 2–4 rad/s there) is held by the
@@ -200,6 +204,7 @@ class ImpedanceSchedule:
     standing_enter_s: float = 0.5
     standing_leave_rad_s: float = 0.6
     standing_blend_s: float = 0.2
+    standing_lift_of_toe_off: float = 0.35
     stumble_knee_margin_rad: float = math.radians(15.0)
     stumble_knee_rate_rad_s: float = 0.5
     fold_knee_rate_rad_s: float = 1.5
@@ -394,7 +399,7 @@ class StateMachineController:
         if self.standing_:
             self.standing_loaded_ = self.standing_loaded_ or x.load_N >= sch.se_to_wf_load_N
             moving = abs(x.knee_velocity_rad_s) > sch.standing_leave_rad_s
-            lifted = self.standing_loaded_ and x.load_N < sch.se_to_wf_load_N   # once the person's weight came
+            lifted = self.standing_loaded_ and x.load_N < sch.standing_lift_of_toe_off * sch.se_to_wf_load_N
             self.event_since_s_ = held_since(self.event_since_s_, moving or lifted, x.time_s)
             if held_for(self.event_since_s_, x.time_s, sch.event_hold_s):
                 self.standing_ = False              # lifted: a step; moving: on in the stance state it stood in
