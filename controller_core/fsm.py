@@ -19,7 +19,9 @@ without waiting for the state's minimum time. That includes a leg loaded again j
 one, when the load dipped in mid-stance): it returns to stance in 5 ms. The short hold is safe in this direction
 only: a false heel strike puts the leg in its stiffer stance settings, where a false toe-off would put a loaded
 leg in swing; and the toe-off threshold lies below the heel-strike threshold (the safety limits require it), so
-the two cannot chatter.
+the two cannot chatter. A foot that lands on a knee near swing extension's equilibrium is stance too once the load
+has stayed above the toe-off threshold for ``heel_contact_hold_s``: the heel's impact can bounce the load back below
+the heel-strike threshold, which left the leg on its swing settings for the first 100–270 ms of a slow stance.
 
 **Standing.** A person standing still on the leg is neither walking nor in any one sub-phase: run as walking, the
 maximum-time guard cycled the states every 1.5 s, put a leg carrying half the body weight into swing flexion and
@@ -30,10 +32,10 @@ stiffness against further flexion, the hold following it as it extends: it may s
 ankle is held about where standing found it with its stance-flexion stiffness. Standing ends when the knee moves
 faster than ``standing_leave_rad_s`` (the person walks on from it: on in the stance state it stood in, its dwell
 restarted; a knee flexing into pre-swing from stance extension put back in stance flexion was held stiff through
-its toe-off and swing) or when the load falls below about a third of the toe-off threshold for ``event_hold_s`` (the leg is
-lifted: swing flexion if the knee bends, else swing extension: a leg lifted straight waited 0.8 s in swing flexion
-for a flexion that never came, and missed its heel strikes). Separately, the maximum-time guard never moves a leg that
-carries at least the heel-strike load into swing flexion: only its toe-off does.
+its toe-off and swing) or when the load falls below about a third of the toe-off threshold for ``event_hold_s``
+(the leg is lifted: swing flexion if the knee bends, else swing extension: a leg lifted straight waited 0.8 s in
+swing flexion for a flexion that never came, and missed its heel strikes). Separately, the maximum-time guard never
+moves a leg that carries at least the heel-strike load into swing flexion: only its toe-off does.
 
 **Stumbles.** A toe caught in swing, or a foot that lands early on a bent knee, left the leg with no support: the
 swing-extension row pressed a planted toe down while the pylon's axial load (the force mostly across the tilted shank)

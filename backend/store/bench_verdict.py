@@ -64,10 +64,7 @@ def worse_than_parent(conn: Connection, kind: Kind, row: Mapping, figures: list[
     stored = _stored(conn, kind, parent_id, str(parent["sha"]))
     if stored is None:
         return {"parent_id": parent_id, "parent_version": parent["version"], "walked": False, "figures": []}
-    parents = safety_figures(stored["controllers"][_OWN[kind]], stored["controllers"]["fsmic"])
-    if kind == "envelope":
-        parents.append(_nodes_figure(stored))
-    theirs = {f["figure"]: f["value"] for f in parents}
+    theirs = {f["figure"]: f["value"] for f in _figures(kind, stored)}
     worse = [{"figure": f["figure"], "label": f["label"], "unit": f["unit"], "parent_value": theirs.get(f["figure"]),
               "value": f["value"]} for f in figures
              if f["value"] is not None and theirs.get(f["figure"]) is not None
@@ -75,12 +72,16 @@ def worse_than_parent(conn: Connection, kind: Kind, row: Mapping, figures: list[
     return {"parent_id": parent_id, "parent_version": parent["version"], "walked": True, "figures": worse}
 
 
-def _nodes_figure(stored: Mapping) -> dict:
-    """The envelope's node walks as one safety figure: how many nodes have a figure beyond its bound."""
-    n = flagged_nodes(stored)
-    return {"figure": "nodes_beyond_bounds", "label": "nodes beyond a bound, each walked alone at its task",
-            "unit": "nodes", "value": n, "fsmic_value": None,
-            "severity": "bad" if n is None or n > 0 else None}
+def _figures(kind: Kind, stored: Mapping) -> list[dict]:
+    """Every safety figure of a stored preview beside the FSMIC's; an envelope's node walks as one more: how many
+    nodes have a figure beyond its bound."""
+    figures = safety_figures(stored["controllers"][_OWN[kind]], stored["controllers"]["fsmic"])
+    if kind == "envelope":
+        n = flagged_nodes(stored)
+        figures.append({"figure": "nodes_beyond_bounds", "label": "nodes beyond a bound, each walked alone at its task",
+                        "unit": "nodes", "value": n, "fsmic_value": None,
+                        "severity": "bad" if n is None or n > 0 else None})
+    return figures
 
 
 def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
@@ -96,9 +97,7 @@ def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
     flags = envelope_flags(stored) if kind == "envelope" else safety_flags(mine, fsmic)
     status = "unsafe" if flags else "clean"
     words = _WORDS[status] if not flags else f"{_WORDS[status]}: {len(flags)} figure(s) beyond their bounds"
-    figures = safety_figures(mine, fsmic)
-    if kind == "envelope":
-        figures.append(_nodes_figure(stored))
+    figures = _figures(kind, stored)
     return {"status": status, "flags": flags, "figures": figures, "words": words,
             "signoffs": signed, "signoffs_needed": signoffs.NEEDED,
             "worse_than_parent": worse_than_parent(conn, kind, row, figures)}
