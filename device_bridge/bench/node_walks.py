@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from controller_core.fsm import GaitState, ImpedanceSchedule, SensorSample, StateMachineController, TorqueCommand
 from controller_core.table import ImpedanceTable
 from controller_core.walking_reference import WalkingReference
-from device_bridge.bench.walks import LEVEL_SETTLE_S
-from device_bridge.sim.course import Course, Segment
+from device_bridge.bench.walks import LEVEL_SETTLE_S, level_lead_in
+from device_bridge.sim.course import Course
 from device_bridge.sim.course_walk import run_course
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import run_walk, score_walk
@@ -31,7 +31,7 @@ from device_bridge.sim.simulate import run_walk, score_walk
 NODE_STARTS = ("standing", "level")
 NODE_WALK_S = 5.0          # scored at the node's task (s): three strides or more from 0.75 m/s, two at 0.6
 NODE_LEVEL_LEAD_S = 3.0    # level walking before the change to the node's incline (s): the first steps and a stride
-NODE_CHANGE_S = 2.0        # the change from level to the node's incline (s): the courses' raised cosine
+NODE_CHANGE_S = Course.transition_s   # the change from level to the node's incline (s): the courses' raised cosine
 NODE_SETTLE_S = 2.0        # from standing, strides scored from here (as every fixed-task walk of the bench)
 # the figures a node walk keeps (the safety figures the gate reads, the strides behind them, the two angle errors)
 NODE_FIGURES = ("strides", "falls", "fall_events", "toe_catches", "heel_strikes_without_stance",
@@ -83,10 +83,7 @@ class NodeWalk:
 def level_to_node(speed_mps: float, incline_deg: float, seconds: float = NODE_WALK_S) -> Course:
     """The course of a node reached from level walking: the lead-in, then the change to the node's incline and
     ``seconds`` scored at the task after it settles."""
-    return Course(f"level to {speed_mps:g} m/s {incline_deg:+g}°",
-                  (Segment(NODE_LEVEL_LEAD_S, speed_mps, 0.0),
-                   Segment(NODE_CHANGE_S + LEVEL_SETTLE_S + seconds, speed_mps, incline_deg)),
-                  transition_s=NODE_CHANGE_S)
+    return level_lead_in(speed_mps, incline_deg, NODE_CHANGE_S + LEVEL_SETTLE_S + seconds, lead_s=NODE_LEVEL_LEAD_S)
 
 
 def simulated_s(start: str, seconds: float = NODE_WALK_S) -> float:

@@ -25,11 +25,11 @@ LEVEL_LEAD_S = 6.0       # level walking before the change to the task (a few st
 LEVEL_SETTLE_S = 1.0     # strides scored from this long after the change to the task is complete
 
 
-def level_lead_in(speed_mps: float, incline_deg: float, seconds: float) -> Course:
-    """A walk that reaches the task from level walking: from standing, :data:`LEVEL_LEAD_S` level at the task's
-    speed, the course's raised-cosine change to the incline, then ``seconds`` at the task."""
+def level_lead_in(speed_mps: float, incline_deg: float, seconds: float, lead_s: float = LEVEL_LEAD_S) -> Course:
+    """A walk that reaches the task from level walking: from standing, ``lead_s`` level at the task's speed, the
+    course's raised-cosine change to the incline (its first 2 s), then the rest of ``seconds`` at the task."""
     return Course(f"level lead-in to {speed_mps:g} m/s {incline_deg:+g}°",
-                  (Segment(LEVEL_LEAD_S, speed_mps, 0.0), Segment(seconds, speed_mps, incline_deg)))
+                  (Segment(lead_s, speed_mps, 0.0), Segment(seconds, speed_mps, incline_deg)))
 
 
 def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, seconds: float = 20.0,
