@@ -65,22 +65,29 @@ class SimulatedLeg:
         self._q = {name: int(m.joint(name).qposadr[0]) for name in ("hip_x", "hip_z", "hip", "knee", "ankle")}
         self._v = {name: int(m.joint(name).dofadr[0]) for name in ("hip_x", "hip_z", "hip", "knee", "ankle")}
         self._a = {m.actuator(i).name: i for i in range(m.nu)}
+        a = self._a
+        self._a_bench = (a["hip_x_pos"], a["hip_x_vel"], a["hip_z_push"], a["hip_torque"])
+        self._a_knee, self._a_ankle = a["knee"], a["ankle"]
+        self._qv_bench = (self._q["hip_z"], self._v["hip_z"], self._q["hip"], self._v["hip"])
         adr = {m.sensor(i).name: int(m.sensor_adr[i]) for i in range(m.nsensor)}
         self._s_knee, self._s_kneev = adr["knee_angle"], adr["knee_velocity"]
         self._s_ankle, self._s_anklev = adr["ankle_angle"], adr["ankle_velocity"]
         self._s_force, self._s_torque = adr["load_cell_force"], adr["load_cell_torque"]
-        self._floor = {i for i in range(m.ngeom) if m.geom(i).name.startswith("floor")}
-        self._feet = {m.geom("heel").id, m.geom("toe").id}
+        colliding = {m.geom(i).name for i in range(m.ngeom) if m.geom_contype[i] or m.geom_conaffinity[i]}
+        if not all(name in ("heel", "toe") or name.startswith("floor") for name in colliding):
+            raise ValueError(f"only the foot and the floor may collide (foot_contact_force sums every contact): "
+                             f"{sorted(colliding)}")
         self.support_N = 0.0
         self.hip_torque_Nm = 0.0
         self._tick = 0
         self._traj: BenchTrajectory | None = None
+        self._rows: list[tuple] = []    # the trajectory per tick as Python floats: the loop reads one row a tick
         self._force6 = np.zeros(6)   # scratch for mj_contactForce (called every tick in contact)
 
     def reset(self, trajectory: BenchTrajectory, knee_rad: float, ankle_rad: float) -> SensorSample:
         """Place the socket at the trajectory's first sample and the joints at the given angles (rad)."""
         mujoco.mj_resetData(self.model, self.data)
-        self._traj = trajectory
+        self._use(trajectory)
         self._tick = 0
         q, v = self.data.qpos, self.data.qvel
         q[self._q["hip_x"]], q[self._q["hip_z"]] = trajectory.x_m[0], trajectory.z_m[0]
@@ -95,60 +102,63 @@ class SimulatedLeg:
         """Carry on walking along ``trajectory``, the chunk that starts one timestep after the current one ends."""
         if self._traj is None:
             raise RuntimeError("reset() the leg with a bench trajectory before continuing it")
-        self._traj = trajectory
+        self._use(trajectory)
         self._tick = -1   # step() applies the new chunk's first sample next
+
+    def _use(self, tr: BenchTrajectory) -> None:
+        self._traj = tr
+        self._rows = list(zip(tr.x_m.tolist(), tr.xd_m_s.tolist(), tr.z_m.tolist(), tr.zd_m_s.tolist(),
+                              tr.hip_rad.tolist(), tr.hipd_rad_s.tolist(), tr.other_foot_down.tolist(),
+                              tr.other_leg_N.tolist(), strict=True))
 
     def _apply_bench(self, i: int) -> None:
         """The person at tick ``i``: the walk's progression, the hip's torque on the thigh, the other leg's push
         (its reference share plus the person's compensation, :class:`device_bridge.sim.person.Person`)."""
-        tr, c, a, q, v = self._traj, self.data.ctrl, self._a, self.data.qpos, self.data.qvel
-        assert tr is not None
-        c[a["hip_x_pos"]], c[a["hip_x_vel"]] = tr.x_m[i], tr.xd_m_s[i]
-        self.support_N = self.person.compensation_N(tr.z_m[i] - q[self._q["hip_z"]], tr.zd_m_s[i] - v[self._v["hip_z"]],
-                                                    bool(tr.other_foot_down[i]), float(tr.other_leg_N[i]))
-        c[a["hip_z_push"]] = tr.other_leg_N[i] + self.support_N
-        self.hip_torque_Nm = self.person.hip_torque_Nm(tr.hip_rad[i] - q[self._q["hip"]],
-                                                       tr.hipd_rad_s[i] - v[self._v["hip"]], self.data.ncon > 0)
-        c[a["hip_torque"]] = self.hip_torque_Nm
+        x, xd, z, zd, hip, hipd, other_down, other_N = self._rows[i]
+        d, person = self.data, self.person
+        c, q, v = d.ctrl, d.qpos.tolist(), d.qvel.tolist()     # Python floats: the person's arithmetic per tick
+        a_x, a_xd, a_push, a_hip = self._a_bench
+        q_z, v_z, q_hip, v_hip = self._qv_bench
+        c[a_x], c[a_xd] = x, xd
+        self.support_N = person.compensation_N(z - q[q_z], zd - v[v_z], bool(other_down), float(other_N))
+        c[a_push] = other_N + self.support_N
+        self.hip_torque_Nm = person.hip_torque_Nm(hip - q[q_hip], hipd - v[v_hip], d.ncon > 0)
+        c[a_hip] = self.hip_torque_Nm
 
     def sample(self) -> SensorSample:
         """The sensors as the controller reads them now."""
-        sd = self.data.sensordata
+        d = self.data
+        sd = d.sensordata.tolist()
         # the force/torque sensors give what the shank exerts on the load-cell subtree, in the site frame
         # (z up along the shank, y the joint axes): compression pushes it down (−z), and the moment about
         # +y is a plantarflexion moment in this model's axes (the ankle axis is −y), hence the signs
         return SensorSample(
-            time_s=float(self.data.time),
-            knee_angle_rad=float(sd[self._s_knee]), knee_velocity_rad_s=float(sd[self._s_kneev]),
-            ankle_angle_rad=float(sd[self._s_ankle]), ankle_velocity_rad_s=float(sd[self._s_anklev]),
-            load_N=-float(sd[self._s_force + 2]), ankle_moment_Nm=-float(sd[self._s_torque + 1]),
-            thigh_angle_rad=float(self.data.qpos[self._q["hip"]]),
-            thigh_velocity_rad_s=float(self.data.qvel[self._v["hip"]]))
+            time_s=d.time,
+            knee_angle_rad=sd[self._s_knee], knee_velocity_rad_s=sd[self._s_kneev],
+            ankle_angle_rad=sd[self._s_ankle], ankle_velocity_rad_s=sd[self._s_anklev],
+            load_N=-sd[self._s_force + 2], ankle_moment_Nm=-sd[self._s_torque + 1],
+            thigh_angle_rad=float(d.qpos[self._q["hip"]]), thigh_velocity_rad_s=float(d.qvel[self._v["hip"]]))
 
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> SensorSample:
         """Apply the joint torques (N·m) for one timestep and return the next sensor sample."""
         if self._traj is None:
             raise RuntimeError("reset() the leg with a bench trajectory before stepping it")
         self._tick += 1
-        i = min(self._tick, self._traj.time_s.shape[0] - 1)
-        self._apply_bench(i)
+        self._apply_bench(min(self._tick, len(self._rows) - 1))
         c = self.data.ctrl
-        c[self._a["knee"]] = knee_torque_Nm
-        c[self._a["ankle"]] = ankle_torque_Nm
+        c[self._a_knee] = knee_torque_Nm
+        c[self._a_ankle] = ankle_torque_Nm
         mujoco.mj_step(self.model, self.data)
         return self.sample()
 
     def foot_contact_force(self) -> float:
-        """Total normal force between the foot's contacts and the floor now (N): ground truth for metrics."""
+        """Total normal force between the foot's contacts and the floor now (N): ground truth for metrics. Every
+        contact is one (the model lets only the heel, the toe and the floor collide: checked when it is built)."""
         total = 0.0
-        f6 = self._force6
-        d = self.data
+        f6, m, d = self._force6, self.model, self.data
         for j in range(d.ncon):
-            con = d.contact[j]
-            pair = {int(con.geom1), int(con.geom2)}
-            if pair & self._floor and pair & self._feet:
-                mujoco.mj_contactForce(self.model, d, j, f6)
-                total += abs(f6[0])
+            mujoco.mj_contactForce(m, d, j, f6)
+            total += abs(f6[0])
         return total
 
     def hip_position_m(self) -> tuple[float, float]:
