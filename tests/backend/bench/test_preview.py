@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from backend.bench import preview as preview_module
+from backend.bench.node_previews import NodeWalks
 from backend.bench.preview import BenchmarkCourseWalks, preview_table
 from controller_core.fsmic import fsmic_table
 from controller_core.table import SafetyLimitError
@@ -41,19 +42,19 @@ def test_the_benchmark_walks_a_course_once_per_body_mass_and_every_envelope_prev
 
     monkeypatch.setattr(preview_module, "walk_course", counting_walk)
     course = Course("short", (Segment(6.0, 1.0, 0.0), Segment(6.0, 1.2, 0.0)))
-    benchmark = BenchmarkCourseWalks()
+    benchmark, nodes = BenchmarkCourseWalks(), NodeWalks()      # the node walks are kept too: not what is counted
     first = model.propose_envelope([0.8, 1.4], [-4.0, 4.0], 75.0)
     second = model.propose_envelope([0.9, 1.5], [-4.0, 4.0], 75.0)
-    a = preview_module.preview_envelope(first, model, course, benchmark=benchmark)
-    b = preview_module.preview_envelope(second, model, course, benchmark=benchmark)
+    a = preview_module.preview_envelope(first, model, course, benchmark=benchmark, nodes=nodes)
+    b = preview_module.preview_envelope(second, model, course, benchmark=benchmark, nodes=nodes)
     assert walked == [("fsmic", 75.0), ("adaptive", 75.0), ("adaptive", 75.0)]   # the benchmark once, each envelope
     assert a["controllers"]["fsmic"] == b["controllers"]["fsmic"]
     assert a["controllers"]["envelope"] != b["controllers"]["envelope"]
     # the benchmark is the same walk as walked afresh, and another body mass walks its own
-    fresh = preview_module.preview_envelope(second, model, course)["controllers"]["fsmic"]
+    fresh = preview_module.preview_envelope(second, model, course, nodes=nodes)["controllers"]["fsmic"]
     kept = b["controllers"]["fsmic"]
     assert kept.pop("real_time_factor") > 0 and fresh.pop("real_time_factor") > 0   # the machine's speed, not the walk
     assert fresh == kept
     heavier = model.propose_envelope([0.9, 1.5], [-4.0, 4.0], 90.0)
-    preview_module.preview_envelope(heavier, model, course, benchmark=benchmark)
+    preview_module.preview_envelope(heavier, model, course, benchmark=benchmark, nodes=nodes)
     assert walked[-2:] == [("fsmic", 90.0), ("adaptive", 90.0)]
