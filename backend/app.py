@@ -20,7 +20,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend import __version__
 from backend.bench.node_previews import NodeWalks
-from backend.bench.preview import BenchmarkCourseWalks
+from backend.bench.preview import BenchmarkWalks
 from backend.body_limit import GateBodies, body_rules
 from backend.db import open_engine
 from backend.devices import DeviceManager, parse_device_specs
@@ -151,7 +151,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     specs = parse_device_specs(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
-    app.state.benchmark_walks = BenchmarkCourseWalks()   # the FSMIC's course walk per body mass, for the previews
+    app.state.benchmark_walks = BenchmarkWalks()   # the FSMIC's walks per body mass and course or task, for previews
     app.state.node_walks = NodeWalks(settings.bench_processes)   # envelope nodes walked alone, kept by content
     app.state.broker = None
     if any(spec.interface == "mqtt" for spec in specs):

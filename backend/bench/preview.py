@@ -26,7 +26,7 @@ from device_bridge.bench.walks import walk_course
 from device_bridge.sim.course import Course
 from device_bridge.sim.course_walk import CourseScore
 from device_bridge.sim.leg_model import LegGeometry
-from device_bridge.sim.simulate import run_walk, score_walk
+from device_bridge.sim.simulate import WalkScore, run_walk, score_walk
 
 PREVIEW_COURSE = "mixed"
 NODE_WALKS_SAID = {
@@ -39,28 +39,37 @@ NODE_WALKS_SAID = {
     "bounds": "the same bounds as every bench walk, without the FSMIC-relative one (the FSMIC is not walked per node)"}
 
 
-class BenchmarkCourseWalks:
-    """The FSMIC's walk of a course, kept per (course, body mass, leg, model) for the life of the server.
+class BenchmarkWalks:
+    """The FSMIC's walks, kept for the life of the server: per (course, body mass, leg, model) and per (task, body mass,
+    seconds, leg, model).
 
-    The benchmark does not depend on the version previewed, so every envelope preview after the first at a body mass
-    reuses its walk (about five CPU-seconds of the mixed course) instead of walking the same deterministic bench
-    again; an edit's preview then costs the envelope's walk alone. ``maxsize`` bounds the memory (one entry per
-    patient's body mass in use). The scores returned are shared: read them, never change them.
+    The benchmark does not depend on the version previewed, so every preview after the first at a body mass (and, for a
+    table, at a task) reuses its walk instead of walking the same deterministic bench again: an edit's preview then
+    costs the version's walk alone. ``maxsize`` bounds the memory of each kind (one entry per body mass and task in
+    use). The scores returned are shared: read them, never change them.
     """
 
     def __init__(self, maxsize: int = 32) -> None:
         self.maxsize = maxsize
         self.score = functools.lru_cache(maxsize=maxsize)(self._walk)
+        self.at_task = functools.lru_cache(maxsize=maxsize)(self._walk_at_task)
 
     @staticmethod
     def _walk(course: Course, mass_kg: float, geometry: LegGeometry, model: QuasiStiffnessModel) -> CourseScore:
         return walk_course("fsmic", course, model, mass_kg, geometry=geometry)
 
+    @staticmethod
+    def _walk_at_task(speed_mps: float, incline_deg: float, mass_kg: float, seconds: float, geometry: LegGeometry,
+                      model: QuasiStiffnessModel | None) -> WalkScore:
+        ref = task_reference(speed_mps, incline_deg, model, mass_kg)
+        return score_walk(run_walk(make_controller("fsmic", mass_kg), ref, mass_kg, seconds, geometry), ref)
+
 
 def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, mass_kg: float,
                   model: QuasiStiffnessModel | None = None, seconds: float = 10.0,
-                  geometry: LegGeometry | None = None) -> dict[str, object]:
-    """Walk a given (e.g. proposed or edited) table and the FSMIC benchmark on the bench at a task.
+                  geometry: LegGeometry | None = None, benchmark: BenchmarkWalks | None = None) -> dict[str, object]:
+    """Walk a given (e.g. proposed or edited) table and the FSMIC benchmark (from ``benchmark`` when it holds that
+    walk) on the bench at a task.
 
     Returns JSON-ready data: ``phase_grid`` (101 points), ``reference_curves`` and, per controller (``table``,
     ``fsmic``), its summary and stride-averaged ``mean_curves`` (deg, N·m/kg); the table's entry also carries
@@ -73,20 +82,22 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
         return {k: [round(float(v), 3) for v in c] for k, c in curves.items()}
 
     validate_task(speed_mps, incline_deg, mass_kg)
+    geometry = geometry or LegGeometry()
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
-    scores = {name: score_walk(run_walk(make_controller(name, mass_kg, table=table), ref, mass_kg, seconds, geometry),
-                               ref) for name in ("table", "fsmic")}
+    scores = {"table": score_walk(run_walk(make_controller("table", mass_kg, table=table), ref, mass_kg, seconds,
+                                           geometry), ref),
+              "fsmic": (benchmark or BenchmarkWalks(maxsize=1)).at_task(speed_mps, incline_deg, mass_kg, seconds,
+                                                                        geometry, model)}
     controllers: dict[str, object] = {name: {**score.summary, "mean_curves": rounded(score.mean_curves)}
                                       for name, score in scores.items()}
     controllers["table"]["vs_fsmic"] = against_fsmic(scores["table"], scores["fsmic"])
-    leg = (geometry or LegGeometry()).name
-    return {"seconds": seconds, "leg": leg, "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
+    return {"seconds": seconds, "leg": geometry.name, "phase_grid": [round(float(s), 3) for s in PHASE_GRID],
             "reference_curves": rounded(reference_curves(ref)), "controllers": controllers}
 
 
 def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Course,
                      geometry: LegGeometry | None = None,
-                     benchmark: BenchmarkCourseWalks | None = None,
+                     benchmark: BenchmarkWalks | None = None,
                      nodes: NodeWalks | None = None) -> dict[str, object]:
     """The envelope's preview for its page: the course walked with the envelope (the leg estimating its task and
     adapting) and with the FSMIC (from ``benchmark`` when it holds that walk), at the envelope's body mass. Per
@@ -96,7 +107,7 @@ def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Cou
     flags; ``node_walks``: what those walks are."""
     geometry = geometry or LegGeometry()
     walked_nodes = (nodes or NodeWalks()).walk(envelope, model, geometry)
-    fsmic = (benchmark or BenchmarkCourseWalks(maxsize=1)).score(course, envelope.mass_kg, geometry, model)
+    fsmic = (benchmark or BenchmarkWalks(maxsize=1)).score(course, envelope.mass_kg, geometry, model)
     scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope, geometry=geometry),
               "fsmic": fsmic}
     return {"course": course.to_json(), "mass_kg": envelope.mass_kg, "leg": geometry.name,

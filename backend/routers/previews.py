@@ -9,7 +9,7 @@ from fastapi import APIRouter, Request
 from sqlalchemy import Connection
 
 from backend.bench.node_previews import NodeWalks, envelope_flags
-from backend.bench.preview import PREVIEW_COURSE, BenchmarkCourseWalks, preview_envelope, preview_table
+from backend.bench.preview import PREVIEW_COURSE, BenchmarkWalks, preview_envelope, preview_table
 from backend.bench.safety_figures import safety_flags
 from backend.deps import Conn, CurrentUser, Model
 from backend.errors import ConflictError
@@ -53,15 +53,16 @@ async def _walk_once(key: tuple[str, int], user: str, preview: Callable[..., dic
             responses={**NOT_FOUND, **CONFLICT, **UNAVAILABLE, **TOO_MANY})
 async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, user: CurrentUser, model: Model) -> dict:
     """Walk this proposal's table and the FSMIC benchmark for 10 s each on the simulated bench at the proposal's
-    task (computed on first request, about a second, then stored: a proposal never changes). Falls, strides and
+    task (computed on first request, about a second, then stored: a proposal never changes; the FSMIC's walk at a task
+    and body mass is kept for the server's life, so a later table at that task walks alone). Falls, strides and
     joint RMSE against the able-bodied reference, and the stride-averaged trajectories; ``safety`` flags the
     table's safety figures (falls, toe catches, time on swing settings under load) on their own bounds."""
     return await _walk_once(("proposal", proposal_id), user.username, _table_preview, proposal_id, conn, model,
-                            request.app.state.bench_leg)
+                            request.app.state.bench_leg, request.app.state.benchmark_walks)
 
 
 def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
-                   walk: bool = True) -> dict | None:
+                   benchmark: BenchmarkWalks, walk: bool = True) -> dict | None:
     """The stored preview, walked first if there is none (``walk=False``: None instead)."""
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
@@ -72,7 +73,7 @@ def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessMode
         _refuse_unsafe(checked.violations, f"proposal {proposal_id}")
         table = checked.item
         result = preview_table(table, row["speed_mps"], row["incline_deg"], row["body_mass_kg"], model,
-                               PREVIEW_SECONDS, leg)
+                               PREVIEW_SECONDS, leg, benchmark)
         stored = previews.store_preview(conn, proposal_id, row["table_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["table"], runs["fsmic"])}
@@ -95,7 +96,7 @@ async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn
 
 
 def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
-                      benchmark: BenchmarkCourseWalks, nodes: NodeWalks, walk: bool = True) -> dict | None:
+                      benchmark: BenchmarkWalks, nodes: NodeWalks, walk: bool = True) -> dict | None:
     """The stored preview, walked first if there is none (``walk=False``: None instead)."""
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])

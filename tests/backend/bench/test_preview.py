@@ -6,7 +6,7 @@ import pytest
 
 from backend.bench import preview as preview_module
 from backend.bench.node_previews import NodeWalks
-from backend.bench.preview import BenchmarkCourseWalks, preview_table
+from backend.bench.preview import BenchmarkWalks, preview_table
 from controller_core.fsmic import fsmic_table
 from controller_core.table import SafetyLimitError
 from device_bridge.sim.course import Course, Segment
@@ -22,6 +22,24 @@ def test_a_table_preview_walks_the_table_and_the_fsmic_with_their_difference(mod
     assert len(t["mean_curves"]["knee_angle_deg"]) == 101 and "vs_fsmic" not in f
     same = preview_table(fsmic_table(75.0), 1.2, 0.0, 75.0, model, seconds=5.0)["controllers"]["table"]
     assert same["vs_fsmic"]["knee_angle_rmse_difference_deg"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_table_preview_walks_the_fsmic_once_per_task_and_body_mass(model):
+    benchmark = BenchmarkWalks()
+    proposed, fsmic = model.propose(1.2, 0.0, 75.0).table, fsmic_table(75.0)
+    a = preview_table(proposed, 1.2, 0.0, 75.0, model, seconds=5.0, benchmark=benchmark)
+    b = preview_table(fsmic, 1.2, 0.0, 75.0, model, seconds=5.0, benchmark=benchmark)
+    assert (benchmark.at_task.cache_info().hits, benchmark.at_task.cache_info().misses) == (1, 1)
+    assert a["controllers"]["fsmic"] == b["controllers"]["fsmic"]
+    assert b["controllers"]["table"]["vs_fsmic"]["knee_angle_rmse_difference_deg"] == pytest.approx(0.0, abs=1e-9)
+    # the kept walk is the walk walked afresh; another task or body mass walks its own
+    fresh = preview_table(proposed, 1.2, 0.0, 75.0, model, seconds=5.0)["controllers"]["fsmic"]
+    kept = dict(a["controllers"]["fsmic"])
+    assert kept.pop("real_time_factor") > 0 and fresh.pop("real_time_factor") > 0   # the machine's speed, not the walk
+    assert fresh == kept
+    preview_table(proposed, 1.2, 0.0, 90.0, model, seconds=5.0, benchmark=benchmark)
+    preview_table(proposed, 1.0, 0.0, 75.0, model, seconds=5.0, benchmark=benchmark)
+    assert benchmark.at_task.cache_info().misses == 3
 
 
 def test_an_unsafe_table_is_never_walked(model):
@@ -42,7 +60,7 @@ def test_the_benchmark_walks_a_course_once_per_body_mass_and_every_envelope_prev
 
     monkeypatch.setattr(preview_module, "walk_course", counting_walk)
     course = Course("short", (Segment(6.0, 1.0, 0.0), Segment(6.0, 1.2, 0.0)))
-    benchmark, nodes = BenchmarkCourseWalks(), NodeWalks()      # the node walks are kept too: not what is counted
+    benchmark, nodes = BenchmarkWalks(), NodeWalks()      # the node walks are kept too: not what is counted
     first = model.propose_envelope([0.8, 1.4], [-4.0, 4.0], 75.0)
     second = model.propose_envelope([0.9, 1.5], [-4.0, 4.0], 75.0)
     a = preview_module.preview_envelope(first, model, course, benchmark=benchmark, nodes=nodes)
