@@ -5,6 +5,7 @@ knee flexes consistently less), said by the test that asks for it."""
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -25,12 +26,20 @@ from tests.helpers.sql import sql
 BENCH_DEVICE = "bench-leg"   # a device row of its own, not one the server's device manager drives
 
 
+@functools.lru_cache(maxsize=16)
+def _walked(table_json: str, speed_mps: float, incline_deg: float, model, mass_kg: float,
+            seconds: float) -> dict[str, np.ndarray]:
+    """The bench's walk of a table (its log's channels, shared: read them, never change them), kept for the test
+    process: the walk is deterministic, and the SQLite and PostgreSQL runs of a test record the same one."""
+    table = ParameterTable.model_validate_json(table_json)
+    ref = task_reference(speed_mps, incline_deg, model, mass_kg)
+    return run_walk(StateMachineController(ImpedanceSchedule.from_table(table)), ref, mass_kg, seconds).channels
+
+
 def bench_samples(table: ParameterTable, speed_mps: float, incline_deg: float, model, mass_kg: float, seconds: float,
                   swing_scale: float = 1.0, mode: Mode = Mode.ACTIVE) -> list[tuple]:
     """The table walked on the bench, as telemetry rows in :data:`backend.store.sessions.SAMPLE_COLUMNS` order."""
-    ref = task_reference(speed_mps, incline_deg, model, mass_kg)
-    log = run_walk(StateMachineController(ImpedanceSchedule.from_table(table)), ref, mass_kg, seconds)
-    c = log.channels
+    c = _walked(table.model_dump_json(), speed_mps, incline_deg, model, mass_kg, seconds)
     idx = np.arange(0, c["time_s"].size, 10)             # the device's 10 ms telemetry period
     knee = c["knee_angle_rad"][idx].copy()
     if swing_scale != 1.0:
