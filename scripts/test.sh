@@ -38,4 +38,4 @@ fi
 # spent waiting (a page, a real-time leg, a broker); each process takes whole files (`--dist loadfile`: a file's server
 # or browser is started once), the files with servers, browsers, brokers and PostgreSQL first (tests/conftest.py) so
 # that short files fill the end
-exec "${pytest[@]}" -n ${QT_N:-3} --dist loadfile --no-loadscope-reorder "$@"
+exec "${pytest[@]}" -n 3 --dist loadfile --no-loadscope-reorder "$@"
