@@ -39,3 +39,38 @@ def test_a_leg_is_refused_a_slope_beyond_twenty_degrees_and_stepping_before_plac
         SimulatedLeg(incline_deg=25.0)
     with pytest.raises(RuntimeError, match="reset"):
         SimulatedLeg().step(0.0, 0.0)
+
+
+def test_a_model_in_which_more_than_the_foot_and_floor_collide_is_refused(monkeypatch):
+    # the foot's contact force sums every contact, so a shank that could touch the floor would be counted as the foot
+    from device_bridge.sim import plant
+
+    real = plant.build_mjcf
+    monkeypatch.setattr(plant, "build_mjcf", lambda *a, **k: real(*a, **k).replace(
+        '<geom name="shank" type="capsule"', '<geom name="shank" contype="1" conaffinity="1" type="capsule"'))
+    with pytest.raises(ValueError, match=r"only the foot and the floor may collide.*shank"):
+        SimulatedLeg()
+
+
+def test_the_foot_contact_force_is_the_normal_force_between_the_foot_and_the_floor():
+    import mujoco
+    import numpy as np
+
+    leg = SimulatedLeg()
+    m, d = leg.model, leg.data
+    feet = {m.geom("heel").id, m.geom("toe").id}
+    floor = {i for i in range(m.ngeom) if m.geom(i).name.startswith("floor")}
+    traj = plan_bench_trajectory(level_walking_reference(1.2), leg.geometry, 75.0, 1.5, leg.timestep_s)
+    leg.reset(traj, 0.1, 0.0)
+    f6, touched = np.zeros(6), 0
+    for _ in range(traj.time_s.shape[0] - 1):
+        leg.step(0.0, 0.0)
+        expected = 0.0
+        for j in range(d.ncon):                      # each contact's pair looked up: foot on floor only
+            pair = {int(d.contact[j].geom1), int(d.contact[j].geom2)}
+            if pair & feet and pair & floor:
+                mujoco.mj_contactForce(m, d, j, f6)
+                expected += abs(f6[0])
+        touched += expected > 100.0
+        assert leg.foot_contact_force() == pytest.approx(expected, abs=1e-9)
+    assert touched > 100                              # the foot carried the body for a while: the sum was tested
