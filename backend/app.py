@@ -60,6 +60,7 @@ from device_bridge.clock import WALL_CLOCK, Clock, PacedClock
 from device_bridge.mqtt_connection import MqttConnection
 from device_bridge.sim.leg_file import load_leg
 from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.swing_inertia import swing_inertia_ratio
 
 
 def _field(loc: tuple) -> str:
@@ -151,6 +152,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     specs = parse_device_specs(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
+    app.state.swing_inertia_ratio = swing_inertia_ratio(app.state.bench_leg)   # the swing rows proposed for that leg
     app.state.benchmark_walks = BenchmarkWalks()   # the FSMIC's walks per body mass and course or task, for previews
     app.state.node_walks = NodeWalks(settings.bench_processes)   # envelope nodes walked alone, kept by content
     app.state.broker = None

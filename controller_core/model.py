@@ -124,7 +124,7 @@ class QuasiStiffnessModel:
         return self.feature_model_.predict_many(tasks)
 
     def propose(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
-                with_vias: bool = True) -> Proposal:
+                with_vias: bool = True, swing_inertia_ratio: tuple[float, float] = (1.0, 1.0)) -> Proposal:
         """Predicted features, curves with their std, the fitted lines and the parameter table for a task and patient.
 
         Args:
@@ -132,6 +132,9 @@ class QuasiStiffnessModel:
             incline_deg: incline (deg, + uphill), within ±20.
             mass_kg: patient body mass (kg), 20-200.
             with_vias: False gives the reference through KMP without via-points (a baseline).
+            swing_inertia_ratio: the patient's leg's swing inertia about the knee and the ankle over the reference
+                leg's: the swing rows' stiffness and damping scale with it
+                (:func:`controller_core.table_rules.swing_scale`).
 
         Raises:
             InvalidTaskError: NaN or out-of-range input.
@@ -140,7 +143,7 @@ class QuasiStiffnessModel:
         features = self.predict_features(speed_mps, incline_deg)
         curves = self.joint_reference_.curves(np.array([[speed_mps, incline_deg]]), [features], with_std=True,
                                               with_vias=with_vias)[0]
-        table, bounds, fits = self._table(speed_mps, incline_deg, mass_kg, features, curves.means)
+        table, bounds, fits = self._table(speed_mps, incline_deg, mass_kg, features, curves.means, swing_inertia_ratio)
         return Proposal(
             speed_mps=speed_mps, incline_deg=incline_deg, mass_kg=mass_kg, model_version=self.model_version,
             data_sha256=self.data_sha256_, extrapolation=table.provenance.extrapolation, features=features,
@@ -148,11 +151,13 @@ class QuasiStiffnessModel:
             violations=check_table(table), vias=curves.vias)
 
     def propose_table(self, speed_mps: float, incline_deg: float = 0.0, mass_kg: float = 75.0,
-                      features: list[FeaturePrediction] | None = None) -> tuple[ParameterTable, list[FeaturePrediction]]:
+                      features: list[FeaturePrediction] | None = None, swing_inertia_ratio: tuple[float, float] = (1.0, 1.0)
+                      ) -> tuple[ParameterTable, list[FeaturePrediction]]:
         """The table of :meth:`propose` and the features it came from, without the curves' std.
 
         Args:
             features: the task's features when already predicted (:meth:`predict_features_many`).
+            swing_inertia_ratio: as :meth:`propose`.
 
         Raises:
             InvalidTaskError: NaN or out-of-range input.
@@ -161,14 +166,16 @@ class QuasiStiffnessModel:
         if features is None:
             features = self.predict_features(speed_mps, incline_deg)
         curves = self.joint_reference_.curves(np.array([[speed_mps, incline_deg]]), [features], with_std=False)[0]
-        return self._table(speed_mps, incline_deg, mass_kg, features, curves.means)[0], features
+        return self._table(speed_mps, incline_deg, mass_kg, features, curves.means, swing_inertia_ratio)[0], features
 
     def propose_envelope(self, speeds_mps: list[float] | np.ndarray, inclines_deg: list[float] | np.ndarray,
                          mass_kg: float = 75.0, nominal: tuple[float, float] = (1.2, 0.0),
-                         steps: NeighbourSteps = DEFAULT_STEPS) -> Envelope:
+                         steps: NeighbourSteps = DEFAULT_STEPS,
+                         swing_inertia_ratio: tuple[float, float] = (1.0, 1.0)) -> Envelope:
         """Tables over a speed × incline grid, each the table :meth:`propose_table` gives (computed together: one
         GPR evaluation, the reference trend once per speed, one stacked KMP solve per joint), held to the neighbour
-        rule (:mod:`controller_core.envelope`). Check the result with :func:`controller_core.envelope.check_envelope`.
+        rule (:mod:`controller_core.envelope`); ``swing_inertia_ratio`` as :meth:`propose`. Check the result with
+        :func:`controller_core.envelope.check_envelope`.
 
         Raises:
             InvalidTaskError: a bad axis (fewer than 2 or more than 15 values, not increasing, out of range) or mass.
@@ -179,7 +186,7 @@ class QuasiStiffnessModel:
         grid = [(s, g) for s in speeds for g in inclines]
         features = self.predict_features_many(np.array(grid))
         curves = self.joint_reference_.curves(np.array(grid), features, with_std=False)
-        tables = {task: (self._table(*task, mass_kg, f, c.means)[0], f)
+        tables = {task: (self._table(*task, mass_kg, f, c.means, swing_inertia_ratio)[0], f)
                   for task, f, c in zip(grid, features, curves, strict=True)}
 
         def node_table(speed: float, incline: float, mass: float) -> tuple[ParameterTable, list[FeaturePrediction]]:
@@ -189,9 +196,10 @@ class QuasiStiffnessModel:
                               steps)
 
     def _table(self, speed_mps: float, incline_deg: float, mass_kg: float, features: list[FeaturePrediction],
-               means: dict[str, np.ndarray]) -> tuple[ParameterTable, Boundaries, dict[str, list[SubphaseFit]]]:
+               means: dict[str, np.ndarray], swing_inertia_ratio: tuple[float, float] = (1.0, 1.0)
+               ) -> tuple[ParameterTable, Boundaries, dict[str, list[SubphaseFit]]]:
         """The table through a task's mean curves, stamped with where it came from."""
         provenance = Provenance(model_version=self.model_version, data_sha256=self.data_sha256_, speed_mps=speed_mps,
                                 incline_deg=incline_deg, patient_mass_kg=mass_kg,
                                 extrapolation=any(f.extrapolation for f in features))
-        return self.table_rules_.table(self.s_query_, means, features, mass_kg, provenance)
+        return self.table_rules_.table(self.s_query_, means, features, mass_kg, provenance, swing_inertia_ratio)

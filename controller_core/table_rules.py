@@ -32,6 +32,36 @@ SWING_RULES: tuple[str, ...] = ("target", "least_squares")
 Boundaries = tuple[float, float, float]
 
 
+# the rows that move the swinging leg against its own inertia: the knee's terminal-swing extension (its flexion is
+# thrown by the hip and the push-off, the row there only a light pull toward the peak), the ankle all through swing
+SWING_SCALED = {"knee": ("swing_extension",), "ankle": ("swing_flexion", "swing_extension")}
+SWING_INERTIA_RATIO_RANGE = (0.5, 2.0)   # legs beyond it are outside what the swing rules were tuned for: held at it
+
+
+def swing_scale(swing_inertia_ratio: tuple[float, float]) -> dict[str, float]:
+    """Per joint, what the swing rows of :data:`SWING_SCALED` multiply their stiffness and damping by on a leg whose
+    swing inertia about the knee and the ankle (shank, foot and actuator about the knee; foot and actuator about the
+    ankle) is this ratio of the reference leg's, the leg the per-kg swing settings were tuned on: the ratio itself,
+    held within :data:`SWING_INERTIA_RATIO_RANGE`. Stiffness and damping in proportion to the inertia keep the swing's
+    natural frequency (√(k/I)) and damping ratio (b / 2√(kI)): the shank and foot swing through in the time they had
+    on the reference leg. With the reference leg's settings a foot half again as heavy (inertia about the knee 1.5×)
+    overshot to full extension and landed 100–200 ms late, a geared knee-ankle with 1.9× the ankle's inertia dragged
+    its toe at 1.6 m/s −10°, and both fell on the bench; scaled, neither did (``docs/results.md``). The knee's
+    swing-flexion row is left as it is: the knee is thrown into flexion by the hip and the push-off, and scaling that
+    light pull made the geared leg catch its toe again at 1.6 m/s −10°.
+
+    Raises:
+        ValueError: a ratio that is not a positive finite number.
+    """
+    lo, hi = SWING_INERTIA_RATIO_RANGE
+    out = {}
+    for joint, ratio in zip(JOINTS, swing_inertia_ratio, strict=True):
+        if not (math.isfinite(ratio) and ratio > 0.0):
+            raise ValueError(f"the {joint}'s swing inertia ratio must be a positive finite number, got {ratio!r}")
+        out[joint] = min(max(float(ratio), lo), hi)
+    return out
+
+
 def boundaries(features: dict[str, FeaturePrediction]) -> Boundaries:
     """Sub-phase boundaries (phase): the predicted knee stance-flexion peak, toe-off and knee swing-flexion peak."""
     return (features["knee_stance_flexion_peak"].phase, features["toe_off"].value,
@@ -136,12 +166,15 @@ class TableRules:
         return fits
 
     def table(self, phase: np.ndarray, means: dict[str, np.ndarray], features: list[FeaturePrediction],
-              mass_kg: float, provenance: Provenance) -> tuple[ParameterTable, Boundaries, dict[str, list[SubphaseFit]]]:
-        """The parameter table through the predicted mean curves, with the boundaries and fits it came from."""
+              mass_kg: float, provenance: Provenance, swing_inertia_ratio: tuple[float, float] = (1.0, 1.0)
+              ) -> tuple[ParameterTable, Boundaries, dict[str, list[SubphaseFit]]]:
+        """The parameter table through the predicted mean curves, with the boundaries and fits it came from.
+        ``swing_inertia_ratio``: the patient's leg's swing inertia about the knee and the ankle over the reference
+        leg's (:func:`swing_scale`)."""
         fmap = {f.spec.name: f for f in features}
         bounds = boundaries(fmap)
         fits = self.fit_subphases(phase, means, fmap, bounds, mass_kg)
-        table = ParameterTable(rows=self._rows(fits, mass_kg),
+        table = ParameterTable(rows=self._rows(fits, mass_kg, swing_scale(swing_inertia_ratio)),
                                thresholds=self._thresholds(phase, means, fmap, bounds, mass_kg), provenance=provenance)
         return table, bounds, fits
 
@@ -186,13 +219,19 @@ class TableRules:
                                   JOINT_RANGE_RAD["knee"])
         return replace(fit, k_Nm_per_rad=ceiling, theta_e_rad=theta_e, r2=r2, guarded=True, method="support_floor")
 
-    def _rows(self, fits: dict[str, list[SubphaseFit]], mass_kg: float) -> list[ParameterRow]:
-        """Table rows from the fits, with the damping for the patient's mass. The values are finite floats by
+    def _rows(self, fits: dict[str, list[SubphaseFit]], mass_kg: float, scale: dict[str, float]) -> list[ParameterRow]:
+        """Table rows from the fits, with the damping for the patient's mass, the swing rows' stiffness and damping
+        times ``scale`` per joint (the leg's swing inertia: :func:`swing_scale`). The values are finite floats by
         construction and the table is limit-checked as a whole; edited tables go through full validation."""
         damping = self.damping_Nms_per_rad_per_kg or DEFAULT_DAMPING_NMS_PER_RAD_PER_KG
+
+        def times(joint: str, subphase: str) -> float:
+            return scale[joint] if subphase in SWING_SCALED[joint] else 1.0
+
         return [ParameterRow.model_construct(
-            joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad, theta_e_deg=math.degrees(f.theta_e_rad),
-            b_Nm_s_per_rad=damping[joint][f.subphase] * mass_kg,
+            joint=joint, subphase=f.subphase, k_Nm_per_rad=f.k_Nm_per_rad * times(joint, f.subphase),
+            theta_e_deg=math.degrees(f.theta_e_rad),
+            b_Nm_s_per_rad=damping[joint][f.subphase] * mass_kg * times(joint, f.subphase),
             r2=f.r2, guarded=f.guarded, fit_method=f.method) for joint, jf in fits.items() for f in jf]
 
     def _thresholds(self, phase: np.ndarray, means: dict[str, np.ndarray], fmap: dict[str, FeaturePrediction],

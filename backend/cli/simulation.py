@@ -117,8 +117,8 @@ def cmd_stumble(args: argparse.Namespace) -> int:
             for speed, incline in zip(args.speeds, args.inclines, strict=True):
                 ref = task_reference(speed, incline, model, args.mass)
                 rows.append({"controller": controller, **run_stumble(
-                    lambda c=controller, t=(speed, incline): make_controller(c, args.mass, model, t), ref, args.mass,
-                    kind, geometry=geometry)})
+                    lambda c=controller, t=(speed, incline): make_controller(c, args.mass, model, t, geometry=geometry),
+                    ref, args.mass, kind, geometry=geometry)})
     for r in rows:
         print(f"{r['controller']:16s} {r['kind']:13s} {r['speed_mps']:.2f} m/s {r['incline_deg']:+.0f}°  falls "
               f"{r['falls']}  back to clean strides after {r['strides_to_recover']}  "

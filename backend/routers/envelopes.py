@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 import numpy as np
-from fastapi import APIRouter, Path, Response, status
+from fastapi import APIRouter, Path, Request, Response, status
 from sqlalchemy import Connection
 
 from backend.clinical_words import violation_words
@@ -33,7 +33,8 @@ router = APIRouter(prefix="/api", tags=["envelopes"], responses=UNAUTHORIZED)
 
 @router.post("/patients/{patient_id}/envelopes", response_model=EnvelopeOut, status_code=status.HTTP_201_CREATED,
              responses={**FORBIDDEN, **NOT_FOUND, **UNAVAILABLE})
-def create_envelope(patient_id: IdPath, body: EnvelopeRequest, conn: Conn, user: Prosthetist, model: Model) -> dict:
+def create_envelope(patient_id: IdPath, body: EnvelopeRequest, request: Request, conn: Conn, user: Prosthetist,
+                    model: Model) -> dict:
     """Build the patient's next draft envelope (prosthetist): one table per node of the speed × incline grid, for the
     patient's body mass, each from the model and within the limits, neighbours held to the neighbour rule; with the
     device-side check of every node and both CRCs. Nodes beyond what the model knows (``GET /api/task-range``) are
@@ -43,7 +44,8 @@ def create_envelope(patient_id: IdPath, body: EnvelopeRequest, conn: Conn, user:
     reason = extrapolation_reason(model, corners, body.extrapolate, body.reason)
     env = model.propose_envelope(np.linspace(*body.speed_range_mps, body.grid[0]),
                                  np.linspace(*body.incline_range_deg, body.grid[1]), patient["body_mass_kg"],
-                                 nominal=(body.nominal_speed_mps, body.nominal_incline_deg))
+                                 nominal=(body.nominal_speed_mps, body.nominal_incline_deg),
+                                 swing_inertia_ratio=request.app.state.swing_inertia_ratio)
     created = envelopes.create_from_model(conn, patient_id, env, user, reason)
     return _with_state(conn, created)
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response, status
+from fastapi import APIRouter, Request, Response, status
 from pydantic import ValidationError
 from sqlalchemy import Connection
 
@@ -28,7 +28,7 @@ router = APIRouter(prefix="/api", tags=["proposals"], responses=UNAUTHORIZED)
 
 @router.post("/patients/{patient_id}/proposals", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
              responses={**FORBIDDEN, **NOT_FOUND, **UNAVAILABLE})
-async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn, user: Prosthetist,
+async def create_proposal(patient_id: IdPath, body: ProposalRequest, request: Request, conn: Conn, user: Prosthetist,
                           model: Model) -> dict:
     """Predict features, curves and the parameter table for a task and this patient's body mass, and store it
     as the patient's next draft version (prosthetist). Its safety check and extrapolation flag are included. A task
@@ -38,7 +38,8 @@ async def create_proposal(patient_id: IdPath, body: ProposalRequest, conn: Conn,
     # the GIL; the write is one short transaction.
     patient = patients.get_patient(conn, patient_id)
     reason = extrapolation_reason(model, [(body.speed_mps, body.incline_deg)], body.extrapolate, body.reason)
-    proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"])
+    proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"],
+                             swing_inertia_ratio=request.app.state.swing_inertia_ratio)
     created = proposals.create_from_model(conn, patient_id, proposal, user, reason)
     return _with_state(conn, created)
 

@@ -21,6 +21,7 @@ from controller_core.model import QuasiStiffnessModel
 from controller_core.table import ImpedanceTable
 from controller_core.task_estimator import TaskEstimator
 from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.swing_inertia import swing_inertia_ratio
 
 CONTROLLERS: tuple[str, ...] = ("table", "quasi-stiffness", "fsmic", "adaptive")
 NOMINAL_TASK = (1.2, 0.0)
@@ -28,9 +29,11 @@ DEFAULT_ENVELOPE_SPEEDS_MPS = tuple(np.linspace(0.6, 1.6, 5).round(3))
 DEFAULT_ENVELOPE_INCLINES_DEG = tuple(np.linspace(-10.0, 10.0, 5).round(3))
 
 
-def default_envelope(model: QuasiStiffnessModel, mass_kg: float) -> Envelope:
-    """The 5 × 5 envelope over 0.6–1.6 m/s × ±10° that course walks use when given none, nominal 1.2 m/s level."""
-    return model.propose_envelope(DEFAULT_ENVELOPE_SPEEDS_MPS, DEFAULT_ENVELOPE_INCLINES_DEG, mass_kg, NOMINAL_TASK)
+def default_envelope(model: QuasiStiffnessModel, mass_kg: float, geometry: LegGeometry | None = None) -> Envelope:
+    """The 5 × 5 envelope over 0.6–1.6 m/s × ±10° that course walks use when given none, nominal 1.2 m/s level, its
+    swing rows for ``geometry``'s leg (:mod:`device_bridge.sim.swing_inertia`)."""
+    return model.propose_envelope(DEFAULT_ENVELOPE_SPEEDS_MPS, DEFAULT_ENVELOPE_INCLINES_DEG, mass_kg, NOMINAL_TASK,
+                                  swing_inertia_ratio=swing_inertia_ratio(geometry))
 
 
 def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None = None,
@@ -43,7 +46,8 @@ def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None
         task: (speed m/s, incline deg) of the ``quasi-stiffness`` table.
         table: the ``table`` controller's table.
         envelope: the ``adaptive`` controller's envelope (default :func:`default_envelope`).
-        geometry: the leg's segments, which the ``adaptive`` controller's task estimator needs.
+        geometry: the leg: the ``adaptive`` controller's task estimator needs its segments, and the learned tables
+            (``quasi-stiffness``, the default envelope) are proposed for its swing inertia.
         skip_limits: walk the ``table`` controller's table without the limit check (bench studies of unsafe tables
             only: ``quasitune simulate --skip-limits``; no path from it reaches a device).
 
@@ -64,8 +68,9 @@ def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None
     if model is None:
         raise ValueError(f"the {name} controller needs a trained model")
     if name == "quasi-stiffness":
-        return StateMachineController(ImpedanceSchedule.from_table(model.propose(task[0], task[1], mass_kg).table))
-    env = envelope or default_envelope(model, mass_kg)
+        table = model.propose(task[0], task[1], mass_kg, swing_inertia_ratio=swing_inertia_ratio(geometry)).table
+        return StateMachineController(ImpedanceSchedule.from_table(table))
+    env = envelope or default_envelope(model, mass_kg, geometry)
     geometry = geometry or LegGeometry()
     return AdaptiveController(EnvelopeBlender(env.speeds_mps, env.inclines_deg, env.tables(), steps=env.neighbour_steps),
                               TaskEstimator(geometry.thigh_m, geometry.shank_m),

@@ -219,7 +219,7 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
     ``refined``, ``fsmic``) and ``refined_minus_original``, plus the refined envelope."""
     if not (isinstance(rounds, int) and 1 <= rounds <= 10):
         raise ValueError(f"rounds must be a whole number from 1 to 10, got {rounds!r}")
-    original = envelope or default_envelope(model, mass_kg)
+    original = envelope or default_envelope(model, mass_kg, geometry)
     targets_at = model_targets(model)
     check = BenchStepCheck(model, mass_kg)
     course = train.lasting(seconds_per_round)

@@ -46,7 +46,8 @@ def simulate(controller: str, speed_mps: float, incline_deg: float = 0.0, second
     if start not in STARTS:
         raise ValueError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
-    ctrl = make_controller(controller, mass_kg, model, (speed_mps, incline_deg), table=table, skip_limits=skip_limits)
+    ctrl = make_controller(controller, mass_kg, model, (speed_mps, incline_deg), table=table, skip_limits=skip_limits,
+                           geometry=geometry)
     recorder = VideoRecorder(video) if video is not None else None
     frames = {"frame_callback": recorder, "frame_every": recorder.every if recorder else 0}
     settle_s = 2.0

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from controller_core.table import Provenance
-from controller_core.table_rules import DEFAULT_DAMPING_NMS_PER_RAD_PER_KG, TableRules, boundaries
+from controller_core.table_rules import (
+    DEFAULT_DAMPING_NMS_PER_RAD_PER_KG,
+    SWING_INERTIA_RATIO_RANGE,
+    SWING_SCALED,
+    TableRules,
+    boundaries,
+    swing_scale,
+)
 
 
 def _inputs(model, speed=1.2, incline=0.0):
@@ -53,6 +60,29 @@ def test_damping_scales_with_mass_and_can_be_set(model):
     for a, b in zip(table.rows, stiffer.rows, strict=True):
         assert b.b_Nm_s_per_rad == pytest.approx(2.0 * a.b_Nm_s_per_rad)
         assert b.k_Nm_per_rad == a.k_Nm_per_rad
+
+
+def test_a_leg_with_more_swing_inertia_gets_stiffer_and_more_damped_swing_rows_in_proportion(model):
+    phase, means, features, provenance = _inputs(model)
+    plain, _, _ = TableRules().table(phase, means, features, 75.0, provenance)
+    heavy, _, _ = TableRules().table(phase, means, features, 75.0, provenance, swing_inertia_ratio=(1.5, 1.2))
+    scaled = 0
+    for a, b in zip(plain.rows, heavy.rows, strict=True):
+        times = {"knee": 1.5, "ankle": 1.2}[a.joint] if a.subphase in SWING_SCALED[a.joint] else 1.0
+        scaled += times != 1.0
+        assert b.k_Nm_per_rad == pytest.approx(times * a.k_Nm_per_rad)
+        assert b.b_Nm_s_per_rad == pytest.approx(times * a.b_Nm_s_per_rad)
+        assert b.theta_e_deg == a.theta_e_deg                   # the targets are the person's, not the leg's
+    assert scaled == 3 and heavy.thresholds == plain.thresholds   # knee swing extension, ankle through swing
+
+
+def test_a_swing_inertia_ratio_is_held_to_its_range_and_a_bad_one_refused():
+    lo, hi = SWING_INERTIA_RATIO_RANGE
+    assert swing_scale((1.0, 1.0)) == {"knee": 1.0, "ankle": 1.0}
+    assert swing_scale((5.0, 0.1)) == {"knee": hi, "ankle": lo}
+    for bad in ((math.nan, 1.0), (1.0, -1.0), (0.0, 1.0), (1.0, math.inf)):
+        with pytest.raises(ValueError, match="swing inertia ratio"):
+            swing_scale(bad)
 
 
 def test_thresholds_come_from_the_curves_and_body_weight(model):

@@ -320,3 +320,28 @@ def test_the_version_list_is_paged_summaries_with_the_total_and_a_cursor(api):
     assert api.client.get(f"/api/patients/{patient['id']}/proposals", headers=h).headers["X-Total-Count"] == "5"
     assert api.client.get(f"/api/patients/{patient['id']}/proposals", headers=h,
                           params={"limit": 201}).status_code == 422
+
+
+def test_a_server_on_a_heavier_leg_proposes_swing_rows_for_that_leg(tmp_path, model):
+    from device_bridge.sim.leg_file import LEGS_DIR, load_leg
+    from device_bridge.sim.swing_inertia import swing_inertia_ratio
+    from tests.helpers.api import make_api
+
+    api, client = make_api(tmp_path, lambda: model, bench_leg=LEGS_DIR / "heavy_foot.json")
+    ratio = swing_inertia_ratio(load_leg("heavy_foot"))
+    with client:
+        patient = api.new_patient(mass=75.0)
+        p = api.propose(patient["id"], speed=1.3, incline=0.0)
+        r = client.post(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("prosthetist"),
+                        json={"speed_range_mps": [1.0, 1.4], "incline_range_deg": [-4, 4], "grid": [2, 2]})
+        assert r.status_code == 201, r.text
+    for_leg, plain = model.propose(1.3, 0.0, 75.0, swing_inertia_ratio=ratio).table, model.propose(1.3, 0.0, 75.0).table
+    knee_swing = [i for i, row in enumerate(plain.rows) if (row.joint, row.subphase) == ("knee", "swing_extension")]
+    for row, ref in zip(p["table"], for_leg.rows, strict=True):
+        assert row["k_Nm_per_rad"] == pytest.approx(ref.k_Nm_per_rad, abs=1e-3)
+        assert row["b_Nm_s_per_rad"] == pytest.approx(ref.b_Nm_s_per_rad, abs=1e-3)
+    assert p["table"][knee_swing[0]]["k_Nm_per_rad"] < plain.rows[knee_swing[0]].k_Nm_per_rad - 10.0   # firmer
+    envelope = model.propose_envelope([1.0, 1.4], [-4.0, 4.0], 75.0, swing_inertia_ratio=ratio)
+    stored = [n["table"] for n in r.json()["nodes"]]                  # as the device runs it: to the wire's steps
+    assert [t[knee_swing[0]]["b_Nm_s_per_rad"] for t in stored] == pytest.approx(
+        [n.table.rows[knee_swing[0]].b_Nm_s_per_rad for n in envelope.nodes], abs=0.01)
