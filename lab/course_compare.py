@@ -25,7 +25,7 @@ def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 
                    start: str = "standing") -> dict[str, object]:
     """All three controllers over the course on the leg ``geometry`` (default the nominal bench), each from ``start``
     (``swing`` or ``standing``), and the adaptive one's per-stride errors against each other's."""
-    env = envelope or default_envelope(model, mass_kg)
+    env = envelope or default_envelope(model, mass_kg, geometry)
     scores = {name: walk_course(name, course, model, mass_kg, env, geometry=geometry, start=start)
               for name in COURSE_CONTROLLERS}
     return {"course": course.to_json(), "leg": (geometry or LegGeometry()).name, "start": start,
