@@ -80,6 +80,16 @@ class Provenance(_Strict):
     patient_mass_kg: float
     extrapolation: bool
     source: Literal["model", "edit", "literature", "refinement"] = "model"
+    swing_inertia_ratio: tuple[float, float] = Field(
+        default=(1.0, 1.0), description="the leg's swing inertia about the knee and the ankle over the reference leg's, "
+                                        "as the swing rows were scaled for it (controller_core.table_rules.swing_scale)")
+
+    @field_validator("swing_inertia_ratio")
+    @classmethod
+    def _positive(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if not all(x > 0.0 for x in v):
+            raise ValueError(f"swing inertia ratios must be positive, got {v!r}")
+        return v
 
 
 class ParameterTable(_Strict):

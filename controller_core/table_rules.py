@@ -174,8 +174,11 @@ class TableRules:
         fmap = {f.spec.name: f for f in features}
         bounds = boundaries(fmap)
         fits = self.fit_subphases(phase, means, fmap, bounds, mass_kg)
-        table = ParameterTable(rows=self._rows(fits, mass_kg, swing_scale(swing_inertia_ratio)),
-                               thresholds=self._thresholds(phase, means, fmap, bounds, mass_kg), provenance=provenance)
+        scale = swing_scale(swing_inertia_ratio)
+        table = ParameterTable(rows=self._rows(fits, mass_kg, scale),
+                               thresholds=self._thresholds(phase, means, fmap, bounds, mass_kg),
+                               provenance=provenance.model_copy(update={"swing_inertia_ratio": (scale["knee"],
+                                                                                                scale["ankle"])}))
         return table, bounds, fits
 
     def _swing_lines(self, phase: np.ndarray, means: dict[str, np.ndarray], fmap: dict[str, FeaturePrediction],

@@ -137,6 +137,14 @@ class ModelInfo(BaseModel):
     data_sha256: str
 
 
+class SwingInertia(BaseModel):
+    """The leg a table's swing rows were proposed for: its swing inertia over the reference leg's."""
+
+    knee_ratio: float = Field(description="swing inertia about the knee over the reference leg's: the knee's "
+                                          "swing-extension stiffness and damping were multiplied by it")
+    ankle_ratio: float = Field(description="likewise about the ankle, for the ankle's swing rows")
+
+
 class Decision(BaseModel):
     status: Literal["approved", "rejected"]
     by: str
@@ -240,6 +248,8 @@ class ProposalSummary(DecidedVersion):
     thresholds: Thresholds
     table_sha256: str
     safety: Safety
+    swing_inertia: SwingInertia = Field(description="the leg the swing rows were proposed for (1 and 1: the reference "
+                                                    "leg, or a table proposed before the rows were scaled for a leg)")
 
 
 class ProposalListItem(DecidedVersion):

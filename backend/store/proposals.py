@@ -60,11 +60,18 @@ def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
         "thresholds": table.thresholds.model_dump(),
         "table_sha256": meta["table_sha256"],
         "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]},
+        "swing_inertia": swing_inertia(table),
     }
     if full:
         out |= {"features": body["features"], "subphase_boundaries_phase": body["subphase_boundaries_phase"],
                 "curves": body["curves"], "via_points": body.get("via_points", []), "limits": LIMITS}
     return out
+
+
+def swing_inertia(table: ParameterTable) -> dict[str, float]:
+    """The leg a table's swing rows were proposed for (its provenance), as the API gives it."""
+    knee, ankle = table.provenance.swing_inertia_ratio
+    return {"knee_ratio": round(knee, 4), "ankle_ratio": round(ankle, 4)}
 
 
 def table_label(patient_code: str, proposal_version: int) -> str:

@@ -373,3 +373,21 @@ def test_a_link_opened_in_a_new_tab_survives_sign_in_and_the_audit_view_lists_th
         assert "for prosthetists and administrators" in vpage.inner_text("#view")
     finally:
         viewer.close()
+
+
+def test_a_table_proposed_for_a_heavier_leg_says_so_beside_its_provenance(browser, monkeypatch):
+    from device_bridge.sim.leg_file import LEGS_DIR, load_leg
+    from device_bridge.sim.swing_inertia import swing_inertia_ratio
+    from tests.helpers.server import temporary_server
+
+    monkeypatch.setenv("QUASITUNE_BENCH_LEG", str(LEGS_DIR / "heavy_foot.json"))   # the server's leg
+    knee, ankle = swing_inertia_ratio(load_leg("heavy_foot"))
+    with temporary_server("qt-heavy-leg-", user="dana") as base:
+        context = browser.new_context(viewport={"width": 1280, "height": 800})
+        page = context.new_page()
+        sign_in(page, base, "dana")
+        create_patient_and_propose(page, "P-HEAVY")
+        words = page.inner_text(".provenance")
+        context.close()
+    assert f"swing rows for this leg (swing inertia {knee:.2f}× the reference leg's about the knee, " \
+           f"{ankle:.2f}× about the ankle)" in words, words

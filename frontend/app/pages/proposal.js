@@ -28,7 +28,8 @@ export async function proposalPage(view, id) {
     worseSlot,
     headChips(p),
     h("p", { class: "provenance" }, `Model ${p.model.version} · training data sha256 ${p.model.data_sha256.slice(0, 12)}… · `,
-      `patient mass ${fmt(mass, 1, "kg")} · created by ${p.created_by} ${when(p.created_at)} · table sha256 `,
+      `patient mass ${fmt(mass, 1, "kg")} · `, swingInertiaWords(p.swing_inertia),
+      `created by ${p.created_by} ${when(p.created_at)} · table sha256 `,
       h("span", { class: "mono" }, p.table_sha256.slice(0, 12) + "…"),
       p.edit_comment ? ` · edit: “${p.edit_comment}”` : "",
       p.decision ? ` · ${p.decision.status} by ${p.decision.by} ${when(p.decision.at)}${p.decision.comment ? `: “${p.decision.comment}”` : ""}` : ""),
@@ -109,6 +110,14 @@ const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "w
   unconfirmed: ["push unconfirmed: waiting for the leg's status", "warn"],
   not_on_device: ["no longer on the leg (the leg reported it does not hold it)", "bad"],
   push_failed: ["last push failed", "bad"] };
+
+/** The leg the swing rows were proposed for, in words ("" for the reference leg): the rows that move the leg against
+ * its own inertia were scaled with it, so a number the prosthetist compares with another leg's table says why. */
+export function swingInertiaWords(s) {
+  if (!s || (Math.abs(s.knee_ratio - 1) < 0.005 && Math.abs(s.ankle_ratio - 1) < 0.005)) return "";
+  return `swing rows for this leg (swing inertia ${s.knee_ratio.toFixed(2)}× the reference leg's about the knee, `
+    + `${s.ankle_ratio.toFixed(2)}× about the ankle) · `;
+}
 
 function headChips(p) {
   const [words, kind] = DEPLOYMENT_WORDS[p.deployment] || [];
