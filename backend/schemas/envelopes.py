@@ -22,6 +22,7 @@ from backend.schemas.proposals import (
     FeatureOut,
     ModelInfo,
     Safety,
+    SwingInertia,
     TableRowOut,
     Task,
     ViaPointOut,
@@ -96,6 +97,7 @@ class EnvelopeSummary(DecidedVersion):
     model: ModelInfo
     neighbour_steps: NeighbourSteps
     safety: Safety
+    swing_inertia: SwingInertia = Field(description="the leg the nodes' swing rows were proposed for")
 
 
 class EnvelopeListItem(DecidedVersion):

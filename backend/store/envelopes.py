@@ -23,7 +23,7 @@ from backend.store import audit
 from backend.store.decisions import decide_once, next_version, summary_columns, version_page, version_select
 from backend.store.dialect import json_of
 from backend.store.patients import lock_patient
-from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS
+from backend.store.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS, swing_inertia
 from backend.store.tables import envelopes
 from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
@@ -84,7 +84,8 @@ def _public(meta: dict, envelope: Envelope, full: bool, violations: list[LimitVi
            "nominal": {"speed_mps": envelope.nominal_speed_mps, "incline_deg": envelope.nominal_incline_deg},
            "model": {"version": envelope.model_version, "data_sha256": envelope.data_sha256},
            "neighbour_steps": envelope.neighbour_steps.model_dump(),
-           "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]}}
+           "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]},
+           "swing_inertia": swing_inertia(envelope.nodes[0].table)}       # one leg: every node's is the same
     if full:
         out["nodes"] = [{"speed_mps": n.speed_mps, "incline_deg": n.incline_deg, "extrapolation": n.extrapolation,
                          "feature_std": n.feature_std, "neighbour_guarded": n.neighbour_guarded,

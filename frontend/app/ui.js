@@ -215,3 +215,11 @@ export function rangeText(e) {
   const deg = (x) => (x > 0 ? `+${n(x, 1)}` : n(x, 1).replace("-", "−"));
   return `${n(e.speeds_mps[0], 2)}–${n(e.speeds_mps.at(-1), 2)} m/s × ${deg(e.inclines_deg[0])}…${deg(e.inclines_deg.at(-1))}°`;
 }
+
+/** The leg the swing rows were proposed for, in words ("" for the reference leg): the rows that move the leg against
+ * its own inertia were scaled with it, so a number the prosthetist compares with another leg's table says why. */
+export function swingInertiaWords(s) {
+  if (!s || (Math.abs(s.knee_ratio - 1) < 0.005 && Math.abs(s.ankle_ratio - 1) < 0.005)) return "";
+  return `swing rows for this leg (swing inertia ${s.knee_ratio.toFixed(2)}× the reference leg's about the knee, `
+    + `${s.ankle_ratio.toFixed(2)}× about the ankle) · `;
+}

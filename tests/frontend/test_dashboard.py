@@ -9,6 +9,7 @@ import pytest
 from playwright.sync_api import expect
 
 from tests.helpers.browser import (
+    api_call,
     canvas_ink,
     choose_own_password,
     create_patient,
@@ -386,8 +387,14 @@ def test_a_table_proposed_for_a_heavier_leg_says_so_beside_its_provenance(browse
         context = browser.new_context(viewport={"width": 1280, "height": 800})
         page = context.new_page()
         sign_in(page, base, "dana")
-        create_patient_and_propose(page, "P-HEAVY")
-        words = page.inner_text(".provenance")
+        pid = create_patient_and_propose(page, "P-HEAVY")
+        words = [page.inner_text(".provenance")]
+        patient_id = api_call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
+        envelope = api_call(page, "POST", f"/api/patients/{patient_id}/envelopes", {"grid": [2, 2]})["body"]
+        page.goto(f"{base}/#/envelopes/{envelope['id']}")
+        page.wait_for_selector("h1:has-text('envelope v1')")
+        words.append(page.inner_text(".provenance"))
         context.close()
-    assert f"swing rows for this leg (swing inertia {knee:.2f}× the reference leg's about the knee, " \
-           f"{ankle:.2f}× about the ankle)" in words, words
+    said = f"swing rows for this leg (swing inertia {knee:.2f}× the reference leg's about the knee, {ankle:.2f}× about " \
+           "the ankle)"
+    assert all(said in w for w in words), words                              # the table's page and the envelope's

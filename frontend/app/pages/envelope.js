@@ -10,7 +10,8 @@ import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
 import { safetyFigures } from "../widgets/proposal_views.js";
 import { shownChange, shownNumber, signed, toSI, units } from "../quantities.js";
-import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, swingInertiaWords, table,
+  when } from "../ui.js";
 import { watchBench } from "../widgets/bench_progress.js";
 
 // darker reads the same way on every map: firmer (more resistance K = −k, more damping), or more flexion /
@@ -66,7 +67,7 @@ export async function envelopePage(view, id, params) {
       chip(`${e.grid[0]} × ${e.grid[1]} nodes`)),
     h("p", { class: "provenance" }, `Model ${e.model.version} · training data sha256 ${e.model.data_sha256.slice(0, 12)}… · `,
       `patient mass ${fmt(e.body_mass_kg, 1, "kg")} · nominal task ${fmt(e.nominal.speed_mps, 2, "m/s")}, ${fmt(e.nominal.incline_deg, 1, "°")} `,
-      "(the leg returns there when unsure of its task) · created by ", e.created_by, " ", when(e.created_at), " · CRC-32 ",
+      "(the leg returns there when unsure of its task) · ", swingInertiaWords(e.swing_inertia), "created by ", e.created_by, " ", when(e.created_at), " · CRC-32 ",
       h("span", { class: "mono", id: "envelope-crc" }, e.wire_crc32 === null ? "—" : hex(e.wire_crc32)), " (as the device runs it)",
       e.edit_comment ? ` · edit: “${e.edit_comment}”` : "",
       e.decision ? ` · ${e.decision.status} by ${e.decision.by} ${when(e.decision.at)}${e.decision.comment ? `: “${e.decision.comment}”` : ""}` : ""),

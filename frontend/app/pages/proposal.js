@@ -10,7 +10,7 @@ import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
 import { chip, extrapolationChip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, momentScale, momentToggle, momentUnit, momentView,
-  referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, table, when } from "../ui.js";
+  referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, swingInertiaWords, table, when } from "../ui.js";
 import { watchBench } from "../widgets/bench_progress.js";
 
 export async function proposalPage(view, id) {
@@ -110,14 +110,6 @@ const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "w
   unconfirmed: ["push unconfirmed: waiting for the leg's status", "warn"],
   not_on_device: ["no longer on the leg (the leg reported it does not hold it)", "bad"],
   push_failed: ["last push failed", "bad"] };
-
-/** The leg the swing rows were proposed for, in words ("" for the reference leg): the rows that move the leg against
- * its own inertia were scaled with it, so a number the prosthetist compares with another leg's table says why. */
-export function swingInertiaWords(s) {
-  if (!s || (Math.abs(s.knee_ratio - 1) < 0.005 && Math.abs(s.ankle_ratio - 1) < 0.005)) return "";
-  return `swing rows for this leg (swing inertia ${s.knee_ratio.toFixed(2)}× the reference leg's about the knee, `
-    + `${s.ankle_ratio.toFixed(2)}× about the ankle) · `;
-}
 
 function headChips(p) {
   const [words, kind] = DEPLOYMENT_WORDS[p.deployment] || [];

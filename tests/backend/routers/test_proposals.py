@@ -343,6 +343,7 @@ def test_a_server_on_a_heavier_leg_proposes_swing_rows_for_that_leg(tmp_path, mo
     assert p["table"][knee_swing[0]]["k_Nm_per_rad"] < plain.rows[knee_swing[0]].k_Nm_per_rad - 10.0   # firmer
     assert p["swing_inertia"] == {"knee_ratio": round(ratio[0], 4), "ankle_ratio": round(ratio[1], 4)}   # and says so
     envelope = model.propose_envelope([1.0, 1.4], [-4.0, 4.0], 75.0, swing_inertia_ratio=ratio)
+    assert r.json()["swing_inertia"] == p["swing_inertia"]
     stored = [n["table"] for n in r.json()["nodes"]]                  # as the device runs it: to the wire's steps
     assert [t[knee_swing[0]]["b_Nm_s_per_rad"] for t in stored] == pytest.approx(
         [n.table.rows[knee_swing[0]].b_Nm_s_per_rad for n in envelope.nodes], abs=0.01)
