@@ -389,11 +389,13 @@ def test_a_table_proposed_for_a_heavier_leg_says_so_beside_its_provenance(browse
         sign_in(page, base, "dana")
         pid = create_patient_and_propose(page, "P-HEAVY")
         words = [page.inner_text(".provenance")]
+        shot(page, "heavy-leg-proposal")
         patient_id = api_call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
         envelope = api_call(page, "POST", f"/api/patients/{patient_id}/envelopes", {"grid": [2, 2]})["body"]
         page.goto(f"{base}/#/envelopes/{envelope['id']}")
         page.wait_for_selector("h1:has-text('envelope v1')")
         words.append(page.inner_text(".provenance"))
+        shot(page, "heavy-leg-envelope")
         context.close()
     said = f"swing rows for this leg (swing inertia {knee:.2f}× the reference leg's about the knee, {ankle:.2f}× about " \
            "the ankle)"
