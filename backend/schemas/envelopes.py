@@ -198,6 +198,7 @@ class EnvelopeNodeOut(BaseModel):
     thresholds: Thresholds
     limits: SafetyLimits
     safety: Safety
+    swing_inertia: SwingInertia = Field(description="the leg the node's swing rows were proposed for")
     features: list[FeatureOut]
     subphase_boundaries_phase: Boundaries
     curves: Curves

@@ -109,7 +109,8 @@ def node_view(row: RowMapping, envelope: Envelope, i: int, j: int) -> dict:
             "neighbour_guarded": node.neighbour_guarded, "envelope_model": {"version": envelope.model_version,
                                                                             "data_sha256": envelope.data_sha256},
             "table": display_rows(node.table), "thresholds": node.table.thresholds.model_dump(), "limits": LIMITS,
-            "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]}}
+            "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]},
+            "swing_inertia": swing_inertia(node.table)}
 
 
 def get_row(conn: Connection, envelope_id: int) -> RowMapping:

@@ -389,6 +389,8 @@ def test_a_table_proposed_for_a_heavier_leg_says_so_beside_its_provenance(browse
         sign_in(page, base, "dana")
         pid = create_patient_and_propose(page, "P-HEAVY")
         words = [page.inner_text(".provenance")]
+        row = page.locator("#param-table tbody tr", has_text="swing extension").first.inner_text()
+        assert f"k and b × {knee:.2f} for this leg" in row, row          # the row itself says it was scaled
         shot(page, "heavy-leg-proposal")
         patient_id = api_call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
         envelope = api_call(page, "POST", f"/api/patients/{patient_id}/envelopes", {"grid": [2, 2]})["body"]
@@ -396,6 +398,9 @@ def test_a_table_proposed_for_a_heavier_leg_says_so_beside_its_provenance(browse
         page.wait_for_selector("h1:has-text('envelope v1')")
         words.append(page.inner_text(".provenance"))
         shot(page, "heavy-leg-envelope")
+        page.goto(f"{base}/#/envelopes/{envelope['id']}/nodes/1/1")          # a node's table says it per row too
+        row = page.locator("#param-table tbody tr", has_text="swing extension").first
+        expect(row).to_contain_text(f"k and b × {knee:.2f} for this leg")
         context.close()
     said = f"swing rows for this leg (swing inertia {knee:.2f}× the reference leg's about the knee, {ankle:.2f}× about " \
            "the ankle)"

@@ -102,8 +102,14 @@ export function parameterTable(p, canEdit) {
         dataset: { field, original: shown, si, scale: u.scale } })
       : `${shown}`);
   };
+  // the rows scaled for the leg's swing inertia (controller_core.table_rules.SWING_SCALED) say so and by how much
+  const s = p.swing_inertia, ratio = (r) => !s || !r.subphase.startsWith("swing") ? 1
+    : r.joint === "ankle" ? s.ankle_ratio : r.subphase === "swing_extension" ? s.knee_ratio : 1;
   const fit = (r) => {
-    const words = clinical ? FIT_METHOD_WORDS[r.fit_method] ?? r.fit_method : r.fit_method;
+    let words = clinical ? FIT_METHOD_WORDS[r.fit_method] ?? r.fit_method : r.fit_method;
+    if (["swing_target", "neighbour_guard"].includes(r.fit_method) && Math.abs(ratio(r) - 1) >= 0.005) {
+      words += `, k and b × ${ratio(r).toFixed(2)} for this leg`;   // not for a hand edit: its values are the prosthetist's
+    }
     return r.fit_method === "swing_target" ? chip(words) : r.guarded ? chip(words, "warn") : words;
   };
   // R² says how well a fitted line explains the loop; a swing target or a hand edit is not a fit
