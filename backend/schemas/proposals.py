@@ -143,6 +143,7 @@ class SwingInertia(BaseModel):
     knee_ratio: float = Field(description="swing inertia about the knee over the reference leg's: the knee's "
                                           "swing-extension stiffness and damping were multiplied by it")
     ankle_ratio: float = Field(description="likewise about the ankle, for the ankle's swing rows")
+    scaled_rows: list[str] = Field(description="the rows scaled by their joint's ratio ('joint.subphase')")
 
 
 class Decision(BaseModel):

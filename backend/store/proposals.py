@@ -25,6 +25,7 @@ from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
 from controller_core.proposal import Proposal
 from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
+from controller_core.table_rules import SWING_SCALED
 from device_bridge.as_run import AsRun, as_run
 
 LIMITS = SafetyLimits().model_dump()
@@ -68,10 +69,12 @@ def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
     return out
 
 
-def swing_inertia(table: ParameterTable) -> dict[str, float]:
-    """The leg a table's swing rows were proposed for (its provenance), as the API gives it."""
+def swing_inertia(table: ParameterTable) -> dict[str, object]:
+    """The leg a table's swing rows were proposed for (its provenance) and the rows scaled for it, as the API gives
+    it."""
     knee, ankle = table.provenance.swing_inertia_ratio
-    return {"knee_ratio": round(knee, 4), "ankle_ratio": round(ankle, 4)}
+    return {"knee_ratio": round(knee, 4), "ankle_ratio": round(ankle, 4),
+            "scaled_rows": [f"{joint}.{subphase}" for joint, subphases in SWING_SCALED.items() for subphase in subphases]}
 
 
 def table_label(patient_code: str, proposal_version: int) -> str:

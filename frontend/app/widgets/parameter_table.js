@@ -102,9 +102,9 @@ export function parameterTable(p, canEdit) {
         dataset: { field, original: shown, si, scale: u.scale } })
       : `${shown}`);
   };
-  // the rows scaled for the leg's swing inertia (controller_core.table_rules.SWING_SCALED) say so and by how much
-  const s = p.swing_inertia, ratio = (r) => !s || !r.subphase.startsWith("swing") ? 1
-    : r.joint === "ankle" ? s.ankle_ratio : r.subphase === "swing_extension" ? s.knee_ratio : 1;
+  // the rows scaled for the leg's swing inertia (the API names them) say so and by how much
+  const s = p.swing_inertia, ratio = (r) => !s || !s.scaled_rows.includes(`${r.joint}.${r.subphase}`) ? 1
+    : r.joint === "ankle" ? s.ankle_ratio : s.knee_ratio;
   const fit = (r) => {
     let words = clinical ? FIT_METHOD_WORDS[r.fit_method] ?? r.fit_method : r.fit_method;
     if (["swing_target", "neighbour_guard"].includes(r.fit_method) && Math.abs(ratio(r) - 1) >= 0.005) {

@@ -341,7 +341,8 @@ def test_a_server_on_a_heavier_leg_proposes_swing_rows_for_that_leg(tmp_path, mo
         assert row["k_Nm_per_rad"] == pytest.approx(ref.k_Nm_per_rad, abs=1e-3)
         assert row["b_Nm_s_per_rad"] == pytest.approx(ref.b_Nm_s_per_rad, abs=1e-3)
     assert p["table"][knee_swing[0]]["k_Nm_per_rad"] < plain.rows[knee_swing[0]].k_Nm_per_rad - 10.0   # firmer
-    assert p["swing_inertia"] == {"knee_ratio": round(ratio[0], 4), "ankle_ratio": round(ratio[1], 4)}   # and says so
+    assert p["swing_inertia"] == {"knee_ratio": round(ratio[0], 4), "ankle_ratio": round(ratio[1], 4),   # and says so
+                                  "scaled_rows": ["knee.swing_extension", "ankle.swing_flexion", "ankle.swing_extension"]}
     envelope = model.propose_envelope([1.0, 1.4], [-4.0, 4.0], 75.0, swing_inertia_ratio=ratio)
     assert r.json()["swing_inertia"] == p["swing_inertia"]
     stored = [n["table"] for n in r.json()["nodes"]]                  # as the device runs it: to the wire's steps
