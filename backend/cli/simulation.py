@@ -121,7 +121,8 @@ def cmd_stumble(args: argparse.Namespace) -> int:
                     ref, args.mass, kind, geometry=geometry)})
     for r in rows:
         print(f"{r['controller']:16s} {r['kind']:13s} {r['speed_mps']:.2f} m/s {r['incline_deg']:+.0f}°  falls "
-              f"{r['falls']}  back to clean strides after {r['strides_to_recover']}  "
+              f"{r['falls']}  recovery steps {len(r['recovery_steps'])}  "
+              f"back to clean strides after {r['strides_to_recover']}  "
               + "".join("✓" if c else "✗" for c in r["clean"]))
     if args.out is not None:
         write_json(args.out, rows)

@@ -17,6 +17,13 @@ rest the way a person can:
   for the body's mass, about 3 Hz): the person's momentum, not a rail. A rail would let a knee flex only as far as the
   geometry of a planted foot under a hip on the rail allows, and hide a soft stance row.
 * **A weak stabiliser** (0.1 body weight per 0.1 m from the path, damping ratio 0.5) keeps a long walk from drifting.
+* **A recovery step**, only where a walk asks for it (``recovery_steps``: the stumble walks of
+  :mod:`device_bridge.sim.stumble`): once the hip is ``recovery_step_sink_m`` below its path while the other foot is in
+  the air, that foot comes down at once and stays down to the end of its next planned stance, as a person who has
+  tripped puts their sound foot down early (the lowering strategy's quick step). 50 mm is the gate's bound on a hip
+  sinking in stance (beyond what walking does) and a third of the way to a fall; the sink itself takes 0.3–0.5 s
+  to build after a trip, longer than a person's 150–250 ms to react. Steady walks and the gate keep a person who
+  never steps to save themselves: there a hip sinking 150 mm is a fall, which is the stricter test of a table.
 
 What the other leg's spring and the stabiliser add beyond the reference share is the person's **compensation**
 (``support_N``): the figure ``support_deficit_max_bw`` reports.
@@ -43,6 +50,8 @@ class Person:
             about a walking leg's vertical stiffness, damped critically for the body's mass.
         stabiliser_bw_per_0_1m, stabiliser_damping_ratio: the weak spring to the path that stops drift.
         progression_stiffness_N_per_m, progression_damping_N_s_per_m: the forward drive at belt speed.
+        recovery_steps, recovery_step_sink_m: whether the person steps to save themselves, and how far their hip
+            sinks below its path (m) before they do (module docstring).
     """
 
     mass_kg: float
@@ -55,9 +64,11 @@ class Person:
     stabiliser_damping_ratio: float = 0.5
     progression_stiffness_N_per_m: float = 20000.0
     progression_damping_N_s_per_m: float = 2300.0
+    recovery_steps: bool = False
+    recovery_step_sink_m: float = 0.05
 
     def __post_init__(self) -> None:
-        require_positive(self)
+        require_positive(self, tuple(n for n in vars(self) if n != "recovery_steps"))
 
     @property
     def weight_N(self) -> float:

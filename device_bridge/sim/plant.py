@@ -80,6 +80,8 @@ class SimulatedLeg:
         self.support_N = 0.0
         self.hip_torque_Nm = 0.0
         self._tick = 0
+        self._recovering, self._planned_down_seen = False, False
+        self.recovery_step_times_s: list[float] = []
         self._traj: BenchTrajectory | None = None
         self._rows: list[tuple] = []    # the trajectory per tick as Python floats: the loop reads one row a tick
         self._force6 = np.zeros(6)   # scratch for mj_contactForce (called every tick in contact)
@@ -89,6 +91,8 @@ class SimulatedLeg:
         mujoco.mj_resetData(self.model, self.data)
         self._use(trajectory)
         self._tick = 0
+        self._recovering, self._planned_down_seen = False, False
+        self.recovery_step_times_s = []
         q, v = self.data.qpos, self.data.qvel
         q[self._q["hip_x"]], q[self._q["hip_z"]] = trajectory.x_m[0], trajectory.z_m[0]
         q[self._q["hip"]], q[self._q["knee"]], q[self._q["ankle"]] = trajectory.hip_rad[0], knee_rad, ankle_rad
@@ -120,10 +124,29 @@ class SimulatedLeg:
         a_x, a_xd, a_push, a_hip = self._a_bench
         q_z, v_z, q_hip, v_hip = self._qv_bench
         c[a_x], c[a_xd] = x, xd
-        self.support_N = person.compensation_N(z - q[q_z], zd - v[v_z], bool(other_down), float(other_N))
+        other_down = bool(other_down)
+        if person.recovery_steps:
+            other_down = self._recovery_step(other_down, z - q[q_z], d.time)
+        self.support_N = person.compensation_N(z - q[q_z], zd - v[v_z], other_down, float(other_N))
         c[a_push] = other_N + self.support_N
         self.hip_torque_Nm = person.hip_torque_Nm(hip - q[q_hip], hipd - v[v_hip], d.ncon > 0)
         c[a_hip] = self.hip_torque_Nm
+
+    def _recovery_step(self, scripted_down: bool, sink_m: float, time_s: float) -> bool:
+        """Whether the other foot is down this tick when the person steps to save themselves
+        (:attr:`Person.recovery_steps`): once the hip is :attr:`Person.recovery_step_sink_m` below its path while the
+        other foot is up, it comes down at once and stays down to the end of its next planned stance."""
+        if self._recovering:
+            if scripted_down:
+                self._planned_down_seen = True
+            elif self._planned_down_seen:
+                self._recovering = False
+            return self._recovering or scripted_down
+        if not scripted_down and sink_m > self.person.recovery_step_sink_m:
+            self._recovering, self._planned_down_seen = True, False
+            self.recovery_step_times_s.append(round(time_s, 3))
+            return True
+        return scripted_down
 
     def sample(self) -> SensorSample:
         """The sensors as the controller reads them now."""

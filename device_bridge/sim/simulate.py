@@ -216,7 +216,8 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
     return WalkLog(channels=log, timestep_s=leg.timestep_s, mass_kg=mass_kg, wall_time_s=wall,
                    saturated_ticks=saturated, guard_transitions=controller.guard_transitions_,
                    transitions=controller.transitions_,
-                   extras={"stride_time_s": traj.stride_time_s})
+                   extras={"stride_time_s": traj.stride_time_s,
+                           "recovery_step_times_s": list(leg.recovery_step_times_s)})
 
 
 def stance_entry_metrics(states: np.ndarray, load_N: np.ndarray, strikes: np.ndarray, weight_N: float,

@@ -74,3 +74,32 @@ def test_the_foot_contact_force_is_the_normal_force_between_the_foot_and_the_flo
         touched += expected > 100.0
         assert leg.foot_contact_force() == pytest.approx(expected, abs=1e-9)
     assert touched > 100                              # the foot carried the body for a while: the sum was tested
+
+
+def _folding_walk(person):
+    """A prosthesis whose knee is pushed into flexion (30 N·m) walked from late swing for 1.5 s: the knee folds under
+    the body and the hip sinks once the other foot lifts."""
+    from device_bridge.sim.person import Person
+
+    leg = SimulatedLeg(person=person or Person(75.0))
+    traj = plan_bench_trajectory(level_walking_reference(1.2), leg.geometry, 75.0, 1.5, leg.timestep_s)
+    leg.reset(traj, math.radians(5.0), 0.0)
+    lowest = 0.0
+    for i in range(1, len(traj.time_s)):
+        leg.step(30.0, 0.0)
+        lowest = min(lowest, leg.hip_position_m()[1] - traj.z_m[i])
+    return leg, traj, lowest
+
+
+def test_a_person_who_steps_to_save_themselves_puts_the_other_foot_down_once_the_hip_has_sunk():
+    """Person.recovery_steps (stumble walks): the other foot comes down out of its plan once the hip is 50 mm below
+    its path, and the hip sinks less than a person's who never steps; the step's time is kept."""
+    from device_bridge.sim.person import Person
+
+    still, _, sunk_still = _folding_walk(Person(75.0))
+    stepping, traj, sunk_stepping = _folding_walk(Person(75.0, recovery_steps=True))
+    assert still.recovery_step_times_s == [] and sunk_still < -0.1
+    assert len(stepping.recovery_step_times_s) >= 1
+    t = stepping.recovery_step_times_s[0]
+    assert not traj.other_foot_down[round(t / stepping.timestep_s)]        # the plan had that foot in the air
+    assert sunk_stepping > sunk_still + 0.03

@@ -50,3 +50,16 @@ def test_an_unknown_obstacle_is_refused(model):
     ref = task_reference(1.2, 0.0, model, 75.0)
     with pytest.raises(ValueError, match="kind must be one of"):
         run_stumble(_table_walker(model, 1.2, 0.0, True), ref, 75.0, "banana peel", seconds=8.0)
+
+
+@pytest.mark.parametrize("kind", ["toe_catch", "early_landing"])
+def test_the_learned_table_comes_through_a_stumble_without_a_fall_with_the_persons_recovery_step(model, kind):
+    """The acceptance of issue 53 on the nominal leg at 1.2 m/s level: the obstacle is met, no fall, clean strides
+    again within three; the person's recovery step is listed and its stride is not clean."""
+    ref = task_reference(1.2, 0.0, model, 75.0)
+    r = run_stumble(_table_walker(model, 1.2, 0.0, True), ref, 75.0, kind, geometry=LegGeometry())
+    assert r["disturbed"] and not r["clean"][0]
+    assert r["falls"] == 0, r["fall_events"]
+    assert r["strides_to_recover"] is not None and r["strides_to_recover"] <= 3, r["clean"]
+    assert all(t > r["obstacle"]["met_s"] for t in r["recovery_steps"])      # the person stepped for the trip only
+    assert r["loaded_knee_bound_deg"] >= 40.0
