@@ -29,9 +29,13 @@ THRESHOLD_WORDS = {
     "min_state_time_s": "shortest time in a phase",
     "max_state_time_s": "longest time in a phase",
     "sf_to_se_knee_extension_deg_per_s": "stance extension also begins: loaded knee extending faster than",
+    "stumble_knee_margin_deg": "stumble: swing knee stalled this far above its straightening angle",
+    "stumble_knee_rate_deg_per_s": "stumble: stalled means extending slower than",
+    "fold_knee_rate_deg_per_s": "stumble: loaded knee folding in early stance faster than",
+    "fold_window_of_stance_pct": "stumble: early stance is the first part of stance, up to",
 }
 UNIT_WORDS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "°", "b_Nm_s_per_rad": "N·m·s/rad", "Nm": "N·m", "N": "N",
-              "deg": "°", "s": "s", "deg_per_s": "deg/s"}
+              "deg": "°", "s": "s", "deg_per_s": "deg/s", "pct": "%"}
 _FIELD = re.compile(r"\b(?:(knee|ankle)\.(stance_flexion|stance_extension|swing_flexion|swing_extension)\."
                     r"(k_Nm_per_rad|theta_e_deg|b_Nm_s_per_rad)|thresholds\.(\w+))\b")
 
@@ -51,7 +55,7 @@ def unit_of(field: str) -> str:
     name = field.rsplit(".", 1)[-1]
     if name in UNIT_WORDS:
         return UNIT_WORDS[name]
-    for suffix in ("deg_per_s", "Nm", "N", "deg", "s"):
+    for suffix in ("deg_per_s", "Nm", "N", "deg", "s", "pct"):
         if name.endswith("_" + suffix):
             return UNIT_WORDS[suffix]
     return ""

@@ -182,7 +182,8 @@ class ImpedanceSchedule:
             floor; a loaded stance-extension knee flexing faster than the fold rate (rad/s; a downhill knee yields at
             up to about 1 rad/s, a folding one at 2–5) within this fraction of the last stance (pre-swing's flexion
             begins at about 80 % of it) is giving way; the support holds until the knee is back within the margin of
-            the stance-flexion equilibrium.
+            the stance-flexion equilibrium. From the table's thresholds (``stumble_knee_margin_deg`` …), so the
+            prosthetist sees them with their limits and the device checks and runs what was approved.
     """
 
     knee_k: tuple[float, float, float, float]
@@ -207,9 +208,9 @@ class ImpedanceSchedule:
     standing_leave_rad_s: float = 0.6
     standing_blend_s: float = 0.2
     standing_lift_of_toe_off: float = 0.35
-    stumble_knee_margin_rad: float = math.radians(15.0)
-    stumble_knee_rate_rad_s: float = 0.5
-    fold_knee_rate_rad_s: float = 1.5
+    stumble_knee_margin_rad: float = math.radians(15.0)      # the table's defaults (Thresholds)
+    stumble_knee_rate_rad_s: float = math.radians(30.0)
+    fold_knee_rate_rad_s: float = math.radians(90.0)
     fold_window_of_stance: float = 0.5
 
     @classmethod
@@ -244,7 +245,10 @@ class ImpedanceSchedule:
             sf_to_se_ankle_moment_Nm=t.sf_to_se_ankle_moment_Nm, se_to_wf_load_N=t.se_to_wf_load_N,
             wf_to_we_knee_angle_rad=t.wf_to_we_knee_angle_deg * deg, we_to_sf_load_N=t.we_to_sf_load_N,
             min_state_time_s=t.min_state_time_s, max_state_time_s=t.max_state_time_s,
-            sf_to_se_knee_extension_rad_s=t.sf_to_se_knee_extension_deg_per_s * deg)
+            sf_to_se_knee_extension_rad_s=t.sf_to_se_knee_extension_deg_per_s * deg,
+            stumble_knee_margin_rad=t.stumble_knee_margin_deg * deg,
+            stumble_knee_rate_rad_s=t.stumble_knee_rate_deg_per_s * deg,
+            fold_knee_rate_rad_s=t.fold_knee_rate_deg_per_s * deg, fold_window_of_stance=t.fold_window_of_stance_pct / 100.0)
 
 
 def held_since(since_s: float | None, holds: bool, now_s: float) -> float | None:

@@ -68,6 +68,26 @@ class Thresholds(_Strict):
     sf_to_se_knee_extension_deg_per_s: float = Field(
         default=0.0, description="SF→SE also when the loaded knee extends faster than this (deg/s; 0 = off): the "
                                  "stance-flexion peak itself, for gaits whose ankle moment is late to cross")
+    # the stumble support (controller_core.fsm, "Stumbles"): what triggers it and how long it holds
+    stumble_knee_margin_deg: float = Field(
+        default=15.0, description="stumble: a swing-extension knee this far above its equilibrium that has stopped "
+                                  "extending is held by the floor (a caught toe, an early landing) and gets stance "
+                                  "support at once; the support holds until the knee is back within this of the "
+                                  "stance-flexion equilibrium (deg)")
+    stumble_knee_rate_deg_per_s: float = Field(
+        default=30.0, description="stumble: 'stopped extending' is slower than this (deg/s; a free knee extends at "
+                                  "115–230 deg/s in late swing)")
+    fold_knee_rate_deg_per_s: float = Field(
+        default=90.0, description="fold: a loaded stance-extension knee flexing faster than this early in stance is "
+                                  "giving way and gets stance support (deg/s; a downhill knee yields at up to about "
+                                  "60 deg/s, a folding one at 115–300)")
+    fold_window_of_stance_pct: float = Field(
+        default=50.0, description="fold: 'early in stance' is within this share of the last stance's length (%; "
+                                  "pre-swing's flexion begins at about 80 %)")
+
+
+STUMBLE_THRESHOLDS = {"stumble_knee_margin_deg": "deg", "stumble_knee_rate_deg_per_s": "deg/s",
+                      "fold_knee_rate_deg_per_s": "deg/s", "fold_window_of_stance_pct": "%"}   # and their units
 
 
 class Provenance(_Strict):
@@ -167,6 +187,12 @@ class SafetyLimits(_Strict):
     away from θe (a knee that gives way into flexion); b ≥ 0 keeps the damping passive too. Damping 0–30
     N·m·s/rad; loads 0–3000 N; state times 0.01–3 s; the SF→SE knee-extension speed 0–200 deg/s (0 = off).
 
+    **Stumble support** (it cannot be switched off): the margin 5–30° (above 30° a toe caught on a 50° knee is never
+    seen stalled); "stopped extending" 10–90 deg/s (above it a knee still swinging freely would be taken for a
+    planted one); the fold rate 60–300 deg/s (at or below a downhill knee's yielding every downhill stance would be
+    held stiff; above it a folding knee is caught too late); the fold window 20–70 % of stance (beyond it pre-swing's
+    flexion would be held stiff through toe-off).
+
     **Stance support floor**: the knee's stance-flexion row must be at least as firm as
     ``knee_stance_support_Nm_per_rad_per_kg`` × the body mass the table was built for (k ≤ −floor), or the knee
     buckles under load. 1.2 N·m/rad/kg is the Open Source Leg's published early-stance knee stiffness, 99.4
@@ -184,6 +210,10 @@ class SafetyLimits(_Strict):
     ankle_moment_Nm: Range = Range(low=-300.0, high=0.0)
     state_time_s: Range = Range(low=0.01, high=3.0)
     knee_extension_deg_per_s: Range = Range(low=0.0, high=200.0)
+    stumble_knee_margin_deg: Range = Range(low=5.0, high=30.0)
+    stumble_knee_rate_deg_per_s: Range = Range(low=10.0, high=90.0)
+    fold_knee_rate_deg_per_s: Range = Range(low=60.0, high=300.0)
+    fold_window_of_stance_pct: Range = Range(low=20.0, high=70.0)
     knee_stance_support_Nm_per_rad_per_kg: float = Field(default=1.2, ge=0.0)
     body_mass_kg: Range = Range(low=20.0, high=200.0)
 
@@ -275,6 +305,8 @@ def check_table(table: ImpedanceTable, limits: SafetyLimits | None = None) -> li
     _check("thresholds.max_state_time_s", t.max_state_time_s, lim.state_time_s, "s", out)
     _check("thresholds.sf_to_se_knee_extension_deg_per_s", t.sf_to_se_knee_extension_deg_per_s,
            lim.knee_extension_deg_per_s, "deg/s", out)
+    for name, unit in STUMBLE_THRESHOLDS.items():
+        _check(f"thresholds.{name}", getattr(t, name), getattr(lim, name), unit, out)
     if t.min_state_time_s >= t.max_state_time_s:
         out.append(LimitViolation(field="thresholds.min_state_time_s", value=t.min_state_time_s,
                                   low=lim.state_time_s.low, high=t.max_state_time_s,

@@ -1,22 +1,24 @@
 """An envelope on the wire: axes, nominal task and every node's table as raw fixed-point integers.
 
 A transfer is ENVELOPE_BEGIN, the axis frames (speeds, inclines, the nominal task, the body mass the envelope was
-built for, which the knee's stance support floor scales with) and their check, ten frames per
-node (eight rows and two threshold frames, each carrying its node index) and the node's check, ENVELOPE_COMMIT;
+built for, which the knee's stance support floor scales with) and their check, eleven frames per
+node (eight rows, two threshold frames and the stumble trigger, each carrying its node index) and the node's check,
+ENVELOPE_COMMIT;
 TABLE_ACK answers, as for a table. The CRC-32 (zlib) covers every raw value in transfer order (axes, nominal, then
 node by node, row by row), packed as little-endian int32, so host and device compute it from exactly what the device
 will run; the device stages the whole envelope or nothing.
 
 A check frame (ENVELOPE_CHECK) carries the CRC-32 of one node's values (``target`` 0, ``node`` its index 0–63) or of
-the axes and nominal task (``target`` 1), so every one of the 64 nodes a transfer may carry has its own check. With ten
-frames per node
+the axes and nominal task (``target`` 1), so every one of the 64 nodes a transfer may carry has its own check. With
+eleven frames per node
 and 25 nodes, a corrupted frame would otherwise spoil nearly every transfer on a noisy bus (the first copy of a
 frame is kept, so the whole transfer would have to start over): the device keeps a node once its frames give its
 check and drops the node's frames for fresh copies when they do not, and answers a commit with the number of frames
 it still lacks; the host sends the data again until none are missing. The envelope CRC still decides at commit.
 
 Node quanta (fit in one classic-CAN frame with a node index): k 0.001 N·m/rad, θe 0.01°, b 0.01 N·m·s/rad, moment
-0.01 N·m, loads 0.1 N, knee angle 0.01°, state times 1 ms (to 4.095 s), knee extension speed 1 deg/s; axes 0.001 m/s
+0.01 N·m, loads 0.1 N, knee angle 0.01°, state times 1 ms (to 4.095 s), knee extension speed 1 deg/s, the stumble
+trigger as in a table (0.01°, 0.1 deg/s, 1 %); axes 0.001 m/s
 or deg. At most 64 nodes. :func:`check_envelope_as_run` checks what the device will run.
 """
 
@@ -32,6 +34,7 @@ from device_bridge.protocol import (
     ROW_ORDER,
     ROW_SIGNALS,
     SIGNAL_FIELDS,
+    STUMBLE_SIGNALS,
     DeviceRow,
     DeviceTable,
     ProtocolError,
@@ -44,7 +47,8 @@ from device_bridge.protocol import (
 )
 
 MAX_NODES = 64
-FRAMES_PER_NODE = 10
+FRAMES_PER_NODE = 11
+STUMBLE_ROW = 10   # a node's row_index of its ENVELOPE_STUMBLE frame (rows 0–7, thresholds 8 and 9)
 CHECK_NODE, CHECK_AXES = 0, 1   # ENVELOPE_CHECK.target: one node's values, or the axes and nominal task
 _A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load")
 _B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time", "sf_to_se_knee_extension")
@@ -70,7 +74,7 @@ class WireEnvelope:
     inclines: tuple[int, ...]
     nominal: tuple[int, int]
     body_mass: int
-    nodes: tuple[tuple[tuple[int, ...], ...], ...]   # per node: 8 row triples, then thresholds A (3) and B (4)
+    nodes: tuple[tuple[tuple[int, ...], ...], ...]   # per node: 8 row triples, thresholds A (3) and B (4), stumble (4)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -100,7 +104,9 @@ class WireEnvelope:
                                 f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in _A)
             b = tuple(quantize("ENVELOPE_THRESHOLDS_B", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
                                 f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in _B)
-            nodes.append((*rows, a, b))
+            stumble = tuple(quantize("ENVELOPE_STUMBLE", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
+                                     f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in STUMBLE_SIGNALS)
+            nodes.append((*rows, a, b, stumble))
         return cls(speeds=tuple(axis(v, "speeds_mps") for v in envelope.speeds_mps),
                    inclines=tuple(axis(v, "inclines_deg") for v in envelope.inclines_deg),
                    nominal=(axis(envelope.nominal_speed_mps, "nominal_speed_mps"),
@@ -117,7 +123,7 @@ class WireEnvelope:
         return wire_crc32([*self.axis_values, *(v for node in self.nodes for part in node for v in part)])
 
     def frames(self, transfer_id: int) -> list[can.Message]:
-        """The data frames of a transfer: axes, nominal and their check, then ten per node and its check."""
+        """The data frames of a transfer: axes, nominal and their check, then eleven per node and its check."""
         out = [encode("ENVELOPE_AXIS", {"transfer_id": transfer_id, "axis": a, "index": i, "value": v})
                for a, values in ((AXIS_SPEED, self.speeds), (AXIS_INCLINE, self.inclines), (AXIS_NOMINAL, self.nominal),
                                  (AXIS_BODY, (self.body_mass,)))
@@ -130,6 +136,8 @@ class WireEnvelope:
                     for i in range(len(ROW_ORDER))]
             out.append(encode("ENVELOPE_THRESHOLDS_A", {**head, "row_index": 8, **dict(zip(_A, node[8], strict=True))}))
             out.append(encode("ENVELOPE_THRESHOLDS_B", {**head, "row_index": 9, **dict(zip(_B, node[9], strict=True))}))
+            out.append(encode("ENVELOPE_STUMBLE", {**head, "row_index": STUMBLE_ROW,
+                                                   **dict(zip(STUMBLE_SIGNALS, node[STUMBLE_ROW], strict=True))}))
             out.append(encode("ENVELOPE_CHECK", {**head, "target": CHECK_NODE, "crc32": _node_crc(node)}))
         return out
 
@@ -148,6 +156,8 @@ class WireEnvelope:
                       for raw, f in zip(node[8], _A, strict=True)}
             values |= {SIGNAL_FIELDS[f]: to_physical("ENVELOPE_THRESHOLDS_B", f, raw)
                        for raw, f in zip(node[9], _B, strict=True)}
+            values |= {SIGNAL_FIELDS[f]: to_physical("ENVELOPE_STUMBLE", f, raw)
+                       for raw, f in zip(node[STUMBLE_ROW], STUMBLE_SIGNALS, strict=True)}
             tables.append(DeviceTable(rows=rows, thresholds=Thresholds(**values), body_mass_kg=mass))
         return DeviceEnvelope(speeds_mps=tuple(axis(v) for v in self.speeds),
                               inclines_deg=tuple(axis(v) for v in self.inclines),
@@ -237,6 +247,8 @@ class EnvelopeReceiver:
             self.rows.setdefault((node, i), tuple(raw[f] for f in _A))
         elif name == "ENVELOPE_THRESHOLDS_B" and i == 9:
             self.rows.setdefault((node, i), tuple(raw[f] for f in _B))
+        elif name == "ENVELOPE_STUMBLE" and i == STUMBLE_ROW:
+            self.rows.setdefault((node, i), tuple(raw[f] for f in STUMBLE_SIGNALS))
         else:
             return
         self._verify(node)

@@ -1,11 +1,12 @@
 """The device link's frames: defined once in ``quasitune.dbc``, encoded and decoded here with cantools.
 
-A parameter table travels as ten classic-CAN frames in fixed-point: eight impedance rows (knee then ankle,
-sub-phases in walking order) and two threshold frames. :class:`WireTable` holds those raw integers; its
-CRC-32 (zlib's polynomial) covers every raw value in row order, packed as little-endian int32, so the host
-and the device compute it from exactly the numbers the device will run. The wire quanta are the table's
-precision on the device: 0.001 N·m/rad, 0.001°, 0.001 N·m·s/rad, 0.01 N·m, 0.1 N, 1 ms; the host rounds to
-them before computing the CRC, and :meth:`WireTable.from_table` refuses any value that does not fit its field.
+A parameter table travels as twelve classic-CAN frames in fixed-point: eight impedance rows (knee then ankle,
+sub-phases in walking order), two threshold frames, the body mass and the stumble support's trigger.
+:class:`WireTable` holds those raw integers; its CRC-32 (zlib's polynomial) covers every raw value in row order, packed
+as little-endian int32, so the host and the device compute it from exactly the numbers the device will run. The wire
+quanta are the table's precision on the device: 0.001 N·m/rad, 0.001°, 0.001 N·m·s/rad, 0.01 N·m, 0.1 N, 1 ms (the
+stumble trigger: 0.01°, 0.1 deg/s, 1 % of stance); the host rounds to them before computing the CRC, and
+:meth:`WireTable.from_table` refuses any value that does not fit its field.
 
 Every decoded frame is checked for its declared length first: a truncated or over-long frame is a
 :class:`ProtocolError` naming the message, never a partly decoded one.
@@ -35,7 +36,8 @@ ROW_ORDER: tuple[tuple[str, str], ...] = tuple((j, s) for j in JOINTS for s in S
 THRESHOLDS_A_INDEX = len(ROW_ORDER)        # 8
 THRESHOLDS_B_INDEX = len(ROW_ORDER) + 1    # 9
 BODY_INDEX = len(ROW_ORDER) + 2            # 10: the body mass the table was built for (the support floor needs it)
-ROW_COUNT = len(ROW_ORDER) + 3             # 11 frames between begin and commit
+STUMBLE_INDEX = len(ROW_ORDER) + 3         # 11: the stumble support's trigger
+ROW_COUNT = len(ROW_ORDER) + 4             # 12 frames between begin and commit
 TRANSFER_IDS = 16                          # 4-bit transfer id
 TELEMETRY_PERIOD_S = 0.01                  # one telemetry sample every 10 ms (the DBC's TELEMETRY_GAIT comment)
 
@@ -228,9 +230,12 @@ SIGNAL_FIELDS = {
     "we_to_sf_load": "we_to_sf_load_N", "wf_to_we_knee_angle": "wf_to_we_knee_angle_deg",
     "min_state_time": "min_state_time_s", "max_state_time": "max_state_time_s",
     "sf_to_se_knee_extension": "sf_to_se_knee_extension_deg_per_s",
+    "stumble_knee_margin": "stumble_knee_margin_deg", "stumble_knee_rate": "stumble_knee_rate_deg_per_s",
+    "fold_knee_rate": "fold_knee_rate_deg_per_s", "fold_window": "fold_window_of_stance_pct",
 }
 _THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load", "sf_to_se_knee_extension")
 _THRESH_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time")
+STUMBLE_SIGNALS = ("stumble_knee_margin", "stumble_knee_rate", "fold_knee_rate", "fold_window")   # tables, nodes
 
 
 def quantize(msg_name: str, signal: str, value: float, field: str) -> int:
@@ -288,11 +293,13 @@ class WireTable:
             extension speed; B: knee angle, minimum and maximum state time).
         body_mass: the body mass the table was built for (TABLE_BODY, 0.01 kg): the device checks the knee's
             stance support floor, which scales with it, on exactly what it will run.
+        stumble: the stumble support's trigger (TABLE_STUMBLE: :data:`STUMBLE_SIGNALS`).
     """
 
     rows: tuple[tuple[int, int, int], ...]
     thresholds: tuple[int, int, int, int, int, int, int]
     body_mass: int
+    stumble: tuple[int, int, int, int]
 
     @classmethod
     def from_table(cls, table: ParameterTable) -> WireTable:
@@ -308,11 +315,14 @@ class WireTable:
         th += [quantize("TABLE_THRESHOLDS_B", f, getattr(t, SIGNAL_FIELDS[f]),
                          f"thresholds.{SIGNAL_FIELDS[f]}") for f in _THRESH_B]
         mass = quantize("TABLE_BODY", "body_mass", table.body_mass_kg, "body_mass_kg")
-        return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass)  # type: ignore[arg-type]
+        stumble = tuple(quantize("TABLE_STUMBLE", f, getattr(t, SIGNAL_FIELDS[f]), f"thresholds.{SIGNAL_FIELDS[f]}")
+                        for f in STUMBLE_SIGNALS)
+        return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass, stumble=stumble)  # type: ignore[arg-type]
 
     def crc32(self) -> int:
         """CRC-32 of the raw values in transfer order (what the device verifies and reads back)."""
-        return wire_crc32([v for row in self.rows for v in row] + list(self.thresholds) + [self.body_mass])
+        return wire_crc32([v for row in self.rows for v in row] + list(self.thresholds) + [self.body_mass]
+                          + list(self.stumble))
 
     def to_device_table(self) -> DeviceTable:
         """The physical values the device runs (raises pydantic's ValidationError on a non-physical threshold)."""
@@ -322,11 +332,13 @@ class WireTable:
         names = [("TABLE_THRESHOLDS_A", f) for f in _THRESH_A] + [("TABLE_THRESHOLDS_B", f) for f in _THRESH_B]
         values = {SIGNAL_FIELDS[f]: to_physical(m, f, raw)
                   for (m, f), raw in zip(names, self.thresholds, strict=True)}
+        values |= {SIGNAL_FIELDS[f]: to_physical("TABLE_STUMBLE", f, raw)
+                   for f, raw in zip(STUMBLE_SIGNALS, self.stumble, strict=True)}
         return DeviceTable(rows=rows, thresholds=Thresholds(**values),
                            body_mass_kg=to_physical("TABLE_BODY", "body_mass", self.body_mass))
 
     def frames(self, transfer_id: int) -> list[can.Message]:
-        """The eleven data frames (row_index 0–10) of a transfer."""
+        """The twelve data frames (row_index 0–11) of a transfer."""
         out = [encode("TABLE_ROW", {"transfer_id": transfer_id, "row_index": i, "k": k, "theta_e": th, "b": b})
                for i, (k, th, b) in enumerate(self.rows)]
         a, b = self.thresholds[:len(_THRESH_A)], self.thresholds[len(_THRESH_A):]
@@ -336,6 +348,8 @@ class WireTable:
                                                  **dict(zip(_THRESH_B, b, strict=True))}))
         out.append(encode("TABLE_BODY", {"transfer_id": transfer_id, "row_index": BODY_INDEX,
                                          "body_mass": self.body_mass}))
+        out.append(encode("TABLE_STUMBLE", {"transfer_id": transfer_id, "row_index": STUMBLE_INDEX,
+                                            **dict(zip(STUMBLE_SIGNALS, self.stumble, strict=True))}))
         return out
 
     @staticmethod
@@ -350,6 +364,8 @@ class WireTable:
             return i, tuple(raw[f] for f in _THRESH_B)
         if name == "TABLE_BODY" and i == BODY_INDEX:
             return i, (raw["body_mass"],)
+        if name == "TABLE_STUMBLE" and i == STUMBLE_INDEX:
+            return i, tuple(raw[f] for f in STUMBLE_SIGNALS)
         return None
 
     @classmethod
@@ -357,7 +373,8 @@ class WireTable:
         """Assemble from the row values of a complete transfer (index → raw values)."""
         rows = tuple(values[i] for i in range(THRESHOLDS_A_INDEX))
         th = values[THRESHOLDS_A_INDEX] + values[THRESHOLDS_B_INDEX]
-        return cls(rows=rows, thresholds=th, body_mass=values[BODY_INDEX][0])  # type: ignore[arg-type]
+        return cls(rows=rows, thresholds=th, body_mass=values[BODY_INDEX][0],  # type: ignore[arg-type]
+                   stumble=values[STUMBLE_INDEX])
 
 
 def begin_frame(transfer_id: int, version: int, crc32: int) -> can.Message:

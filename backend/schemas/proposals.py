@@ -59,6 +59,10 @@ class ThresholdEdit(StrictIn):
     min_state_time_s: EditValue = None
     max_state_time_s: EditValue = None
     sf_to_se_knee_extension_deg_per_s: EditValue = None
+    stumble_knee_margin_deg: EditValue = None
+    stumble_knee_rate_deg_per_s: EditValue = None
+    fold_knee_rate_deg_per_s: EditValue = None
+    fold_window_of_stance_pct: EditValue = None
 
 
 class EditRequest(StrictIn):

@@ -24,7 +24,7 @@ from backend.store.tables import proposals
 from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
 from controller_core.proposal import Proposal
-from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, display_rows
+from controller_core.table import STUMBLE_THRESHOLDS, LimitViolation, ParameterTable, SafetyLimits, display_rows
 from controller_core.table_rules import SWING_SCALED
 from device_bridge.as_run import AsRun, as_run
 
@@ -33,7 +33,7 @@ LIMITS = SafetyLimits().model_dump()
 ROW_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad"}
 THRESHOLD_UNITS = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
                    "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
-                   "sf_to_se_knee_extension_deg_per_s": "deg/s"}
+                   "sf_to_se_knee_extension_deg_per_s": "deg/s", **STUMBLE_THRESHOLDS}
 _p = proposals
 _select = partial(version_select, _p)
 

@@ -35,6 +35,7 @@ export function units(field, mass) {
   }
   if (field.endsWith("_Nm")) return { scale: 1, unit: "N·m", digits: 1, kind: "moment" };
   if (field.endsWith("_s")) return { scale: 1, unit: "s", digits: 3, kind: "time" };
+  if (field.endsWith("_pct")) return { scale: 1, unit: "%", digits: 0, kind: "share" };
   return { scale: 1, unit: "", digits: 3, kind: "other" };
 }
 

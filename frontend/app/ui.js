@@ -91,6 +91,10 @@ const THRESHOLD_WORDS = {
   min_state_time_s: "shortest time in a phase",
   max_state_time_s: "longest time in a phase",
   sf_to_se_knee_extension_deg_per_s: "stance extension also begins: loaded knee extending faster than (0 = off)",
+  stumble_knee_margin_deg: "stumble: swing knee stalled this far above its straightening angle",
+  stumble_knee_rate_deg_per_s: "stumble: stalled means extending slower than",
+  fold_knee_rate_deg_per_s: "stumble: loaded knee folding in early stance faster than",
+  fold_window_of_stance_pct: "stumble: early stance is the first part of stance, up to",
 };
 
 // "knee.stance_flexion.k_Nm_per_rad" -> "knee stance flexion resistance (loading response): resistance K"

@@ -79,3 +79,36 @@ def test_every_proposal_over_the_task_range_has_passive_stance_rows(model):
                 for r in table.rows:
                     if r.subphase.startswith("stance"):
                         assert r.k_Nm_per_rad <= 0.0, (speed, incline, mass, r)
+
+
+@pytest.mark.parametrize(("name", "value", "why"), [
+    ("stumble_knee_margin_deg", 40.0, "a toe caught on a 50° knee is never seen stalled"),
+    ("stumble_knee_rate_deg_per_s", 120.0, "a freely swinging knee taken for a planted one"),
+    ("fold_knee_rate_deg_per_s", 45.0, "every downhill stance held stiff"),
+    ("fold_window_of_stance_pct", 85.0, "pre-swing's flexion held stiff"),
+])
+def test_the_stumble_support_is_part_of_the_table_and_cannot_be_set_out_of_its_limits(model, name, value, why):
+    """The trigger of the stumble support travels with the table: the schedule the leg runs reads it, and a value
+    outside its limits is refused by name (the support cannot be switched off)."""
+    table = model.propose(1.2, 0.0, 75.0).table
+    assert check_table(table) == []
+    bad = table.model_copy(update={"thresholds": table.thresholds.model_copy(update={name: value})})
+    with pytest.raises(SafetyLimitError, match=rf"thresholds\.{name}"):
+        assert_safe(bad)
+    with pytest.raises(ValueError, match="finite"):
+        type(table.thresholds).model_validate({**table.thresholds.model_dump(), name: float("nan")})
+
+
+def test_the_leg_runs_the_stumble_support_the_table_states(model):
+    import math
+
+    from controller_core.fsm import ImpedanceSchedule
+
+    table = model.propose(1.2, 0.0, 75.0).table
+    changed = table.thresholds.model_copy(update={"stumble_knee_margin_deg": 20.0, "stumble_knee_rate_deg_per_s": 45.0,
+                                                  "fold_knee_rate_deg_per_s": 120.0, "fold_window_of_stance_pct": 40.0})
+    sch = ImpedanceSchedule.from_table(table.model_copy(update={"thresholds": changed}))
+    assert sch.stumble_knee_margin_rad == pytest.approx(math.radians(20.0))
+    assert sch.stumble_knee_rate_rad_s == pytest.approx(math.radians(45.0))
+    assert sch.fold_knee_rate_rad_s == pytest.approx(math.radians(120.0))
+    assert sch.fold_window_of_stance == pytest.approx(0.4)

@@ -39,7 +39,7 @@ def with_node_table(env: Envelope, index: int, **row_update) -> Envelope:
 def test_an_envelope_is_staged_whole_and_runs_on_the_adaptive_controller(envelopes):
     fw = DeviceFirmware()
     begin, data, commit, crc = frames_of(envelopes[0], 5, 300)
-    assert len(data) == 3 + 3 + 2 + 1 + 1 + 9 * 11   # axes, nominal, body mass, axes check; 9 nodes
+    assert len(data) == 3 + 3 + 2 + 1 + 1 + 9 * 12   # axes, nominal, body mass, axes check; 9 nodes of 11 and a check
     [ack] = feed(fw, [begin, *data, commit], 0.0)
     assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
     fw.tick(None, 0.001)
@@ -119,7 +119,7 @@ def test_a_staged_envelope_switches_in_at_heel_strike_and_reports_the_task(envel
     [ack] = feed(fw, [begin, *data, commit], t)
     assert ack["result"] == AckResult.STAGED and isinstance(fw.controller_, StateMachineController)
     for load, moment, knee, velocity in [(loaded, th.sf_to_se_ankle_moment_Nm - 1, 0.3, 0.0)] * 100 + \
-            [(0.0, 0.0, 0.3, 1.0)] * 100 + [(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -0.5)] * 100:
+            [(0.0, 0.0, 0.3, 1.0)] * 100 + [(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -2.0)] * 100:
         step(load, moment, knee, velocity)
         assert fw.active_.table is not None            # nothing switches in mid-stride
     out = []
@@ -189,7 +189,7 @@ def test_a_table_pushed_after_an_envelope_replaces_it_at_heel_strike(envelopes, 
     [ack] = feed(fw, [begin_frame(2, 41, wire.crc32()), *wire.frames(2), commit_frame(2, 41, wire.crc32())], t)
     assert ack["result"] == AckResult.STAGED and fw.active_.crc32 == env_crc
     for load, moment, knee, velocity in [(loaded, th.sf_to_se_ankle_moment_Nm - 1, 0.3, 0.0)] * 100 + \
-            [(0.0, 0.0, 0.3, 1.0)] * 100 + [(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -0.5)] * 100:
+            [(0.0, 0.0, 0.3, 1.0)] * 100 + [(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -2.0)] * 100:
         step(load, moment, knee, velocity)
         assert fw.active_.crc32 == env_crc              # the envelope runs to the end of its stride
     for _ in range(20):

@@ -12,7 +12,9 @@ from controller_core.fsm import GaitState, SensorSample
 from controller_core.table import ParameterTable
 from device_bridge.firmware import DeviceFirmware, FirmwareConfig
 from device_bridge.protocol import (
+    BODY_INDEX,
     ROW_COUNT,
+    STUMBLE_INDEX,
     AckResult,
     Command,
     Fault,
@@ -164,13 +166,31 @@ def test_the_device_holds_the_stance_support_floor_for_the_mass_on_the_wire(tabl
     assert nack["result"] == AckResult.SAFETY_LIMIT and fw.staged_ is None
 
 
-def test_the_body_mass_frame_is_part_of_the_transfer(tables):
+@pytest.mark.parametrize("index", [BODY_INDEX, STUMBLE_INDEX])
+def test_the_body_mass_and_stumble_frames_are_part_of_the_transfer(tables, index):
     begin, rows, commit, crc = transfer(tables[0], 3, 3)
     fw = DeviceFirmware()
-    [nack] = feed(fw, [begin, *rows[:-1], commit], 0.0)   # the body mass frame lost
-    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << (ROW_COUNT - 1)
-    [ack] = feed(fw, [rows[-1], commit], 0.1)
+    [nack] = feed(fw, [begin, *rows[:index], *rows[index + 1:], commit], 0.0)   # that frame lost
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << index
+    [ack] = feed(fw, [rows[index], commit], 0.1)
     assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
+
+
+def test_the_device_runs_the_stumble_support_it_was_sent_and_refuses_one_out_of_its_limits(tables):
+    """The stumble trigger travels in the transfer (TABLE_STUMBLE, under the CRC): the leg's state machine runs the
+    values sent, and the device refuses a fold speed at which every downhill stance would be held stiff."""
+    fw = DeviceFirmware()
+    th = tables[0].thresholds
+    firmer = tables[0].model_copy(update={"thresholds": th.model_copy(update={
+        "stumble_knee_margin_deg": 12.5, "fold_knee_rate_deg_per_s": 120.0, "fold_window_of_stance_pct": 40.0})})
+    install(fw, firmer, 1)
+    sch = fw.controller_.schedule
+    assert sch.stumble_knee_margin_rad == pytest.approx(math.radians(12.5))
+    assert sch.fold_knee_rate_rad_s == pytest.approx(math.radians(120.0)) and sch.fold_window_of_stance == 0.4
+    slack = tables[0].model_copy(update={"thresholds": th.model_copy(update={"fold_knee_rate_deg_per_s": 40.0})})
+    begin, rows, commit, _ = transfer(slack, 2, 2)      # fits the wire, below the limit of 60 deg/s
+    [nack] = feed(fw, [begin, *rows, commit], 0.1)
+    assert nack["result"] == AckResult.SAFETY_LIMIT and fw.staged_ is None
 
 
 def test_a_lost_acknowledgement_is_answered_again(tables):
@@ -360,9 +380,10 @@ def test_a_staged_table_waits_for_the_next_heel_strike_while_walking(tables):
     assert ack["result"] == AckResult.STAGED
     ctrl = fw.controller_
     stride = [  # one stride by events, well inside the idle time: SE on moment, WF on unloading, WE past the knee threshold
+        # (extending freely at 2 rad/s: slower, the stumble support would take it for a foot held by the floor)
         *[(loaded, th.sf_to_se_ankle_moment_Nm - 1, 0.3, 0.0)] * 100,
         *[(0.0, 0.0, 0.3, 1.0)] * 100,
-        *[(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -0.5)] * 100,
+        *[(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -2.0)] * 100,
     ]
     for load, moment, knee, velocity in stride:
         step(load, moment, knee, velocity)

@@ -40,11 +40,16 @@ def test_the_crc_covers_every_value(tables):
         for j in range(3):
             rows = [list(r) for r in wire.rows]
             rows[i][j] += 1
-            assert WireTable(tuple(tuple(r) for r in rows), wire.thresholds, wire.body_mass).crc32() != base
+            assert WireTable(tuple(tuple(r) for r in rows), wire.thresholds, wire.body_mass, wire.stumble).crc32() != base
     for j in range(len(wire.thresholds)):
         th = list(wire.thresholds)
         th[j] += 1
-        assert WireTable(wire.rows, tuple(th), wire.body_mass).crc32() != base
+        assert WireTable(wire.rows, tuple(th), wire.body_mass, wire.stumble).crc32() != base
+    assert WireTable(wire.rows, wire.thresholds, wire.body_mass + 1, wire.stumble).crc32() != base
+    for j in range(len(wire.stumble)):
+        st = list(wire.stumble)
+        st[j] += 1
+        assert WireTable(wire.rows, wire.thresholds, wire.body_mass, tuple(st)).crc32() != base
 
 
 def test_a_value_that_does_not_fit_its_field_is_refused_before_sending(tables):

@@ -39,6 +39,31 @@ def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server
     assert len(call(page, "GET", f"/api/patients/{patient_id}/proposals")["body"]) == before
 
 
+def test_the_stumble_support_is_shown_with_its_limits_and_checked_as_typed(server, page):
+    """The stumble support's trigger is part of the table: its own section, in words, with units and limits; a fold
+    speed at which every downhill stance would be held stiff is marked as typed; a change is saved like any other."""
+    sign_in(page, server, "dana")
+    pid = create_patient_and_propose(page, "P-405")
+    section = page.inner_text("#stumble-support")
+    assert "stumble: loaded knee folding in early stance faster than" in section and "deg/s" in section, section
+    assert "60 … 300" in section and "20 … 70" in section and "%" in section, section
+    expect(page.locator("#stumble-support tbody tr")).to_have_count(4)
+    fold = "#stumble-support input[data-field='thresholds.fold_knee_rate_deg_per_s']"
+    assert float(page.input_value(fold)) == 90.0
+    page.fill(fold, "40")
+    expect(page.locator("td[data-cell='thresholds.fold_knee_rate_deg_per_s'].out")).to_have_count(1)
+    assert "outside" in page.inner_text("#edit-live") and page.is_disabled("#edit-form button[type=submit]")
+    shot(page, "09b-stumble-support-limit")
+    page.fill(fold, "120")
+    expect(page.locator("#edit-live li")).to_have_count(0)
+    page.fill("#edit-form input[name=comment]", "catch a folding knee later")
+    page.click("#edit-form button[type=submit]")
+    page.wait_for_selector("h1:has-text('table v2')")
+    expect(page.locator(fold)).to_have_value("120")
+    v2 = call(page, "GET", page.url.split("#")[1].replace("/proposals/", "/api/proposals/"))["body"]
+    assert v2["id"] != pid and v2["thresholds"]["fold_knee_rate_deg_per_s"] == 120.0
+
+
 def test_clinical_words_by_default_and_the_engineering_view_one_click_away(server, page):
     sign_in(page, server, "dana")
     create_patient_and_propose(page, "P-410")

@@ -31,7 +31,9 @@ function limitOf(field, L, mass) {
   if (a === "thresholds") {
     return { sf_to_se_ankle_moment_Nm: L.ankle_moment_Nm, se_to_wf_load_N: L.load_N, we_to_sf_load_N: L.load_N,
       wf_to_we_knee_angle_deg: L.knee_theta_e_deg, min_state_time_s: L.state_time_s, max_state_time_s: L.state_time_s,
-      sf_to_se_knee_extension_deg_per_s: L.knee_extension_deg_per_s }[b];
+      sf_to_se_knee_extension_deg_per_s: L.knee_extension_deg_per_s, stumble_knee_margin_deg: L.stumble_knee_margin_deg,
+      stumble_knee_rate_deg_per_s: L.stumble_knee_rate_deg_per_s, fold_knee_rate_deg_per_s: L.fold_knee_rate_deg_per_s,
+      fold_window_of_stance_pct: L.fold_window_of_stance_pct }[b];
   }
   if (c === "k_Nm_per_rad" && `${a}.${b}` === "knee.stance_flexion" && mass) {
     return { low: L.stance_k_Nm_per_rad.low, high: Math.min(L.stance_k_Nm_per_rad.high, supportFloor(L, mass)) };
@@ -77,6 +79,9 @@ export function liveViolations(values, L, mass) {
 
 const THRESHOLD_KEYS = ["sf_to_se_ankle_moment_Nm", "se_to_wf_load_N", "wf_to_we_knee_angle_deg", "we_to_sf_load_N",
   "min_state_time_s", "max_state_time_s", "sf_to_se_knee_extension_deg_per_s"];
+// the stumble support's trigger (controller_core/fsm.py, "Stumbles"); the support itself is the knee's stance-flexion row
+const STUMBLE_KEYS = ["stumble_knee_margin_deg", "stumble_knee_rate_deg_per_s", "fold_knee_rate_deg_per_s",
+  "fold_window_of_stance_pct"];
 
 export function parameterTable(p, canEdit) {
   const L = p.limits, mass = p.task.body_mass_kg;
@@ -129,11 +134,12 @@ export function parameterTable(p, canEdit) {
       h("td", { title: FIT_METHOD_HELP[r.fit_method] ?? "" }, fit(r)));
   });
   const th = p.thresholds;
-  const thRows = THRESHOLD_KEYS.map((k) => {
+  const thresholdRow = (k) => {
     const field = `thresholds.${k}`, u = units(field, mass), lim = limitOf(field, L, mass);
     return h("tr", {}, h("td", {}, label(field)), cell(field, th[k]), h("td", {}, u.unit),
       h("td", { class: "muted" }, shownRange(lim, u)));
-  });
+  };
+  const thRows = THRESHOLD_KEYS.map(thresholdRow), stumbleRows = STUMBLE_KEYS.map(thresholdRow);
   const ku = units("k_Nm_per_rad", mass), bu = units("b_Nm_s_per_rad", mass), au = units("theta_e_deg", mass);
   const heads = clinical ? ["Joint", "Phase of gait", `Resistance K (${ku.unit}; larger = firmer)`, "Equilibrium angle θe (deg)",
     `Damping b (${bu.unit}; a default per kg, not fitted)`, "Fit quality R²", "Where the value comes from"]
@@ -162,7 +168,16 @@ export function parameterTable(p, canEdit) {
     h("p", { class: "muted small" }, "Phases: stance flexion (loading response, knee bends under the weight) → stance ",
       "extension (mid and terminal stance, ankle push-off) → swing flexion (toe-off, knee bends to clear the foot) → ",
       "swing extension (knee straightens for heel strike). SF→SE: from stance flexion to stance extension; WF→WE: from ",
-      "swing flexion to swing extension."));
+      "swing flexion to swing extension."),
+    h("h3", {}, "When the leg catches a stumble (stumble support)"),
+    table(["Trigger", "Value", "Unit", "Limits"], stumbleRows, { id: "stumble-support" }),
+    h("p", { class: "muted small" }, "A toe caught in swing or a foot landing early on a bent knee: the knee, still ",
+      "flexed beyond the margin above its straightening angle, stops extending because the floor holds the foot. A ",
+      "knee folding under the body early in stance: it flexes faster than the fold speed. Either way the leg goes at ",
+      "once to its stance-flexion setting (the knee's loading-response row above: that is the support), holds it until ",
+      "the knee is back within the margin of that row's angle or the foot is lifted, and returns to the usual rows at ",
+      "the next clean heel strike. The support cannot be switched off; the limits keep it from holding a freely ",
+      "swinging knee or pre-swing's flexion stiff."));
   if (canEdit) box.append(editForm(p));
   function rerender() {
     document.getElementById("table-card").replaceChildren(parameterTable(p, canEdit));

@@ -121,6 +121,22 @@ def test_edit_makes_a_new_version_and_diff_lists_the_cells(api):
     assert again["table"] == v1["table"] and again["table_sha256"] == v1["table_sha256"]
 
 
+def test_the_stumble_support_is_shown_with_its_limits_and_edited_like_any_threshold(api):
+    patient = api.new_patient()
+    v1 = api.propose(patient["id"])
+    assert v1["thresholds"]["stumble_knee_margin_deg"] == 15.0 and v1["thresholds"]["fold_window_of_stance_pct"] == 50.0
+    assert v1["limits"]["fold_knee_rate_deg_per_s"] == {"low": 60.0, "high": 300.0}
+    r = api.client.post(f"/api/proposals/{v1['id']}/edits", headers=api.as_("prosthetist"), json={
+        "thresholds": {"stumble_knee_margin_deg": 12.0, "fold_knee_rate_deg_per_s": 110.0},
+        "comment": "catch a stalled knee sooner"})
+    assert r.status_code == 201, r.text
+    v2 = r.json()
+    assert v2["thresholds"]["stumble_knee_margin_deg"] == 12.0 and v2["thresholds"]["fold_knee_rate_deg_per_s"] == 110.0
+    diff = api.client.get(f"/api/proposals/{v1['id']}/diff/{v2['id']}", headers=api.as_("viewer")).json()
+    units = {c["field"]: c["unit"] for c in diff["changes"]}
+    assert units == {"thresholds.stumble_knee_margin_deg": "deg", "thresholds.fold_knee_rate_deg_per_s": "deg/s"}
+
+
 @pytest.mark.parametrize(("edit", "words"), [
     ({"rows": [{"joint": "knee", "subphase": "stance_flexion", "k_Nm_per_rad": -5000}]},
      "knee.stance_flexion.k_Nm_per_rad = -5000 N·m/rad is outside [-1200, 0]"),
@@ -131,6 +147,7 @@ def test_edit_makes_a_new_version_and_diff_lists_the_cells(api):
      "as the device will run it (rounded to the wire's precision): thresholds.min_state_time_s must be below"),
     ({"rows": [{"joint": "ankle", "subphase": "swing_flexion", "theta_e_deg": 45}]}, "is outside [-30, 30] deg"),
     ({"thresholds": {"min_state_time_s": 2.0}}, "must be below max_state_time_s"),
+    ({"thresholds": {"fold_knee_rate_deg_per_s": 40.0}}, "fold_knee_rate_deg_per_s = 40 deg/s is outside [60, 300]"),
     ({"rows": [{"joint": "knee", "subphase": "stance_flexion", "b_Nm_s_per_rad": -1}]}, "b_Nm_s_per_rad = -1"),
     ({"rows": []}, "changes nothing"),
     ({"rows": [{"joint": "knee", "subphase": "stance_flexion", "k_Nm_per_rad": -100},
