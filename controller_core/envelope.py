@@ -23,12 +23,13 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Sequence
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from controller_core.proposal import FeaturePrediction
+if TYPE_CHECKING:    # the leg loads envelopes without the model's KMP (SciPy)
+    from controller_core.proposal import FeaturePrediction
 from controller_core.quasi_stiffness import SUBPHASES
 from controller_core.table import (
     ImpedanceTable,

@@ -132,6 +132,12 @@ class DeviceNode(BusThreads):
         self._hand_over()
         leg = self.leg
         sample = leg.sample() if leg is not None else None
+        take_fault = getattr(leg, "take_fault", None)        # a real leg's hardware (device_bridge.osl.leg)
+        if take_fault is not None:
+            fault = take_fault()
+            if fault is not None:
+                self._outbox.extend(self.firmware.hardware_fault(fault[1], now_s, thermal=fault[0] == "thermal"))
+            self.firmware.temperature_degC_ = getattr(leg, "temperature_degC_", None)
         knee, ankle, frames = self.firmware.tick(sample, now_s)
         self._outbox.extend(frames)
         if leg is not None:

@@ -148,6 +148,8 @@ class DeviceFirmware:
         safe_mode_entered_s_: when safe mode was last entered (None if never).
         last_heartbeat_s_: when the host's heartbeat last arrived.
         link_mode_: what a lost host heartbeat does (supervised: safe mode; autonomous: nothing but the fault).
+        temperature_degC_: the hottest actuator's case temperature the leg reports (None: not measured).
+        hardware_fault_: the reason of the last hardware fault (:meth:`hardware_fault`), None if none.
     """
 
     def __init__(self, config: FirmwareConfig | None = None, now_s: float = 0.0) -> None:
@@ -160,6 +162,8 @@ class DeviceFirmware:
         self.safe_mode_entered_s_: float | None = None
         self.last_heartbeat_s_ = now_s   # the host gets one timeout from boot to appear
         self.link_mode_ = LinkMode.SUPERVISED
+        self.temperature_degC_: float | None = None
+        self.hardware_fault_: str | None = None
         self.controller_: StateMachineController | AdaptiveController | None = None
         self._safe = SafeModeController(self.config.safe_mode, self.config.actuator)   # safe mode, and no table
         self._rx: _Transfer | EnvelopeReceiver | None = None
@@ -327,6 +331,18 @@ class DeviceFirmware:
             self.faults_ |= Fault.MALFORMED_FRAME
         return self._status_frames()
 
+    def hardware_fault(self, reason: str, now_s: float, thermal: bool) -> list[can.Message]:
+        """The leg's hardware failed (an actuator over its thermal or I²t limit, a sensor that cannot be read): safe
+        mode at once, the over-temperature (``thermal``) or control-error flag raised, the reason kept, and the status
+        sent now so the clinic sees it within one status period. Left like any safe mode: a new table, or the host's
+        command once the cause is gone."""
+        self._enter_safe(now_s)
+        if self.staged_ is not None:     # verified before the fault: held for LEAVE_SAFE_MODE, not a way out
+            self.active_, self.staged_ = self.staged_, None
+        self.faults_ |= Fault.OVER_TEMPERATURE if thermal else Fault.CONTROL_ERROR
+        self.hardware_fault_ = reason
+        return self._status_frames()
+
     # ------------------------------------------------------------------------------------------ modes
 
     def _enter_safe(self, now_s: float) -> None:
@@ -464,7 +480,7 @@ class DeviceFirmware:
         active = self.active_
         faults = self.faults_ | (Fault.NO_TABLE if active is None else Fault(0))
         return [
-            encode("DEVICE_HEALTH", {"fault_flags": int(faults), "temperature": TEMPERATURE_UNKNOWN_RAW,
+            encode("DEVICE_HEALTH", {"fault_flags": int(faults), "temperature": self._temperature_raw(),
                                      "pending_version": self.staged_.version if self.staged_ else 0,
                                      "rx_errors": min(self.rx_errors_, 0xFFFF), "link_mode": int(self.link_mode_)}),
             encode("DEVICE_STATUS", {"counter": self._status_counter, "mode": int(self.mode_),
@@ -472,6 +488,12 @@ class DeviceFirmware:
                                      "active_version": active.version if active else 0,
                                      "active_crc32": active.crc32 if active else 0}),
         ]
+
+    def _temperature_raw(self) -> int:
+        t = self.temperature_degC_
+        if t is None or not math.isfinite(t):
+            return TEMPERATURE_UNKNOWN_RAW
+        return min(max(round(t) + 40, 0), TEMPERATURE_UNKNOWN_RAW - 1)
 
     def _task_telemetry(self, seq: int) -> list[can.Message]:
         """The task frame (sent first, so the host has it when the sample's other frames complete it)."""

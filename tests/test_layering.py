@@ -108,6 +108,34 @@ def test_the_legs_own_code_never_reaches_the_model():
     assert reaching == []
 
 
+# what the leg's computer runs (issue 54): the firmware and its link, the OSL adapter, its loop and calibration
+LEG_MODULES = ("device_bridge.firmware", "device_bridge.device_node", "device_bridge.mqtt_bus", "device_bridge.gateway",
+               "device_bridge.osl.config", "device_bridge.osl.leg", "device_bridge.osl.loop",
+               "device_bridge.osl.calibration")
+_BLOCKER = """
+import importlib, importlib.abc, sys
+BLOCKED = {"sklearn", "scipy", "fastapi", "starlette", "sqlalchemy", "alembic", "mujoco", "uvicorn", "matplotlib"}
+class Blocker(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name.split(".")[0] in BLOCKED:
+            raise ImportError(f"the leg imported {name}")
+sys.meta_path.insert(0, Blocker())
+for m in sys.argv[1:]:
+    importlib.import_module(m)
+"""
+
+
+def test_the_legs_modules_load_without_the_model_the_server_or_the_bench():
+    """The leg installs only ``.[leg]``: its modules import no scikit-learn, SciPy, FastAPI, SQLAlchemy or MuJoCo
+    (checked in a fresh interpreter that refuses them)."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-c", _BLOCKER, *LEG_MODULES], cwd=ROOT, capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 0, r.stderr[-2000:]
+
+
 def test_no_private_name_is_imported_from_another_module():
     modules = _python_modules()
     crossing = [(m, target, name) for m, found in _module_imports(modules).items() for target, name in found

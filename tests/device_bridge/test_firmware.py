@@ -446,3 +446,23 @@ def test_a_host_lost_during_commanded_safe_mode_is_flagged_and_no_table_switches
     heartbeat(fw, 0.38)
     fw.tick(None, 0.39)
     assert fw.mode_ == Mode.ACTIVE and fw.active_.crc32 == new
+
+
+def test_a_hardware_fault_puts_the_leg_in_safe_mode_and_says_so_with_the_temperature(tables):
+    """An actuator over its thermal limit (device_bridge.osl.leg hands it over): safe mode at once, the over-temperature
+    flag and the measured temperature in the health frame sent with the status, the reason kept on the device."""
+    fw = DeviceFirmware()
+    install(fw, tables[0], 1)
+    heartbeat(fw, 0.01)
+    fw.temperature_degC_ = 81.4
+    out = fw.hardware_fault("knee: ThermalLimitException: case 81 °C over its limit", 0.01, thermal=True)
+    health = next(decode(m)[1] for m in out if decode(m)[0] == "DEVICE_HEALTH")
+    assert status(out)["mode"] == Mode.SAFE and fw.mode_ == Mode.SAFE
+    assert health["fault_flags"] & Fault.OVER_TEMPERATURE and physical("DEVICE_HEALTH", health)["temperature"] == 81.0
+    assert "ThermalLimitException" in fw.hardware_fault_
+    knee, _, _ = fw.tick(standing(0.02), 0.02)          # safe mode holds the loaded knee: passive, not the table
+    assert fw.mode_ == Mode.SAFE and math.isfinite(knee)
+    fw.temperature_degC_ = None
+    _, _, frames = fw.tick(standing(0.2), 0.2)
+    later = [decode(m)[1] for m in frames if decode(m)[0] == "DEVICE_HEALTH"]
+    assert later and all(h["temperature"] == 255 for h in later)            # not measured

@@ -1,0 +1,129 @@
+"""The leg's configuration: one TOML file with its actuators, joint maps, load cell, loop rate and link.
+
+Example (``docs/leg.example.toml``)::
+
+    rate_hz = 500
+    link = "socketcan:can0"          # or "mqtt:leg-17" through the clinic's broker
+    torque_mode = "current"          # QuasiTune computes the torque; the actuator runs its current loop
+
+    [knee]
+    actuator = "knee"                # an actuator's tag
+    encoder = "knee_joint"           # a joint encoder's tag, or leave out: the actuator's output position
+    gear_ratio = 41.4999
+
+    [ankle]
+    actuator = "ankle"
+    gear_ratio = 41.4999
+
+    [calibration]                    # written by `quasitune leg calibrate`; the defaults mean "not calibrated"
+
+Every field is checked when the file is read, and a bad one is named with its reason (:func:`load_config`).
+Angles in rad inside, like the rest of the leg side; the calibration's offsets in the sensors' own units.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+Sign = Literal[1, -1]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class JointCalibration(_Strict):
+    """How one joint's sensors read the joint (QuasiTune's convention: knee flexion and ankle dorsiflexion +).
+
+    joint angle = ``sign`` × (reading − ``zero_rad``), where reading is the joint encoder's, or the actuator's output
+    position when the joint has no encoder; the actuator's torque is sent as ``torque_sign`` × the joint torque.
+    """
+
+    sign: Sign = 1
+    zero_rad: float = 0.0
+    torque_sign: Sign = 1
+    calibrated: bool = False
+
+
+class LoadcellCalibration(_Strict):
+    """How the pylon load cell reads the leg: load (N, compression +) = ``fz_sign`` × (fz − ``fz_zero_N``); sagittal
+    moment (N·m, dorsiflexion +) = ``my_sign`` × (my − ``my_zero_Nm``)."""
+
+    fz_sign: Sign = 1
+    fz_zero_N: float = 0.0
+    my_sign: Sign = 1
+    my_zero_Nm: float = 0.0
+    calibrated: bool = False
+
+
+class Calibration(_Strict):
+    knee: JointCalibration = JointCalibration()
+    ankle: JointCalibration = JointCalibration()
+    loadcell: LoadcellCalibration = LoadcellCalibration()
+
+
+class JointConfig(_Strict):
+    actuator: str = Field(min_length=1, description="the actuator's tag")
+    encoder: str | None = Field(default=None, description="a joint encoder's tag; none: the actuator's output")
+    gear_ratio: float = Field(gt=0.0, le=500.0)
+
+
+class LegConfig(_Strict):
+    """The leg (see the module docstring)."""
+
+    rate_hz: float = Field(default=500.0, ge=50.0, le=2000.0, description="control loop rate (Hz)")
+    overruns_to_safe: int = Field(default=5, ge=1, le=1000,
+                                  description="this many late ticks in a row put the leg in safe mode")
+    link: str = Field(default="virtual:quasitune", min_length=3, description="INTERFACE:CHANNEL of the clinic's link")
+    torque_mode: Literal["current", "torque"] = "current"   # QuasiTune computes every torque; the actuator runs its
+    # current (Dephy) or torque (Moteus, T-Motor) loop. Impedance inside a Dephy actuator is not built yet.
+    knee: JointConfig
+    ankle: JointConfig
+    loadcell: str = Field(default="loadcell", min_length=1, description="the pylon load cell's tag")
+    thigh: str | None = Field(default=None, description="the socket's angle sensor (an IMU's pitch), if any")
+    calibration: Calibration = Calibration()
+
+    @field_validator("link")
+    @classmethod
+    def _interface_and_channel(cls, v: str) -> str:
+        if ":" not in v or not all(v.split(":", 1)):
+            raise ValueError(f"link must be INTERFACE:CHANNEL (socketcan:can0, mqtt:leg-17), got {v!r}")
+        return v
+
+    @property
+    def period_s(self) -> float:
+        return 1.0 / self.rate_hz
+
+
+class LegConfigError(ValueError):
+    """A configuration file that cannot be used; the message names every bad field and why."""
+
+
+def parse_config(data: object, source: str = "leg configuration") -> LegConfig:
+    try:
+        return LegConfig.model_validate(data)
+    except ValidationError as exc:
+        lines = [f"{'.'.join(str(p) for p in e['loc']) or '(file)'}: {e['msg']}" for e in exc.errors()]
+        raise LegConfigError(f"{source}: " + "; ".join(lines)) from None
+
+
+def load_config(path: Path | str) -> LegConfig:
+    """Read and check a leg's TOML configuration (LegConfigError naming each bad field, or the TOML error's line)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise LegConfigError(f"{path}: not TOML: {exc}") from None
+    return parse_config(data, str(path))
+
+
+def finite(value: float, what: str) -> float:
+    """``value`` if finite, else a ValueError naming ``what`` (a sensor that reads NaN is a fault, not a number)."""
+    if not math.isfinite(value):
+        raise ValueError(f"{what} read {value!r}")
+    return value

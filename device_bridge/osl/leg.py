@@ -1,0 +1,150 @@
+"""An Open Source Leg as a leg of the device stack: readings from the SDK's sensors, torques to its actuators.
+
+:class:`OSLLeg` is the seam the simulated leg uses (``sample()``, ``step(knee_Nm, ankle_Nm)``), so QuasiTune's firmware
+(state machine, torque clipping, safe mode, adaptive controller) stays in charge on every actuator: the actuators run
+their current (or torque) loop only. Each reading goes through the leg's calibration
+(:class:`~device_bridge.osl.config.Calibration`): joint angle = sign × (reading − zero), load and moment likewise.
+
+Faults are loud: a thermal or I²t exception from an actuator's ``update()`` (the SDK raises them after reading the
+actuator, so the reading stands) is kept as :attr:`OSLLeg.fault_` with its reason and handed to the firmware, which
+goes to safe mode and raises the over-temperature flag (:meth:`device_bridge.firmware.DeviceFirmware.hardware_fault`);
+a sensor that cannot be read, or reads NaN, gives no sample (the firmware then commands no torque). Every torque is
+scaled by the actuator's thermal scaling factor where it has one (Dephy's thermal model), and :attr:`OSLLeg.derating_`
+reports the smallest factor applied.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from controller_core.fsm import SensorSample
+from device_bridge.osl.config import JointCalibration, LegConfig, finite
+
+THERMAL_EXCEPTIONS = ("ThermalLimitException", "I2tLimitException")   # opensourceleg.math's, matched by name
+
+
+class OSLLeg:
+    """The leg (module docstring) over SDK objects named by the configuration's tags.
+
+    Args:
+        config: the leg's configuration (which tags are which joint, its calibration, the torque mode).
+        actuators: SDK actuators by tag (``opensourceleg.actuators`` subclasses).
+        sensors: SDK sensors by tag: joint encoders, the load cell, the socket's angle sensor.
+        clock: the leg's monotonic clock (s).
+    """
+
+    def __init__(self, config: LegConfig, actuators: Mapping[str, Any], sensors: Mapping[str, Any],
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        def need(pool: Mapping[str, Any], tag: str | None, what: str) -> Any:
+            if tag is None:
+                return None
+            if tag not in pool:
+                raise ValueError(f"the configuration names {what} {tag!r}, which the leg does not have "
+                                 f"(it has {', '.join(sorted(pool)) or 'none'})")
+            return pool[tag]
+
+        self.config = config
+        self.clock = clock
+        self.actuators = {j: need(actuators, getattr(config, j).actuator, f"the {j}'s actuator") for j in ("knee", "ankle")}
+        self.encoders = {j: need(sensors, getattr(config, j).encoder, f"the {j}'s encoder") for j in ("knee", "ankle")}
+        self.loadcell = need(sensors, config.loadcell, "the load cell")
+        self.thigh = need(sensors, config.thigh, "the socket's angle sensor")
+        self.fault_: tuple[str, str] | None = None   # the last hardware fault (kind, reason) until the firmware takes it
+        self.derating_ = 1.0                    # the smallest thermal scaling applied to the last torques
+        self.temperature_degC_: float | None = None
+        self._started = False
+
+    @property
+    def devices(self) -> list[Any]:
+        found = [*self.actuators.values(), *self.encoders.values(), self.loadcell, self.thigh]
+        return [d for d in found if d is not None]
+
+    def start(self) -> None:
+        """Start every device and put the actuators in their torque mode (the SDK raises if one cannot)."""
+        from opensourceleg.actuators.base import CONTROL_MODES  # the SDK: only on the leg's computer
+
+        mode = {"current": CONTROL_MODES.CURRENT, "torque": CONTROL_MODES.TORQUE}[self.config.torque_mode]
+        for d in self.devices:
+            d.start()
+        for a in self.actuators.values():
+            a.set_control_mode(mode)
+            if mode == CONTROL_MODES.CURRENT and hasattr(a, "set_current_gains"):
+                a.set_current_gains()  # the SDK's defaults; a Dephy needs gains before its current loop runs
+        self._started = True
+
+    def stop(self) -> None:
+        """Zero torque, then stop every device (errors while stopping are collected, never hidden)."""
+        problems = []
+        for a in self.actuators.values():
+            try:
+                a.set_output_torque(0.0)
+            except Exception as exc:
+                problems.append(f"{a.tag}: {exc}")
+        for d in self.devices:
+            try:
+                d.stop()
+            except Exception as exc:
+                problems.append(f"{getattr(d, 'tag', d)}: {exc}")
+        self._started = False
+        if problems:
+            raise RuntimeError("stopping the leg: " + "; ".join(problems))
+
+    def take_fault(self) -> tuple[str, str] | None:
+        """The hardware fault seen since the last call as (``"thermal"`` or ``"sensor"``, its reason), or None; the
+        device node hands it to the firmware each tick."""
+        fault, self.fault_ = self.fault_, None
+        return fault
+
+    def _update(self, device: Any) -> None:
+        try:
+            device.update()
+        except Exception as exc:
+            if type(exc).__name__ not in THERMAL_EXCEPTIONS:
+                raise
+            self.fault_ = ("thermal", f"{getattr(device, 'tag', 'actuator')}: {type(exc).__name__}: {exc}".rstrip(": "))
+
+    def _angle(self, joint: str) -> tuple[float, float]:
+        cal: JointCalibration = getattr(self.config.calibration, joint)
+        enc = self.encoders[joint]
+        if enc is not None:
+            raw, rate = enc.position, enc.velocity
+        else:
+            act = self.actuators[joint]
+            raw, rate = act.output_position, act.output_velocity
+        angle = cal.sign * (finite(float(raw), f"the {joint}'s angle") - cal.zero_rad)
+        return angle, cal.sign * finite(float(rate), f"the {joint}'s velocity")
+
+    def sample(self) -> SensorSample | None:
+        """Read every device once and return the sensors in QuasiTune's conventions (None: a sensor failed)."""
+        try:
+            for d in self.devices:
+                self._update(d)
+            knee, knee_v = self._angle("knee")
+            ankle, ankle_v = self._angle("ankle")
+            cal = self.config.calibration.loadcell
+            lc = self.loadcell
+            load = cal.fz_sign * (finite(float(lc.fz), "the load cell's fz") - cal.fz_zero_N)
+            moment = cal.my_sign * (finite(float(lc.my), "the load cell's my") - cal.my_zero_Nm)
+            thigh = (float(self.thigh.position), float(self.thigh.velocity)) if self.thigh is not None else (0.0, 0.0)
+            temps = [float(t) for a in self.actuators.values() if (t := getattr(a, "case_temperature", None)) is not None]
+            self.temperature_degC_ = max(temps) if temps else None
+        except Exception as exc:   # the leg cannot be read: no sample, and the reason kept
+            self.fault_ = self.fault_ or ("sensor", f"a sensor could not be read: {type(exc).__name__}: {exc}")
+            return None
+        return SensorSample(time_s=self.clock(), knee_angle_rad=knee, knee_velocity_rad_s=knee_v,
+                            ankle_angle_rad=ankle, ankle_velocity_rad_s=ankle_v, load_N=load, ankle_moment_Nm=moment,
+                            thigh_angle_rad=thigh[0], thigh_velocity_rad_s=thigh[1])
+
+    def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None:
+        """Send the joint torques (N·m), each scaled by its actuator's thermal scaling factor."""
+        derating = 1.0
+        for joint, tau in (("knee", knee_torque_Nm), ("ankle", ankle_torque_Nm)):
+            act = self.actuators[joint]
+            scale = float(getattr(act, "thermal_scaling_factor", 1.0))
+            scale = min(max(scale, 0.0), 1.0)
+            derating = min(derating, scale)
+            cal: JointCalibration = getattr(self.config.calibration, joint)
+            act.set_output_torque(cal.torque_sign * tau * scale)
+        self.derating_ = derating
