@@ -1,4 +1,5 @@
-"""``python -m benchmarks {model,api,commands,device,envelope,fleet,instances,link,redteam,refine,storage,ui} [options]``:
+"""``python -m benchmarks {model,api,commands,device,envelope,fleet,instances,leg-loop,link,redteam,refine,storage,ui}
+[options]``:
 one benchmark, its figures as JSON."""
 
 from __future__ import annotations
@@ -53,6 +54,10 @@ def main(argv: list[str] | None = None) -> int:
     p = sub.add_parser("storage", help="bytes and read-back time of an hour of telemetry on SQLite and PostgreSQL")
     p.add_argument("--record-seconds", type=float, default=60.0, help="walking recorded by a real server (s)")
     p.add_argument("--hours", type=float, default=1.0, help="walking hours written from that recording")
+    p = sub.add_parser("leg-loop", help="the leg's control loop at its rate: tick lateness, overruns (run it in the "
+                                        "leg's environment, .venv-leg)")
+    p.add_argument("--rate", type=float, default=500.0, help="Hz")
+    p.add_argument("--seconds", type=float, default=20.0)
     p = sub.add_parser("ui", help="dashboard in Chromium: proposal view time to interactive, live-monitor fps")
     p.add_argument("--repeats", type=int, default=20, help="proposals requested through the page")
     p.add_argument("--monitor-seconds", type=float, default=5.0, help="live monitor measured for this long (s)")
@@ -98,6 +103,10 @@ def main(argv: list[str] | None = None) -> int:
         from benchmarks.redteam import run
 
         result = run()
+    elif args.name == "leg-loop":
+        from benchmarks.leg_loop import run
+
+        result = run(args.rate, args.seconds)
     elif args.name == "device":
         from benchmarks.device import run
 

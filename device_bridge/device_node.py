@@ -71,7 +71,7 @@ class DeviceNode(BusThreads):
     """The simulated prosthesis on ``bus`` (see the module docstring)."""
 
     def __init__(self, bus: can.BusABC, leg: Leg | None = None, config: FirmwareConfig | None = None,
-                 clock: Clock = WALL_CLOCK) -> None:
+                 clock: Clock = WALL_CLOCK, control_thread: bool = True) -> None:
         self.bus = bus
         self.leg = leg
         self.clock = clock
@@ -85,10 +85,12 @@ class DeviceNode(BusThreads):
         self._send_lock = threading.Lock()
         self._inbox: deque[tuple[can.Message, float]] = deque()   # frames received, not yet handed to the firmware
         super().__init__([bus], join_timeout_s=2.0)
-        self._threads = [threading.Thread(target=self._guarded, args=(self._control_loop,), name="device-control",
-                                          daemon=True),
-                         threading.Thread(target=self._guarded, args=(self._receive_loop,), name="device-receive",
+        # control_thread False: the leg's own loop ticks the node (tick(), device_bridge.osl.loop), at its own rate
+        self._threads = [threading.Thread(target=self._guarded, args=(self._receive_loop,), name="device-receive",
                                           daemon=True)]
+        if control_thread:
+            self._threads.insert(0, threading.Thread(target=self._guarded, args=(self._control_loop,),
+                                                     name="device-control", daemon=True))
         self.overruns = 0
         self.errors = 0
 
@@ -134,10 +136,10 @@ class DeviceNode(BusThreads):
         sample = leg.sample() if leg is not None else None
         take_fault = getattr(leg, "take_fault", None)        # a real leg's hardware (device_bridge.osl.leg)
         if take_fault is not None:
+            self.firmware.temperature_degC_ = getattr(leg, "temperature_degC_", None)
             fault = take_fault()
             if fault is not None:
                 self._outbox.extend(self.firmware.hardware_fault(fault[1], now_s, thermal=fault[0] == "thermal"))
-            self.firmware.temperature_degC_ = getattr(leg, "temperature_degC_", None)
         knee, ankle, frames = self.firmware.tick(sample, now_s)
         self._outbox.extend(frames)
         if leg is not None:
@@ -147,6 +149,20 @@ class DeviceNode(BusThreads):
         """One frame from the bus, received at ``now_s``; the firmware's answer is sent at once."""
         with self._lock:
             self._outbox.extend(self.firmware.receive(msg, now_s))
+        self._send()
+
+    def tick(self, now_s: float) -> None:
+        """One control tick at ``now_s`` on the caller's thread (the leg's loop), its frames sent; the receive thread
+        hands frames over meanwhile."""
+        with self._lock:
+            self.control_tick(now_s)
+        self._send()
+
+    def overrun(self, in_a_row: int, now_s: float) -> None:
+        """The leg's loop missed ``in_a_row`` ticks in a row: safe mode, the control-error flag, the reason kept."""
+        with self._lock:
+            self._outbox.extend(self.firmware.hardware_fault(
+                f"the control loop missed {in_a_row} ticks in a row", now_s, thermal=False))
         self._send()
 
     def step(self, now_s: float) -> None:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Install what is missing, then run the linter and the whole test suite.
-#   bash scripts/test.sh            the whole suite (CI runs this through .ci/run)
+#   bash scripts/test.sh            the whole suite (CI runs this through .ci/run), the leg's environment beside it
 #   bash scripts/test.sh --fast     everything but the browser, PostgreSQL, broker and wall-clock tests (work in progress)
 # Further arguments go to pytest (a path, -k, -x ...).
 set -euo pipefail
@@ -38,4 +38,21 @@ fi
 # spent waiting (a page, a real-time leg, a broker); each process takes whole files (`--dist loadfile`: a file's server
 # or browser is started once), the files with servers, browsers, brokers and PostgreSQL first (tests/conftest.py) so
 # that short files fill the end
-exec "${pytest[@]}" -n 3 --dist loadfile --no-loadscope-reorder "$@"
+# the leg's own environment and tests (scripts/test_leg.sh: the Open Source Leg SDK pins numpy<2) run beside the main
+# suite when it runs whole; their output follows the main suite's
+if [ "$#" -eq 0 ]; then
+  leg_log=$(mktemp -t quasitune-leg-XXXXXX.log)
+  bash scripts/test_leg.sh > "$leg_log" 2>&1 &
+  leg_pid=$!
+fi
+status=0
+"${pytest[@]}" -n 3 --dist loadfile --no-loadscope-reorder "$@" || status=$?
+if [ "$#" -eq 0 ]; then
+  if wait "$leg_pid"; then
+    echo "the leg's environment (scripts/test_leg.sh): $(tail -n 1 "$leg_log")"
+  else
+    cat "$leg_log"; echo "the leg's environment (scripts/test_leg.sh) FAILED" >&2; status=1
+  fi
+  rm -f "$leg_log"
+fi
+exit "$status"

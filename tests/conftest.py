@@ -8,6 +8,9 @@ import tempfile
 
 import pytest
 
+# tests/leg run in the leg's own environment (the Open Source Leg SDK pins numpy<2): scripts/test_leg.sh
+collect_ignore = ["leg"]
+
 os.environ.setdefault("QUASITUNE_CACHE_DIR", tempfile.mkdtemp(prefix="quasitune-test-cache-"))
 # cheap password hashes for the run (servers the tests start read the same variable through their Settings): the
 # suite makes hundreds; the production cost is tested on its own (tests/backend/test_security.py)

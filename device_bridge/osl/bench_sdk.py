@@ -92,6 +92,8 @@ class BenchWorld:
             self.time_s += steps * 0.001
             self._commanded = False
         self._sample = self.walker.sample()
+        if self._sample is not None:
+            self.time_s = self._sample.time_s
 
     @property
     def truth(self) -> SensorSample | None:
@@ -330,3 +332,32 @@ class SDKRoute:
             self._held = TorqueCommand(state, t["knee"], t["ankle"], False)
         self._calls += 1
         return self._held
+
+
+class BenchLeg:
+    """A whole bench leg for a dry run (``kind = "bench"`` in a leg file): the walking bench with a patient standing on
+    it, and the SDK objects a leg file names by their ``part``: ``knee_actuator``, ``ankle_actuator``,
+    ``knee_encoder``, ``ankle_encoder``, ``loadcell``, ``thigh``."""
+
+    def __init__(self, period_s: float = 0.002, mass_kg: float = 75.0, mounting: Mounting | None = None) -> None:
+        self.walker = SimWalker()
+        self.world = BenchWorld(walker=self.walker, period_s=period_s, mounting=mounting or Mounting())
+        self.mass_kg = mass_kg
+        self.walker.stand(mass_kg)
+
+    def device(self, tag: str, part: str) -> ActuatorBase | EncoderBase | LoadcellBase:
+        w = self.world
+        if part in ("knee_actuator", "ankle_actuator"):
+            return BenchActuator(tag, w, part.removesuffix("_actuator"), frequency=round(1.0 / w.period_s))
+        if part in ("knee_encoder", "ankle_encoder", "thigh"):
+            return BenchEncoder(tag, w, part.removesuffix("_encoder"))
+        if part == "loadcell":
+            return BenchLoadcell(tag, w)
+        raise ValueError(f"{tag}: a bench part must be one of knee_actuator, ankle_actuator, knee_encoder, "
+                         f"ankle_encoder, loadcell, thigh; got {part!r}")
+
+    def walk(self, speed_mps: float) -> None:
+        """The patient walks on the level at ``speed_mps`` (from standing), with the measured reference's pattern."""
+        from controller_core.walking_reference import level_walking_reference
+
+        self.walker.start(level_walking_reference(speed_mps), self.mass_kg)

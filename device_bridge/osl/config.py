@@ -15,7 +15,14 @@ Example (``docs/leg.example.toml``)::
     actuator = "ankle"
     gear_ratio = 41.4999
 
-    [calibration]                    # written by `quasitune leg calibrate`; the defaults mean "not calibrated"
+    [actuators.knee]                 # the SDK class and its constructor's arguments (the tag is the table's key)
+    kind = "DephyActuator"
+    options = { port = "/dev/ttyACM0", gear_ratio = 41.4999, frequency = 500 }
+
+    [sensors.loadcell]
+    kind = "DephyLoadcellAmplifier"
+
+    [calibration]                    # written by the calibration steps; the defaults mean "not calibrated"
 
 Every field is checked when the file is read, and a bad one is named with its reason (:func:`load_config`).
 Angles in rad inside, like the rest of the leg side; the calibration's offsets in the sensors' own units.
@@ -67,6 +74,30 @@ class Calibration(_Strict):
     loadcell: LoadcellCalibration = LoadcellCalibration()
 
 
+# the SDK classes a leg may name, and where the SDK keeps them (``bench``: ours, the MuJoCo bench behind the SDK's
+# interfaces: device_bridge.osl.bench_sdk, for a dry run without hardware)
+DEVICE_KINDS = {
+    "DephyActuator": "opensourceleg.actuators.dephy", "MoteusActuator": "opensourceleg.actuators.moteus",
+    "TMotorServoActuator": "opensourceleg.actuators.tmotor", "AS5048B": "opensourceleg.sensors.encoder",
+    "DephyLoadcellAmplifier": "opensourceleg.sensors.loadcell", "NBLoadcellDAQ": "opensourceleg.sensors.loadcell",
+    "bench": "device_bridge.osl.bench_sdk",
+}
+
+
+class DeviceConfig(_Strict):
+    """One actuator or sensor: the SDK class (:data:`DEVICE_KINDS`) and its constructor's keyword arguments."""
+
+    kind: str
+    options: dict[str, str | int | float | bool] = Field(default_factory=dict)
+
+    @field_validator("kind")
+    @classmethod
+    def _known(cls, v: str) -> str:
+        if v not in DEVICE_KINDS:
+            raise ValueError(f"kind must be one of {', '.join(DEVICE_KINDS)}, got {v!r}")
+        return v
+
+
 class JointConfig(_Strict):
     actuator: str = Field(min_length=1, description="the actuator's tag")
     encoder: str | None = Field(default=None, description="a joint encoder's tag; none: the actuator's output")
@@ -86,6 +117,8 @@ class LegConfig(_Strict):
     ankle: JointConfig
     loadcell: str = Field(default="loadcell", min_length=1, description="the pylon load cell's tag")
     thigh: str | None = Field(default=None, description="the socket's angle sensor (an IMU's pitch), if any")
+    actuators: dict[str, DeviceConfig] = Field(default_factory=dict)
+    sensors: dict[str, DeviceConfig] = Field(default_factory=dict)
     calibration: Calibration = Calibration()
 
     @field_validator("link")

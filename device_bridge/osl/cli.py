@@ -1,0 +1,71 @@
+"""``quasitune leg --config leg.toml``: the leg side on the leg's own computer.
+
+Builds the leg's devices from the file (:mod:`device_bridge.osl.hardware`), starts them, opens the link to the clinic
+(CAN, or the broker as ``mqtt:LEG_ID``), and runs the firmware in the control loop on the main thread at the file's
+rate (:mod:`device_bridge.osl.loop`); the link's receive thread runs beside it. Overruns in a row put the leg in safe
+mode. Ctrl-C (or SIGTERM) stops the loop, commands zero torque and stops every device. Prints the loop's figures at
+the end. Imports only what the leg installs (``.[leg]``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import time
+
+from device_bridge.osl.config import LegConfigError, load_config
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--config", required=True, help="the leg's TOML file (docs/leg.example.toml)")
+    p.add_argument("--seconds", type=float, default=None, help="stop after this long (default: until Ctrl-C)")
+    p.add_argument("--bench-walk", type=float, default=None, metavar="SPEED",
+                   help="a leg file of bench devices: the simulated patient walks on the level at SPEED m/s")
+
+
+def run(args: argparse.Namespace) -> int:
+    from device_bridge.buses import open_bus
+    from device_bridge.device_node import DeviceNode
+    from device_bridge.osl.hardware import build_devices
+    from device_bridge.osl.leg import OSLLeg
+    from device_bridge.osl.loop import ControlLoop
+
+    config = load_config(args.config)
+    actuators, sensors, bench = build_devices(config)
+    if args.bench_walk is not None:
+        if bench is None:
+            raise ValueError("--bench-walk needs a leg file whose devices are kind = \"bench\"")
+        bench.walk(args.bench_walk)
+    leg = OSLLeg(config, actuators, sensors, clock=time.monotonic)
+    leg.start()
+    node = DeviceNode(open_bus(config.link), leg=leg, control_thread=False)
+    loop = ControlLoop(config.period_s, node.tick, config.overruns_to_safe,
+                       on_overruns=lambda n: node.overrun(n, time.monotonic()))
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: loop.stop_event.set())
+    ticks = None if args.seconds is None else max(round(args.seconds / config.period_s), 1)
+    node.start()
+    try:
+        stats = loop.run(max_ticks=ticks)
+    finally:
+        try:
+            leg.stop()
+        finally:
+            node.close()
+    print(json.dumps({"rate_hz": config.rate_hz, "ticks": stats.ticks, "overruns": stats.overruns,
+                      "longest_late_ms": round(1000 * stats.longest_late_s, 3), "mode": node.firmware.mode_.name,
+                      "hardware_fault": node.firmware.hardware_fault_}))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="quasitune leg", description=__doc__.splitlines()[0])
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except (LegConfigError, ValueError, FileNotFoundError) as exc:
+        print(f"quasitune leg: error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        return 2

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# The leg's environment (issue 54): .venv-leg holds the leg extra alone (.[leg]: numpy, pydantic, python-can, cantools,
+# paho-mqtt and the Open Source Leg SDK, with the SDK's own pins: numpy<2, pandas<3), never the server's or the model's
+# packages. This installs it if missing, checks that `quasitune leg` runs from it, then adds what the tests need
+# (pytest, and MuJoCo for the bench behind the SDK's interfaces) and runs tests/leg there.
+#   bash scripts/test_leg.sh [pytest arguments]      (scripts/test.sh runs it beside the main suite)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+if [ ! -x .venv-leg/bin/python ]; then
+  "$PY" -m venv .venv-leg
+fi
+stamp=.venv-leg/.quasitune-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  log=.venv-leg/install.log
+  {
+    if [ -x .venv/bin/uv ]; then install=(.venv/bin/uv pip install --python .venv-leg/bin/python)
+    else .venv-leg/bin/python -m pip install --upgrade pip; install=(.venv-leg/bin/python -m pip install); fi
+    "${install[@]}" -e ".[leg]"
+    # the leg's command from the leg's packages alone, before the tests bring MuJoCo
+    .venv-leg/bin/quasitune leg --help > /dev/null
+    .venv-leg/bin/python -c "import numpy, sys; sys.exit(0 if numpy.__version__ < '2' else 1)"
+    "${install[@]}" "pytest>=8" "pytest-timeout>=2.3" "mujoco>=3.1"
+  } > "$log" 2>&1 || { tail -n 40 "$log" >&2; echo "the leg's environment could not be made; log in $log" >&2; exit 1; }
+  touch "$stamp"
+fi
+# tests/conftest.py is the server's (its fixtures import the backend): the leg's tests bring their own helpers
+exec .venv-leg/bin/python -m pytest -q -p no:cacheprovider --noconftest tests/leg "$@"

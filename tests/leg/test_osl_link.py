@@ -1,0 +1,130 @@
+"""The OSL leg on the device stack: guided calibration finds how its sensors are mounted, a push from the clinic lands
+and runs from the next heel strike, and a thermal trip is safe mode with its reason within one status period."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from controller_core.fsm import GaitState
+from controller_core.walking_reference import level_walking_reference
+from device_bridge.osl.bench_sdk import Mounting, SDKRoute
+from device_bridge.osl.calibration import joint_direction, joint_zero, loadcell_sign, loadcell_zero
+from device_bridge.osl.config import Calibration
+from device_bridge.protocol import Fault, Mode
+from device_bridge.rig import Rig
+from device_bridge.sim.simulate import run_walk
+from device_bridge.sim.walker import SimWalker
+from tests.leg.bench import bench_leg, config, firmware_with, learned_table
+
+DEG = math.pi / 180.0
+MISMOUNTED = Mounting(knee_sign=-1, knee_offset_rad=0.52, ankle_offset_rad=-0.11, fz_sign=-1, fz_offset_N=-140.0,
+                      my_sign=-1, my_offset_Nm=2.5)
+
+
+def _readings(leg, world, held: tuple[float, float], n: int = 5) -> list[dict[str, float]]:
+    """The leg's raw sensors, read ``n`` times with the joints held at ``held`` (rad) by hand."""
+    world.held = held
+    out = []
+    for _ in range(n):
+        for d in leg.devices:
+            d.update()
+        out.append({"knee": leg.encoders["knee"].position, "knee_act": leg.actuators["knee"].output_position,
+                    "ankle": leg.actuators["ankle"].output_position, "fz": leg.loadcell.fz, "my": leg.loadcell.my})
+    return out
+
+
+def test_calibration_finds_a_reversed_offset_encoder_and_an_offset_reversed_load_cell():
+    """The knee's encoder mounted reversed 30° off, the ankle 6° off, the load cell reversed 140 N off: the guided steps
+    find each, and the calibrated leg then reads the bench's true angles within 0.5° (and its load within 1 N) while
+    walking."""
+    walker = SimWalker()
+    leg, world = bench_leg(config(1000.0, knee_encoder=True), MISMOUNTED, walker=walker)
+    zero = _readings(leg, world, (0.0, 0.0))
+    knee0 = joint_zero("knee", [r["knee"] for r in zero])
+    ankle0 = joint_zero("ankle", [r["ankle"] for r in zero])
+    moving = [r for a in range(0, 31, 5) for r in _readings(leg, world, (a * DEG, a / 3 * DEG), 1)]
+    knee = joint_direction("knee", knee0.calibration, [r["knee"] for r in moving], [r["knee_act"] for r in moving])
+    ankle = joint_direction("ankle", ankle0.calibration, [r["ankle"] for r in moving], [r["ankle"] for r in moving])
+    assert knee.calibration.sign == -1 and "reversed" in knee.measured and ankle.calibration.sign == 1
+    assert math.degrees(knee.calibration.zero_rad) == pytest.approx(math.degrees(0.52), abs=0.01)
+    unloaded = _readings(leg, world, (0.0, 0.0))
+    lc0 = loadcell_zero([r["fz"] for r in unloaded], [r["my"] for r in unloaded])
+    world.held = None
+    walker.stand(75.0)
+    standing = []
+    for _ in range(5):
+        leg.loadcell.update()
+        standing.append(leg.loadcell.fz)
+    lc = loadcell_sign(lc0.calibration, standing, 75.0)
+    assert lc.calibration.fz_sign == -1 and lc.calibration.fz_zero_N == pytest.approx(-140.0)
+
+    cal = Calibration(knee=knee.calibration, ankle=ankle.calibration, loadcell=lc.calibration)
+    calibrated, world2 = bench_leg(config(1000.0, cal, knee_encoder=True), MISMOUNTED)
+    ref = level_walking_reference(1.2)
+    worst = {"angle_deg": 0.0, "load_N": 0.0}
+
+    class Watch(SDKRoute):
+        def step(self, x):
+            cmd = super().step(x)
+            seen = self.leg.sample()
+            worst["angle_deg"] = max(worst["angle_deg"], abs(math.degrees(seen.knee_angle_rad - x.knee_angle_rad)),
+                                     abs(math.degrees(seen.ankle_angle_rad - x.ankle_angle_rad)))
+            worst["load_N"] = max(worst["load_N"], abs(seen.load_N - x.load_N))
+            return cmd
+
+    run_walk(Watch(firmware_with(learned_table()), calibrated, world2), ref, 75.0, 4.0)
+    assert worst["angle_deg"] < 0.5 and worst["load_N"] < 1.0, worst
+
+
+def _rig_with_osl_leg():
+    walker = SimWalker()
+    rig = Rig()
+    leg, world = bench_leg(config(1000.0), walker=walker, clock=rig.clock.monotonic)
+    rig.node.leg = leg
+    return rig, leg, world, walker
+
+
+def test_a_push_lands_and_runs_from_the_next_heel_strike():
+    """Walking on version 1, version 2 pushed through the host's link: staged, then active at a heel strike (the
+    machine's swing → stance flexion on load), and the leg walks on it."""
+    rig, _, _, walker = _rig_with_osl_leg()
+    with rig:
+        table = learned_table()
+        walker.stand(75.0)
+        rig.advance(0.2)
+        rig.link.push(table, version=1)
+        walker.start(level_walking_reference(1.2), 75.0)
+        rig.advance(3.0)
+        firmer = table.model_copy(update={"thresholds": table.thresholds.model_copy(
+            update={"fold_knee_rate_deg_per_s": 100.0})})
+        rig.link.push(firmer, version=2)
+        fw = rig.node.firmware
+        assert fw.staged_ is not None and fw.staged_.version == 2 and fw.active_.version == 1
+        before = []
+        rig.run_until(lambda: before.append(fw.controller_.state_) or fw.active_.version == 2, timeout_s=2.0)
+        assert fw.controller_.state_ == GaitState.STANCE_FLEXION
+        assert before[-2] in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION)
+        rig.advance(3.0)
+        assert fw.mode_ == Mode.ACTIVE and rig.node.errors == 0 and walker.walking
+
+
+def test_a_thermal_trip_is_safe_mode_with_its_reason_at_the_clinic_within_one_status_period():
+    rig, leg, world, walker = _rig_with_osl_leg()
+    with rig:
+        walker.stand(75.0)
+        rig.advance(0.2)
+        rig.link.push(learned_table(), version=1)
+        walker.start(level_walking_reference(1.2), 75.0)
+        rig.advance(2.0)
+        leg.actuators["knee"].case_temperature_degC = 84.0
+        world.thermal_trip.add("knee")
+        tripped = rig.clock.monotonic()
+        rig.run_until(lambda: rig.link.status is not None and rig.link.status.mode == Mode.SAFE
+                      and bool(rig.link.status.fault_flags & Fault.OVER_TEMPERATURE), timeout_s=1.0)
+        assert rig.clock.monotonic() - tripped <= rig.node.firmware.config.status_period_s
+        assert rig.link.status.temperature_degC == 84.0
+        assert "ThermalLimitException" in rig.node.firmware.hardware_fault_
+        rig.advance(1.0)
+        assert rig.node.firmware.mode_ == Mode.SAFE and rig.node.errors == 0
