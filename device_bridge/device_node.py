@@ -146,9 +146,12 @@ class DeviceNode(BusThreads):
             leg.step(knee, ankle)
 
     def handle(self, msg: can.Message, now_s: float) -> None:
-        """One frame from the bus, received at ``now_s``; the firmware's answer is sent at once."""
+        """One frame from the bus, received at ``now_s``; the firmware's answer is sent at once. A commit's checks run
+        before the firmware is taken (:meth:`~device_bridge.firmware.DeviceFirmware.prepare`): a push never holds up
+        a control tick."""
+        prepared = self.firmware.prepare(msg)
         with self._lock:
-            self._outbox.extend(self.firmware.receive(msg, now_s))
+            self._outbox.extend(self.firmware.receive(msg, now_s, prepared))
         self._send()
 
     def tick(self, now_s: float) -> None:

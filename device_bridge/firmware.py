@@ -129,6 +129,15 @@ class _Transfer:
     rows: dict[int, tuple[int, ...]] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class Prepared:
+    """A commit verified ahead of :meth:`DeviceFirmware.receive` (:meth:`DeviceFirmware.prepare`): the transfer it
+    was verified from, and the table or envelope ready to stage, or the refusal."""
+
+    rx: object
+    outcome: HeldTable | AckResult
+
+
 @dataclass
 class _LastCommit:
     transfer_id: int
@@ -176,8 +185,8 @@ class DeviceFirmware:
 
     # ------------------------------------------------------------------------------------------ frames in
 
-    def receive(self, msg: can.Message, now_s: float) -> list[can.Message]:
-        """Handle one received frame; returns the frames to send in reply.
+    def receive(self, msg: can.Message, now_s: float, prepared: Prepared | None = None) -> list[can.Message]:
+        """Handle one received frame; returns the frames to send in reply. ``prepared``: :meth:`prepare`'s work on it.
 
         Fails safe: any error while handling a frame aborts the transfer being received (a commit is answered
         DEVICE_ERROR), flags RECEIVE_ERROR and returns; the active and staged tables and the control loop are
@@ -192,7 +201,7 @@ class DeviceFirmware:
             return []
         name, raw = decoded
         try:
-            return self._handle(name, raw, now_s)
+            return self._handle(name, raw, now_s, prepared)
         except Exception:
             self._rx = None   # a later frame of it meets no transfer; its commit is answered UNKNOWN_TRANSFER
             self.rx_errors_ += 1
@@ -201,7 +210,7 @@ class DeviceFirmware:
                 return [self._refuse(raw.get("transfer_id", 0), AckResult.DEVICE_ERROR, raw.get("version", 0))]
             return []
 
-    def _handle(self, name: str, raw: dict[str, int], now_s: float) -> list[can.Message]:
+    def _handle(self, name: str, raw: dict[str, int], now_s: float, prepared: Prepared | None) -> list[can.Message]:
         if name == "HOST_HEARTBEAT":
             self.last_heartbeat_s_ = now_s
             return []
@@ -218,7 +227,7 @@ class DeviceFirmware:
                 rx.rows.setdefault(row[0], row[1])   # the first copy wins; a corrupt one fails the CRC
             return []
         if name == "TABLE_COMMIT":
-            return [self._commit(raw)]
+            return [self._commit(raw, prepared)]
         if name == "ENVELOPE_BEGIN":
             n_s, n_i = raw["n_speeds"], raw["n_inclines"]
             if n_s < 2 or n_i < 2 or n_s * n_i > 64:
@@ -233,7 +242,7 @@ class DeviceFirmware:
                 rx.add(name, raw)
             return []
         if name == "ENVELOPE_COMMIT":
-            return [self._commit_envelope(raw)]
+            return [self._commit_envelope(raw, prepared)]
         if name == "DEVICE_COMMAND":
             return self._command(raw["command"], now_s)
         return []
@@ -245,7 +254,7 @@ class DeviceFirmware:
                                     "crc32": crc32 if result == AckResult.STAGED else 0,
                                     "version_low": version & 0xFF})
 
-    def _commit(self, raw: dict[str, int]) -> can.Message:
+    def _commit(self, raw: dict[str, int], prepared: Prepared | None) -> can.Message:
         tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
         if not isinstance(self._rx, _Transfer) or self._rx.transfer_id != tid:
             return self._unknown_or_repeat(tid, version, crc)
@@ -257,17 +266,24 @@ class DeviceFirmware:
         if missing:
             return self._ack(tid, AckResult.MISSING_ROWS, missing=missing, version=version)   # keep the rows
         self._rx = None
+        outcome = prepared.outcome if prepared is not None and prepared.rx is rx else self._verify_table(rx)
+        if isinstance(outcome, AckResult):
+            return self._refuse(tid, outcome, version)
+        return self._stage(tid, outcome)
+
+    def _verify_table(self, rx: _Transfer) -> HeldTable | AckResult:
+        """A complete table transfer checked (CRC, every limit) and made ready to run, or the refusal; changes nothing."""
         wire = WireTable.from_row_values(rx.rows)
-        if wire.crc32() != crc:
-            return self._refuse(tid, AckResult.CRC_MISMATCH, version)
+        if wire.crc32() != rx.crc32:
+            return AckResult.CRC_MISMATCH
         try:
             table = wire.to_device_table()
         except ValueError:
-            return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
+            return AckResult.SAFETY_LIMIT
         if check_table(table, self.config.limits):
-            return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
+            return AckResult.SAFETY_LIMIT
         schedule = ImpedanceSchedule.from_table(table, self.config.limits)
-        return self._stage(tid, HeldTable(version=version, crc32=crc, table=table, schedule=schedule))
+        return HeldTable(version=rx.version, crc32=rx.crc32, table=table, schedule=schedule)
 
     def _stage(self, tid: int, held: HeldTable) -> can.Message:
         """Keep a verified table or envelope for the next heel strike and acknowledge it with its CRC."""
@@ -283,7 +299,7 @@ class DeviceFirmware:
             return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)   # our acknowledgement was lost
         return self._ack(tid, AckResult.UNKNOWN_TRANSFER, version=version)
 
-    def _commit_envelope(self, raw: dict[str, int]) -> can.Message:
+    def _commit_envelope(self, raw: dict[str, int], prepared: Prepared | None) -> can.Message:
         """All or nothing: every frame, the CRC over all of them, every node's limits and the neighbour rule."""
         tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
         rx = self._rx
@@ -296,20 +312,53 @@ class DeviceFirmware:
         if missing:   # the count of missing frames: the host sends the transfer's data again
             return self._ack(tid, AckResult.MISSING_ROWS, missing=min(missing, 0xFFFF), version=version)
         self._rx = None
+        outcome = prepared.outcome if prepared is not None and prepared.rx is rx else self._verify_envelope(rx)
+        if isinstance(outcome, AckResult):
+            return self._refuse(tid, outcome, version)
+        return self._stage(tid, outcome)
+
+    def _verify_envelope(self, rx: EnvelopeReceiver) -> HeldTable | AckResult:
+        """A complete envelope transfer checked (CRC, every node's limits, the neighbour rule, the nominal task inside
+        the grid) and its blender built, or the refusal; changes nothing."""
         wire = rx.wire()
-        if wire.crc32() != crc:
-            return self._refuse(tid, AckResult.CRC_MISMATCH, version)
+        if wire.crc32() != rx.crc32:
+            return AckResult.CRC_MISMATCH
         try:
             device = wire.to_device()
             blender = EnvelopeBlender(device.speeds_mps, device.inclines_deg, device.tables, self.config.limits,
                                       self.config.neighbour_steps)
             nominal = blender.at(*device.nominal)
         except (SafetyLimitError, ValueError):
-            return self._refuse(tid, AckResult.SAFETY_LIMIT, version)
+            return AckResult.SAFETY_LIMIT
         if nominal.clamped:   # the nominal task lies outside the grid: not an envelope the host can have built
-            return self._refuse(tid, AckResult.MALFORMED, version)
-        return self._stage(tid, HeldTable(version=version, crc32=crc, table=None, schedule=nominal.schedule,
-                                          envelope=device, blender=blender))
+            return AckResult.MALFORMED
+        return HeldTable(version=rx.version, crc32=rx.crc32, table=None, schedule=nominal.schedule, envelope=device,
+                         blender=blender)
+
+    def prepare(self, msg: can.Message) -> Prepared | None:
+        """The slow half of a commit (CRC, every limit, an envelope's blender: milliseconds on a small computer) done
+        before the caller takes the firmware for :meth:`receive`, so the control loop never waits on it: called on the
+        receive thread, the only one that adds frames to a transfer; it changes nothing. None for any other frame, or
+        a transfer that is not complete (``receive`` answers those). ``receive`` uses the result only if the
+        transfer is still the current one (the control thread may have timed it out meanwhile)."""
+        try:
+            decoded = decode(msg)
+        except ProtocolError:
+            return None
+        if decoded is None or decoded[0] not in ("TABLE_COMMIT", "ENVELOPE_COMMIT"):
+            return None
+        name, raw = decoded
+        rx = self._rx
+        try:
+            if name == "TABLE_COMMIT" and isinstance(rx, _Transfer) and raw["transfer_id"] == rx.transfer_id \
+                    and (rx.version, rx.crc32) == (raw["version"], raw["crc32"]) and len(rx.rows) == ROW_COUNT:
+                return Prepared(rx, self._verify_table(rx))
+            if name == "ENVELOPE_COMMIT" and isinstance(rx, EnvelopeReceiver) and raw["transfer_id"] == rx.transfer_id \
+                    and (rx.version, rx.crc32) == (raw["version"], raw["crc32"]) and not rx.missing():
+                return Prepared(rx, self._verify_envelope(rx))
+        except Exception:   # receive() meets the same error and fails safe (DEVICE_ERROR)
+            return None
+        return None
 
     def _refuse(self, tid: int, result: AckResult, version: int) -> can.Message:
         self.faults_ |= Fault.TABLE_REFUSED

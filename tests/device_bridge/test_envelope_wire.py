@@ -196,3 +196,38 @@ def test_a_table_pushed_after_an_envelope_replaces_it_at_heel_strike(envelopes, 
         step(loaded)
     assert fw.active_.crc32 == wire.crc32() and isinstance(fw.controller_, StateMachineController)
     assert fw.controller_.state_ == GaitState.STANCE_FLEXION and fw.active_.envelope is None
+
+
+def test_a_commit_is_checked_before_the_firmware_is_taken_so_a_push_never_holds_up_a_control_tick(envelopes):
+    """The node verifies an envelope (CRC, every node's limits, the neighbour rule, the blender: milliseconds on a
+    leg's small computer) before it takes the firmware for the commit, and once; a transfer the control loop timed out
+    in between is not staged from that verification."""
+    import can
+
+    from device_bridge.device_node import DeviceNode
+
+    node = DeviceNode(can.Bus(interface="virtual", channel="prepare-test"), leg=None)
+    fw = node.firmware
+    checked = []
+    verify = fw._verify_envelope
+
+    def spy(rx):
+        checked.append(node.ticking.locked())
+        return verify(rx)
+
+    fw._verify_envelope = spy
+    begin, data, commit, crc = frames_of(envelopes[0], 2, 5)
+    for f in [begin, *data, commit]:
+        node.handle(f, 0.0)
+    assert checked == [False] and fw.staged_ is not None and fw.staged_.crc32 == crc
+    node.close()
+
+    fw2 = DeviceFirmware()
+    begin, data, commit, _ = frames_of(envelopes[0], 3, 6)
+    for f in [begin, *data]:
+        fw2.receive(f, 0.0)
+    prepared = fw2.prepare(commit)
+    assert prepared is not None and prepared.rx is not None
+    fw2.tick(None, 10.0)                                   # the transfer times out meanwhile
+    [ack] = [decode(m)[1] for m in fw2.receive(commit, 10.0, prepared) if decode(m)[0] == "TABLE_ACK"]
+    assert ack["result"] == AckResult.UNKNOWN_TRANSFER and fw2.staged_ is None
