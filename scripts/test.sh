@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Install what is missing, then run the linter and the whole test suite.
-#   bash scripts/test.sh            the whole suite (CI runs this through .ci/run), the leg's environment beside it
+#   bash scripts/test.sh            the whole suite (CI runs this through .ci/run), then the leg's environment's
 #   bash scripts/test.sh --fast     everything but the browser, PostgreSQL, broker and wall-clock tests (work in progress)
 # Further arguments go to pytest (a path, -k, -x ...).
 set -euo pipefail
@@ -8,6 +8,12 @@ cd "$(dirname "$0")/.."
 fast=0
 if [ "${1:-}" = "--fast" ]; then fast=1; shift; fi
 bash scripts/setup_venv.sh
+# the leg's own environment (scripts/test_leg.sh: the Open Source Leg SDK pins numpy<2) is made while the rest sets up
+if [ "$fast" -eq 0 ] && [ "$#" -eq 0 ]; then
+  leg_log=$(mktemp -t quasitune-leg-XXXXXX.log)
+  bash scripts/test_leg.sh --install > "$leg_log" 2>&1 &
+  leg_install=$!
+fi
 bash scripts/setup_frontend.sh
 # the browser tests drive Debian's Chromium (never 'playwright install'); docker-compose checks the compose file;
 # the store, router and concurrency tests also run on PostgreSQL: a throwaway server the tests start themselves from
@@ -38,22 +44,16 @@ fi
 # spent waiting (a page, a real-time leg, a broker); each process takes whole files (`--dist loadfile`: a file's server
 # or browser is started once), the files with servers, browsers, brokers and PostgreSQL first (tests/conftest.py) so
 # that short files fill the end
-# the leg's own environment and tests (scripts/test_leg.sh: the Open Source Leg SDK pins numpy<2) run beside the main
-# suite when it runs whole, at the lowest priority: on the time the main suite's processes spend waiting (a page, a
-# real-time leg, a broker), not on the wall-clock tests' CPU; their output follows the main suite's
-if [ "$#" -eq 0 ]; then
-  leg_log=$(mktemp -t quasitune-leg-XXXXXX.log)
-  nice -n 19 bash scripts/test_leg.sh > "$leg_log" 2>&1 &
-  leg_pid=$!
+if [ -n "${leg_install:-}" ] && ! wait "$leg_install"; then
+  cat "$leg_log"; echo "the leg's environment (scripts/test_leg.sh) could not be made" >&2; exit 1
 fi
 status=0
 "${pytest[@]}" -n 3 --dist loadfile --no-loadscope-reorder "$@" || status=$?
-if [ "$#" -eq 0 ]; then
-  if wait "$leg_pid"; then
-    echo "the leg's environment (scripts/test_leg.sh): $(tail -n 1 "$leg_log")"
-  else
-    cat "$leg_log"; echo "the leg's environment (scripts/test_leg.sh) FAILED" >&2; status=1
-  fi
+# then the leg's tests in their environment (after the main suite: beside it, they slowed its wall-clock tests by more
+# than their own time)
+if [ -n "${leg_install:-}" ]; then
+  echo "the leg's environment (scripts/test_leg.sh):"
+  bash scripts/test_leg.sh || status=1
   rm -f "$leg_log"
 fi
 exit "$status"

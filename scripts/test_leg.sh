@@ -3,9 +3,12 @@
 # paho-mqtt and the Open Source Leg SDK, with the SDK's own pins: numpy<2, pandas<3), never the server's or the model's
 # packages. This installs it if missing, checks that `quasitune leg` runs from it, then adds what the tests need
 # (pytest, and MuJoCo for the bench behind the SDK's interfaces) and runs tests/leg there.
-#   bash scripts/test_leg.sh [pytest arguments]      (scripts/test.sh runs it beside the main suite)
+#   bash scripts/test_leg.sh [pytest arguments]      (scripts/test.sh runs it after the main suite)
+#   bash scripts/test_leg.sh --install               only make the environment (scripts/test.sh: while it sets up)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+install_only=0
+if [ "${1:-}" = "--install" ]; then install_only=1; shift; fi
 PY=${PYTHON:-python3}
 if [ ! -x .venv-leg/bin/python ]; then
   "$PY" -m venv .venv-leg
@@ -24,5 +27,6 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   } > "$log" 2>&1 || { tail -n 40 "$log" >&2; echo "the leg's environment could not be made; log in $log" >&2; exit 1; }
   touch "$stamp"
 fi
+if [ "$install_only" -eq 1 ]; then exit 0; fi
 # tests/conftest.py is the server's (its fixtures import the backend): the leg's tests bring their own helpers
 exec .venv-leg/bin/python -m pytest -q -p no:cacheprovider --noconftest tests/leg "$@"

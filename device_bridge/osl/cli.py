@@ -23,6 +23,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seconds", type=float, default=None, help="stop after this long (default: until Ctrl-C)")
     p.add_argument("--bench-walk", type=float, default=None, metavar="SPEED",
                    help="a leg file of bench devices: the simulated patient walks on the level at SPEED m/s")
+    p.add_argument("--calibrate", action="store_true",
+                   help="the guided calibration (prompts on this terminal), kept beside the leg file; then exit")
+    p.add_argument("--mass", type=float, default=None, help="the patient's body mass (kg), for --calibrate")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,6 +37,12 @@ def run(args: argparse.Namespace) -> int:
 
     config = load_config(args.config)
     actuators, sensors, bench = build_devices(config)
+    if args.calibrate:
+        return calibrate(args, config, actuators, sensors)
+    cal = config.calibration
+    if bench is None and not (cal.knee.calibrated and cal.ankle.calibrated and cal.loadcell.calibrated):
+        raise ValueError("this leg is not calibrated: a reversed sensor would turn every torque against the joint; run "
+                         f"quasitune leg --config {args.config} --calibrate --mass KG first")
     if args.bench_walk is not None:
         if bench is None:
             raise ValueError("--bench-walk needs a leg file whose devices are kind = \"bench\"")
@@ -57,6 +66,26 @@ def run(args: argparse.Namespace) -> int:
     print(json.dumps({"rate_hz": config.rate_hz, "ticks": stats.ticks, "overruns": stats.overruns,
                       "longest_late_ms": round(1000 * stats.longest_late_s, 3), "mode": node.firmware.mode_.name,
                       "hardware_fault": node.firmware.hardware_fault_}))
+    return 0
+
+
+def calibrate(args: argparse.Namespace, config, actuators, sensors) -> int:
+    """The guided calibration (:mod:`device_bridge.osl.calibration_guide`), kept beside the leg file."""
+    from device_bridge.osl.calibration_guide import guided_calibration
+    from device_bridge.osl.config import save_calibration
+    from device_bridge.osl.leg import OSLLeg
+
+    if args.mass is None:
+        raise ValueError("--calibrate needs the patient's --mass (kg): the load cell's sign is read from their weight")
+    leg = OSLLeg(config, actuators, sensors, clock=time.monotonic)
+    leg.start()
+    leg.step(0.0, 0.0)                               # the joints are moved by hand: no torque
+    try:
+        calibration = guided_calibration(leg, args.mass, ask=lambda prompt: input(f"{prompt} Then press Enter. "),
+                                         say=lambda words: print(f"  {words}"))
+    finally:
+        leg.stop()
+    print(f"kept in {save_calibration(args.config, calibration)}")
     return 0
 
 

@@ -30,6 +30,7 @@ Angles in rad inside, like the rest of the leg side; the calibration's offsets i
 
 from __future__ import annotations
 
+import json
 import math
 import tomllib
 from pathlib import Path
@@ -145,14 +146,35 @@ def parse_config(data: object, source: str = "leg configuration") -> LegConfig:
         raise LegConfigError(f"{source}: " + "; ".join(lines)) from None
 
 
+def calibration_path(config_path: Path | str) -> Path:
+    """Where a leg's calibration is kept: beside its file (``leg.toml`` → ``leg.calibration.json``)."""
+    return Path(config_path).with_suffix(".calibration.json")
+
+
 def load_config(path: Path | str) -> LegConfig:
-    """Read and check a leg's TOML configuration (LegConfigError naming each bad field, or the TOML error's line)."""
+    """Read and check a leg's TOML configuration (LegConfigError naming each bad field, or the TOML error's line), with
+    the calibration kept beside it (:func:`calibration_path`) when there is one: it replaces the file's own."""
     path = Path(path)
     try:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise LegConfigError(f"{path}: not TOML: {exc}") from None
+    kept = calibration_path(path)
+    if kept.exists():
+        try:
+            data["calibration"] = json.loads(kept.read_text())
+        except json.JSONDecodeError as exc:
+            raise LegConfigError(f"{kept}: not JSON: {exc}") from None
     return parse_config(data, str(path))
+
+
+def save_calibration(config_path: Path | str, calibration: Calibration) -> Path:
+    """Keep ``calibration`` beside the leg's file (written whole, then renamed over the old one: never half a file)."""
+    target = calibration_path(config_path)
+    tmp = target.with_suffix(".json.tmp")
+    tmp.write_text(calibration.model_dump_json(indent=2) + "\n")
+    tmp.replace(target)
+    return target
 
 
 def finite(value: float, what: str) -> float:

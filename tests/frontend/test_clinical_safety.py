@@ -27,23 +27,8 @@ def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server
     expect(page.locator("#param-table td.out")).to_have_count(0)
     assert page.inner_text("#edit-live") == ""
     assert not page.is_disabled("#edit-form button[type=submit]")
-
-    # a script skipping the page meets the same rule, and nothing is stored
-    before = len(call(page, "GET", "/api/patients/{}/proposals".format(
-        call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]))["body"])
-    refused = call(page, "POST", f"/api/proposals/{pid}/edits", {"comment": "springy", "rows": [
-        {"joint": "knee", "subphase": "stance_flexion", "k_Nm_per_rad": 150.0}]})
-    assert refused["status"] == 422, refused
-    assert "knee gives way" in refused["body"]["detail"]
-    patient_id = call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
-    assert len(call(page, "GET", f"/api/patients/{patient_id}/proposals")["body"]) == before
-
-
-def test_the_stumble_support_is_shown_with_its_limits_and_checked_as_typed(server, page):
-    """The stumble support's trigger is part of the table: its own section, in words, with units and limits; a fold
-    speed at which every downhill stance would be held stiff is marked as typed; a change is saved like any other."""
-    sign_in(page, server, "dana")
-    pid = create_patient_and_propose(page, "P-405")
+    # the stumble support's trigger is part of the table: its own section, in words, with units and limits; a fold
+    # speed at which every downhill stance would be held stiff is marked as typed
     section = page.inner_text("#stumble-support")
     assert "stumble: loaded knee folding in early stance faster than" in section and "deg/s" in section, section
     assert "60 … 300" in section and "20 … 70" in section and "%" in section, section
@@ -54,14 +39,18 @@ def test_the_stumble_support_is_shown_with_its_limits_and_checked_as_typed(serve
     expect(page.locator("td[data-cell='thresholds.fold_knee_rate_deg_per_s'].out")).to_have_count(1)
     assert "outside" in page.inner_text("#edit-live") and page.is_disabled("#edit-form button[type=submit]")
     shot(page, "09b-stumble-support-limit")
-    page.fill(fold, "120")
+    page.fill(fold, "90")
     expect(page.locator("#edit-live li")).to_have_count(0)
-    page.fill("#edit-form input[name=comment]", "catch a folding knee later")
-    page.click("#edit-form button[type=submit]")
-    page.wait_for_selector("h1:has-text('table v2')")
-    expect(page.locator(fold)).to_have_value("120")
-    v2 = call(page, "GET", page.url.split("#")[1].replace("/proposals/", "/api/proposals/"))["body"]
-    assert v2["id"] != pid and v2["thresholds"]["fold_knee_rate_deg_per_s"] == 120.0
+
+    # a script skipping the page meets the same rule, and nothing is stored
+    before = len(call(page, "GET", "/api/patients/{}/proposals".format(
+        call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]))["body"])
+    refused = call(page, "POST", f"/api/proposals/{pid}/edits", {"comment": "springy", "rows": [
+        {"joint": "knee", "subphase": "stance_flexion", "k_Nm_per_rad": 150.0}]})
+    assert refused["status"] == 422, refused
+    assert "knee gives way" in refused["body"]["detail"]
+    patient_id = call(page, "GET", f"/api/proposals/{pid}")["body"]["patient_id"]
+    assert len(call(page, "GET", f"/api/patients/{patient_id}/proposals")["body"]) == before
 
 
 def test_clinical_words_by_default_and_the_engineering_view_one_click_away(server, page):

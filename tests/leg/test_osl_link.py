@@ -128,3 +128,39 @@ def test_a_thermal_trip_is_safe_mode_with_its_reason_at_the_clinic_within_one_st
         assert "ThermalLimitException" in rig.node.firmware.hardware_fault_
         rig.advance(1.0)
         assert rig.node.firmware.mode_ == Mode.SAFE and rig.node.errors == 0
+
+
+def test_the_guided_calibration_prompts_repeats_a_refused_step_and_keeps_its_result(tmp_path):
+    """The leg's prompts, answered by poses on the bench (the same mis-mounted sensors): the unloaded step is first
+    taken with the patient still on the leg and refused with its reason, then taken again; the result is kept beside
+    the leg file and read back with it."""
+    from device_bridge.osl.calibration_guide import MOVED_POSE, STANDING, UNLOADED, ZERO_POSE, guided_calibration
+    from device_bridge.osl.config import load_config, save_calibration
+
+    walker = SimWalker()
+    leg, world = bench_leg(config(500.0, knee_encoder=True), MISMOUNTED, walker=walker)
+    walker.stand(75.0)
+    unloaded_asked = []
+
+    def ask(prompt: str) -> None:
+        if prompt == ZERO_POSE:
+            world.held = (0.0, 0.0)
+        elif prompt == MOVED_POSE:
+            world.held = (32 * DEG, 9 * DEG)
+        elif prompt == UNLOADED:
+            unloaded_asked.append(prompt)
+            world.held = None if len(unloaded_asked) == 1 else (0.0, 0.0)   # the first time, still stood on
+        elif prompt == STANDING:
+            world.held = None
+
+    said: list[str] = []
+    cal = guided_calibration(leg, 75.0, ask, said.append, samples=20, sleep=lambda s: None)
+    assert len(unloaded_asked) == 2 and any(w.startswith("refused: load cell zero") for w in said), said
+    assert cal.knee.sign == -1 and cal.loadcell.fz_sign == -1 and cal.knee.calibrated and cal.loadcell.calibrated
+    assert math.degrees(cal.knee.zero_rad) == pytest.approx(math.degrees(0.52), abs=0.01)
+
+    path = tmp_path / "leg.toml"
+    path.write_text('thigh = "thigh"\n[knee]\nactuator = "knee"\nencoder = "knee_joint"\ngear_ratio = 41.5\n'
+                    '[ankle]\nactuator = "ankle"\ngear_ratio = 41.5\n')
+    save_calibration(path, cal)
+    assert load_config(path).calibration == cal

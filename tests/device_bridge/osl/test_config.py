@@ -49,3 +49,17 @@ def test_a_file_that_is_not_toml_says_where(tmp_path):
     path.write_text("rate_hz = = 5\n")
     with pytest.raises(LegConfigError, match="not TOML"):
         load_config(path)
+
+
+def test_a_calibration_is_kept_beside_the_leg_file_and_read_back_with_it(tmp_path):
+    from device_bridge.osl.config import Calibration, JointCalibration, calibration_path, save_calibration
+
+    path = tmp_path / "leg.toml"
+    path.write_text(GOOD)
+    cal = Calibration(knee=JointCalibration(sign=-1, zero_rad=0.52, torque_sign=1, calibrated=True))
+    kept = save_calibration(path, cal)
+    assert kept == calibration_path(path) == tmp_path / "leg.calibration.json"
+    assert load_config(path).calibration == cal
+    kept.write_text("{not json")
+    with pytest.raises(LegConfigError, match="not JSON"):
+        load_config(path)
