@@ -206,17 +206,11 @@ class BenchActuator(ActuatorBase):
         return 1.0
 
 
-class BenchEncoder(EncoderBase):
-    """A joint encoder on the bench (or, with ``name="thigh"``, the socket's angle sensor)."""
+class _BenchSensor:
+    """What every bench sensor does: stream once started, and read the bench as it is after the period's physics."""
 
-    def __init__(self, tag: str, world: BenchWorld, name: str) -> None:
-        super().__init__(tag=tag)
-        self.world, self.name = world, name
-        self._streaming = False
-
-    @property
-    def data(self) -> tuple[float, float]:
-        return self.position, self.velocity
+    world: BenchWorld
+    _streaming = False
 
     def start(self) -> None:
         self._streaming = True
@@ -230,6 +224,18 @@ class BenchEncoder(EncoderBase):
     @property
     def is_streaming(self) -> bool:
         return self._streaming
+
+
+class BenchEncoder(_BenchSensor, EncoderBase):
+    """A joint encoder on the bench (or, with ``name="thigh"``, the socket's angle sensor)."""
+
+    def __init__(self, tag: str, world: BenchWorld, name: str) -> None:
+        super().__init__(tag=tag)
+        self.world, self.name = world, name
+
+    @property
+    def data(self) -> tuple[float, float]:
+        return self.position, self.velocity
 
     @property
     def position(self) -> float:
@@ -240,36 +246,22 @@ class BenchEncoder(EncoderBase):
         return self.world.reading(f"{self.name}_velocity")
 
 
-class BenchLoadcell(LoadcellBase):
+class BenchLoadcell(_BenchSensor, LoadcellBase):
     """The pylon's six-axis load cell on the bench (the sagittal plane's two channels; the others read 0)."""
 
     def __init__(self, tag: str, world: BenchWorld) -> None:
         super().__init__(tag=tag)
         self.world = world
-        self._streaming = False
 
     @property
     def data(self) -> tuple[float, ...]:
         return (self.fx, self.fy, self.fz, self.mx, self.my, self.mz)
-
-    def start(self) -> None:
-        self._streaming = True
-
-    def stop(self) -> None:
-        self._streaming = False
-
-    def update(self) -> None:
-        self.world.sync()
 
     def calibrate(self) -> None:
         raise NotImplementedError("calibrate with device_bridge.osl.calibration: the SDK's zero is not trusted (#221)")
 
     def reset(self) -> None:
         pass
-
-    @property
-    def is_streaming(self) -> bool:
-        return self._streaming
 
     @property
     def is_calibrated(self) -> bool:

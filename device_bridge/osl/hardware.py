@@ -12,7 +12,10 @@ from device_bridge.osl.config import DEVICE_KINDS, DeviceConfig, LegConfig
 
 
 def _build(tag: str, device: DeviceConfig, bench: Any) -> Any:
-    module = importlib.import_module(DEVICE_KINDS[device.kind])
+    try:
+        module = importlib.import_module(DEVICE_KINDS[device.kind])
+    except ImportError as exc:   # the SDK's extra for this hardware (e.g. opensourceleg[dephy]) is not installed
+        raise ValueError(f"{tag}: {device.kind} needs {exc.name or 'a package'}, which is not installed: {exc}") from exc
     if device.kind != "bench":
         return getattr(module, device.kind)(tag=tag, **device.options)
     return bench.device(tag, **device.options)
