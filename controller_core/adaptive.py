@@ -21,7 +21,14 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from controller_core.envelope_blend import Blend, EnvelopeBlender
-from controller_core.fsm import ActuatorLimits, GaitState, SensorSample, StateMachineController, TorqueCommand
+from controller_core.fsm import (
+    ActuatorLimits,
+    GaitState,
+    Impedance,
+    SensorSample,
+    StateMachineController,
+    TorqueCommand,
+)
 from controller_core.task_estimator import (
     INCLINE_RESOLUTION_DEG,
     SPEED_RESOLUTION_MPS,
@@ -117,6 +124,10 @@ class AdaptiveController:
     @property
     def state_(self) -> GaitState:
         return self.machine_.state_
+
+    def impedance(self) -> Impedance:
+        """The blended rows' spring and damper each joint runs now (:meth:`StateMachineController.impedance`)."""
+        return self.machine_.impedance()
 
     def stand(self) -> None:
         """A person stands on the leg now (:meth:`~controller_core.fsm.StateMachineController.stand`)."""

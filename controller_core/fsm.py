@@ -65,6 +65,8 @@ from enum import IntEnum
 from controller_core.quasi_stiffness import SUBPHASES
 from controller_core.table import ImpedanceTable, SafetyLimits, assert_safe
 
+Impedance = tuple[tuple[float, float, float], tuple[float, float, float]]   # knee, ankle: (k, θe rad, b)
+
 
 class GaitState(IntEnum):
     """The four states, numbered in walking order (the same order as the table's sub-phases)."""
@@ -462,6 +464,17 @@ class StateMachineController:
         self.contact_since_s_ = None
         self.transitions_ += 1
         self.guard_transitions_ += int(guard)
+
+    def impedance(self) -> Impedance:
+        """The spring and damper each joint runs now, as (k N·m/rad, θe rad, b N·m·s/rad) for the knee and the ankle:
+        the row of the current state, or standing's hold about where standing found the joints (run as a spring both
+        ways: an actuator's impedance cannot be one-sided). For an actuator that runs the impedance itself."""
+        sch = self.schedule
+        if self.standing_:
+            return ((sch.knee_k[0], self.standing_knee_rad_, sch.knee_b[0]),
+                    (sch.ankle_k[0], self.standing_ankle_rad_, sch.ankle_b[0]))
+        i = int(self.state_)
+        return ((sch.knee_k[i], sch.knee_theta_e[i], sch.knee_b[i]), (sch.ankle_k[i], sch.ankle_theta_e[i], sch.ankle_b[i]))
 
     def step(self, x: SensorSample) -> TorqueCommand:
         """Advance the machine with one sample and return the joint torques for it."""

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from controller_core.fsm import ActuatorLimits, GaitState, SensorSample, TorqueCommand, clip_torque
+from controller_core.fsm import ActuatorLimits, GaitState, Impedance, SensorSample, TorqueCommand, clip_torque
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,17 @@ class SafeModeController:
     def reset(self) -> None:
         self.loaded_, self.knee_hold_rad_ = False, None
         self.transitions_ = 0
+
+    def impedance(self) -> Impedance:
+        """Safe mode as a spring and damper per joint (k, θe rad, b): the loaded knee held where the load found it
+        (both ways, and with the flexion damping: an actuator's impedance is symmetric), the unloaded knee's extension
+        assist, the ankle to neutral."""
+        p = self.params
+        if self.loaded_ and self.knee_hold_rad_ is not None:
+            knee = (-p.knee_hold_k_Nm_per_rad, self.knee_hold_rad_, p.knee_flexion_b_Nm_s_per_rad)
+        else:
+            knee = (-p.knee_swing_k_Nm_per_rad, p.knee_swing_theta_rad, p.knee_swing_b_Nm_s_per_rad)
+        return knee, (-p.ankle_k_Nm_per_rad, 0.0, p.ankle_b_Nm_s_per_rad)
 
     def step(self, x: SensorSample) -> TorqueCommand:
         p, lim = self.params, self.limits

@@ -41,6 +41,7 @@ from controller_core.envelope_blend import EnvelopeBlender
 from controller_core.fsm import (
     ActuatorLimits,
     GaitState,
+    Impedance,
     ImpedanceSchedule,
     SensorSample,
     StateMachineController,
@@ -517,6 +518,14 @@ class DeviceFirmware:
         return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
 
     # ------------------------------------------------------------------------------------------ frames out
+
+    def impedance(self) -> Impedance:
+        """What each joint runs now as a spring and damper (k N·m/rad, θe rad, b N·m·s/rad): the active controller's,
+        or safe mode's (safe mode, and no table): for actuators that run the impedance themselves
+        (:mod:`device_bridge.osl.leg`, Dephy impedance mode)."""
+        if self.mode_ == Mode.ACTIVE and self.controller_ is not None:
+            return self.controller_.impedance()
+        return self._safe.impedance()
 
     @property
     def fsm_state(self) -> int:

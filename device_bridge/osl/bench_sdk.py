@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from opensourceleg.actuators.base import CONTROL_MODE_CONFIGS, MOTOR_CONSTANTS, ActuatorBase
+from opensourceleg.actuators.base import CONTROL_MODE_CONFIGS, CONTROL_MODES, MOTOR_CONSTANTS, ActuatorBase
 from opensourceleg.math.math import ThermalLimitException
 from opensourceleg.sensors.base import EncoderBase, LoadcellBase
 
@@ -26,6 +26,7 @@ from device_bridge.firmware import DeviceFirmware
 from device_bridge.osl.leg import OSLLeg
 from device_bridge.sim.walker import SimWalker
 
+ACTPACK_IMPEDANCE_A, ACTPACK_IMPEDANCE_C = 0.00028444, 0.0007812   # the ActPack's impedance gain scales (Dephy)
 BENCH_MOTOR = MOTOR_CONSTANTS(MOTOR_COUNT_PER_REV=16384, NM_PER_AMP=0.1133, MAX_CASE_TEMPERATURE=80.0,
                               MAX_WINDING_TEMPERATURE=110.0)   # a Dephy ActPack's motor, as the SDK states it
 
@@ -66,10 +67,26 @@ class BenchWorld:
     mounting: Mounting = Mounting()
     held: tuple[float, float] | None = None
     torques: dict[str, float] = field(default_factory=lambda: {"knee": 0.0, "ankle": 0.0})
+    springs: dict[str, tuple[float, float, float]] = field(default_factory=dict)   # impedance mode: K, B, rest
     thermal_trip: set[str] = field(default_factory=set)
     time_s: float = 0.0
     _commanded: bool = False
     _sample: SensorSample | None = None
+
+    def joint_torques(self, x: SensorSample) -> tuple[float, float]:
+        """The joints' torques (QuasiTune's direction, N·m) at the bench's state ``x``: the torque an actuator was told,
+        or, for one running its own spring and damper (impedance mode), that spring's torque on its reading of ``x``:
+        computed every physics step, as the actuator's own loop runs faster than the leg's."""
+        out = []
+        for joint in ("knee", "ankle"):
+            spring = self.springs.get(joint)
+            if spring is None:
+                out.append(self.torques[joint])
+                continue
+            k, b, rest = spring
+            sign = self.mounting.knee_torque_sign if joint == "knee" else self.mounting.ankle_torque_sign
+            out.append(sign * (k * (rest - self.reading(joint, x)) - b * self.reading(f"{joint}_velocity", x)))
+        return out[0], out[1]
 
     def command(self, joint: str, output_torque_Nm: float) -> None:
         """An actuator's output torque (its own direction, N·m) → the joint's torque (QuasiTune's direction)."""
@@ -88,7 +105,10 @@ class BenchWorld:
         if self._commanded:
             steps = max(round(self.period_s / 0.001), 1)
             for _ in range(steps):
-                self.walker.step(self.torques["knee"], self.torques["ankle"])
+                now = self.walker.sample()
+                knee, ankle = self.joint_torques(now) if now is not None and self.springs else \
+                    (self.torques["knee"], self.torques["ankle"])
+                self.walker.step(knee, ankle)
             self.time_s += steps * 0.001
             self._commanded = False
         self._sample = self.walker.sample()
@@ -102,10 +122,10 @@ class BenchWorld:
             return SensorSample(self.time_s, self.held[0], 0.0, self.held[1], 0.0, 0.0, 0.0)
         return self._sample
 
-    def reading(self, name: str) -> float:
-        """A sensor's raw reading: ``knee``, ``knee_velocity``, ``ankle``, ``ankle_velocity``, ``fz``, ``my``,
-        ``thigh``, ``thigh_velocity``."""
-        x, m = self.truth, self.mounting
+    def reading(self, name: str, x: SensorSample | None = None) -> float:
+        """A sensor's raw reading (of the bench now, or of ``x``): ``knee``, ``knee_velocity``, ``ankle``,
+        ``ankle_velocity``, ``fz``, ``my``, ``thigh``, ``thigh_velocity``."""
+        x, m = (self.truth if x is None else x), self.mounting
         if x is None:
             return math.nan
         return {"knee": m.knee_sign * x.knee_angle_rad + m.knee_offset_rad,
@@ -118,14 +138,35 @@ class BenchWorld:
 
 
 class BenchActuator(ActuatorBase):
-    """A joint's actuator on the bench: current (or torque) mode only; its output position is the joint's, as the
-    bench's mounting reads it; its torque goes to the bench's joint."""
+    """A joint's actuator on the bench: current (or torque) mode, or impedance mode like a Dephy ActPack's (its own
+    spring and damper about an output position, stiffness and damping in whole motor units: the ActPack's conversion,
+    about 0.40 N·m/rad and 0.003 N·m·s/rad at the joint at 41.5:1); its output position is the joint's, as the bench's
+    mounting reads it; its torque goes to the bench's joint."""
 
     def __init__(self, tag: str, world: BenchWorld, joint: str, gear_ratio: float = 41.4999,
                  frequency: int = 500) -> None:
         super().__init__(tag=tag, gear_ratio=gear_ratio, motor_constants=BENCH_MOTOR, frequency=frequency)
         self.world, self.joint = world, joint
         self.case_temperature_degC = 30.0
+        amp = BENCH_MOTOR.NM_PER_AMP / 1e3          # N·m per mA: the ActPack's impedance gains are in its own units
+        self.NM_PER_RAD_TO_MOTOR_UNITS = (2 * math.pi / BENCH_MOTOR.MOTOR_COUNT_PER_REV) / ACTPACK_IMPEDANCE_C / amp
+        self.NM_S_PER_RAD_TO_MOTOR_UNITS = (math.pi / 180) / ACTPACK_IMPEDANCE_A / amp
+        self._spring: tuple[float, float] | None = None
+
+    def set_output_impedance(self, k: float, b: float) -> None:
+        """Joint-side stiffness (N·m/rad) and damping (N·m·s/rad), both ≥ 0 (a negative one raises, as the SDK's),
+        truncated to whole motor units as the ActPack takes them."""
+        if k < 0 or b < 0:
+            raise ValueError(f"{self.tag}: stiffness {k} and damping {b} cannot be negative")
+        ratio = self.gear_ratio ** 2
+        k_q = int(k / ratio * self.NM_PER_RAD_TO_MOTOR_UNITS) * ratio / self.NM_PER_RAD_TO_MOTOR_UNITS
+        b_q = int(b / ratio * self.NM_S_PER_RAD_TO_MOTOR_UNITS) * ratio / self.NM_S_PER_RAD_TO_MOTOR_UNITS
+        self._spring = (k_q, b_q)
+
+    def _spring_to(self, rest: float) -> None:
+        if self._spring is None:
+            raise RuntimeError(f"{self.tag}: set the impedance before its position")
+        self.world.springs[self.joint] = (*self._spring, rest)
 
     @property
     def _CONTROL_MODE_CONFIGS(self) -> CONTROL_MODE_CONFIGS:
@@ -161,13 +202,15 @@ class BenchActuator(ActuatorBase):
         self._unsupported("voltage")
 
     def set_motor_position(self, value: float) -> None:
-        self._unsupported("position")
+        if self.mode != CONTROL_MODES.IMPEDANCE:
+            self._unsupported("position")
+        self._spring_to(value / self.gear_ratio)
 
     def set_position_gains(self, kp: float, ki: float, kd: float, ff: float) -> None:
         self._unsupported("position")
 
     def _set_impedance_gains(self, k: float, b: float) -> None:
-        self._unsupported("impedance")
+        self._unsupported("impedance gains in raw units (set_output_impedance takes joint units)")
 
     def home(self, *args: object, **kwargs: object) -> None:
         self._is_homed = True
@@ -323,6 +366,9 @@ class SDKRoute:
             state = GaitState(ctrl.state_) if ctrl is not None else GaitState.SWING_EXTENSION
             self._held = TorqueCommand(state, t["knee"], t["ankle"], False)
         self._calls += 1
+        if self.world.springs:        # the actuators' own springs act every physics step, not only at the leg's rate
+            knee, ankle = self.world.joint_torques(x)
+            return TorqueCommand(self._held.state, knee, ankle, False)
         return self._held
 
 

@@ -36,7 +36,7 @@ import tomllib
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 Sign = Literal[1, -1]
 
@@ -112,8 +112,10 @@ class LegConfig(_Strict):
     overruns_to_safe: int = Field(default=5, ge=1, le=1000,
                                   description="this many late ticks in a row put the leg in safe mode")
     link: str = Field(default="virtual:quasitune", min_length=3, description="INTERFACE:CHANNEL of the clinic's link")
-    torque_mode: Literal["current", "torque"] = "current"   # QuasiTune computes every torque; the actuator runs its
-    # current (Dephy) or torque (Moteus, T-Motor) loop. Impedance inside a Dephy actuator is not built yet.
+    # "current"/"torque": QuasiTune computes every torque, the actuator runs its current (Dephy) or torque (Moteus,
+    # T-Motor) loop; "dephy_impedance": the actuator runs the spring and damper QuasiTune's state asks for
+    # (device_bridge/osl/leg.py), its joints read from the actuators themselves
+    torque_mode: Literal["current", "torque", "dephy_impedance"] = "current"
     knee: JointConfig
     ankle: JointConfig
     loadcell: str = Field(default="loadcell", min_length=1, description="the pylon load cell's tag")
@@ -128,6 +130,13 @@ class LegConfig(_Strict):
         if ":" not in v or not all(v.split(":", 1)):
             raise ValueError(f"link must be INTERFACE:CHANNEL (socketcan:can0, mqtt:leg-17), got {v!r}")
         return v
+
+    @model_validator(mode="after")
+    def _impedance_reads_the_actuators(self) -> LegConfig:
+        if self.torque_mode == "dephy_impedance" and (self.knee.encoder or self.ankle.encoder):
+            raise ValueError("torque_mode dephy_impedance: the actuator's spring acts on its own output position, so "
+                             "each joint must be read from its actuator (no joint encoder)")
+        return self
 
     @property
     def period_s(self) -> float:

@@ -19,7 +19,7 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from controller_core.fsm import SensorSample
+from controller_core.fsm import Impedance, SensorSample
 from device_bridge.osl.config import JointCalibration, LegConfig, finite
 
 THERMAL_EXCEPTIONS = ("ThermalLimitException", "I2tLimitException")   # opensourceleg.math's, matched by name
@@ -36,7 +36,7 @@ class OSLLeg:
     """
 
     def __init__(self, config: LegConfig, actuators: Mapping[str, Any], sensors: Mapping[str, Any],
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, impedance: Callable[[], Impedance] | None = None) -> None:
         def need(pool: Mapping[str, Any], tag: str | None, what: str) -> Any:
             if tag is None:
                 return None
@@ -54,6 +54,12 @@ class OSLLeg:
         self.fault_: tuple[str, str] | None = None   # the last hardware fault (kind, reason) until the firmware takes it
         self.derating_ = 1.0                    # the smallest thermal scaling applied to the last torques
         self.temperature_degC_: float | None = None
+        if config.torque_mode == "dephy_impedance" and impedance is None:
+            raise ValueError("torque_mode dephy_impedance needs the impedance the firmware runs (firmware.impedance)")
+        self.impedance = impedance
+        self.sent_: dict[str, tuple[float, float, float]] = {}     # per joint: (K, B, equilibrium) last sent
+        self.quantised_: dict[str, tuple[float, float]] = {}      # per joint: (K asked, K the actuator runs) N·m/rad
+        self.clamped_ = 0                                          # rows whose k pushed (k > 0): sent as K = 0
         self._started = False
 
     @property
@@ -65,7 +71,8 @@ class OSLLeg:
         """Start every device and put the actuators in their torque mode (the SDK raises if one cannot)."""
         from opensourceleg.actuators.base import CONTROL_MODES  # the SDK: only on the leg's computer
 
-        mode = {"current": CONTROL_MODES.CURRENT, "torque": CONTROL_MODES.TORQUE}[self.config.torque_mode]
+        mode = {"current": CONTROL_MODES.CURRENT, "torque": CONTROL_MODES.TORQUE,
+                "dephy_impedance": CONTROL_MODES.IMPEDANCE}[self.config.torque_mode]
         for d in self.devices:
             d.start()
         for a in self.actuators.values():
@@ -138,7 +145,11 @@ class OSLLeg:
                             thigh_angle_rad=thigh[0], thigh_velocity_rad_s=thigh[1])
 
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None:
-        """Send the joint torques (N·m), each scaled by its actuator's thermal scaling factor."""
+        """Send the joint torques (N·m), each scaled by its actuator's thermal scaling factor; in Dephy impedance mode,
+        the impedance the firmware runs instead (:meth:`send_impedance`)."""
+        if self.config.torque_mode == "dephy_impedance":
+            self.send_impedance()
+            return
         derating = 1.0
         for joint, tau in (("knee", knee_torque_Nm), ("ankle", ankle_torque_Nm)):
             act = self.actuators[joint]
@@ -148,3 +159,28 @@ class OSLLeg:
             cal: JointCalibration = getattr(self.config.calibration, joint)
             act.set_output_torque(cal.torque_sign * tau * scale)
         self.derating_ = derating
+
+    def send_impedance(self) -> None:
+        """Dephy impedance mode: each joint's spring and damper from the firmware (the row of its state, standing's or
+        safe mode's hold), sent when it changes, as the SDK takes it: joint-side stiffness K = −k ≥ 0 (QuasiTune's
+        restoring k is negative; a row that pushes, k > 0, is sent as K = 0 and counted in :attr:`clamped_`), damping
+        b, and the equilibrium in the actuator's own output angle. :attr:`quantised_` keeps the stiffness the
+        actuator will run where it says its unit (Dephy: whole motor units, about 0.4 N·m/rad at 41.5:1). The
+        thermal scaling factor cannot scale an impedance: it is kept in :attr:`derating_` for the health report."""
+        assert self.impedance is not None
+        for joint, (k, theta_e, b) in zip(("knee", "ankle"), self.impedance(), strict=True):
+            cal: JointCalibration = getattr(self.config.calibration, joint)
+            act = self.actuators[joint]
+            stiffness = max(-k, 0.0)
+            self.clamped_ += int(k > 0.0 and self.sent_.get(joint, (None,))[0] != 0.0)
+            target = (stiffness, max(b, 0.0), cal.zero_rad + cal.sign * theta_e)
+            if self.sent_.get(joint) == target:
+                continue
+            act.set_output_impedance(k=target[0], b=target[1])
+            act.set_output_position(target[2])
+            units = getattr(act, "NM_PER_RAD_TO_MOTOR_UNITS", None)
+            if units:
+                ratio = act.gear_ratio ** 2
+                self.quantised_[joint] = (stiffness, int(stiffness / ratio * units) * ratio / units)
+            self.sent_[joint] = target
+        self.derating_ = min(float(getattr(a, "thermal_scaling_factor", 1.0)) for a in self.actuators.values())

@@ -35,13 +35,13 @@ def config(rate_hz: float = 500.0, calibration: Calibration | None = None, knee_
 
 
 def bench_leg(cfg: LegConfig, mounting: Mounting | None = None, walker: SimWalker | None = None,
-              clock: Callable[[], float] | None = None) -> tuple[OSLLeg, BenchWorld]:
+              clock: Callable[[], float] | None = None, impedance: Callable | None = None) -> tuple[OSLLeg, BenchWorld]:
     """An OSL leg over bench actuators, encoders and a load cell, started (its clock the bench's, or ``clock``)."""
     world = BenchWorld(walker=walker, period_s=cfg.period_s, mounting=mounting or Mounting())
     actuators = {"knee": BenchActuator("knee", world, "knee"), "ankle": BenchActuator("ankle", world, "ankle")}
     sensors = {"loadcell": BenchLoadcell("loadcell", world), "thigh": BenchEncoder("thigh", world, "thigh"),
                "knee_joint": BenchEncoder("knee_joint", world, "knee")}
-    leg = OSLLeg(cfg, actuators, sensors, clock=clock or (lambda: world.time_s))
+    leg = OSLLeg(cfg, actuators, sensors, clock=clock or (lambda: world.time_s), impedance=impedance)
     leg.start()
     return leg, world
 
