@@ -137,6 +137,7 @@ class DeviceNode(BusThreads):
         take_fault = getattr(leg, "take_fault", None)        # a real leg's hardware (device_bridge.osl.leg)
         if take_fault is not None:
             self.firmware.temperature_degC_ = getattr(leg, "temperature_degC_", None)
+            self.firmware.leg_state_ = leg.leg_state()
             fault = take_fault()
             if fault is not None:
                 self._outbox.extend(self.firmware.hardware_fault(fault[1], now_s, thermal=fault[0] == "thermal"))

@@ -159,6 +159,8 @@ class DeviceFirmware:
         last_heartbeat_s_: when the host's heartbeat last arrived.
         link_mode_: what a lost host heartbeat does (supervised: safe mode; autonomous: nothing but the fault).
         temperature_degC_: the hottest actuator's case temperature the leg reports (None: not measured).
+        leg_state_: what a real leg says of itself (its calibration, torque mode, thermal derating), sent with each
+            status in DEVICE_LEG; None for the simulated bench.
         hardware_fault_: the reason of the last hardware fault (:meth:`hardware_fault`), None if none.
     """
 
@@ -173,6 +175,7 @@ class DeviceFirmware:
         self.last_heartbeat_s_ = now_s   # the host gets one timeout from boot to appear
         self.link_mode_ = LinkMode.SUPERVISED
         self.temperature_degC_: float | None = None
+        self.leg_state_: dict[str, int] | None = None
         self.hardware_fault_: str | None = None
         self.controller_: StateMachineController | AdaptiveController | None = None
         self._safe = SafeModeController(self.config.safe_mode, self.config.actuator)   # safe mode, and no table
@@ -537,7 +540,9 @@ class DeviceFirmware:
         self._status_counter = (self._status_counter + 1) & 0xFF
         active = self.active_
         faults = self.faults_ | (Fault.NO_TABLE if active is None else Fault(0))
+        leg = [] if self.leg_state_ is None else [encode("DEVICE_LEG", self.leg_state_)]
         return [
+            *leg,
             encode("DEVICE_HEALTH", {"fault_flags": int(faults), "temperature": self._temperature_raw(),
                                      "pending_version": self.staged_.version if self.staged_ else 0,
                                      "rx_errors": min(self.rx_errors_, 0xFFFF), "link_mode": int(self.link_mode_)}),

@@ -80,6 +80,25 @@ class PushResult:
 
 
 @dataclass(frozen=True)
+class LegState:
+    """A real leg's word on itself (DEVICE_LEG): whether each sensor is calibrated, its torque mode, the torque its
+    thermal model allows (%, None: not measured)."""
+
+    knee_calibrated: bool
+    ankle_calibrated: bool
+    loadcell_calibrated: bool
+    torque_mode: str
+    derating_pct: int | None
+
+    @classmethod
+    def from_raw(cls, raw: dict[str, int]) -> LegState:
+        bits = int(raw["calibrated"])
+        return cls(bool(bits & 1), bool(bits & 2), bool(bits & 4),
+                   {0: "current", 1: "torque", 2: "actuator_impedance"}.get(int(raw["torque_mode"]), "unknown"),
+                   None if raw["derating"] == 255 else int(raw["derating"]))
+
+
+@dataclass(frozen=True)
 class DeviceStatus:
     """The device's latest DEVICE_STATUS and DEVICE_HEALTH, with when they arrived (host clocks)."""
 
@@ -94,6 +113,7 @@ class DeviceStatus:
     received_monotonic_s: float
     received_unix_s: float
     link_mode: LinkMode = LinkMode.SUPERVISED
+    leg: LegState | None = None       # DEVICE_LEG: a real leg's own word; None for the simulated bench
 
 
 ADAPTIVE_MODE_NAMES = {1: "nominal", 2: "partial", 3: "adaptive", 4: "clamped"}
@@ -259,6 +279,7 @@ class DeviceLink(BusThreads):
         self.callback_errors = 0
         self.last_heartbeat_sent_s: float | None = None   # host monotonic clock
         self._health: dict[str, float] | None = None
+        self._leg_state: LegState | None = None
         self._acks: queue.Queue[dict[str, int]] = queue.Queue()
         self._send_lock = threading.Lock()
         self._push_lock = threading.Lock()
@@ -403,6 +424,8 @@ class DeviceLink(BusThreads):
                     self.on_telemetry(sample)
         elif name == "DEVICE_HEALTH":
             self._health = dict(raw)
+        elif name == "DEVICE_LEG":
+            self._leg_state = LegState.from_raw(raw)
         elif name == "DEVICE_STATUS":
             if current:
                 self._on_status(raw)
@@ -495,7 +518,8 @@ class DeviceLink(BusThreads):
             pending_version=int(h["pending_version"]) or None if h else None,
             rx_errors=int(h.get("rx_errors", 0)),
             received_monotonic_s=self.clock.monotonic(), received_unix_s=self.clock.time(),
-            link_mode=LinkMode.AUTONOMOUS if h.get("link_mode") == LinkMode.AUTONOMOUS else LinkMode.SUPERVISED)
+            link_mode=LinkMode.AUTONOMOUS if h.get("link_mode") == LinkMode.AUTONOMOUS else LinkMode.SUPERVISED,
+            leg=self._leg_state)
         self.status = status
         if self.on_status is not None:
             self.on_status(status)

@@ -14,6 +14,7 @@ one step.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import threading
 from collections.abc import Iterator
@@ -213,6 +214,7 @@ class DeviceManager:
             "pending_version": None if s is None else s.pending_version,
             "faults": [] if s is None else [f.name.lower() for f in Fault if f in s.fault_flags],
             "temperature_degC": None if s is None else s.temperature_degC,
+            "leg": None if s is None or s.leg is None else dataclasses.asdict(s.leg),
             "rx_errors": None if s is None else s.rx_errors,
             "last_heartbeat_unix_s": None if s is None else round(s.received_unix_s, 3),
             "last_heartbeat_age_s": age,

@@ -66,6 +66,16 @@ class WithdrawalNotice(BaseModel):
     words: str = Field(description="the monitor's line")
 
 
+class LegStateOut(BaseModel):
+    """What a real leg says of itself (DEVICE_LEG)."""
+
+    knee_calibrated: bool
+    ankle_calibrated: bool
+    loadcell_calibrated: bool
+    torque_mode: Literal["current", "torque", "actuator_impedance", "unknown"]
+    derating_pct: int | None = Field(description="the torque its thermal model allows (%); null: not measured")
+
+
 class BenchTask(BaseModel):
     speed_mps: float
     incline_deg: float
@@ -94,6 +104,8 @@ class DeviceOut(BaseModel):
     pending_version: int | None = Field(description="a verified table waiting for the next heel strike")
     faults: list[str]
     temperature_degC: float | None
+    leg: LegStateOut | None = Field(default=None, description="a real leg's word on itself (an Open Source Leg: "
+                                                              "DEVICE_LEG); null for the simulated bench")
     rx_errors: int | None
     last_heartbeat_unix_s: float | None = Field(description="when the device's last status arrived (Unix s)")
     last_heartbeat_age_s: float | None

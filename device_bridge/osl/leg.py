@@ -98,6 +98,15 @@ class OSLLeg:
         if problems:
             raise RuntimeError("stopping the leg: " + "; ".join(problems))
 
+    def leg_state(self) -> dict[str, int]:
+        """What this leg says of itself in DEVICE_LEG: an Open Source Leg, which of its sensors are calibrated, its
+        torque mode, and the torque its thermal model allows (%)."""
+        cal = self.config.calibration
+        return {"hardware": 1, "calibrated": int(cal.knee.calibrated) | int(cal.ankle.calibrated) << 1
+                | int(cal.loadcell.calibrated) << 2,
+                "torque_mode": {"current": 0, "torque": 1, "dephy_impedance": 2}[self.config.torque_mode],
+                "derating": round(100.0 * min(max(self.derating_, 0.0), 1.0))}
+
     def take_fault(self) -> tuple[str, str] | None:
         """The hardware fault seen since the last call as (``"thermal"`` or ``"sensor"``, its reason), or None; the
         device node hands it to the firmware each tick."""

@@ -466,3 +466,17 @@ def test_a_hardware_fault_puts_the_leg_in_safe_mode_and_says_so_with_the_tempera
     _, _, frames = fw.tick(standing(0.2), 0.2)
     later = [decode(m)[1] for m in frames if decode(m)[0] == "DEVICE_HEALTH"]
     assert later and all(h["temperature"] == 255 for h in later)            # not measured
+
+
+def test_a_real_legs_word_on_itself_goes_with_every_status_and_the_simulated_leg_sends_none(tables):
+    """DEVICE_LEG (device_bridge/osl/leg.py sets it): calibration per sensor, torque mode, thermal derating."""
+    from device_bridge.host import LegState
+
+    fw = DeviceFirmware()
+    install(fw, tables[0], 1)
+    _, _, out = fw.tick(None, 0.2)
+    assert not any(decode(m)[0] == "DEVICE_LEG" for m in out)
+    fw.leg_state_ = {"hardware": 1, "calibrated": 0b101, "torque_mode": 2, "derating": 87}
+    _, _, out = fw.tick(None, 0.4)
+    said = [LegState.from_raw(decode(m)[1]) for m in out if decode(m)[0] == "DEVICE_LEG"]
+    assert said and all(s == LegState(True, False, True, "actuator_impedance", 87) for s in said)

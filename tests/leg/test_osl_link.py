@@ -9,6 +9,7 @@ import pytest
 
 from controller_core.fsm import GaitState
 from controller_core.walking_reference import level_walking_reference
+from device_bridge.host import LegState
 from device_bridge.osl.bench_sdk import Mounting, SDKRoute
 from device_bridge.osl.calibration import joint_direction, joint_zero, loadcell_sign, loadcell_zero
 from device_bridge.osl.config import Calibration
@@ -108,6 +109,8 @@ def test_a_push_lands_and_runs_from_the_next_heel_strike():
         assert before[-2] in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION)
         rig.advance(3.0)
         assert fw.mode_ == Mode.ACTIVE and rig.node.errors == 0 and walker.walking
+        # the leg's word on itself reaches the clinic with its status: an OSL, not calibrated (the bench's defaults)
+        assert rig.link.status.leg == LegState(False, False, False, "current", 100)
 
 
 def test_a_thermal_trip_is_safe_mode_with_its_reason_at_the_clinic_within_one_status_period():

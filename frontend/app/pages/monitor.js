@@ -262,7 +262,18 @@ function renderStatus(box, d) {
     h("dt", {}, "Last heartbeat"), h("dd", { id: "heartbeat" }, d.last_heartbeat_age_s === null ? "never" : `${fmt(d.last_heartbeat_age_s, 2)} s ago`),
     h("dt", {}, "Samples reaching this server"), h("dd", { id: "stream" }, ...streamWords(d)),
     h("dt", {}, "Temperature"), h("dd", {}, d.temperature_degC === null ? "not measured" : fmt(d.temperature_degC, 1, "°C")),
+    h("dt", {}, "The leg's hardware"), h("dd", { id: "leg-hardware" }, ...legWords(d.leg)),
     h("dt", {}, "If the link is lost"), h("dd", { id: "link-mode" }, ...linkModeWords(d))));
+}
+
+// What a real leg says of itself (DEVICE_LEG): which sensors are calibrated, who runs the impedance, thermal derating
+function legWords(leg) {
+  if (!leg) return ["the simulated leg (no sensors to calibrate)"];
+  const parts = [["knee", leg.knee_calibrated], ["ankle", leg.ankle_calibrated], ["load cell", leg.loadcell_calibrated]];
+  const missing = parts.filter(([, ok]) => !ok).map(([name]) => name);
+  return ["Open Source Leg · ", missing.length ? chip(`not calibrated: ${missing.join(", ")}`, "bad") : chip("calibrated", "ok"),
+    ` · ${leg.torque_mode === "actuator_impedance" ? "the actuators run each phase's spring and damper" : "QuasiTune computes every torque"}`,
+    leg.derating_pct === null ? "" : ` · torque allowed by the thermal model: ${leg.derating_pct} %`];
 }
 
 // The leg's live samples as this server received them: how many since it connected, and whether any were missed
