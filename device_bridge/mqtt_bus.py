@@ -45,7 +45,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 from urllib.parse import urlsplit
 
 import can
@@ -55,15 +55,25 @@ from paho.mqtt.enums import CallbackAPIVersion
 from device_bridge.gateway import BURST_GAP_S
 from device_bridge.late_buffer import WRITE_PERIOD_S, LateBuffer
 
-if TYPE_CHECKING:
-    from device_bridge.mqtt_connection import MqttConnection
-
 FRAME = struct.Struct("<HB8s")          # id, dlc, data
 LATE_RECORD = struct.Struct("<dB")      # when the frames left the leg's bus (Unix s), how many follow
 LATE_CHUNK_BYTES = 48 * 1024            # a late message carries at most about this much
 MAX_MESSAGE_BYTES = 64 * 1024           # nothing larger is read (the broker's max_packet_size refuses it first)
 TOPIC_PREFIX = "quasitune/v1/devices"
 Role = str   # "server" (sends down, reads up) or "device" (sends up, reads down)
+
+
+class SharedConnection(Protocol):
+    """What a bus needs of a server instance's one broker connection (:class:`device_bridge.mqtt_connection.
+    MqttConnection` is one): a bus attaches to it, publishes through it and detaches; the connection module imports
+    this one, never the other way round."""
+
+    description: str
+
+    def attach(self, bus: MqttBus) -> None: ...
+    def detach(self, bus: MqttBus) -> None: ...
+    def publish(self, topic_name: str, payload: bytes, qos: int) -> object: ...
+
 
 
 def topic(device_id: str, direction: str) -> str:
@@ -250,7 +260,7 @@ class MqttBus(can.BusABC):
     def __init__(self, channel: str, broker: str | None = None, username: str | None = None,
                  password: str | None = None, role: Role = "server", ca_file: str | None = None,
                  instance: str | None = None, insecure: bool = False, connect_timeout_s: float = 10.0,
-                 late_buffer: LateBuffer | None = None, connection: MqttConnection | None = None,
+                 late_buffer: LateBuffer | None = None, connection: SharedConnection | None = None,
                  **kwargs: object) -> None:
         if role not in ("server", "device"):
             raise ValueError(f"role must be 'server' or 'device', got {role!r}")
