@@ -8,6 +8,8 @@ from typing import Annotated
 from fastapi import Path, Query, Response
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StringConstraints
 
+from backend.security import MAX_PASSWORD_LENGTH, MIN_PASSWORD_LENGTH
+
 MAX_ID = 2**53  # ids beyond what JSON numbers carry exactly are refused before they reach SQLite
 
 _CONTROL = re.compile(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
@@ -42,9 +44,13 @@ EditValue = Annotated[float | None, Field(default=None, ge=-EDIT_BOUND, le=EDIT_
 
 
 # a password is taken exactly as typed: never stripped (the strict models strip other text)
-Password = Annotated[str, StringConstraints(strip_whitespace=False, min_length=8, max_length=1024),
+# (its length is the password policy's, backend.security: the rest of the policy needs the username, so the store
+# checks it: backend.store.users)
+Password = Annotated[str, StringConstraints(strip_whitespace=False, min_length=MIN_PASSWORD_LENGTH,
+                                            max_length=MAX_PASSWORD_LENGTH),
                      AfterValidator(_storable_text),
-                     Field(description="8-1024 characters, kept exactly as typed (spaces included)")]
+                     Field(description=f"{MIN_PASSWORD_LENGTH}-{MAX_PASSWORD_LENGTH} characters, kept exactly as typed "
+                                       "(spaces included)")]
 
 
 def json_integer(value: object) -> object:
