@@ -89,7 +89,8 @@ class DeviceConfig(_Strict):
     """One actuator or sensor: the SDK class (:data:`DEVICE_KINDS`) and its constructor's keyword arguments."""
 
     kind: str
-    options: dict[str, str | int | float | bool] = Field(default_factory=dict)
+    # scalars, or a matrix (a load cell's calibration matrix: rows of numbers, handed to the SDK as a numpy array)
+    options: dict[str, str | int | float | bool | list[list[float]]] = Field(default_factory=dict)
 
     @field_validator("kind")
     @classmethod

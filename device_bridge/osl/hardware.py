@@ -8,6 +8,8 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+import numpy as np
+
 from device_bridge.osl.config import DEVICE_KINDS, DeviceConfig, LegConfig
 
 
@@ -16,9 +18,13 @@ def _build(tag: str, device: DeviceConfig, bench: Any) -> Any:
         module = importlib.import_module(DEVICE_KINDS[device.kind])
     except ImportError as exc:   # the SDK's extra for this hardware (e.g. opensourceleg[dephy]) is not installed
         raise ValueError(f"{tag}: {device.kind} needs {exc.name or 'a package'}, which is not installed: {exc}") from exc
-    if device.kind != "bench":
-        return getattr(module, device.kind)(tag=tag, **device.options)
-    return bench.device(tag, **device.options)
+    options = {k: np.asarray(v, dtype=float) if isinstance(v, list) else v for k, v in device.options.items()}
+    try:
+        if device.kind != "bench":
+            return getattr(module, device.kind)(tag=tag, **options)
+        return bench.device(tag, **options)
+    except TypeError as exc:     # an option the SDK's class does not take, or one it needs and did not get
+        raise ValueError(f"{tag}: {device.kind}: {exc}") from exc
 
 
 def build_devices(config: LegConfig) -> tuple[dict[str, Any], dict[str, Any], Any]:

@@ -39,3 +39,12 @@ def test_impedance_mode_needs_joints_read_from_their_actuators_and_the_firmwares
     cfg = config().model_copy(update={"torque_mode": "dephy_impedance"})
     with pytest.raises(ValueError, match="needs the impedance the firmware runs"):
         OSLLeg(cfg, actuators, {"loadcell": BenchLoadcell("loadcell", world), "thigh": BenchLoadcell("thigh", world)})
+
+
+def test_a_leg_file_option_the_sdk_class_does_not_take_is_refused_by_name():
+    from device_bridge.osl.hardware import build_devices
+
+    cfg = parse_config({**config().model_dump(), "actuators": {
+        "knee": {"kind": "bench", "options": {"part": "knee_actuator", "colour": "red"}}}})
+    with pytest.raises(ValueError, match=r"knee: bench: .*unexpected keyword argument 'colour'"):
+        build_devices(cfg)
