@@ -26,6 +26,7 @@ from device_bridge.firmware import DeviceFirmware
 from device_bridge.osl.leg import OSLLeg
 from device_bridge.sim.walker import SimWalker
 
+PHYSICS_STEP_S = 0.001   # the bench's physics and the simulated leg's control tick
 ACTPACK_IMPEDANCE_A, ACTPACK_IMPEDANCE_C = 0.00028444, 0.0007812   # the ActPack's impedance gain scales (Dephy)
 BENCH_MOTOR = MOTOR_CONSTANTS(MOTOR_COUNT_PER_REV=16384, NM_PER_AMP=0.1133, MAX_CASE_TEMPERATURE=80.0,
                               MAX_WINDING_TEMPERATURE=110.0)   # a Dephy ActPack's motor, as the SDK states it
@@ -47,6 +48,10 @@ class Mounting:
     fz_offset_N: float = 0.0
     my_sign: int = 1
     my_offset_Nm: float = 0.0
+
+    def torque_sign(self, joint: str) -> int:
+        """The actuator of ``joint``'s output torque direction against QuasiTune's."""
+        return self.knee_torque_sign if joint == "knee" else self.ankle_torque_sign
 
 
 @dataclass
@@ -84,15 +89,19 @@ class BenchWorld:
                 out.append(self.torques[joint])
                 continue
             k, b, rest = spring
-            sign = self.mounting.knee_torque_sign if joint == "knee" else self.mounting.ankle_torque_sign
-            out.append(sign * (k * (rest - self.reading(joint, x)) - b * self.reading(f"{joint}_velocity", x)))
+            spring_Nm = k * (rest - self.reading(joint, x)) - b * self.reading(f"{joint}_velocity", x)
+            out.append(self.mounting.torque_sign(joint) * spring_Nm)
         return out[0], out[1]
 
     def command(self, joint: str, output_torque_Nm: float) -> None:
         """An actuator's output torque (its own direction, N·m) → the joint's torque (QuasiTune's direction)."""
-        sign = self.mounting.knee_torque_sign if joint == "knee" else self.mounting.ankle_torque_sign
-        self.torques[joint] = sign * output_torque_Nm
+        self.torques[joint] = self.mounting.torque_sign(joint) * output_torque_Nm
         self._commanded = True
+
+    @property
+    def steps_per_period(self) -> int:
+        """Physics steps in one control period (2 at 500 Hz)."""
+        return max(round(self.period_s / PHYSICS_STEP_S), 1)
 
     def observe(self, x: SensorSample) -> None:
         """The bench's readings now (when the bench loop steps the physics: ``walker`` is None)."""
@@ -103,13 +112,12 @@ class BenchWorld:
         if self.walker is None or (self._sample is not None and not self._commanded):
             return
         if self._commanded:
-            steps = max(round(self.period_s / 0.001), 1)
-            for _ in range(steps):
+            for _ in range(self.steps_per_period):
                 now = self.walker.sample()
-                knee, ankle = self.joint_torques(now) if now is not None and self.springs else \
-                    (self.torques["knee"], self.torques["ankle"])
+                knee, ankle = self.joint_torques(now) if now is not None else (self.torques["knee"],
+                                                                             self.torques["ankle"])
                 self.walker.step(knee, ankle)
-            self.time_s += steps * 0.001
+            self.time_s += self.steps_per_period * PHYSICS_STEP_S
             self._commanded = False
         self._sample = self.walker.sample()
         if self._sample is not None:
@@ -233,8 +241,7 @@ class BenchActuator(ActuatorBase):
 
     @property
     def motor_torque(self) -> float:
-        sign = self.world.mounting.knee_torque_sign if self.joint == "knee" else self.world.mounting.ankle_torque_sign
-        return sign * self.world.torques[self.joint] / self.gear_ratio
+        return self.world.mounting.torque_sign(self.joint) * self.world.torques[self.joint] / self.gear_ratio
 
     @property
     def case_temperature(self) -> float:
@@ -333,7 +340,7 @@ class SDKRoute:
 
     def __init__(self, firmware: DeviceFirmware, leg: OSLLeg, world: BenchWorld) -> None:
         self.firmware, self.leg, self.world = firmware, leg, world
-        self._every = max(round(world.period_s / 0.001), 1)
+        self._every = world.steps_per_period
         self._calls = 0
         self._held = TorqueCommand(GaitState.SWING_EXTENSION, 0.0, 0.0, False)
 

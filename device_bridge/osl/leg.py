@@ -60,7 +60,6 @@ class OSLLeg:
         self.sent_: dict[str, tuple[float, float, float]] = {}     # per joint: (K, B, equilibrium) last sent
         self.quantised_: dict[str, tuple[float, float]] = {}      # per joint: (K asked, K the actuator runs) N·m/rad
         self.clamped_ = 0                                          # rows whose k pushed (k > 0): sent as K = 0
-        self._started = False
 
     @property
     def devices(self) -> list[Any]:
@@ -79,7 +78,6 @@ class OSLLeg:
             a.set_control_mode(mode)
             if mode == CONTROL_MODES.CURRENT and hasattr(a, "set_current_gains"):
                 a.set_current_gains()  # the SDK's defaults; a Dephy needs gains before its current loop runs
-        self._started = True
 
     def stop(self) -> None:
         """Zero torque, then stop every device (errors while stopping are collected, never hidden)."""
@@ -94,7 +92,6 @@ class OSLLeg:
                 d.stop()
             except Exception as exc:
                 problems.append(f"{getattr(d, 'tag', d)}: {exc}")
-        self._started = False
         if problems:
             raise RuntimeError("stopping the leg: " + "; ".join(problems))
 
@@ -159,15 +156,10 @@ class OSLLeg:
         if self.config.torque_mode == "dephy_impedance":
             self.send_impedance()
             return
-        derating = 1.0
         for joint, tau in (("knee", knee_torque_Nm), ("ankle", ankle_torque_Nm)):
-            act = self.actuators[joint]
-            scale = float(getattr(act, "thermal_scaling_factor", 1.0))
-            scale = min(max(scale, 0.0), 1.0)
-            derating = min(derating, scale)
             cal: JointCalibration = getattr(self.config.calibration, joint)
-            act.set_output_torque(cal.torque_sign * tau * scale)
-        self.derating_ = derating
+            self.actuators[joint].set_output_torque(cal.torque_sign * tau * _thermal_scale(self.actuators[joint]))
+        self.derating_ = min(_thermal_scale(a) for a in self.actuators.values())
 
     def send_impedance(self) -> None:
         """Dephy impedance mode: each joint's spring and damper from the firmware (the row of its state, standing's or
@@ -181,10 +173,10 @@ class OSLLeg:
             cal: JointCalibration = getattr(self.config.calibration, joint)
             act = self.actuators[joint]
             stiffness = max(-k, 0.0)
-            self.clamped_ += int(k > 0.0 and self.sent_.get(joint, (None,))[0] != 0.0)
             target = (stiffness, max(b, 0.0), cal.zero_rad + cal.sign * theta_e)
             if self.sent_.get(joint) == target:
                 continue
+            self.clamped_ += int(k > 0.0)
             act.set_output_impedance(k=target[0], b=target[1])
             act.set_output_position(target[2])
             units = getattr(act, "NM_PER_RAD_TO_MOTOR_UNITS", None)
@@ -192,4 +184,9 @@ class OSLLeg:
                 ratio = act.gear_ratio ** 2
                 self.quantised_[joint] = (stiffness, int(stiffness / ratio * units) * ratio / units)
             self.sent_[joint] = target
-        self.derating_ = min(float(getattr(a, "thermal_scaling_factor", 1.0)) for a in self.actuators.values())
+        self.derating_ = min(_thermal_scale(a) for a in self.actuators.values())
+
+
+def _thermal_scale(actuator: Any) -> float:
+    """The share of its torque an actuator's thermal model allows now, in [0, 1] (1 where it has no such model)."""
+    return min(max(float(getattr(actuator, "thermal_scaling_factor", 1.0)), 0.0), 1.0)
