@@ -26,9 +26,9 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from controller_core.units import body_weight_N
 from device_bridge.osl.config import JointCalibration, LoadcellCalibration
 
-G_MPS2 = 9.81
 STILL_SPREAD_DEG = 1.0
 MIN_MOVE_DEG = 5.0
 JOINT_RANGE_DEG = {"knee": (0.0, 120.0), "ankle": (-30.0, 30.0)}   # the device's joint ranges (SafetyLimits)
@@ -113,7 +113,7 @@ def loadcell_sign(zeroed: LoadcellCalibration, fz_N: Sequence[float], body_mass_
     fz = _finite(fz_N, "load cell sign")
     if not (math.isfinite(body_mass_kg) and 20.0 <= body_mass_kg <= 200.0):
         raise CalibrationRefusedError(f"load cell sign: body mass must be 20–200 kg, got {body_mass_kg!r}")
-    weight = body_mass_kg * G_MPS2
+    weight = body_weight_N(body_mass_kg)
     change = statistics.fmean(fz) - zeroed.fz_zero_N
     if abs(change) < 0.2 * weight:
         raise CalibrationRefusedError(f"load cell sign: the force changed {abs(change):.0f} N, under a fifth of the body "
