@@ -41,6 +41,7 @@ from device_bridge.protocol import (
     AckResult,
     Command,
     Fault,
+    LegTorqueMode,
     LinkMode,
     Mode,
     ProtocolError,
@@ -92,9 +93,9 @@ class LegState:
 
     @classmethod
     def from_raw(cls, raw: dict[str, int]) -> LegState:
-        bits = int(raw["calibrated"])
-        return cls(bool(bits & 1), bool(bits & 2), bool(bits & 4),
-                   {0: "current", 1: "torque", 2: "actuator_impedance"}.get(int(raw["torque_mode"]), "unknown"),
+        bits, code = int(raw["calibrated"]), int(raw["torque_mode"])
+        mode = LegTorqueMode(code).name.lower() if code in {m.value for m in LegTorqueMode} else "unknown"
+        return cls(bool(bits & 1), bool(bits & 2), bool(bits & 4), mode,
                    None if raw["derating"] == 255 else int(raw["derating"]))
 
 

@@ -62,6 +62,14 @@ class Mode(IntEnum):
     SAFE = 2       # passive, damped; left only on a new valid table or an explicit command
 
 
+class LegTorqueMode(IntEnum):
+    """Who computes the leg's torque (DEVICE_LEG.torque_mode)."""
+
+    CURRENT = 0              # QuasiTune computes every torque; the actuator runs its current loop
+    TORQUE = 1               # likewise, through the actuator's torque loop
+    ACTUATOR_IMPEDANCE = 2   # the actuator runs the spring and damper QuasiTune's state asks for
+
+
 class AckResult(IntEnum):
     """TABLE_ACK.result: 0 staged, anything else a refusal with its reason."""
 

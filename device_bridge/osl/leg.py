@@ -21,6 +21,7 @@ from typing import Any
 
 from controller_core.fsm import Impedance, SensorSample
 from device_bridge.osl.config import JointCalibration, LegConfig, finite
+from device_bridge.protocol import LegTorqueMode
 
 THERMAL_EXCEPTIONS = ("ThermalLimitException", "I2tLimitException")   # opensourceleg.math's, matched by name
 
@@ -101,7 +102,8 @@ class OSLLeg:
         cal = self.config.calibration
         return {"hardware": 1, "calibrated": int(cal.knee.calibrated) | int(cal.ankle.calibrated) << 1
                 | int(cal.loadcell.calibrated) << 2,
-                "torque_mode": {"current": 0, "torque": 1, "dephy_impedance": 2}[self.config.torque_mode],
+                "torque_mode": int({"current": LegTorqueMode.CURRENT, "torque": LegTorqueMode.TORQUE,
+                                    "dephy_impedance": LegTorqueMode.ACTUATOR_IMPEDANCE}[self.config.torque_mode]),
                 "derating": round(100.0 * min(max(self.derating_, 0.0), 1.0))}
 
     def take_fault(self) -> tuple[str, str] | None:
