@@ -39,6 +39,7 @@ from device_bridge.bus_threads import BusThreads
 from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.firmware import DeviceFirmware, FirmwareConfig, HeldTable
 from device_bridge.protocol import Mode
+from device_bridge.remote_calibration import CalibrationPort
 
 TICK_S = 0.001
 WAKE_S = 0.01
@@ -71,11 +72,12 @@ class DeviceNode(BusThreads):
     """The simulated prosthesis on ``bus`` (see the module docstring)."""
 
     def __init__(self, bus: can.BusABC, leg: Leg | None = None, config: FirmwareConfig | None = None,
-                 clock: Clock = WALL_CLOCK, control_thread: bool = True) -> None:
+                 clock: Clock = WALL_CLOCK, control_thread: bool = True,
+                 calibration: CalibrationPort | None = None) -> None:
         self.bus = bus
         self.leg = leg
         self.clock = clock
-        self.firmware = DeviceFirmware(config, now_s=clock.monotonic())
+        self.firmware = DeviceFirmware(config, now_s=clock.monotonic(), calibration=calibration)
         self._lock = threading.Lock()
         # frames leave in the order the firmware made them (as from a firmware's one thread): each thread queues its
         # frames while it holds the firmware, and whichever sends drains the queue in order. A status built before a

@@ -66,6 +66,7 @@ from device_bridge.protocol import (
     encode,
     encode_scaled,
 )
+from device_bridge.remote_calibration import CalibrationPort, RemoteCalibration
 
 ADAPTIVE_MODES = {"nominal": 1, "partial": 2, "adaptive": 3, "clamped": 4}   # TELEMETRY_TASK.adaptive_mode
 
@@ -150,7 +151,9 @@ class DeviceFirmware:
     """The leg's firmware (see the module docstring).
 
     Attributes:
-        mode_: NO_TABLE, ACTIVE or SAFE.
+        mode_: NO_TABLE, ACTIVE, SAFE or CALIBRATING (guided calibration from the clinic: no torque).
+        calibration_: the calibration from the clinic (:mod:`device_bridge.remote_calibration`; a leg with sensors
+            to calibrate gives its :class:`~device_bridge.remote_calibration.CalibrationPort`).
         active_: the table the state machine runs (None before the first).
         staged_: a verified table waiting for the next heel strike.
         faults_: current fault flags.
@@ -164,8 +167,10 @@ class DeviceFirmware:
         hardware_fault_: the reason of the last hardware fault (:meth:`hardware_fault`), None if none.
     """
 
-    def __init__(self, config: FirmwareConfig | None = None, now_s: float = 0.0) -> None:
+    def __init__(self, config: FirmwareConfig | None = None, now_s: float = 0.0,
+                 calibration: CalibrationPort | None = None) -> None:
         self.config = config or FirmwareConfig()
+        self.calibration_ = RemoteCalibration(calibration)
         self.mode_ = Mode.NO_TABLE
         self.active_: HeldTable | None = None
         self.staged_: HeldTable | None = None
@@ -249,6 +254,8 @@ class DeviceFirmware:
             return [self._commit_envelope(raw, prepared)]
         if name == "DEVICE_COMMAND":
             return self._command(raw["command"], now_s)
+        if name == "CALIBRATION_COMMAND":
+            return self._calibration_command(raw, now_s)
         return []
 
     def _ack(self, transfer_id: int, result: AckResult, *, crc32: int = 0, missing: int = 0,
@@ -384,6 +391,18 @@ class DeviceFirmware:
             self.faults_ |= Fault.MALFORMED_FRAME
         return self._status_frames()
 
+    def _calibration_command(self, raw: dict[str, int], now_s: float) -> list[can.Message]:
+        """Guided calibration from the clinic (:mod:`device_bridge.remote_calibration`): started only while no table
+        runs; the leg is passive while it lasts and in safe mode after it (with no table: no table)."""
+        frames, calibrating = self.calibration_.command(raw, may_start=self.mode_ in (Mode.SAFE, Mode.NO_TABLE))
+        if calibrating and self.mode_ != Mode.CALIBRATING:
+            self.mode_ = Mode.CALIBRATING
+        elif not calibrating and self.mode_ == Mode.CALIBRATING:
+            self.mode_ = Mode.NO_TABLE
+            if self.active_ is not None:
+                self._enter_safe(now_s)
+        return [*frames, *self._status_frames()]
+
     def hardware_fault(self, reason: str, now_s: float, thermal: bool) -> list[can.Message]:
         """The leg's hardware failed (an actuator over its thermal or I²t limit, a sensor that cannot be read): safe
         mode at once, the over-temperature (``thermal``) or control-error flag raised, the reason kept, and the status
@@ -399,6 +418,8 @@ class DeviceFirmware:
     # ------------------------------------------------------------------------------------------ modes
 
     def _enter_safe(self, now_s: float) -> None:
+        if self.mode_ == Mode.CALIBRATING:    # a calibration under way ends unkept
+            self.calibration_.end()
         if self.mode_ != Mode.SAFE:
             self.mode_ = Mode.SAFE
             self.safe_mode_entered_s_ = now_s
@@ -469,7 +490,7 @@ class DeviceFirmware:
             self._rx = None
         host_alive = now_s - self.last_heartbeat_s_ <= cfg.heartbeat_timeout_s
         if not host_alive and Fault.HEARTBEAT_LOST not in self.faults_:   # also when already in safe mode
-            if self.link_mode_ == LinkMode.SUPERVISED:
+            if self.link_mode_ == LinkMode.SUPERVISED or self.mode_ == Mode.CALIBRATING:   # nobody guides it now
                 self._enter_safe(now_s)
                 if self.staged_ is not None:   # verified before the link was lost: held for LEAVE_SAFE_MODE, as
                     self.active_, self.staged_ = self.staged_, None   # a commanded safe mode holds it
@@ -479,13 +500,15 @@ class DeviceFirmware:
                 and self.mode_ != Mode.SAFE:   # the link is back; a supervised leg waits for the host to say so
             self.faults_ &= ~Fault.HEARTBEAT_LOST
             out += self._status_frames()
-        if self.staged_ is not None and host_alive:
+        if self.staged_ is not None and host_alive and self.mode_ != Mode.CALIBRATING:
             idle = sample is None or self.mode_ != Mode.ACTIVE or now_s - self._last_heel_strike_s > cfg.idle_switch_s
             if idle:
                 self._activate_staged()
                 out += self._status_frames()
         knee, ankle, state = 0.0, 0.0, GaitState.SWING_EXTENSION
-        if sample is not None:
+        if self.mode_ == Mode.CALIBRATING:     # no torque: the step being measured takes this period's readings
+            out += self.calibration_.tick()
+        elif sample is not None:
             knee, ankle, state = self._torques(sample, now_s, out)
         if now_s >= self._next_telemetry_s:
             self._next_telemetry_s = max(self._next_telemetry_s + cfg.telemetry_period_s, now_s)
@@ -528,6 +551,8 @@ class DeviceFirmware:
         (:mod:`device_bridge.osl.leg`, Dephy impedance mode)."""
         if self.mode_ == Mode.ACTIVE and self.controller_ is not None:
             return self.controller_.impedance()
+        if self.mode_ == Mode.CALIBRATING:
+            return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
         return self._safe.impedance()
 
     @property

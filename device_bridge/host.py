@@ -32,6 +32,7 @@ from controller_core.table import ParameterTable
 from device_bridge.bus_threads import BusThreads
 from device_bridge.clock import WALL_CLOCK, Clock
 from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
+from device_bridge.host_calibration import CalibrationClient
 from device_bridge.protocol import (
     FAULT_MASK,
     ROW_COUNT,
@@ -282,6 +283,7 @@ class DeviceLink(BusThreads):
         self._health: dict[str, float] | None = None
         self._leg_state: LegState | None = None
         self._acks: queue.Queue[dict[str, int]] = queue.Queue()
+        self.calibration = CalibrationClient(self._send, clock)   # guided calibration from the clinic
         self._send_lock = threading.Lock()
         self._push_lock = threading.Lock()
         self._transfer_id = 0
@@ -410,6 +412,9 @@ class DeviceLink(BusThreads):
         """One decoded frame; ``current``: it is the leg's state now (a status that is not is history, :meth:`_current`)."""
         if name == "TABLE_ACK":
             self._acks.put(raw)
+        elif name == "CALIBRATION_RESULT":
+            if current:
+                self.calibration.add(raw)
         elif name == "TELEMETRY_TASK":
             self._joiner.add_task(raw)
         elif name in _TelemetryJoiner.PARTS:

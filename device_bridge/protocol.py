@@ -60,6 +60,7 @@ class Mode(IntEnum):
     NO_TABLE = 0   # no valid table yet: passive, damped
     ACTIVE = 1     # running the four-state machine with the active table
     SAFE = 2       # passive, damped; left only on a new valid table or an explicit command
+    CALIBRATING = 3   # guided calibration from the clinic: no torque at all (the leg is in a stand); ends in SAFE
 
 
 class LegTorqueMode(IntEnum):
@@ -91,6 +92,72 @@ class Command(IntEnum):
     REQUEST_STATUS = 3
     LINK_SUPERVISED = 4    # a lost host heartbeat puts the leg in safe mode (the default)
     LINK_AUTONOMOUS = 5    # a lost host heartbeat is reported and changes nothing the leg does
+
+
+class CalibrationAction(IntEnum):
+    """CALIBRATION_COMMAND.action."""
+
+    START = 1      # the leg stops driving its joints for the calibration (only from safe mode or with no table)
+    MEASURE = 2    # measure one step (CalibrationStep) from the readings of the next samples
+    KEEP = 3       # keep the four steps' result on the leg (its calibration file), then safe mode
+    CANCEL = 4     # leave the calibration unchanged, then safe mode
+
+
+class CalibrationStep(IntEnum):
+    """CALIBRATION_COMMAND.step and CALIBRATION_RESULT.step: the guided calibration's steps, in order
+    (:mod:`device_bridge.osl.calibration`); 0 in an answer about the calibration as a whole."""
+
+    JOINT_ZERO = 1
+    DIRECTION = 2
+    LOADCELL_ZERO = 3
+    LOADCELL_SIGN = 4
+
+
+class CalibrationOutcome(IntEnum):
+    """CALIBRATION_RESULT.outcome: MEASURED frames carry one quantity each; every other outcome closes an answer."""
+
+    STARTED = 1
+    MEASURED = 2
+    ACCEPTED = 3
+    REFUSED = 4
+    KEPT = 5
+    CANCELLED = 6
+
+
+class CalibrationSubject(IntEnum):
+    """CALIBRATION_RESULT.subject: what a quantity or a refusal is about."""
+
+    LEG = 0
+    KNEE = 1
+    ANKLE = 2
+    LOADCELL = 3
+
+
+class CalibrationRefusal(IntEnum):
+    """CALIBRATION_RESULT.reason: why a step (or the calibration) was refused; the words are
+    :func:`device_bridge.osl.calibration.refusal_words`."""
+
+    NONE = 0
+    NOT_A_NUMBER = 1      # a reading is NaN or missing: the sensor's wiring
+    NOT_STILL = 2         # the joint or the foot moved while it was to be held still
+    TOO_LITTLE_MOVE = 3   # the prompted movement was under 5°
+    BEYOND_RANGE = 4      # from the zero the joint read beyond its range: the zero was not taken at the stop
+    LOAD_OFFSET = 5       # the unloaded cell reads beyond what drift gives
+    NOT_LOADED = 6        # standing changed the load by under a fifth of the body weight
+    OVERLOADED = 7        # over twice the body weight: the body mass or the cell's scale
+    BODY_MASS = 8         # no usable body mass (20–200 kg)
+    LEG_BUSY = 9          # the leg runs a table: put it in safe mode first
+    NO_SENSORS = 10       # this leg has nothing to calibrate (the simulated bench reads itself exactly)
+    OUT_OF_ORDER = 11     # a step before the steps it needs
+    NOT_STARTED = 12      # a measure, keep or cancel with no calibration under way (or another session's)
+    INCOMPLETE = 13       # keep before all four steps were accepted
+    NOT_SAVED = 14        # the leg could not write its calibration file: nothing changed
+
+
+# CALIBRATION_RESULT.quantity: what a MEASURED frame's value is (its unit in the name)
+CALIBRATION_QUANTITIES: tuple[str, ...] = (
+    "", "reading_deg", "spread_deg", "moved_deg", "sign", "torque_sign", "reach_min_deg", "reach_max_deg",
+    "force_N", "moment_Nm", "spread_N", "change_N", "body_weight_N", "body_mass_kg")
 
 
 class LinkMode(IntEnum):

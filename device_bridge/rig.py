@@ -24,6 +24,7 @@ from device_bridge.device_node import TICK_S, DeviceNode, Leg
 from device_bridge.faults import FaultInjectingBus
 from device_bridge.firmware import FirmwareConfig
 from device_bridge.host import DeviceLink
+from device_bridge.remote_calibration import CalibrationPort
 
 
 class RigBus(can.BusABC):
@@ -72,6 +73,7 @@ class Rig:
             :class:`device_bridge.faults.FaultInjectingBus`), drawn from ``seed``.
         clock: a clock shared with other rigs or pieces (a server's, in tests); default a clock of its own.
         keep_frames: log every frame in :attr:`frames` (a long-running rig says no).
+        calibration: the leg's calibration port (a leg with sensors to calibrate from the clinic).
         link_kwargs: the link's callbacks (``on_status``, ``on_telemetry``).
 
     Attributes:
@@ -80,14 +82,15 @@ class Rig:
 
     def __init__(self, leg: Leg | None = None, config: FirmwareConfig | None = None, heartbeat_period_s: float = 0.02,
                  to_device: dict[str, float] | None = None, to_host: dict[str, float] | None = None, seed: int = 0,
-                 clock: SteppedClock | None = None, keep_frames: bool = True, **link_kwargs: Any) -> None:
+                 clock: SteppedClock | None = None, keep_frames: bool = True,
+                 calibration: CalibrationPort | None = None, **link_kwargs: Any) -> None:
         self.clock = clock if clock is not None else SteppedClock(TICK_S)
         if self.clock.step_s != TICK_S:
             raise ValueError(f"a rig steps every control tick ({TICK_S} s), its clock every {self.clock.step_s} s")
         self.frames: list[tuple[int, str, int, bytes]] = []
         self._host_end, self._device_end = RigBus.pair(self.clock, self.frames if keep_frames else None)
         self.node = DeviceNode(_with_faults(self._device_end, to_host, seed + 1), leg=leg, config=config,
-                               clock=self.clock)
+                               clock=self.clock, calibration=calibration)
         self.link = DeviceLink(_with_faults(self._host_end, to_device, seed), heartbeat_period_s=heartbeat_period_s,
                                clock=self.clock, **link_kwargs)
         self._beat_every = max(1, round(heartbeat_period_s / TICK_S))

@@ -20,7 +20,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from controller_core.fsm import Impedance, SensorSample
-from device_bridge.osl.config import JointCalibration, LegConfig, finite
+from device_bridge.osl.config import Calibration, JointCalibration, LegConfig, finite
 from device_bridge.protocol import LegTorqueMode
 
 THERMAL_EXCEPTIONS = ("ThermalLimitException", "I2tLimitException")   # opensourceleg.math's, matched by name
@@ -105,6 +105,30 @@ class OSLLeg:
                 "torque_mode": int({"current": LegTorqueMode.CURRENT, "torque": LegTorqueMode.TORQUE,
                                     "dephy_impedance": LegTorqueMode.ACTUATOR_IMPEDANCE}[self.config.torque_mode]),
                 "derating": round(100.0 * min(max(self.derating_, 0.0), 1.0))}
+
+    def raw_readings(self) -> dict[str, float]:
+        """The sensors as they read now, before any calibration (the devices as last updated): each joint's sensor
+        and its actuator's output (rad), the load cell's fz (N) and my (N·m); NaN for one that cannot be read. What
+        calibration measures (:mod:`device_bridge.osl.calibration_session`)."""
+        def read(get: Callable[[], Any]) -> float:
+            try:
+                return float(get())
+            except Exception:
+                return float("nan")
+
+        out: dict[str, float] = {}
+        for joint in ("knee", "ankle"):
+            act, enc = self.actuators[joint], self.encoders[joint]
+            out[f"{joint}_actuator"] = read(lambda a=act: a.output_position)
+            out[joint] = read(lambda e=enc: e.position) if enc is not None else out[f"{joint}_actuator"]
+        out["fz"] = read(lambda: self.loadcell.fz)
+        out["my"] = read(lambda: self.loadcell.my)
+        return out
+
+    def calibrate(self, calibration: Calibration, save: Callable[[Calibration], None]) -> None:
+        """Run from now on with ``calibration``, once ``save`` has kept it (an error saving changes nothing)."""
+        save(calibration)
+        self.config = self.config.model_copy(update={"calibration": calibration})
 
     def take_fault(self) -> tuple[str, str] | None:
         """The hardware fault seen since the last call as (``"thermal"`` or ``"sensor"``, its reason), or None; the

@@ -13,7 +13,7 @@ from device_bridge.host import LegState
 from device_bridge.osl.bench_sdk import Mounting, SDKRoute
 from device_bridge.osl.calibration import joint_direction, joint_zero, loadcell_sign, loadcell_zero
 from device_bridge.osl.config import Calibration
-from device_bridge.protocol import Fault, Mode
+from device_bridge.protocol import CalibrationStep, Fault, Mode
 from device_bridge.rig import Rig
 from device_bridge.sim.simulate import run_walk
 from device_bridge.sim.walker import SimWalker
@@ -137,7 +137,8 @@ def test_the_guided_calibration_prompts_repeats_a_refused_step_and_keeps_its_res
     """The leg's prompts, answered by poses on the bench (the same mis-mounted sensors): the unloaded step is first
     taken with the patient still on the leg and refused with its reason, then taken again; the result is kept beside
     the leg file and read back with it."""
-    from device_bridge.osl.calibration_guide import MOVED_POSE, STANDING, UNLOADED, ZERO_POSE, guided_calibration
+    from device_bridge.osl.calibration import PROMPTS
+    from device_bridge.osl.calibration_guide import guided_calibration
     from device_bridge.osl.config import load_config, save_calibration
 
     walker = SimWalker()
@@ -146,14 +147,14 @@ def test_the_guided_calibration_prompts_repeats_a_refused_step_and_keeps_its_res
     unloaded_asked = []
 
     def ask(prompt: str) -> None:
-        if prompt == ZERO_POSE:
+        if prompt == PROMPTS[CalibrationStep.JOINT_ZERO]:
             world.held = (0.0, 0.0)
-        elif prompt == MOVED_POSE:
+        elif prompt == PROMPTS[CalibrationStep.DIRECTION]:
             world.held = (32 * DEG, 9 * DEG)
-        elif prompt == UNLOADED:
+        elif prompt == PROMPTS[CalibrationStep.LOADCELL_ZERO]:
             unloaded_asked.append(prompt)
             world.held = None if len(unloaded_asked) == 1 else (0.0, 0.0)   # the first time, still stood on
-        elif prompt == STANDING:
+        elif prompt == PROMPTS[CalibrationStep.LOADCELL_SIGN]:
             world.held = None
 
     said: list[str] = []

@@ -32,8 +32,8 @@ def test_a_reversed_offset_knee_sensor_is_found_and_corrected():
 
 @pytest.mark.parametrize(("readings", "why"), [
     ([0.1, 0.1, 0.15], "spread"),
-    ([0.1, math.nan], "not a number"),
-    ([], "no readings"),
+    ([0.1, math.nan], "missing or not a number"),
+    ([], "missing or not a number"),
 ])
 def test_a_zero_taken_while_moving_or_unread_is_refused(readings, why):
     with pytest.raises(CalibrationRefusedError, match=why):
