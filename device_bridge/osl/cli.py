@@ -3,8 +3,10 @@
 Builds the leg's devices from the file (:mod:`device_bridge.osl.hardware`), starts them, opens the link to the clinic
 (CAN, or the broker as ``mqtt:LEG_ID``), and runs the firmware in the control loop on the main thread at the file's
 rate (:mod:`device_bridge.osl.loop`); the link's receive thread runs beside it. Overruns in a row put the leg in safe
-mode. Ctrl-C (or SIGTERM) stops the loop, commands zero torque and stops every device. Prints the loop's figures at
-the end. Imports only what the leg installs (``.[leg]``).
+mode. A leg not yet calibrated gives no torque until it is: the clinic's device page can guide its calibration
+(:mod:`device_bridge.remote_calibration`), kept beside the leg file as ``--calibrate`` keeps it. Ctrl-C (or SIGTERM)
+stops the loop, commands zero torque and stops every device. Prints the loop's figures at the end. Imports only what
+the leg installs (``.[leg]``).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import json
 import signal
 import sys
 import time
+from pathlib import Path
 
 from device_bridge.osl.config import LegConfigError, load_config
 
@@ -31,25 +34,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from device_bridge.buses import open_bus
     from device_bridge.device_node import DeviceNode
+    from device_bridge.osl.config import save_calibration
     from device_bridge.osl.hardware import build_devices
     from device_bridge.osl.leg import OSLLeg
     from device_bridge.osl.loop import ControlLoop
 
     config = load_config(args.config)
-    actuators, sensors, bench = build_devices(config)
+    # the SDK's log beside the leg file (not wherever the command was started)
+    actuators, sensors, bench = build_devices(config, log_folder=Path(args.config).resolve().parent / "logs")
     if args.calibrate:
         return calibrate(args, config, actuators, sensors)
-    cal = config.calibration
-    if bench is None and not (cal.knee.calibrated and cal.ankle.calibrated and cal.loadcell.calibrated):
-        raise ValueError("this leg is not calibrated: a reversed sensor would turn every torque against the joint; run "
-                         f"quasitune leg --config {args.config} --calibrate --mass KG first")
     if args.bench_walk is not None:
         if bench is None:
             raise ValueError("--bench-walk needs a leg file whose devices are kind = \"bench\"")
         bench.walk(args.bench_walk)
-    leg = OSLLeg(config, actuators, sensors, clock=time.monotonic)
+    leg = OSLLeg(config, actuators, sensors, clock=time.monotonic, require_calibration=bench is None)
+    if not leg.drives:
+        print("quasitune leg: this leg is not calibrated: it gives no torque until it is (a reversed sensor would turn "
+              "every torque against the joint); calibrate it from the clinic's device page, or with "
+              f"quasitune leg --config {args.config} --calibrate --mass KG", file=sys.stderr)
     leg.start()
-    node = DeviceNode(open_bus(config.link), leg=leg, control_thread=False)
+    port = leg.calibration_port(lambda cal: save_calibration(args.config, cal))
+    node = DeviceNode(open_bus(config.link), leg=leg, control_thread=False, calibration=port)
     loop = ControlLoop(config.period_s, node.tick, config.overruns_to_safe,
                        on_overruns=lambda n: node.overrun(n, time.monotonic()))
     for sig in (signal.SIGINT, signal.SIGTERM):

@@ -6,6 +6,7 @@ hardware."""
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,8 +28,22 @@ def _build(tag: str, device: DeviceConfig, bench: Any) -> Any:
         raise ValueError(f"{tag}: {device.kind}: {exc}") from exc
 
 
-def build_devices(config: LegConfig) -> tuple[dict[str, Any], dict[str, Any], Any]:
-    """(actuators by tag, sensors by tag, the bench if any device is ``bench``, else None)."""
+def sdk_log_folder(folder: Path | str) -> Path:
+    """Where the SDK writes its log (its ``LOGGER`` singleton, which otherwise writes ``logger_<time>.log`` into the
+    working directory at its first message): ``folder``, made if missing."""
+    from opensourceleg.logging.logger import Logger  # the SDK: only on the leg's computer
+
+    path = Path(folder)
+    path.mkdir(parents=True, exist_ok=True)
+    Logger(log_path=str(path))     # the singleton takes the folder; its file is opened at the first message
+    return path
+
+
+def build_devices(config: LegConfig, log_folder: Path | str | None = None) -> tuple[dict[str, Any], dict[str, Any], Any]:
+    """(actuators by tag, sensors by tag, the bench if any device is ``bench``, else None); the SDK's log goes to
+    ``log_folder`` (:func:`sdk_log_folder`) where one is given."""
+    if log_folder is not None:
+        sdk_log_folder(log_folder)
     bench = None
     if any(d.kind == "bench" for d in (*config.actuators.values(), *config.sensors.values())):
         from device_bridge.osl.bench_sdk import BenchLeg  # MuJoCo: the dry run only

@@ -20,8 +20,10 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from controller_core.fsm import Impedance, SensorSample
+from device_bridge.osl.calibration_session import DEFAULT_SAMPLES
 from device_bridge.osl.config import Calibration, JointCalibration, LegConfig, finite
 from device_bridge.protocol import LegTorqueMode
+from device_bridge.remote_calibration import CalibrationPort
 
 THERMAL_EXCEPTIONS = ("ThermalLimitException", "I2tLimitException")   # opensourceleg.math's, matched by name
 
@@ -34,10 +36,14 @@ class OSLLeg:
         actuators: SDK actuators by tag (``opensourceleg.actuators`` subclasses).
         sensors: SDK sensors by tag: joint encoders, the load cell, the socket's angle sensor.
         clock: the leg's monotonic clock (s).
+        impedance: what the firmware runs as a spring and damper (Dephy impedance mode).
+        require_calibration: give no torque until every sensor is calibrated (a reversed sensor would turn every
+            torque against its joint); False only for bench devices, which read the bench as QuasiTune does.
     """
 
     def __init__(self, config: LegConfig, actuators: Mapping[str, Any], sensors: Mapping[str, Any],
-                 clock: Callable[[], float] = time.monotonic, impedance: Callable[[], Impedance] | None = None) -> None:
+                 clock: Callable[[], float] = time.monotonic, impedance: Callable[[], Impedance] | None = None,
+                 require_calibration: bool = True) -> None:
         def need(pool: Mapping[str, Any], tag: str | None, what: str) -> Any:
             if tag is None:
                 return None
@@ -58,6 +64,7 @@ class OSLLeg:
         if config.torque_mode == "dephy_impedance" and impedance is None:
             raise ValueError("torque_mode dephy_impedance needs the impedance the firmware runs (firmware.impedance)")
         self.impedance = impedance
+        self.require_calibration = require_calibration
         self.sent_: dict[str, tuple[float, float, float]] = {}     # per joint: (K, B, equilibrium) last sent
         self.quantised_: dict[str, tuple[float, float]] = {}      # per joint: (K asked, K the actuator runs) N·m/rad
         self.clamped_ = 0                                          # rows whose k pushed (k > 0): sent as K = 0
@@ -96,6 +103,17 @@ class OSLLeg:
         if problems:
             raise RuntimeError("stopping the leg: " + "; ".join(problems))
 
+    @property
+    def calibrated(self) -> bool:
+        """Every sensor calibrated (joints and load cell)."""
+        cal = self.config.calibration
+        return cal.knee.calibrated and cal.ankle.calibrated and cal.loadcell.calibrated
+
+    @property
+    def drives(self) -> bool:
+        """Whether the leg gives the firmware's torques (else none: not calibrated yet)."""
+        return self.calibrated or not self.require_calibration
+
     def leg_state(self) -> dict[str, int]:
         """What this leg says of itself in DEVICE_LEG: an Open Source Leg, which of its sensors are calibrated, its
         torque mode, and the torque its thermal model allows (%)."""
@@ -125,10 +143,14 @@ class OSLLeg:
         out["my"] = read(lambda: self.loadcell.my)
         return out
 
-    def calibrate(self, calibration: Calibration, save: Callable[[Calibration], None]) -> None:
+    def calibrate(self, calibration: Calibration, save: Callable[[Calibration], object]) -> None:
         """Run from now on with ``calibration``, once ``save`` has kept it (an error saving changes nothing)."""
         save(calibration)
         self.config = self.config.model_copy(update={"calibration": calibration})
+
+    def calibration_port(self, save: Callable[[Calibration], object], samples: int = DEFAULT_SAMPLES) -> CalibrationPort:
+        """The firmware's port for calibration from the clinic: this leg's raw readings, and :meth:`calibrate`."""
+        return CalibrationPort(self.raw_readings, lambda cal: self.calibrate(cal, save), samples)
 
     def take_fault(self) -> tuple[str, str] | None:
         """The hardware fault seen since the last call as (``"thermal"`` or ``"sensor"``, its reason), or None; the
@@ -182,6 +204,8 @@ class OSLLeg:
         if self.config.torque_mode == "dephy_impedance":
             self.send_impedance()
             return
+        if not self.drives:
+            knee_torque_Nm = ankle_torque_Nm = 0.0
         for joint, tau in (("knee", knee_torque_Nm), ("ankle", ankle_torque_Nm)):
             cal: JointCalibration = getattr(self.config.calibration, joint)
             self.actuators[joint].set_output_torque(cal.torque_sign * tau * _thermal_scale(self.actuators[joint]))
@@ -195,7 +219,8 @@ class OSLLeg:
         actuator will run where it says its unit (Dephy: whole motor units, about 0.4 N·m/rad at 41.5:1). The
         thermal scaling factor cannot scale an impedance: it is kept in :attr:`derating_` for the health report."""
         assert self.impedance is not None
-        for joint, (k, theta_e, b) in zip(("knee", "ankle"), self.impedance(), strict=True):
+        springs = self.impedance() if self.drives else ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+        for joint, (k, theta_e, b) in zip(("knee", "ankle"), springs, strict=True):
             cal: JointCalibration = getattr(self.config.calibration, joint)
             act = self.actuators[joint]
             stiffness = max(-k, 0.0)

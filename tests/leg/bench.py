@@ -3,6 +3,7 @@ leg environment's tests."""
 
 from __future__ import annotations
 
+import tempfile
 from collections.abc import Callable
 
 from controller_core.envelope import Envelope
@@ -11,10 +12,13 @@ from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, enve
 from device_bridge.firmware import DeviceFirmware
 from device_bridge.osl.bench_sdk import BenchActuator, BenchEncoder, BenchLoadcell, BenchWorld, Mounting
 from device_bridge.osl.config import Calibration, LegConfig, parse_config
+from device_bridge.osl.hardware import sdk_log_folder
 from device_bridge.osl.leg import OSLLeg
 from device_bridge.protocol import WireTable, begin_frame, commit_frame
 from device_bridge.sim.walker import SimWalker
 from tests.leg.fixtures import ENVELOPE, TABLE
+
+sdk_log_folder(tempfile.mkdtemp(prefix="quasitune-leg-tests-sdk-log-"))   # not the working directory
 
 
 def learned_table() -> ParameterTable:
@@ -35,13 +39,17 @@ def config(rate_hz: float = 500.0, calibration: Calibration | None = None, knee_
 
 
 def bench_leg(cfg: LegConfig, mounting: Mounting | None = None, walker: SimWalker | None = None,
-              clock: Callable[[], float] | None = None, impedance: Callable | None = None) -> tuple[OSLLeg, BenchWorld]:
-    """An OSL leg over bench actuators, encoders and a load cell, started (its clock the bench's, or ``clock``)."""
+              clock: Callable[[], float] | None = None, impedance: Callable | None = None,
+              calibrated_only: bool = False) -> tuple[OSLLeg, BenchWorld]:
+    """An OSL leg over bench actuators, encoders and a load cell, started (its clock the bench's, or ``clock``);
+    ``calibrated_only``: it gives no torque until calibrated, as hardware (the bench's default mounting reads the bench
+    as QuasiTune does, so the walks drive it uncalibrated)."""
     world = BenchWorld(walker=walker, period_s=cfg.period_s, mounting=mounting or Mounting())
     actuators = {"knee": BenchActuator("knee", world, "knee"), "ankle": BenchActuator("ankle", world, "ankle")}
     sensors = {"loadcell": BenchLoadcell("loadcell", world), "thigh": BenchEncoder("thigh", world, "thigh"),
                "knee_joint": BenchEncoder("knee_joint", world, "knee")}
-    leg = OSLLeg(cfg, actuators, sensors, clock=clock or (lambda: world.time_s), impedance=impedance)
+    leg = OSLLeg(cfg, actuators, sensors, clock=clock or (lambda: world.time_s), impedance=impedance,
+                 require_calibration=calibrated_only)
     leg.start()
     return leg, world
 

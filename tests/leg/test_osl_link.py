@@ -168,3 +168,43 @@ def test_the_guided_calibration_prompts_repeats_a_refused_step_and_keeps_its_res
                     '[ankle]\nactuator = "ankle"\ngear_ratio = 41.5\n')
     save_calibration(path, cal)
     assert load_config(path).calibration == cal
+
+
+def test_the_clinic_calibrates_an_uncalibrated_osl_leg_through_the_sdk(tmp_path):
+    """Mis-mounted and uncalibrated, the leg gives no torque; the host guides the four steps over the link (poses held
+    on the bench as the prompts ask), the leg keeps the result beside its file, says so with its status, drives again
+    and reads the bench's true angles within 0.5°."""
+    from device_bridge.clock import SteppedClock
+    from device_bridge.osl.config import calibration_path, load_config, save_calibration
+    from device_bridge.protocol import CalibrationAction as A
+
+    clock = SteppedClock(0.001)
+    walker = SimWalker()
+    leg, world = bench_leg(config(1000.0, knee_encoder=True), MISMOUNTED, walker=walker, clock=clock.monotonic,
+                           calibrated_only=True)
+    path = tmp_path / "leg.toml"
+    path.write_text('thigh = "thigh"\n[knee]\nactuator = "knee"\nencoder = "knee_joint"\ngear_ratio = 41.5\n'
+                    '[ankle]\nactuator = "ankle"\ngear_ratio = 41.5\n')
+    with Rig(leg=leg, clock=clock, calibration=leg.calibration_port(lambda c: save_calibration(path, c), 50)) as rig:
+        world.held = (0.0, 0.0)
+        rig.advance(0.2)
+        assert not leg.drives and world.torques == {"knee": 0.0, "ankle": 0.0}
+        ask = rig.link.calibration.command
+        assert ask(A.START).outcome == "started"
+        assert ask(A.MEASURE, CalibrationStep.JOINT_ZERO).outcome == "accepted"
+        world.held = (32 * DEG, 9 * DEG)
+        direction = ask(A.MEASURE, CalibrationStep.DIRECTION)
+        assert direction.outcome == "accepted" and "reversed" in direction.measured[0].words
+        world.held = (0.0, 0.0)
+        assert ask(A.MEASURE, CalibrationStep.LOADCELL_ZERO).outcome == "accepted"
+        world.held = None
+        walker.stand(75.0)
+        assert ask(A.MEASURE, CalibrationStep.LOADCELL_SIGN, 75.0).outcome == "accepted"
+        assert ask(A.KEEP).outcome == "kept"
+        rig.advance(0.15)
+        assert rig.link.status.leg == LegState(True, True, True, "current", 100) and leg.drives
+        assert load_config(path).calibration == leg.config.calibration and calibration_path(path).exists()
+        world.held = (41 * DEG, -6 * DEG)
+        x = leg.sample()
+        assert math.degrees(x.knee_angle_rad) == pytest.approx(41.0, abs=0.5)
+        assert math.degrees(x.ankle_angle_rad) == pytest.approx(-6.0, abs=0.5)
