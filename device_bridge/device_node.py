@@ -140,6 +140,7 @@ class DeviceNode(BusThreads):
         if take_fault is not None:
             self.firmware.temperature_degC_ = getattr(leg, "temperature_degC_", None)
             self.firmware.leg_state_ = leg.leg_state()
+            self.firmware.leg_drives_ = bool(getattr(leg, "drives", True))
             fault = take_fault()
             if fault is not None:
                 self._outbox.extend(self.firmware.hardware_fault(fault[1], now_s, thermal=fault[0] == "thermal"))

@@ -164,6 +164,8 @@ class DeviceFirmware:
         temperature_degC_: the hottest actuator's case temperature the leg reports (None: not measured).
         leg_state_: what a real leg says of itself (its calibration, torque mode, thermal derating), sent with each
             status in DEVICE_LEG; None for the simulated bench.
+        leg_drives_: whether the leg gives the torques asked (False: a real leg not yet calibrated, which gives none;
+            the telemetry then says 0 N·m, as the leg does).
         hardware_fault_: the reason of the last hardware fault (:meth:`hardware_fault`), None if none.
     """
 
@@ -181,6 +183,7 @@ class DeviceFirmware:
         self.link_mode_ = LinkMode.SUPERVISED
         self.temperature_degC_: float | None = None
         self.leg_state_: dict[str, int] | None = None
+        self.leg_drives_ = True        # False: a real leg not yet calibrated gives no torque (device_bridge.osl.leg)
         self.hardware_fault_: str | None = None
         self.controller_: StateMachineController | AdaptiveController | None = None
         self._safe = SafeModeController(self.config.safe_mode, self.config.actuator)   # safe mode, and no table
@@ -508,7 +511,7 @@ class DeviceFirmware:
         knee, ankle, state = 0.0, 0.0, GaitState.SWING_EXTENSION
         if self.mode_ == Mode.CALIBRATING:     # no torque: the step being measured takes this period's readings
             out += self.calibration_.tick()
-        elif sample is not None:
+        elif sample is not None and self.leg_drives_:
             knee, ankle, state = self._torques(sample, now_s, out)
         if now_s >= self._next_telemetry_s:
             self._next_telemetry_s = max(self._next_telemetry_s + cfg.telemetry_period_s, now_s)

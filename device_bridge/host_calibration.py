@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import can
 
 from device_bridge.clock import Clock
-from device_bridge.osl.calibration import PROMPTS, measured_words, refusal_words
+from device_bridge.osl.calibration import measured_words, refusal_words
 from device_bridge.protocol import (
     CALIBRATION_QUANTITIES,
     CalibrationAction,
@@ -67,16 +67,6 @@ class CalibrationAnswer:
     refused_reason: str | None = None
     refused_subject: str | None = None
     refused_words: str | None = None
-
-    @property
-    def next_prompt(self) -> str | None:
-        """What the prosthetist is asked to do for the step after this one (None after the last, or when refused)."""
-        if self.outcome == "started":
-            return PROMPTS[CalibrationStep.JOINT_ZERO]
-        if self.outcome != "accepted" or self.step is None:
-            return None
-        step = CalibrationStep[self.step.upper()]
-        return PROMPTS.get(CalibrationStep(step + 1)) if step < max(CalibrationStep) else None
 
 
 class CalibrationClient:

@@ -36,7 +36,8 @@ from controller_core.walking_reference import WalkingReference
 from device_bridge.clock import WALL_CLOCK, Clock, SteppedClock
 from device_bridge.device_node import DeviceNode
 from device_bridge.host import DeviceLink, DeviceStatus, HeartbeatClock, PushResult, TelemetrySample
-from device_bridge.protocol import Command, Fault
+from device_bridge.host_calibration import CalibrationAnswer, CalibrationTimeoutError
+from device_bridge.protocol import CalibrationAction, CalibrationStep, Command, Fault
 from device_bridge.rig import Rig
 from device_bridge.sim.course import Course
 from device_bridge.sim.leg_model import LegGeometry
@@ -331,6 +332,18 @@ class DeviceManager:
         leaving = command == Command.LEAVE_SAFE_MODE
         dev.leave_safe_until_s, dev.leave_safe_sent_s = (now + LEAVE_SAFE_TRY_S, now) if leaving else (float("-inf"),) * 2
         dev.link.command(command)
+
+    def calibrate(self, device_id: str, action: CalibrationAction, step: CalibrationStep | None,
+                  body_mass_kg: float) -> CalibrationAnswer:
+        """One guided-calibration command to a real leg, and its answer (:mod:`device_bridge.host_calibration`);
+        ConflictError when the leg is offline or does not answer."""
+        dev = self.get(device_id)
+        if not self.online(dev) or dev.link is None:
+            raise ConflictError(f"device {device_id} is offline; nothing was sent")
+        try:
+            return dev.link.calibration.command(action, step, body_mass_kg)
+        except CalibrationTimeoutError as exc:
+            raise ConflictError(str(exc)) from exc
 
     def link_mode_chosen(self, device_id: str, mode: str) -> None:
         """The stored lost-link choice changed (:func:`backend.store.devices.set_link_mode`): tell the device now if it

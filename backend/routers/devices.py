@@ -11,9 +11,12 @@ from fastapi import APIRouter, Query, Request, WebSocket, WebSocketDisconnect, s
 from backend.db import pooled
 from backend.deps import Conn, CurrentUser, Prosthetist
 from backend.devices import DeviceManager
-from backend.errors import ConflictError
+from backend.devices.calibration_view import calibration_view
+from backend.errors import ConflictError, InvalidError
 from backend.schemas.devices import (
     AssignmentRequest,
+    CalibrationOut,
+    CalibrationRequest,
     CommandRequest,
     DeviceIdPath,
     DeviceOut,
@@ -24,7 +27,7 @@ from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.store import devices as devices_store
 from backend.store import patients
 from backend.store.users import user_for_token
-from device_bridge.protocol import Command
+from device_bridge.protocol import CalibrationAction, CalibrationStep, Command
 
 router = APIRouter(prefix="/api/devices", tags=["devices"])
 
@@ -104,6 +107,31 @@ def command(device_id: DeviceIdPath, body: CommandRequest, request: Request, con
     m.command(device_id, _COMMANDS[body.command])
     devices_store.record_command(conn, device_id, body.command, user)
     return m.view(device_id)
+
+
+@router.post("/{device_id}/calibration", response_model=CalibrationOut,
+             responses={**UNAUTHORIZED, **FORBIDDEN, **NOT_FOUND, **CONFLICT})
+def calibrate(device_id: DeviceIdPath, body: CalibrationRequest, request: Request, conn: Conn,
+              user: Prosthetist) -> dict:
+    """Guided calibration of a real leg, step by step (prosthetist; each command audited with the leg's answer).
+
+    ``start`` (only while the leg runs no table: put it in safe mode, in its stand; it then gives no torque at all),
+    then ``measure`` each step after doing what its prompt asks: ``joint_zero``, ``direction``, ``loadcell_zero``,
+    ``loadcell_sign`` (read against the assigned patient's body mass). The leg answers what it measured, or why it
+    refused (a step can be measured again); ``keep`` writes the result on the leg and uses it, ``cancel`` leaves its
+    calibration as it was; either ends in safe mode. The simulated leg has nothing to calibrate (refused
+    ``no_sensors``). 409 when the leg is offline or does not answer."""
+    m = manager(request)
+    m.get(device_id)
+    if (body.action == "measure") != (body.step is not None):
+        raise InvalidError("a step is named with action 'measure', and only then")
+    worn = devices_store.assignment(conn, device_id)
+    mass = None if worn is None else float(worn["body_mass_kg"])
+    step = None if body.step is None else CalibrationStep[body.step.upper()]
+    answer = m.calibrate(device_id, CalibrationAction[body.action.upper()], step, mass or 0.0)
+    out = calibration_view(device_id, answer, step, mass)
+    devices_store.record_calibration(conn, device_id, body.action, body.step, out, user)
+    return out
 
 
 @router.put("/{device_id}/link-mode", response_model=DeviceOut,

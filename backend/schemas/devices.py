@@ -95,7 +95,9 @@ class DeviceOut(BaseModel):
     interface: str
     channel: str
     online: bool = Field(description="a status arrived within the last second")
-    mode: Literal["no_table", "active", "safe"] | None
+    mode: Literal["no_table", "active", "safe", "calibrating"] | None = Field(
+        description="what the leg does: runs no table (passive), its table, safe mode (passive, holds a loaded knee), "
+                    "or a guided calibration from this page (no torque at all)")
     safe_mode: bool
     fsm_state: int | None = Field(description="0 stance flexion, 1 stance extension, 2 swing flexion, 3 swing extension")
     active_version: int | None = Field(description="the device's own version number of the table running (a "
@@ -150,3 +152,39 @@ class LinkModeRequest(StrictIn):
                                                 "clinic): it goes to safe mode; 'autonomous' (daily life, no server "
                                                 "near): it runs on with the approved table or envelope it holds")
     reason: str = Field(min_length=10, max_length=500, description="why, in the prosthetist's words (audited)")
+
+
+CalibrationStepName = Literal["joint_zero", "direction", "loadcell_zero", "loadcell_sign"]
+
+
+class CalibrationRequest(StrictIn):
+    action: Literal["start", "measure", "keep", "cancel"] = Field(
+        description="start (only from safe mode or with no table: the leg then gives no torque), measure a step, "
+                    "keep the four steps' result on the leg, or cancel (the leg keeps its calibration)")
+    step: CalibrationStepName | None = Field(default=None, description="the step to measure (action measure only)")
+
+
+class CalibrationMeasured(BaseModel):
+    subject: Literal["knee", "ankle", "loadcell", "leg"]
+    values: dict[str, float] = Field(description="what the leg measured, the unit in each name (reading_deg, "
+                                                 "spread_deg, moved_deg, sign, torque_sign, force_N, moment_Nm, "
+                                                 "change_N, body_weight_N …)")
+    words: str
+
+
+class CalibrationOut(BaseModel):
+    """The leg's answer to one calibration command, in its words and numbers."""
+
+    device_id: str
+    step: CalibrationStepName | None = Field(description="the step answered (null: the calibration as a whole)")
+    outcome: Literal["started", "accepted", "refused", "kept", "cancelled"]
+    measured: list[CalibrationMeasured]
+    refused_reason: str | None = Field(description="why the leg refused (a code: not_still, too_little_move, "
+                                                   "beyond_range, load_offset, not_loaded, leg_busy, no_sensors …)")
+    refused_subject: str | None
+    refused_words: str | None = Field(description="what was wrong and what to do, in the leg's words")
+    prompt: str | None = Field(description="what the prosthetist does before measuring this step again")
+    next_step: CalibrationStepName | None = Field(description="the step to measure next (null: none, keep or cancel)")
+    next_prompt: str | None = Field(description="what to do before measuring the next step")
+    body_mass_kg: float | None = Field(description="the assigned patient's mass the load cell's sign was read "
+                                                   "against (kg)")

@@ -25,6 +25,15 @@ def record_command(conn: Connection, device_id: str, command: str, actor: User) 
         audit.record(conn, actor.id, actor.username, f"device.{command}", "device", None, after={"device_id": device_id})
 
 
+def record_calibration(conn: Connection, device_id: str, action: str, step: str | None, answer: dict,
+                       actor: User) -> None:
+    """Audit one guided-calibration command with the leg's answer (what it measured, or why it refused)."""
+    with write_transaction(conn):
+        audit.record(conn, actor.id, actor.username, f"device.calibration.{action}", "device", None,
+                     after={"device_id": device_id, "step": step, "outcome": answer["outcome"],
+                            "refused_reason": answer["refused_reason"], "measured": answer["measured"]})
+
+
 def link_mode(conn: Connection, device_id: str) -> str:
     """The prosthetist's choice of what a lost link does to the device: ``supervised`` or ``autonomous``."""
     row = conn.execute(select(devices.c.link_mode).where(devices.c.id == device_id)).first()

@@ -116,7 +116,8 @@ export const SUBPHASE_COLOUR = {
   stance_flexion: "#009E73", stance_extension: "#D55E00", swing_flexion: "#0072B2", swing_extension: "#CC79A7",
 };
 // What the device's mode means, in words (the API's codes stay in the engineering view and the JSON)
-const MODE_WORDS = { active: "running its table", safe: "SAFE MODE (passive: holds the loaded knee)", no_table: "no table (passive: holds the loaded knee)" };
+const MODE_WORDS = { active: "running its table", safe: "SAFE MODE (passive: holds the loaded knee)", no_table: "no table (passive: holds the loaded knee)",
+  calibrating: "CALIBRATING (no torque at all: the leg is in its stand)" };
 export function modeWords(mode) {
   return MODE_WORDS[mode] || (mode ? `mode ${mode}` : "mode not reported");
 }

@@ -70,6 +70,12 @@ class Stand:
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> None:
         self.torques = (knee_torque_Nm, ankle_torque_Nm)
 
+    @property
+    def drives(self) -> bool:
+        """As a hardware leg: no torque until every sensor is calibrated."""
+        c = self.calibration
+        return c.knee.calibrated and c.ankle.calibrated and c.loadcell.calibrated
+
     def take_fault(self) -> None:
         return None
 

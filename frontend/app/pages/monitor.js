@@ -5,6 +5,7 @@ import { liveChart } from "../widgets/charts.js";
 import { liveTarget } from "../widgets/live_target.js";
 import { legView } from "../widgets/leg_view.js";
 import { adaptivePanel } from "../widgets/adaptive_panel.js";
+import { calibrationPanel } from "../widgets/calibration_panel.js";
 import { headline, offTable } from "../widgets/session_views.js";
 import { bodyWeightN, chip, confirmDialog, fmt, FSM_STATES, h, modeWords, notice, table, tableName, when } from "../ui.js";
 
@@ -47,6 +48,8 @@ export async function monitorPage(view, deviceId, params) {
   const sessionBox = h("section", { class: "card", id: "session" }, h("h2", {}, "Walking session"),
     h("p", { class: "muted" }, "Reading the leg's sessions…"));   // never an empty card while the API answers
   const adaptiveBox = h("section", { class: "card", id: "adaptive", hidden: true });
+  // a real leg's guided calibration (the simulated leg has no sensors to calibrate), for the prosthetist
+  const calibrationBox = h("section", { class: "card", id: "calibration", hidden: true });
   const viewerBox = h("figure", { class: "viewer", id: "viewer3d" });
   // viser's 3D scene: only where the server was started with --viewer3d (viser has no login); WebGL, so it opens
   // on request (and the choice is remembered)
@@ -66,7 +69,7 @@ export async function monitorPage(view, deviceId, params) {
     h("h1", {}, `Live monitor · ${deviceId}`),
     actions,
     h("section", { class: "card" }, h("h2", {}, "Device"), statusBox),
-    adaptiveBox, sessionBox,
+    calibrationBox, adaptiveBox, sessionBox,
     h("section", { class: "card" }, h("h2", {}, "Telemetry (last 5 s, 100 Hz)"),
       h("div", { class: "readout-row" }, legFigure, readout), charts),
     h("section", { class: "card" }, viewerToggle));
@@ -88,6 +91,12 @@ export async function monitorPage(view, deviceId, params) {
     yRange: [-0.2, 3.2] });
 
   renderStatus(statusBox, device);
+  const calibration = canCommand ? calibrationPanel(calibrationBox, deviceId) : null;
+  const showCalibration = (d) => {
+    calibrationBox.hidden = !calibration || !d.leg;
+    calibration?.update(d);
+  };
+  showCalibration(device);
   await renderSession(sessionBox, deviceId, patients, params);
   recordingChip(device);
   let status = device;
@@ -116,6 +125,7 @@ export async function monitorPage(view, deviceId, params) {
     if (m.type === "status") {
       status = m;
       renderStatus(statusBox, m);
+      showCalibration(m);
       recordingChip(m);
       showAdaptive(m);
       return;

@@ -322,3 +322,28 @@ def test_a_restarted_leg_is_sent_the_stored_lost_link_mode_again(sim_api):
     firmware.link_mode_ = type(firmware.link_mode_).SUPERVISED   # as after a restart: the device starts supervised
     wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=pro).json(),
              lambda d: d["link_mode_on_device"] == "autonomous", clock=api.clock)
+
+
+def test_the_simulated_leg_has_nothing_to_calibrate_and_a_calibration_request_is_checked(sim_api):
+    """The simulated bench reads itself exactly: the leg itself answers ``no_sensors`` (audited); the request is the
+    prosthetist's, a step goes with ``measure`` only, an unknown device is a 404."""
+    api = sim_api
+    c = api.client
+    wait_for(lambda: c.get(f"/api/devices/{DEVICE}", headers=api.as_("viewer")).json(), lambda d: d["online"],
+             clock=api.clock)
+    url = f"/api/devices/{DEVICE}/calibration"
+    r = c.post(url, headers=api.as_("prosthetist"), json={"action": "start"})
+    assert r.status_code == 200, r.text
+    answer = r.json()
+    assert answer["outcome"] == "refused" and answer["refused_reason"] == "no_sensors"
+    assert "simulated bench reads itself exactly" in answer["refused_words"]
+    assert c.post(url, headers=api.as_("viewer"), json={"action": "start"}).status_code == 403
+    bad = c.post(url, headers=api.as_("prosthetist"), json={"action": "measure"})
+    assert bad.status_code == 422 and "a step is named with action 'measure'" in bad.text
+    assert c.post(url, headers=api.as_("prosthetist"), json={"action": "start", "step": "direction"}).status_code == 422
+    assert c.post(url, headers=api.as_("prosthetist"), json={"action": "explode"}).status_code == 422
+    assert c.post("/api/devices/nope/calibration", headers=api.as_("prosthetist"),
+                  json={"action": "start"}).status_code == 404
+    audit = c.get("/api/audit", headers=api.as_("admin"), params={"limit": 20}).json()
+    items = audit["items"] if isinstance(audit, dict) else audit
+    assert [e["action"] for e in items].count("device.calibration.start") == 1
