@@ -2,7 +2,7 @@
 # The leg's environment (issue 54): .venv-leg holds the leg extra alone (.[leg]: numpy, pydantic, python-can, cantools,
 # paho-mqtt and the Open Source Leg SDK, with the SDK's own pins: numpy<2, pandas<3), never the server's or the model's
 # packages. This installs it if missing, checks that `quasitune leg` runs from it, then adds what the tests need
-# (pytest, and MuJoCo for the bench behind the SDK's interfaces) and runs tests/leg there.
+# (pytest, MuJoCo for the bench behind the SDK's interfaces, the SDK's Dephy extra) and runs tests/leg there.
 #   bash scripts/test_leg.sh [pytest arguments]      (scripts/test.sh runs it after the main suite)
 #   bash scripts/test_leg.sh --install               only make the environment (scripts/test.sh: while it sets up)
 set -euo pipefail
@@ -23,7 +23,8 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
     # the leg's command from the leg's packages alone, before the tests bring MuJoCo
     .venv-leg/bin/quasitune leg --help > /dev/null
     .venv-leg/bin/python -c "import numpy, sys; sys.exit(0 if numpy.__version__ < '2' else 1)"
-    "${install[@]}" "pytest>=8" "pytest-timeout>=2.3" "mujoco>=3.1"
+    # the tests also exercise the SDK's real Dephy actuator class (flexsea), which a Dephy leg installs anyway
+    "${install[@]}" "pytest>=8" "pytest-timeout>=2.3" "mujoco>=3.1" "opensourceleg[dephy]>=3.5,<4"
   } > "$log" 2>&1 || { tail -n 40 "$log" >&2; echo "the leg's environment could not be made; log in $log" >&2; exit 1; }
   touch "$stamp"
 fi
