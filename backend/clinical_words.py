@@ -1,47 +1,30 @@
 """Settings and limit messages in the words a prosthetist uses (the API's field keys stay in the structured fields).
 
-The dashboard names fields the same way (``frontend/app/ui.js``); refusals the server writes for people (an envelope
-edit's) use these words and no field keys or parameter names.
+The words are kept once, in ``clinical_words.json`` beside this module: the dashboard imports the same file (served at
+``/clinical_words.json``, ``backend/frontend.py``), so a setting is named alike on the page and in the refusals the
+server writes for people (an envelope edit's), which use these words and no field keys or parameter names.
 """
 
 from __future__ import annotations
 
+import json
 import re
+from pathlib import Path
 
 from controller_core.table import LimitViolation
 
-ROW_WORDS = {
-    "knee.stance_flexion": "knee stance flexion resistance (loading response)",
-    "knee.stance_extension": "knee stance extension (mid and terminal stance)",
-    "knee.swing_flexion": "knee swing flexion",
-    "knee.swing_extension": "knee swing extension (terminal swing)",
-    "ankle.stance_flexion": "ankle loading response (heel rocker)",
-    "ankle.stance_extension": "ankle terminal stance and push-off",
-    "ankle.swing_flexion": "ankle swing (toe clearance)",
-    "ankle.swing_extension": "ankle late swing (ready for heel strike)",
-}
-PARAMETER_WORDS = {"k_Nm_per_rad": "stiffness", "theta_e_deg": "equilibrium angle", "b_Nm_s_per_rad": "damping"}
-THRESHOLD_WORDS = {
-    "sf_to_se_ankle_moment_Nm": "stance extension begins: ankle moment below",
-    "se_to_wf_load_N": "toe-off: load below",
-    "wf_to_we_knee_angle_deg": "swing extension begins: knee flexed beyond",
-    "we_to_sf_load_N": "heel strike: load above",
-    "min_state_time_s": "shortest time in a phase",
-    "max_state_time_s": "longest time in a phase",
-    "sf_to_se_knee_extension_deg_per_s": "stance extension also begins: loaded knee extending faster than",
-    "stumble_knee_margin_deg": "stumble: swing knee stalled this far above its straightening angle",
-    "stumble_knee_rate_deg_per_s": "stumble: stalled means extending slower than",
-    "fold_knee_rate_deg_per_s": "stumble: loaded knee folding in early stance faster than",
-    "fold_window_of_stance_pct": "stumble: early stance is the first part of stance, up to",
-}
-UNIT_WORDS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "°", "b_Nm_s_per_rad": "N·m·s/rad", "Nm": "N·m", "N": "N",
-              "deg": "°", "s": "s", "deg_per_s": "deg/s", "pct": "%"}
+WORDS_PATH = Path(__file__).with_name("clinical_words.json")   # the dashboard's copy too (/clinical_words.json)
+_WORDS = json.loads(WORDS_PATH.read_text(encoding="utf-8"))
+ROW_WORDS: dict[str, str] = _WORDS["rows"]
+PARAMETER_WORDS: dict[str, str] = _WORDS["parameters"]
+THRESHOLD_WORDS: dict[str, str] = _WORDS["thresholds"]
+UNIT_WORDS: dict[str, str] = _WORDS["units"]
 _FIELD = re.compile(r"\b(?:(knee|ankle)\.(stance_flexion|stance_extension|swing_flexion|swing_extension)\."
                     r"(k_Nm_per_rad|theta_e_deg|b_Nm_s_per_rad)|thresholds\.(\w+))\b")
 
 
 def field_words(field: str) -> str:
-    """``knee.stance_flexion.k_Nm_per_rad`` → ``knee stance flexion resistance (loading response): stiffness``."""
+    """``knee.stance_flexion.k_Nm_per_rad`` → ``knee stance flexion resistance (loading response): resistance K``."""
     m = _FIELD.fullmatch(field)
     if m is None:
         return field

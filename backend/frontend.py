@@ -10,6 +10,8 @@ from fastapi import FastAPI
 from fastapi.responses import FileResponse, HTMLResponse
 from fastapi.staticfiles import StaticFiles
 
+from backend.clinical_words import WORDS_PATH
+
 # npm package → the folder of it the browser may load
 VENDOR = {"uplot": "uplot/dist", "swagger-ui": "swagger-ui-dist"}
 
@@ -33,6 +35,11 @@ def mount_frontend(app: FastAPI, frontend_dir: Path) -> None:
         if problems:
             return HTMLResponse(_MISSING.format(missing="; ".join(problems)), status_code=503)
         return FileResponse(index, headers={"Cache-Control": "no-cache"})
+
+    @app.get("/clinical_words.json", include_in_schema=False)
+    def clinical_words() -> FileResponse:
+        """The settings' names in a prosthetist's words: the server's own copy, which the dashboard imports."""
+        return FileResponse(WORDS_PATH, media_type="application/json", headers={"Cache-Control": "no-cache"})
 
     if (frontend_dir / "app").is_dir():
         app.mount("/app", StaticFiles(directory=frontend_dir / "app"), name="app")

@@ -1,4 +1,5 @@
 // Small DOM helpers and the number formats used on every page (unit always shown).
+import CLINICAL_WORDS from "/clinical_words.json" with { type: "json" };
 
 export function h(tag, attrs = {}, ...children) {
   const el = document.createElement(tag);
@@ -60,19 +61,10 @@ export const SUBPHASE_LABEL = {
   stance_flexion: "stance flexion", stance_extension: "stance extension",
   swing_flexion: "swing flexion", swing_extension: "swing extension",
 };
-// Settings named as clinicians name them (the engineering view keeps the codes)
-export const ROW_WORDS = {
-  "knee.stance_flexion": "knee stance flexion resistance (loading response)",
-  "knee.stance_extension": "knee stance extension (mid and terminal stance)",
-  "knee.swing_flexion": "knee swing flexion",
-  "knee.swing_extension": "knee swing extension (terminal swing)",
-  "ankle.stance_flexion": "ankle loading response (heel rocker)",
-  "ankle.stance_extension": "ankle terminal stance and push-off",
-  "ankle.swing_flexion": "ankle swing (toe clearance)",
-  "ankle.swing_extension": "ankle late swing (ready for heel strike)",
-};
-const PARAMETER_WORDS = { k_Nm_per_rad: "resistance K", theta_e_deg: "equilibrium angle", b_Nm_s_per_rad: "damping",
-  fit_method: "where the value comes from", r2: "fit quality R²" };
+// Settings named as clinicians name them (the engineering view keeps the codes): the server's one copy of the words
+// (backend/clinical_words.json), which its refusals use too
+export const ROW_WORDS = CLINICAL_WORDS.rows;
+const PARAMETER_WORDS = CLINICAL_WORDS.parameters;
 // the server's threshold (controller_core.table.WEAK_FIT_R2): a line fit below it is marked a weak fit
 export const WEAK_FIT_R2 = 0.5;
 export const FIT_METHOD_WORDS = {
@@ -83,21 +75,9 @@ export const FIT_METHOD_WORDS = {
   support_floor: "held at the stance support floor",
   refined: "refined from the patient's own strides",
 };
-const THRESHOLD_WORDS = {
-  sf_to_se_ankle_moment_Nm: "stance extension begins: ankle moment below",
-  se_to_wf_load_N: "toe-off: load below",
-  wf_to_we_knee_angle_deg: "swing extension begins: knee flexed beyond",
-  we_to_sf_load_N: "heel strike: load above",
-  min_state_time_s: "shortest time in a phase",
-  max_state_time_s: "longest time in a phase",
-  sf_to_se_knee_extension_deg_per_s: "stance extension also begins: loaded knee extending faster than (0 = off)",
-  stumble_knee_margin_deg: "stumble: swing knee stalled this far above its straightening angle",
-  stumble_knee_rate_deg_per_s: "stumble: stalled means extending slower than",
-  fold_knee_rate_deg_per_s: "stumble: loaded knee folding in early stance faster than",
-  fold_window_of_stance_pct: "stumble: early stance is the first part of stance, up to",
-};
+const THRESHOLD_WORDS = CLINICAL_WORDS.thresholds;
 
-// "knee.stance_flexion.k_Nm_per_rad" -> "knee stance flexion resistance (loading response): resistance K"
+// "knee.stance_flexion.k_Nm_per_rad" -> the row's words and the parameter's ("…: resistance K")
 export function fieldWords(field) {
   const [a, b, c] = field.split(".");
   if (a === "thresholds") return THRESHOLD_WORDS[b] || field;

@@ -222,7 +222,7 @@ def test_ten_percent_firmer_everywhere_is_refused_or_held_to_the_neighbour_rule_
     # in clinical words, every value it counts listed, no field keys or parameter names
     detail, counted = r.json()["detail"], len(r.json()["violations"])
     assert f"{counted} value(s)" in detail and detail.count("changes by") == counted, detail
-    assert "knee stance flexion resistance (loading response): stiffness changes by" in detail
+    assert "knee stance flexion resistance (loading response): resistance K changes by" in detail
     for code in ("k_Nm_per_rad", "hold_to_neighbour_rule", "knee.stance_flexion", "neighbours[", "_deg"):
         assert code not in detail, code
     assert "hold within a step" in detail
