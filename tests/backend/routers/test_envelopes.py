@@ -247,7 +247,7 @@ def test_ten_percent_firmer_everywhere_is_refused_or_held_to_the_neighbour_rule_
     for cell in k_cells:
         assert cell["change"] == pytest.approx(cell["after"] - cell["before"])
         assert cell["percent"] == pytest.approx(100 * cell["change"] / cell["before"], abs=0.01)   # as asked: scaled
-        assert cell["setting"] == "knee stance flexion resistance (loading response): stiffness"
+        assert cell["setting"] == "knee stance flexion resistance (loading response): resistance K"
     marked = [c for c in k_cells if c["held_by_neighbour_rule"]]
     assert len(marked) == len(guarded) and all(c["wanted"] is not None for c in marked)
     assert all(c["percent"] == pytest.approx(10.0, abs=0.01) for c in k_cells if not c["held_by_neighbour_rule"])
