@@ -34,7 +34,16 @@ def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 
                          "nominal": [env.nominal_speed_mps, env.nominal_incline_deg]},
             "rows": [scores[name].to_dict() for name in COURSE_CONTROLLERS],
             "adaptive_minus": {other: versus(scores["adaptive"], scores[other], "adaptive", other)
-                               for other in ("quasi-stiffness", "fsmic")}}
+                               for other in ("quasi-stiffness", "fsmic")},
+            # the same, on the strides right after each change and on the rest (issue 56)
+            "adaptive_minus_after_change": {
+                other: versus(scores["adaptive"].only(scores["adaptive"].stride_after_change),
+                              scores[other].only(scores[other].stride_after_change), "adaptive", other)
+                for other in ("quasi-stiffness", "fsmic")},
+            "adaptive_minus_between_changes": {
+                other: versus(scores["adaptive"].only(~scores["adaptive"].stride_after_change),
+                              scores[other].only(~scores[other].stride_after_change), "adaptive", other)
+                for other in ("quasi-stiffness", "fsmic")}}
 
 
 def format_course_compare(result: dict) -> str:
@@ -69,13 +78,26 @@ def format_course_compare(result: dict) -> str:
                           f"{100 * (e['incline_within_1_5_deg_fraction'] or 0):.1f} % of {e['strides_counted']} "
                           f"strides (first {e['skipped_after_each_change']} after each change not counted); "
                           f"strides by mode {r['strides_by_mode']}"]
-    lines += ["", "adaptive − other, mean per-stride RMSE, 95 % interval (bootstrap over strides), verdict:", "",
-              "| other | " + " | ".join(GAIT_CHANNELS) + " |", "|" + "---|" * (1 + len(GAIT_CHANNELS))]
-    for other, rows in result["adaptive_minus"].items():
-        cells = []
-        for ch in GAIT_CHANNELS:
-            d = rows[ch]
-            cells.append("—" if d["rmse_difference"] is None else
-                         f"{d['rmse_difference']:+.2f} [{d['ci95'][0]:+.2f}, {d['ci95'][1]:+.2f}] {d['verdict']}")
-        lines.append(f"| {other} | " + " | ".join(cells) + " |")
+    first = result["rows"][0].get("after_change", {}).get("strides_per_change", 3)
+    lines += ["", f"Right after a change (each segment's first {first} strides) / the rest, knee / ankle angle RMSE, deg:",
+              "", "| strides | " + " | ".join(r["controller"] for r in result["rows"]) + " |",
+              "|" + "---|" * (1 + len(result["rows"]))]
+    for part, label in (("after_change", "after a change"), ("between_changes", "the rest")):
+        cells = [f"{cell(r[part]['knee_angle_rmse_deg'])} / {cell(r[part]['ankle_angle_rmse_deg'])} "
+                 f"({r[part]['strides']})" for r in result["rows"] if part in r]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    for key, title in (("adaptive_minus", "all strides"), ("adaptive_minus_after_change", "right after a change"),
+                       ("adaptive_minus_between_changes", "the rest")):
+        if key not in result:
+            continue
+        lines += ["", f"adaptive − other, {title}: mean per-stride RMSE, 95 % interval (bootstrap over strides), "
+                      "verdict:", "", "| other | " + " | ".join(GAIT_CHANNELS) + " |",
+                  "|" + "---|" * (1 + len(GAIT_CHANNELS))]
+        for other, rows in result[key].items():
+            cells = []
+            for ch in GAIT_CHANNELS:
+                d = rows[ch]
+                cells.append("—" if d["rmse_difference"] is None else
+                             f"{d['rmse_difference']:+.2f} [{d['ci95'][0]:+.2f}, {d['ci95'][1]:+.2f}] {d['verdict']}")
+            lines.append(f"| {other} | " + " | ".join(cells) + " |")
     return "\n".join(lines)

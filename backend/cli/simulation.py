@@ -205,7 +205,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("simulate", help="walk one controller on the simulated MuJoCo bench and score it")
     task_args(p, speed_required=False)
     p.add_argument("--course", default=None, help="walk a varying-task course instead of one task: "
-                                                  "speed, terrain, mixed, or a course JSON file")
+                                                  "speed, terrain, mixed, frequent, or a course JSON file")
     p.add_argument("--controller", choices=["quasi-stiffness", "fsmic", "adaptive"], default="quasi-stiffness",
                    help="adaptive (courses only): the envelope blended at the leg's own task estimate; "
                         "quasi-stiffness on a course: the table at --speed/--incline (default 1.2 m/s level)")
@@ -223,7 +223,7 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_simulate)
     p = sub.add_parser("compare", help="quasi-stiffness vs FSMIC over a task grid on the simulated bench")
     p.add_argument("--course", default=None, help="compare the adaptive envelope, the nominal table and the FSMIC "
-                                                  "over a course (speed, terrain, mixed or a JSON file)")
+                                                  "over a course (speed, terrain, mixed, frequent or a JSON file)")
     p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])
     p.add_argument("--inclines", type=float, nargs="+", default=[0.0])
     p.add_argument("--seconds", type=float, default=20.0)

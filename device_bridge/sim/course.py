@@ -124,8 +124,8 @@ class Course:
                              for s in self.segments]}
 
 
-def _course(name: str, parts: list[tuple[float, float, float]]) -> Course:
-    return Course(name, tuple(Segment(*p) for p in parts))
+def _course(name: str, parts: list[tuple[float, float, float]], transition_s: float = 2.0) -> Course:
+    return Course(name, tuple(Segment(*p) for p in parts), transition_s)
 
 
 COURSES: dict[str, Course] = {
@@ -133,6 +133,9 @@ COURSES: dict[str, Course] = {
     "terrain": _course("terrain", [(10, 1.0, 0), (14, 1.0, 8), (10, 1.0, 0), (14, 1.0, -8), (10, 1.0, 0)]),
     "mixed": _course("mixed", [(10, 1.0, 0), (12, 0.85, 0), (12, 1.6, 0), (10, 1.0, 0), (14, 1.0, 8),
                                (10, 1.0, 0), (14, 1.0, -8), (10, 1.0, 0)]),
+    # a change every 6-8 s, 1.5 s each, speed and slope often together: where an adaptive leg is worst (issue 56)
+    "frequent": _course("frequent", [(8, 1.0, 0), (7, 1.3, 0), (6, 0.8, 3), (7, 1.0, 7), (6, 1.2, 0), (8, 0.7, -4),
+                                     (7, 1.1, -8), (6, 1.5, 0), (7, 0.9, 5), (6, 1.0, 0)], transition_s=1.5),
 }
 
 

@@ -6,8 +6,10 @@
 * each stride (heel strike to heel strike, after ``settle_s``) gets its true task, the course's task averaged over
   the stride, and its RMSE per channel (knee and ankle angle in deg, moments in N·m/kg) against the able-bodied
   pattern at that task (the same one the bench replays: level data plus the measured ramp trend);
-* per channel: the mean of those per-stride RMSEs with a 95 % interval (strides resampled with replacement), and the
-  same per course segment (a stride belongs to the segment its middle falls in);
+* per channel: the mean of those per-stride RMSEs with a 95 % interval (strides resampled with replacement), the
+  same per course segment (a stride belongs to the segment its middle falls in), and apart for the first
+  :data:`AFTER_CHANGE_STRIDES` strides of each segment after the first (``after_change``: the leg crossing a change)
+  and the rest (``between_changes``);
 * safety as on a fixed-task walk: falls, toe catches, the longest loaded-swing time in any stride, and how well the
   prosthesis carried the body (sink, the person's compensation, stance knee flexion);
 * with the adaptive controller's per-stride decisions: how often the leg's task estimate was within ±0.1 m/s and
@@ -60,6 +62,7 @@ from device_bridge.sim.simulate import (
 )
 
 SPEED_TOLERANCE_MPS = 0.1
+AFTER_CHANGE_STRIDES = 3    # a segment's first strides, scored apart: the leg crossing the change (issue 56)
 INCLINE_TOLERANCE_DEG = 1.5
 
 
@@ -133,9 +136,16 @@ class CourseScore:
     stride_rmse: dict[str, np.ndarray] = field(default_factory=dict)   # per channel, (strides,)
     stride_tasks: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     stride_segments: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    stride_after_change: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     def to_dict(self) -> dict[str, object]:
         return dict(self.summary)
+
+    def only(self, strides: np.ndarray) -> CourseScore:
+        """The same walk's strides where ``strides`` (a mask over them) holds: to compare part of two walks."""
+        keep = np.asarray(strides, dtype=bool)
+        return CourseScore(self.summary, {k: v[keep] for k, v in self.stride_rmse.items()}, self.stride_tasks[keep],
+                           self.stride_segments[keep], self.stride_after_change[keep])
 
 
 def estimation_accuracy(decisions: Sequence[StrideDecision], traj: CourseTrajectory, course: Course,
@@ -228,6 +238,9 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
             per_stride[name][k] = rmse(strided[name][k], ref[name])
     rng = np.random.default_rng(0)   # fixed: the same walk always reports the same intervals
     everything = np.ones(n, dtype=bool)
+    # the first AFTER_CHANGE_STRIDES strides of every segment but the first: the leg crossing a change of task
+    rank = np.array([np.count_nonzero(segments[:k] == segments[k]) for k in range(n)], dtype=int)
+    after_change = (segments > 0) & (rank < AFTER_CHANGE_STRIDES)
     by_segment = []
     for idx, seg in enumerate(course.segments):
         rows = segments == idx
@@ -255,10 +268,13 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
         "real_time_factor": float(c["time_s"].shape[0] * dt / log.wall_time_s) if log.wall_time_s > 0 else None,
         "reference_kind": "measured level walking and measured ramp trend (Vielemeyer 2025) at each stride's task",
         "by_segment": by_segment,
+        "after_change": {"strides_per_change": AFTER_CHANGE_STRIDES, **_channel_summary(per_stride, after_change, rng)},
+        "between_changes": _channel_summary(per_stride, ~after_change, rng),
         "settle_s": settle_s,
     }
     if decisions is not None:
         summary["estimation"] = estimation_accuracy(decisions, traj, course)
         modes = [d.mode for d in decisions]
         summary["strides_by_mode"] = {m: modes.count(m) for m in ("adaptive", "partial", "nominal", "clamped")}
-    return CourseScore(summary=summary, stride_rmse=per_stride, stride_tasks=tasks, stride_segments=segments)
+    return CourseScore(summary=summary, stride_rmse=per_stride, stride_tasks=tasks, stride_segments=segments,
+                       stride_after_change=after_change)

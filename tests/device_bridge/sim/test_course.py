@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 
@@ -66,3 +67,16 @@ def test_a_course_walked_for_a_given_time_is_cut_short_or_walked_again():
     assert mixed.lasting(11.0).segments == (mixed.segments[0],)   # a last piece shorter than a transition is dropped
     with pytest.raises(ValueError, match="seconds"):
         mixed.lasting(-1.0)
+
+
+def test_the_frequent_course_changes_task_every_six_to_eight_seconds():
+    """The public course where an adaptive leg is worst (issue 56): a change every 6-8 s, 1.5 s each, speed and
+    slope within the data's range, and it plans a walk."""
+    c = load_course("frequent")
+    assert c.transition_s == 1.5 and len(c.segments) >= 8
+    assert all(6.0 <= s.duration_s <= 8.0 for s in c.segments)
+    assert {s.incline_deg > 0 for s in c.segments} == {True, False} and min(s.speed_mps for s in c.segments) < 0.8
+    tasks = [(s.speed_mps, s.incline_deg) for s in c.segments]
+    assert all(a != b for a, b in itertools.pairwise(tasks))           # every boundary changes the task
+    traj = plan_course_trajectory(c, LegGeometry(), 75.0)
+    assert traj.speed_mps.shape == traj.incline_deg.shape and traj.bench.time_s[-1] >= c.duration_s - 0.01

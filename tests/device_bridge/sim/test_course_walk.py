@@ -55,6 +55,20 @@ def test_the_adaptive_leg_follows_the_ramp_and_changes_rows_only_at_heel_strike(
     assert e["speed_within_0_1_mps_fraction"] >= 0.8
 
 
+def test_the_first_strides_after_the_change_are_scored_apart_from_the_rest(adaptive_walk):
+    """The ramp's first three strides (the leg crossing the change) and the rest: every stride in one of the two,
+    each part's mean the mean of its strides' RMSEs, and a part of the walk keeps only its strides."""
+    _, _, score = adaptive_walk
+    s, seg, after = score.summary, score.stride_segments, score.stride_after_change
+    assert after.sum() == 3 and np.all(seg[after] == 1) and np.all(np.flatnonzero(after) == np.flatnonzero(seg == 1)[:3])
+    assert s["after_change"]["strides"] + s["between_changes"]["strides"] == s["strides"]
+    knee = score.stride_rmse["knee_angle_deg"]
+    assert s["after_change"]["knee_angle_rmse_deg"] == pytest.approx(knee[after].mean())
+    assert s["between_changes"]["knee_angle_rmse_deg"] == pytest.approx(knee[~after].mean())
+    part = score.only(after)
+    assert part.stride_rmse["knee_angle_deg"].tolist() == knee[after].tolist() and part.stride_after_change.all()
+
+
 def test_a_course_walked_from_standing_stands_first_and_needs_a_first_segment_to_start_in():
     """The course's first second is quiet standing on its first floor (the hip still, the foot loaded); a course whose
     first segment is too short to stand and take the first steps in is refused, saying why."""
