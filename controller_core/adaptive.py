@@ -3,8 +3,15 @@
 Once per stride, at heel strike (the machine's entry into stance flexion), :class:`AdaptiveController` takes the
 task estimator's new estimate (:mod:`controller_core.task_estimator`), moves the task it runs at towards it by at
 most ``max_speed_step_mps`` and ``max_incline_step_deg`` (the per-stride rate limit), blends the envelope there
-(:mod:`controller_core.envelope_blend`) and loads the result. Parameters never change in mid-stride. Speed and
-incline are followed separately: where the estimate of one is not confident (or there is none yet) its target is
+(:mod:`controller_core.envelope_blend`) and loads the result. **Within the stride**, once the stance's own foot-flat
+window is long enough to read the slope it stands on (:meth:`~controller_core.task_estimator.TaskEstimator.provisional`),
+the rows of the states still to come in that stride (stance extension's if not yet entered, the swing rows, their
+thresholds) are blended at that slope, by at most one stride's rate limit; a row never changes under the state that
+runs it, and stance flexion's always comes from the heel strike. Only the incline is taken within the stride, and only
+when this stride's own reading is confident and differs from the running incline by more than the estimate's
+resolution: the slope comes from the foot's pitch and is the thing a ramp needs at once, while one window's speed is
+noisier than the two-stride mean (taking it too made the `speed` course worse). At heel strike speed
+and incline are followed separately: where the estimate of one is not confident (or there is none yet) its target is
 the envelope's nominal value, approached at the same rate, so the leg stays on, or returns to, the nominal node
 without a jump. (The incline comes from the foot's orientation, which stays readable when a leg on the wrong table
 for a ramp lets its foot slide and spoils the speed reading.) A target outside the envelope is clamped to its edge,
@@ -17,7 +24,7 @@ command; the per-stride history is kept for telemetry and scoring.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 from controller_core.envelope_blend import Blend, EnvelopeBlender
@@ -32,6 +39,7 @@ from controller_core.fsm import (
 from controller_core.task_estimator import (
     INCLINE_RESOLUTION_DEG,
     SPEED_RESOLUTION_MPS,
+    StrideTask,
     TaskEstimate,
     TaskEstimator,
 )
@@ -79,6 +87,8 @@ class AdaptiveController:
         limits: actuator limits.
         max_speed_step_mps, max_incline_step_deg: the most the task may move per stride.
         history_strides: how many stride decisions are kept (the oldest are dropped: a leg walks for hours).
+        within_stride: also blend the rows still to come in a stride at the stride's own foot-flat slope (module
+            docstring); False: rows change at heel strike only.
 
     Attributes:
         machine_: the wrapped state machine.
@@ -95,12 +105,14 @@ class AdaptiveController:
     max_speed_step_mps: float = 0.15
     max_incline_step_deg: float = 3.0
     history_strides: int = 2000
+    within_stride: bool = True
     machine_: StateMachineController = field(init=False)
     speed_mps_: float = field(init=False)
     incline_deg_: float = field(init=False)
     blend_: Blend = field(init=False)
     mode_: AdaptiveMode = field(init=False, default="nominal")
     decisions_: deque[StrideDecision] = field(init=False)
+    within_done_: bool = field(init=False, default=True)      # this stride's own estimate has been used
 
     def __post_init__(self) -> None:
         require_positive(self, ("max_speed_step_mps", "max_incline_step_deg"))
@@ -152,7 +164,33 @@ class AdaptiveController:
         estimate = self.estimator.update(x, stance)
         if cmd.state == GaitState.STANCE_FLEXION and before in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION):
             self._at_heel_strike(x.time_s, estimate if estimate is not None else self.estimator.last_)
+            self.within_done_ = not self.within_stride
+        elif stance and not self.within_done_:
+            own = self.estimator.provisional(x.time_s)
+            if own is not None:
+                self.within_done_ = True
+                self._within_stride(own, cmd.state)
         return cmd
+
+    def _within_stride(self, own: StrideTask, state: GaitState) -> None:
+        """The stride's own foot-flat estimate is in: the rows of the states after the current one blended at its
+        slope (module docstring), by at most one stride's rate limit from where the stride began; nothing when this
+        stride's reading is unsure or within the estimate's resolution of the running incline."""
+        confident = own.valid and own.incline_quality >= self.estimator.confidence_threshold
+        if not confident or abs(own.incline_deg - self.incline_deg_) <= INCLINE_RESOLUTION_DEG:
+            return                         # unsure, or no change this estimate can tell from noise
+        speed = self.speed_mps_
+        incline = _towards(self.incline_deg_, own.incline_deg, self.max_incline_step_deg)
+        if (speed, incline) == (self.speed_mps_, self.incline_deg_):
+            return
+        blend = self.blender.at(speed, incline)
+        ran = int(state)                   # rows up to the current state's stay as they were
+        old, new = self.machine_.schedule, blend.schedule
+        rows = {name: tuple(getattr(old, name)[i] if i <= ran else getattr(new, name)[i] for i in range(4))
+                for name in ("knee_k", "knee_theta_e", "knee_b", "ankle_k", "ankle_theta_e", "ankle_b")}
+        self.machine_.load(replace(new, **rows))
+        self.blend_ = blend
+        self.speed_mps_, self.incline_deg_ = blend.speed_mps, blend.incline_deg
 
     def _at_heel_strike(self, now_s: float, estimate: TaskEstimate | None) -> None:
         follow_speed = estimate is not None and estimate.speed_confident

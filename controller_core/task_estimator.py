@@ -212,9 +212,37 @@ class TaskEstimator:
             s[10] = t
         s[11] = t
 
+    def provisional(self, now_s: float) -> StrideTask | None:
+        """This stance's own estimate so far, once its flat-foot window has lasted ``full_quality_flat_s`` (the
+        longest run yet, the one still going included), else None: the slope and speed of the stride under way,
+        before its push-off and swing (not smoothed with earlier strides, and not kept: the stride's estimate is made
+        again when it closes)."""
+        if not self._in_stance:
+            return None
+        run, best = self._sums, self._best
+        s = run if run[0] and (not best[0] or run[11] - run[10] > best[11] - best[10]) else best
+        if not s[0] or s[11] - s[10] < self.full_quality_flat_s:
+            return None
+        return self._stride_task(s, now_s)
+
     def _close_stride(self, now_s: float) -> TaskEstimate:
         self._end_run()
-        s = self._best
+        stride = self._stride_task(self._best, now_s)
+        self.strides_.append(stride)
+        valid = [st for st in self.strides_ if st.valid]
+        span = self.strides_.maxlen or 1
+        speed_conf = sum(st.speed_quality for st in self.strides_) / span
+        incline_conf = sum(st.incline_quality for st in self.strides_) / span
+        speed = sum(st.speed_mps for st in valid) / len(valid) if valid else math.nan
+        incline = sum(st.incline_deg for st in valid) / len(valid) if valid else math.nan
+        threshold = self.confidence_threshold
+        self.last_ = TaskEstimate(now_s, speed, incline, speed_conf, incline_conf,
+                                  bool(valid) and speed_conf >= threshold, bool(valid) and incline_conf >= threshold,
+                                  stride)
+        return self.last_
+
+    def _stride_task(self, s: list[float], now_s: float) -> StrideTask:
+        """The estimate of one flat-foot run's sums (see the module docstring); ``valid`` False when it gives none."""
         n = s[0]
         flat_s = s[11] - s[10] if n else 0.0
         stride = StrideTask(now_s, math.nan, math.nan, flat_s, math.nan, math.nan, 0.0, 0.0, False)
@@ -238,15 +266,4 @@ class TaskEstimator:
                     stride = StrideTask(now_s, speed, incline, flat_s, rms, pitch_sd_deg,
                                         length / (1.0 + (rms / self.fit_scale_m) ** 2),
                                         length / (1.0 + (pitch_sd_deg / self.pitch_scale_deg) ** 2), True)
-        self.strides_.append(stride)
-        valid = [st for st in self.strides_ if st.valid]
-        span = self.strides_.maxlen or 1
-        speed_conf = sum(st.speed_quality for st in self.strides_) / span
-        incline_conf = sum(st.incline_quality for st in self.strides_) / span
-        speed = sum(st.speed_mps for st in valid) / len(valid) if valid else math.nan
-        incline = sum(st.incline_deg for st in valid) / len(valid) if valid else math.nan
-        threshold = self.confidence_threshold
-        self.last_ = TaskEstimate(now_s, speed, incline, speed_conf, incline_conf,
-                                  bool(valid) and speed_conf >= threshold, bool(valid) and incline_conf >= threshold,
-                                  stride)
-        return self.last_
+        return stride

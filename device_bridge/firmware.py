@@ -9,7 +9,8 @@ Three table buffers: the one being received, the staged one (complete, CRC-verif
 acknowledged) and the active one the state machine runs. A buffer holds a single table or a whole envelope
 (:mod:`device_bridge.envelope_wire`): for an envelope the device re-checks every node's limits and the neighbour
 rule with its own settings (building :class:`controller_core.envelope_blend.EnvelopeBlender` is that check) and
-runs the adaptive controller (:mod:`controller_core.adaptive`), whose rows change only at heel strike. A staged
+runs the adaptive controller (:mod:`controller_core.adaptive`), whose rows change at heel strike and, for the
+states still to come in a stride, once the stride's own foot-flat slope is in, never under a running state. A staged
 table becomes active at the next heel strike (the state machine's swing → stance-flexion transition on load), or
 at once when the leg is not walking (no table yet, safe mode, no sensors, or no load-triggered heel strike for
 ``idle_switch_s``). Loss, corruption, reordering, a bad CRC, a refused limit or a timeout only ever discard the

@@ -1,4 +1,5 @@
-"""The adaptive machine: rows change only at heel strike, at a limited rate, back to nominal without confidence."""
+"""The adaptive machine: rows change at heel strike, and within a stride for the states still to come at that stride's
+own slope, at a limited rate, back to nominal without confidence."""
 
 from __future__ import annotations
 
@@ -26,8 +27,17 @@ class ScriptedEstimator:
 
     script: list[tuple[float, float, bool]]
     last_: TaskEstimate | None = None
+    within: list[tuple[float, float, bool]] | None = None   # each stride's own foot-flat estimate, if any
+    confidence_threshold: float = 0.5
     _was_stance: bool = False
     _i: int = field(default=0)
+
+    def provisional(self, now_s: float) -> StrideTask | None:
+        """This stride's own estimate (the ``within`` script's, for the stride under way), or None."""
+        if self.within is None or not self._was_stance or not 0 < self._i <= len(self.within):
+            return None
+        v, g, ok = self.within[self._i - 1]
+        return StrideTask(now_s, v, g, 0.3, 0.001, 0.1, 1.0 if ok else 0.0, 1.0 if ok else 0.0, ok)
 
     def reset(self) -> None:
         self.last_, self._was_stance, self._i = None, False, 0
@@ -58,7 +68,7 @@ def strides(n: int, dt: float = 0.001):
 
 
 def test_rows_change_only_at_heel_strike_and_at_most_by_the_rate_limit(blender):
-    est = ScriptedEstimator([(1.6, 8.0, True)] * 10)
+    est = ScriptedEstimator([(1.6, 8.0, True)] * 10)      # no estimate within the stride: heel strikes only
     ctrl = AdaptiveController(blender, est, (1.2, 0.0), max_speed_step_mps=0.15, max_incline_step_deg=3.0)
     ctrl.reset()
     schedule, state = ctrl.machine_.schedule, ctrl.machine_.state_
@@ -132,3 +142,38 @@ def test_a_speed_estimate_without_confidence_leaves_speed_nominal_while_incline_
         ctrl.step(x)
     last = ctrl.decisions_[-1]
     assert last.mode == "partial" and last.speed_mps == pytest.approx(1.2) and last.incline_deg == pytest.approx(8.0)
+
+
+def test_within_a_stride_the_rows_still_to_come_follow_that_strides_own_slope(blender):
+    """Level at every heel strike so far, then the stride's own foot-flat reading says +6°: from that moment the
+    stance-extension and swing rows (and thresholds) are the +3° blend (one stride's rate limit), stance flexion's row
+    stays the one it started with; a reading within the estimate's resolution, or an unsure one, changes nothing, and
+    neither does a leg with the within-stride blend off."""
+    level, ramp = (1.2, 0.0, True), (1.2, 6.0, True)
+
+    def walk(within, on=True):
+        est = ScriptedEstimator([level] * 6, within=within)
+        ctrl = AdaptiveController(blender, est, (1.2, 0.0), within_stride=on)
+        ctrl.reset()
+        seen = []                                   # (state when the rows changed, schedule after), within strides
+        schedule = ctrl.machine_.schedule
+        for x in strides(4):
+            before = ctrl.machine_.state_
+            cmd = ctrl.step(x)
+            if ctrl.machine_.schedule is not schedule:
+                if not (cmd.state == GaitState.STANCE_FLEXION and before != GaitState.STANCE_FLEXION):
+                    seen.append((cmd.state, schedule, ctrl.machine_.schedule, ctrl.incline_deg_))
+                schedule = ctrl.machine_.schedule
+        return seen
+
+    seen = walk([level, ramp, ramp])
+    assert len(seen) == 2 and all(state == GaitState.STANCE_FLEXION for state, *_ in seen)
+    state, old, new, incline = seen[0]
+    target = blender.at(1.2, 3.0).schedule
+    assert incline == pytest.approx(3.0)
+    assert new.knee_k[0] == old.knee_k[0] and new.ankle_theta_e[0] == old.ankle_theta_e[0]      # the running row
+    assert new.knee_k[1:] == target.knee_k[1:] and new.ankle_theta_e[3] == target.ankle_theta_e[3]
+    assert new.se_to_wf_load_N == target.se_to_wf_load_N
+    assert walk([level, (1.2, 1.0, True), (1.2, -1.0, True)]) == []          # within the resolution: noise
+    assert walk([level, (1.2, 6.0, False), (1.2, 6.0, False)]) == []         # unsure
+    assert walk([level, ramp, ramp], on=False) == []
