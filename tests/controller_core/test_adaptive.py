@@ -168,7 +168,7 @@ def test_within_a_stride_the_rows_still_to_come_follow_that_strides_own_slope(bl
 
     seen = walk([level, ramp, ramp])
     assert len(seen) == 2 and all(state == GaitState.STANCE_FLEXION for state, *_ in seen)
-    state, old, new, incline = seen[0]
+    _, old, new, incline = seen[0]
     target = blender.at(1.2, 3.0).schedule
     assert incline == pytest.approx(3.0)
     assert new.knee_k[0] == old.knee_k[0] and new.ankle_theta_e[0] == old.ankle_theta_e[0]      # the running row
