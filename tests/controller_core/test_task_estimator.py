@@ -86,15 +86,25 @@ def test_no_imu_or_too_short_a_flat_foot_gives_no_estimate_and_no_confidence():
         assert all(math.isnan(e.speed_mps) and e.confidence == 0.0 for e in estimates)
 
 
-def test_the_estimate_averages_the_last_strides_and_follows_a_change():
+def _later(samples, by_s: float):
+    return [(SensorSample(x.time_s + by_s, *[getattr(x, f) for f in SensorSample.__slots__[1:]]), s) for x, s in samples]
+
+
+def test_the_estimate_averages_the_last_strides_and_follows_a_change_at_once():
+    """Level, then a ramp walked faster: the first ramp stride's estimate is the ramp's own reading, not a mean across
+    the change (which would say 3°, 1.2 m/s: right for neither); strides that agree within the estimate's resolution
+    are averaged."""
     est = TaskEstimator(THIGH_M, SHANK_M, smoothing_strides=2)
     level = scripted_walk(1.0, 0.0, strides=3)
-    ramp = [(SensorSample(x.time_s + 3.0, *[getattr(x, f) for f in SensorSample.__slots__[1:]]), s)
-            for x, s in scripted_walk(1.4, 6.0, strides=3)]
+    ramp = _later(scripted_walk(1.4, 6.0, strides=3), 3.0)
     estimates = run(est, level[:-1] + ramp)
-    assert estimates[3].incline_deg == pytest.approx(3.0, abs=0.1)     # one level and one ramp stride averaged
+    first = estimates[3]
+    assert first.incline_deg == pytest.approx(6.0, abs=0.05) and first.speed_mps == pytest.approx(1.4, abs=0.01)
     assert estimates[-1].incline_deg == pytest.approx(6.0, abs=0.05)
-    assert estimates[-1].speed_mps == pytest.approx(1.4, abs=0.01)
+    close = TaskEstimator(THIGH_M, SHANK_M, smoothing_strides=2)      # 1° apart: within the resolution, averaged
+    estimates = run(close, scripted_walk(1.0, 0.0, strides=3)[:-1] + _later(scripted_walk(1.05, 1.0, strides=3), 3.0))
+    first = estimates[3]
+    assert first.incline_deg == pytest.approx(0.5, abs=0.05) and first.speed_mps == pytest.approx(1.025, abs=0.01)
 
 
 @pytest.mark.parametrize("bad", [{"thigh_length_m": 0.0}, {"smoothing_strides": 0}, {"confidence_threshold": 1.5},
