@@ -78,6 +78,12 @@ def format_course_compare(result: dict) -> str:
                           f"{100 * (e['incline_within_1_5_deg_fraction'] or 0):.1f} % of {e['strides_counted']} "
                           f"strides (first {e['skipped_after_each_change']} after each change not counted); "
                           f"strides by mode {r['strides_by_mode']}"]
+            e1 = r.get("estimation_from_second_stride")
+            if e1:
+                lines += [f"From the second stride after each change: speed within ±0.1 m/s on "
+                          f"{100 * (e1['speed_within_0_1_mps_fraction'] or 0):.1f} %, incline within ±1.5° on "
+                          f"{100 * (e1['incline_within_1_5_deg_fraction'] or 0):.1f} % of {e1['strides_counted']} "
+                          "strides"]
     first = result["rows"][0].get("after_change", {}).get("strides_per_change", 3)
     lines += ["", f"Right after a change (each segment's first {first} strides) / the rest, knee / ankle angle RMSE, deg:",
               "", "| strides | " + " | ".join(r["controller"] for r in result["rows"]) + " |",

@@ -274,6 +274,8 @@ def score_course(log: WalkLog, traj: CourseTrajectory, course: Course,
     }
     if decisions is not None:
         summary["estimation"] = estimation_accuracy(decisions, traj, course)
+        # issue 56's count: from the second stride after each change
+        summary["estimation_from_second_stride"] = estimation_accuracy(decisions, traj, course, skip_after_change=1)
         modes = [d.mode for d in decisions]
         summary["strides_by_mode"] = {m: modes.count(m) for m in ("adaptive", "partial", "nominal", "clamped")}
     return CourseScore(summary=summary, stride_rmse=per_stride, stride_tasks=tasks, stride_segments=segments,

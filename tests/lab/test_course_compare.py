@@ -28,5 +28,6 @@ def test_the_tables_name_the_course_each_segment_and_the_estimate(result):
     assert text.startswith("Course short-ramp: 1 m/s +0° → 1 m/s +6°")
     assert "| 1 m/s +6° |" in text and "Task estimation (adaptive)" in text and "| fsmic |" in text
     assert "| after a change |" in text and "adaptive − other, right after a change" in text
+    assert "From the second stride after each change: speed within ±0.1 m/s on" in text
     assert set(result["adaptive_minus_after_change"]) == set(result["adaptive_minus_between_changes"]) == {
         "quasi-stiffness", "fsmic"}
