@@ -152,6 +152,7 @@ class AdaptiveController:
         self.blend_ = self.blender.at(*self.nominal)
         self.speed_mps_, self.incline_deg_ = self.nominal
         self.mode_ = "nominal"
+        self.within_done_ = True          # a stride's own reading is looked for from its heel strike on
         self.decisions_.clear()
         self.machine_.load(self.blend_.schedule)
         self.machine_.reset(state)
