@@ -381,9 +381,7 @@ class DeviceFirmware:
 
     def _command(self, command: int, now_s: float) -> list[can.Message]:
         if command == Command.ENTER_SAFE_MODE:
-            self._enter_safe(now_s)
-            if self.staged_ is not None:   # verified before the command: held for LEAVE_SAFE_MODE, not a way out
-                self.active_, self.staged_ = self.staged_, None
+            self._enter_safe_holding_staged(now_s)
         elif command == Command.LEAVE_SAFE_MODE:
             host_alive = now_s - self.last_heartbeat_s_ <= self.config.heartbeat_timeout_s
             if self.mode_ == Mode.SAFE and self.active_ is not None and host_alive:
@@ -412,9 +410,7 @@ class DeviceFirmware:
         mode at once, the over-temperature (``thermal``) or control-error flag raised, the reason kept, and the status
         sent now so the clinic sees it within one status period. Left like any safe mode: a new table, or the host's
         command once the cause is gone."""
-        self._enter_safe(now_s)
-        if self.staged_ is not None:     # verified before the fault: held for LEAVE_SAFE_MODE, not a way out
-            self.active_, self.staged_ = self.staged_, None
+        self._enter_safe_holding_staged(now_s)
         self.faults_ |= Fault.OVER_TEMPERATURE if thermal else Fault.CONTROL_ERROR
         self.hardware_fault_ = reason
         return self._status_frames()
@@ -428,6 +424,13 @@ class DeviceFirmware:
             self.mode_ = Mode.SAFE
             self.safe_mode_entered_s_ = now_s
             self._safe.reset()      # the load and the knee's hold found afresh
+
+    def _enter_safe_holding_staged(self, now_s: float) -> None:
+        """Safe mode on a command, a hardware fault or a lost host: a table verified before it is held as the one to
+        run on LEAVE_SAFE_MODE, not a way out of safe mode at the next idle moment."""
+        self._enter_safe(now_s)
+        if self.staged_ is not None:
+            self.active_, self.staged_ = self.staged_, None
 
     def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
         cfg = self.config
@@ -495,9 +498,7 @@ class DeviceFirmware:
         host_alive = now_s - self.last_heartbeat_s_ <= cfg.heartbeat_timeout_s
         if not host_alive and Fault.HEARTBEAT_LOST not in self.faults_:   # also when already in safe mode
             if self.link_mode_ == LinkMode.SUPERVISED or self.mode_ == Mode.CALIBRATING:   # nobody guides it now
-                self._enter_safe(now_s)
-                if self.staged_ is not None:   # verified before the link was lost: held for LEAVE_SAFE_MODE, as
-                    self.active_, self.staged_ = self.staged_, None   # a commanded safe mode holds it
+                self._enter_safe_holding_staged(now_s)
             self.faults_ |= Fault.HEARTBEAT_LOST
             out += self._status_frames()
         elif host_alive and Fault.HEARTBEAT_LOST in self.faults_ and self.link_mode_ == LinkMode.AUTONOMOUS \

@@ -113,8 +113,8 @@ class CalibrationClient:
                 raise CalibrationTimeoutError(f"the leg did not answer the calibration command within {timeout_s:g} "
                                               "s (a leg whose firmware predates calibration from the clinic ignores "
                                               "it: use quasitune leg --calibrate on the leg)")
-            if raw["session"] != session:
-                continue
+            if raw["session"] != session or raw["outcome"] not in set(CalibrationOutcome):
+                continue                      # an earlier calibration's answer, or an outcome this link does not know
             subject = SUBJECT_NAMES.get(CalibrationSubject(raw["subject"]), "leg")
             outcome = CalibrationOutcome(raw["outcome"])
             if outcome == CalibrationOutcome.MEASURED:

@@ -33,8 +33,6 @@ from device_bridge.protocol import (
     encode,
 )
 
-SUBJECTS = {"leg": CalibrationSubject.LEG, "knee": CalibrationSubject.KNEE, "ankle": CalibrationSubject.ANKLE,
-            "loadcell": CalibrationSubject.LOADCELL}
 VALUE_SCALE = 1000          # CALIBRATION_RESULT.value: 0.001 of the quantity's unit
 
 
@@ -58,7 +56,7 @@ def result_frame(session: int, step: int, outcome: CalibrationOutcome, subject: 
                  value: float = 0.0) -> can.Message:
     """One CALIBRATION_RESULT frame."""
     return encode("CALIBRATION_RESULT", {
-        "session": session, "step": step, "outcome": int(outcome), "subject": int(SUBJECTS[subject]),
+        "session": session, "step": step, "outcome": int(outcome), "subject": int(CalibrationSubject[subject.upper()]),
         "reason": int(reason), "quantity": CALIBRATION_QUANTITIES.index(quantity),
         "value": max(min(round(value * VALUE_SCALE), 2**31 - 1), -(2**31))})
 
