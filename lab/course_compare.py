@@ -6,6 +6,8 @@ other's (:func:`device_bridge.bench.versus.versus`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from controller_core.envelope import Envelope
 from controller_core.gait_metrics import GAIT_CHANNELS
 from controller_core.model import QuasiStiffnessModel
@@ -14,10 +16,16 @@ from device_bridge.bench.controllers import default_envelope
 from device_bridge.bench.versus import versus
 from device_bridge.bench.walks import walk_course
 from device_bridge.sim.course import Course
+from device_bridge.sim.course_walk import CourseScore
 from device_bridge.sim.leg_model import LegGeometry
 from lab.comparison import cell
 
 COURSE_CONTROLLERS: tuple[str, ...] = ("adaptive", "quasi-stiffness", "fsmic")
+_PARTS: dict[str, Callable[[CourseScore], CourseScore]] = {
+    "adaptive_minus": lambda s: s,
+    "adaptive_minus_after_change": lambda s: s.only(s.stride_after_change),
+    "adaptive_minus_between_changes": lambda s: s.only(~s.stride_after_change),
+}
 
 
 def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 75.0,
@@ -33,17 +41,9 @@ def compare_course(model: QuasiStiffnessModel, course: Course, mass_kg: float = 
                          "wire_crc32": as_run(env).wire_crc32,
                          "nominal": [env.nominal_speed_mps, env.nominal_incline_deg]},
             "rows": [scores[name].to_dict() for name in COURSE_CONTROLLERS],
-            "adaptive_minus": {other: versus(scores["adaptive"], scores[other], "adaptive", other)
-                               for other in ("quasi-stiffness", "fsmic")},
-            # the same, on the strides right after each change and on the rest (issue 56)
-            "adaptive_minus_after_change": {
-                other: versus(scores["adaptive"].only(scores["adaptive"].stride_after_change),
-                              scores[other].only(scores[other].stride_after_change), "adaptive", other)
-                for other in ("quasi-stiffness", "fsmic")},
-            "adaptive_minus_between_changes": {
-                other: versus(scores["adaptive"].only(~scores["adaptive"].stride_after_change),
-                              scores[other].only(~scores[other].stride_after_change), "adaptive", other)
-                for other in ("quasi-stiffness", "fsmic")}}
+            # on all strides, and apart on the strides right after each change and on the rest (issue 56)
+            **{key: {other: versus(part(scores["adaptive"]), part(scores[other]), "adaptive", other)
+                     for other in ("quasi-stiffness", "fsmic")} for key, part in _PARTS.items()}}
 
 
 def format_course_compare(result: dict) -> str:

@@ -47,7 +47,7 @@ export function calibrationPanel(box, deviceId) {
         h("strong", {}, name), " ",
         a ? chip(a.outcome === "accepted" ? "accepted" : "refused", a.outcome === "accepted" ? "ok" : "bad") : "",
         now && session.prompt ? h("p", { class: "prompt" }, "Do this, then measure: ", h("em", {}, session.prompt)) : "",
-        a ? h("ul", { class: "measured" }, ...a.measured.filter(() => a.outcome === "accepted").map((m) => h("li", {}, m.words)),
+        a ? h("ul", { class: "measured" }, ...(a.outcome === "accepted" ? a.measured : []).map((m) => h("li", {}, m.words)),
           a.outcome === "refused" ? h("li", { class: "error" }, a.refused_words) : "",
           step === "loadcell_sign" && a.body_mass_kg !== null ? h("li", { class: "muted" }, `read against the patient's ${fmt(a.body_mass_kg, 1, "kg")}`) : "") : "");
     }));
