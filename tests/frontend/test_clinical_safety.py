@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from playwright.sync_api import expect
 
-from tests.helpers.browser import ARTIFACTS, create_patient, create_patient_and_propose, next_frames, shot, sign_in
 from tests.helpers.browser import api_call as call
+from tests.helpers.browser import create_patient, create_patient_and_propose, next_frames, shot, sign_in
 
 
 def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server, page):
@@ -129,7 +129,7 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
             return [a.left, b.left, a.bottom <= b.top + 1]; })""")
         assert pairs and all(abs(a - b) < 1 and below for a, b, below in pairs), pairs
         assert page.evaluate("document.documentElement.scrollWidth - window.innerWidth") <= 0
-        page.screenshot(path=str(ARTIFACTS / f"16-monitor-{width}x{height}.png"))   # the window, as scrolled
+        shot(page, f"16-monitor-{width}x{height}", full_page=False)   # the window, as scrolled
     page.set_viewport_size({"width": 1366, "height": 900})
     page.click("#leave-safe")                                # the table runs again under the patient: asked first
     page.wait_for_selector("#leave-safe-dialog")

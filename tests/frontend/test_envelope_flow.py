@@ -1,7 +1,9 @@
 """The envelope workflow as a prosthetist clicks it, at desktop and tablet size: new patient → request an envelope →
-review its maps, a node and the bench preview → edit → approve → assign and push → walk the course on the simulated
-leg and watch it adapt → stop → report and trend. The test times its own click path (new patient → envelope running
-on the leg) and writes it with the screenshots."""
+review its maps, a node and the bench preview → edit → approve → assign and push → (desktop) walk the course on the
+simulated leg and watch it adapt → stop → report and trend. The tablet stops once its envelope runs on the leg: the
+monitor and the report at tablet size are test_screens.py's and test_clinical_safety.py's, and a second live walk
+only repeated the first. The test times its own click path (new patient → envelope running on the leg) and writes
+it with the screenshots."""
 
 from __future__ import annotations
 
@@ -147,6 +149,11 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     page.wait_for_selector(f"#push-steps li.done:has-text('active on sim-leg-1: {code} · envelope v2')", timeout=30_000)
     click_path_s = time.monotonic() - t0
     shot(page, f"env-{size}-03-pushed")
+    if size == "tablet":
+        write_timings(size, click_path_s, view_ms, None)
+        context.close()
+        assert not errors, errors
+        return
 
     # the monitor: walk the mixed course and watch the leg's own estimate move on the map
     page.click("#nav-monitor")
@@ -184,15 +191,22 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     assert "null" not in page.inner_text("#view").split()
     shot(page, f"env-{size}-06-patient")
 
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    (ARTIFACTS / f"env-{size}-timings.json").write_text(json.dumps(
-        {"click_path_new_patient_to_pushed_envelope_s": round(click_path_s, 1),
-         "envelope_page_interactive_ms": round(view_ms),
-         "monitor_fps": round(stats["fps"], 1), "telemetry_samples": stats["samples"], "telemetry_gaps": stats["gaps"]}))
-    print(f"{size}: new patient → pushed envelope {click_path_s:.1f} s; envelope page {view_ms:.0f} ms; monitor "
-          f"{stats['fps']:.0f} frames/s")                                   # timings are reported, not asserted
+    write_timings(size, click_path_s, view_ms, stats)
     context.close()
     assert not errors, errors
+
+
+def write_timings(size: str, click_path_s: float, view_ms: float, monitor: dict | None) -> None:
+    """The click path's timings, reported (artifacts/browser/env-SIZE-timings.json and printed), never asserted."""
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    out = {"click_path_new_patient_to_pushed_envelope_s": round(click_path_s, 1),
+           "envelope_page_interactive_ms": round(view_ms)}
+    if monitor is not None:
+        out.update(monitor_fps=round(monitor["fps"], 1), telemetry_samples=monitor["samples"],
+                   telemetry_gaps=monitor["gaps"])
+    (ARTIFACTS / f"env-{size}-timings.json").write_text(json.dumps(out))
+    print(f"{size}: new patient → pushed envelope {click_path_s:.1f} s; envelope page {view_ms:.0f} ms"
+          + ("" if monitor is None else f"; monitor {monitor['fps']:.0f} frames/s"))
 
 
 def wait_for_banner(page, server: str, token: str, state: str, timeout_ms: int) -> None:

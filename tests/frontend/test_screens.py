@@ -1,6 +1,6 @@
 """Every page a prosthetist or clinician uses, at the three screen sizes the clinic has (1280 × 800 laptop, 1024 × 700
 small laptop, 768 × 1024 tablet): no page wider than the screen, no script error, and a screenshot of each to look
-at (artifacts/browser/screens/)."""
+at (artifacts/browser/screens/, with ``QUASITUNE_SCREENSHOTS=1``)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from tests.helpers.browser import ARTIFACTS, api_call, create_patient_and_propose, next_frames, sign_in, watch_errors
+from tests.helpers.browser import api_call, create_patient_and_propose, next_frames, shot, sign_in, watch_errors
 from tests.helpers.device import until
 
 SIZES = [(1280, 800), (1024, 700), (768, 1024)]
@@ -52,8 +52,6 @@ def test_every_page_fits_the_screen_without_script_errors(server, browser, pages
     context = browser.new_context(viewport={"width": width, "height": height}, has_touch=width < 1000)
     page = context.new_page()
     errors = watch_errors(page)
-    out = ARTIFACTS / "screens"
-    out.mkdir(parents=True, exist_ok=True)
     try:
         sign_in(page, server, "dana")
         for name, route in pages.items():
@@ -67,7 +65,7 @@ def test_every_page_fits_the_screen_without_script_errors(server, browser, pages
             assert not leaked, f"{name} shows a programming value to people: {leaked}"
             if name in ("report", "monitor"):      # the simulated leg's walk never passes for a person's
                 assert "SIMULATED" in page.inner_text("h1" if name == "report" else "#device-status"), name
-            page.screenshot(path=str(out / f"{name}-{width}x{height}.png"), full_page=True)
+            shot(page, f"screens/{name}-{width}x{height}")
         assert not errors, errors
     finally:
         context.close()

@@ -1,5 +1,6 @@
 """Helpers for the browser tests and the dashboard benchmark: Debian's Chromium, signing in, screenshots (under
-``artifacts/browser/``, or ``$QUASITUNE_ARTIFACTS/browser``) and a check that a canvas has something drawn on it."""
+``artifacts/browser/``, or ``$QUASITUNE_ARTIFACTS/browser``, when ``QUASITUNE_SCREENSHOTS=1``) and a check that a
+canvas has something drawn on it."""
 
 from __future__ import annotations
 
@@ -67,10 +68,19 @@ def choose_own_password(page, given: str, own: str) -> None:
 ARTIFACTS = Path(os.environ.get("QUASITUNE_ARTIFACTS", Path(__file__).resolve().parents[2] / "artifacts")) / "browser"
 
 
-def shot(page, name: str) -> Path:
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+# screenshots are for people to look at, not checks: about 0.5 s of Chromium's time each, 80 of them a third of a
+# 2-core machine's minute, so the suite takes them only when asked (`QUASITUNE_SCREENSHOTS=1 bash scripts/test.sh
+# tests/frontend`)
+SCREENSHOTS = os.environ.get("QUASITUNE_SCREENSHOTS", "") == "1"
+
+
+def shot(page, name: str, full_page: bool = True) -> Path | None:
+    """A screenshot of the page as ``ARTIFACTS/name.png`` when screenshots are asked for (``SCREENSHOTS``)."""
+    if not SCREENSHOTS:
+        return None
     path = ARTIFACTS / f"{name}.png"
-    page.screenshot(path=str(path), full_page=True)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(path), full_page=full_page)
     return path
 
 
