@@ -3,8 +3,12 @@
 Each measured stride (:mod:`controller_core.stride_features`) is compared with the model's prediction at that stride's
 task (the leg's own estimate, as the session report uses), and assigned to the envelope's nodes by the bilinear weights
 the leg blends them with (:func:`controller_core.envelope_blend.node_weights`): a stride halfway between two nodes
-informs each by half. Per node and quantity: the strides used, the weighted mean error (measured − target) with its
-95 % interval (t distribution on the effective number of strides, Kish's (Σw)²/Σw²), and whether the strides agree.
+informs each by half. Per node and quantity: the strides used, the weighted mean error (measured − target: the bias,
+which the rows can move) with its 95 % interval (t distribution on the effective number of strides, Kish's
+(Σw)²/Σw²), the spread from stride to stride (which no row removes: about 0.8 of it stays as mean absolute error even
+with no bias), and whether the strides agree. Strides within a task change
+(:attr:`controller_core.stride_features.MeasuredStride.transition`) are counted per node but not judged: they are
+evidence of the change, not of the node's task.
 
 **The rule for acting on a node's quantity** (in the spirit of the C-Leg set-up software, which proposes a value after
 about ten consistent steps): at least :data:`MIN_CONSISTENT_STRIDES` effective strides; at least
@@ -86,6 +90,12 @@ class QuantityEvidence:
     agreement: float | None          # weight fraction on the side of the mean error
     act: bool
     reason: str
+    spread: float | None = None      # stride-to-stride standard deviation of the error: no row moves it
+
+    @property
+    def bias(self) -> float | None:
+        """The mean signed error: the part the rows can move."""
+        return self.error
 
     def to_json(self) -> dict[str, object]:
         def r(x: float | None) -> float | None:
@@ -94,7 +104,7 @@ class QuantityEvidence:
         return {"quantity": self.key, "strides": self.strides, "effective_strides": round(self.effective_strides, 2),
                 "measured": r(self.measured), "target": r(self.target), "error": r(self.error),
                 "ci95": None if self.ci95 is None else [r(self.ci95[0]), r(self.ci95[1])],
-                "agreement": r(self.agreement), "act": self.act, "reason": self.reason}
+                "spread": r(self.spread), "agreement": r(self.agreement), "act": self.act, "reason": self.reason}
 
 
 @dataclass(frozen=True)
@@ -109,10 +119,15 @@ class NodeEvidence:
     weight: float
     quantities: dict[str, QuantityEvidence]
     measured: dict[str, float]
+    transition_strides: int = 0     # strides near the node within a task change: shown, not judged
+    strides_task: tuple[float, float] | None = None   # the judged strides' weighted mean task (m/s, deg)
 
     def to_json(self) -> dict[str, object]:
         return {"node": list(self.node), "speed_mps": self.speed_mps, "incline_deg": self.incline_deg,
                 "strides": self.strides, "stride_weight": round(self.weight, 3),
+                "transition_strides": self.transition_strides,
+                "strides_task": None if self.strides_task is None else {
+                    "speed_mps": round(self.strides_task[0], 3), "incline_deg": round(self.strides_task[1], 2)},
                 "quantities": {k: q.to_json() for k, q in self.quantities.items()}}
 
 
@@ -134,6 +149,7 @@ def judge(key: str, values: np.ndarray, targets: np.ndarray, weights: np.ndarray
     var = float(np.sum(w * (err - mean) ** 2)) * n_eff / (n_eff - 1.0)
     half = float(stats.t.ppf(0.975, n_eff - 1.0)) * math.sqrt(var / n_eff)
     ci = (mean - half, mean + half)
+    spread = math.sqrt(var)
     if n_eff < MIN_CONSISTENT_STRIDES:
         reason, act = f"too few strides ({n_eff:.1f} effective; at least {MIN_CONSISTENT_STRIDES:g} needed)", False
     elif agree < AGREEMENT_FRACTION and math.sqrt(var) > q.tolerance:
@@ -148,7 +164,7 @@ def judge(key: str, values: np.ndarray, targets: np.ndarray, weights: np.ndarray
         reason, act = "the 95 % interval includes zero", False
     else:
         reason, act = f"{n_eff:.0f} consistent strides, {100 * agree:.0f} % agree", True
-    return QuantityEvidence(key, n, n_eff, measured, target, mean, ci, agree, act, reason)
+    return QuantityEvidence(key, n, n_eff, measured, target, mean, ci, agree, act, reason, spread)
 
 
 def gather_evidence(strides: Sequence[MeasuredStride], speeds_mps: Sequence[float], inclines_deg: Sequence[float],
@@ -163,8 +179,14 @@ def gather_evidence(strides: Sequence[MeasuredStride], speeds_mps: Sequence[floa
     """
     shape = (len(speeds_mps), len(inclines_deg))
     rows: list[tuple[int, int, float, MeasuredStride, dict[str, FeaturePrediction]]] = []
+    changing = np.zeros(shape, dtype=int)
     for s in strides:
         if not (math.isfinite(s.speed_mps) and math.isfinite(s.incline_deg)):
+            continue
+        if s.transition:
+            for i, j, _ in ([(0, 0, 1.0)] if shape == (1, 1)
+                            else node_weights(speeds_mps, inclines_deg, s.speed_mps, s.incline_deg)):
+                changing[i, j] += 1
             continue
         targets = targets_at(s.speed_mps, s.incline_deg)
         weights = ([(0, 0, 1.0)] if shape == (1, 1)    # one table: every stride is its evidence
@@ -190,8 +212,11 @@ def gather_evidence(strides: Sequence[MeasuredStride], speeds_mps: Sequence[floa
             if toe:
                 tw = np.array([t[0] for t in toe])
                 measured["toe_off_pct"] = 100.0 * float(np.sum(tw * np.array([t[1] for t in toe])) / tw.sum())
-            out.append(NodeEvidence((i, j), float(speeds_mps[i]), float(inclines_deg[j]), len(mine),
-                                    float(sum(w for w, _, _ in mine)), quantities, measured))
+            weight = float(sum(w for w, _, _ in mine))
+            task = None if not mine else (sum(w * s.speed_mps for w, s, _ in mine) / weight,
+                                          sum(w * s.incline_deg for w, s, _ in mine) / weight)
+            out.append(NodeEvidence((i, j), float(speeds_mps[i]), float(inclines_deg[j]), len(mine), weight,
+                                    quantities, measured, int(changing[i, j]), task))
     return out
 
 

@@ -42,6 +42,8 @@ class MeasuredStride:
         features: feature name → (phase, value SI) for each feature found.
         missing: feature name → why it was not found (counted, not guessed).
         toe_off_phase: where the stride's load fell below the toe-off threshold (fraction), NaN when unknown.
+        transition: the stride is one of the first :data:`TRANSITION_STRIDES` of a new task (:func:`transitions`):
+            evidence of the change, not of the task.
     """
 
     speed_mps: float
@@ -49,6 +51,32 @@ class MeasuredStride:
     features: dict[str, tuple[float, float]]
     missing: dict[str, str] = field(default_factory=dict)
     toe_off_phase: float = math.nan
+    transition: bool = False
+
+
+# a task change: the leg's estimate lies more than twice its resolution (the estimator's own, ±0.1 m/s and ±1.5° on
+# 90 % of strides) from the median of the three strides before it: the estimate's own stride-to-stride scatter
+# exceeds one resolution on about a quarter of strides, twice it almost never; the stride of the change and the next
+# two are the change's, as the course scoring's first three strides after a change are
+TASK_CHANGE_MPS, TASK_CHANGE_DEG = 0.2, 3.0
+TRANSITION_STRIDES = 3
+
+
+def transitions(tasks: Sequence[tuple[float, float] | None], strides: int = TRANSITION_STRIDES) -> list[bool]:
+    """Per stride, whether it is within ``strides`` strides of a task change (its own stride counted), judged on the
+    strides' own tasks (the leg's estimate); a stride without a task breaks nothing."""
+    out: list[bool] = []
+    since, before = strides, []
+    for task in tasks:
+        if task is not None and before:
+            speed, incline = np.median([t[0] for t in before]), np.median([t[1] for t in before])
+            if abs(task[0] - speed) > TASK_CHANGE_MPS or abs(task[1] - incline) > TASK_CHANGE_DEG:
+                since = 0
+        out.append(since < strides)
+        since += 1
+        if task is not None:
+            before = [*before, task][-3:]
+    return out
 
 
 def _si(spec: FeatureSpec, value: float) -> float:
@@ -116,6 +144,7 @@ def measure_strides(strided: dict[str, np.ndarray], tasks: Sequence[tuple[float,
         (the measured strides, ``not_found``: feature name → strides without it).
     """
     n = len(tasks)
+    changing = transitions(tasks)
     not_found = {spec.name: 0 for spec in CURVE_FEATURES}
     out: list[MeasuredStride] = []
     for k in range(n):
@@ -126,5 +155,5 @@ def measure_strides(strided: dict[str, np.ndarray], tasks: Sequence[tuple[float,
             not_found[name] += 1
         speed, incline = tasks[k]   # type: ignore[misc]
         out.append(MeasuredStride(float(speed), float(incline), found, missing,
-                                  math.nan if toe_off is None else float(toe_off[k])))
+                                  math.nan if toe_off is None else float(toe_off[k]), changing[k]))
     return out, not_found
