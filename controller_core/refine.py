@@ -59,6 +59,15 @@ from controller_core.envelope import (
 )
 from controller_core.features import FEATURES_BY_NAME
 from controller_core.refine_evidence import QUANTITIES, QUANTITY_BY_KEY, NodeEvidence, Quantity
+from controller_core.refine_search import (
+    TOLERANCES,
+    EnvelopeBench,
+    NodeBench,
+    SearchTrace,
+    TrustRegionSearch,
+    feature_vector,
+    search_rows,
+)
 from controller_core.refine_sensitivity import BenchSensitivity, load_sensitivity
 from controller_core.table import DEFAULT_LIMITS, ParameterTable, SafetyLimits, check_table, support_floor_Nm_per_rad
 from controller_core.table_edit import EditError, edit_table
@@ -120,7 +129,6 @@ PARAMETERS: tuple[Parameter, ...] = (
 )
 SWING_THRESHOLD = "thresholds.wf_to_we_knee_angle_deg"
 RESOLUTION = np.array([math.log(1.01) if p.relative else 0.1 for p in PARAMETERS])   # smaller changes are dropped
-TOLERANCES = np.array([q.tolerance for q in QUANTITIES])                          # each quantity's, display unit
 
 
 @dataclass(frozen=True)
@@ -255,7 +263,8 @@ class NodeRefinement:
     ``expected_error``: per quantity acted on, the error the sensitivity expects after the step; ``not_responding``:
     quantities held, with why: the last round's change did not move them (:func:`not_responding`), or a round's step
     barely moves them (:func:`out_of_reach`, also listed in ``out_of_reach``); ``step_scale``: the fraction of
-    the step taken (below 1 where the check refused a larger one, ``step_refused`` saying why)."""
+    the step taken (below 1 where the check refused a larger one, ``step_refused`` saying why); ``search``: what a
+    search on the bench did, where one was made, and ``unreached``: the quantities it left beyond their tolerance."""
 
     table: ParameterTable
     changes: list[dict]
@@ -265,6 +274,8 @@ class NodeRefinement:
     out_of_reach: frozenset[str] = frozenset()
     step_scale: float = 1.0
     step_refused: str | None = None
+    search: SearchTrace | None = None
+    unreached: dict[str, str] = field(default_factory=dict)
 
 
 def not_responding(evidence: NodeEvidence, previous: dict | None) -> dict[str, str]:
@@ -320,16 +331,27 @@ STEP_SCALES = (1.0, 0.5, 0.25)   # a step the check refuses is tried at half, th
 
 def refine_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRules,
                 J: np.ndarray | None = None, previous: dict | None = None,
-                check: StepCheck | None = None) -> NodeRefinement:
+                check: StepCheck | None = None, bench: NodeBench | None = None,
+                search: TrustRegionSearch | None = None,
+                allowed: tuple[list[float], list[float]] | None = None, aim_from: NodeBench | None = None,
+                task: tuple[float, float] | None = None) -> NodeRefinement:
     """The node's table moved by one round (module docstring), or unchanged with the reason. ``previous``: this node's
     summary from the round before, if any (:func:`not_responding`). ``check``: called with (evidence, old table, new
     table, the change of each quantity the sensitivity expects), returns None to accept the step or why not; a
     refused step is tried at :data:`STEP_SCALES` and, refused at all of them, not taken (the bench's
-    :class:`device_bridge.bench.refine_walks.BenchStepCheck`: the sensitivity holds only near where it was measured)."""
+    :class:`device_bridge.bench.refine_walks.BenchStepCheck`: the sensitivity holds only near where it was measured).
+    ``bench``: where given, the rows are searched on it instead (:mod:`controller_core.refine_search`, with ``search``'s
+    settings or the defaults, within ``allowed``: the lowest and highest value of each of
+    :data:`controller_core.envelope.VALUE_FIELDS` the node's neighbours allow, walked at ``task``, default the
+    node's, aiming at what ``aim_from`` gives of the node's rows there minus the bias, default ``bench``) and ``check``
+    is not used."""
     if evidence.strides == 0:
         return NodeRefinement(table, [], "no strides near this node: left as it was")
     held = not_responding(evidence, previous)
     J_used = sensitivity(evidence, rules) if J is None else np.asarray(J, dtype=float)
+    if bench is not None:
+        return _searched_node(table, evidence, rules, J_used, held, bench, search or TrustRegionSearch(), allowed,
+                              aim_from, task)
     reach = out_of_reach(evidence, table, rules, J_used, frozenset(held))
     held.update(reach)
     skip = frozenset(held)
@@ -354,6 +376,85 @@ def refine_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRule
         refused = why_not
     return NodeRefinement(table, [], f"{words}, but the bench did not confirm the step, even at a quarter: {refused}",
                           not_responding=held, out_of_reach=frozenset(reach))
+
+
+def _searched_node(table: ParameterTable, evidence: NodeEvidence, rules: RefineRules, J: np.ndarray,
+                   held: dict[str, str], bench: NodeBench, search: TrustRegionSearch,
+                   allowed: tuple[list[float], list[float]] | None, aim_from: NodeBench | None = None,
+                   task: tuple[float, float] | None = None) -> NodeRefinement:
+    """The node's rows found by a search on ``bench`` (:func:`refine_node`)."""
+    skip = frozenset(held)
+    words = _words(evidence, skip)
+    if not words:
+        reasons = sorted({q.reason for q in evidence.quantities.values()} | set(held.values()))
+        return NodeRefinement(table, [], "nothing to act on: " + "; ".join(reasons), not_responding=held)
+    e = acted_errors(evidence, skip)
+    steps = np.array([rules.step(p) for p in PARAMETERS])
+
+    def apply(delta: np.ndarray) -> tuple[ParameterTable, np.ndarray] | str:
+        made = _stepped(table, evidence, delta, J, e, rules, words)
+        return made if isinstance(made, str) else (made[0], taken_step(table, made[0]))
+
+    box = None if allowed is None else step_box(table, *allowed)
+    task = task or (evidence.speed_mps, evidence.incline_deg)
+    aim = None if aim_from is None else feature_vector(aim_from.errors(table, *task)) - e
+    found, trace = search_rows(table, e, J, steps, RESOLUTION, apply, bench, task, search, box, aim)
+    if found is table:
+        return NodeRefinement(table, [], f"{words}, but no rows the bench walked came closer ({trace.walks} walks on "
+                              f"the {bench.leg} leg; {trace.stopped})", not_responding=held, search=trace)
+    made = _stepped(table, evidence, trace.proposal, J, e, rules, words)   # the call that built the rows kept
+    if isinstance(made, str) or table_values(made[0]) != table_values(found):   # not reached
+        return NodeRefinement(table, [], "the rows the bench kept could not be rebuilt", not_responding=held,
+                              search=trace)
+    new_table, changes, _, _ = made
+    moved = trace.after - trace.before
+    expected = {q.key: float(e[k] + moved[k]) for k, q in enumerate(QUANTITIES) if e[k] != 0.0 and np.isfinite(moved[k])}
+    unreached = {q.key: (f"{e[k]:+.1f}{q.unit_text} off; the bench's search on the {bench.leg} leg moved it "
+                         f"{moved[k]:+.1f}{q.unit_text} ({trace.stopped}): the rest is for the prosthetist")
+                 for k, q in enumerate(QUANTITIES) if e[k] != 0.0 and np.isfinite(moved[k])
+                 and abs(e[k] + moved[k]) > q.tolerance}
+    return NodeRefinement(new_table, changes, None, expected, held, search=trace, unreached=unreached)
+
+
+def step_box(table: ParameterTable, low: Sequence[float], high: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Per :data:`PARAMETERS`, the lowest and highest step (stepping units) that keeps its value within ``low`` and
+    ``high`` (each in :data:`controller_core.envelope.VALUE_FIELDS` order); unbounded where a relative value's
+    interval reaches across zero."""
+    lo, hi = np.full(len(PARAMETERS), -np.inf), np.full(len(PARAMETERS), np.inf)
+    for c, p in enumerate(PARAMETERS):
+        f = VALUE_FIELDS.index(p.field)
+        v = p.value_in(table)
+        if not p.relative:
+            lo[c], hi[c] = low[f] - v, high[f] - v
+        elif v != 0.0:
+            a, b = sorted((low[f] / v, high[f] / v))
+            lo[c] = math.log(a) if a > 0.0 else -np.inf
+            hi[c] = math.log(b) if b > 0.0 else 0.0
+    return lo, hi
+
+
+def neighbour_boxes(envelope: Envelope) -> list[tuple[list[float], list[float]]]:
+    """Per node (speed-major), the lowest and highest value of each of :data:`controller_core.envelope.VALUE_FIELDS`
+    its grid neighbours' current values allow under the envelope's neighbour rule."""
+    n_s, n_i = envelope.shape
+    values = np.array([table_values(n.table) for n in envelope.nodes])
+    limits = np.array(envelope.neighbour_steps.for_fields())
+    out = []
+    for i in range(n_s):
+        for j in range(n_i):
+            near = [a * n_i + b for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1))
+                    if 0 <= a < n_s and 0 <= b < n_i]
+            if not near:
+                out.append(([-np.inf] * len(limits), [np.inf] * len(limits)))
+                continue
+            out.append(((values[near].max(axis=0) - limits).tolist(), (values[near].min(axis=0) + limits).tolist()))
+    return out
+
+
+def taken_step(before: ParameterTable, after: ParameterTable) -> np.ndarray:
+    """Per :data:`PARAMETERS`, how far ``after`` lies from ``before`` in stepping units (deg, or ln|value|)."""
+    return np.array([0.0 if (a := p.value_in(after)) == (b := p.value_in(before)) else p.stepping(a) - p.stepping(b)
+                     for p in PARAMETERS])
 
 
 def _stepped(table: ParameterTable, evidence: NodeEvidence, delta: np.ndarray, J: np.ndarray, e: np.ndarray,
@@ -420,17 +521,23 @@ class EnvelopeRefinement:
 
 
 def refine_envelope(envelope: Envelope, evidence: Sequence[NodeEvidence], rules: RefineRules | None = None,
-                    previous: Sequence[dict] | None = None, check: StepCheck | None = None) -> EnvelopeRefinement:
+                    previous: Sequence[dict] | None = None, check: StepCheck | None = None,
+                    bench: NodeBench | None = None, search: TrustRegionSearch | None = None) -> EnvelopeRefinement:
     """One round of refinement of every node (speed-major ``evidence``, one per node), then the neighbour rule.
     ``previous``: the node summaries of the round that made ``envelope`` (:attr:`EnvelopeRefinement.nodes`), if it
-    was one, so that quantities its changes did not move are held (:func:`not_responding`). ``check``: as in
-    :func:`refine_node`."""
+    was one, so that quantities its changes did not move are held (:func:`not_responding`). ``check``, ``bench`` and
+    ``search``: as in :func:`refine_node`."""
     rules = rules or RefineRules()
     if len(evidence) != len(envelope.nodes):
         raise ValueError(f"evidence for {len(evidence)} nodes; the envelope has {len(envelope.nodes)}")
     before = {tuple(n["node"]): n for n in previous or ()}
-    per_node = [refine_node(n.table, ev, rules, previous=before.get(ev.node), check=check)
-                for n, ev in zip(envelope.nodes, evidence, strict=True)]
+    if bench is not None and hasattr(bench, "at_node"):
+        per_node = _searched_in_turn(envelope, evidence, rules, before, bench, search or TrustRegionSearch())
+    else:
+        boxes = neighbour_boxes(envelope) if bench is not None else [None] * len(envelope.nodes)
+        per_node = [refine_node(n.table, ev, rules, previous=before.get(ev.node), check=check, search=search,
+                                allowed=box, bench=bench)
+                    for n, ev, box in zip(envelope.nodes, evidence, boxes, strict=True)]
     wanted = [table_values(r.table) for r in per_node]
     start = max(range(len(evidence)), key=lambda k: evidence[k].weight)
     held = neighbour_guard(envelope.shape, wanted, divmod(start, len(envelope.inclines_deg)), envelope.neighbour_steps)
@@ -459,11 +566,41 @@ def refine_envelope(envelope: Envelope, evidence: Sequence[NodeEvidence], rules:
             if key in r.not_responding:
                 q["act"], q["reason"] = False, r.not_responding[key]
                 q["held"] = "out of reach" if key in r.out_of_reach else "not responding"
+            if key in r.unreached:
+                q["unreached"] = r.unreached[key]
+        if r.search is not None:
+            node_json["bench_search"] = {"leg": bench.leg if bench is not None else None, **r.search.to_json()}
         if r.step_refused:
             node_json["step_scale"], node_json["step_refused"] = r.step_scale, r.step_refused
         summary.append({**node_json, "changed": bool(node_changes),
                         "left_alone": None if node_changes else (r.left_alone or "no change")})
     return EnvelopeRefinement(envelope.model_copy(update={"nodes": nodes}), summary, changes)
+
+
+def _searched_in_turn(envelope: Envelope, evidence: Sequence[NodeEvidence], rules: RefineRules,
+                      before: dict[tuple[int, int], dict], bench: EnvelopeBench, search: TrustRegionSearch
+                      ) -> list[NodeRefinement]:
+    """Every node searched on a bench that walks the envelope as the leg runs it, one node after the other, the most
+    walked first (Gauss–Seidel): each search begins from the envelope as the nodes before it left it, within what its
+    neighbours now allow, and aims at what the original envelope gave at the node's strides' own task minus the bias
+    they measured there. Neighbouring nodes share strides, so searched side by side each would remove the same bias
+    and together overshoot it; in turn, a node sees what the ones before it already removed."""
+    order = sorted(range(len(evidence)), key=lambda k: -evidence[k].weight)
+    current = envelope
+    out: list[NodeRefinement | None] = [None] * len(evidence)
+    for k in order:
+        ev, table = evidence[k], envelope.nodes[k].table
+        task = ev.strides_task or (ev.speed_mps, ev.incline_deg)
+        aim_from = bench.at_node(envelope, k)
+        r = refine_node(table, ev, rules, previous=before.get(ev.node), search=search,
+                        allowed=neighbour_boxes(current)[k], bench=bench.at_node(current, k),
+                        aim_from=aim_from, task=task)
+        out[k] = r
+        if r.table is not table:
+            nodes = list(current.nodes)
+            nodes[k] = nodes[k].model_copy(update={"table": r.table})
+            current = current.model_copy(update={"nodes": nodes})
+    return [r for r in out if r is not None]
 
 
 def change_in_steps(changes: Sequence[dict], rules: RefineRules | None = None) -> float:
