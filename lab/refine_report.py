@@ -17,18 +17,19 @@ def format_refine(result: dict) -> str:
     lines = [f"Leg: {result['leg']}, {result['mass_kg']:g} kg; training: {result['train_course']['name']}; "
              f"evaluation: {result['eval_course']['name']}", "",
              "| round | strides (used) | falls | toe catches | " + " | ".join(keys)
-             + " | nodes changed | change (step limits) | held as out of the table's reach (nodes) |",
-             "|" + "---|" * (7 + len(keys))]
+             + " | nodes changed | change (step limits) | bench walks | left beyond tolerance by the search (nodes) |",
+             "|" + "---|" * (8 + len(keys))]
     for r in result["rounds"]:
         errs = " | ".join(cell(r["feature_abs_error"].get(k)) for k in keys)
-        reach: dict[str, int] = {}
+        left: dict[str, int] = {}
         for n in r["nodes"]:
             for k, q in n["quantities"].items():
-                if q.get("held") == "out of reach":
-                    reach[k] = reach.get(k, 0) + 1
-        held = ", ".join(f"{k} ({v})" for k, v in reach.items()) or "none"
+                if q.get("unreached"):
+                    left[k] = left.get(k, 0) + 1
+        held = ", ".join(f"{k} ({v})" for k, v in left.items()) or "none"
         lines.append(f"| {r['round']} | {r['strides']} ({r['strides_used']}) | {r['falls']} | {r['toe_catches']} | "
-                     f"{errs} | {len(r['nodes_changed'])} | {r.get('change_in_steps', 0.0):.2f} | {held} |")
+                     f"{errs} | {len(r['nodes_changed'])} | {r.get('change_in_steps', 0.0):.2f} | "
+                     f"{r.get('bench_walks', 0)} | {held} |")
     for r in result["rounds"]:
         if not r["changes"]:
             lines += ["", f"Round {r['round']}: no change."]
@@ -46,6 +47,21 @@ def format_refine(result: dict) -> str:
                      f"{cell(e['loaded_swing_ms_max_stride'])} | {cell(e['knee_angle_rmse_deg'])} "
                      f"{_ci(e['knee_angle_rmse_ci95_deg'])} | {cell(e['ankle_angle_rmse_deg'])} "
                      f"{_ci(e['ankle_angle_rmse_ci95_deg'])} | {errs} | {cell(e['feature_mean_abs_error'])} |")
+    settled = {name: e["settled"] for name, e in result["evaluation"].items() if e.get("settled")}
+    if settled:
+        lines += ["", "Settled tasks (each walked alone; bias ± stride-to-stride spread per quantity, * beyond "
+                  "tolerance):", "", "| envelope | task | strides | falls | " + " | ".join(keys) + " |",
+                  "|" + "---|" * (4 + len(keys))]
+        for name, st in settled.items():
+            for t in st["tasks"]:
+                qs = " | ".join("—" if (q := t["quantities"][k])["bias"] is None else
+                                f"{q['bias']:+.1f} ± {q['spread'] or 0.0:.1f}{'' if q['within_tolerance'] else ' *'}"
+                                for k in keys)
+                lines.append(f"| {name} | {t['speed_mps']:g} m/s {t['incline_deg']:+g}° | {t['strides']} | "
+                             f"{t['falls']} | {qs} |")
+        lines += [""] + [f"* {name}: {st['within_tolerance']} of {st['pairs']} (task, quantity) pairs within "
+                         f"tolerance ({cell(st['settled_within_tolerance_fraction'])}), {st['falls']} falls"
+                         for name, st in settled.items()]
     lines += ["", "Refined minus original (per-stride RMSE):", ""]
     for ch, d in result["refined_minus_original"].items():
         lines.append(f"* {ch}: {cell(d['difference'])} {_ci(d['ci95'])} {d['verdict'] or '—'}")

@@ -152,6 +152,7 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
 
 
 def cmd_refine(args: argparse.Namespace) -> int:
+    from controller_core.refine_search import TrustRegionSearch
     from device_bridge.bench.refine_walks import refine_on_bench
     from device_bridge.sim.course import load_course
     from device_bridge.sim.leg_model import LegGeometry
@@ -160,7 +161,9 @@ def cmd_refine(args: argparse.Namespace) -> int:
     if not (0.0 < args.seconds_per_round <= 600.0):
         raise ValueError(f"--seconds-per-round must be in (0, 600] s, got {args.seconds_per_round!r}")
     result = refine_on_bench(load(args), _leg(args) or LegGeometry(), load_course(args.train_course),
-                             load_course(args.eval_course), args.rounds, args.seconds_per_round, args.mass)
+                             load_course(args.eval_course), args.rounds, args.seconds_per_round, args.mass,
+                             settled=load_course(args.settled_course),
+                             search=TrustRegionSearch(max_walks=args.search_walks) if args.search_walks else None)
     print(format_refine(result))
     if args.out is not None:
         write_json(args.out, result)
@@ -244,6 +247,11 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--leg", default=None, help=LEG_HELP)
     p.add_argument("--train-course", default="mixed", help="course walked each round (name or JSON file)")
     p.add_argument("--eval-course", default="terrain", help="course of the evaluation, not used for training")
+    p.add_argument("--settled-course", default="settled",
+                   help="tasks where bias and spread are judged (each segment walked alone at its task)")
+    p.add_argument("--search-walks", type=int, default=0,
+                   help="search each node's rows on the bench in up to this many walks (a study, 2-50); 0: one "
+                        "step through the shipped sensitivity, checked on the bench")
     p.add_argument("--rounds", type=int, default=2, help="refinement rounds, 1-10")
     p.add_argument("--seconds-per-round", type=float, default=120.0, help="walking per round (s), (0, 600]")
     p.add_argument("--mass", type=float, default=75.0)

@@ -136,6 +136,10 @@ COURSES: dict[str, Course] = {
     # a change every 6-8 s, 1.5 s each, speed and slope often together: where an adaptive leg is worst (issue 56)
     "frequent": _course("frequent", [(8, 1.0, 0), (7, 1.3, 0), (6, 0.8, 3), (7, 1.0, 7), (6, 1.2, 0), (8, 0.7, -4),
                                      (7, 1.1, -8), (6, 1.5, 0), (7, 0.9, 5), (6, 1.0, 0)], transition_s=1.5),
+    # six tasks held 20 s each, walked one by one from standing: what refinement is judged on (issue 55); the tasks
+    # `mixed` holds steady and the nominal 1.2 m/s level
+    "settled": _course("settled", [(20, 0.85, 0), (20, 1.0, 0), (20, 1.2, 0), (20, 1.6, 0), (20, 1.0, 8),
+                                   (20, 1.0, -8)]),
 }
 
 

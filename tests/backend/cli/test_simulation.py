@@ -89,15 +89,29 @@ def test_cli_refine_walks_refines_and_evaluates_on_a_leg_and_writes_the_contract
         {"duration_s": 30, "speed_mps": 1.2, "incline_deg": 0}]}))
     evaluate.write_text(json.dumps({"name": "short", "transition_s": 1.0, "segments": [
         {"duration_s": 6, "speed_mps": 1.0, "incline_deg": 0}, {"duration_s": 6, "speed_mps": 1.2, "incline_deg": 3}]}))
+    settled = tmp_path / "settled.json"
+    settled.write_text(json.dumps({"name": "two", "segments": [{"duration_s": 8, "speed_mps": 1.2, "incline_deg": 0},
+                                                               {"duration_s": 8, "speed_mps": 1.0, "incline_deg": 5}]}))
     assert main(["refine", "--leg", "heavy_foot", "--train-course", str(train), "--eval-course", str(evaluate),
-                 "--rounds", "2", "--seconds-per-round", "20", "--out", str(out)]) == 0
+                 "--settled-course", str(settled), "--rounds", "2", "--seconds-per-round", "20",
+                 "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "Leg: heavy powered ankle and foot" in text and "| refined |" in text and "Refined minus original" in text
+    assert "(task, quantity) pairs within tolerance" in text
     result = json.loads(out.read_text())
     assert [r["round"] for r in result["rounds"]] == [1, 2]
     for r in result["rounds"]:
         assert r["strides"] >= r["strides_used"] >= 0 and isinstance(r["nodes_changed"], list)
         assert all(set(c) >= {"node", "field", "before", "after", "why"} for c in r["changes"])
+        assert r["bench_walks"] >= 0
+        for n in r["nodes"]:      # bias, its interval and the spread no row moves, per node and quantity
+            assert all({"error", "ci95", "spread"} <= set(q) for q in n["quantities"].values())
+    for name in ("original", "refined"):    # the settled tasks: bias and spread per task and quantity, on this leg
+        st = result["evaluation"][name]["settled"]
+        assert st["leg"] == "heavy powered ankle and foot" and [t["speed_mps"] for t in st["tasks"]] == [1.2, 1.0]
+        assert 0.0 <= st["settled_within_tolerance_fraction"] <= 1.0 and st["pairs"] > 0
+        q = st["tasks"][0]["quantities"]["knee_swing_flexion_peak_deg"]
+        assert q["within_tolerance"] == (abs(q["bias"]) <= 2.0) and q["ci95"][0] <= q["bias"] <= q["ci95"][1]
     for name in ("original", "refined", "fsmic"):
         e = result["evaluation"][name]
         assert {"falls", "toe_catches", "loaded_swing_ms_max_stride", "knee_angle_rmse_deg", "ankle_angle_rmse_deg",

@@ -54,3 +54,31 @@ def test_a_step_that_makes_the_strides_irregular_is_refused_though_its_mean_erro
               "spread": {q.key: 5.5 if q.key == key else 1.0 for q in QUANTITIES}}
     monkeypatch.setattr(walks, "bench_feature_errors", lambda t, *a, **k: steady if t is new else made_up(t))
     assert BenchStepCheck(model, 75.0)(_at(1.2, 0.0), table, new, {key: -4.0}) is None   # within the tolerance
+
+
+def test_a_nodes_rows_are_walked_where_they_run_inside_the_envelope_on_the_patients_leg(model):
+    """The search's bench walks a candidate for one node inside the envelope on the leg's own estimate, on the leg it
+    was given: the node's own rows change what the envelope does at the node's task, a far node's do not."""
+    from device_bridge.bench.controllers import default_envelope
+    from device_bridge.sim.leg_file import load_leg
+
+    leg = load_leg("stiff_geared")
+    env = default_envelope(model, 75.0, leg)
+    check = BenchStepCheck(model, 75.0, seconds=8.0, geometry=leg)
+    assert check.leg == leg.name
+    here = env.shape[1] * 2 + 2                    # the 1.1 m/s level node, walked at its task
+    far = 0                                        # 0.6 m/s, −10°: never blended at 1.1 m/s level
+    node = env.nodes[here]
+
+    def more_push_off(table):     # the ankle's push-off equilibrium 8° further into plantarflexion
+        return table.model_copy(update={"rows": [
+            r.model_copy(update={"theta_e_deg": r.theta_e_deg - 8.0})
+            if (r.joint, r.subphase) == ("ankle", "stance_extension") else r for r in table.rows]})
+
+    base = check.at_node(env, here).errors(node.table, node.speed_mps, node.incline_deg)
+    moved = check.at_node(env, here).errors(more_push_off(node.table), node.speed_mps, node.incline_deg)
+    elsewhere = check.at_node(env, far).errors(more_push_off(env.nodes[far].table), node.speed_mps, node.incline_deg)
+    key = "ankle_plantarflexion_peak_deg"
+    assert moved["error"][key] < base["error"][key] - 2.0      # 8° more push-off plantarflexion asked, most of it seen
+    assert elsewhere["error"] == base["error"]                  # the same walk: a node that is not blended changes nothing
+    assert check.walks == 3
