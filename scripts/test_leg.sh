@@ -24,10 +24,14 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
     .venv-leg/bin/quasitune leg --help > /dev/null
     .venv-leg/bin/python -c "import numpy, sys; sys.exit(0 if numpy.__version__ < '2' else 1)"
     # the tests also exercise the SDK's real Dephy actuator class (flexsea), which a Dephy leg installs anyway
-    "${install[@]}" "pytest>=8" "pytest-timeout>=2.3" "mujoco>=3.1" "opensourceleg[dephy]>=3.5,<4"
+    "${install[@]}" "pytest>=8" "pytest-timeout>=2.3" "pytest-xdist>=3.5" "mujoco>=3.1" "opensourceleg[dephy]>=3.5,<4"
   } > "$log" 2>&1 || { tail -n 40 "$log" >&2; echo "the leg's environment could not be made; log in $log" >&2; exit 1; }
   touch "$stamp"
 fi
+if ! .venv-leg/bin/python -c "import xdist" 2> /dev/null; then   # an environment made before the tests ran in two
+  .venv-leg/bin/python -m pip install -q "pytest-xdist>=3.5" > /dev/null
+fi
 if [ "$install_only" -eq 1 ]; then exit 0; fi
-# tests/conftest.py is the server's (its fixtures import the backend): the leg's tests bring their own helpers
-exec .venv-leg/bin/python -m pytest -q -p no:cacheprovider --noconftest tests/leg "$@"
+# tests/conftest.py is the server's (its fixtures import the backend): the leg's tests bring their own helpers; two
+# processes, each taking the next test as it frees up (four walks on the leg's simulated clock are most of the time)
+exec .venv-leg/bin/python -m pytest -q -p no:cacheprovider --noconftest -n 2 --dist worksteal tests/leg "$@"
