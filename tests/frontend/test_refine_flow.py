@@ -57,6 +57,8 @@ def test_a_prosthetist_refines_a_table_from_a_session_and_reviews_the_draft(serv
     assert re.search(r"knee swing-flexion.*→.*swing knee flexion [\d.]+° short", changes, re.S | re.I), changes
     node = page.locator("details.refine-node").first
     assert "acted on" in node.inner_text() and "Bench: change" in node.inner_text()
+    # the bias (what the rows move) with its interval, and beside it the spread from stride to stride (what no row moves)
+    assert "Bias: mean error [95 % interval]" in node.inner_text() and re.search(r"±\d+\.\d°", node.inner_text())
     shot(page, "refine-01-evidence")
 
     page.click("#refined-link")
