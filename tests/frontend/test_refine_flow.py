@@ -50,6 +50,21 @@ def test_a_prosthetist_refines_a_table_from_a_session_and_reviews_the_draft(serv
     page.reload()          # the page was drawn while the table was a draft
     page.wait_for_selector("#refine-form")
     expect(page.locator("#refine-form input[name=session]")).to_have_count(1)
+    versions = len(api_call(page, "GET", f"/api/patients/{prop['patient_id']}/proposals")["body"])
+    # the refinement walks the bench as a job: its progress with the time left, and Cancel, which stores nothing. An
+    # envelope's preview walks first, so the refinement waits behind it and is cancelled while it waits (a table's
+    # refinement alone walks for about a second here: too short to click reliably)
+    env = api_call(page, "POST", f"/api/patients/{prop['patient_id']}/envelopes", {"grid": [2, 2]})["body"]
+    page.fill("#refine-comment", "started by mistake")
+    page.click("#refine-form button[type=submit]")
+    page.wait_for_selector("#bench-progress-words:has-text('s left')", timeout=30_000)
+    assert re.search(r"(walking, \d+ %|queued behind \d+ walks?): about \d+ s left",
+                     page.inner_text("#bench-progress-words"))
+    page.click("#bench-cancel")
+    page.wait_for_selector("#refine-error:has-text('cancelled by dana')", timeout=30_000)
+    expect(page.locator("#refined-link")).to_have_count(0)
+    assert len(api_call(page, "GET", f"/api/patients/{prop['patient_id']}/proposals")["body"]) == versions
+    assert api_call(page, "GET", f"/api/envelopes/{env['id']}/preview")["status"] == 200   # walked (or waited for)
     page.fill("#refine-comment", "the knee swings short on the bench session")
     page.click("#refine-form button[type=submit]")
     page.wait_for_selector("#refined-link", timeout=60_000)
