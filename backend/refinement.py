@@ -30,6 +30,7 @@ from controller_core.refine_evidence import (
 from controller_core.stride_features import MeasuredStride
 from device_bridge.as_run import as_run
 from device_bridge.bench.refine_walks import BenchStepCheck
+from device_bridge.sim.leg_model import LegGeometry
 
 BENCH_SECONDS = 12.0
 
@@ -52,9 +53,16 @@ def _bench_expectation(nodes: list[dict], before: list, after: list, check: Benc
 
 SENSITIVITY = ("measured on the simulated bench at the node's task (controller_core/data/refine_sensitivity.json, "
                "'quasitune sensitivity'): how far each controlled feature moved when each refined value was changed a "
-               "little, on the nominal leg; each node's step is walked on the bench before it is taken (halved, then "
-               "quartered, then left out where the bench does not confirm it); this leg's response is checked each "
-               "round and a feature that does not respond is held")
+               "little, on the nominal leg; each node's step is walked on the bench's leg before it is taken (halved, "
+               "then quartered, then left out where the bench does not confirm it); this leg's response is checked "
+               "each round and a feature that does not respond is held")
+
+
+def bench_leg_words(geometry: LegGeometry) -> str:
+    """Which leg the bench walked, in words: a leg file's, or the nominal one for want of a description."""
+    if geometry.name == LegGeometry().name:
+        return "the nominal bench leg (no description of this patient's leg is given to the server)"
+    return f"the leg described as '{geometry.name}' (the server's bench leg)"
 
 
 def _sessions(conn: Connection, kind: str, version_id: int, patient_id: int, session_ids: list[int]
@@ -100,8 +108,9 @@ def _strides(conn: Connection, sessions: list[dict]) -> tuple[list[MeasuredStrid
 
 
 def _evidence(counted: dict, strides: list[MeasuredStride], targets, nodes: list[dict], changes: list[dict],
-              session_ids: list[int], rules: RefineRules) -> dict:
+              session_ids: list[int], rules: RefineRules, geometry: LegGeometry) -> dict:
     return {**counted, "session_ids": session_ids, "feature_abs_error": feature_abs_errors(strides, targets),
+            "bench_leg": bench_leg_words(geometry),
             "quantities": {q.key: {"label": q.label, "tolerance": q.tolerance,
                                    "unit": q.unit} for q in QUANTITIES},
             "nodes": nodes, "changes": changes, "nodes_changed": sorted({tuple(c["node"]) for c in changes}),
@@ -120,7 +129,8 @@ def _nothing(nodes: list[dict]) -> InvalidError:
 
 
 def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: list[int], comment: str,
-                            actor: User, model: QuasiStiffnessModel) -> dict:
+                            actor: User, model: QuasiStiffnessModel,
+                            geometry: LegGeometry | None = None) -> dict:
     """A refined draft of an approved envelope from its sessions (module docstring); returns the refinement."""
     row = envelopes.get_row(conn, envelope_id)
     if row["status"] != "approved":
@@ -133,7 +143,8 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
     evidence = gather_evidence(strides, parent.speeds_mps, parent.inclines_deg, targets)
     before = refinements.of_version(conn, "envelope", envelope_id)
     rules = RefineRules()
-    check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS)
+    geometry = geometry or LegGeometry()
+    check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS, geometry)
     result = refine_envelope(parent, evidence, rules, before["nodes"] if before else None, check)
     if not result.changes:
         raise _nothing(result.nodes)
@@ -142,14 +153,16 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
         raise InvalidError("the refined envelope breaks a limit, nothing stored: " + "; ".join(
             v.message for v in checked.violations))
     _bench_expectation(result.nodes, parent.tables(), result.envelope.tables(), check)
-    body = _evidence(counted, strides, targets, result.nodes, result.changes, [s["id"] for s in sessions], rules)
+    body = _evidence(counted, strides, targets, result.nodes, result.changes, [s["id"] for s in sessions], rules,
+                     geometry)
     created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
                                     refinements.recorder("envelope", envelope_id, body["session_ids"], body, actor))
     return {**refinements.of_version(conn, "envelope", created["id"]), "version": created}
 
 
 def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: list[int], comment: str,
-                            actor: User, model: QuasiStiffnessModel) -> dict:
+                            actor: User, model: QuasiStiffnessModel,
+                            geometry: LegGeometry | None = None) -> dict:
     """A refined draft of an approved table from its sessions: the table is one node at its task, every stride its
     evidence; returns the refinement."""
     row = proposals.get_row(conn, proposal_id)
@@ -163,7 +176,8 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
     [evidence] = gather_evidence(strides, [row["speed_mps"]], [row["incline_deg"]], targets)
     before = refinements.of_version(conn, "proposal", proposal_id)
     rules = RefineRules()
-    check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS)
+    geometry = geometry or LegGeometry()
+    check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS, geometry)
     result = refine_node(table, evidence, rules, previous=before["nodes"][0] if before else None, check=check)
     node = {**evidence.to_json(), "changed": bool(result.changes), "left_alone": result.left_alone}
     if result.step_refused:
@@ -180,7 +194,7 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
                 **c} for c in result.changes]
     node["stride_weight"] = evidence.weight
     _bench_expectation([node], [table], [result.table], check)
-    body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules)
+    body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules, geometry)
     created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
                                     refinements.recorder("proposal", proposal_id, body["session_ids"], body, actor))
     return {**refinements.of_version(conn, "proposal", created["id"]), "version": created}

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, status
+from fastapi import APIRouter, Request, status
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
@@ -26,28 +26,29 @@ def _ids(body: RefinementRequest) -> list[int]:
 
 @router.post("/envelopes/{envelope_id}/refinements", response_model=RefinementOut,
              status_code=status.HTTP_201_CREATED, responses=_REFUSALS)
-async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist,
-                          model: Model) -> dict:
+async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, request: Request, conn: Conn,
+                          user: Prosthetist, model: Model) -> dict:
     """Refine an approved envelope from the patient's stopped sessions on it (prosthetist): each stride's features
     against the model's targets at the leg's own estimate of its task, gathered per node by the leg's blend weights,
     a damped step of the rows where the strides agree. The result is a new draft (diff, edit, preview, approve or
     reject, push as any), stored with its evidence and audited. Refused with why, storing nothing: sessions of another
-    patient or version, still recording, in safe mode all along, no strides, nothing to change."""
+    patient or version, still recording, in safe mode all along, no strides, nothing to change. The bench walks the
+    server's bench leg (``bench_leg``, the nominal one where none is described), and the refinement says which."""
     # it walks the bench: on the bench's queue, never in the request threads a command to a leg needs
     job = ("refinement", f"envelope {envelope_id}", f"/api/envelopes/{envelope_id}")
     return await run_bench(user.username, job, refine_envelope_version, conn, envelope_id, _ids(body), body.comment, user,
-                           model)
+                           model, request.app.state.bench_leg)
 
 
 @router.post("/proposals/{proposal_id}/refinements", response_model=RefinementOut,
              status_code=status.HTTP_201_CREATED, responses=_REFUSALS)
-async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist,
-                          model: Model) -> dict:
+async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, request: Request, conn: Conn,
+                          user: Prosthetist, model: Model) -> dict:
     """Refine an approved table from the patient's stopped sessions on it (prosthetist), as an envelope's node at the
     table's task; the same rules and refusals."""
     job = ("refinement", f"table {proposal_id}", f"/api/proposals/{proposal_id}")
     return await run_bench(user.username, job, refine_proposal_version, conn, proposal_id, _ids(body), body.comment, user,
-                           model)
+                           model, request.app.state.bench_leg)
 
 
 @router.get("/refinements/{refinement_id}", response_model=RefinementOut, responses=NOT_FOUND)

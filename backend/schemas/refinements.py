@@ -48,6 +48,8 @@ class RefinementOut(BaseModel):
                                                                     "changes of |change| in step limits (5° of θe, 25 % "
                                                                     "of k or b); None for refinements stored before it")
     sensitivity: str
+    bench_leg: str | None = Field(default=None, description="the leg the bench walked, in words (None for "
+                                                            "refinements stored before it)")
     rules: dict
     version: dict | None = Field(default=None, description="the refined draft as its own endpoint returns it (on "
                                                            "creation)")

@@ -74,6 +74,7 @@ def test_a_prosthetist_refines_a_table_from_a_session_and_reviews_the_draft(serv
     assert "acted on" in node.inner_text() and "Bench: change" in node.inner_text()
     # the bias (what the rows move) with its interval, and beside it the spread from stride to stride (what no row moves)
     assert "Bias: mean error [95 % interval]" in node.inner_text() and re.search(r"±\d+\.\d°", node.inner_text())
+    assert "The bench walked the nominal bench leg" in page.inner_text("#refinement")     # which leg, said
     shot(page, "refine-01-evidence")
 
     page.click("#refined-link")

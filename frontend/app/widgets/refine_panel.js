@@ -83,7 +83,7 @@ export function refinementView(ev, grid = {}, mass = null) {
     ev.nodes.filter((n) => n.strides).map((n) => nodeCard(n, ev)),
     h("p", { class: "muted small" }, `A node's quantity is acted on with at least ${fmt(ev.rules.min_consistent_strides, 0)} strides, `,
       "80 % of them on the same side of the target, beyond the tolerance and with a 95 % interval clear of zero. ",
-      `Sensitivity: ${ev.sensitivity}. Steps per round at most ${fmt(ev.rules.theta_step_deg, 0, "°")} of equilibrium angle and `,
+      `Sensitivity: ${ev.sensitivity}. ${ev.bench_leg ? `The bench walked ${ev.bench_leg}. ` : ""}Steps per round at most ${fmt(ev.rules.theta_step_deg, 0, "°")} of equilibrium angle and `,
       `${fmt(ev.rules.k_step_fraction * 100, 0)} % of stiffness or damping; every limit and the neighbour rule hold. `,
       "A quantity one round could move by less than a quarter of its error is held as beyond a round's reach and left to you (larger changes by hand, previewed on the bench, may still move it)."));
 }
