@@ -9,6 +9,7 @@ is drawn upright; the view shows what the prosthesis itself senses.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import math
 import threading
@@ -122,6 +123,9 @@ class ViewerRegistry:
     """Lazily started viewers, one per device, closed with the app."""
 
     def __init__(self, devices: DeviceManager) -> None:
+        if importlib.util.find_spec("viser") is None:   # an optional extra: asked for, its absence stops the start
+            raise RuntimeError("--viewer3d needs viser, which is not installed: pip install 'quasitune[view3d]' "
+                               "(scripts/setup_venv.sh installs it)")
         self.devices = devices
         self._viewers: dict[str, LegViewer] = {}
         self._lock = threading.Lock()

@@ -18,8 +18,8 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   # as pip does: where PYTHONDONTWRITEBYTECODE is set, every process would otherwise compile scikit-learn, SciPy and
   # FastAPI again on import (a server's start 8 s instead of 3)
   if ! { { .venv/bin/python -m pip install uv &&
-           .venv/bin/uv pip install --compile-bytecode --python .venv/bin/python -e ".[server,dev]"; } ||
-         { .venv/bin/python -m pip install --upgrade pip && .venv/bin/python -m pip install -e ".[server,dev]"; }; } \
+           .venv/bin/uv pip install --compile-bytecode --python .venv/bin/python -e ".[server,view3d,dev]"; } ||
+         { .venv/bin/python -m pip install --upgrade pip && .venv/bin/python -m pip install -e ".[server,view3d,dev]"; }; } \
        > "$log" 2>&1; then
     tail -n 40 "$log" >&2
     echo "installation failed; full log in $log" >&2

@@ -37,3 +37,18 @@ def test_the_3d_view_is_off_unless_the_server_was_started_with_it(tmp_path, mode
         assert client.get("/api/devices/other/viewer", headers=api.as_("viewer")).status_code == 404
     finally:
         client.app.state.devices.close()
+
+
+def test_asked_for_without_viser_installed_the_server_refuses_to_start_and_says_what_to_install(monkeypatch):
+    """viser is an optional extra (``quasitune[view3d]``): a server started with the 3D view but without viser stops
+    at once, loudly, instead of answering 500 when someone opens the view."""
+    import importlib.util
+
+    import pytest
+
+    from backend.viewer3d import ViewerRegistry
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "viser" else real(name, *a))
+    with pytest.raises(RuntimeError, match=r"quasitune\[view3d\]"):
+        ViewerRegistry(devices=None)   # type: ignore[arg-type]
