@@ -263,6 +263,12 @@ def nearest_node(speeds_mps: Sequence[float], inclines_deg: Sequence[float], spe
     return i, j
 
 
+def grid_neighbours(shape: tuple[int, int], i: int, j: int) -> list[tuple[int, int]]:
+    """The nodes one cell from node (i, j) of a grid of ``shape`` (speeds × inclines): those the neighbour rule pairs
+    it with."""
+    return [(a, b) for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1)) if 0 <= a < shape[0] and 0 <= b < shape[1]]
+
+
 def neighbour_guard(shape: tuple[int, int], values: list[list[float]], start: tuple[int, int],
                     steps: NeighbourSteps) -> list[list[float]]:
     """Values moved the least into the steps of their neighbours, sweeping outwards from ``start`` (see the module).
@@ -277,7 +283,7 @@ def neighbour_guard(shape: tuple[int, int], values: list[list[float]], start: tu
     out = np.array(values, dtype=float)
     done: set[tuple[int, int]] = set()
     for i, j in order:
-        swept = [a * n_i + b for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1)) if (a, b) in done]
+        swept = [a * n_i + b for a, b in grid_neighbours(shape, i, j) if (a, b) in done]
         if swept:
             near = out[swept]
             out[i * n_i + j] = np.clip(out[i * n_i + j], near.max(axis=0) - limits, near.min(axis=0) + limits)

@@ -53,6 +53,7 @@ from controller_core.envelope import (
     VALUE_FIELDS,
     Envelope,
     EnvelopeNode,
+    grid_neighbours,
     neighbour_guard,
     table_values,
     table_with_values,
@@ -442,8 +443,7 @@ def neighbour_boxes(envelope: Envelope) -> list[tuple[list[float], list[float]]]
     out = []
     for i in range(n_s):
         for j in range(n_i):
-            near = [a * n_i + b for a, b in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1))
-                    if 0 <= a < n_s and 0 <= b < n_i]
+            near = [a * n_i + b for a, b in grid_neighbours(envelope.shape, i, j)]
             if not near:
                 out.append(([-np.inf] * len(limits), [np.inf] * len(limits)))
                 continue

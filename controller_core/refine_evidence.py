@@ -183,14 +183,13 @@ def gather_evidence(strides: Sequence[MeasuredStride], speeds_mps: Sequence[floa
     for s in strides:
         if not (math.isfinite(s.speed_mps) and math.isfinite(s.incline_deg)):
             continue
+        weights = ([(0, 0, 1.0)] if shape == (1, 1)    # one table: every stride is its evidence
+                   else node_weights(speeds_mps, inclines_deg, s.speed_mps, s.incline_deg))
         if s.transition:
-            for i, j, _ in ([(0, 0, 1.0)] if shape == (1, 1)
-                            else node_weights(speeds_mps, inclines_deg, s.speed_mps, s.incline_deg)):
+            for i, j, _ in weights:
                 changing[i, j] += 1
             continue
         targets = targets_at(s.speed_mps, s.incline_deg)
-        weights = ([(0, 0, 1.0)] if shape == (1, 1)    # one table: every stride is its evidence
-                   else node_weights(speeds_mps, inclines_deg, s.speed_mps, s.incline_deg))
         rows += [(i, j, w, s, targets) for i, j, w in weights]
     out = []
     for i in range(shape[0]):

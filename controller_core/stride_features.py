@@ -21,6 +21,7 @@ import numpy as np
 
 from controller_core.features import CURVE_FEATURES, FeatureNotFoundError, FeatureSpec, find_extremum
 from controller_core.gait_metrics import PHASE_GRID
+from controller_core.task_estimator import INCLINE_RESOLUTION_DEG, SPEED_RESOLUTION_MPS
 
 # the features the four-state table moves directly (refinement acts on these; every curve feature is measured)
 CONTROLLED_FEATURES: tuple[str, ...] = ("knee_stance_flexion_peak", "knee_swing_flexion_peak",
@@ -58,7 +59,7 @@ class MeasuredStride:
 # 90 % of strides) from the median of the three strides before it: the estimate's own stride-to-stride scatter
 # exceeds one resolution on about a quarter of strides, twice it almost never; the stride of the change and the next
 # two are the change's, as the course scoring's first three strides after a change are
-TASK_CHANGE_MPS, TASK_CHANGE_DEG = 0.2, 3.0
+TASK_CHANGE_MPS, TASK_CHANGE_DEG = 2.0 * SPEED_RESOLUTION_MPS, 2.0 * INCLINE_RESOLUTION_DEG
 TRANSITION_STRIDES = 3
 
 

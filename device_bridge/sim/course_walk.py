@@ -38,6 +38,7 @@ from controller_core.gait_metrics import (
     reference_curves,
     rmse,
 )
+from controller_core.stride_features import TRANSITION_STRIDES
 from controller_core.units import G_MPS2
 from device_bridge.sim.bench_trajectory import (
     INITIATION_STRIDES,
@@ -62,7 +63,7 @@ from device_bridge.sim.simulate import (
 )
 
 SPEED_TOLERANCE_MPS = 0.1
-AFTER_CHANGE_STRIDES = 3    # a segment's first strides, scored apart: the leg crossing the change (issue 56)
+AFTER_CHANGE_STRIDES = TRANSITION_STRIDES   # a segment's first strides, scored apart: the leg crossing the change
 INCLINE_TOLERANCE_DEG = 1.5
 
 
@@ -149,7 +150,7 @@ class CourseScore:
 
 
 def estimation_accuracy(decisions: Sequence[StrideDecision], traj: CourseTrajectory, course: Course,
-                        skip_after_change: int = 3) -> dict[str, object]:
+                        skip_after_change: int = AFTER_CHANGE_STRIDES) -> dict[str, object]:
     """How often the per-stride estimate was within tolerance of the true task of the stride it describes.
 
     The estimate made at a heel strike describes the stride that ended there (its foot-flat window), whose true
