@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -154,10 +154,14 @@ class BenchStepCheck:
 
     def errors(self, table: ParameterTable, speed_mps: float, incline_deg: float) -> dict[str, object]:
         """:func:`bench_feature_errors` of the table at the task, walked once."""
-        key = (table.model_dump_json(exclude={"provenance"}), f"{speed_mps:.4f}", f"{incline_deg:.4f}")
+        return self._once((table.model_dump_json(exclude={"provenance"}), f"{speed_mps:.4f}", f"{incline_deg:.4f}"),
+                          lambda: bench_feature_errors(table, speed_mps, incline_deg, self.mass_kg, self.model,
+                                                       self.seconds, self.geometry))
+
+    def _once(self, key: tuple[str, ...], walk: Callable[[], dict[str, object]]) -> dict[str, object]:
+        """A walk's result, walked the first time its key is asked for."""
         if key not in self._walks:
-            self._walks[key] = bench_feature_errors(table, speed_mps, incline_deg, self.mass_kg, self.model,
-                                                    self.seconds, self.geometry)
+            self._walks[key] = walk()
         return self._walks[key]
 
     def at_node(self, envelope: Envelope, index: int) -> NodeInEnvelope:
@@ -167,12 +171,11 @@ class BenchStepCheck:
 
     def envelope_errors(self, envelope: Envelope, speed_mps: float, incline_deg: float) -> dict[str, object]:
         """What :meth:`errors` gives of a table, of an envelope on the leg's own estimate (walked once)."""
-        key = (envelope.model_dump_json(), f"{speed_mps:.4f}", f"{incline_deg:.4f}")
-        if key not in self._walks:
-            ctrl = make_controller("adaptive", self.mass_kg, self.model, envelope=envelope, geometry=self.geometry)
-            self._walks[key] = walk_errors(ctrl, speed_mps, incline_deg, self.mass_kg, self.model, self.seconds,
-                                           self.geometry)
-        return self._walks[key]
+        return self._once((envelope.model_dump_json(), f"{speed_mps:.4f}", f"{incline_deg:.4f}"),
+                          lambda: walk_errors(make_controller("adaptive", self.mass_kg, self.model, envelope=envelope,
+                                                              geometry=self.geometry),
+                                              speed_mps, incline_deg, self.mass_kg, self.model, self.seconds,
+                                              self.geometry))
 
     @property
     def leg(self) -> str:
@@ -285,7 +288,7 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
     for k in range(rounds):
         score, strides, not_found, total = walk_envelope(current, model, course, geometry)
         evidence = gather_evidence(kept + strides, current.speeds_mps, current.inclines_deg, targets_at)
-        walks_before = check.walks
+        walks_before, refused = check.walks, check.refused
         refinement = refine_envelope(current, evidence, rules, refinement.nodes if refinement else None,
                                      check=check if search is None else None,
                                      bench=check if search is not None else None, search=search)
@@ -297,7 +300,7 @@ def refine_on_bench(model: QuasiStiffnessModel, geometry: LegGeometry, train: Co
             "feature_abs_error": feature_abs_errors(strides, targets_at),
             "nodes_changed": sorted({tuple(c["node"]) for c in refinement.changes}),
             "change_in_steps": change_in_steps(refinement.changes, rules),
-            "bench_walks": check.walks - walks_before,
+            "bench_walks": check.walks - walks_before, "steps_refused_by_bench": check.refused - refused,
             "changes": [{**c, "before": round(c["before"], 4), "after": round(c["after"], 4)}
                         for c in refinement.changes],
             "nodes": [n for n in refinement.nodes if n["strides"]],
