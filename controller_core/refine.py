@@ -434,21 +434,16 @@ def step_box(table: ParameterTable, low: Sequence[float], high: Sequence[float])
     return lo, hi
 
 
-def neighbour_boxes(envelope: Envelope) -> list[tuple[list[float], list[float]]]:
-    """Per node (speed-major), the lowest and highest value of each of :data:`controller_core.envelope.VALUE_FIELDS`
-    its grid neighbours' current values allow under the envelope's neighbour rule."""
-    n_s, n_i = envelope.shape
-    values = np.array([table_values(n.table) for n in envelope.nodes])
+def neighbour_box(envelope: Envelope, index: int) -> tuple[list[float], list[float]]:
+    """The lowest and highest value of each of :data:`controller_core.envelope.VALUE_FIELDS` that node ``index``
+    (speed-major) may take under the envelope's neighbour rule, given its grid neighbours' current values."""
+    n_i = envelope.shape[1]
     limits = np.array(envelope.neighbour_steps.for_fields())
-    out = []
-    for i in range(n_s):
-        for j in range(n_i):
-            near = [a * n_i + b for a, b in grid_neighbours(envelope.shape, i, j)]
-            if not near:
-                out.append(([-np.inf] * len(limits), [np.inf] * len(limits)))
-                continue
-            out.append(((values[near].max(axis=0) - limits).tolist(), (values[near].min(axis=0) + limits).tolist()))
-    return out
+    near = [a * n_i + b for a, b in grid_neighbours(envelope.shape, *divmod(index, n_i))]
+    if not near:
+        return [-np.inf] * len(limits), [np.inf] * len(limits)
+    values = np.array([table_values(envelope.nodes[k].table) for k in near])
+    return (values.max(axis=0) - limits).tolist(), (values.min(axis=0) + limits).tolist()
 
 
 def taken_step(before: ParameterTable, after: ParameterTable) -> np.ndarray:
@@ -534,7 +529,7 @@ def refine_envelope(envelope: Envelope, evidence: Sequence[NodeEvidence], rules:
     if bench is not None and hasattr(bench, "at_node"):
         per_node = _searched_in_turn(envelope, evidence, rules, before, bench, search or TrustRegionSearch())
     else:
-        boxes = neighbour_boxes(envelope) if bench is not None else [None] * len(envelope.nodes)
+        boxes = [neighbour_box(envelope, k) if bench is not None else None for k in range(len(envelope.nodes))]
         per_node = [refine_node(n.table, ev, rules, previous=before.get(ev.node), check=check, search=search,
                                 allowed=box, bench=bench)
                     for n, ev, box in zip(envelope.nodes, evidence, boxes, strict=True)]
@@ -593,7 +588,7 @@ def _searched_in_turn(envelope: Envelope, evidence: Sequence[NodeEvidence], rule
         task = ev.strides_task or (ev.speed_mps, ev.incline_deg)
         aim_from = bench.at_node(envelope, k)
         r = refine_node(table, ev, rules, previous=before.get(ev.node), search=search,
-                        allowed=neighbour_boxes(current)[k], bench=bench.at_node(current, k),
+                        allowed=neighbour_box(current, k), bench=bench.at_node(current, k),
                         aim_from=aim_from, task=task)
         out[k] = r
         if r.table is not table:
