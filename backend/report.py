@@ -8,13 +8,10 @@ from __future__ import annotations
 import io
 import textwrap
 from datetime import datetime
+from typing import TYPE_CHECKING
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-from matplotlib.backends.backend_pdf import PdfPages
-from matplotlib.figure import Figure
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 from controller_core.gait_metrics import GAIT_CHANNELS, rmse_key
 
@@ -116,6 +113,17 @@ def _adaptive_facts(a: dict | None) -> list[tuple[str, str]]:
                                       f"beyond its edge {a['outside_s']:.0f} s) · rows: {modes}")]
 
 
+def _pyplot():
+    """matplotlib's pyplot on its file-only backend, imported when a report is first drawn (a server that never prints
+    one starts without it)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def session_report_pdf(session: dict, patient: dict) -> bytes:
     """One A4 page for a stopped session (``session`` as ``GET /api/sessions/{id}`` returns it): facts as label and
     value, then the four joint trajectories; with an envelope, a second page with time, strides and errors per region
@@ -124,6 +132,9 @@ def session_report_pdf(session: dict, patient: dict) -> bytes:
     adaptive = (session["summary"] or {}).get("adaptive")
     if adaptive:
         figs.append(envelope_figure(session, adaptive))
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    plt = _pyplot()
     buf = io.BytesIO()
     with PdfPages(buf, metadata={"Title": f"QuasiTune session {session['id']}", "Creator": "QuasiTune"}) as pdf:
         for fig in figs:
@@ -134,7 +145,7 @@ def session_report_pdf(session: dict, patient: dict) -> bytes:
 
 def envelope_figure(session: dict, a: dict) -> Figure:
     """Time per region of the envelope (the leg's own estimate of its task) and per-stride errors by region."""
-    fig = plt.figure(figsize=(8.27, 11.69))
+    fig = _pyplot().figure(figsize=(8.27, 11.69))
     fig.text(0.06, 0.955, f"Session {session['id']} · where in {session['table_label']} the patient walked",
              fontsize=13, weight="bold")
     speeds, inclines = a["speeds_mps"], a["inclines_deg"]
@@ -167,7 +178,7 @@ def envelope_figure(session: dict, a: dict) -> Figure:
 def report_figure(session: dict, patient: dict) -> Figure:
     """The report page as a matplotlib figure (A4 portrait)."""
     s = session["summary"] or {}
-    fig = plt.figure(figsize=(8.27, 11.69))
+    fig = _pyplot().figure(figsize=(8.27, 11.69))
     simulated = " · SIMULATED WALK" if session.get("simulated") else ""
     fig.text(0.06, 0.955, f"QuasiTune session report · session {session['id']}{simulated}", fontsize=15, weight="bold",
              color="#b3261e" if simulated else "black")

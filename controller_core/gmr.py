@@ -8,7 +8,6 @@ EM and the results mapped back, so the mixture does not depend on units.
 from __future__ import annotations
 
 import numpy as np
-from sklearn.mixture import GaussianMixture
 
 
 class GaussianMixtureRegression:
@@ -30,6 +29,8 @@ class GaussianMixtureRegression:
 
     def fit(self, Z: np.ndarray) -> GaussianMixtureRegression:
         """Fit the mixture on samples ``Z`` (n, D)."""
+        from sklearn.mixture import GaussianMixture  # fitting only: a loaded model conditions without scikit-learn
+
         Z = np.asarray(Z, dtype=float)
         if Z.ndim != 2 or not np.all(np.isfinite(Z)):
             raise ValueError("GMM data must be a finite (n, D) array")

@@ -1,9 +1,11 @@
 """Gaussian-process regression from a walking task to one feature value (or phase).
 
 Hyperparameters are fitted by maximising the marginal likelihood with scikit-learn's
-``GaussianProcessRegressor``, which :meth:`FeatureGPR.predict` calls. A proposal needs every feature's GPR at one
-task: :class:`FeatureGPRBank` evaluates them together from their fitted factors (the same algebra, mean k*ᵀα and
-variance k** − ‖L⁻¹k*‖², batched), because one sklearn call per GPR would take most of the sub-millisecond budget.
+``GaussianProcessRegressor``; the fitted estimator keeps what predicting needs as arrays (the kernel's hyperparameters,
+the Cholesky factor ``L_`` and ``alpha_``), so a model loaded from disk predicts without importing scikit-learn (a
+server or a CLI command starts without it; it is imported when something is fitted). A proposal needs every feature's
+GPR at one task: :class:`FeatureGPRBank` evaluates them together from those factors (mean k*ᵀα and variance
+k** − ‖L⁻¹k*‖², batched); :meth:`FeatureGPR.predict` is the bank of one.
 
 Kernel (on inputs divided by ``input_scale``):
 ``C_rbf · RBF(ℓ) + C_lin · (σ0² + x·x') + white``, or with ``additive=True`` one RBF term per task dimension,
@@ -33,9 +35,6 @@ import warnings
 
 import numpy as np
 from scipy.linalg import solve_triangular
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, DotProduct, Sum, WhiteKernel
 
 from controller_core.hull import TaskHull
 from controller_core.training_data import training_arrays
@@ -45,6 +44,8 @@ _IGNORED = 1e6   # RBF length (scaled input units) of a dimension an additive te
 
 def _terms(kernel) -> list:
     """The summands of a fitted sum kernel, flattened."""
+    from sklearn.gaussian_process.kernels import Sum
+
     if isinstance(kernel, Sum):
         return _terms(kernel.k1) + _terms(kernel.k2)
     return [kernel]
@@ -96,6 +97,10 @@ class FeatureGPR:
         Args:
             y_se: optional (n,) standard error of each target (same unit as ``y``); NaN = unknown.
         """
+        from sklearn.exceptions import ConvergenceWarning
+        from sklearn.gaussian_process import GaussianProcessRegressor
+        from sklearn.gaussian_process.kernels import RBF, ConstantKernel, DotProduct, WhiteKernel
+
         X, y = training_arrays(X, y, "FeatureGPR", "training points with one target each")
         d = X.shape[1]
         if len(self.length_scale_bounds) != d or len(self.input_scale) != d:
@@ -137,7 +142,8 @@ class FeatureGPR:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             gpr.fit(Xs, yn)
-        self.gpr_ = gpr
+        self.alpha_ = gpr.alpha_                                  # (n,) K⁻¹y, scaled targets
+        self.L_ = gpr.L_                                          # (n, n) lower Cholesky factor of K + noise
         self.input_scale_ = scale
         amps, inverse = [], []
         for term in _terms(gpr.kernel_):
@@ -160,15 +166,22 @@ class FeatureGPR:
         self.hull_ = TaskHull(self.hull_tolerance).fit(X)
         return self
 
+    def __setstate__(self, state: dict) -> None:
+        """Unpickle; a model saved when the fitted scikit-learn estimator was kept (``gpr_``) gives its factors."""
+        fitted = state.pop("gpr_", None)
+        if fitted is not None:
+            state.setdefault("alpha_", fitted.alpha_)
+            state.setdefault("L_", fitted.L_)
+        self.__dict__.update(state)
+
     def predict(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Means and stds (target unit) at tasks ``X`` (m, d) in physical units.
 
         The std includes the fitted white-noise term: it is the uncertainty of a new group mean, not only of the
         latent function.
         """
-        Xs = np.atleast_2d(np.asarray(X, dtype=float)) / self.input_scale_
-        mean, std = self.gpr_.predict(Xs, return_std=True)
-        return mean * self.y_std_ + self.y_mean_, std * self.y_std_
+        mean, std, _ = FeatureGPRBank([self]).predict_many(X)
+        return mean[:, 0], std[:, 0]
 
     def extrapolates(self, x: np.ndarray) -> bool:
         """True when ``x`` lies outside the convex hull of this target's training tasks."""
@@ -197,8 +210,8 @@ class FeatureGPRBank:
         for i, (g, x) in enumerate(zip(gprs, scaled, strict=True)):
             k = x.shape[0]
             self.Xs[i, :k] = x
-            self.alpha[i, :k] = g.gpr_.alpha_
-            self.Linv[i, :k, :k] = solve_triangular(g.gpr_.L_, np.eye(k), lower=True)
+            self.alpha[i, :k] = g.alpha_
+            self.Linv[i, :k, :k] = solve_triangular(g.L_, np.eye(k), lower=True)
             self.mask[i, :k] = 1.0
         terms = max(g.rbf_amplitudes_.size for g in gprs)
         self.amp_rbf = np.zeros((m, terms))                 # padded terms have zero amplitude

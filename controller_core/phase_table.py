@@ -30,9 +30,9 @@ reason.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from controller_core.reference import JOINTS, ReferenceRecord, ReferenceSet, data_dir, sha256_of
 
@@ -41,6 +41,16 @@ MAX_MISSING_FRACTION = 0.1   # of a stride's samples in any one channel
 _SPEED_ALIASES = ("speed_m_s", "speed_mps")
 _ANGLE_UNITS = {"deg": np.pi / 180.0, "rad": 1.0}
 _MOMENT_UNITS = {"Nm_per_kg": 1.0}
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+
+def _pandas():
+    """pandas, imported when a table is first read or written (a process that never reads one starts without it)."""
+    import pandas
+
+    return pandas
 
 
 def _find_channel(df: pd.DataFrame, joint: str, quantity: str) -> tuple[str, float]:
@@ -88,9 +98,9 @@ def read_phase_table(path: str | Path) -> pd.DataFrame:
     if not p.exists():
         raise ValueError(f"data file {str(p)!r} does not exist")
     if p.suffix.lower() in (".parquet", ".pq"):
-        return pd.read_parquet(p)
+        return _pandas().read_parquet(p)
     if p.suffix.lower() in (".csv", ".txt"):
-        return pd.read_csv(p)
+        return _pandas().read_csv(p)
     raise ValueError(f"data file {p.name!r}: unknown format (use .csv or .parquet)")
 
 
@@ -139,7 +149,7 @@ def phase_table_to_reference(
         channels["hip_angle"] = df[col].to_numpy(dtype=float) * factor
     stride_keys = [c for c in ("subject", "stride") if c in df.columns]
     by_condition = "condition" in df.columns
-    work = pd.DataFrame({"_phase": phase})
+    work = _pandas().DataFrame({"_phase": phase})
     for i in range(len(tcols)):
         work[f"_t{i}"] = np.round(task_vals[:, i], 9)
     for c in stride_keys + (["condition"] if by_condition else []):
@@ -232,7 +242,7 @@ def reference_to_phase_table(ref: ReferenceSet) -> pd.DataFrame:
     """Write a reference set's mean curves in the standard format (one 'stride' per record)."""
     rows = []
     for i, rec in enumerate(ref.records):
-        frame = pd.DataFrame({"subject": rec.dataset, "stride": i, "phase": rec.phase})
+        frame = _pandas().DataFrame({"subject": rec.dataset, "stride": i, "phase": rec.phase})
         for name in ref.task_names:
             col = "speed_m_s" if name == "speed_mps" else name
             frame[col] = rec.task.get(name, np.nan)
@@ -240,7 +250,7 @@ def reference_to_phase_table(ref: ReferenceSet) -> pd.DataFrame:
             frame[f"{joint}_angle_deg"] = np.rad2deg(rec.mean[f"{joint}_angle"])
             frame[f"{joint}_moment_Nm_per_kg"] = rec.mean[f"{joint}_moment"]
         rows.append(frame)
-    return pd.concat(rows, ignore_index=True)
+    return _pandas().concat(rows, ignore_index=True)
 
 
 SHIPPED_RAMPS_CSV = "vielemeyer2025_ref01_ramps.csv"

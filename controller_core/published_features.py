@@ -39,11 +39,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
 
 from controller_core.reference import SHIPPED_INCLINE_CSV, data_dir, sha256_of
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RABAGO_MAP: dict[str, tuple[str, str]] = {
     # our feature: (source feature, quantity)
@@ -85,7 +88,9 @@ class PublishedPoint:
 
 def load_incline_table(path: Path | None = None) -> pd.DataFrame:
     """The project's copy of ``incline_features.csv``."""
-    return pd.read_csv(path or data_dir() / SHIPPED_INCLINE_CSV)
+    import pandas  # when the table is read, not when the model is imported
+
+    return pandas.read_csv(path or data_dir() / SHIPPED_INCLINE_CSV)
 
 
 def incline_table_sha256() -> str:

@@ -28,7 +28,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 from controller_core.envelope_blend import node_weights
 from controller_core.model import QuasiStiffnessModel
@@ -131,6 +130,14 @@ class NodeEvidence:
                 "quantities": {k: q.to_json() for k, q in self.quantities.items()}}
 
 
+def t_quantile_975(dof: float) -> float:
+    """Student's t 97.5 % quantile at ``dof`` degrees of freedom (a 95 % interval's half-width per standard error).
+    SciPy's statistics are imported here, when a walk is judged, not when a server or CLI starts."""
+    from scipy import stats
+
+    return float(stats.t.ppf(0.975, dof))
+
+
 def judge(key: str, values: np.ndarray, targets: np.ndarray, weights: np.ndarray) -> QuantityEvidence:
     """The evidence for one quantity from its strides' measured values, targets and weights (module rule)."""
     q = QUANTITY_BY_KEY[key]
@@ -147,7 +154,7 @@ def judge(key: str, values: np.ndarray, targets: np.ndarray, weights: np.ndarray
         return QuantityEvidence(key, n, n_eff, measured, target, mean, None, agree, False,
                                 f"too few strides ({n_eff:.1f} effective; at least {MIN_CONSISTENT_STRIDES:g} needed)")
     var = float(np.sum(w * (err - mean) ** 2)) * n_eff / (n_eff - 1.0)
-    half = float(stats.t.ppf(0.975, n_eff - 1.0)) * math.sqrt(var / n_eff)
+    half = t_quantile_975(n_eff - 1.0) * math.sqrt(var / n_eff)
     ci = (mean - half, mean + half)
     spread = math.sqrt(var)
     if n_eff < MIN_CONSISTENT_STRIDES:

@@ -7,11 +7,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
 from controller_core.gait_metrics import channel_strides, episodes, gait_channels
 from controller_core.model import QuasiStiffnessModel
-from controller_core.refine_evidence import QUANTITIES, model_targets
+from controller_core.refine_evidence import QUANTITIES, model_targets, t_quantile_975
 from controller_core.session_summary import session_strikes
 from controller_core.stride_features import measure_strides
 from controller_core.units import G_MPS2
@@ -45,7 +44,7 @@ def walk_errors(controller: StepController, speed_mps: float, incline_deg: float
                          if q.feature in s.features for t in (targets(s.speed_mps, s.incline_deg)[q.feature],)])
         errors[q.key] = round(float(np.mean(errs)), 3) if errs.size else None
         spread[q.key] = round(float(np.std(errs, ddof=1)), 3) if errs.size >= 2 else None
-        half = float(stats.t.ppf(0.975, errs.size - 1)) * float(np.std(errs, ddof=1)) / math.sqrt(errs.size) \
+        half = t_quantile_975(errs.size - 1) * float(np.std(errs, ddof=1)) / math.sqrt(errs.size) \
             if errs.size >= 2 else None
         ci95[q.key] = None if half is None else [round(float(errs.mean()) - half, 3), round(float(errs.mean()) + half, 3)]
     return {"strides": len(strides), "falls": int(episodes(fall_mask(c, mass_kg * G_MPS2) & (c["time_s"] >= 2.0),

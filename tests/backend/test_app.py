@@ -37,3 +37,35 @@ def test_the_openapi_schema_lists_every_router(api):
     for path in ("/api/patients", "/api/proposals/{proposal_id}", "/api/envelopes/{envelope_id}",
                  "/api/devices", "/api/sessions/{session_id}", "/api/task-range", "/api/audit"):
         assert path in paths
+
+
+_WITHOUT_FITTING_LIBRARIES = """
+import importlib.abc, sys
+BLOCKED = {"sklearn", "matplotlib", "pandas"}
+class Blocker(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name.split(".")[0] in BLOCKED:
+            raise ImportError(f"imported {name} at start-up")
+sys.meta_path.insert(0, Blocker())
+import backend.app, backend.cli
+from controller_core.model_io import load_model
+model = load_model(sys.argv[1])
+proposal = model.propose(1.2, 0.0, 75.0)
+print(repr(proposal.table.row("knee", "stance_flexion").k_Nm_per_rad))
+"""
+
+
+def test_a_server_starts_and_a_saved_model_proposes_without_scikit_learn_matplotlib_or_pandas(model, tmp_path):
+    """What a server or a CLI command loads at start: the app, the commands and a saved model, which then proposes.
+    scikit-learn fits, matplotlib prints reports and pandas reads tables, each imported when that is done (together
+    half of a server's start-up time when they were imported at start)."""
+    import subprocess
+    import sys
+
+    from controller_core.model_io import save_model
+
+    save_model(model, tmp_path / "model")
+    r = subprocess.run([sys.executable, "-c", _WITHOUT_FITTING_LIBRARIES, str(tmp_path / "model")], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert float(r.stdout) == model.propose(1.2, 0.0, 75.0).table.row("knee", "stance_flexion").k_Nm_per_rad

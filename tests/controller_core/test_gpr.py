@@ -57,6 +57,26 @@ def test_bank_matches_individual_gprs(reference):
         assert out[i] == g.extrapolates(x)
 
 
+@pytest.mark.parametrize("additive", [False, True])
+def test_a_fitted_gpr_predicts_from_its_kept_factors_as_scikit_learn_does(reference, monkeypatch, additive):
+    """The estimator keeps arrays, not scikit-learn's fitted object (a loaded model predicts without it): its means and
+    stds, white noise included, are scikit-learn's own for the same fit, inside the data and far outside it."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    fitted = []
+    fit = GaussianProcessRegressor.fit
+    monkeypatch.setattr(GaussianProcessRegressor, "fit", lambda self, X, y: fitted.append(self) or fit(self, X, y))
+    X, y = _knee_peak_data(reference)
+    X = np.vstack([X, [[1.185, 5.0]]])
+    y = np.append(y, 0.33)
+    g = FeatureGPR(additive=additive).fit(X, y, np.append(np.zeros(len(y) - 1), 0.02))
+    tasks = np.array([[1.3, 0.0], [1.6, 3.0], [0.7, -8.0], [2.9, 10.0]])
+    mean, std = g.predict(tasks)
+    sk_mean, sk_std = fitted[-1].predict(tasks / g.input_scale_, return_std=True)
+    np.testing.assert_allclose(mean, sk_mean * g.y_std_ + g.y_mean_, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(std, sk_std * g.y_std_, rtol=1e-7, atol=1e-12)
+
+
 def test_an_additive_gpr_is_a_level_trend_plus_a_change_and_the_bank_agrees(reference):
     # real level features over speed, and test-only points on slopes that move the value by 0.1 rad per 10°
     X, y = _knee_peak_data(reference)
