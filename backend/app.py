@@ -153,7 +153,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     specs = parse_device_specs(settings.device)
     app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
     app.state.swing_inertia_ratio = swing_inertia_ratio(app.state.bench_leg)   # the swing rows proposed for that leg
-    app.state.benchmark_walks = BenchmarkWalks()   # the FSMIC's walks per body mass and course or task, for previews
+    app.state.benchmark_walks = BenchmarkWalks()   # previews' walks (the FSMIC's, the versions'), kept by content
     app.state.node_walks = NodeWalks(settings.bench_processes)   # envelope nodes walked alone, kept by content
     app.state.broker = None
     if any(spec.interface == "mqtt" for spec in specs):

@@ -34,8 +34,9 @@ from device_bridge.sim.leg_model import LegGeometry
 START_WORDS = {"standing": "from standing", "level": "reached from level walking"}
 
 
-def _sha(table: ImpedanceTable) -> str:
-    return hashlib.sha256(table.model_dump_json().encode()).hexdigest()
+def content_sha256(item: ImpedanceTable | Envelope) -> str:
+    """What a walk of a table or an envelope depends on of it: its content, hashed."""
+    return hashlib.sha256(item.model_dump_json().encode()).hexdigest()
 
 
 def level_index(envelope: Envelope) -> int:
@@ -93,8 +94,8 @@ class NodeWalks:
                 if start == "level" and idx % len(envelope.inclines_deg) == j0:
                     continue       # a level node's walk from standing is its level walking: the same rows, floor, speed
                 lead = level if start == "level" else None
-                key = (_sha(node.table), _sha(lead) if lead is not None else None, node.speed_mps, node.incline_deg,
-                       envelope.mass_kg, geometry, start)
+                key = (content_sha256(node.table), content_sha256(lead) if lead is not None else None,
+                       node.speed_mps, node.incline_deg, envelope.mass_kg, geometry, start)
                 mine[start] = key
                 if key not in self._kept and key not in todo:
                     ref = task_reference(node.speed_mps, node.incline_deg, model, envelope.mass_kg)

@@ -9,10 +9,14 @@ the envelope walks alone at its own task, from standing and reached from level w
 from __future__ import annotations
 
 import functools
+import threading
+from collections import OrderedDict
+from collections.abc import Callable, Hashable
+from typing import TypeVar
 
 import numpy as np
 
-from backend.bench.node_previews import NodeWalks
+from backend.bench.node_previews import NodeWalks, content_sha256
 from controller_core.envelope import Envelope
 from controller_core.gait_metrics import PHASE_GRID, reference_curves
 from controller_core.model import QuasiStiffnessModel
@@ -28,6 +32,7 @@ from device_bridge.sim.course_walk import CourseScore
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.simulate import WalkScore, run_walk, score_walk
 
+T = TypeVar("T")
 PREVIEW_COURSE = "mixed"
 NODE_WALKS_SAID = {
     "seconds_at_task": NODE_WALK_S, "level_lead_s": NODE_LEVEL_LEAD_S,
@@ -40,19 +45,23 @@ NODE_WALKS_SAID = {
 
 
 class BenchmarkWalks:
-    """The FSMIC's walks, kept for the life of the server: per (course, body mass, leg, model) and per (task, body mass,
-    seconds, leg, model).
+    """The walks a preview reuses, kept for the life of the server: the FSMIC's per (course, body mass, leg, model) and
+    per (task, body mass, seconds, leg, model), and a version's own per its content and the same conditions.
 
-    The benchmark does not depend on the version previewed, so every preview after the first at a body mass (and, for a
-    table, at a task) reuses its walk instead of walking the same deterministic bench again: an edit's preview then
-    costs the version's walk alone. ``maxsize`` bounds the memory of each kind (one entry per body mass and task in
-    use). The scores returned are shared: read them, never change them.
+    A walk on the bench depends only on what walks and where (deterministic), so every preview after the first at a
+    body mass (and, for a table, at a task) reuses the benchmark's walk, and a version whose content was walked before
+    (an edit undone, a refinement that changed nothing, the same envelope asked for again) reuses its own: an edit's
+    preview then costs the new content's walk alone. ``maxsize`` bounds the memory of each kind. The scores returned
+    are shared: read them, never change them.
     """
 
     def __init__(self, maxsize: int = 32) -> None:
         self.maxsize = maxsize
         self.score = functools.lru_cache(maxsize=maxsize)(self._walk)
         self.at_task = functools.lru_cache(maxsize=maxsize)(self._walk_at_task)
+        self._versions: OrderedDict[Hashable, object] = OrderedDict()
+        self._lock = threading.Lock()
+        self.version_walks = 0           # versions' walks walked (not found kept)
 
     @staticmethod
     def _walk(course: Course, mass_kg: float, geometry: LegGeometry, model: QuasiStiffnessModel) -> CourseScore:
@@ -63,6 +72,21 @@ class BenchmarkWalks:
                       model: QuasiStiffnessModel | None) -> WalkScore:
         ref = task_reference(speed_mps, incline_deg, model, mass_kg)
         return score_walk(run_walk(make_controller("fsmic", mass_kg), ref, mass_kg, seconds, geometry), ref)
+
+    def version(self, key: Hashable, walk: Callable[[], T]) -> T:
+        """The version's walk kept under ``key`` (its content hash and the walk's conditions); ``walk()`` the first
+        time. Two previews of one content at once may both walk; one result is kept."""
+        with self._lock:
+            if key in self._versions:
+                self._versions.move_to_end(key)
+                return self._versions[key]
+        score = walk()
+        with self._lock:
+            self.version_walks += 1
+            self._versions[key] = score
+            while len(self._versions) > self.maxsize:
+                self._versions.popitem(last=False)
+        return score
 
 
 def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, mass_kg: float,
@@ -84,10 +108,11 @@ def preview_table(table: ImpedanceTable, speed_mps: float, incline_deg: float, m
     validate_task(speed_mps, incline_deg, mass_kg)
     geometry = geometry or LegGeometry()
     ref = task_reference(speed_mps, incline_deg, model, mass_kg)
-    scores = {"table": score_walk(run_walk(make_controller("table", mass_kg, table=table), ref, mass_kg, seconds,
-                                           geometry), ref),
-              "fsmic": (benchmark or BenchmarkWalks(maxsize=1)).at_task(speed_mps, incline_deg, mass_kg, seconds,
-                                                                        geometry, model)}
+    benchmark = benchmark or BenchmarkWalks(maxsize=1)
+    key = ("table", content_sha256(table), speed_mps, incline_deg, mass_kg, seconds, geometry, model)
+    scores = {"table": benchmark.version(key, lambda: score_walk(run_walk(
+                  make_controller("table", mass_kg, table=table), ref, mass_kg, seconds, geometry), ref)),
+              "fsmic": benchmark.at_task(speed_mps, incline_deg, mass_kg, seconds, geometry, model)}
     controllers: dict[str, object] = {name: {**score.summary, "mean_curves": rounded(score.mean_curves)}
                                       for name, score in scores.items()}
     controllers["table"]["vs_fsmic"] = against_fsmic(scores["table"], scores["fsmic"])
@@ -107,8 +132,11 @@ def preview_envelope(envelope: Envelope, model: QuasiStiffnessModel, course: Cou
     flags; ``node_walks``: what those walks are."""
     geometry = geometry or LegGeometry()
     walked_nodes = (nodes or NodeWalks()).walk(envelope, model, geometry)
-    fsmic = (benchmark or BenchmarkWalks(maxsize=1)).score(course, envelope.mass_kg, geometry, model)
-    scores = {"envelope": walk_course("adaptive", course, model, envelope.mass_kg, envelope, geometry=geometry),
+    benchmark = benchmark or BenchmarkWalks(maxsize=1)
+    fsmic = benchmark.score(course, envelope.mass_kg, geometry, model)
+    key = ("envelope", content_sha256(envelope), course, envelope.mass_kg, geometry, model)
+    scores = {"envelope": benchmark.version(key, lambda: walk_course("adaptive", course, model, envelope.mass_kg,
+                                                                     envelope, geometry=geometry)),
               "fsmic": fsmic}
     return {"course": course.to_json(), "mass_kg": envelope.mass_kg, "leg": geometry.name,
             "controllers": {name: s.to_dict() for name, s in scores.items()},

@@ -76,3 +76,24 @@ def test_the_benchmark_walks_a_course_once_per_body_mass_and_every_envelope_prev
     heavier = model.propose_envelope([0.9, 1.5], [-4.0, 4.0], 90.0)
     preview_module.preview_envelope(heavier, model, course, benchmark=benchmark, nodes=nodes)
     assert walked[-2:] == [("fsmic", 90.0), ("adaptive", 90.0)]
+
+
+def test_a_version_walked_before_is_not_walked_again_and_its_kept_walk_is_the_walk(model, monkeypatch):
+    """The same content at the same task, body mass, leg and model (an edit undone, the same version asked for again)
+    reuses its walk; another content or body mass walks its own, and a kept walk equals one walked afresh."""
+    walks: list[float] = []
+    real_walk = preview_module.run_walk
+    monkeypatch.setattr(preview_module, "run_walk", lambda *a, **k: walks.append(a[2]) or real_walk(*a, **k))
+    benchmark = BenchmarkWalks()
+    proposed = model.propose(1.2, 0.0, 75.0).table
+    firmer = model.propose(1.2, 0.0, 90.0).table
+    a = preview_table(proposed, 1.2, 0.0, 75.0, model, seconds=5.0, benchmark=benchmark)
+    b = preview_table(proposed.model_copy(deep=True), 1.2, 0.0, 75.0, model, seconds=5.0, benchmark=benchmark)
+    assert a == b and benchmark.version_walks == 1 and len(walks) == 2          # the table once, the FSMIC once
+    preview_table(firmer, 1.2, 0.0, 75.0, model, seconds=5.0, benchmark=benchmark)
+    preview_table(proposed, 1.2, 0.0, 90.0, model, seconds=5.0, benchmark=benchmark)
+    assert benchmark.version_walks == 3
+    fresh = preview_table(proposed, 1.2, 0.0, 75.0, model, seconds=5.0)["controllers"]["table"]
+    kept = dict(a["controllers"]["table"])
+    assert kept.pop("real_time_factor") > 0 and fresh.pop("real_time_factor") > 0
+    assert fresh == kept

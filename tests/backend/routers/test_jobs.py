@@ -19,6 +19,9 @@ def _walking(api, path: str, deadline_s: float = 60.0) -> dict:
 
 
 def test_a_preview_walks_as_a_job_its_owner_watches_and_cancels(api):
+    from backend.bench.preview import BenchmarkWalks
+
+    api.client.app.state.benchmark_walks = BenchmarkWalks()   # none of this process's kept walks: this one walks
     prop = api.propose(api.new_patient()["id"], speed=1.2)
     path = f"/api/proposals/{prop['id']}"
     answer: dict = {}
