@@ -36,7 +36,10 @@ fi
 # one BLAS/OpenMP thread per process: test processes on a 2-core machine each spinning two math threads ran the
 # model's fits several times slower than one process alone (the server does the same: backend/serve.py)
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
-pytest=(.venv/bin/python -m pytest -q)
+# the plugins the suite uses, named: pytest rewrites the asserts of every module of an auto-loaded plugin's package,
+# and anyio's and hypothesis's (whole libraries the suite imports anyway) cost each test process 2 s of that
+pytest=(.venv/bin/python -m pytest -q --disable-plugin-autoload -p xdist.plugin -p pytest_timeout
+        -p _hypothesis_pytestplugin)
 if [ "$fast" -eq 1 ]; then     # CPU-bound tests: one process per core, each taking the next test as it frees up
   exec "${pytest[@]}" -n 2 --dist worksteal -m "not browser and not postgres and not broker and not wallclock" "$@"
 fi
