@@ -90,9 +90,10 @@ _BENCH_WALKS: list[tuple[object, object]] = []
 
 
 def share_bench_walks(app) -> None:
-    """Give ``app`` this test process's kept bench walks (the FSMIC's course walks, the envelopes' node walks). A walk
-    is deterministic by its content, and a server keeps them for its life; the test process is that life for its
-    in-process apps, so the SQLite and PostgreSQL runs of a test walk one envelope once."""
+    """Give ``app`` this test process's kept bench walks (the FSMIC's, the versions' own, the envelopes' node walks). A
+    walk is deterministic by its content, and a server keeps them for its life; the test process is that life for its
+    in-process apps, so the SQLite and PostgreSQL runs of a test walk one version once. A test that must see a walk
+    happen gives its app a fresh ``BenchmarkWalks`` (``tests/backend/routers/test_jobs.py``)."""
     if not _BENCH_WALKS:
         _BENCH_WALKS.append((app.state.benchmark_walks, app.state.node_walks))
     app.state.benchmark_walks, app.state.node_walks = _BENCH_WALKS[0]
