@@ -4,13 +4,11 @@ What the refinement's bench check and search, and the settled evaluation, measur
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from controller_core.gait_metrics import channel_strides, episodes, gait_channels
 from controller_core.model import QuasiStiffnessModel
-from controller_core.refine_evidence import QUANTITIES, model_targets, t_quantile_975
+from controller_core.refine_evidence import QUANTITIES, judge, model_targets
 from controller_core.session_summary import session_strikes
 from controller_core.stride_features import measure_strides
 from controller_core.units import G_MPS2
@@ -36,17 +34,20 @@ def walk_errors(controller: StepController, speed_mps: float, incline_deg: float
     tasks = [(speed_mps, incline_deg)] * max(int(strikes.size) - 1, 0)
     strides, _ = measure_strides(channel_strides(measured, strikes), tasks) if tasks else ([], {})
     targets = model_targets(model)
-    errors: dict[str, float | None] = {}
-    spread: dict[str, float | None] = {}
-    ci95: dict[str, list[float] | None] = {}
-    for q in QUANTITIES:
-        errs = np.array([q.display(*s.features[q.feature]) - q.display(t.phase, t.value) for s in strides
-                         if q.feature in s.features for t in (targets(s.speed_mps, s.incline_deg)[q.feature],)])
-        errors[q.key] = round(float(np.mean(errs)), 3) if errs.size else None
-        spread[q.key] = round(float(np.std(errs, ddof=1)), 3) if errs.size >= 2 else None
-        half = t_quantile_975(errs.size - 1) * float(np.std(errs, ddof=1)) / math.sqrt(errs.size) \
-            if errs.size >= 2 else None
-        ci95[q.key] = None if half is None else [round(float(errs.mean()) - half, 3), round(float(errs.mean()) + half, 3)]
+    judged = {}
+    for q in QUANTITIES:     # every stride at the walk's one task: equal weights in the refinement's own statistics
+        pairs = [(q.display(*s.features[q.feature]), q.display(t.phase, t.value)) for s in strides
+                 if q.feature in s.features for t in (targets(s.speed_mps, s.incline_deg)[q.feature],)]
+        values = np.array([v for v, _ in pairs], dtype=float)
+        aims = np.array([a for _, a in pairs], dtype=float)
+        judged[q.key] = judge(q.key, values, aims, np.ones(len(pairs)))
+
+    def r(x: float | None) -> float | None:
+        return None if x is None else round(float(x), 3)
+
+    errors = {k: r(e.error) for k, e in judged.items()}
+    spread = {k: r(e.spread) for k, e in judged.items()}
+    ci95 = {k: None if e.ci95 is None else [r(e.ci95[0]), r(e.ci95[1])] for k, e in judged.items()}
     return {"strides": len(strides), "falls": int(episodes(fall_mask(c, mass_kg * G_MPS2) & (c["time_s"] >= 2.0),
                                                              round(0.2 / log.timestep_s))),
             "error": errors, "ci95": ci95, "spread": spread, "seconds": seconds}
