@@ -212,8 +212,9 @@ def report_figure(session: dict, patient: dict) -> Figure:
         # angles: their error is the headline's, given once above; a course's strides are at several tasks, so no
         # single reference's RMSE is printed over them
         name = _LABELS[ch].split(" (")[0]
-        ax.set_title(name if _UNITS[ch] == "deg" or session.get("course") else
-                     f"{name}: RMSE of the mean stride {_fmt(s.get(rmse_key(ch)), _UNITS[ch], 3)}", fontsize=9)
+        title = name if _UNITS[ch] == "deg" or session.get("course") else \
+            f"{name}: RMSE of the mean stride {_fmt(s.get(rmse_key(ch)), _UNITS[ch], 3)}"
+        ax.set_title(textwrap.fill(title, 48), fontsize=9)     # two lines, not over the next chart, when it is long
         ax.tick_params(labelsize=7)
         ax.legend(fontsize=6, loc="best")
     fig.text(0.06, 0.02, f"Generated {datetime.now().astimezone().strftime('%Y-%m-%d %H:%M %Z')} · strides between heel "

@@ -75,3 +75,17 @@ def test_a_course_is_drawn_without_one_tasks_reference_and_a_fixed_task_with_it(
     assert [n for _, n in fixed] == [2, 2, 2, 2] and [n for _, n in course] == [1, 1, 1, 1]
     assert all("RMSE" not in title for title, _ in course)
     assert [("RMSE" in title) for title, _ in fixed] == [False, False, True, True]   # the angles' is the headline's
+
+
+def test_a_long_chart_title_wraps_instead_of_running_over_the_next_chart():
+    """A moment chart without its RMSE says why in its title; the words go on a second line, within the chart's width."""
+    from backend.report import report_figure
+
+    grid = [i / 10 for i in range(11)]
+    curves = {c: [float(i) for i in range(11)] for c in ("knee_angle_deg", "ankle_angle_deg", "knee_moment_Nm_per_kg",
+                                                          "ankle_moment_Nm_per_kg")}
+    summary = {**SESSION["summary"], "phase_grid": grid, "reference_curves": curves, "mean_curves": curves}
+    titles = [ax.get_title() for ax in report_figure({**SESSION, "summary": summary}, PATIENT).axes if ax.get_title()]
+    moments = [t for t in titles if "moment" in t]
+    assert len(moments) == 2 and all("fewer than two scored strides" in " ".join(t.split()) for t in moments)
+    assert all(len(line) <= 48 for t in titles for line in t.splitlines())
