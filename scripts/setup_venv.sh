@@ -28,5 +28,6 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   touch "$stamp"
 fi
 # the project's own modules compiled once, here: every test process, server and CLI imports them, and where
-# PYTHONDONTWRITEBYTECODE is set Python would compile them again in each (a second here; unchanged files are skipped)
-.venv/bin/python -m compileall -q -j 0 backend controller_core device_bridge lab benchmarks > /dev/null
+# PYTHONDONTWRITEBYTECODE is set Python would compile them again in each (a second here; unchanged files are skipped);
+# the Alembic revisions too: every app start reads them all (an in-process test app 88 ms instead of 134)
+.venv/bin/python -m compileall -q -j 0 backend controller_core device_bridge lab benchmarks migrations > /dev/null
