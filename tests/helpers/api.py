@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import time
 from collections.abc import Callable
@@ -32,6 +33,12 @@ class Api:
     clock: SteppedClock | None = None      # the device stack's, when the app runs its simulated leg stepped
 
     def as_(self, role: str) -> dict[str, str]:
+        """The bearer header of ``role``'s user, signed in through the API the first time a test asks (most tests act
+        as one or two of the five: signing all in up front was a third of an app's set-up)."""
+        if role not in self.headers:
+            r = self.client.post("/api/auth/token", data={"username": role, "password": PASSWORD})
+            assert r.status_code == 200, r.text
+            self.headers[role] = {"Authorization": f"Bearer {r.json()['access_token']}"}
         return self.headers[role]
 
     def db(self):
@@ -61,29 +68,44 @@ class Api:
 def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]:
     """App on ``data_dir`` (or on ``database_url``, a migrated PostgreSQL database, when the settings name one) loading
     its model with ``model_loader``, with users prosthetist/viewer/admin and a second prosthetist :data:`SECOND`
-    (password :data:`PASSWORD`), signed in.
+    (password :data:`PASSWORD`), each signed in when a test first acts as them (:meth:`Api.as_`).
     ``template``: an SQLite file already at the newest revision, copied in first; ``clock``: the device stack's (a
     :class:`~device_bridge.clock.SteppedClock` runs the simulated leg in simulated time, moved by :func:`wait_for`)."""
     template = settings.pop("template", None)      # a migrated SQLite file to start from (migrating is slow)
     clock = settings.pop("clock", None)
     data_dir.mkdir(parents=True, exist_ok=True)
-    if template is not None and "database_url" not in settings and not (data_dir / "quasitune.sqlite").exists():
-        shutil.copyfile(template, data_dir / "quasitune.sqlite")
+    database = settings.get("database_url") or data_dir / "quasitune.sqlite"
+    copied = template is not None and "database_url" not in settings and not (data_dir / "quasitune.sqlite").exists()
+    if copied:
+        shutil.copyfile(template_with_users(Path(template)), database)
     app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader,
                      **({} if clock is None else {"clock": clock}))
-    database = settings.get("database_url") or data_dir / "quasitune.sqlite"
-    users = {role: role for role in ROLES} | {SECOND: "prosthetist"}
-    with connect(database) as conn:
-        for name, role in users.items():
-            create_user(conn, name, role, PASSWORD)
+    if not copied:
+        add_users(database)
     share_bench_walks(app)
     client = TestClient(app)
-    api = Api(client=client, data_dir=data_dir, database=database, clock=clock)
-    for role in users:
-        r = client.post("/api/auth/token", data={"username": role, "password": PASSWORD})
-        assert r.status_code == 200, r.text
-        api.headers[role] = {"Authorization": f"Bearer {r.json()['access_token']}"}
-    return api, client
+    return Api(client=client, data_dir=data_dir, database=database, clock=clock), client
+
+
+def add_users(database: str | Path) -> None:
+    """The users of :func:`make_api`: one per role (named after it) and :data:`SECOND`, password :data:`PASSWORD`."""
+    with connect(database) as conn:
+        for name, role in ({role: role for role in ROLES} | {SECOND: "prosthetist"}).items():
+            create_user(conn, name, role, PASSWORD)
+
+
+_WITH_USERS: dict[Path, Path] = {}
+
+
+def template_with_users(template: Path) -> Path:
+    """A copy of the migrated SQLite ``template`` with :func:`add_users`'s users in it, made once per test process
+    (checking five passwords' strength and storing them was a fifth of an in-process app's set-up)."""
+    if template not in _WITH_USERS:
+        with_users = template.with_name(f"users-{os.getpid()}-{template.name}")
+        shutil.copyfile(template, with_users)
+        add_users(with_users)
+        _WITH_USERS[template] = with_users
+    return _WITH_USERS[template]
 
 
 _BENCH_WALKS: list[tuple[object, object]] = []

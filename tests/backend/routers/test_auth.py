@@ -29,7 +29,7 @@ def test_wrong_password_and_unknown_user_get_the_same_401(api):
 
 
 def test_repeated_failed_sign_ins_are_throttled_and_write_a_bounded_audit(api):
-    c = api.client
+    c, admin = api.client, api.as_("admin")       # the admin signed in before the address is throttled
     codes = [c.post("/api/auth/token", data={"username": "viewer", "password": f"guess-{i}"}).status_code
              for i in range(12)]
     assert codes[:5] == [401] * 5 and set(codes[5:]) == {429}
@@ -39,7 +39,7 @@ def test_repeated_failed_sign_ins_are_throttled_and_write_a_bounded_audit(api):
     for i in range(30):                           # many names from one address: the address is throttled too
         c.post("/api/auth/token", data={"username": f"spray{i}", "password": "whatever-1"})
     assert c.post("/api/auth/token", data={"username": "prosthetist", "password": PASSWORD}).status_code == 429
-    failed = [e for e in c.get("/api/audit?limit=500", headers=api.as_("admin")).json()["items"]
+    failed = [e for e in c.get("/api/audit?limit=500", headers=admin).json()["items"]
               if e["action"] == "auth.login_failed"]
     assert len(failed) == 20                      # 5 for viewer, then the address's 20 in all: bounded
     assert failed[0]["after"]["address"] == "testclient"
@@ -64,11 +64,12 @@ def test_a_password_is_kept_exactly_as_typed(api):
 
 
 def test_expired_token_is_refused(api):
+    viewer = api.as_("viewer")                    # signed in before the tokens expire
     conn = api.db()
     with write_transaction(conn):
         sql(conn, "UPDATE tokens SET expires_at_unix = 0")
     conn.close()
-    r = api.client.get("/api/patients", headers=api.as_("viewer"))
+    r = api.client.get("/api/patients", headers=viewer)
     assert r.status_code == 401 and "expired" in r.json()["detail"]
     assert r.headers["www-authenticate"] == "Bearer"
 
@@ -118,13 +119,13 @@ def test_sign_out_revokes_the_token(api):
 
 
 def test_a_disabled_account_loses_its_tokens_and_cannot_sign_in(api):
-    c, admin = api.client, api.as_("admin")
+    c, admin, viewer = api.client, api.as_("admin"), api.as_("viewer")     # the viewer holds a token when disabled
     users = {u["username"]: u for u in c.get("/api/users", headers=admin).json()}
     assert c.patch(f"/api/users/{users['viewer']['id']}", headers=api.as_("prosthetist"),
                    json={"disabled": True}).status_code == 403
     r = c.patch(f"/api/users/{users['viewer']['id']}", headers=admin, json={"disabled": True})
     assert r.status_code == 200 and r.json()["disabled"] is True
-    assert c.get("/api/patients", headers=api.as_("viewer")).status_code == 401
+    assert c.get("/api/patients", headers=viewer).status_code == 401
     assert c.post("/api/auth/token", data={"username": "viewer", "password": PASSWORD}).status_code == 401
     r = c.patch(f"/api/users/{users['admin']['id']}", headers=admin, json={"disabled": True})
     assert r.status_code == 409 and "another admin" in r.json()["detail"]
@@ -172,13 +173,13 @@ def test_a_one_time_password_must_be_changed_before_anything_else_works(api):
 
 
 def test_an_admin_reset_ends_the_sessions_and_forces_a_change(api):
-    c, admin = api.client, api.as_("admin")
+    c, admin, viewer = api.client, api.as_("admin"), api.as_("viewer")     # the viewer holds a token when reset
     viewer_id = {u["username"]: u["id"] for u in c.get("/api/users", headers=admin).json()}["viewer"]
     assert c.put(f"/api/users/{viewer_id}/password", headers=api.as_("prosthetist"),
                  json={"password": "reset-by-admin"}).status_code == 403
     r = c.put(f"/api/users/{viewer_id}/password", headers=admin, json={"password": "reset-by-admin"})
     assert r.status_code == 200 and r.json()["must_change_password"] and r.json()["password_changed_at"]
-    assert c.get("/api/patients", headers=api.as_("viewer")).status_code == 401
+    assert c.get("/api/patients", headers=viewer).status_code == 401
     h = _sign_in(api, "viewer", "reset-by-admin")
     assert c.get("/api/patients", headers=h).status_code == 403
 
