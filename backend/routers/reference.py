@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from typing import Annotated
 
 from fastapi import APIRouter, Query
@@ -13,7 +12,7 @@ from backend.schemas.envelopes import MAX_NODES
 from backend.schemas.errors import UNAUTHORIZED
 from backend.schemas.reference import ReferenceOut, TaskRangeOut
 from controller_core.known_range import known_range
-from controller_core.phase_table import load_shipped_ramps
+from controller_core.model import QuasiStiffnessModel
 from controller_core.reference import CITATIONS
 from controller_core.task import INCLINE_LIMIT_DEG, MASS_RANGE_KG, SPEED_RANGE_MPS
 from controller_core.walking_reference import sloped_walking_reference
@@ -51,12 +50,13 @@ def _at_task(speed_mps: float, incline_deg: float) -> dict | None:
             "ankle_moment_Nm_per_kg": _plain(ref.ankle_moment_Nm_per_kg)}
 
 
-@lru_cache(maxsize=1)
-def _ramp_conditions() -> list[dict]:
-    """The shipped ramp curves' conditions (read once: the file is part of the release)."""
+def _ramp_conditions(model: QuasiStiffnessModel) -> list[dict]:
+    """The conditions of the ramp curves the model learned the slope's change from (none for a model fitted without
+    them): the model's own record, not a file read again."""
+    ramps = model.ramps_.records if model.ramps_ is not None else []
     return [{"name": rec.name, "dataset": rec.dataset, "citation": CITATIONS.get("vielemeyer2025", rec.dataset),
              "speed_mps": round(float(rec.task["speed_mps"]), 3), "incline_deg": float(rec.task["incline_deg"]),
-             "strides": rec.n} for rec in load_shipped_ramps().records]
+             "strides": rec.n} for rec in ramps]
 
 
 @router.get("/reference", response_model=ReferenceOut)
@@ -76,7 +76,7 @@ def get_reference(_user: CurrentUser, model: Model,
             "ankle_angle_deg": _deg(rec.mean["ankle_angle"]),
             "ankle_moment_Nm_per_kg": _plain(rec.mean["ankle_moment"])})
     return {"model_version": model.model_version, "data_sha256": model.data_sha256_, "conditions": conditions,
-            "ramp_conditions": _ramp_conditions(),
+            "ramp_conditions": _ramp_conditions(model),
             "at_task": None if speed_mps is None else _at_task(speed_mps, incline_deg)}
 
 

@@ -18,6 +18,13 @@ def test_reference_lists_the_measured_conditions_with_citations(api, reference):
     assert api.client.get("/api/reference").status_code == 401
 
 
+def test_the_ramp_conditions_are_the_ones_the_model_learned_the_slope_from(api, model):
+    ramps = api.client.get("/api/reference", headers=api.as_("viewer")).json()["ramp_conditions"]
+    assert [(c["name"], c["incline_deg"], c["strides"]) for c in ramps] == [
+        (rec.name, float(rec.task["incline_deg"]), rec.n) for rec in model.ramps_.records]
+    assert {c["incline_deg"] for c in ramps} >= {-10.0, 0.0, 10.0} and all("Vielemeyer" in c["citation"] for c in ramps)
+
+
 def test_the_reference_at_a_task_says_what_it_really_is(api):
     def at(speed: float, incline: float):
         r = api.client.get("/api/reference", headers=api.as_("viewer"),
