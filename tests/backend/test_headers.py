@@ -6,11 +6,16 @@ from backend.headers import CSP, HEADERS
 
 
 def test_every_response_carries_the_security_headers(api):
-    for path in ("/api/health", "/", "/openapi.json"):
-        r = api.client.get(path)
-        assert r.headers["Content-Security-Policy"] == CSP, path
+    viewer = api.as_("viewer")
+    answers = {path: api.client.get(path) for path in ("/api/health", "/", "/openapi.json", "/api/no-such-thing",
+                                                        "/api/patients")}
+    answers["422"] = api.client.get("/api/reference", params={"speed_mps": "fast"}, headers=viewer)
+    assert [r.status_code for r in answers.values()] == [200, 200, 200, 404, 401, 422]
+    for what, r in answers.items():
+        assert r.headers["Content-Security-Policy"] == CSP, what
         for name, value in HEADERS.items():
-            assert r.headers[name] == value
+            assert r.headers[name] == value, (what, name)
+        assert len(r.headers.get_list("X-Frame-Options")) == 1, what      # set once, never doubled
 
 
 def test_an_anonymous_write_is_refused_without_reading_its_body(api):
