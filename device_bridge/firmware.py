@@ -91,6 +91,8 @@ class FirmwareConfig:
         actuator: torque and range limits.
         thigh_length_m, shank_length_m: the patient's hip-to-knee and the leg's knee-to-ankle lengths (m), for the
             task estimator (defaults: a 1.75 m patient by Winter's proportions, the simulated bench's).
+        forefoot_m: the foot's forefoot rocker ahead of the ankle (m), for the task estimator's heel-up rule (default
+            the simulated bench's foot; None on a leg whose load cell gives no sagittal moment).
         max_speed_step_mps, max_incline_step_deg: the adaptive controller's per-stride rate limit.
     """
 
@@ -106,6 +108,7 @@ class FirmwareConfig:
     actuator: ActuatorLimits = field(default_factory=ActuatorLimits)
     thigh_length_m: float = 0.42875
     shank_length_m: float = 0.4305
+    forefoot_m: float | None = 0.1295
     max_speed_step_mps: float = 0.15
     max_incline_step_deg: float = 3.0
 
@@ -436,8 +439,9 @@ class DeviceFirmware:
         cfg = self.config
         if held.blender is None or held.envelope is None:
             return StateMachineController(held.schedule, cfg.actuator)
-        return AdaptiveController(held.blender, TaskEstimator(cfg.thigh_length_m, cfg.shank_length_m),
-                                  held.envelope.nominal, cfg.actuator, cfg.max_speed_step_mps, cfg.max_incline_step_deg)
+        estimator = TaskEstimator(cfg.thigh_length_m, cfg.shank_length_m, forefoot_m=cfg.forefoot_m)
+        return AdaptiveController(held.blender, estimator, held.envelope.nominal, cfg.actuator, cfg.max_speed_step_mps,
+                                  cfg.max_incline_step_deg)
 
     def _run(self) -> None:
         """Start (or restart) the state machine on the active table or envelope."""

@@ -73,5 +73,5 @@ def make_controller(name: str, mass_kg: float, model: QuasiStiffnessModel | None
     env = envelope or default_envelope(model, mass_kg, geometry)
     geometry = geometry or LegGeometry()
     return AdaptiveController(EnvelopeBlender(env.speeds_mps, env.inclines_deg, env.tables(), steps=env.neighbour_steps),
-                              TaskEstimator(geometry.thigh_m, geometry.shank_m),
+                              TaskEstimator(geometry.thigh_m, geometry.shank_m, forefoot_m=geometry.toe_forward_m),
                               (env.nominal_speed_mps, env.nominal_incline_deg))

@@ -24,10 +24,12 @@ def _leg_angles(ax: np.ndarray, az: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def scripted_walk(speed_mps: float, incline_deg: float, strides: int = 5, dt: float = 0.001, slide_mps: float = 0.0,
-                  thigh_nan: bool = False, stance_s: float = 0.35) -> list[tuple[SensorSample, bool]]:
+                  thigh_nan: bool = False, stance_s: float = 0.35, moment_Nm: float = -50.0
+                  ) -> list[tuple[SensorSample, bool]]:
     """Synthetic strides (a test of the geometry, not gait data): in stance the foot lies flat on a slope of
     ``incline_deg`` and the hip passes over it at ``speed_mps`` along the slope (the foot sliding back at
-    ``slide_mps``); in swing (0.4 s) the foot pitches quickly, as a swinging foot does."""
+    ``slide_mps``), 700 N on it with an ankle moment of ``moment_Nm`` (the centre of pressure −moment / 700 N ahead
+    of the ankle); in swing (0.4 s) the foot pitches quickly, as a swinging foot does."""
     g = math.radians(incline_deg)
     out: list[tuple[SensorSample, bool]] = []
     t0 = 0.0
@@ -41,7 +43,7 @@ def scripted_walk(speed_mps: float, incline_deg: float, strides: int = 5, dt: fl
         ankle = g - (thigh - knee)                       # the foot flat on the slope
         vt, vk, va = (np.gradient(a, dt) for a in (thigh, knee, ankle))
         for k in range(t.size):
-            out.append((SensorSample(t0 + t[k], knee[k], vk[k], ankle[k], va[k], 700.0, -50.0,
+            out.append((SensorSample(t0 + t[k], knee[k], vk[k], ankle[k], va[k], 700.0, moment_Nm,
                                      math.nan if thigh_nan else thigh[k], vt[k]), True))
         t0 += stance_s
         for k in range(400):                              # swing: the foot pitches at 3 rad/s
@@ -140,3 +142,17 @@ def test_strides_walked_on_the_bench_are_estimated_within_the_target(model, spee
     # confident on most strides: downhill the body's weight makes some flat-foot windows short or the hip's progress
     # over the foot uneven, and the estimator says so rather than claim what it did not see
     assert sum(e.speed_confident and e.incline_confident for e in settled) >= len(settled) / 2
+
+
+def test_a_still_foot_on_its_toe_is_not_read_as_the_slope():
+    """Synthetic strides: the same still foot, its centre of pressure at the forefoot throughout (the heel up), gives
+    no reading when the forefoot's distance is known, and is read as foot-flat without it (the earlier behaviour)."""
+    on_toe = scripted_walk(1.2, -3.0, moment_Nm=-0.125 * 700.0)            # 0.125 m ahead: past 0.8 × 0.13 m
+    knowing = run(TaskEstimator(THIGH_M, SHANK_M, forefoot_m=0.13), on_toe)
+    assert knowing and all(not e.stride.valid and not e.incline_confident for e in knowing)
+    blind = run(TaskEstimator(THIGH_M, SHANK_M), on_toe)
+    assert blind[-1].incline_deg == pytest.approx(-3.0, abs=0.1) and blind[-1].incline_confident
+    flat = run(TaskEstimator(THIGH_M, SHANK_M, forefoot_m=0.13), scripted_walk(1.2, -3.0))    # 0.07 m: heel down
+    assert flat[-1].incline_deg == pytest.approx(-3.0, abs=0.1) and flat[-1].incline_confident
+    with pytest.raises(ValueError, match="heel_off_fraction"):
+        TaskEstimator(THIGH_M, SHANK_M, forefoot_m=0.13, heel_off_fraction=1.5)
