@@ -23,6 +23,7 @@ from starlette.routing import Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from backend.db import pooled
+from backend.http_middleware import HttpMiddleware
 from backend.store.users import User, user_for_token
 
 # every body of QuasiTune's API is a few kB of JSON: at most 40 cell edits, texts of at most 4000 characters
@@ -87,7 +88,7 @@ def _bearer(scope: Scope) -> str | None:
     return token.strip() or None if scheme.lower() == "bearer" else None
 
 
-class GateBodies:
+class GateBodies(HttpMiddleware):
     """Bodies within their route's bound, from a user whose role may call the route (see the module).
 
     Args:
@@ -99,7 +100,8 @@ class GateBodies:
 
     def __init__(self, app: ASGIApp, rules: list[BodyRule], db: Callable[[], Engine],
                  default_bytes: int = BODY_BYTES) -> None:
-        self.app, self.rules, self.db, self.default_bytes = app, rules, db, default_bytes
+        super().__init__(app)
+        self.rules, self.db, self.default_bytes = rules, db, default_bytes
 
     def _rule(self, scope: Scope) -> BodyRule | None:
         for rule in self.rules:
@@ -129,8 +131,8 @@ class GateBodies:
                                 f"{user.role}")
         return None
 
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http" or scope["method"] not in _WRITES:
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["method"] not in _WRITES:
             await self.app(scope, receive, send)
             return
         rule = self._rule(scope)

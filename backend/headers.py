@@ -1,6 +1,7 @@
 """Security headers on every response, and the API docs served from this server (npm's swagger-ui-dist).
 
-A header table applied by a small ASGI middleware of our own: no package adds these four headers more simply.
+A header table applied by a small ASGI middleware of our own (``backend.http_middleware``): no package adds these
+four headers more simply.
 The dashboard loads only its own files; the one frame it embeds is the 3D view on a loopback port.
 """
 
@@ -14,7 +15,9 @@ from fastapi import FastAPI
 from fastapi.openapi.docs import get_swagger_ui_html
 from fastapi.responses import HTMLResponse, JSONResponse
 from starlette.datastructures import MutableHeaders
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from starlette.types import Message, Receive, Scope, Send
+
+from backend.http_middleware import HttpMiddleware
 
 CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:; "
        "connect-src 'self'; frame-src http://127.0.0.1:*; frame-ancestors 'none'; base-uri 'none'; "
@@ -22,19 +25,12 @@ CSP = ("default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' 
 HEADERS = {"X-Frame-Options": "DENY", "X-Content-Type-Options": "nosniff", "Referrer-Policy": "no-referrer"}
 
 
-class SecurityHeaders:
+class SecurityHeaders(HttpMiddleware):
     """Every HTTP response gets the CSP (unless its route set its own) and the three fixed headers, written into the
-    response's start message. A plain ASGI middleware, as Starlette's documentation advises where speed matters:
-    FastAPI's ``@app.middleware("http")`` hook ran every request through a task group and re-streamed its body."""
+    response's start message (FastAPI's ``@app.middleware("http")`` hook ran every request through a task group and
+    re-streamed its body)."""
 
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         async def send_with_headers(message: Message) -> None:
             if message["type"] == "http.response.start":
                 headers = MutableHeaders(scope=message)
@@ -56,16 +52,13 @@ def add_security_headers(app: FastAPI) -> None:
 _OPEN_WRITES = ("/api/auth/token",)
 
 
-class RefuseAnonymousWrites:
+class RefuseAnonymousWrites(HttpMiddleware):
     """A write under /api without any credentials is answered 401 before its body is read or validated, so an
-    anonymous client learns nothing of the schema (a malformed body would otherwise answer 422 first). A plain ASGI
-    middleware: it looks at the method, path and headers only, at no cost to every other request."""
+    anonymous client learns nothing of the schema (a malformed body would otherwise answer 422 first). It looks at
+    the method, path and headers only, at no cost to every other request."""
 
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] == "http" and scope["method"] in ("POST", "PUT", "PATCH", "DELETE") and \
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["method"] in ("POST", "PUT", "PATCH", "DELETE") and \
                 scope["path"].startswith("/api/") and scope["path"] not in _OPEN_WRITES and \
                 not any(name == b"authorization" for name, _ in scope["headers"]):
             response = JSONResponse({"detail": "not signed in"}, status_code=401, headers={

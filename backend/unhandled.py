@@ -8,21 +8,17 @@ import logging
 import uuid
 
 from starlette.responses import JSONResponse
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
+from starlette.types import Message, Receive, Scope, Send
+
+from backend.http_middleware import HttpMiddleware
 
 log = logging.getLogger(__name__)
 
 
-class AnswerFaults:
+class AnswerFaults(HttpMiddleware):
     """See the module. A fault after the response began cannot be answered; it is logged and the connection ends."""
 
-    def __init__(self, app: ASGIApp) -> None:
-        self.app = app
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
+    async def http(self, scope: Scope, receive: Receive, send: Send) -> None:
         started = False
 
         async def tracked(message: Message) -> None:
