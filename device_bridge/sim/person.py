@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 from controller_core.units import G_MPS2, require_positive
 
@@ -74,10 +75,16 @@ class Person:
     def weight_N(self) -> float:
         return self.mass_kg * G_MPS2
 
-    @property
+    @cached_property
     def hip_limit_Nm(self) -> float:
         """The hip's strength with the foot down (N·m)."""
         return self.hip_strength_Nm_per_kg * self.mass_kg
+
+    @cached_property
+    def _stabiliser_gains(self) -> tuple[float, float]:
+        """The stabiliser's stiffness (N/m) and damping (N·s/m), worked out once: the bench asks every tick."""
+        k = self.stabiliser_bw_per_0_1m * self.weight_N / 0.1
+        return k, 2.0 * self.stabiliser_damping_ratio * math.sqrt(k * self.mass_kg)
 
     def hip_torque_Nm(self, angle_error_rad: float, rate_error_rad_s: float, foot_down: bool) -> float:
         """The hip's torque on the thigh (N·m, flexion +) for the error from the reference thigh angle and rate."""
@@ -91,8 +98,7 @@ class Person:
                        other_share_N: float) -> float:
         """Vertical push (N, up +) beyond the other leg's reference share, for the hip's error from its path
         (path − actual: positive when the hip is low) and its rate."""
-        k = self.stabiliser_bw_per_0_1m * self.weight_N / 0.1
-        c = 2.0 * self.stabiliser_damping_ratio * math.sqrt(k * self.mass_kg)
+        k, c = self._stabiliser_gains
         push = k * height_error_m + c * rate_error_m_s
         if other_foot_down:   # the other leg is a leg: it pushes harder when the hip is low, and never pulls
             leg = self.other_leg_stiffness_N_per_m * height_error_m + self.other_leg_damping_N_s_per_m * rate_error_m_s

@@ -85,6 +85,12 @@ class SimulatedLeg:
         self._traj: BenchTrajectory | None = None
         self._rows: list[tuple] = []    # the trajectory per tick as Python floats: the loop reads one row a tick
         self._force6 = np.zeros(6)   # scratch for mj_contactForce (called every tick in contact)
+        # MjData's arrays are views of its own buffers for its whole life (mj_resetData rewrites them in place):
+        # held once here, the loop does not make a new view of each every tick
+        d = self.data
+        self._qpos, self._qvel, self._ctrl, self._sensordata = d.qpos, d.qvel, d.ctrl, d.sensordata
+        self._q_hip, self._v_hip = self._q["hip"], self._v["hip"]
+        self._q_hip_x, self._q_hip_z = self._q["hip_x"], self._q["hip_z"]
 
     def reset(self, trajectory: BenchTrajectory, knee_rad: float, ankle_rad: float) -> SensorSample:
         """Place the socket at the trajectory's first sample and the joints at the given angles (rad)."""
@@ -120,7 +126,7 @@ class SimulatedLeg:
         (its reference share plus the person's compensation, :class:`device_bridge.sim.person.Person`)."""
         x, xd, z, zd, hip, hipd, other_down, other_N = self._rows[i]
         d, person = self.data, self.person
-        c, q, v = d.ctrl, d.qpos.tolist(), d.qvel.tolist()     # Python floats: the person's arithmetic per tick
+        c, q, v = self._ctrl, self._qpos.tolist(), self._qvel.tolist()   # Python floats: the person's arithmetic per tick
         a_x, a_xd, a_push, a_hip = self._a_bench
         q_z, v_z, q_hip, v_hip = self._qv_bench
         c[a_x], c[a_xd] = x, xd
@@ -150,17 +156,16 @@ class SimulatedLeg:
 
     def sample(self) -> SensorSample:
         """The sensors as the controller reads them now."""
-        d = self.data
-        sd = d.sensordata.tolist()
+        sd = self._sensordata.tolist()
         # the force/torque sensors give what the shank exerts on the load-cell subtree, in the site frame
         # (z up along the shank, y the joint axes): compression pushes it down (−z), and the moment about
         # +y is a plantarflexion moment in this model's axes (the ankle axis is −y), hence the signs
         return SensorSample(
-            time_s=d.time,
+            time_s=self.data.time,
             knee_angle_rad=sd[self._s_knee], knee_velocity_rad_s=sd[self._s_kneev],
             ankle_angle_rad=sd[self._s_ankle], ankle_velocity_rad_s=sd[self._s_anklev],
             load_N=-sd[self._s_force + 2], ankle_moment_Nm=-sd[self._s_torque + 1],
-            thigh_angle_rad=float(d.qpos[self._q["hip"]]), thigh_velocity_rad_s=float(d.qvel[self._v["hip"]]))
+            thigh_angle_rad=float(self._qpos[self._q_hip]), thigh_velocity_rad_s=float(self._qvel[self._v_hip]))
 
     def step(self, knee_torque_Nm: float, ankle_torque_Nm: float) -> SensorSample:
         """Apply the joint torques (N·m) for one timestep and return the next sensor sample."""
@@ -168,7 +173,7 @@ class SimulatedLeg:
             raise RuntimeError("reset() the leg with a bench trajectory before stepping it")
         self._tick += 1
         self._apply_bench(min(self._tick, len(self._rows) - 1))
-        c = self.data.ctrl
+        c = self._ctrl
         c[self._a_knee] = knee_torque_Nm
         c[self._a_ankle] = ankle_torque_Nm
         mujoco.mj_step(self.model, self.data)
@@ -186,5 +191,5 @@ class SimulatedLeg:
 
     def hip_position_m(self) -> tuple[float, float]:
         """The socket's (x, z) position in the world (m)."""
-        q = self.data.qpos
-        return float(q[self._q["hip_x"]]), float(q[self._q["hip_z"]])
+        q = self._qpos
+        return float(q[self._q_hip_x]), float(q[self._q_hip_z])
