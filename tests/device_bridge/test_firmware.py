@@ -480,3 +480,14 @@ def test_a_real_legs_word_on_itself_goes_with_every_status_and_the_simulated_leg
     _, _, out = fw.tick(None, 0.4)
     said = [LegState.from_raw(decode(m)[1]) for m in out if decode(m)[0] == "DEVICE_LEG"]
     assert said and all(s == LegState(True, False, True, "actuator_impedance", 87) for s in said)
+
+
+def test_the_estimators_leg_lengths_default_to_the_simulated_benchs():
+    """The firmware cannot import the bench (MuJoCo is not on a leg), so its defaults are numbers: they must be the
+    bench's leg, or the server's simulated leg would estimate its task with another leg's lengths and foot."""
+    from device_bridge.sim.leg_model import LegGeometry
+
+    bench, cfg = LegGeometry(), FirmwareConfig()
+    assert cfg.thigh_length_m == pytest.approx(bench.thigh_m)
+    assert cfg.shank_length_m == pytest.approx(bench.shank_m)
+    assert cfg.forefoot_m == pytest.approx(bench.toe_forward_m)

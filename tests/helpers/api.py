@@ -34,7 +34,7 @@ class Api:
 
     def as_(self, role: str) -> dict[str, str]:
         """The bearer header of ``role``'s user, signed in through the API the first time a test asks (most tests act
-        as one or two of the five: signing all in up front was a third of an app's set-up)."""
+        as one or two of the four: signing all in up front was a third of an app's set-up)."""
         if role not in self.headers:
             r = self.client.post("/api/auth/token", data={"username": role, "password": PASSWORD})
             assert r.status_code == 200, r.text
@@ -99,7 +99,7 @@ _WITH_USERS: dict[Path, Path] = {}
 
 def template_with_users(template: Path) -> Path:
     """A copy of the migrated SQLite ``template`` with :func:`add_users`'s users in it, made once per test process
-    (checking five passwords' strength and storing them was a fifth of an in-process app's set-up)."""
+    (checking four passwords' strength and storing them was a fifth of an in-process app's set-up)."""
     if template not in _WITH_USERS:
         with_users = template.with_name(f"users-{os.getpid()}-{template.name}")
         shutil.copyfile(template, with_users)
