@@ -1,4 +1,4 @@
-"""Dashboard benchmark (``python -m benchmarks ui``): Debian's Chromium (Playwright) against a real
+"""Dashboard benchmark (``python -m benchmarks ui``): Debian's full Chromium (Playwright) against a real
 ``quasitune serve`` with the simulated leg.
 
 Figures, not assertions (the browser tests assert behaviour):
@@ -46,7 +46,7 @@ def _measure(base: str, repeats: int, monitor_s: float) -> dict:
         c.put("/api/devices/sim-leg-1/assignment", headers=h, json={"patient_id": patient["id"]}).raise_for_status()
     view_ms, cold_ms = [], []
     with sync_playwright() as pw:
-        browser = pw.chromium.launch(executable_path=chromium_path(), args=CHROMIUM_ARGS)
+        browser = pw.chromium.launch(executable_path=chromium_path(full_browser=True), args=CHROMIUM_ARGS)
         page = browser.new_page(viewport={"width": 1366, "height": 900})
         sign_in(page, base, "bench")
         for i in range(repeats):

@@ -15,13 +15,14 @@ if [ "$fast" -eq 0 ] && [ "$#" -eq 0 ]; then
   leg_install=$!
 fi
 bash scripts/setup_frontend.sh
-# the browser tests drive Debian's Chromium (never 'playwright install'); docker-compose checks the compose file;
-# the store, router and concurrency tests also run on PostgreSQL: a throwaway server the tests start themselves from
-# Debian's binaries (tests/helpers/postgres.py), on loopback, in a temporary folder, as 'nobody' under root; the broker
-# link's tests start Mosquitto likewise (tests/helpers/mosquitto.py: TLS with a CA made by openssl for the run)
+# the browser tests drive Debian's Chromium, its headless shell (tests/helpers/browser.py; never 'playwright
+# install'); docker-compose checks the compose file; the store, router and concurrency tests also run on PostgreSQL: a
+# throwaway server the tests start themselves from Debian's binaries (tests/helpers/postgres.py), on loopback, in a
+# temporary folder, as 'nobody' under root; the broker link's tests start Mosquitto likewise (tests/helpers/
+# mosquitto.py: TLS with a CA made by openssl for the run)
 if [ "$fast" -eq 0 ]; then
-  bash scripts/ensure_debian.sh chromium chromium docker-compose docker-compose pg_ctlcluster postgresql \
-      mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
+  bash scripts/ensure_debian.sh chromium-headless-shell chromium-headless-shell docker-compose docker-compose \
+      pg_ctlcluster postgresql mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
 fi
 .venv/bin/ruff check .
 # one fit of the default model for every process of the run (the first to need it fits and caches it); --fast keeps

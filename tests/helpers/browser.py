@@ -14,15 +14,23 @@ from tests.helpers.server import PASSWORD
 # SwiftShader gives headless Chromium WebGL for the viser view; no sandbox: CI runs as root in a container
 CHROMIUM_ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader"]
 
+# The tests drive Debian's chromium-headless-shell: the same Chromium source and release as the `chromium` package
+# (Blink, V8, the same pages and scripts), without the desktop browser's window layer, and what Playwright itself
+# uses for headless runs; the whole browser test set took 75 CPU-s with it against 125 with the full browser (docs/
+# results.md). `benchmarks ui`, whose frame rates and view times stand for a clinic's browser, drives the full one.
+HEADLESS_SHELL, FULL_BROWSER = "/usr/bin/chromium-headless-shell", "/usr/bin/chromium"
 
-def chromium_path() -> str:
-    """Debian's Chromium (``$QUASITUNE_CHROMIUM`` or /usr/bin/chromium), installed by scripts/test.sh; a clear
-    error if it is missing (``playwright install`` is never used)."""
-    wanted = os.environ.get("QUASITUNE_CHROMIUM", "/usr/bin/chromium")
+
+def chromium_path(full_browser: bool = False) -> str:
+    """Debian's Chromium: ``$QUASITUNE_CHROMIUM`` if set, else the headless shell (tests) or the full browser
+    (``full_browser``, benchmarks), installed by scripts/test.sh; a clear error naming the Debian package if it is
+    missing (``playwright install`` is never used)."""
+    wanted = os.environ.get("QUASITUNE_CHROMIUM", FULL_BROWSER if full_browser else HEADLESS_SHELL)
     path = shutil.which(wanted) or (wanted if Path(wanted).exists() else None)
     if path is None:
-        raise RuntimeError(f"Chromium not found at {wanted}: run 'bash scripts/test.sh', which installs Debian's "
-                           "chromium package")
+        package = Path(wanted).name if Path(wanted).name.startswith("chromium") else "chromium"
+        raise RuntimeError(f"Chromium not found at {wanted}: install Debian's {package} package (apt-get install "
+                           f"{package}; 'bash scripts/test.sh' installs the headless shell the tests use)")
     return path
 
 
