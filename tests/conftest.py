@@ -29,7 +29,7 @@ def pytest_configure(config: pytest.Config) -> None:
 _MARKS_BY_FIXTURE = {
     "page": ("browser", "wallclock"), "browser": ("browser", "wallclock"),
     "server": ("wallclock", "live"),        # the browser tests' server process, with its simulated leg in real time
-    "postgres": ("postgres",), "migrated_postgres": ("postgres",),
+    "postgres": ("postgres",), "migrated_postgres": ("postgres",), "migrated_postgres_with_users": ("postgres",),
     "broker": ("broker", "wallclock", "live"), "broker_admin": ("broker", "wallclock", "live"),
 }
 
@@ -114,6 +114,30 @@ def migrated_postgres(postgres):
     name = postgres.create_database("quasitune_template")
     migrate(postgres.url(name))
     return name
+
+
+@pytest.fixture(scope="session")
+def migrated_postgres_with_users(postgres, migrated_postgres):
+    """A copy of the migrated PostgreSQL template with :func:`tests.helpers.api.add_users`'s users in it, made once per
+    run as the template of each in-process app's database (as the SQLite runs copy one: tests/helpers/api.py)."""
+    from tests.helpers.api import add_users
+
+    name = postgres.create_database("quasitune_template_users", template=migrated_postgres)
+    add_users(postgres.url(name))
+    return name
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def api_storage(request):
+    """Where an in-process app stores, once on each database (``make_api``'s keyword arguments): the run's migrated
+    SQLite file as the template it copies, or a PostgreSQL database of this test's own, copied from the run's migrated
+    template with the test users in it, dropped afterwards."""
+    if request.param == "sqlite":
+        yield {"template": request.getfixturevalue("migrated_sqlite")}
+        return
+    template = request.getfixturevalue("migrated_postgres_with_users")
+    with request.getfixturevalue("postgres").new_database(template=template) as url:
+        yield {"database_url": url}
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

@@ -15,11 +15,11 @@ from tests.helpers.api import FIXTURE_OVERRIDE, cosign, make_api
 
 
 @pytest.fixture
-def two(tmp_path, model, database):
+def two(tmp_path, model, api_storage):
     """(first instance's Api, a second instance's TestClient): two apps, one database, the same signed-in users."""
-    extra = {} if "://" not in str(database) else {"database_url": str(database)}
-    api, first = make_api(tmp_path, lambda: model, **extra, **({} if extra else {"template": database}))
-    second = TestClient(create_app(Settings(data_dir=tmp_path, **extra), model_loader=lambda: model))
+    api, first = make_api(tmp_path, lambda: model, **api_storage)
+    shared = {k: v for k, v in api_storage.items() if k == "database_url"}      # SQLite: the first's file in data_dir
+    second = TestClient(create_app(Settings(data_dir=tmp_path, **shared), model_loader=lambda: model))
     with first, second:
         yield api, second
 

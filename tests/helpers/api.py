@@ -14,9 +14,10 @@ from sqlalchemy import func, select
 
 from backend.app import create_app
 from backend.db import connect
+from backend.errors import NotFoundError
 from backend.settings import Settings
 from backend.store.tables import metadata
-from backend.store.users import ROLES, create_user
+from backend.store.users import ROLES, create_user, id_of
 from device_bridge.clock import WALL_CLOCK, SteppedClock
 from tests.helpers.server import PASSWORD
 
@@ -80,7 +81,7 @@ def make_api(data_dir: Path, model_loader, **settings) -> tuple[Api, TestClient]
         shutil.copyfile(template_with_users(Path(template)), database)
     app = create_app(Settings(data_dir=data_dir, **settings), model_loader=model_loader,
                      **({} if clock is None else {"clock": clock}))
-    if not copied:
+    if not copied and not has_users(database):
         add_users(database)
     share_bench_walks(app)
     client = TestClient(app)
@@ -92,6 +93,16 @@ def add_users(database: str | Path) -> None:
     with connect(database) as conn:
         for name, role in ({role: role for role in ROLES} | {SECOND: "prosthetist"}).items():
             create_user(conn, name, role, PASSWORD)
+
+
+def has_users(database: str | Path) -> bool:
+    """Whether ``database`` already holds :func:`add_users`'s users (a copy of a template made with them)."""
+    with connect(database) as conn:
+        try:
+            id_of(conn, SECOND)
+        except NotFoundError:
+            return False
+    return True
 
 
 _WITH_USERS: dict[Path, Path] = {}

@@ -6,11 +6,10 @@ import pytest
 
 
 @pytest.fixture
-def api(tmp_path, model, database):
+def api(tmp_path, model, api_storage):
     """In-process API on a database of its own (each kind in turn), one signed-in user per role."""
     from tests.helpers.api import make_api
 
-    extra = {"template": database} if "://" not in str(database) else {"database_url": str(database)}
-    api, client = make_api(tmp_path, lambda: model, **extra)
+    api, client = make_api(tmp_path, lambda: model, **api_storage)
     with client:
         yield api
