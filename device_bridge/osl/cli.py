@@ -17,8 +17,12 @@ import signal
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from device_bridge.osl.config import LegConfigError, load_config
+from device_bridge.osl.config import LegConfig, LegConfigError, load_config
+
+if TYPE_CHECKING:
+    from device_bridge.firmware import FirmwareConfig
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -55,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
               f"quasitune leg --config {args.config} --calibrate --mass KG", file=sys.stderr)
     leg.start()
     port = leg.calibration_port(lambda cal: save_calibration(args.config, cal))
-    node = DeviceNode(open_bus(config.link), leg=leg, control_thread=False, calibration=port)
+    node = DeviceNode(open_bus(config.link), leg=leg, config=firmware_config(config), control_thread=False,
+                      calibration=port)
     loop = ControlLoop(config.period_s, node.tick, config.overruns_to_safe,
                        on_overruns=lambda n: node.overrun(n, time.monotonic()))
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -73,6 +78,17 @@ def run(args: argparse.Namespace) -> int:
                       "longest_late_ms": round(1000 * stats.longest_late_s, 3), "mode": node.firmware.mode_.name,
                       "hardware_fault": node.firmware.hardware_fault_}))
     return 0
+
+
+def firmware_config(config: LegConfig) -> FirmwareConfig | None:
+    """The firmware's settings as this leg's file sets them: its task estimate's lengths (None, the defaults, for a
+    leg without a thigh sensor, which estimates no task)."""
+    from device_bridge.firmware import FirmwareConfig
+
+    g = config.geometry
+    if g is None:
+        return None
+    return FirmwareConfig(thigh_length_m=g.thigh_length_m, shank_length_m=g.shank_length_m, forefoot_m=g.forefoot_m)
 
 
 def calibrate(args: argparse.Namespace, config, actuators, sensors) -> int:

@@ -22,6 +22,11 @@ Example (``docs/leg.example.toml``)::
     [sensors.loadcell]
     kind = "DephyLoadcellAmplifier"
 
+    [geometry]                       # with a thigh sensor: the lengths the leg's task estimate needs (m)
+    thigh_length_m = 0.43            # the patient's hip to knee axis (residual limb and socket), measured
+    shank_length_m = 0.43            # this leg's knee axis to ankle axis
+    forefoot_m = 0.13                # the foot's forefoot rocker ahead of the ankle axis
+
     [calibration]                    # written by the calibration steps; the defaults mean "not calibrated"
 
 Every field is checked when the file is read, and a bad one is named with its reason (:func:`load_config`).
@@ -100,6 +105,17 @@ class DeviceConfig(_Strict):
         return v
 
 
+class Geometry(_Strict):
+    """The lengths the leg's task estimate needs (m; :class:`~controller_core.task_estimator.TaskEstimator`): the
+    speed comes from the hip's path over the planted ankle (thigh and shank), the heel-up rule from where the foot's
+    forefoot rocker lies. Measured on the patient and on this leg: the firmware's defaults are the simulated bench's
+    leg, not anyone's."""
+
+    thigh_length_m: float = Field(ge=0.2, le=0.7, description="the patient's hip to knee axis (residual limb, socket)")
+    shank_length_m: float = Field(ge=0.2, le=0.7, description="this leg's knee axis to ankle axis")
+    forefoot_m: float = Field(ge=0.03, le=0.3, description="the foot's forefoot rocker ahead of the ankle axis")
+
+
 class JointConfig(_Strict):
     actuator: str = Field(min_length=1, description="the actuator's tag")
     encoder: str | None = Field(default=None, description="a joint encoder's tag; none: the actuator's output")
@@ -121,6 +137,7 @@ class LegConfig(_Strict):
     ankle: JointConfig
     loadcell: str = Field(default="loadcell", min_length=1, description="the pylon load cell's tag")
     thigh: str | None = Field(default=None, description="the socket's angle sensor (an IMU's pitch), if any")
+    geometry: Geometry | None = Field(default=None, description="the task estimate's lengths; needed with a thigh")
     actuators: dict[str, DeviceConfig] = Field(default_factory=dict)
     sensors: dict[str, DeviceConfig] = Field(default_factory=dict)
     calibration: Calibration = Calibration()
@@ -137,6 +154,14 @@ class LegConfig(_Strict):
         if self.torque_mode == "dephy_impedance" and (self.knee.encoder or self.ankle.encoder):
             raise ValueError("torque_mode dephy_impedance: the actuator's spring acts on its own output position, so "
                              "each joint must be read from its actuator (no joint encoder)")
+        return self
+
+    @model_validator(mode="after")
+    def _a_task_estimate_needs_the_legs_lengths(self) -> LegConfig:
+        if self.thigh is not None and self.geometry is None:
+            raise ValueError("geometry: a leg with a thigh sensor estimates its walking speed and slope from the "
+                             "thigh, knee and ankle angles, which needs this patient's and this leg's lengths: add "
+                             "[geometry] with thigh_length_m, shank_length_m and forefoot_m (m)")
         return self
 
     @property

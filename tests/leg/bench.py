@@ -15,6 +15,7 @@ from device_bridge.osl.config import Calibration, LegConfig, parse_config
 from device_bridge.osl.hardware import sdk_log_folder
 from device_bridge.osl.leg import OSLLeg
 from device_bridge.protocol import WireTable, begin_frame, commit_frame
+from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.walker import SimWalker
 from tests.leg.fixtures import ENVELOPE, TABLE
 
@@ -30,7 +31,9 @@ def learned_envelope() -> Envelope:
 
 
 def config(rate_hz: float = 500.0, calibration: Calibration | None = None, knee_encoder: bool = False) -> LegConfig:
-    data = {"rate_hz": rate_hz, "thigh": "thigh",
+    bench = LegGeometry()         # the bench's leg: its lengths are the task estimate's
+    data = {"rate_hz": rate_hz, "thigh": "thigh", "geometry": {
+                "thigh_length_m": bench.thigh_m, "shank_length_m": bench.shank_m, "forefoot_m": bench.toe_forward_m},
             "knee": {"actuator": "knee", "gear_ratio": 41.4999, **({"encoder": "knee_joint"} if knee_encoder else {})},
             "ankle": {"actuator": "ankle", "gear_ratio": 41.4999}}
     if calibration is not None:

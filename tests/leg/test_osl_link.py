@@ -20,6 +20,9 @@ from device_bridge.sim.walker import SimWalker
 from tests.leg.bench import bench_leg, config, firmware_with, learned_table
 
 DEG = math.pi / 180.0
+LEG_FILE = ('thigh = "thigh"\n[geometry]\nthigh_length_m = 0.43\nshank_length_m = 0.43\nforefoot_m = 0.13\n'
+            '[knee]\nactuator = "knee"\nencoder = "knee_joint"\ngear_ratio = 41.5\n[ankle]\nactuator = "ankle"\n'
+            'gear_ratio = 41.5\n')
 MISMOUNTED = Mounting(knee_sign=-1, knee_offset_rad=0.52, ankle_offset_rad=-0.11, fz_sign=-1, fz_offset_N=-140.0,
                       my_sign=-1, my_offset_Nm=2.5)
 
@@ -164,8 +167,7 @@ def test_the_guided_calibration_prompts_repeats_a_refused_step_and_keeps_its_res
     assert math.degrees(cal.knee.zero_rad) == pytest.approx(math.degrees(0.52), abs=0.01)
 
     path = tmp_path / "leg.toml"
-    path.write_text('thigh = "thigh"\n[knee]\nactuator = "knee"\nencoder = "knee_joint"\ngear_ratio = 41.5\n'
-                    '[ankle]\nactuator = "ankle"\ngear_ratio = 41.5\n')
+    path.write_text(LEG_FILE)
     save_calibration(path, cal)
     assert load_config(path).calibration == cal
 
@@ -183,8 +185,7 @@ def test_the_clinic_calibrates_an_uncalibrated_osl_leg_through_the_sdk(tmp_path)
     leg, world = bench_leg(config(1000.0, knee_encoder=True), MISMOUNTED, walker=walker, clock=clock.monotonic,
                            calibrated_only=True)
     path = tmp_path / "leg.toml"
-    path.write_text('thigh = "thigh"\n[knee]\nactuator = "knee"\nencoder = "knee_joint"\ngear_ratio = 41.5\n'
-                    '[ankle]\nactuator = "ankle"\ngear_ratio = 41.5\n')
+    path.write_text(LEG_FILE)
     with Rig(leg=leg, clock=clock, calibration=leg.calibration_port(lambda c: save_calibration(path, c), 50)) as rig:
         world.held = (0.0, 0.0)
         rig.advance(0.2)

@@ -63,3 +63,43 @@ def test_a_calibration_is_kept_beside_the_leg_file_and_read_back_with_it(tmp_pat
     kept.write_text("{not json")
     with pytest.raises(LegConfigError, match="not JSON"):
         load_config(path)
+
+
+GEOMETRY = {"thigh_length_m": 0.45, "shank_length_m": 0.41, "forefoot_m": 0.12}
+BASE = {"knee": {"actuator": "knee", "gear_ratio": 41.5}, "ankle": {"actuator": "ankle", "gear_ratio": 41.5}}
+
+
+def test_a_leg_with_a_thigh_sensor_needs_its_lengths_and_the_firmware_runs_the_files():
+    """With a thigh sensor the leg estimates its task, from the thigh's and the shank's lengths and the foot's
+    forefoot: the file must give them (the firmware's defaults are the simulated bench's leg, not the patient's), and
+    the firmware `quasitune leg` starts is given the file's (its adaptive controller's estimator is built from them);
+    without a thigh it keeps its defaults (no task estimate)."""
+    from device_bridge.firmware import FirmwareConfig
+    from device_bridge.osl.cli import firmware_config
+
+    with pytest.raises(LegConfigError, match=r"geometry: a leg with a thigh sensor .* thigh_length_m"):
+        parse_config({**BASE, "thigh": "imu"})
+    cfg = parse_config({**BASE, "thigh": "imu", "geometry": GEOMETRY})
+    fw = firmware_config(cfg)
+    assert (fw.thigh_length_m, fw.shank_length_m, fw.forefoot_m) == (0.45, 0.41, 0.12)
+    assert firmware_config(parse_config(BASE)) is None and FirmwareConfig().thigh_length_m != 0.45
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    ("thigh_length_m", 1.2), ("shank_length_m", 0.0), ("forefoot_m", -0.1), ("forefoot_m", float("nan")),
+])
+def test_an_impossible_length_is_refused_by_name(field, value):
+    with pytest.raises(LegConfigError, match=rf"geometry\.{field}"):
+        parse_config({**BASE, "thigh": "imu", "geometry": {**GEOMETRY, field: value}})
+
+
+def test_the_shipped_leg_files_load_and_the_bench_file_has_the_benchs_lengths():
+    from pathlib import Path
+
+    from device_bridge.sim.leg_model import LegGeometry
+
+    docs = Path(__file__).parents[3] / "docs"
+    assert load_config(docs / "leg.example.toml").geometry is None           # no thigh sensor: no task estimate
+    g, bench = load_config(docs / "leg.bench.toml").geometry, LegGeometry()
+    assert g.thigh_length_m == pytest.approx(bench.thigh_m) and g.shank_length_m == pytest.approx(bench.shank_m)
+    assert g.forefoot_m == pytest.approx(bench.toe_forward_m)
