@@ -141,6 +141,11 @@ class AdaptiveController:
         """The blended rows' spring and damper each joint runs now (:meth:`StateMachineController.impedance`)."""
         return self.machine_.impedance()
 
+    def use_drive_friction(self, ankle_Nm: float) -> None:
+        """The ankle drive's friction (N·m), compensated in swing (:meth:`StateMachineController.use_drive_friction`)."""
+        self.limits = replace(self.limits, ankle_friction_Nm=ankle_Nm)
+        self.machine_.use_drive_friction(ankle_Nm)
+
     def stand(self) -> None:
         """A person stands on the leg now (:meth:`~controller_core.fsm.StateMachineController.stand`)."""
         self.machine_.stand()

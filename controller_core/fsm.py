@@ -48,6 +48,18 @@ flexion is pre-swing's; once per stance). That stance flexion is *recovering*: i
 (which already says "late stance" in a fold) but when the knee is back within the margin of the stance-flexion
 equilibrium, or on toe-off's unloading; the next heel strike returns the leg to the table's usual rows and events.
 
+**Drive friction.** The swing rows of the ankle are soft (a few N·m of spring torque clear the toe), and a drive's
+Coulomb friction of the same size stops the foot short of the row's equilibrium: on the bench a leg with 3 N·m of
+ankle friction left the foot plantarflexed after push-off and caught its toe at 0.85 m/s in 13 of 15 strides (and fell
+12 times with 2.5 N·m at the knee as well). Given the ankle drive's friction (``ActuatorLimits.ankle_friction_Nm``,
+from the leg's description), the swing states add to the ankle's spring torque s = k(θ − θe) the torque
+f·tanh(s / ``FRICTION_SHAPE_NM``): at most the friction, in the spring's own direction, nothing at the equilibrium.
+It depends on the angle alone, so the row stays a spring (stiffer near its equilibrium) plus its damper: it stores
+and returns energy and cannot inject any, whatever the friction's estimate. Not in stance (friction there only adds
+to the rows' damping) and not at the knee, whose swing rows work at tens of N·m (compensating 1.5 N·m there changed
+the swing's timing and fell at 1.6 m/s −10° on the bench). An actuator running the impedance itself
+(:meth:`StateMachineController.impedance`) runs the rows without it.
+
 The controller is pure: :meth:`StateMachineController.step` takes one :class:`SensorSample` and returns one
 :class:`TorqueCommand`; it does no I/O and keeps only the state and its entry time. It is written with
 plain floats (no numpy in the loop) because it runs at 1 kHz or faster.
@@ -59,7 +71,7 @@ and ankle dorsiflexion +, torques + in the + angle direction, so k < 0 is a rest
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import IntEnum
 
 from controller_core.quasi_stiffness import SUBPHASES
@@ -80,6 +92,9 @@ class GaitState(IntEnum):
     def subphase(self) -> str:
         """The table sub-phase name of this state (``stance_flexion`` …)."""
         return SUBPHASES[int(self)]
+
+
+_SWING_FLEXION = int(GaitState.SWING_FLEXION)   # the swing states are this and the next
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,6 +139,10 @@ class TorqueCommand:
     saturated: bool
 
 
+FRICTION_SHAPE_NM = 1.0        # spring torque at which the swing ankle's friction compensation reaches 76 % of it
+MAX_DRIVE_FRICTION_NM = 15.0   # a harmonic or ball-screw drive with its seals (the bench's leg files' bound too)
+
+
 @dataclass(frozen=True)
 class ActuatorLimits:
     """Torque and range limits of the device (SI).
@@ -138,12 +157,16 @@ class ActuatorLimits:
     ankle_torque_Nm: float = 160.0
     knee_range_rad: tuple[float, float] = (0.0, math.radians(120.0))
     ankle_range_rad: tuple[float, float] = (math.radians(-30.0), math.radians(30.0))
+    ankle_friction_Nm: float = 0.0       # the ankle drive's Coulomb friction, compensated in swing (module docstring)
 
     def __post_init__(self) -> None:
         for name in ("knee_torque_Nm", "ankle_torque_Nm"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite torque (N·m), got {value!r}")
+        if not (math.isfinite(self.ankle_friction_Nm) and 0.0 <= self.ankle_friction_Nm <= MAX_DRIVE_FRICTION_NM):
+            raise ValueError(f"ankle_friction_Nm must be a friction torque in [0, {MAX_DRIVE_FRICTION_NM:g}] N·m, got "
+                             f"{self.ankle_friction_Nm!r}")
         for name in ("knee_range_rad", "ankle_range_rad"):
             lo, hi = getattr(self, name)
             if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
@@ -434,8 +457,16 @@ class StateMachineController:
     def _row_torques(self, x: SensorSample) -> tuple[float, float]:
         sch, i = self.schedule, int(self.state_)
         tk = sch.knee_k[i] * (x.knee_angle_rad - sch.knee_theta_e[i]) - sch.knee_b[i] * x.knee_velocity_rad_s
-        ta = sch.ankle_k[i] * (x.ankle_angle_rad - sch.ankle_theta_e[i]) - sch.ankle_b[i] * x.ankle_velocity_rad_s
+        spring = sch.ankle_k[i] * (x.ankle_angle_rad - sch.ankle_theta_e[i])
+        ta = spring - sch.ankle_b[i] * x.ankle_velocity_rad_s
+        friction = self.limits.ankle_friction_Nm
+        if friction and i >= _SWING_FLEXION:          # the drive's friction, in the spring's direction (docstring)
+            ta += friction * math.tanh(spring / FRICTION_SHAPE_NM)
         return tk, ta
+
+    def use_drive_friction(self, ankle_Nm: float) -> None:
+        """The ankle drive's Coulomb friction (N·m) of the leg this machine runs on, compensated in swing."""
+        self.limits = replace(self.limits, ankle_friction_Nm=ankle_Nm)
 
     def _standing_torques(self, x: SensorSample) -> tuple[float, float]:
         """The knee held against flexion where standing found it (the hold follows it as it extends), the ankle about

@@ -235,7 +235,8 @@ def cmd_bridge(args: argparse.Namespace) -> int:
         leg_bus = f"virtual:quasitune-bridge-sim-{os.getpid()}"
         walker = SimWalker()
         walker.stand(args.mass)
-        node = DeviceNode(can.Bus(interface="virtual", channel=leg_bus.split(":", 1)[1]), leg=walker).start()
+        node = DeviceNode(can.Bus(interface="virtual", channel=leg_bus.split(":", 1)[1]), leg=walker,
+                          config=walker.firmware_config()).start()
     gateway = (Gateway.to_broker(open_bus(leg_bus), far) if args.broker else Gateway(open_bus(leg_bus), far)).start()
     # Ctrl-C or SIGTERM (docker stop) end it cleanly, from the moment it says it runs. The main thread waits in short
     # rounds: a signal the kernel hands to another of the bridge's threads only runs its Python handler when the main

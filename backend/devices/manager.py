@@ -107,12 +107,13 @@ class DeviceManager:
             if spec.kind == "simulated":
                 dev.walker = SimWalker(self._bench_leg)
                 if isinstance(self.clock, SteppedClock):   # leg and link on one thread, moved by whoever waits
-                    rig = Rig(leg=dev.walker, clock=self.clock, keep_frames=False, **callbacks)
+                    rig = Rig(leg=dev.walker, config=dev.walker.firmware_config(), clock=self.clock,
+                              keep_frames=False, **callbacks)
                     dev.node, dev.link = rig.node, rig.link
                     self._devices[spec.device_id] = dev
                     continue
                 dev.node = DeviceNode(can.Bus(interface="virtual", channel=spec.channel), leg=dev.walker,
-                                      clock=self.clock).start()
+                                      config=dev.walker.firmware_config(), clock=self.clock).start()
             bus = can.Bus(interface=spec.interface, channel=spec.channel, **self._bus_options.get(spec.interface, {}))
             dev.link = DeviceLink(bus, heartbeat_clock=self._heartbeats_for(bus), clock=self.clock, **callbacks)
             self._devices[spec.device_id] = dev   # before the link starts: its callbacks look the device up

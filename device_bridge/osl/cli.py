@@ -80,15 +80,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def firmware_config(config: LegConfig) -> FirmwareConfig | None:
-    """The firmware's settings as this leg's file sets them: its task estimate's lengths (None, the defaults, for a
-    leg without a thigh sensor, which estimates no task)."""
+def firmware_config(config: LegConfig) -> FirmwareConfig:
+    """The firmware's settings as this leg's file sets them: its task estimate's lengths (the defaults for a leg without
+    a thigh sensor, which estimates no task) and its ankle drive's friction."""
+    from controller_core.fsm import ActuatorLimits
     from device_bridge.firmware import FirmwareConfig
 
+    drive = ActuatorLimits(ankle_friction_Nm=config.ankle_friction_Nm)
     g = config.geometry
     if g is None:
-        return None
-    return FirmwareConfig(thigh_length_m=g.thigh_length_m, shank_length_m=g.shank_length_m, forefoot_m=g.forefoot_m)
+        return FirmwareConfig(actuator=drive)
+    return FirmwareConfig(thigh_length_m=g.thigh_length_m, shank_length_m=g.shank_length_m, forefoot_m=g.forefoot_m,
+                          actuator=drive)
 
 
 def calibrate(args: argparse.Namespace, config, actuators, sensors) -> int:

@@ -5,6 +5,7 @@ Example (``docs/leg.example.toml``)::
     rate_hz = 500
     link = "socketcan:can0"          # or "mqtt:leg-17" through the clinic's broker
     torque_mode = "current"          # QuasiTune computes the torque; the actuator runs its current loop
+    ankle_friction_Nm = 0.0          # the ankle drive's Coulomb friction (N·m), measured: swing compensates it
 
     [knee]
     actuator = "knee"                # an actuator's tag
@@ -138,6 +139,8 @@ class LegConfig(_Strict):
     loadcell: str = Field(default="loadcell", min_length=1, description="the pylon load cell's tag")
     thigh: str | None = Field(default=None, description="the socket's angle sensor (an IMU's pitch), if any")
     geometry: Geometry | None = Field(default=None, description="the task estimate's lengths; needed with a thigh")
+    ankle_friction_Nm: float = Field(default=0.0, ge=0.0, le=15.0,
+                                     description="the ankle drive's Coulomb friction (N·m), compensated in swing")
     actuators: dict[str, DeviceConfig] = Field(default_factory=dict)
     sensors: dict[str, DeviceConfig] = Field(default_factory=dict)
     calibration: Calibration = Calibration()

@@ -181,6 +181,8 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
     """
     x: SensorSample = leg.reset(traj, *start_angles_rad)
     controller.reset()
+    if hasattr(controller, "use_drive_friction"):     # the leg's firmware knows its drive (controller_core.fsm)
+        controller.use_drive_friction(leg.geometry.ankle_friction_Nm)
     if standing and hasattr(controller, "stand"):     # the person stands on the leg as the walk begins
         controller.stand()
     n = traj.time_s.shape[0]

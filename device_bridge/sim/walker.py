@@ -22,9 +22,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from controller_core.fsm import SensorSample
+from controller_core.fsm import ActuatorLimits, SensorSample
 from controller_core.units import G_MPS2
 from controller_core.walking_reference import WalkingReference
+from device_bridge.firmware import FirmwareConfig
 from device_bridge.sim.bench_trajectory import (
     STAND_S,
     STANDING_START_PHASE,
@@ -66,6 +67,13 @@ class SimWalker:
         self._offset_s = 0.0
         self._last_s = 0.0
         self._walk_from_s = 0.0    # a fixed-task walk's first step, on its physics clock (s)
+
+    def firmware_config(self) -> FirmwareConfig:
+        """The firmware's settings for this leg, as a real leg's firmware has them from its own description: the task
+        estimate's thigh, shank and forefoot, and the ankle drive's friction (compensated in swing)."""
+        g = self.geometry
+        return FirmwareConfig(thigh_length_m=g.thigh_m, shank_length_m=g.shank_m, forefoot_m=g.toe_forward_m,
+                              actuator=ActuatorLimits(ankle_friction_Nm=g.ankle_friction_Nm))
 
     @property
     def walking(self) -> bool:

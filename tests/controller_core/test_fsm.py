@@ -289,3 +289,33 @@ def test_a_loaded_knee_giving_way_early_in_stance_goes_back_to_stance_flexion_bu
         late.step(x)
     assert late.step(sample(1.60, **fold)).state == SE          # 0.4 s into a 0.7 s stance: pre-swing
     assert late.step(sample(1.62, **fold)).state == SE and not late.recovering_
+
+
+@pytest.mark.parametrize("ankle_deg", [-20.0, -3.0, -0.5, 0.0, 0.5, 3.0, 20.0])
+@pytest.mark.parametrize("ankle_v", [-4.0, 0.0, 4.0])
+def test_the_swing_ankle_compensates_its_drives_friction_as_a_spring_and_stance_does_not(ankle_deg, ankle_v):
+    """With the ankle drive's friction f known, a swing state's ankle torque is its row's plus f·tanh(spring / 1 N·m):
+    in the spring's direction, at most f, nothing at the equilibrium and the same whatever the velocity (a function of
+    the angle alone: still a spring, no energy injected). Stance states and the knee run their rows unchanged."""
+    friction = 3.0
+    x = sample(0.0, ankle=math.radians(ankle_deg), ankle_v=ankle_v, knee=0.4, knee_v=1.0)
+    for state in GaitState:
+        plain = StateMachineController(schedule(), initial_state=state).step(x)
+        machine = StateMachineController(schedule(), initial_state=state)
+        machine.use_drive_friction(friction)
+        drive = machine.step(x)
+        assert drive.state == plain.state == state and drive.knee_torque_Nm == plain.knee_torque_Nm
+        added = drive.ankle_torque_Nm - plain.ankle_torque_Nm
+        if state in (SF, SE):
+            assert added == 0.0
+            continue
+        spring = schedule().ankle_k[int(state)] * (x.ankle_angle_rad - schedule().ankle_theta_e[int(state)])
+        assert added == pytest.approx(friction * math.tanh(spring / 1.0))
+        assert abs(added) <= friction and (added == 0.0 or math.copysign(1.0, added) == math.copysign(1.0, spring))
+
+
+def test_a_drive_friction_beyond_what_a_drive_has_is_refused():
+    with pytest.raises(ValueError, match="ankle_friction_Nm"):
+        ActuatorLimits(ankle_friction_Nm=40.0)
+    with pytest.raises(ValueError, match="ankle_friction_Nm"):
+        ActuatorLimits(ankle_friction_Nm=math.nan)

@@ -73,7 +73,7 @@ def test_a_leg_with_a_thigh_sensor_needs_its_lengths_and_the_firmware_runs_the_f
     """With a thigh sensor the leg estimates its task, from the thigh's and the shank's lengths and the foot's
     forefoot: the file must give them (the firmware's defaults are the simulated bench's leg, not the patient's), and
     the firmware `quasitune leg` starts is given the file's (its adaptive controller's estimator is built from them);
-    without a thigh it keeps its defaults (no task estimate)."""
+    without a thigh it keeps its defaults (no task estimate). The ankle drive's friction goes to the firmware too."""
     from device_bridge.firmware import FirmwareConfig
     from device_bridge.osl.cli import firmware_config
 
@@ -82,7 +82,11 @@ def test_a_leg_with_a_thigh_sensor_needs_its_lengths_and_the_firmware_runs_the_f
     cfg = parse_config({**BASE, "thigh": "imu", "geometry": GEOMETRY})
     fw = firmware_config(cfg)
     assert (fw.thigh_length_m, fw.shank_length_m, fw.forefoot_m) == (0.45, 0.41, 0.12)
-    assert firmware_config(parse_config(BASE)) is None and FirmwareConfig().thigh_length_m != 0.45
+    plain = firmware_config(parse_config(BASE))
+    assert plain.thigh_length_m == FirmwareConfig().thigh_length_m != 0.45 and plain.actuator.ankle_friction_Nm == 0.0
+    assert firmware_config(parse_config({**BASE, "ankle_friction_Nm": 2.5})).actuator.ankle_friction_Nm == 2.5
+    with pytest.raises(LegConfigError, match="ankle_friction_Nm"):
+        parse_config({**BASE, "ankle_friction_Nm": -1.0})
 
 
 @pytest.mark.parametrize(("field", "value"), [

@@ -134,3 +134,16 @@ def test_the_simulated_device_walks_the_leg_it_is_given():
     assert plant.model.body("foot").mass[0] == pytest.approx(leg.foot_mass_kg)
     walker.start_course(Course("short", (Segment(4.0, 1.0, 0.0),)), 75.0)
     assert walker._leg.geometry == leg
+
+
+def test_the_simulated_legs_firmware_is_set_for_its_own_leg():
+    """The server's simulated device runs its firmware with its leg's description, as a real leg does: the task
+    estimate's lengths and forefoot, the ankle drive's friction (before: the nominal leg's, whatever leg it walked)."""
+    from device_bridge.sim.leg_file import load_leg
+
+    short, stiff = load_leg("short_person"), load_leg("stiff_geared")
+    cfg = SimWalker(short).firmware_config()
+    assert (cfg.thigh_length_m, cfg.shank_length_m, cfg.forefoot_m) == (short.thigh_m, short.shank_m,
+                                                                        short.toe_forward_m)
+    assert cfg.thigh_length_m < SimWalker().firmware_config().thigh_length_m
+    assert SimWalker(stiff).firmware_config().actuator.ankle_friction_Nm == stiff.ankle_friction_Nm > 0.0
