@@ -294,9 +294,9 @@ def test_a_loaded_knee_giving_way_early_in_stance_goes_back_to_stance_flexion_bu
 @pytest.mark.parametrize("ankle_deg", [-20.0, -3.0, -0.5, 0.0, 0.5, 3.0, 20.0])
 @pytest.mark.parametrize("ankle_v", [-4.0, 0.0, 4.0])
 def test_the_swing_ankle_compensates_its_drives_friction_as_a_spring_and_stance_does_not(ankle_deg, ankle_v):
-    """With the ankle drive's friction f known, a swing state's ankle torque is its row's plus f·tanh(spring / 1 N·m):
-    in the spring's direction, at most f, nothing at the equilibrium and the same whatever the velocity (a function of
-    the angle alone: still a spring, no energy injected). Stance states and the knee run their rows unchanged."""
+    """With the ankle drive's friction f known, a swing state's ankle torque is its row's plus ½f·tanh(spring / 1 N·m):
+    in the spring's direction, at most f/2, nothing at the equilibrium and the same whatever the velocity (a function
+    of the angle alone: still a spring, no energy injected). Stance states and the knee run their rows unchanged."""
     friction = 3.0
     x = sample(0.0, ankle=math.radians(ankle_deg), ankle_v=ankle_v, knee=0.4, knee_v=1.0)
     for state in GaitState:
@@ -310,8 +310,8 @@ def test_the_swing_ankle_compensates_its_drives_friction_as_a_spring_and_stance_
             assert added == 0.0
             continue
         spring = schedule().ankle_k[int(state)] * (x.ankle_angle_rad - schedule().ankle_theta_e[int(state)])
-        assert added == pytest.approx(friction * math.tanh(spring / 1.0))
-        assert abs(added) <= friction and (added == 0.0 or math.copysign(1.0, added) == math.copysign(1.0, spring))
+        assert added == pytest.approx(0.5 * friction * math.tanh(spring / 1.0))
+        assert abs(added) <= friction / 2 and (added == 0.0 or math.copysign(1.0, added) == math.copysign(1.0, spring))
 
 
 def test_a_drive_friction_beyond_what_a_drive_has_is_refused():
