@@ -54,12 +54,15 @@ def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none",
 
 
 @contextmanager
-def temporary_server(prefix: str, device: str = "none", user: str = "bench", viewer3d: bool = False) -> Iterator[str]:
-    """A fresh server on a temporary database with the prosthetist ``user`` (password :data:`PASSWORD`); yields
-    its base URL and stops it afterwards."""
+def temporary_server(prefix: str, device: str = "none", user: str = "bench", viewer3d: bool = False,
+                     colleague: str | None = None) -> Iterator[str]:
+    """A fresh server on a temporary database with the prosthetist ``user`` (and a second one, ``colleague``, for the
+    bench gate's two-person override; password :data:`PASSWORD`); yields its base URL and stops it afterwards."""
     with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
         data_dir = Path(tmp)
         add_user(data_dir, user, "prosthetist")
+        if colleague is not None:
+            add_user(data_dir, colleague, "prosthetist")
         proc, base = start_server(data_dir, device=device, viewer3d=viewer3d)
         try:
             yield base
