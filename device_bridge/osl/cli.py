@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from device_bridge.osl.hardware import build_devices
     from device_bridge.osl.leg import OSLLeg
     from device_bridge.osl.loop import ControlLoop
+    from device_bridge.protocol import Fault
 
     config = load_config(args.config)
     # the SDK's log beside the leg file (not wherever the command was started)
@@ -74,9 +75,10 @@ def run(args: argparse.Namespace) -> int:
             leg.stop()
         finally:
             node.close()
+    faults = node.firmware.faults_      # why the leg is where it is (a dry run has no host: HEARTBEAT_LOST, NO_TABLE)
     print(json.dumps({"rate_hz": config.rate_hz, "ticks": stats.ticks, "overruns": stats.overruns,
                       "longest_late_ms": round(1000 * stats.longest_late_s, 3), "mode": node.firmware.mode_.name,
-                      "hardware_fault": node.firmware.hardware_fault_}))
+                      "faults": [f.name for f in Fault if f in faults], "hardware_fault": node.firmware.hardware_fault_}))
     return 0
 
 
