@@ -143,8 +143,8 @@ class AdaptiveController:
 
     def use_drive_friction(self, ankle_Nm: float) -> None:
         """The ankle drive's friction (N·m), compensated in swing (:meth:`StateMachineController.use_drive_friction`)."""
-        self.limits = replace(self.limits, ankle_friction_Nm=ankle_Nm)
         self.machine_.use_drive_friction(ankle_Nm)
+        self.limits = self.machine_.limits
 
     def stand(self) -> None:
         """A person stands on the leg now (:meth:`~controller_core.fsm.StateMachineController.stand`)."""

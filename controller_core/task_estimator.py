@@ -167,10 +167,14 @@ class TaskEstimator:
         self._last_flat_s = -math.inf
         self._heel_down = False
 
-    def _end_run(self) -> None:
+    def _run_beats_best(self) -> bool:
+        """The run going now counts (it has a sample with the heel down) and is longer than the best closed one."""
         s, b = self._sums, self._best
-        if s[0] and self._heel_down and (not b[0] or s[11] - s[10] > b[11] - b[10]):
-            self._best = s
+        return bool(s[0]) and self._heel_down and (not b[0] or s[11] - s[10] > b[11] - b[10])
+
+    def _end_run(self) -> None:
+        if self._run_beats_best():
+            self._best = self._sums
         self._sums = [0.0] * 14
         self._heel_down = False
 
@@ -250,8 +254,7 @@ class TaskEstimator:
         again when it closes)."""
         if not self._in_stance:
             return None
-        run, best = self._sums, self._best
-        s = run if run[0] and self._heel_down and (not best[0] or run[11] - run[10] > best[11] - best[10]) else best
+        s = self._sums if self._run_beats_best() else self._best
         if not s[0] or s[11] - s[10] < self.full_quality_flat_s:
             return None
         return self._stride_task(s, now_s)
