@@ -144,7 +144,7 @@ class TorqueCommand:
 
 FRICTION_SHAPE_NM = 1.0        # spring torque at which the swing ankle's friction compensation reaches 76 % of it
 FRICTION_COMPENSATED_FRACTION = 0.5   # of the ankle drive's stated friction (module docstring, "Drive friction")
-MAX_DRIVE_FRICTION_NM = 15.0   # a harmonic or ball-screw drive with its seals (the bench's leg files' bound too)
+MAX_DRIVE_FRICTION_NM = 15.0   # a harmonic or ball-screw drive with its seals (the leg files' and leg config's bound)
 
 
 @dataclass(frozen=True)

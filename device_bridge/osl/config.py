@@ -44,6 +44,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from controller_core.fsm import MAX_DRIVE_FRICTION_NM
+
 Sign = Literal[1, -1]
 
 
@@ -139,7 +141,7 @@ class LegConfig(_Strict):
     loadcell: str = Field(default="loadcell", min_length=1, description="the pylon load cell's tag")
     thigh: str | None = Field(default=None, description="the socket's angle sensor (an IMU's pitch), if any")
     geometry: Geometry | None = Field(default=None, description="the task estimate's lengths; needed with a thigh")
-    ankle_friction_Nm: float = Field(default=0.0, ge=0.0, le=15.0,
+    ankle_friction_Nm: float = Field(default=0.0, ge=0.0, le=MAX_DRIVE_FRICTION_NM,
                                      description="the ankle drive's Coulomb friction (N·m), compensated in swing")
     actuators: dict[str, DeviceConfig] = Field(default_factory=dict)
     sensors: dict[str, DeviceConfig] = Field(default_factory=dict)

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from controller_core.fsm import MAX_DRIVE_FRICTION_NM
 from device_bridge.sim.leg_model import LegGeometry
 
 LEGS_DIR = Path(__file__).resolve().parent / "legs"
@@ -41,8 +42,8 @@ class LegFile(BaseModel):
     contact_radius_m: float | None = Field(default=None, ge=0.005, le=0.05)
     knee_armature_kg_m2: float | None = Field(default=None, gt=0.0, le=0.5)
     ankle_armature_kg_m2: float | None = Field(default=None, gt=0.0, le=0.5)
-    knee_friction_Nm: float | None = Field(default=None, ge=0.0, le=15.0)
-    ankle_friction_Nm: float | None = Field(default=None, ge=0.0, le=15.0)
+    knee_friction_Nm: float | None = Field(default=None, ge=0.0, le=MAX_DRIVE_FRICTION_NM)
+    ankle_friction_Nm: float | None = Field(default=None, ge=0.0, le=MAX_DRIVE_FRICTION_NM)
     knee_damping_Nm_s_per_rad: float | None = Field(default=None, ge=0.0, le=10.0)
     ankle_damping_Nm_s_per_rad: float | None = Field(default=None, ge=0.0, le=10.0)
 
