@@ -140,8 +140,7 @@ def _adaptive_monitor(page, base: str, headers: dict, monitor_s: float) -> dict:
             "device_id": "sim-leg-1", "patient_ready": True,
             "replaces_proposal_id": on_leg and on_leg["proposal_id"],
             "replaces_envelope_id": on_leg and on_leg["envelope_id"],
-            **({"override_reason": decision["override_reason"]} if "override_reason" in decision else {})
-        }).raise_for_status()
+            "override_reason": decision.get("override_reason")}).raise_for_status()
     page.goto(f"{base}/#/monitor/sim-leg-1")
     page.wait_for_selector("#adaptive:not([hidden]) #live-map")
     page.select_option("#session-walk", "mixed")
