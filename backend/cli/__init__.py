@@ -2,16 +2,21 @@
 
 Commands by area: the leg (``leg``: :mod:`device_bridge.osl.cli`, the one command a leg's computer runs), the
 server (``serve``, ``users``, ``bridge``: :mod:`backend.cli.server`; ``broker``: :mod:`backend.cli.broker`), the model
-(``predict``, ``plot``, ``train``, ``evaluate``, ``envelope``: :mod:`backend.cli.model`), the simulated bench
-(``simulate``, ``compare``: :mod:`backend.cli.simulation`) and the device link (``device soak|drill``:
-:mod:`backend.cli.device`). Bad input
-exits with code 2 and a one-line reason on stderr. Benchmarks are not commands of the app: ``python -m benchmarks``.
+(``predict``, ``train``, ``envelope``: :mod:`backend.cli.model`), the simulated bench (``simulate``, ``stumble``,
+``sensitivity``: :mod:`backend.cli.simulation`) and the device link (``device soak|drill``: :mod:`backend.cli.device`).
+Commands from other installed packages join through the ``quasitune.commands`` entry point: the lab's bench studies
+and evaluation (``compare``, ``refine``, ``calibrate``, ``stance-response``, ``plot``, ``evaluate``: :mod:`lab.cli`),
+so the product imports nothing from the lab. Bad input exits with code 2 and a one-line reason on stderr. Benchmarks
+are not commands of the app: ``python -m benchmarks``.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from importlib.metadata import entry_points
+
+COMMANDS_ENTRY_POINT = "quasitune.commands"   # each names an add_commands(subparsers) that adds its commands
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -22,6 +27,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for area in (server, broker, device, model, simulation):
         area.add_commands(sub)
+    for plugin in entry_points(group=COMMANDS_ENTRY_POINT):
+        plugin.load()(sub)
     add_arguments(sub.add_parser("leg", help="the leg side on the leg's computer: an Open Source Leg through its SDK "
                                              "(device_bridge/osl/cli.py; installs with .[leg] alone)"))
     return parser

@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from backend.cli.formatting import print_proposal, write_json
+from backend.cli.formatting import print_proposal
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
 
 
@@ -33,15 +33,6 @@ def cmd_predict(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_plot(args: argparse.Namespace) -> int:
-    from lab.plotting import plot_proposal
-
-    model = load(args)
-    proposal = model.propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass)
-    print(f"wrote {plot_proposal(model, proposal, args.out)}")
-    return 0
-
-
 def cmd_train(args: argparse.Namespace) -> int:
     from controller_core.model_io import save_model, train_default, train_from_file
 
@@ -49,21 +40,6 @@ def cmd_train(args: argparse.Namespace) -> int:
     model = train_default() if args.data is None else train_from_file(args.data, use_published=args.with_published)
     out = save_model(model, args.out)
     print(f"model {model.model_version} ({len(model.reference_.records)} conditions) saved to {out}")
-    return 0
-
-
-def cmd_evaluate(args: argparse.Namespace) -> int:
-    from lab.evaluation import evaluate, format_incline_report, format_report
-    from lab.um21_envelopes import format_um21_report
-
-    report = evaluate()
-    print(format_report(report))
-    print()
-    print(format_incline_report(report["incline"]))
-    print()
-    print(format_um21_report(report["um21_envelopes"]))
-    if args.out:
-        write_json(args.out, report)
     return 0
 
 
@@ -125,16 +101,9 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     task_args(p)
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_predict)
-    p = sub.add_parser("plot", help="torque-angle loops with KMP bands, via-points and regression lines")
-    task_args(p)
-    p.add_argument("--out", type=Path, required=True, help="output image (.png, .pdf, .svg)")
-    p.set_defaults(func=cmd_plot)
     p = sub.add_parser("train", help="fit a model from a standard-format dataset (CSV/Parquet)")
     p.add_argument("--data", type=Path, default=None, help="dataset file; default: the shipped data")
     p.add_argument("--out", type=Path, required=True, help="model directory to write")
     p.add_argument("--with-published", action="store_true",
                    help="also train on the shipped published incline features")
     p.set_defaults(func=cmd_train)
-    p = sub.add_parser("evaluate", help="leave-one-condition-out evaluation against baselines")
-    p.add_argument("--out", type=Path, default=None, help="also write the report as JSON here")
-    p.set_defaults(func=cmd_evaluate)

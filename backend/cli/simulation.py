@@ -1,5 +1,6 @@
-"""Simulated-bench commands: ``simulate`` (one walk), ``compare`` (learned table against the FSMIC) and ``calibrate``
-(the bench against the people it imitates)."""
+"""Simulated-bench commands: ``simulate`` (one walk or a course), ``stumble`` (an obstacle in the walk) and
+``sensitivity`` (how the refined rows move the features). The bench studies that report through the lab (``compare``,
+``refine``, ``calibrate``, ``stance-response``) are the lab's commands: :mod:`lab.cli`."""
 
 from __future__ import annotations
 
@@ -55,51 +56,6 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_compare(args: argparse.Namespace) -> int:
-    if args.course is not None:
-        from lab.course_compare import compare_course, format_course_compare
-
-        result = compare_course(load(args), _course(args), args.mass, geometry=_leg(args), start=args.start)
-        print(format_course_compare(result))
-        if args.out:
-            write_json(args.out, result)
-        return 0
-    from lab.comparison import compare, format_compare, plot_compare
-
-    results = compare(load(args), tuple(args.speeds), tuple(args.inclines), args.seconds, args.mass, _leg(args),
-                      start=args.start)
-    rows = [score.to_dict() for score, _ in results]
-    print(format_compare(rows))
-    if args.out:
-        write_json(args.out, rows)
-    if args.plot:
-        args.plot.parent.mkdir(parents=True, exist_ok=True)
-        plot_compare(results, args.plot)
-        print(f"wrote {args.plot}")
-    return 0
-
-
-def cmd_calibrate(args: argparse.Namespace) -> int:
-    from lab.bench_calibration import calibrate, format_calibration
-
-    rows = calibrate(tuple(args.speeds), tuple(args.inclines), args.mass, args.seconds)
-    print(format_calibration(rows))
-    if args.out is not None:
-        write_json(args.out, rows)
-    return 0
-
-
-def cmd_stance_response(args: argparse.Namespace) -> int:
-    from device_bridge.bench.stance_response import stance_response
-    from lab.stance_response import format_stance_response
-
-    rows = stance_response(load(args), args.mass, args.seconds)
-    print(format_stance_response(rows))
-    if args.out is not None:
-        write_json(args.out, rows)
-    return 0
-
-
 def cmd_stumble(args: argparse.Namespace) -> int:
     """Each controller through each obstacle at each task on the leg (``device_bridge/sim/stumble.py``)."""
     from device_bridge.bench.controllers import make_controller
@@ -148,25 +104,6 @@ def cmd_sensitivity(args: argparse.Namespace) -> int:
         print(name.ljust(38) + "".join(f"{v:14.2f}" for v in mean[:, c]))
     if args.out is not None:
         write_json(args.out, body)
-    return 0
-
-
-def cmd_refine(args: argparse.Namespace) -> int:
-    from controller_core.refine_search import TrustRegionSearch
-    from device_bridge.bench.refine_walks import refine_on_bench
-    from device_bridge.sim.course import load_course
-    from device_bridge.sim.leg_model import LegGeometry
-    from lab.refine_report import format_refine
-
-    if not (0.0 < args.seconds_per_round <= 600.0):
-        raise ValueError(f"--seconds-per-round must be in (0, 600] s, got {args.seconds_per_round!r}")
-    result = refine_on_bench(load(args), _leg(args) or LegGeometry(), load_course(args.train_course),
-                             load_course(args.eval_course), args.rounds, args.seconds_per_round, args.mass,
-                             settled=load_course(args.settled_course),
-                             search=TrustRegionSearch(max_walks=args.search_walks) if args.search_walks else None)
-    print(format_refine(result))
-    if args.out is not None:
-        write_json(args.out, result)
     return 0
 
 
@@ -224,40 +161,6 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                         "line of output says so, and nothing from it reaches a device)")
     p.add_argument("--leg", default=None, help=LEG_HELP)
     p.set_defaults(func=cmd_simulate)
-    p = sub.add_parser("compare", help="quasi-stiffness vs FSMIC over a task grid on the simulated bench")
-    p.add_argument("--course", default=None, help="compare the adaptive envelope, the nominal table and the FSMIC "
-                                                  "over a course (speed, terrain, mixed, frequent or a JSON file)")
-    p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])
-    p.add_argument("--inclines", type=float, nargs="+", default=[0.0])
-    p.add_argument("--seconds", type=float, default=20.0)
-    p.add_argument("--mass", type=float, default=75.0)
-    p.add_argument("--model", type=Path, default=None)
-    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
-    p.add_argument("--plot", type=Path, default=None, help="write the trajectory figure here")
-    p.add_argument("--leg", default=None, help=LEG_HELP)
-    p.add_argument("--start", choices=("standing", "level", "swing"), default="standing",
-                   help="each walk starts from a second of quiet standing through gait initiation (standing), the "
-                        "same and then 6 s of level walking that changes to the task (level: strides scored after "
-                        "the change), or in late swing at belt speed (swing: the bench's first start); a course "
-                        "takes standing or swing")
-    p.set_defaults(func=cmd_compare)
-    p = sub.add_parser("refine", help="the refinement loop on the bench: a leg walks a course with the envelope, the "
-                                      "envelope is refined from its strides, repeated; then an evaluation course with "
-                                      "the original envelope, the refined one and the FSMIC")
-    p.add_argument("--leg", default=None, help=LEG_HELP)
-    p.add_argument("--train-course", default="mixed", help="course walked each round (name or JSON file)")
-    p.add_argument("--eval-course", default="terrain", help="course of the evaluation, not used for training")
-    p.add_argument("--settled-course", default="settled",
-                   help="tasks where bias and spread are judged (each segment walked alone at its task)")
-    p.add_argument("--search-walks", type=int, default=0,
-                   help="search each node's rows on the bench in up to this many walks (a study, 2-50); 0: one "
-                        "step through the shipped sensitivity, checked on the bench")
-    p.add_argument("--rounds", type=int, default=2, help="refinement rounds, 1-10")
-    p.add_argument("--seconds-per-round", type=float, default=120.0, help="walking per round (s), (0, 600]")
-    p.add_argument("--mass", type=float, default=75.0)
-    p.add_argument("--model", type=Path, default=None)
-    p.add_argument("--out", type=Path, default=None, help="write the JSON here")
-    p.set_defaults(func=cmd_refine)
     p = sub.add_parser("sensitivity", help="measure on the bench how the refined table values move the controlled "
                                            "features (the refinement's sensitivity, shipped in controller_core/data)")
     p.add_argument("--speeds", type=float, nargs="+", default=[0.6, 0.85, 1.1, 1.35, 1.6])
@@ -268,14 +171,6 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", type=Path, default=None)
     p.add_argument("--out", type=Path, default=None, help="write the grid as JSON here")
     p.set_defaults(func=cmd_sensitivity)
-    p = sub.add_parser("stance-response", help="bench study: how far the loaded knee answers its stance-flexion "
-                                               "stiffness (learned table and FSMIC), under the bench's person and "
-                                               "weaker ones")
-    p.add_argument("--seconds", type=float, default=16.0, help="walking per table (s)")
-    p.add_argument("--mass", type=float, default=75.0)
-    p.add_argument("--model", type=Path, default=None)
-    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
-    p.set_defaults(func=cmd_stance_response)
     p = sub.add_parser("stumble", help="bench study: a block that catches the toe in mid-swing and a platform the foot "
                                        "lands on early, at paired tasks; falls and strides until clean again")
     p.add_argument("--speeds", type=float, nargs="+", default=[1.2, 1.0])
@@ -288,11 +183,3 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--leg", default=None, help=LEG_HELP)
     p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
     p.set_defaults(func=cmd_stumble)
-    p = sub.add_parser("calibrate", help="walk the reference's own joint angles on the bench over a task grid: how far "
-                                         "the body strays from where people's is")
-    p.add_argument("--speeds", type=float, nargs="+", default=[0.84, 1.2, 1.49, 1.95])
-    p.add_argument("--inclines", type=float, nargs="+", default=[0.0, 5.0])
-    p.add_argument("--seconds", type=float, default=8.0)
-    p.add_argument("--mass", type=float, default=75.0)
-    p.add_argument("--out", type=Path, default=None, help="write the rows as JSON here")
-    p.set_defaults(func=cmd_calibrate)

@@ -1,8 +1,7 @@
-"""quasitune predict, plot, train and evaluate, run in-process (one subprocess checks the installed entry point)."""
+"""quasitune predict, train and envelope, run in-process (one subprocess checks the installed entry point)."""
 
 from __future__ import annotations
 
-import functools
 import json
 import subprocess
 import sys
@@ -44,13 +43,10 @@ def test_cli_bad_input_exits_2_with_one_line(capsys, args, names):
     assert len(out.err.strip().splitlines()) == 1 and out.err.startswith("quasitune: error:") and names in out.err
 
 
-def test_cli_readable_table_and_plot(capsys, tmp_path):
+def test_cli_readable_table(capsys):
     assert main(["predict", "--speed", "1.4", "--incline", "3"]) == 0
     text = capsys.readouterr().out
     assert "Parameter table" in text and "stance_flexion" in text
-    png = tmp_path / "fig.png"
-    assert main(["plot", "--speed", "1.4", "--out", str(png)]) == 0
-    assert png.stat().st_size > 50_000
 
 
 def test_cli_train_on_standard_format_then_predict_with_it(capsys, reference, tmp_path):
@@ -66,27 +62,6 @@ def test_cli_train_on_standard_format_then_predict_with_it(capsys, reference, tm
     assert main(["predict", "--speed", "1.3", "--model", str(tmp_path / "nope")]) == 2
     assert "no model" in capsys.readouterr().err
 
-
-def test_cli_evaluate_writes_json(capsys, monkeypatch, reference, tmp_path):
-    from controller_core.feature_model import FeatureModel
-    from controller_core.joint_reference import JointReference
-    from lab import evaluation
-
-    # three real conditions, single-start GPR fits and six mixture components keep the leave-one-out short; the
-    # shipped five and the default settings take the same code path
-    monkeypatch.setattr(evaluation, "load_shipped_reference", lambda: reference.subset([0, 2, 4]))
-    monkeypatch.setattr(evaluation, "train", functools.partial(evaluation.train, feature_model=FeatureModel(n_restarts=0),
-                                                               joint_reference=JointReference(n_components=6)))
-    assert main(["evaluate", "--out", str(tmp_path / "eval.json")]) == 0
-    text = capsys.readouterr().out
-    assert "Leave-one-condition-out curve RMSE" in text and "Leave-one-ramp-condition-out" in text
-    assert "Change from level walking against UM21" in text
-    r = json.loads((tmp_path / "eval.json").read_text())
-    assert set(r["curve_rmse"]["knee_angle_deg"]) == {"proposal", "reference", "gmr", "linear", "nearest",
-                                                          "between_subject_sd"}
-    assert [f["held_out"] for f in r["folds"]] == [reference.records[i].name for i in (0, 2, 4)]
-    assert [f["incline_deg"] for f in r["incline"]["folds"]] == [-10.0, 10.0]
-    assert set(r["um21_envelopes"]["sides"]) == {"incline_walking", "decline_walking"}
 
 
 def test_cli_envelope_prints_the_grid_its_checks_and_crc_and_refuses_a_bad_grid(capsys):
