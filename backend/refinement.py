@@ -14,8 +14,11 @@ from __future__ import annotations
 from sqlalchemy import Connection
 
 from backend.errors import ConflictError, InvalidError
+from backend.services import envelopes, proposals
 from backend.session_strides import session_strides
-from backend.store import envelopes, proposals, refinements
+from backend.store import envelopes as envelope_rows
+from backend.store import proposals as proposal_rows
+from backend.store import refinements
 from backend.store import sessions as sessions_store
 from backend.store.users import User
 from controller_core.model import QuasiStiffnessModel
@@ -132,11 +135,11 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
                             actor: User, model: QuasiStiffnessModel,
                             geometry: LegGeometry | None = None) -> dict:
     """A refined draft of an approved envelope from its sessions (module docstring); returns the refinement."""
-    row = envelopes.get_row(conn, envelope_id)
+    row = envelope_rows.get_row(conn, envelope_id)
     if row["status"] != "approved":
         raise ConflictError(f"envelope {envelope_id} is {row['status']}: a refinement derives from the approved "
                             "version the leg walked")
-    parent = envelopes.stored_envelope(row)
+    parent = envelope_rows.stored_envelope(row)
     sessions = _sessions(conn, "envelope", envelope_id, row["patient_id"], session_ids)
     strides, counted = _strides(conn, sessions)
     targets = model_targets(model)
@@ -165,11 +168,11 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
                             geometry: LegGeometry | None = None) -> dict:
     """A refined draft of an approved table from its sessions: the table is one node at its task, every stride its
     evidence; returns the refinement."""
-    row = proposals.get_row(conn, proposal_id)
+    row = proposal_rows.get_row(conn, proposal_id)
     if row["status"] != "approved":
         raise ConflictError(f"table {proposal_id} is {row['status']}: a refinement derives from the approved version "
                             "the leg walked")
-    table = proposals.stored_table(row)
+    table = proposal_rows.stored_table(row)
     sessions = _sessions(conn, "proposal", proposal_id, row["patient_id"], session_ids)
     strides, counted = _strides(conn, sessions)
     targets = model_targets(model)

@@ -1,7 +1,7 @@
 """The code's shape holds: imports point down (backend → device_bridge → controller_core), the lab stands apart from
-the product, the leg's own code never reaches the model, no module imports one that imports it back (Python and the
-dashboard's JavaScript), no private name crosses a module, and no dashboard page imports another page or the
-router."""
+the product, the leg's own code never reaches the model, storage leaves the rules and the screens to the services, no
+module imports one that imports it back (Python and the dashboard's JavaScript), no private name crosses a module, and
+no dashboard page imports another page or the router."""
 
 from __future__ import annotations
 
@@ -135,6 +135,19 @@ def test_the_legs_modules_load_without_the_model_the_server_or_the_bench():
     r = subprocess.run([sys.executable, "-c", _BLOCKER, *LEG_MODULES], cwd=ROOT, capture_output=True, text=True,
                        timeout=60)
     assert r.returncode == 0, r.stderr[-2000:]
+
+
+# what storage leaves to the service layer (backend/services) and the screens: the rules (the device-side check, the
+# bench's verdict and its figures) and the words and shapes a page or the API shows
+NOT_FOR_STORAGE = ("backend.services", "backend.bench", "backend.routers", "backend.schemas", "backend.clinical_words",
+                   "backend.refusal_words", "device_bridge.as_run")
+
+
+def test_storage_stores_and_leaves_the_rules_and_the_screens_to_the_services():
+    every = _every_import(_python_modules())
+    reaching = sorted((m, t) for m, found in every.items() if m.startswith("backend.store")
+                      for t in found if t.startswith(NOT_FOR_STORAGE))
+    assert reaching == []
 
 
 def test_no_private_name_is_imported_from_another_module():

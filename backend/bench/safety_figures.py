@@ -2,7 +2,7 @@
 
 A table can track the reference better than the FSMIC and still trip the patient or leave a loaded knee on the
 weak swing impedance. These figures are not scores: each one is flagged on its own bound, whatever the RMSEs say, and
-every flag gates approval and push as a fall does (:mod:`backend.store.bench_verdict`).
+every flag gates approval and push as a fall does (:mod:`backend.services.bench_verdict`).
 
 Bounds (and why):
 

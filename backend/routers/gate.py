@@ -21,8 +21,11 @@ from backend.errors import ConflictError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.gate import SignoffRequest, SignoffsOut, WithdrawOut, WithdrawRequest
-from backend.store import bench_verdict, envelopes, proposals, signoffs, withdrawals
+from backend.services import bench_verdict, envelopes, proposals
+from backend.store import envelopes as envelope_rows
+from backend.store import proposals as proposal_rows
 from backend.store import pushes as pushes_store
+from backend.store import signoffs, withdrawals
 from backend.store.users import User
 from backend.threads import run_waiting
 from device_bridge.as_run import as_run
@@ -137,9 +140,9 @@ def _resend(conn: Connection, devices: DeviceManager, device_id: str, back: dict
     item: pushes_store.Pushed = ("proposal", back["proposal_id"]) if back["kind"] == "table" \
         else ("envelope", back["envelope_id"])
     if item[0] == "proposal":
-        content = proposals.stored_table(proposals.get_row(conn, item[1]))
+        content = proposal_rows.stored_table(proposal_rows.get_row(conn, item[1]))
     else:
-        content = envelopes.stored_envelope(envelopes.get_row(conn, item[1]))
+        content = envelope_rows.stored_envelope(envelope_rows.get_row(conn, item[1]))
     checked = as_run(content)
     if checked.violations or checked.wire_crc32 is None:
         raise ConflictError(f"{back['label']} no longer passes the safety limits")

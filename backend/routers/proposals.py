@@ -18,7 +18,9 @@ from backend.schemas.proposals import (
     ProposalOut,
     ProposalRequest,
 )
-from backend.store import bench_verdict, patients, proposals, pushes, withdrawals
+from backend.services import bench_verdict, proposals
+from backend.store import patients, pushes, withdrawals
+from backend.store import proposals as proposal_rows
 from backend.task_range import extrapolation_reason
 from controller_core.table_edit import EditError, edit_table
 from device_bridge.as_run import as_run
@@ -74,9 +76,9 @@ def _with_state(conn: Connection, shown: dict) -> dict:
 def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Prosthetist) -> dict:
     """Derive a new draft version with edited table cells (prosthetist). The edited table is re-checked against
     every safety limit and refused (nothing stored) if any value is outside."""
-    parent = proposals.get_row(conn, proposal_id)
+    parent = proposal_rows.get_row(conn, proposal_id)
     try:
-        table, changes = edit_table(proposals.stored_table(parent),
+        table, changes = edit_table(proposal_rows.stored_table(parent),
                                     [r.model_dump(exclude_none=True) for r in body.rows],
                                     body.thresholds.model_dump(exclude_none=True) if body.thresholds else None)
     except (EditError, ValidationError) as exc:

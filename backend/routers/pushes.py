@@ -15,8 +15,9 @@ from backend.errors import ConflictError, DeviceError, InvalidError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.pushes import PushOut, PushRequest
-from backend.store import bench_verdict, envelopes, patients, proposals, withdrawals
+from backend.services import bench_verdict
 from backend.store import devices as devices_store
+from backend.store import envelopes, patients, proposals, withdrawals
 from backend.store import pushes as store
 from backend.store.users import User
 from backend.threads import run_waiting

@@ -1,70 +1,30 @@
-"""Approving or rejecting a draft once: the rule proposals and envelopes share (their triggers enforce it too)."""
+"""The versions tables' shared queries: a page of a patient's versions, the next version number, and the decision
+written once (the rule around it, the content's check and the bench, is :mod:`backend.services.decisions`; the
+triggers enforce "once" too)."""
 
 from __future__ import annotations
-
-from collections.abc import Callable
 
 from sqlalchemy import Connection, RowMapping, Select, Table, bindparam, func, select, update
 
 from backend.db import utc_now
-from backend.errors import ConflictError
-from backend.store import audit
-from backend.store.bench_verdict import require_bench
 from backend.store.tables import envelopes, patients, proposals, users
 from backend.store.users import User
-from controller_core.table import LimitViolation
 
 TABLES: dict[str, Table] = {"proposal": proposals, "envelope": envelopes}
 
 
-def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, comment: str, actor: User,
-                recheck: Callable[[], list[LimitViolation]], checked_against: str, audit_after: dict,
-                override_reason: str | None = None) -> None:
-    """Record the decision on draft ``row`` (inside the caller's write transaction) and audit it.
-
-    Taken once even when two servers decide the same version at the same moment: the update changes the row only
-    while it is still a draft, and the database lets one such update through at a time (SQLite's write lock; on
-    PostgreSQL the row lock the first update holds until its commit, after which the second finds no draft and
-    changes nothing). An update that changed nothing is refused here, so the loser writes no decision and no audit.
-
-    Args:
-        entity: ``proposal`` or ``envelope``.
-        recheck: the check of the stored content an approval must pass (run only to approve).
-        checked_against: what ``recheck`` checks, for the refusal (e.g. "the safety limits").
-        override_reason: an approval without a clean bench preview goes ahead only when two prosthetists signed off
-            its findings; this reason is the approver's own sign-off when theirs is the second
-            (:mod:`backend.store.bench_verdict`). Who signed off and why is kept with the decision and audited.
-
-    Raises:
-        ConflictError: already decided, an approval whose content fails ``recheck``, or one the bench's verdict
-            does not allow without an override (nothing written).
-    """
-    if status not in ("approved", "rejected"):
-        raise ValueError(f"status must be 'approved' or 'rejected', got {status!r}")
-    if row["status"] != "draft":
-        raise ConflictError(f"{entity} {row['id']} was already {row['status']} by {row['decided_by_name']} at "
-                            f"{row['decided_at']}; derive a new version to change it")
-    bench, override = None, None
-    if status == "approved":
-        violations = recheck()
-        if violations:
-            raise ConflictError(f"{entity} {row['id']} cannot be approved: {len(violations)} value(s) outside "
-                                f"{checked_against}: " + "; ".join(v.message for v in violations),
-                                violations=[v.model_dump() for v in violations])
-        verdict, override = require_bench(conn, entity, row, override_reason, "approved",   # type: ignore[arg-type]
-                                          actor)
-        bench = verdict["status"]
+def record_decision(conn: Connection, entity: str, version_id: int, status: str, comment: str, actor: User,
+                    override: str | None) -> bool:
+    """Write the decision on draft ``version_id`` (inside the caller's write transaction) if it is still a draft;
+    whether it was. Taken once even when two servers decide the same version at the same moment: the update changes
+    the row only while it is still a draft, and the database lets one such update through at a time (SQLite's write
+    lock; on PostgreSQL the row lock the first update holds until its commit, after which the second finds no draft
+    and changes nothing)."""
     table = TABLES[entity]
-    taken = conn.execute(update(table).where(table.c.id == row["id"], table.c.status == "draft").values(
+    taken = conn.execute(update(table).where(table.c.id == version_id, table.c.status == "draft").values(
         status=status, decided_by=actor.id, decided_at=utc_now(), decision_comment=comment,
         decision_override=override))
-    if taken.rowcount != 1:
-        raise ConflictError(f"{entity} {row['id']} was decided by someone else a moment ago; reload it to see the "
-                            "decision")
-    audit.record(conn, actor.id, actor.username, f"{entity}.{'approve' if status == 'approved' else 'reject'}",
-                 entity, row["id"], before={"status": "draft"}, after={
-                     "status": status, "comment": comment, **audit_after,
-                     **({"bench": bench} if bench else {}), **({"override_reason": override} if override else {})})
+    return taken.rowcount == 1
 
 
 # what every decided-once version's summary reads, besides its own columns

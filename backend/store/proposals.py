@@ -1,39 +1,27 @@
-"""Proposal versions: created from the model or derived by an edit, then approved or rejected once.
+"""Proposal versions as stored: a draft's row written once, read back with who made and decided it, and its table
+re-validated against the sha256 it was stored with.
 
 A proposal's content (task, curves, features, table) is immutable — triggers refuse any change (the baseline
-revision) — and its decision is taken at most once. Versions are numbered per patient (1, 2, …);
-an edit records its parent.
+revision) — and its decision is taken at most once (:func:`backend.store.decisions.record_decision`). Versions are
+numbered per patient (1, 2, …); an edit records its parent. What a version means to the clinic (its view, its
+checks, approving it) is :mod:`backend.services.proposals`.
 """
 
 from __future__ import annotations
 
-import json
-from collections.abc import Callable
 from functools import partial
 
-import numpy as np
-from pydantic_core import to_json
 from sqlalchemy import Connection, RowMapping, bindparam, insert
 
-from backend.db import utc_now, write_transaction
+from backend.db import utc_now
 from backend.errors import ConflictError, NotFoundError
-from backend.store import audit
-from backend.store.decisions import decide_once, next_version, summary_columns, version_page, version_select
+from backend.store.decisions import next_version, summary_columns, version_page, version_select
 from backend.store.patients import lock_patient
 from backend.store.tables import proposals
 from backend.store.users import User
 from controller_core.content import canonical_json, content_sha256
-from controller_core.proposal import Proposal
-from controller_core.table import STUMBLE_THRESHOLDS, LimitViolation, ParameterTable, SafetyLimits, display_rows
-from controller_core.table_rules import SWING_SCALED
-from device_bridge.as_run import AsRun, as_run
+from controller_core.table import ParameterTable
 
-LIMITS = SafetyLimits().model_dump()
-# display units of the table's values, for diffs
-ROW_UNITS = {"k_Nm_per_rad": "N·m/rad", "theta_e_deg": "deg", "b_Nm_s_per_rad": "N·m·s/rad"}
-THRESHOLD_UNITS = {"sf_to_se_ankle_moment_Nm": "N·m", "se_to_wf_load_N": "N", "wf_to_we_knee_angle_deg": "deg",
-                   "we_to_sf_load_N": "N", "min_state_time_s": "s", "max_state_time_s": "s",
-                   "sf_to_se_knee_extension_deg_per_s": "deg/s", **STUMBLE_THRESHOLDS}
 _p = proposals
 _select = partial(version_select, _p)
 
@@ -49,58 +37,9 @@ def stored_table(row: RowMapping) -> ParameterTable:
     return ParameterTable.model_validate_json(row["table_json"])
 
 
-def _assemble(meta: dict, table: ParameterTable, body: dict, full: bool,
-              violations: list[LimitViolation] | None = None) -> dict:
-    """The API view of a proposal from its metadata, its (validated) table and its stored model body
-    (``violations``: the table's limit check when the caller has just made it)."""
-    violations = as_run(table).violations if violations is None else violations
-    out = {
-        **meta,
-        "model": body["model"],
-        "table": display_rows(table),
-        "thresholds": table.thresholds.model_dump(),
-        "table_sha256": meta["table_sha256"],
-        "safety": {"ok": not violations, "violations": [v.model_dump() for v in violations]},
-        "swing_inertia": swing_inertia(table),
-    }
-    if full:
-        out |= {"features": body["features"], "subphase_boundaries_phase": body["subphase_boundaries_phase"],
-                "curves": body["curves"], "via_points": body.get("via_points", []), "limits": LIMITS}
-    return out
-
-
-def swing_inertia(table: ParameterTable) -> dict[str, object]:
-    """The leg a table's swing rows were proposed for (its provenance) and the rows scaled for it, as the API gives
-    it."""
-    knee, ankle = table.provenance.swing_inertia_ratio
-    return {"knee_ratio": round(knee, 4), "ankle_ratio": round(ankle, 4),
-            "scaled_rows": [f"{joint}.{subphase}" for joint, subphases in SWING_SCALED.items() for subphase in subphases]}
-
-
 def table_label(patient_code: str, proposal_version: int) -> str:
     """The one name a table has everywhere: on its page, the device, the monitor and the report."""
     return f"{patient_code} · table v{proposal_version}"
-
-
-def _meta(row: RowMapping) -> dict:
-    return {
-        "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
-        "parent_version": row["parent_version"], "table_label": table_label(row["patient_code"], row["version"]),
-        "source": row["source"], "status": row["status"],
-        "created_by": row["created_by_name"], "created_at": row["created_at"], "edit_comment": row["edit_comment"],
-        "decision": None if row["status"] == "draft" else {
-            "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
-            "comment": row["decision_comment"], "override_reason": row["decision_override"]},
-        "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
-                 "body_mass_kg": row["body_mass_kg"]},
-        "extrapolation": bool(row["extrapolation"]),
-        "extrapolation_reason": row["extrapolation_reason"],
-        "table_sha256": row["table_sha256"],
-    }
-
-
-def _public(row: RowMapping, full: bool) -> dict:
-    return _assemble(_meta(row), stored_table(row), json.loads(row["model_json"]), full)
 
 
 def get_row(conn: Connection, proposal_id: int) -> RowMapping:
@@ -110,129 +49,29 @@ def get_row(conn: Connection, proposal_id: int) -> RowMapping:
     return row
 
 
-def get_proposal(conn: Connection, proposal_id: int, full: bool = True) -> dict:
-    return _public(get_row(conn, proposal_id), full)
-
-
 _SUMMARY_SELECT = _select(*summary_columns(_p), _p.c.speed_mps, _p.c.incline_deg, _p.c.body_mass_kg, _p.c.extrapolation,
                           _p.c.extrapolation_reason, _p.c.table_sha256)
 
 
-def list_proposals(conn: Connection, patient_id: int, limit: int = 50,
-                   before_version: int | None = None) -> tuple[list[dict], int]:
-    """One page of summaries, newest version first (metadata only: the table, curves and the live limit check are
-    the full version's, on its own endpoint), and how many versions the patient has in all."""
-    rows, total = version_page(conn, "proposal", _SUMMARY_SELECT, patient_id, limit, before_version)
-    return [{**_meta(r), "safety_ok": bool(r["safety_ok"])} for r in rows], total
+def list_rows(conn: Connection, patient_id: int, limit: int = 50,
+              before_version: int | None = None) -> tuple[list[RowMapping], int]:
+    """One page of a patient's versions' summary rows, newest first (no stored bodies), and how many in all."""
+    return version_page(conn, "proposal", _SUMMARY_SELECT, patient_id, limit, before_version)
 
 
-def _insert(conn: Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
-            extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User,
-            violations: list[LimitViolation], extrapolation_reason: str | None = None) -> dict:
-    """Insert a draft (``violations``: its table's limit check; ``extrapolation_reason``: why it was requested beyond
-    the tasks the model knows), numbered after the patient's versions while holding the patient's row; returns its
-    metadata as :func:`_meta` gives it."""
+def insert_row(conn: Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
+               extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User,
+               safety_ok: bool, extrapolation_reason: str | None = None) -> RowMapping:
+    """Insert a draft inside the caller's write transaction (``safety_ok``: its table passed the limit check;
+    ``extrapolation_reason``: why it was requested beyond the tasks the model knows), numbered after the patient's
+    versions while holding the patient's row; returns its row as :func:`get_row` reads it."""
     table_json = canonical_json(table)
     lock_patient(conn, patient_id)
     new_id = conn.execute(_INSERT, dict(
         patient_id=patient_id, version=next_version(conn, "proposal", patient_id), parent_id=parent_id, source=source,
         speed_mps=task["speed_mps"], incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"],
         extrapolation=int(extrapolation or extrapolation_reason is not None),
-        extrapolation_reason=extrapolation_reason, safety_ok=int(not violations), model_json=model_json,
+        extrapolation_reason=extrapolation_reason, safety_ok=int(safety_ok), model_json=model_json,
         table_json=table_json, table_sha256=content_sha256(table_json), edit_comment=comment, created_by=actor.id,
         created_at=utc_now())).inserted_primary_key[0]
-    return _meta(get_row(conn, int(new_id)))
-
-
-def _refuse_non_finite(proposal: Proposal) -> None:
-    """The fast encoder would write NaN into the JSON; a model that produced one has a bug, never stored."""
-    arrays = [*proposal.means.values(), *proposal.stds.values(),
-              np.array([[f.value, f.std, f.phase, f.phase_std] for f in proposal.features])]
-    if not all(np.isfinite(a).all() for a in arrays):
-        raise RuntimeError("the model produced a non-finite curve or feature; nothing stored")
-
-
-def insert_from_model(conn: Connection, patient_id: int, proposal: Proposal, actor: User,
-                      extrapolation_reason: str | None = None) -> dict:
-    """Store a freshly computed proposal as the patient's next draft version, inside the caller's write
-    transaction; returns its API view. ``extrapolation_reason``: the prosthetist's reason for a task beyond the
-    tasks the model knows (audited, shown with the version)."""
-    body = proposal.model_body()
-    _refuse_non_finite(proposal)
-    model_json = to_json(body).decode()   # pydantic-core's encoder: far faster than json.dumps on 808 floats
-    task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
-    checked = as_run(proposal.table)   # stored, shown and checked as the device will run it
-    table, violations = checked.item, checked.violations
-    meta = _insert(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, table,
-                   None, actor, violations, extrapolation_reason)
-    audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
-                 after={"patient_id": patient_id, "version": meta["version"], "task": task,
-                        "table_sha256": meta["table_sha256"], "safety_ok": not violations,
-                        "extrapolation": meta["extrapolation"], "extrapolation_reason": extrapolation_reason})
-    return _assemble(meta, table, body, full=True, violations=violations)
-
-
-def create_from_model(conn: Connection, patient_id: int, proposal: Proposal, actor: User,
-                      extrapolation_reason: str | None = None) -> dict:
-    """:func:`insert_from_model` in a write transaction of its own."""
-    with write_transaction(conn):
-        return insert_from_model(conn, patient_id, proposal, actor, extrapolation_reason)
-
-
-def create_edit(conn: Connection, parent_id: int, checked: AsRun[ParameterTable], changes: list[dict],
-                comment: str, actor: User, action: str = "proposal.edit",
-                also: Callable[[Connection, dict], dict] | None = None) -> dict:
-    """Store an edited table as a new draft derived from ``parent_id``, as the device runs it: ``checked`` is the
-    caller's :func:`~device_bridge.as_run.as_run` of the edit (its check made once, by the caller that refuses).
-    ``action``: what the audit calls it (a refinement is ``proposal.refine``); ``also``: run in the same transaction
-    with the new version's metadata (e.g. store the refinement's evidence), its result added to the audit entry."""
-    table, violations = checked.item, checked.violations
-    with write_transaction(conn):
-        parent = get_row(conn, parent_id)
-        task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],
-                "body_mass_kg": parent["body_mass_kg"]}
-        meta = _insert(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
-                       parent["model_json"], table, comment, actor, violations, parent["extrapolation_reason"])
-        out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
-        pid = meta["id"]
-        extra = also(conn, meta) if also is not None else {}
-        audit.record(conn, actor.id, actor.username, action, "proposal", pid,
-                     before={"proposal_id": parent_id, "version": parent["version"],
-                             "table_sha256": parent["table_sha256"],
-                             **{c["field"]: c["before"] for c in changes}},
-                     after={"version": out["version"], "table_sha256": out["table_sha256"], "comment": comment,
-                            **{c["field"]: c["after"] for c in changes}, **extra})
-    return out
-
-
-def decide(conn: Connection, proposal_id: int, status: str, comment: str, actor: User,
-           override_reason: str | None = None) -> dict:
-    """Approve or reject a draft once. Approval re-validates the stored table and re-checks every limit."""
-    with write_transaction(conn):
-        row = get_row(conn, proposal_id)
-        decide_once(conn, "proposal", row, status, comment, actor, lambda: as_run(stored_table(row)).violations,
-                    "the safety limits", {"table_sha256": row["table_sha256"]}, override_reason)
-        return get_proposal(conn, proposal_id)
-
-
-def diff(conn: Connection, a_id: int, b_id: int) -> dict:
-    """Field-by-field differences from proposal ``a_id`` to ``b_id`` (task, table cells, thresholds)."""
-    a, b = get_row(conn, a_id), get_row(conn, b_id)
-    ta, tb = stored_table(a), stored_table(b)
-    changes: list[dict] = []
-
-    def add(field: str, before: object, after: object, unit: str | None) -> None:
-        if before != after:
-            changes.append({"field": field, "before": before, "after": after, "unit": unit})
-
-    add("task.speed_mps", a["speed_mps"], b["speed_mps"], "m/s")
-    add("task.incline_deg", a["incline_deg"], b["incline_deg"], "deg")
-    add("task.body_mass_kg", a["body_mass_kg"], b["body_mass_kg"], "kg")
-    for ra in ta.rows:
-        rb = tb.row(ra.joint, ra.subphase)
-        for name in (*ROW_UNITS, "fit_method"):
-            add(f"{ra.joint}.{ra.subphase}.{name}", getattr(ra, name), getattr(rb, name), ROW_UNITS.get(name))
-    for name, unit in THRESHOLD_UNITS.items():
-        add(f"thresholds.{name}", getattr(ta.thresholds, name), getattr(tb.thresholds, name), unit)
-    return {"from_id": a_id, "to_id": b_id, "from_version": a["version"], "to_version": b["version"],
-            "same_patient": a["patient_id"] == b["patient_id"], "changes": changes}
+    return get_row(conn, int(new_id))

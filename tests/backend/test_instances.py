@@ -44,7 +44,7 @@ def _at_once(calls) -> list:
 def test_two_instances_approving_one_version_at_once_decide_it_once(two, round_, monkeypatch):
     """Both read the draft before either writes (the bench's verdict, read between, is slowed to make sure of it):
     exactly one approval is taken and audited, the other is refused."""
-    from backend.store import decisions
+    from backend.services import decisions
 
     real = decisions.require_bench
 

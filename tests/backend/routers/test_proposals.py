@@ -11,6 +11,7 @@ import pytest
 from sqlalchemy.exc import IntegrityError
 
 from backend.db import write_transaction
+from backend.services import proposals as proposal_versions
 from backend.store import proposals as proposal_store
 from backend.store.users import User
 from tests.helpers.api import walk_preview
@@ -219,7 +220,7 @@ def test_approval_rechecks_the_limits_of_the_stored_table(api, model):
     bad_table = proposal.table.model_copy(update={"rows": [bad_row, *proposal.table.rows[1:]]})
     proposal.table = bad_table
     conn = api.db()
-    stored = proposal_store.create_from_model(conn, patient["id"], proposal, User(1, "prosthetist", "prosthetist"))
+    stored = proposal_versions.create_from_model(conn, patient["id"], proposal, User(1, "prosthetist", "prosthetist"))
     conn.close()
     assert stored["safety"]["ok"] is False
     assert api.client.get(f"/api/proposals/{stored['id']}/preview", headers=api.as_("viewer")).status_code == 409

@@ -1,56 +1,11 @@
-"""A draft is decided once; an approval rests on the stored content's check and the bench."""
+"""The versions tables' shared queries: a page of a patient's versions reads only the summary columns."""
 
 from __future__ import annotations
 
-import pytest
 from sqlalchemy import literal, select
 
-from backend.db import connect, write_transaction
-from backend.errors import ConflictError
-from backend.store import audit, proposals, signoffs
-from backend.store.decisions import decide_once, summary_columns, version_page
+from backend.store.decisions import summary_columns, version_page
 from backend.store.tables import proposals as proposals_table
-from controller_core.table import LimitViolation
-
-REASON = "walked with the patient in the parallel bars"
-
-
-def _signed(conn, pid, colleague):
-    """The colleague's sign-off on the draft's content (it has no preview walked): the approver's is then the second."""
-    with write_transaction(conn):
-        signoffs.sign(conn, "proposal", pid, proposals.get_row(conn, pid)["table_sha256"], colleague, REASON)
-
-
-def _decide(conn, pid, actor, status, recheck=list, override=REASON):
-    with write_transaction(conn):
-        decide_once(conn, "proposal", proposals.get_row(conn, pid), status, "looked at it", actor, recheck,
-                    "the safety limits", {"note": 1}, override)
-
-
-def test_a_draft_is_decided_once_and_audited(conn, prosthetist, colleague, draft):
-    pid = draft()
-    _signed(conn, pid, colleague)
-    _decide(conn, pid, prosthetist, "approved")
-    row = proposals.get_row(conn, pid)
-    assert (row["status"], row["decided_by_name"], row["decision_override"]) == ("approved", "pat",
-                                                                                 f"kim: {REASON}; pat: {REASON}")
-    entry = audit.list_entries(conn, entity="proposal", entity_id=pid)[0]
-    assert entry["action"] == "proposal.approve" and entry["after"]["bench"] == "not_walked"
-    with pytest.raises(ConflictError, match="already approved by pat"):
-        _decide(conn, pid, prosthetist, "rejected")
-
-
-def test_an_approval_whose_content_fails_its_check_writes_nothing(conn, prosthetist, draft):
-    pid = draft()
-    bad = [LimitViolation(field="knee.stance_flexion.k_Nm_per_rad", value=10.0, low=-1200.0, high=0.0,
-                          message="knee stance flexion k 10 is outside [-1200, 0]")]
-    with pytest.raises(ConflictError, match="cannot be approved: 1 value"):
-        _decide(conn, pid, prosthetist, "approved", recheck=lambda: bad)
-    assert proposals.get_row(conn, pid)["status"] == "draft"
-    _decide(conn, pid, prosthetist, "rejected", recheck=lambda: bad)   # a rejection needs no check
-    assert proposals.get_row(conn, pid)["status"] == "rejected"
-    with pytest.raises(ValueError, match="approved' or 'rejected"):
-        _decide(conn, draft(), prosthetist, "maybe")
 
 
 def test_versions_page_newest_first_and_read_only_their_summary_columns(conn, patient, draft):
@@ -63,24 +18,3 @@ def test_versions_page_newest_first_and_read_only_their_summary_columns(conn, pa
     assert [r["version"] for r in rows] == [3, 2]
     columns = list(rows[0].keys())
     assert "table_json" not in columns and "speed_mps" in columns
-
-
-def test_a_decision_made_on_a_row_read_before_another_server_decided_it_writes_nothing(conn, database, prosthetist,
-                                                                                      colleague, draft):
-    """Two instances read the same draft; the other one's decision commits first. The second's update, made only
-    while the version is still a draft, changes nothing, and it is refused: no second decision, no second audit."""
-    pid = draft()
-    _signed(conn, pid, colleague)
-    stale = proposals.get_row(conn, pid)            # read while still a draft
-    other = connect(database)
-    try:
-        _decide(other, pid, prosthetist, "rejected")
-    finally:
-        other.close()
-    with pytest.raises(ConflictError, match="decided by someone else a moment ago"), write_transaction(conn):
-        decide_once(conn, "proposal", stale, "approved", "me too", prosthetist, list, "the safety limits", {},
-                    REASON)
-    assert proposals.get_row(conn, pid)["status"] == "rejected"
-    decisions = [e["action"] for e in audit.list_entries(conn, entity="proposal", entity_id=pid)]
-    assert decisions == ["proposal.reject", "proposal.gate_signoff"]          # the approver's sign-off was not kept
-    assert [s["by"] for s in signoffs.signoffs(conn, "proposal", pid, stale["table_sha256"])] == ["kim"]

@@ -1,11 +1,13 @@
-"""Proposals in storage: stored as the device will run them, proved by their hash at every read."""
+"""Proposals: created and edited as the device will run them, stored proved by their hash and refused at a read where
+it no longer matches."""
 
 from __future__ import annotations
 
 import pytest
 
 from backend.errors import ConflictError
-from backend.store import proposals
+from backend.services import proposals
+from backend.store import proposals as proposal_rows
 from controller_core.content import canonical_json, content_sha256
 from device_bridge.as_run import as_run
 from tests.helpers.sql import drop_trigger, sql
@@ -14,12 +16,12 @@ from tests.helpers.sql import drop_trigger, sql
 def test_a_proposal_is_stored_as_the_device_will_run_it(conn, prosthetist, patient, model):
     proposal = model.propose(1.2, 0.0, 80.0)
     out = proposals.create_from_model(conn, patient["id"], proposal, prosthetist)
-    row = proposals.get_row(conn, out["id"])
-    stored = proposals.stored_table(row)
+    row = proposal_rows.get_row(conn, out["id"])
+    stored = proposal_rows.stored_table(row)
     assert stored == as_run(proposal.table).item and row["table_json"] == canonical_json(stored)
     assert row["table_sha256"] == content_sha256(row["table_json"]) == out["table_sha256"]
     assert out["status"] == "draft" and out["version"] == 1 and out["safety"]["ok"]
-    assert proposals.table_label("P-1", 1) in out["table_label"]
+    assert proposal_rows.table_label("P-1", 1) in out["table_label"]
 
 
 def test_a_table_changed_in_storage_is_refused_at_read(conn, prosthetist, patient, model):
@@ -33,7 +35,7 @@ def test_a_table_changed_in_storage_is_refused_at_read(conn, prosthetist, patien
 
 def test_an_edit_is_a_new_draft_with_its_parent_and_the_diff_names_each_change(conn, prosthetist, patient, model):
     parent = proposals.create_from_model(conn, patient["id"], model.propose(1.2, 0.0, 80.0), prosthetist)
-    table = proposals.stored_table(proposals.get_row(conn, parent["id"]))
+    table = proposal_rows.stored_table(proposal_rows.get_row(conn, parent["id"]))
     first = table.rows[0]
     edited = table.model_copy(update={"rows": [first.model_copy(update={"k_Nm_per_rad": first.k_Nm_per_rad - 20.0}),
                                                *table.rows[1:]]})

@@ -1,4 +1,5 @@
-"""A migrated database of its own per test, on SQLite and on PostgreSQL, and the people who act on it."""
+"""For the storage and service tests: a migrated database of its own per test, on SQLite and on PostgreSQL, and the
+people who act on it."""
 
 from __future__ import annotations
 

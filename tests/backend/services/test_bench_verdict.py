@@ -7,8 +7,10 @@ import pytest
 
 from backend.db import write_transaction
 from backend.errors import ConflictError
-from backend.store import bench_verdict, envelopes, previews, proposals, signoffs
-from tests.backend.store.conftest import CLEAN_WALK
+from backend.services import bench_verdict
+from backend.services import envelopes as envelope_versions
+from backend.store import envelopes, previews, proposals, signoffs
+from tests.backend.conftest import CLEAN_WALK
 
 WHY = "seated in the bars, every row checked by hand"
 
@@ -93,7 +95,7 @@ def test_a_version_worse_than_its_parent_on_the_bench_says_in_which_figures(conn
 def _envelope_walked(conn, model, patient, prosthetist, nodes):
     """An envelope whose stored preview walked the course clean, with these node walks (None: none, as stored before
     nodes were walked alone)."""
-    created = envelopes.create_from_model(conn, patient["id"], model.propose_envelope([0.8, 1.4], [-5.0, 5.0], 80.0),
+    created = envelope_versions.create_from_model(conn, patient["id"], model.propose_envelope([0.8, 1.4], [-5.0, 5.0], 80.0),
                                           prosthetist)
     row = envelopes.get_row(conn, created["id"])
     result = {"course": {"name": "mixed"}, "controllers": {"envelope": CLEAN_WALK, "fsmic": CLEAN_WALK}}
