@@ -6,12 +6,19 @@ no dashboard page imports another page or the router."""
 from __future__ import annotations
 
 import ast
+import functools
 import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("controller_core", "device_bridge", "backend", "lab", "benchmarks", "tests")
 LAYER = {"controller_core": 0, "device_bridge": 1, "backend": 2}
+
+
+@functools.cache
+def _tree(path: Path) -> ast.Module:
+    """A module's syntax tree, parsed once per test process (several tests read every module; never modified)."""
+    return ast.parse(path.read_text())
 
 
 def _python_modules() -> dict[str, Path]:
@@ -28,7 +35,7 @@ def _module_imports(modules: dict[str, Path]) -> dict[str, list[tuple[str, str]]
     out: dict[str, list[tuple[str, str]]] = {}
     for name, path in modules.items():
         found = []
-        for node in ast.parse(path.read_text()).body:
+        for node in _tree(path).body:
             if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
                 for alias in node.names:
                     full = f"{node.module}.{alias.name}"
@@ -47,7 +54,7 @@ def _every_import(modules: dict[str, Path]) -> dict[str, set[str]]:
     out: dict[str, set[str]] = {}
     for name, path in modules.items():
         found = set()
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
                 found |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in modules else node.module
                           for a in node.names if node.module in modules or f"{node.module}.{a.name}" in modules}
