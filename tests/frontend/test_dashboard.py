@@ -61,6 +61,8 @@ def test_prosthetist_reviews_edits_approves_pushes_and_monitors(server, page):
         'Bearer ' + sessionStorage.getItem('quasitune.token')}}}})).json()""")
     verdict = stored["controllers"]["table"]["vs_fsmic"]["knee_angle_verdict"]
     assert verdict.replace("learned", "this table") in knee, (verdict, knee)   # the page says what the server found
+    # and which leg the bench walked: the server's, no leg of this patient being described to it
+    assert f"bench leg, “{stored['leg']}”" in page.inner_text("#preview-leg") and stored["leg"] == "nominal"
     # safety figures come first and carry the server's flags, whatever the RMSE verdicts say
     assert page.evaluate("""() => Boolean(document.querySelector('#preview-safety').compareDocumentPosition(
         document.querySelector('#preview-metrics')) & Node.DOCUMENT_POSITION_FOLLOWING)""")

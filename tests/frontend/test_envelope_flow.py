@@ -73,6 +73,7 @@ def test_envelope_from_new_patient_to_a_monitored_adaptive_walk(server, browser,
     expect(page.locator("#preview-safety")).to_have_count(1)
     expect(page.locator("#preview-segments tbody tr")).to_have_count(8)
     assert re.search(r"within ±0\.1 m/s on \d+ %", page.inner_text("#preview-estimation"))
+    assert "bench leg, “nominal”" in page.inner_text("#preview-leg")          # which leg walked it, said
     # every node walked alone at its task: a map of 9 nodes, and a row for each node with a figure beyond a bound
     expect(page.locator("#map-node-walks g.node")).to_have_count(9)
     summary = page.inner_text("#preview-nodes-summary")

@@ -8,7 +8,7 @@ import { envelopeMap, nodeGrid } from "../widgets/envelope_map.js";
 import { BENCH_CHIP, flagWords, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
-import { safetyFigures } from "../widgets/proposal_views.js";
+import { benchLegNote, safetyFigures } from "../widgets/proposal_views.js";
 import { shownChange, shownNumber, signed, toSI, units } from "../quantities.js";
 import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, swingInertiaWords, table,
   when } from "../ui.js";
@@ -287,6 +287,7 @@ async function renderPreview(box, e) {
       pv.course.segments.map((s) => `${fmt(s.speed_mps, 2)} m/s ${s.incline_deg >= 0 ? "+" : ""}${fmt(s.incline_deg, 0)}° for ${fmt(s.duration_s, 0)} s`).join(" → "),
       `) twice at ${fmt(pv.mass_kg, 0, "kg")}: with this envelope (the leg estimating its own task and changing its rows at heel strikes) and with the FSMIC. `,
       "Each stride is scored against the reference at its true task. ", `Simulated ${when(pv.created_at)}.`),
+    benchLegNote(pv.leg),
     safetyFigures(courseAndNodeFlags(pv), t, f, "This envelope"),
     h("h3", {}, "Errors per segment (RMSE, deg; [95 % interval])"),
     table(["Segment", "Task", "Strides (envelope / FSMIC)", "Knee: envelope", "Knee: FSMIC", "Ankle: envelope", "Ankle: FSMIC"], segRows,

@@ -3,7 +3,7 @@
 import { get } from "../api.js";
 import { app, onLeave } from "../state.js";
 import { legend, phaseChart } from "../widgets/charts.js";
-import { drawCurves, drawLoops, explainVias, featureTable, reference, safetyFigures } from "../widgets/proposal_views.js";
+import { benchLegNote, drawCurves, drawLoops, explainVias, featureTable, reference, safetyFigures } from "../widgets/proposal_views.js";
 import { parameterTable, tableView } from "../widgets/parameter_table.js";
 import { shownChange, shownNumber, signed } from "../quantities.js";
 import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
@@ -203,6 +203,7 @@ async function renderPreview(box, p) {
     h("p", { class: "muted small" }, `Both controllers walked ${fmt(pv.seconds, 0, "s")} each on the MuJoCo bench at this task `,
       `(socket driven along the able-bodied hip trajectory; metrics as in quasitune simulate). Reference: ${referenceLabel(t)} (${t.reference_source}). `,
       `Simulated ${when(pv.created_at)}.`),
+    benchLegNote(pv.leg),
     safetyFigures(pv.safety || [], t, f),
     h("h3", {}, "Tracking the reference"),
     table(["Metric", "This table", "FSMIC (hand-tuned, not re-tuned)", "This table − FSMIC, 95 % interval"], [

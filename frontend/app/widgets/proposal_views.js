@@ -6,6 +6,14 @@ import { chip, fmt, h, interp, momentScale, momentUnit, momentView, pm, SUBPHASE
 
 const RAD = Math.PI / 180;
 
+// which leg the bench walked a preview on: the server's bench leg, since no patient's or device's own leg is described
+// to the server yet (issue 55, item 3): the verdict is that leg's, and the page says so
+export function benchLegNote(leg) {
+  return h("p", { class: "small", id: "preview-leg" }, "Walked on the server's bench leg, “", leg || "nominal",
+    "”: this patient's own leg (their height, segment and unit masses, drive friction) is not described to the server, ",
+    "so the walk and its safety figures are for that leg, not necessarily theirs.");
+}
+
 // the measured conditions behind the model, and the reference at this task with what it really is
 export function reference(task) {
   return get(`/api/reference?speed_mps=${task.speed_mps}&incline_deg=${task.incline_deg}`);
