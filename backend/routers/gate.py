@@ -1,7 +1,7 @@
 """The gate's two-person override and the take-back: sign off a version's bench findings, withdraw an approved version.
 
 A version the bench did not find clean is approved or pushed only after two prosthetists signed off
-(:mod:`backend.store.bench_verdict`). An approved version can be withdrawn: it is never pushed again, and every leg
+(:mod:`backend.services.bench_verdict`). An approved version can be withdrawn: it is never pushed again, and every leg
 that runs or holds it is sent back to the last version it ran that was not withdrawn (re-sent, read back by CRC), or
 put in safe mode where there is none or it cannot be sent; a leg offline now is put in safe mode when it next reports
 (:meth:`backend.devices.DeviceManager.withdrawn`).

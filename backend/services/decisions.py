@@ -30,7 +30,7 @@ def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, com
         checked_against: what ``recheck`` checks, for the refusal (e.g. "the safety limits").
         override_reason: an approval without a clean bench preview goes ahead only when two prosthetists signed off
             its findings; this reason is the approver's own sign-off when theirs is the second
-            (:mod:`backend.store.bench_verdict`). Who signed off and why is kept with the decision and audited.
+            (:mod:`backend.services.bench_verdict`). Who signed off and why is kept with the decision and audited.
 
     Raises:
         ConflictError: already decided, an approval whose content fails ``recheck``, or one the bench's verdict

@@ -1,4 +1,5 @@
-"""Storage: one module per resource, SQLAlchemy Core on a connection the caller holds. Each write is one transaction
+"""Storage: one module per resource, SQLAlchemy Core on a connection the caller holds. It writes and reads rows and
+proves stored content by its hash; the rules and the views are :mod:`backend.services`. Each write is one transaction
 (:func:`backend.db.write_transaction`) that also appends its audit entry, so a change and its audit record are stored
 together or not at all.
 
