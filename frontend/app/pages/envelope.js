@@ -3,16 +3,16 @@
 // or at one node) make a new draft; decide once; push; the bench preview walks the varying-task course with this
 // envelope and with the FSMIC, safety figures first.
 import { get, post } from "../api.js";
-import { app, onLeave } from "../state.js";
+import { app } from "../state.js";
 import { envelopeMap, nodeGrid } from "../widgets/envelope_map.js";
 import { BENCH_CHIP, flagWords, renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
 import { benchLegNote, safetyFigures } from "../widgets/proposal_views.js";
 import { shownChange, shownNumber, signed, toSI, units } from "../quantities.js";
-import { chip, extrapolationChip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, swingInertiaWords, table,
+import { chip, fieldWords, fmt, h, inWords, rangeText, ROW_WORDS, SUBPHASE_LABEL, SUBPHASES, swingInertiaWords, table,
   when } from "../ui.js";
-import { watchBench } from "../widgets/bench_progress.js";
+import { versionChips, walkedPreview } from "../widgets/version_head.js";
 
 // darker reads the same way on every map: firmer (more resistance K = −k, more damping), or more flexion /
 // dorsiflexion; scale: from the API's value to the shown one (resistance positive, as on every page)
@@ -36,12 +36,6 @@ function valueMark(n, joint, sp, q) {
     : q !== "b_Nm_s_per_rad" && r.held ? HELD_WORDS[r.fit_method] || r.fit_method : null;
   return { held, weak: q !== "b_Nm_s_per_rad" && r.weak_fit };
 }
-const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
-  active_on_device: ["running on a leg", "ok"], replaced: ["was on a leg, since replaced", ""],
-  unconfirmed: ["push unconfirmed: waiting for the leg's status", "warn"],
-  not_on_device: ["no longer on the leg (the leg reported it does not hold it)", "bad"],
-  push_failed: ["last push failed", "bad"] };
-
 
 export async function envelopePage(view, id, params) {
   const [e, ref] = await Promise.all([get(`/api/envelopes/${id}`), get("/api/reference")]);
@@ -50,21 +44,14 @@ export async function envelopePage(view, id, params) {
   const quantity = params?.get("q") in QUANTITIES ? params.get("q") : "k_Nm_per_rad";
   const nExtra = e.nodes.filter((n) => n.extrapolation).length;
   const guarded = e.nodes.filter((n) => Object.keys(n.neighbour_guarded).length);
-  const [words, kind] = DEPLOYMENT_WORDS[e.deployment] || [];
   const worseSlot = h("div", { id: "worse-slot" });   // worse on the bench than its parent: said first
   const head = [
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ",
       h("a", { href: `#/patients/${patient.id}` }, patient.code_name), " / ", `envelope v${e.version}`),
     h("h1", {}, `${e.envelope_label} · ${rangeText(e)}`),
     worseSlot,
-    h("p", { class: "chips", id: "envelope-chips" }, chip(e.status, e.status), words ? chip(words, kind) : null,
-      chip(e.safety.ok ? "every node within the parameter limits and the neighbour rule" : "outside the parameter limits", e.safety.ok ? "ok" : "bad"),
-      e.bench ? h("span", { id: "bench-chip" }, chip(e.bench.words, BENCH_CHIP[e.bench.status])) : null,
-      e.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
-      e.withdrawal ? h("span", { id: "withdrawn-chip" }, chip("WITHDRAWN", "bad")) : null,
-      e.extrapolation_reason ? extrapolationChip(e) : null,
-      e.source === "edit" ? chip(`edited from v${e.parent_version}`) : chip("model"),
-      chip(`${e.grid[0]} × ${e.grid[1]} nodes`)),
+    versionChips(e, "envelope-chips", "every node within the parameter limits and the neighbour rule",
+      [chip(`${e.grid[0]} × ${e.grid[1]} nodes`)]),
     h("p", { class: "provenance" }, `Model ${e.model.version} · training data sha256 ${e.model.data_sha256.slice(0, 12)}… · `,
       `patient mass ${fmt(e.body_mass_kg, 1, "kg")} · nominal task ${fmt(e.nominal.speed_mps, 2, "m/s")}, ${fmt(e.nominal.incline_deg, 1, "°")} `,
       "(the leg returns there when unsure of its task) · ", swingInertiaWords(e.swing_inertia), "created by ", e.created_by, " ", when(e.created_at), " · CRC-32 ",
@@ -248,23 +235,10 @@ async function renderVersions(box, e) {
 }
 
 async function renderPreview(box, e) {
-  let alive = true;
-  onLeave(() => { alive = false; });
-  let pv;
-  const stopWatching = watchBench(box, `/api/envelopes/${e.id}`, "envelope preview");
-  try {
-    pv = await get(`/api/envelopes/${e.id}/preview`);
-    window.dispatchEvent(new CustomEvent("quasitune:bench-walked", { detail: { path: `/api/envelopes/${e.id}` } }));
-    const now = await get(`/api/envelopes/${e.id}`).catch(() => null);   // the header's bench chip follows
-    if (now?.bench) document.getElementById("bench-chip")?.replaceChildren(chip(now.bench.words, BENCH_CHIP[now.bench.status]));
-  } catch (err) {
-    if (alive) box.querySelector("#preview-status").textContent = err.status === 409 && /cancelled by/.test(err.message)
-      ? `Preview not walked: ${err.message}. Open this page again to walk it.` : `Preview failed: ${err.message}`;
-    return;
-  } finally {
-    stopWatching();
-  }
-  if (!alive) return;
+  const pv = await walkedPreview(box, `/api/envelopes/${e.id}`, "envelope preview");
+  if (!pv) return;
+  const now = await get(`/api/envelopes/${e.id}`).catch(() => null);   // the header's bench chip follows
+  if (now?.bench) document.getElementById("bench-chip")?.replaceChildren(chip(now.bench.words, BENCH_CHIP[now.bench.status]));
   const t = pv.controllers.envelope, f = pv.controllers.fsmic;
   const ci = (row, key) => (row[key.replace("_rmse_", "_rmse_ci95_")] ? ` [${fmt(row[key.replace("_rmse_", "_rmse_ci95_")][0], 1)}, ${fmt(row[key.replace("_rmse_", "_rmse_ci95_")][1], 1)}]` : "");
   const segRows = t.by_segment.map((s, k) => {

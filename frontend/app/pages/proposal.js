@@ -6,12 +6,12 @@ import { legend, phaseChart } from "../widgets/charts.js";
 import { benchLegNote, drawCurves, drawLoops, explainVias, featureTable, reference, safetyFigures } from "../widgets/proposal_views.js";
 import { parameterTable, tableView } from "../widgets/parameter_table.js";
 import { shownChange, shownNumber, signed } from "../quantities.js";
-import { BENCH_CHIP, renderDecision } from "../widgets/decision_panel.js";
+import { renderDecision } from "../widgets/decision_panel.js";
 import { renderPush } from "../widgets/push_panel.js";
 import { renderRefine } from "../widgets/refine_panel.js";
-import { chip, extrapolationChip, fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, momentScale, momentToggle, momentUnit, momentView,
+import { fieldWords, FIT_METHOD_WORDS, fmt, inWords, h, momentScale, momentToggle, momentUnit, momentView,
   referenceLabel, SUBPHASE_COLOUR, SUBPHASE_LABEL, SUBPHASES, swingInertiaWords, table, when } from "../ui.js";
-import { watchBench } from "../widgets/bench_progress.js";
+import { versionChips, walkedPreview } from "../widgets/version_head.js";
 
 export async function proposalPage(view, id) {
   const p = await get(`/api/proposals/${id}`);
@@ -105,22 +105,8 @@ export async function proposalPage(view, id) {
   });
 }
 
-const DEPLOYMENT_WORDS = { pushed: ["sent to a leg, waiting for heel strike", "warn"],
-  active_on_device: ["running on a leg", "ok"], replaced: ["was on a leg, since replaced", ""],
-  unconfirmed: ["push unconfirmed: waiting for the leg's status", "warn"],
-  not_on_device: ["no longer on the leg (the leg reported it does not hold it)", "bad"],
-  push_failed: ["last push failed", "bad"] };
-
 function headChips(p) {
-  const [words, kind] = DEPLOYMENT_WORDS[p.deployment] || [];
-  return h("p", { class: "chips", id: "proposal-chips" }, chip(p.status, p.status),
-    words ? chip(words, kind) : null,
-    chip(p.safety.ok ? "within parameter limits" : "outside parameter limits", p.safety.ok ? "ok" : "bad"),
-    p.bench ? h("span", { id: "bench-chip" }, chip(p.bench.words, BENCH_CHIP[p.bench.status])) : null,
-    p.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
-      p.withdrawal ? h("span", { id: "withdrawn-chip" }, chip("WITHDRAWN", "bad")) : null,
-    p.extrapolation_reason ? extrapolationChip(p) : null,
-    p.source === "edit" ? chip(`edited from v${p.parent_version}`) : chip("model"));
+  return versionChips(p, "proposal-chips", "within parameter limits");
 }
 
 // ---------------------------------------------------------------------------------------------- versions, preview
@@ -160,21 +146,8 @@ function shownValue(field, v, mass) {
 }
 
 async function renderPreview(box, p) {
-  let alive = true;
-  onLeave(() => { alive = false; });
-  let pv;
-  const stopWatching = watchBench(box, `/api/proposals/${p.id}`, "table preview");
-  try {
-    pv = await get(`/api/proposals/${p.id}/preview`);
-    window.dispatchEvent(new CustomEvent("quasitune:bench-walked", { detail: { path: `/api/proposals/${p.id}` } }));
-  } catch (err) {
-    if (alive) box.querySelector("#preview-status").textContent = err.status === 409 && /cancelled by/.test(err.message)
-      ? `Preview not walked: ${err.message}. Open this page again to walk it.` : `Preview failed: ${err.message}`;
-    return;
-  } finally {
-    stopWatching();
-  }
-  if (!alive) return;
+  const pv = await walkedPreview(box, `/api/proposals/${p.id}`, "table preview");
+  if (!pv) return;
   const t = pv.controllers.table, f = pv.controllers.fsmic, vs = t.vs_fsmic || {};
   const metric = (label, key, d, unit) => h("tr", {}, h("td", {}, label), h("td", { class: "num" }, fmt(t[key], d, unit)),
     h("td", { class: "num" }, fmt(f[key], d, unit)), h("td", {}));
