@@ -306,13 +306,13 @@ class DeviceManager:
 
     # ------------------------------------------------------------------------------------------ commands
 
-    def push(self, device_id: str, table: ParameterTable, version: int) -> PushResult:
-        """Push a table and wait for the CRC read-back (raises device_bridge's PushError on failure)."""
-        return self._link_for_push(device_id).push(table, version)
-
-    def push_envelope(self, device_id: str, envelope: Envelope, version: int) -> PushResult:
-        """Push a whole envelope and wait for the CRC read-back (raises device_bridge's PushError on failure)."""
-        return self._link_for_push(device_id).push_envelope(envelope, version)
+    def push(self, device_id: str, content: ParameterTable | Envelope, version: int) -> PushResult:
+        """Push a version's content, a table or a whole envelope, and wait for the CRC read-back (raises
+        device_bridge's PushError on failure). The one push path of the server; the link sends each kind its way."""
+        link = self._link_for_push(device_id)
+        if isinstance(content, Envelope):
+            return link.push_envelope(content, version)
+        return link.push(content, version)
 
     def _link_for_push(self, device_id: str) -> DeviceLink:
         dev = self.get(device_id)

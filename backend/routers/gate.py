@@ -22,8 +22,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.gate import SignoffRequest, SignoffsOut, WithdrawOut, WithdrawRequest
 from backend.services import bench_verdict, envelopes, proposals
-from backend.store import envelopes as envelope_rows
-from backend.store import proposals as proposal_rows
+from backend.services.version_content import stored_content
 from backend.store import pushes as pushes_store
 from backend.store import signoffs, withdrawals
 from backend.store.users import User
@@ -139,10 +138,7 @@ def _resend(conn: Connection, devices: DeviceManager, device_id: str, back: dict
     """Push ``back`` (a push record of the version to return to) again, recorded with the reason it was sent."""
     item: pushes_store.Pushed = ("proposal", back["proposal_id"]) if back["kind"] == "table" \
         else ("envelope", back["envelope_id"])
-    if item[0] == "proposal":
-        content = proposal_rows.stored_table(proposal_rows.get_row(conn, item[1]))
-    else:
-        content = envelope_rows.stored_envelope(envelope_rows.get_row(conn, item[1]))
+    _, content = stored_content(conn, item)
     checked = as_run(content)
     if checked.violations or checked.wire_crc32 is None:
         raise ConflictError(f"{back['label']} no longer passes the safety limits")
@@ -151,8 +147,7 @@ def _resend(conn: Connection, devices: DeviceManager, device_id: str, back: dict
                                                    sent_back_reason=why, instance_name=devices.instance_name)
         devices.push_started(device_id, push_id)
         try:
-            result = (devices.push(device_id, content, version) if item[0] == "proposal"   # type: ignore[arg-type]
-                      else devices.push_envelope(device_id, content, version))           # type: ignore[arg-type]
+            result = devices.push(device_id, content, version)
         except BaseException as exc:
             pushes_store.finish_push(conn, push_id, "failed", None, 0.0, str(exc))
             devices.push_finished(device_id, push_id, acknowledged=False)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
 from fastapi import APIRouter, Request, status
 from sqlalchemy import Connection, RowMapping
@@ -16,13 +15,14 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.pushes import PushOut, PushRequest
 from backend.services import bench_verdict
+from backend.services.version_content import stored_content
 from backend.store import devices as devices_store
 from backend.store import envelopes, patients, proposals, withdrawals
 from backend.store import pushes as store
 from backend.store.users import User
 from backend.threads import run_waiting
 from device_bridge.as_run import as_run
-from device_bridge.host import PushError, PushResult
+from device_bridge.host import PushError
 
 router = APIRouter(prefix="/api", tags=["pushes"], responses=UNAUTHORIZED)
 
@@ -44,11 +44,7 @@ async def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: C
 
 def _push_table(proposal_id: int, body: PushRequest, devices: DeviceManager, conn: Connection,
                 user: User) -> dict:
-    row = proposals.get_row(conn, proposal_id)
-    table = proposals.stored_table(row)
-    checked = as_run(table)
-    return _push(conn, devices, user, body, ("proposal", proposal_id), row, checked.violations, checked.wire_crc32,
-                 lambda version: devices.push(body.device_id, table, version))
+    return _push(conn, devices, user, body, ("proposal", proposal_id))
 
 
 @router.post("/envelopes/{envelope_id}/push", response_model=PushOut, status_code=status.HTTP_201_CREATED,
@@ -64,19 +60,17 @@ async def push_envelope(envelope_id: IdPath, body: PushRequest, request: Request
 
 def _push_envelope(envelope_id: int, body: PushRequest, devices: DeviceManager, conn: Connection,
                    user: User) -> dict:
-    row = envelopes.get_row(conn, envelope_id)
-    envelope = envelopes.stored_envelope(row)
-    checked = as_run(envelope)
-    return _push(conn, devices, user, body, ("envelope", envelope_id), row, checked.violations, checked.wire_crc32,
-                 lambda version: devices.push_envelope(body.device_id, envelope, version))
+    return _push(conn, devices, user, body, ("envelope", envelope_id))
 
 
-def _push(conn: Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed,
-          row: RowMapping, violations: list, crc: int | None, send: Callable[[int], PushResult]) -> dict:
-    """The checks every push passes, in order, then record → send → finish, one push at a time per device (what the
-    leg runs is checked inside that turn, so two pushes confirming the same table cannot both go). Nothing is sent
-    when a check fails."""
+def _push(conn: Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed) -> dict:
+    """The checks every push of a version passes, in order, then record → send → finish, one push at a time per device
+    (what the leg runs is checked inside that turn, so two pushes confirming the same table cannot both go). Nothing
+    is sent when a check fails."""
     kind, item_id = item
+    row, content = stored_content(conn, item)
+    checked = as_run(content)
+    violations, crc = checked.violations, checked.wire_crc32
     if row["status"] != "approved":
         raise ConflictError(f"{kind} {item_id} is {row['status']}; only approved {kind}s can be pushed")
     taken_back = withdrawals.withdrawal(conn, kind, item_id)
@@ -103,7 +97,7 @@ def _push(conn: Connection, devices: DeviceManager, user: User, body: PushReques
         devices.push_started(body.device_id, push_id)
         t0 = time.monotonic()
         try:
-            result = send(version)
+            result = devices.push(body.device_id, content, version)
         except (PushError, ConflictError) as exc:
             unconfirmed = isinstance(exc, PushError) and exc.reason in ("timeout", "link_lost")
             store.finish_push(conn, push_id, "unconfirmed" if unconfirmed else "failed", None,
