@@ -39,12 +39,7 @@ async def push(proposal_id: IdPath, body: PushRequest, request: Request, conn: C
     is seated or in the parallel bars. The push is recorded first; it is ``acknowledged`` when the CRC comes back,
     and ``active`` when the device's status reports that table running — at the next heel strike. The version on
     the wire is the device's own counter. A failed push leaves the device on what it ran before."""
-    return await run_waiting(_push_table, proposal_id, body, request.app.state.devices, conn, user)
-
-
-def _push_table(proposal_id: int, body: PushRequest, devices: DeviceManager, conn: Connection,
-                user: User) -> dict:
-    return _push(conn, devices, user, body, ("proposal", proposal_id))
+    return await run_waiting(_push, conn, request.app.state.devices, user, body, ("proposal", proposal_id))
 
 
 @router.post("/envelopes/{envelope_id}/push", response_model=PushOut, status_code=status.HTTP_201_CREATED,
@@ -55,12 +50,7 @@ async def push_envelope(envelope_id: IdPath, body: PushRequest, request: Request
     exact CRC-32 after re-checking every node and the neighbour rule itself. The same checks and confirmations as a
     table push (device assigned to the envelope's patient, same body mass, what it replaces, patient ready); from
     the next heel strike the leg takes its rows from the envelope at the task it estimates."""
-    return await run_waiting(_push_envelope, envelope_id, body, request.app.state.devices, conn, user)
-
-
-def _push_envelope(envelope_id: int, body: PushRequest, devices: DeviceManager, conn: Connection,
-                   user: User) -> dict:
-    return _push(conn, devices, user, body, ("envelope", envelope_id))
+    return await run_waiting(_push, conn, request.app.state.devices, user, body, ("envelope", envelope_id))
 
 
 def _push(conn: Connection, devices: DeviceManager, user: User, body: PushRequest, item: store.Pushed) -> dict:
