@@ -6,7 +6,6 @@ from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Path, Request, Response, status
-from sqlalchemy import Connection
 
 from backend.clinical_words import violation_words
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
@@ -22,9 +21,10 @@ from backend.schemas.envelopes import (
 )
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
-from backend.services import bench_verdict, envelopes
+from backend.services import envelopes
+from backend.services.versions import with_state
 from backend.store import envelopes as envelope_rows
-from backend.store import patients, pushes, withdrawals
+from backend.store import patients
 from backend.task_range import extrapolation_reason
 from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
@@ -49,7 +49,7 @@ def create_envelope(patient_id: IdPath, body: EnvelopeRequest, request: Request,
                                  nominal=(body.nominal_speed_mps, body.nominal_incline_deg),
                                  swing_inertia_ratio=request.app.state.swing_inertia_ratio)
     created = envelopes.create_from_model(conn, patient_id, env, user, reason)
-    return _with_state(conn, created)
+    return with_state(conn, "envelope", created)
 
 
 @router.get("/patients/{patient_id}/envelopes", response_model=list[EnvelopeListItem], responses=NOT_FOUND)
@@ -66,15 +66,7 @@ def list_envelopes(patient_id: IdPath, response: Response, conn: Conn, _user: Cu
 @router.get("/envelopes/{envelope_id}", response_model=EnvelopeOut, responses=NOT_FOUND)
 def get_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """An envelope with every node's table, extrapolation flag, feature SDs and guarded values, and its check."""
-    return _with_state(conn, envelopes.get_envelope(conn, envelope_id))
-
-
-def _with_state(conn: Connection, shown: dict) -> dict:
-    """The version's view ``shown`` (its ``id`` and ``envelope_sha256`` are read) and what the page shows beside it: where it
-    runs, and the bench's verdict on exactly its content."""
-    return {**shown, "deployment": pushes.deployment_state(conn, ("envelope", shown["id"])),
-            "bench": bench_verdict.verdict(conn, "envelope", shown),
-            "withdrawal": withdrawals.withdrawal(conn, "envelope", shown["id"])}
+    return with_state(conn, "envelope", envelopes.get_envelope(conn, envelope_id))
 
 
 @router.get("/envelopes/{envelope_id}/nodes/{i}/{j}", response_model=EnvelopeNodeOut, responses=NOT_FOUND)
@@ -114,7 +106,7 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
                            + "." + hint, violations=[v.model_dump() for v in violations],
                            neighbour_rule_only=neighbours_only)
     created = envelopes.create_edit(conn, envelope_id, checked, changes, body.comment, user)
-    return _with_state(conn, created)
+    return with_state(conn, "envelope", created)
 
 
 @router.get("/envelopes/{envelope_id}/diff/{other_id}", response_model=EnvelopeDiffOut, responses=NOT_FOUND)
@@ -128,11 +120,12 @@ def diff(envelope_id: IdPath, other_id: IdPath, conn: Conn, _user: CurrentUser) 
 def approve_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Approve a draft envelope (prosthetist). The stored envelope is re-validated and every node and the neighbour
     rule re-checked as the device will run them; an approved envelope never changes."""
-    return _with_state(conn, envelopes.decide(conn, envelope_id, "approved", body.comment, user, body.override_reason))
+    decided = envelopes.decide(conn, envelope_id, "approved", body.comment, user, body.override_reason)
+    return with_state(conn, "envelope", decided)
 
 
 @router.post("/envelopes/{envelope_id}/reject", response_model=EnvelopeOut,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def reject_envelope(envelope_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Reject a draft envelope (prosthetist)."""
-    return _with_state(conn, envelopes.decide(conn, envelope_id, "rejected", body.comment, user))
+    return with_state(conn, "envelope", envelopes.decide(conn, envelope_id, "rejected", body.comment, user))

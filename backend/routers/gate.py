@@ -22,7 +22,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.gate import SignoffRequest, SignoffsOut, WithdrawOut, WithdrawRequest
 from backend.services import bench_verdict, envelopes, proposals
-from backend.services.version_content import stored_content
+from backend.services.versions import stored_content
 from backend.store import pushes as pushes_store
 from backend.store import signoffs, withdrawals
 from backend.store.users import User

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Request, Response, status
 from pydantic import ValidationError
-from sqlalchemy import Connection
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
@@ -18,8 +17,9 @@ from backend.schemas.proposals import (
     ProposalOut,
     ProposalRequest,
 )
-from backend.services import bench_verdict, proposals
-from backend.store import patients, pushes, withdrawals
+from backend.services import proposals
+from backend.services.versions import with_state
+from backend.store import patients
 from backend.store import proposals as proposal_rows
 from backend.task_range import extrapolation_reason
 from controller_core.table_edit import EditError, edit_table
@@ -43,7 +43,7 @@ async def create_proposal(patient_id: IdPath, body: ProposalRequest, request: Re
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"],
                              swing_inertia_ratio=request.app.state.swing_inertia_ratio)
     created = proposals.create_from_model(conn, patient_id, proposal, user, reason)
-    return _with_state(conn, created)
+    return with_state(conn, "proposal", created)
 
 
 @router.get("/patients/{patient_id}/proposals", response_model=list[ProposalListItem], responses=NOT_FOUND)
@@ -60,15 +60,7 @@ def list_proposals(patient_id: IdPath, response: Response, conn: Conn, _user: Cu
 @router.get("/proposals/{proposal_id}", response_model=ProposalOut, responses=NOT_FOUND)
 def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """A proposal with its curves, features, table and safety check, and its deployment state."""
-    return _with_state(conn, proposals.get_proposal(conn, proposal_id))
-
-
-def _with_state(conn: Connection, shown: dict) -> dict:
-    """The version's view ``shown`` (its ``id`` and ``table_sha256`` are read) and what the page shows beside it: where it
-    runs, and the bench's verdict on exactly its content."""
-    return {**shown, "deployment": pushes.deployment_state(conn, ("proposal", shown["id"])),
-            "bench": bench_verdict.verdict(conn, "proposal", shown),
-            "withdrawal": withdrawals.withdrawal(conn, "proposal", shown["id"])}
+    return with_state(conn, "proposal", proposals.get_proposal(conn, proposal_id))
 
 
 @router.post("/proposals/{proposal_id}/edits", response_model=ProposalOut, status_code=status.HTTP_201_CREATED,
@@ -89,7 +81,7 @@ def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Pros
         raise InvalidError("edit refused, nothing stored: " + "; ".join(v.message for v in violations),
                            violations=[v.model_dump() for v in violations])
     created = proposals.create_edit(conn, proposal_id, checked, changes, body.comment, user)
-    return _with_state(conn, created)
+    return with_state(conn, "proposal", created)
 
 
 @router.get("/proposals/{proposal_id}/diff/{other_id}", response_model=DiffOut, responses=NOT_FOUND)
@@ -103,11 +95,12 @@ def diff_proposals(proposal_id: IdPath, other_id: IdPath, conn: Conn, _user: Cur
 def approve(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Approve a draft (prosthetist). The stored table is re-validated and every limit re-checked first;
     an approved proposal never changes."""
-    return _with_state(conn, proposals.decide(conn, proposal_id, "approved", body.comment, user, body.override_reason))
+    decided = proposals.decide(conn, proposal_id, "approved", body.comment, user, body.override_reason)
+    return with_state(conn, "proposal", decided)
 
 
 @router.post("/proposals/{proposal_id}/reject", response_model=ProposalOut,
              responses={**FORBIDDEN, **NOT_FOUND, **CONFLICT})
 def reject(proposal_id: IdPath, body: DecisionRequest, conn: Conn, user: Prosthetist) -> dict:
     """Reject a draft (prosthetist)."""
-    return _with_state(conn, proposals.decide(conn, proposal_id, "rejected", body.comment, user))
+    return with_state(conn, "proposal", proposals.decide(conn, proposal_id, "rejected", body.comment, user))

@@ -15,7 +15,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.pushes import PushOut, PushRequest
 from backend.services import bench_verdict
-from backend.services.version_content import stored_content
+from backend.services.versions import stored_content
 from backend.store import devices as devices_store
 from backend.store import envelopes, patients, proposals, withdrawals
 from backend.store import pushes as store
