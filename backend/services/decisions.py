@@ -58,3 +58,17 @@ def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, com
                  entity, row["id"], before={"status": "draft"}, after={
                      "status": status, "comment": comment, **audit_after,
                      **({"bench": bench} if bench else {}), **({"override_reason": override} if override else {})})
+
+
+def version_meta(row: RowMapping) -> dict:
+    """What every version's view says of it, whichever kind: who made it from what, and its decision (None while a
+    draft), from a row of :func:`backend.store.decisions.version_select`."""
+    return {
+        "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
+        "parent_version": row["parent_version"], "source": row["source"], "status": row["status"],
+        "created_by": row["created_by_name"], "created_at": row["created_at"], "edit_comment": row["edit_comment"],
+        "decision": None if row["status"] == "draft" else {
+            "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
+            "comment": row["decision_comment"], "override_reason": row["decision_override"]},
+        "extrapolation": bool(row["extrapolation"]), "extrapolation_reason": row["extrapolation_reason"],
+    }

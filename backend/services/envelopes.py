@@ -14,7 +14,7 @@ from sqlalchemy import Connection, RowMapping
 from backend.clinical_words import field_words
 from backend.db import write_transaction
 from backend.errors import NotFoundError
-from backend.services.decisions import decide_once
+from backend.services.decisions import decide_once, version_meta
 from backend.services.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS, swing_inertia
 from backend.store import audit
 from backend.store.envelopes import envelope_label, get_row, insert_row, list_rows, stored_envelope
@@ -32,19 +32,9 @@ def _hex(crc32: int | None) -> str | None:
 
 
 def _meta(row: RowMapping) -> dict:
-    return {
-        "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
-        "parent_version": row["parent_version"], "envelope_label": envelope_label(row["patient_code"], row["version"]),
-        "source": row["source"], "status": row["status"], "created_by": row["created_by_name"],
-        "created_at": row["created_at"], "edit_comment": row["edit_comment"],
-        "decision": None if row["status"] == "draft" else {
-            "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
-            "comment": row["decision_comment"], "override_reason": row["decision_override"]},
-        "body_mass_kg": row["body_mass_kg"], "grid": [row["n_speeds"], row["n_inclines"]],
-        "extrapolation": bool(row["extrapolation"]), "extrapolation_reason": row["extrapolation_reason"],
-        "wire_crc32": row["wire_crc32"],
-        "envelope_sha256": row["envelope_sha256"],
-    }
+    return {**version_meta(row), "envelope_label": envelope_label(row["patient_code"], row["version"]),
+            "body_mass_kg": row["body_mass_kg"], "grid": [row["n_speeds"], row["n_inclines"]],
+            "wire_crc32": row["wire_crc32"], "envelope_sha256": row["envelope_sha256"]}
 
 
 def _public(meta: dict, envelope: Envelope, full: bool, violations: list[LimitViolation] | None = None) -> dict:

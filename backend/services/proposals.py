@@ -13,7 +13,7 @@ from pydantic_core import to_json
 from sqlalchemy import Connection, RowMapping
 
 from backend.db import write_transaction
-from backend.services.decisions import decide_once
+from backend.services.decisions import decide_once, version_meta
 from backend.store import audit
 from backend.store.proposals import get_row, insert_row, list_rows, stored_table, table_label
 from backend.store.users import User
@@ -59,20 +59,10 @@ def swing_inertia(table: ParameterTable) -> dict[str, object]:
 
 
 def _meta(row: RowMapping) -> dict:
-    return {
-        "id": row["id"], "patient_id": row["patient_id"], "version": row["version"], "parent_id": row["parent_id"],
-        "parent_version": row["parent_version"], "table_label": table_label(row["patient_code"], row["version"]),
-        "source": row["source"], "status": row["status"],
-        "created_by": row["created_by_name"], "created_at": row["created_at"], "edit_comment": row["edit_comment"],
-        "decision": None if row["status"] == "draft" else {
-            "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
-            "comment": row["decision_comment"], "override_reason": row["decision_override"]},
-        "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
-                 "body_mass_kg": row["body_mass_kg"]},
-        "extrapolation": bool(row["extrapolation"]),
-        "extrapolation_reason": row["extrapolation_reason"],
-        "table_sha256": row["table_sha256"],
-    }
+    return {**version_meta(row), "table_label": table_label(row["patient_code"], row["version"]),
+            "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
+                     "body_mass_kg": row["body_mass_kg"]},
+            "table_sha256": row["table_sha256"]}
 
 
 def _public(row: RowMapping, full: bool) -> dict:
