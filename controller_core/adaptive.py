@@ -146,6 +146,11 @@ class AdaptiveController:
         self.machine_.use_drive_friction(ankle_Nm)
         self.limits = self.machine_.limits
 
+    def use_forefoot(self, forefoot_m: float | None) -> None:
+        """The foot's forefoot distance (m) for the machine's early landing on the toe
+        (:meth:`StateMachineController.use_forefoot`)."""
+        self.machine_.use_forefoot(forefoot_m)
+
     def stand(self) -> None:
         """A person stands on the leg now (:meth:`~controller_core.fsm.StateMachineController.stand`)."""
         self.machine_.stand()

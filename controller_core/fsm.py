@@ -48,6 +48,18 @@ flexion is pre-swing's; once per stance). That stance flexion is *recovering*: i
 (which already says "late stance" in a fold) but when the knee is back within the margin of the stance-flexion
 equilibrium, or on toe-off's unloading; the next heel strike returns the leg to the table's usual rows and events.
 
+**An early landing on the forefoot** (a foot put down on an obstacle's top or a raised floor before its swing is over,
+on the toe): stance flexion's ankle row, made for a heel landing, then pushes the toe down with the shank held back,
+and the body's weight comes onto a knee far behind its foot. So where the swing that ended lasted less than
+``EARLY_LANDING_FRACTION`` of the last ordinary one, and in its first ``FOREFOOT_LANDING_WINDOW_S`` the centre of
+pressure (−ankle moment / load, from the pylon's load cell) lay beyond ``FOREFOOT_LANDING_FRACTION`` of the forefoot
+rocker's distance ahead of the ankle, the ankle gives no plantarflexion torque while the centre of pressure stays out
+there: the heel comes down and the foot gets flat, then the row is the row again. A zero torque cannot inject energy;
+dorsiflexion torque (the row resisting a plantarflexed foot) is kept. Needs the foot's forefoot distance
+(:meth:`StateMachineController.use_forefoot`; the firmware's ``forefoot_m``); without it the rule is off. On the
+bench's grid the learned table's walks are unchanged on every repository leg (no ordinary landing is that early and on
+the toe); the sixteen stumble walks recover in 14 against 11 (``docs/results.md``).
+
 **Drive friction.** The swing rows of the ankle are soft (a few N·m of spring torque clear the toe), and a drive's
 Coulomb friction of the same size stops the foot short of the row's equilibrium: on the bench a leg with 3 N·m of
 ankle friction left the foot plantarflexed after push-off and caught its toe at 0.85 m/s in 13 of 15 strides (and fell
@@ -145,6 +157,11 @@ class TorqueCommand:
 FRICTION_SHAPE_NM = 1.0        # spring torque at which the swing ankle's friction compensation reaches 76 % of it
 FRICTION_COMPENSATED_FRACTION = 0.5   # of the ankle drive's stated friction (module docstring, "Drive friction")
 MAX_DRIVE_FRICTION_NM = 15.0   # a harmonic or ball-screw drive with its seals (the leg files' and leg config's bound)
+EARLY_LANDING_FRACTION = 0.8   # a swing shorter than this share of the last ordinary one ended early (docstring)
+FOREFOOT_LANDING_FRACTION = 0.5   # centre of pressure beyond this share of the forefoot rocker: landed on the toe
+FOREFOOT_LANDING_WINDOW_S = 0.03  # the landing's first samples, read for where the foot landed (s)
+FOREFOOT_MIN_LOAD_N = 50.0     # below this the centre of pressure is too uncertain to say where the foot rests
+MAX_WALKING_SWING_S = 1.0      # a longer "swing" was a guard's or a lifted leg's wait, no measure of a walking one
 
 
 @dataclass(frozen=True)
@@ -330,6 +347,10 @@ class StateMachineController:
         recovering_: the stance flexion now is a stumble's support (see the module docstring).
         stance_entry_s_, last_stance_s_: when this stance began at heel strike, and how long the last one lasted (s).
         folding_since_s_: since when a loaded stance-extension knee has been flexing early in stance (s).
+        forefoot_m: the foot's forefoot rocker ahead of the ankle (m), for an early landing on the toe; None: unknown
+            (that rule off).
+        swing_entry_s_, last_swing_s_: when this swing began, and how long the last ordinary (not early) one lasted (s).
+        early_landing_, toe_landing_: this stance began with an early landing; and on the forefoot (docstring).
     """
 
     schedule: ImpedanceSchedule
@@ -353,9 +374,15 @@ class StateMachineController:
     stance_entry_s_: float | None = field(init=False, default=None)
     last_stance_s_: float = field(init=False, default=0.6)
     folding_since_s_: float | None = field(init=False, default=None)
+    forefoot_m: float | None = None
+    swing_entry_s_: float | None = field(init=False, default=None)
+    last_swing_s_: float | None = field(init=False, default=None)
+    early_landing_: bool = field(init=False, default=False)
+    toe_landing_: bool = field(init=False, default=False)
 
     def __post_init__(self) -> None:
         self.state_ = GaitState(self.initial_state)
+        self.use_forefoot(self.forefoot_m)            # checked as when it is set later
 
     def reset(self, state: GaitState | None = None) -> None:
         """Forget the history: back to ``state`` (or the initial state), entry time taken at the next sample."""
@@ -372,6 +399,8 @@ class StateMachineController:
         self.recovering_ = False
         self.stance_entry_s_ = None
         self.folding_since_s_ = None
+        self.swing_entry_s_, self.last_swing_s_ = None, None
+        self.early_landing_, self.toe_landing_ = False, False
 
     def stand(self) -> None:
         """A person stands on the leg now (a leg switched on or given a table under them, the bench's standing start):
@@ -472,6 +501,23 @@ class StateMachineController:
         """The ankle drive's Coulomb friction (N·m) of the leg this machine runs on, compensated in swing."""
         self.limits = replace(self.limits, ankle_friction_Nm=ankle_Nm)
 
+    def use_forefoot(self, forefoot_m: float | None) -> None:
+        """The foot's forefoot rocker ahead of the ankle (m) of the leg this machine runs on (an early landing on the
+        toe, module docstring); None turns that rule off."""
+        if forefoot_m is not None and not (math.isfinite(forefoot_m) and 0.0 < forefoot_m <= 0.5):
+            raise ValueError(f"forefoot_m must be in (0, 0.5] m, got {forefoot_m!r}")
+        self.forefoot_m = forefoot_m
+
+    def _landed_on_the_toe(self, x: SensorSample) -> bool:
+        """In stance flexion after an early landing: whether the foot bears weight on its forefoot, as it landed."""
+        if not (self.early_landing_ and self.forefoot_m is not None and x.load_N > FOREFOOT_MIN_LOAD_N
+                and math.isfinite(x.ankle_moment_Nm)):
+            return False
+        forward = -x.ankle_moment_Nm / x.load_N > FOREFOOT_LANDING_FRACTION * self.forefoot_m
+        if forward and x.time_s - self.state_entry_time_s_ < FOREFOOT_LANDING_WINDOW_S:
+            self.toe_landing_ = True
+        return self.toe_landing_ and forward
+
     def _standing_torques(self, x: SensorSample) -> tuple[float, float]:
         """The knee held against flexion where standing found it (the hold follows it as it extends), the ankle about
         where it was: the stance-flexion row's stiffness and damping, both joints; blended in from the row's torques
@@ -489,7 +535,18 @@ class StateMachineController:
     def _enter(self, state: GaitState, now_s: float, guard: bool) -> None:
         if state == GaitState.STANCE_FLEXION and self.state_ in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION):
             self.stance_entry_s_ = now_s
-        elif state == GaitState.SWING_FLEXION and self.stance_entry_s_ is not None:
+            swing = None if self.swing_entry_s_ is None else now_s - self.swing_entry_s_
+            walked = swing is not None and swing <= MAX_WALKING_SWING_S   # not a guard's or a lifted leg's wait
+            self.early_landing_ = walked and self.last_swing_s_ is not None and \
+                swing < EARLY_LANDING_FRACTION * self.last_swing_s_
+            if walked and not self.early_landing_:
+                self.last_swing_s_ = max(swing, 0.2)
+            self.toe_landing_ = False
+        elif state in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) and \
+                self.state_ not in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION):
+            self.swing_entry_s_ = now_s                                        # a swing begins (toe-off, a lift)
+        if state == GaitState.SWING_FLEXION and self.stance_entry_s_ is not None and \
+                self.state_ not in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION):
             self.last_stance_s_ = min(max(now_s - self.stance_entry_s_, 0.3), 1.5)   # a stance's plausible length
         self.folding_since_s_ = None
         self.state_ = state
@@ -542,6 +599,8 @@ class StateMachineController:
                 self._enter(GaitState((int(self.state_) + 1) % 4), x.time_s, guard)
         lim = self.limits
         tk, ta = self._standing_torques(x) if self.standing_ else self._row_torques(x)
+        if self.state_ == GaitState.STANCE_FLEXION and not self.standing_ and self._landed_on_the_toe(x):
+            ta = max(ta, 0.0)          # no plantarflexion torque: the heel comes down (docstring, "early landing")
         tk, sk = clip_torque(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
         ta, sa = clip_torque(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])
         return TorqueCommand(self.state_, tk, ta, sk or sa)

@@ -91,7 +91,8 @@ class FirmwareConfig:
         actuator: torque and range limits.
         thigh_length_m, shank_length_m: the patient's hip-to-knee and the leg's knee-to-ankle lengths (m), for the
             task estimator (defaults: a 1.75 m patient by Winter's proportions, the simulated bench's).
-        forefoot_m: the foot's forefoot rocker ahead of the ankle (m), for the task estimator's heel-up rule (default
+        forefoot_m: the foot's forefoot rocker ahead of the ankle (m), for the task estimator's heel-up rule and the
+            state machine's early landing on the toe (default
             the simulated bench's foot; None on a leg whose load cell gives no sagittal moment).
         max_speed_step_mps, max_incline_step_deg: the adaptive controller's per-stride rate limit.
     """
@@ -438,10 +439,12 @@ class DeviceFirmware:
     def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
         cfg = self.config
         if held.blender is None or held.envelope is None:
-            return StateMachineController(held.schedule, cfg.actuator)
+            return StateMachineController(held.schedule, cfg.actuator, forefoot_m=cfg.forefoot_m)
         estimator = TaskEstimator(cfg.thigh_length_m, cfg.shank_length_m, forefoot_m=cfg.forefoot_m)
-        return AdaptiveController(held.blender, estimator, held.envelope.nominal, cfg.actuator, cfg.max_speed_step_mps,
-                                  cfg.max_incline_step_deg)
+        adaptive = AdaptiveController(held.blender, estimator, held.envelope.nominal, cfg.actuator,
+                                      cfg.max_speed_step_mps, cfg.max_incline_step_deg)
+        adaptive.use_forefoot(cfg.forefoot_m)     # the machine's early landing on the toe (controller_core.fsm)
+        return adaptive
 
     def _run(self) -> None:
         """Start (or restart) the state machine on the active table or envelope."""

@@ -183,6 +183,8 @@ def walk_loop(controller: StepController, leg: SimulatedLeg, traj: BenchTrajecto
     controller.reset()
     if hasattr(controller, "use_drive_friction"):     # the leg's firmware knows its drive (controller_core.fsm)
         controller.use_drive_friction(leg.geometry.ankle_friction_Nm)
+    if hasattr(controller, "use_forefoot"):           # and its foot (an early landing on the toe)
+        controller.use_forefoot(leg.geometry.toe_forward_m)
     if standing and hasattr(controller, "stand"):     # the person stands on the leg as the walk begins
         controller.stand()
     n = traj.time_s.shape[0]

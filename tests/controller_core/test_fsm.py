@@ -319,3 +319,61 @@ def test_a_drive_friction_beyond_what_a_drive_has_is_refused():
         ActuatorLimits(ankle_friction_Nm=40.0)
     with pytest.raises(ValueError, match="ankle_friction_Nm"):
         ActuatorLimits(ankle_friction_Nm=math.nan)
+
+
+def _hold(c: StateMachineController, t0: float, t1: float, **signals) -> GaitState:
+    """The same signals every 2 ms from ``t0`` up to ``t1`` (the machine's holds need more than one sample)."""
+    state, t = c.state_, t0
+    while t < t1 - 1e-9:
+        state = c.step(sample(t, **signals)).state
+        t += 0.002
+    return state
+
+
+def _stride(c: StateMachineController, t: float, swing_s: float) -> float:
+    """A stance of 0.6 s from ``t`` (heel strike, then stance extension on the moment), then a swing of ``swing_s``;
+    returns when the swing ends."""
+    _hold(c, t, t + 0.2, load=600.0)
+    assert _hold(c, t + 0.2, t + 0.6, load=600.0, moment=-6.0) == SE
+    assert _hold(c, t + 0.6, t + 0.7, load=20.0, knee=math.radians(30.0), knee_v=3.0) == WF
+    assert _hold(c, t + 0.7, t + 0.6 + swing_s, knee=math.radians(60.0), knee_v=-3.0) == WE   # extending
+    return t + 0.6 + swing_s
+
+
+@pytest.mark.parametrize(("swing_s", "cop_m", "withheld"), [
+    (0.25, 0.10, True),      # an early landing on the toe: no plantarflexion torque while the weight is on the toe
+    (0.40, 0.10, False),     # an ordinary swing landing on the toe (a fast gait's flat landing): the row as it is
+    (0.25, 0.02, False),     # early but on the heel or the whole foot: the row as it is
+])
+def test_an_early_landing_on_the_toe_lets_the_heel_come_down(swing_s, cop_m, withheld):
+    """The foot lands before its swing is over (three quarters of the last one's length here, under the rule's
+    0.8) with the centre of pressure far forward (0.10 m of a 0.13 m forefoot): stance flexion's ankle row would push
+    the toe down; the machine gives no plantarflexion torque until the centre of pressure moves back, and keeps the
+    row's dorsiflexion torque. An ordinary-length swing, or a landing under the heel, runs the row unchanged; a
+    machine that does not know its foot never does this."""
+    c = StateMachineController(schedule(), forefoot_m=0.13)
+    plain = StateMachineController(schedule())
+    for m in (c, plain):
+        m.step(sample(0.0))
+        t = _stride(m, 0.002, 0.40)
+        t = _stride(m, t, 0.40)                                             # the last ordinary swing: 0.4 s
+        _stride(m, t, swing_s)                                              # this one lands after swing_s
+    t_land = t + 0.6 + swing_s
+    load = 600.0
+    moment = -cop_m * load                                                  # centre of pressure cop_m ahead of the ankle
+    ankle = math.radians(8.0)                                               # dorsiflexed: the row pushes the toe down
+    cmd = c.step(sample(t_land, load=load, moment=moment, ankle=ankle))
+    ref = plain.step(sample(t_land, load=load, moment=moment, ankle=ankle))
+    assert cmd.state == ref.state == SF and ref.ankle_torque_Nm < 0.0
+    assert c.early_landing_ == (swing_s < 0.8 * 0.40)
+    if withheld:
+        assert cmd.ankle_torque_Nm == 0.0
+        later = c.step(sample(t_land + 0.1, load=load, moment=-0.01 * load, ankle=ankle))   # the heel is down
+        assert later.ankle_torque_Nm == pytest.approx(plain.step(sample(t_land + 0.1, load=load, moment=-0.01 * load,
+                                                                         ankle=ankle)).ankle_torque_Nm)
+        plantarflexed = c.step(sample(t_land + 0.2, load=load, moment=moment, ankle=math.radians(-20.0)))
+        assert plantarflexed.ankle_torque_Nm > 0.0            # the row's dorsiflexion torque is never withheld
+    else:
+        assert cmd.ankle_torque_Nm == pytest.approx(ref.ankle_torque_Nm)
+    with pytest.raises(ValueError, match="forefoot_m"):
+        StateMachineController(schedule(), forefoot_m=-0.1)
