@@ -56,7 +56,8 @@ pressure (−ankle moment / load, from the pylon's load cell) lay beyond ``FOREF
 rocker's distance ahead of the ankle, the ankle gives no plantarflexion torque while the centre of pressure stays out
 there: the heel comes down and the foot gets flat, then the row is the row again. A zero torque cannot inject energy;
 dorsiflexion torque (the row resisting a plantarflexed foot) is kept. Needs the foot's forefoot distance
-(:meth:`StateMachineController.use_forefoot`; the firmware's ``forefoot_m``); without it the rule is off. On the
+(:meth:`StateMachineController.use_forefoot`; the firmware's ``forefoot_m``); without it the rule is off, and an
+actuator running the impedance itself (:meth:`StateMachineController.impedance`) runs the row without it. On the
 bench's grid the learned table's walks are unchanged on every repository leg (no ordinary landing is that early and on
 the toe); the sixteen stumble walks recover in 14 against 11 (``docs/results.md``).
 
