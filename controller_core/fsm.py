@@ -600,7 +600,8 @@ class StateMachineController:
                 self._enter(GaitState((int(self.state_) + 1) % 4), x.time_s, guard)
         lim = self.limits
         tk, ta = self._standing_torques(x) if self.standing_ else self._row_torques(x)
-        if self.state_ == GaitState.STANCE_FLEXION and not self.standing_ and self._landed_on_the_toe(x):
+        if self.early_landing_ and self.state_ == GaitState.STANCE_FLEXION and not self.standing_ \
+                and self._landed_on_the_toe(x):
             ta = max(ta, 0.0)          # no plantarflexion torque: the heel comes down (docstring, "early landing")
         tk, sk = clip_torque(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
         ta, sa = clip_torque(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])
