@@ -8,40 +8,25 @@ the product: the product's code imports nothing from the lab, and the same comma
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-LEG_HELP = ("the simulated leg and person: a leg file (JSON; fields in device_bridge/sim/leg_file.py) or a repository "
-            "leg's name (stiff_geared, heavy_foot, short_person); default the nominal bench")
+from device_bridge.bench.command_line import LEG_HELP, leg_named, model_named, write_json
 
 
 def load(args: argparse.Namespace):
     """The model named by ``--model``, or the default one."""
-    from controller_core.model_io import load_default_model, load_model
-
-    return load_model(args.model) if args.model else load_default_model()
+    return model_named(args.model)
 
 
 def _leg(args: argparse.Namespace):
     """The bench leg of ``--leg FILE`` (or a repository leg's name), None for the nominal bench."""
-    if getattr(args, "leg", None) is None:
-        return None
-    from device_bridge.sim.leg_file import load_leg
-
-    return load_leg(args.leg)   # ValueError names the file, the field and the reason
+    return leg_named(getattr(args, "leg", None))
 
 
 def _course(args: argparse.Namespace):
     from device_bridge.sim.course import load_course
 
     return load_course(args.course)   # ValueError (unknown name, bad file) is reported by quasitune's main()
-
-
-def write_json(path: Path, data: object) -> None:
-    """Write ``data`` as indented JSON (creating the folder) and say so."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2))
-    print(f"\nwrote {path}")
 
 
 def cmd_plot(args: argparse.Namespace) -> int:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 
 def print_proposal(d: dict) -> None:
@@ -45,10 +44,3 @@ def emit(d: dict, fmt: str) -> None:
     else:
         for k, v in d.items():
             print(f"{k:40s} {v}")
-
-
-def write_json(path: Path, data: object) -> None:
-    """Write ``data`` as indented JSON (creating the folder) and say so."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2))
-    print(f"\nwrote {path}")

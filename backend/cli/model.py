@@ -8,12 +8,13 @@ import sys
 from pathlib import Path
 
 from backend.cli.formatting import print_proposal
-from controller_core import QuasiStiffnessModel, load_default_model, load_model
+from controller_core import QuasiStiffnessModel
+from device_bridge.bench.command_line import model_named
 
 
 def load(args: argparse.Namespace) -> QuasiStiffnessModel:
     """The model named by ``--model``, or the default one."""
-    return load_model(args.model) if args.model else load_default_model()
+    return model_named(args.model)
 
 
 def task_args(p: argparse.ArgumentParser, speed_required: bool = True) -> None:

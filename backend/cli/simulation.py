@@ -7,8 +7,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from backend.cli.formatting import emit, write_json
+from backend.cli.formatting import emit
 from backend.cli.model import load, task_args
+from device_bridge.bench.command_line import LEG_HELP, leg_named, write_json
 
 
 def _course(args: argparse.Namespace):
@@ -19,11 +20,7 @@ def _course(args: argparse.Namespace):
 
 def _leg(args: argparse.Namespace):
     """The bench leg of ``--leg FILE`` (or a repository leg's name), None for the nominal bench."""
-    if getattr(args, "leg", None) is None:
-        return None
-    from device_bridge.sim.leg_file import load_leg
-
-    return load_leg(args.leg)   # ValueError names the file, the field and the reason
+    return leg_named(getattr(args, "leg", None))
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
@@ -137,8 +134,6 @@ def _simulate_table(args: argparse.Namespace) -> int:
     return 0
 
 
-LEG_HELP = ("the simulated leg and person: a leg file (JSON; fields in device_bridge/sim/leg_file.py) or a repository "
-            "leg's name (stiff_geared, heavy_foot, short_person); default the nominal bench")
 
 
 def add_commands(sub: argparse._SubParsersAction) -> None:

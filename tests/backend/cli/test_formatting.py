@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from backend.cli.formatting import emit, print_proposal, write_json
+from backend.cli.formatting import emit, print_proposal
 
 
 def test_a_proposal_prints_as_tables_with_units(model, capsys):
@@ -20,9 +20,3 @@ def test_flat_results_print_as_json_or_aligned_lines(capsys):
     assert json.loads(capsys.readouterr().out) == {"falls": 0, "knee_angle_rmse_deg": 6.0}
     emit({"falls": 0}, "text")
     assert capsys.readouterr().out == f"{'falls':40s} 0\n"
-
-
-def test_json_is_written_into_a_new_folder_and_said_so(tmp_path, capsys):
-    write_json(tmp_path / "a" / "b.json", {"x": [1, 2]})
-    assert json.loads((tmp_path / "a" / "b.json").read_text()) == {"x": [1, 2]}
-    assert "wrote" in capsys.readouterr().out
