@@ -4,19 +4,16 @@ the bench's verdict on exactly its content, a withdrawal). One place for the two
 
 from __future__ import annotations
 
-from typing import Literal
-
 from sqlalchemy import Connection, RowMapping
 
 from backend.services import bench_verdict
 from backend.store import envelopes, proposals, pushes, withdrawals
+from backend.store.pushes import Pushed, PushedKind
 from controller_core.envelope import Envelope
 from controller_core.table import ParameterTable
 
-Item = tuple[Literal["proposal", "envelope"], int]
 
-
-def stored_content(conn: Connection, item: Item) -> tuple[RowMapping, ParameterTable | Envelope]:
+def stored_content(conn: Connection, item: Pushed) -> tuple[RowMapping, ParameterTable | Envelope]:
     """The version's row and its content (raises NotFoundError for no such version, ConflictError where the stored
     content no longer matches its hash)."""
     kind, version_id = item
@@ -27,7 +24,7 @@ def stored_content(conn: Connection, item: Item) -> tuple[RowMapping, ParameterT
     return row, envelopes.stored_envelope(row)
 
 
-def with_state(conn: Connection, kind: Literal["proposal", "envelope"], shown: dict) -> dict:
+def with_state(conn: Connection, kind: PushedKind, shown: dict) -> dict:
     """The version's view ``shown`` (its ``id`` and content hash are read) and what the page shows beside it: where
     it runs, the bench's verdict on exactly its content, and its withdrawal if it was taken back."""
     return {**shown, "deployment": pushes.deployment_state(conn, (kind, shown["id"])),
