@@ -48,7 +48,7 @@ ROW_VALUES = ("k_Nm_per_rad", "theta_e_deg", "b_Nm_s_per_rad")
 THRESHOLD_VALUES = ("sf_to_se_ankle_moment_Nm", "se_to_wf_load_N", "wf_to_we_knee_angle_deg", "we_to_sf_load_N",
                     "min_state_time_s", "max_state_time_s", "sf_to_se_knee_extension_deg_per_s",
                     "stumble_knee_margin_deg", "stumble_knee_rate_deg_per_s", "fold_knee_rate_deg_per_s",
-                    "fold_window_of_stance_pct")
+                    "fold_window_of_stance_pct", "early_landing_swing_pct", "forefoot_landing_pct")
 # every value an envelope blends, in one fixed order: eight rows × (k, θe, b), then the thresholds
 VALUE_FIELDS: tuple[str, ...] = tuple(f"{j}.{s}.{v}" for j, s in ROW_KEYS for v in ROW_VALUES) + tuple(
     f"thresholds.{t}" for t in THRESHOLD_VALUES)
@@ -69,7 +69,8 @@ class NeighbourSteps(_Strict):
     300 N·m/rad (4 × 75 kg): one cell may not add or remove a whole knee's stiffness. Damping, loads and moment
     thresholds scale with body mass and get a step of the same order per 75 kg; state times 0.1 s. The stumble
     support's trigger (the table's ``stumble_…``/``fold_…`` thresholds) is one setting of the leg, not of the task:
-    its margin takes the knee angle's step, its rates 30 deg/s (a third of the fold rate), its window 10 % of stance.
+    its margin takes the knee angle's step, its rates 30 deg/s (a third of the fold rate), its window 10 % of stance;
+    likewise the early landing's two shares (of the last swing, of the forefoot), 10 % each.
     """
 
     k_Nm_per_rad: float = Field(default=300.0, gt=0)
@@ -82,6 +83,7 @@ class NeighbourSteps(_Strict):
     knee_extension_deg_per_s: float = Field(default=10.0, gt=0)
     knee_rate_deg_per_s: float = Field(default=30.0, gt=0)
     share_of_stance_pct: float = Field(default=10.0, gt=0)
+    landing_share_pct: float = Field(default=10.0, gt=0)
 
     def for_fields(self) -> tuple[float, ...]:
         """The step of every value of :data:`VALUE_FIELDS`, in that order."""
@@ -89,7 +91,8 @@ class NeighbourSteps(_Strict):
         return per_row * len(ROW_KEYS) + (
             self.ankle_moment_Nm, self.load_N, self.knee_angle_deg, self.load_N, self.state_time_s,
             self.state_time_s, self.knee_extension_deg_per_s,
-            self.knee_angle_deg, self.knee_rate_deg_per_s, self.knee_rate_deg_per_s, self.share_of_stance_pct)
+            self.knee_angle_deg, self.knee_rate_deg_per_s, self.knee_rate_deg_per_s, self.share_of_stance_pct,
+            self.landing_share_pct, self.landing_share_pct)
 
 
 DEFAULT_STEPS = NeighbourSteps()

@@ -51,11 +51,12 @@ equilibrium, or on toe-off's unloading; the next heel strike returns the leg to 
 **An early landing on the forefoot** (a foot put down on an obstacle's top or a raised floor before its swing is over,
 on the toe): stance flexion's ankle row, made for a heel landing, then pushes the toe down with the shank held back,
 and the body's weight comes onto a knee far behind its foot. So where the swing that ended lasted less than
-``EARLY_LANDING_FRACTION`` of the last ordinary one, and in its first ``FOREFOOT_LANDING_WINDOW_S`` the centre of
-pressure (−ankle moment / load, from the pylon's load cell) lay beyond ``FOREFOOT_LANDING_FRACTION`` of the forefoot
-rocker's distance ahead of the ankle, the ankle gives no plantarflexion torque while the centre of pressure stays out
-there: the heel comes down and the foot gets flat, then the row is the row again. A zero torque cannot inject energy;
-dorsiflexion torque (the row resisting a plantarflexed foot) is kept. Needs the foot's forefoot distance
+the table's ``early_landing_swing_pct`` of the last ordinary one (80 %), and in its first ``FOREFOOT_LANDING_WINDOW_S``
+the centre of pressure (−ankle moment / load, from the pylon's load cell) lay beyond its ``forefoot_landing_pct`` of
+the forefoot rocker's distance ahead of the ankle (50 %), the ankle gives no plantarflexion torque while the centre
+of pressure stays out there: the heel comes down and the foot gets flat, then the row is the row again. A zero torque
+cannot inject energy; dorsiflexion torque (the row resisting a plantarflexed foot) is kept. Needs the foot's forefoot
+distance
 (:meth:`StateMachineController.use_forefoot`; the firmware's ``forefoot_m``); without it the rule is off, and an
 actuator running the impedance itself (:meth:`StateMachineController.impedance`) runs the row without it. On the
 bench's grid the learned table's walks are unchanged on every repository leg (no ordinary landing is that early and on
@@ -158,8 +159,6 @@ class TorqueCommand:
 FRICTION_SHAPE_NM = 1.0        # spring torque at which the swing ankle's friction compensation reaches 76 % of it
 FRICTION_COMPENSATED_FRACTION = 0.5   # of the ankle drive's stated friction (module docstring, "Drive friction")
 MAX_DRIVE_FRICTION_NM = 15.0   # a harmonic or ball-screw drive with its seals (the leg files' and leg config's bound)
-EARLY_LANDING_FRACTION = 0.8   # a swing shorter than this share of the last ordinary one ended early (docstring)
-FOREFOOT_LANDING_FRACTION = 0.5   # centre of pressure beyond this share of the forefoot rocker: landed on the toe
 FOREFOOT_LANDING_WINDOW_S = 0.03  # the landing's first samples, read for where the foot landed (s)
 FOREFOOT_MIN_LOAD_N = 50.0     # below this the centre of pressure is too uncertain to say where the foot rests
 MAX_WALKING_SWING_S = 1.0      # a longer "swing" was a guard's or a lifted leg's wait, no measure of a walking one
@@ -231,6 +230,10 @@ class ImpedanceSchedule:
             begins at about 80 % of it) is giving way; the support holds until the knee is back within the margin of
             the stance-flexion equilibrium. From the table's thresholds (``stumble_knee_margin_deg`` …), so the
             prosthetist sees them with their limits and the device checks and runs what was approved.
+        early_landing_fraction, forefoot_landing_fraction: an early landing on the forefoot (module docstring): a
+            swing shorter than the first share of the last ordinary one ended early; a centre of pressure beyond the
+            second share of the forefoot's length ahead of the ankle is a landing on the toe. From the table's
+            ``early_landing_swing_pct`` and ``forefoot_landing_pct``, likewise.
     """
 
     knee_k: tuple[float, float, float, float]
@@ -259,6 +262,8 @@ class ImpedanceSchedule:
     stumble_knee_rate_rad_s: float = math.radians(30.0)
     fold_knee_rate_rad_s: float = math.radians(90.0)
     fold_window_of_stance: float = 0.5
+    early_landing_fraction: float = 0.8
+    forefoot_landing_fraction: float = 0.5
 
     @classmethod
     def from_table(cls, table: ImpedanceTable, limits: SafetyLimits | None = None) -> ImpedanceSchedule:
@@ -295,7 +300,9 @@ class ImpedanceSchedule:
             sf_to_se_knee_extension_rad_s=t.sf_to_se_knee_extension_deg_per_s * deg,
             stumble_knee_margin_rad=t.stumble_knee_margin_deg * deg,
             stumble_knee_rate_rad_s=t.stumble_knee_rate_deg_per_s * deg,
-            fold_knee_rate_rad_s=t.fold_knee_rate_deg_per_s * deg, fold_window_of_stance=t.fold_window_of_stance_pct / 100.0)
+            fold_knee_rate_rad_s=t.fold_knee_rate_deg_per_s * deg, fold_window_of_stance=t.fold_window_of_stance_pct / 100.0,
+            early_landing_fraction=t.early_landing_swing_pct / 100.0,
+            forefoot_landing_fraction=t.forefoot_landing_pct / 100.0)
 
 
 def held_since(since_s: float | None, holds: bool, now_s: float) -> float | None:
@@ -514,7 +521,7 @@ class StateMachineController:
         if not (self.early_landing_ and self.forefoot_m is not None and x.load_N > FOREFOOT_MIN_LOAD_N
                 and math.isfinite(x.ankle_moment_Nm)):
             return False
-        forward = -x.ankle_moment_Nm / x.load_N > FOREFOOT_LANDING_FRACTION * self.forefoot_m
+        forward = -x.ankle_moment_Nm / x.load_N > self.schedule.forefoot_landing_fraction * self.forefoot_m
         if forward and x.time_s - self.state_entry_time_s_ < FOREFOOT_LANDING_WINDOW_S:
             self.toe_landing_ = True
         return self.toe_landing_ and forward
@@ -539,7 +546,7 @@ class StateMachineController:
             swing = None if self.swing_entry_s_ is None else now_s - self.swing_entry_s_
             walked = swing is not None and swing <= MAX_WALKING_SWING_S   # not a guard's or a lifted leg's wait
             self.early_landing_ = walked and self.last_swing_s_ is not None and \
-                swing < EARLY_LANDING_FRACTION * self.last_swing_s_
+                swing < self.schedule.early_landing_fraction * self.last_swing_s_
             if walked and not self.early_landing_:
                 self.last_swing_s_ = max(swing, 0.2)
             self.toe_landing_ = False

@@ -84,10 +84,20 @@ class Thresholds(_Strict):
     fold_window_of_stance_pct: float = Field(
         default=50.0, description="fold: 'early in stance' is within this share of the last stance's length (%; "
                                   "pre-swing's flexion begins at about 80 %)")
+    # an early landing on the forefoot (controller_core.fsm, "An early landing on the forefoot"): its trigger; its
+    # support is the stance-flexion ankle row without plantarflexion torque while the weight stays on the toe
+    early_landing_swing_pct: float = Field(
+        default=80.0, description="early landing: a swing shorter than this share of the last ordinary swing ended "
+                                  "early (%; ordinary swings vary by about 5 % from stride to stride)")
+    forefoot_landing_pct: float = Field(
+        default=50.0, description="early landing: the foot landed on its toe when, in the landing's first 30 ms, the "
+                                  "centre of pressure lay beyond this share of the forefoot's length ahead of the "
+                                  "ankle (%; a heel landing puts it behind the ankle)")
 
 
 STUMBLE_THRESHOLDS = {"stumble_knee_margin_deg": "deg", "stumble_knee_rate_deg_per_s": "deg/s",
-                      "fold_knee_rate_deg_per_s": "deg/s", "fold_window_of_stance_pct": "%"}   # and their units
+                      "fold_knee_rate_deg_per_s": "deg/s", "fold_window_of_stance_pct": "%",
+                      "early_landing_swing_pct": "%", "forefoot_landing_pct": "%"}   # and their units
 
 
 class Provenance(_Strict):
@@ -191,7 +201,10 @@ class SafetyLimits(_Strict):
     seen stalled); "stopped extending" 10–90 deg/s (above it a knee still swinging freely would be taken for a
     planted one); the fold rate 60–300 deg/s (at or below a downhill knee's yielding every downhill stance would be
     held stiff; above it a folding knee is caught too late); the fold window 20–70 % of stance (beyond it pre-swing's
-    flexion would be held stiff through toe-off).
+    flexion would be held stiff through toe-off). An early landing on the forefoot: a swing under 50–95 % of the last
+    ordinary one (below 50 % a foot put down on an obstacle's top in late swing is not seen; above 95 % ordinary
+    stride-to-stride variation would trip it), the centre of pressure beyond 20–90 % of the forefoot (below 20 % a
+    foot landing flat would count; above 90 % only a landing on the very tip would).
 
     **Stance support floor**: the knee's stance-flexion row must be at least as firm as
     ``knee_stance_support_Nm_per_rad_per_kg`` × the body mass the table was built for (k ≤ −floor), or the knee
@@ -214,6 +227,8 @@ class SafetyLimits(_Strict):
     stumble_knee_rate_deg_per_s: Range = Range(low=10.0, high=90.0)
     fold_knee_rate_deg_per_s: Range = Range(low=60.0, high=300.0)
     fold_window_of_stance_pct: Range = Range(low=20.0, high=70.0)
+    early_landing_swing_pct: Range = Range(low=50.0, high=95.0)
+    forefoot_landing_pct: Range = Range(low=20.0, high=90.0)
     knee_stance_support_Nm_per_rad_per_kg: float = Field(default=1.2, ge=0.0)
     body_mass_kg: Range = Range(low=20.0, high=200.0)
 

@@ -1,8 +1,9 @@
 """An envelope on the wire: axes, nominal task and every node's table as raw fixed-point integers.
 
 A transfer is ENVELOPE_BEGIN, the axis frames (speeds, inclines, the nominal task, the body mass the envelope was
-built for, which the knee's stance support floor scales with) and their check, eleven frames per
-node (eight rows, two threshold frames and the stumble trigger, each carrying its node index) and the node's check,
+built for, which the knee's stance support floor scales with) and their check, twelve frames per
+node (eight rows, two threshold frames, the stumble trigger and the early landing's, each carrying its node index)
+and the node's check,
 ENVELOPE_COMMIT;
 TABLE_ACK answers, as for a table. The CRC-32 (zlib) covers every raw value in transfer order (axes, nominal, then
 node by node, row by row), packed as little-endian int32, so host and device compute it from exactly what the device
@@ -10,7 +11,7 @@ will run; the device stages the whole envelope or nothing.
 
 A check frame (ENVELOPE_CHECK) carries the CRC-32 of one node's values (``target`` 0, ``node`` its index 0–63) or of
 the axes and nominal task (``target`` 1), so every one of the 64 nodes a transfer may carry has its own check. With
-eleven frames per node
+twelve frames per node
 and 25 nodes, a corrupted frame would otherwise spoil nearly every transfer on a noisy bus (the first copy of a
 frame is kept, so the whole transfer would have to start over): the device keeps a node once its frames give its
 check and drops the node's frames for fresh copies when they do not, and answers a commit with the number of frames
@@ -31,6 +32,7 @@ import can
 from controller_core.envelope import Envelope, NeighbourSteps, check_envelope, check_grid
 from controller_core.table import LimitViolation, SafetyLimits, Thresholds
 from device_bridge.protocol import (
+    LANDING_SIGNALS,
     ROW_ORDER,
     ROW_SIGNALS,
     SIGNAL_FIELDS,
@@ -47,8 +49,9 @@ from device_bridge.protocol import (
 )
 
 MAX_NODES = 64
-FRAMES_PER_NODE = 11
+FRAMES_PER_NODE = 12
 STUMBLE_ROW = 10   # a node's row_index of its ENVELOPE_STUMBLE frame (rows 0–7, thresholds 8 and 9)
+LANDING_ROW = 11   # and of its ENVELOPE_LANDING frame
 CHECK_NODE, CHECK_AXES = 0, 1   # ENVELOPE_CHECK.target: one node's values, or the axes and nominal task
 _A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load")
 _B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time", "sf_to_se_knee_extension")
@@ -106,7 +109,9 @@ class WireEnvelope:
                                 f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in _B)
             stumble = tuple(quantize("ENVELOPE_STUMBLE", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
                                      f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in STUMBLE_SIGNALS)
-            nodes.append((*rows, a, b, stumble))
+            landing = tuple(quantize("ENVELOPE_LANDING", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
+                                     f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in LANDING_SIGNALS)
+            nodes.append((*rows, a, b, stumble, landing))
         return cls(speeds=tuple(axis(v, "speeds_mps") for v in envelope.speeds_mps),
                    inclines=tuple(axis(v, "inclines_deg") for v in envelope.inclines_deg),
                    nominal=(axis(envelope.nominal_speed_mps, "nominal_speed_mps"),
@@ -123,7 +128,7 @@ class WireEnvelope:
         return wire_crc32([*self.axis_values, *(v for node in self.nodes for part in node for v in part)])
 
     def frames(self, transfer_id: int) -> list[can.Message]:
-        """The data frames of a transfer: axes, nominal and their check, then eleven per node and its check."""
+        """The data frames of a transfer: axes, nominal and their check, then twelve per node and its check."""
         out = [encode("ENVELOPE_AXIS", {"transfer_id": transfer_id, "axis": a, "index": i, "value": v})
                for a, values in ((AXIS_SPEED, self.speeds), (AXIS_INCLINE, self.inclines), (AXIS_NOMINAL, self.nominal),
                                  (AXIS_BODY, (self.body_mass,)))
@@ -138,6 +143,8 @@ class WireEnvelope:
             out.append(encode("ENVELOPE_THRESHOLDS_B", {**head, "row_index": 9, **dict(zip(_B, node[9], strict=True))}))
             out.append(encode("ENVELOPE_STUMBLE", {**head, "row_index": STUMBLE_ROW,
                                                    **dict(zip(STUMBLE_SIGNALS, node[STUMBLE_ROW], strict=True))}))
+            out.append(encode("ENVELOPE_LANDING", {**head, "row_index": LANDING_ROW,
+                                                   **dict(zip(LANDING_SIGNALS, node[LANDING_ROW], strict=True))}))
             out.append(encode("ENVELOPE_CHECK", {**head, "target": CHECK_NODE, "crc32": _node_crc(node)}))
         return out
 
@@ -158,6 +165,8 @@ class WireEnvelope:
                        for raw, f in zip(node[9], _B, strict=True)}
             values |= {SIGNAL_FIELDS[f]: to_physical("ENVELOPE_STUMBLE", f, raw)
                        for raw, f in zip(node[STUMBLE_ROW], STUMBLE_SIGNALS, strict=True)}
+            values |= {SIGNAL_FIELDS[f]: to_physical("ENVELOPE_LANDING", f, raw)
+                       for raw, f in zip(node[LANDING_ROW], LANDING_SIGNALS, strict=True)}
             tables.append(DeviceTable(rows=rows, thresholds=Thresholds(**values), body_mass_kg=mass))
         return DeviceEnvelope(speeds_mps=tuple(axis(v) for v in self.speeds),
                               inclines_deg=tuple(axis(v) for v in self.inclines),
@@ -249,6 +258,8 @@ class EnvelopeReceiver:
             self.rows.setdefault((node, i), tuple(raw[f] for f in _B))
         elif name == "ENVELOPE_STUMBLE" and i == STUMBLE_ROW:
             self.rows.setdefault((node, i), tuple(raw[f] for f in STUMBLE_SIGNALS))
+        elif name == "ENVELOPE_LANDING" and i == LANDING_ROW:
+            self.rows.setdefault((node, i), tuple(raw[f] for f in LANDING_SIGNALS))
         else:
             return
         self._verify(node)

@@ -237,7 +237,8 @@ class DeviceFirmware:
                 self._rx = None
                 return [self._ack(raw["transfer_id"], AckResult.MALFORMED, version=raw["version"])]
             return []
-        if name in ("TABLE_ROW", "TABLE_THRESHOLDS_A", "TABLE_THRESHOLDS_B", "TABLE_BODY", "TABLE_STUMBLE"):
+        if name in ("TABLE_ROW", "TABLE_THRESHOLDS_A", "TABLE_THRESHOLDS_B", "TABLE_BODY", "TABLE_STUMBLE",
+                    "TABLE_LANDING"):
             rx = self._rx
             row = WireTable.row_from_frame(name, raw)
             if isinstance(rx, _Transfer) and raw["transfer_id"] == rx.transfer_id and row is not None:
@@ -253,7 +254,7 @@ class DeviceFirmware:
             self._rx = EnvelopeReceiver(raw["transfer_id"], raw["version"], raw["crc32"], n_s, n_i, now_s)
             return []
         if name in ("ENVELOPE_AXIS", "ENVELOPE_ROW", "ENVELOPE_THRESHOLDS_A", "ENVELOPE_THRESHOLDS_B", "ENVELOPE_STUMBLE",
-                    "ENVELOPE_CHECK"):
+                    "ENVELOPE_LANDING", "ENVELOPE_CHECK"):
             rx = self._rx
             if isinstance(rx, EnvelopeReceiver) and raw["transfer_id"] == rx.transfer_id:
                 rx.add(name, raw)

@@ -1,12 +1,13 @@
 """The device link's frames: defined once in ``quasitune.dbc``, encoded and decoded here with cantools.
 
-A parameter table travels as twelve classic-CAN frames in fixed-point: eight impedance rows (knee then ankle,
-sub-phases in walking order), two threshold frames, the body mass and the stumble support's trigger.
+A parameter table travels as thirteen classic-CAN frames in fixed-point: eight impedance rows (knee then ankle,
+sub-phases in walking order), two threshold frames, the body mass, the stumble support's trigger and the early
+landing's.
 :class:`WireTable` holds those raw integers; its CRC-32 (zlib's polynomial) covers every raw value in row order, packed
 as little-endian int32, so the host and the device compute it from exactly the numbers the device will run. The wire
 quanta are the table's precision on the device: 0.001 N·m/rad, 0.001°, 0.001 N·m·s/rad, 0.01 N·m, 0.1 N, 1 ms (the
-stumble trigger: 0.01°, 0.1 deg/s, 1 % of stance); the host rounds to them before computing the CRC, and
-:meth:`WireTable.from_table` refuses any value that does not fit its field.
+stumble trigger: 0.01°, 0.1 deg/s, 1 % of stance; the early landing's: 1 %); the host rounds to them before
+computing the CRC, and :meth:`WireTable.from_table` refuses any value that does not fit its field.
 
 Every decoded frame is checked for its declared length first: a truncated or over-long frame is a
 :class:`ProtocolError` naming the message, never a partly decoded one.
@@ -37,7 +38,8 @@ THRESHOLDS_A_INDEX = len(ROW_ORDER)        # 8
 THRESHOLDS_B_INDEX = len(ROW_ORDER) + 1    # 9
 BODY_INDEX = len(ROW_ORDER) + 2            # 10: the body mass the table was built for (the support floor needs it)
 STUMBLE_INDEX = len(ROW_ORDER) + 3         # 11: the stumble support's trigger
-ROW_COUNT = len(ROW_ORDER) + 4             # 12 frames between begin and commit
+LANDING_INDEX = len(ROW_ORDER) + 4         # 12: the early landing's trigger
+ROW_COUNT = len(ROW_ORDER) + 5             # 13 frames between begin and commit
 TRANSFER_IDS = 16                          # 4-bit transfer id
 TELEMETRY_PERIOD_S = 0.01                  # one telemetry sample every 10 ms (the DBC's TELEMETRY_GAIT comment)
 
@@ -307,10 +309,12 @@ SIGNAL_FIELDS = {
     "sf_to_se_knee_extension": "sf_to_se_knee_extension_deg_per_s",
     "stumble_knee_margin": "stumble_knee_margin_deg", "stumble_knee_rate": "stumble_knee_rate_deg_per_s",
     "fold_knee_rate": "fold_knee_rate_deg_per_s", "fold_window": "fold_window_of_stance_pct",
+    "early_landing_swing": "early_landing_swing_pct", "forefoot_landing": "forefoot_landing_pct",
 }
 _THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load", "sf_to_se_knee_extension")
 _THRESH_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time")
 STUMBLE_SIGNALS = ("stumble_knee_margin", "stumble_knee_rate", "fold_knee_rate", "fold_window")   # tables, nodes
+LANDING_SIGNALS = ("early_landing_swing", "forefoot_landing")   # tables and nodes
 
 
 def quantize(msg_name: str, signal: str, value: float, field: str) -> int:
@@ -369,12 +373,14 @@ class WireTable:
         body_mass: the body mass the table was built for (TABLE_BODY, 0.01 kg): the device checks the knee's
             stance support floor, which scales with it, on exactly what it will run.
         stumble: the stumble support's trigger (TABLE_STUMBLE: :data:`STUMBLE_SIGNALS`).
+        landing: the early landing's trigger (TABLE_LANDING: :data:`LANDING_SIGNALS`).
     """
 
     rows: tuple[tuple[int, int, int], ...]
     thresholds: tuple[int, int, int, int, int, int, int]
     body_mass: int
     stumble: tuple[int, int, int, int]
+    landing: tuple[int, int]
 
     @classmethod
     def from_table(cls, table: ParameterTable) -> WireTable:
@@ -392,12 +398,15 @@ class WireTable:
         mass = quantize("TABLE_BODY", "body_mass", table.body_mass_kg, "body_mass_kg")
         stumble = tuple(quantize("TABLE_STUMBLE", f, getattr(t, SIGNAL_FIELDS[f]), f"thresholds.{SIGNAL_FIELDS[f]}")
                         for f in STUMBLE_SIGNALS)
-        return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass, stumble=stumble)  # type: ignore[arg-type]
+        landing = tuple(quantize("TABLE_LANDING", f, getattr(t, SIGNAL_FIELDS[f]), f"thresholds.{SIGNAL_FIELDS[f]}")
+                        for f in LANDING_SIGNALS)
+        return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass, stumble=stumble,  # type: ignore[arg-type]
+                   landing=landing)  # type: ignore[arg-type]
 
     def crc32(self) -> int:
         """CRC-32 of the raw values in transfer order (what the device verifies and reads back)."""
         return wire_crc32([v for row in self.rows for v in row] + list(self.thresholds) + [self.body_mass]
-                          + list(self.stumble))
+                          + list(self.stumble) + list(self.landing))
 
     def to_device_table(self) -> DeviceTable:
         """The physical values the device runs (raises pydantic's ValidationError on a non-physical threshold)."""
@@ -409,11 +418,13 @@ class WireTable:
                   for (m, f), raw in zip(names, self.thresholds, strict=True)}
         values |= {SIGNAL_FIELDS[f]: to_physical("TABLE_STUMBLE", f, raw)
                    for f, raw in zip(STUMBLE_SIGNALS, self.stumble, strict=True)}
+        values |= {SIGNAL_FIELDS[f]: to_physical("TABLE_LANDING", f, raw)
+                   for f, raw in zip(LANDING_SIGNALS, self.landing, strict=True)}
         return DeviceTable(rows=rows, thresholds=Thresholds(**values),
                            body_mass_kg=to_physical("TABLE_BODY", "body_mass", self.body_mass))
 
     def frames(self, transfer_id: int) -> list[can.Message]:
-        """The twelve data frames (row_index 0–11) of a transfer."""
+        """The thirteen data frames (row_index 0–12) of a transfer."""
         out = [encode("TABLE_ROW", {"transfer_id": transfer_id, "row_index": i, "k": k, "theta_e": th, "b": b})
                for i, (k, th, b) in enumerate(self.rows)]
         a, b = self.thresholds[:len(_THRESH_A)], self.thresholds[len(_THRESH_A):]
@@ -425,6 +436,8 @@ class WireTable:
                                          "body_mass": self.body_mass}))
         out.append(encode("TABLE_STUMBLE", {"transfer_id": transfer_id, "row_index": STUMBLE_INDEX,
                                             **dict(zip(STUMBLE_SIGNALS, self.stumble, strict=True))}))
+        out.append(encode("TABLE_LANDING", {"transfer_id": transfer_id, "row_index": LANDING_INDEX,
+                                            **dict(zip(LANDING_SIGNALS, self.landing, strict=True))}))
         return out
 
     @staticmethod
@@ -441,6 +454,8 @@ class WireTable:
             return i, (raw["body_mass"],)
         if name == "TABLE_STUMBLE" and i == STUMBLE_INDEX:
             return i, tuple(raw[f] for f in STUMBLE_SIGNALS)
+        if name == "TABLE_LANDING" and i == LANDING_INDEX:
+            return i, tuple(raw[f] for f in LANDING_SIGNALS)
         return None
 
     @classmethod
@@ -449,7 +464,7 @@ class WireTable:
         rows = tuple(values[i] for i in range(THRESHOLDS_A_INDEX))
         th = values[THRESHOLDS_A_INDEX] + values[THRESHOLDS_B_INDEX]
         return cls(rows=rows, thresholds=th, body_mass=values[BODY_INDEX][0],  # type: ignore[arg-type]
-                   stumble=values[STUMBLE_INDEX])
+                   stumble=values[STUMBLE_INDEX], landing=values[LANDING_INDEX])
 
 
 def begin_frame(transfer_id: int, version: int, crc32: int) -> can.Message:

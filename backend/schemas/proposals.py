@@ -63,6 +63,8 @@ class ThresholdEdit(StrictIn):
     stumble_knee_rate_deg_per_s: EditValue = None
     fold_knee_rate_deg_per_s: EditValue = None
     fold_window_of_stance_pct: EditValue = None
+    early_landing_swing_pct: EditValue = None
+    forefoot_landing_pct: EditValue = None
 
 
 class EditRequest(StrictIn):

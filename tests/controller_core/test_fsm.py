@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -377,3 +378,21 @@ def test_an_early_landing_on_the_toe_lets_the_heel_come_down(swing_s, cop_m, wit
         assert cmd.ankle_torque_Nm == pytest.approx(ref.ankle_torque_Nm)
     with pytest.raises(ValueError, match="forefoot_m"):
         StateMachineController(schedule(), forefoot_m=-0.1)
+
+
+@pytest.mark.parametrize(("early_pct", "forefoot_pct", "withheld"), [
+    (80.0, 50.0, True),      # the table's defaults: a swing of 0.3 of 0.4 s, weight 0.10 m along a 0.13 m forefoot
+    (70.0, 50.0, False),     # the table says early is under 70 % of the last swing: 75 % is not
+    (80.0, 85.0, False),     # the table says on the toe is beyond 85 % of the forefoot: 77 % is not
+])
+def test_the_early_landing_trigger_is_the_tables(early_pct, forefoot_pct, withheld):
+    """The two shares that make a landing early and on the toe come from the table the leg runs (its thresholds
+    ``early_landing_swing_pct`` and ``forefoot_landing_pct``), not from the machine."""
+    sch = dataclasses.replace(schedule(), early_landing_fraction=early_pct / 100.0,
+                              forefoot_landing_fraction=forefoot_pct / 100.0)
+    c = StateMachineController(sch, forefoot_m=0.13)
+    c.step(sample(0.0))
+    t = _stride(c, _stride(c, 0.002, 0.40), 0.40)
+    _stride(c, t, 0.30)
+    cmd = c.step(sample(t + 0.9, load=600.0, moment=-0.10 * 600.0, ankle=math.radians(8.0)))
+    assert cmd.state == SF and (cmd.ankle_torque_Nm == 0.0) == withheld

@@ -86,6 +86,9 @@ def test_every_proposal_over_the_task_range_has_passive_stance_rows(model):
     ("stumble_knee_rate_deg_per_s", 120.0, "a freely swinging knee taken for a planted one"),
     ("fold_knee_rate_deg_per_s", 45.0, "every downhill stance held stiff"),
     ("fold_window_of_stance_pct", 85.0, "pre-swing's flexion held stiff"),
+    ("early_landing_swing_pct", 98.0, "an ordinary stride's shorter swing taken for an early landing"),
+    ("early_landing_swing_pct", 30.0, "a foot put down on an obstacle in late swing not seen"),
+    ("forefoot_landing_pct", 10.0, "a foot landing flat taken for one on its toe"),
 ])
 def test_the_stumble_support_is_part_of_the_table_and_cannot_be_set_out_of_its_limits(model, name, value, why):
     """The trigger of the stumble support travels with the table: the schedule the leg runs reads it, and a value
@@ -106,9 +109,11 @@ def test_the_leg_runs_the_stumble_support_the_table_states(model):
 
     table = model.propose(1.2, 0.0, 75.0).table
     changed = table.thresholds.model_copy(update={"stumble_knee_margin_deg": 20.0, "stumble_knee_rate_deg_per_s": 45.0,
-                                                  "fold_knee_rate_deg_per_s": 120.0, "fold_window_of_stance_pct": 40.0})
+                                                  "fold_knee_rate_deg_per_s": 120.0, "fold_window_of_stance_pct": 40.0,
+                                                  "early_landing_swing_pct": 75.0, "forefoot_landing_pct": 40.0})
     sch = ImpedanceSchedule.from_table(table.model_copy(update={"thresholds": changed}))
     assert sch.stumble_knee_margin_rad == pytest.approx(math.radians(20.0))
     assert sch.stumble_knee_rate_rad_s == pytest.approx(math.radians(45.0))
     assert sch.fold_knee_rate_rad_s == pytest.approx(math.radians(120.0))
     assert sch.fold_window_of_stance == pytest.approx(0.4)
+    assert (sch.early_landing_fraction, sch.forefoot_landing_fraction) == pytest.approx((0.75, 0.4))

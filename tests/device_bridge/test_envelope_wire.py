@@ -39,7 +39,7 @@ def with_node_table(env: Envelope, index: int, **row_update) -> Envelope:
 def test_an_envelope_is_staged_whole_and_runs_on_the_adaptive_controller(envelopes):
     fw = DeviceFirmware()
     begin, data, commit, crc = frames_of(envelopes[0], 5, 300)
-    assert len(data) == 3 + 3 + 2 + 1 + 1 + 9 * 12   # axes, nominal, body mass, axes check; 9 nodes of 11 and a check
+    assert len(data) == 3 + 3 + 2 + 1 + 1 + 9 * 13   # axes, nominal, body mass, axes check; 9 nodes of 12 and a check
     [ack] = feed(fw, [begin, *data, commit], 0.0)
     assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
     fw.tick(None, 0.001)

@@ -13,6 +13,7 @@ from controller_core.table import ParameterTable
 from device_bridge.firmware import DeviceFirmware, FirmwareConfig
 from device_bridge.protocol import (
     BODY_INDEX,
+    LANDING_INDEX,
     ROW_COUNT,
     STUMBLE_INDEX,
     AckResult,
@@ -166,8 +167,8 @@ def test_the_device_holds_the_stance_support_floor_for_the_mass_on_the_wire(tabl
     assert nack["result"] == AckResult.SAFETY_LIMIT and fw.staged_ is None
 
 
-@pytest.mark.parametrize("index", [BODY_INDEX, STUMBLE_INDEX])
-def test_the_body_mass_and_stumble_frames_are_part_of_the_transfer(tables, index):
+@pytest.mark.parametrize("index", [BODY_INDEX, STUMBLE_INDEX, LANDING_INDEX])
+def test_the_body_mass_stumble_and_landing_frames_are_part_of_the_transfer(tables, index):
     begin, rows, commit, crc = transfer(tables[0], 3, 3)
     fw = DeviceFirmware()
     [nack] = feed(fw, [begin, *rows[:index], *rows[index + 1:], commit], 0.0)   # that frame lost
@@ -177,20 +178,24 @@ def test_the_body_mass_and_stumble_frames_are_part_of_the_transfer(tables, index
 
 
 def test_the_device_runs_the_stumble_support_it_was_sent_and_refuses_one_out_of_its_limits(tables):
-    """The stumble trigger travels in the transfer (TABLE_STUMBLE, under the CRC): the leg's state machine runs the
-    values sent, and the device refuses a fold speed at which every downhill stance would be held stiff."""
+    """The stumble and early-landing triggers travel in the transfer (TABLE_STUMBLE, TABLE_LANDING, under the CRC):
+    the leg's state machine runs the values sent, and the device refuses a fold speed at which every downhill stance
+    would be held stiff, and an early-landing share that ordinary stride-to-stride variation would trip."""
     fw = DeviceFirmware()
     th = tables[0].thresholds
     firmer = tables[0].model_copy(update={"thresholds": th.model_copy(update={
-        "stumble_knee_margin_deg": 12.5, "fold_knee_rate_deg_per_s": 120.0, "fold_window_of_stance_pct": 40.0})})
+        "stumble_knee_margin_deg": 12.5, "fold_knee_rate_deg_per_s": 120.0, "fold_window_of_stance_pct": 40.0,
+        "early_landing_swing_pct": 70.0, "forefoot_landing_pct": 60.0})})
     install(fw, firmer, 1)
     sch = fw.controller_.schedule
     assert sch.stumble_knee_margin_rad == pytest.approx(math.radians(12.5))
     assert sch.fold_knee_rate_rad_s == pytest.approx(math.radians(120.0)) and sch.fold_window_of_stance == 0.4
-    slack = tables[0].model_copy(update={"thresholds": th.model_copy(update={"fold_knee_rate_deg_per_s": 40.0})})
-    begin, rows, commit, _ = transfer(slack, 2, 2)      # fits the wire, below the limit of 60 deg/s
-    [nack] = feed(fw, [begin, *rows, commit], 0.1)
-    assert nack["result"] == AckResult.SAFETY_LIMIT and fw.staged_ is None
+    assert sch.early_landing_fraction == 0.7 and sch.forefoot_landing_fraction == 0.6
+    for update in ({"fold_knee_rate_deg_per_s": 40.0}, {"early_landing_swing_pct": 98.0}):
+        slack = tables[0].model_copy(update={"thresholds": th.model_copy(update=update)})
+        begin, rows, commit, _ = transfer(slack, 2, 2)      # fits the wire, outside its limits
+        [nack] = feed(fw, [begin, *rows, commit], 0.1)
+        assert nack["result"] == AckResult.SAFETY_LIMIT and fw.staged_ is None, update
 
 
 def test_a_lost_acknowledgement_is_answered_again(tables):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import can
 import pytest
 
@@ -40,16 +42,14 @@ def test_the_crc_covers_every_value(tables):
         for j in range(3):
             rows = [list(r) for r in wire.rows]
             rows[i][j] += 1
-            assert WireTable(tuple(tuple(r) for r in rows), wire.thresholds, wire.body_mass, wire.stumble).crc32() != base
-    for j in range(len(wire.thresholds)):
-        th = list(wire.thresholds)
-        th[j] += 1
-        assert WireTable(wire.rows, tuple(th), wire.body_mass, wire.stumble).crc32() != base
-    assert WireTable(wire.rows, wire.thresholds, wire.body_mass + 1, wire.stumble).crc32() != base
-    for j in range(len(wire.stumble)):
-        st = list(wire.stumble)
-        st[j] += 1
-        assert WireTable(wire.rows, wire.thresholds, wire.body_mass, tuple(st)).crc32() != base
+            assert dataclasses.replace(wire, rows=tuple(tuple(r) for r in rows)).crc32() != base
+    assert dataclasses.replace(wire, body_mass=wire.body_mass + 1).crc32() != base
+    for name in ("thresholds", "stumble", "landing"):
+        values = getattr(wire, name)
+        for j in range(len(values)):
+            changed = list(values)
+            changed[j] += 1
+            assert dataclasses.replace(wire, **{name: tuple(changed)}).crc32() != base, (name, j)
 
 
 def test_a_value_that_does_not_fit_its_field_is_refused_before_sending(tables):

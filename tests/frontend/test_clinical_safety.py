@@ -32,7 +32,8 @@ def test_a_knee_that_would_give_way_is_refused_as_typed_and_by_the_server(server
     section = page.inner_text("#stumble-support")
     assert "stumble: loaded knee folding in early stance faster than" in section and "deg/s" in section, section
     assert "60 … 300" in section and "20 … 70" in section and "%" in section, section
-    expect(page.locator("#stumble-support tbody tr")).to_have_count(4)
+    assert "early landing: on the toe when the weight lands this far along the forefoot" in section, section
+    expect(page.locator("#stumble-support tbody tr")).to_have_count(6)
     fold = "#stumble-support input[data-field='thresholds.fold_knee_rate_deg_per_s']"
     assert float(page.input_value(fold)) == 90.0
     page.fill(fold, "40")

@@ -31,9 +31,7 @@ function limitOf(field, L, mass) {
   if (a === "thresholds") {
     return { sf_to_se_ankle_moment_Nm: L.ankle_moment_Nm, se_to_wf_load_N: L.load_N, we_to_sf_load_N: L.load_N,
       wf_to_we_knee_angle_deg: L.knee_theta_e_deg, min_state_time_s: L.state_time_s, max_state_time_s: L.state_time_s,
-      sf_to_se_knee_extension_deg_per_s: L.knee_extension_deg_per_s, stumble_knee_margin_deg: L.stumble_knee_margin_deg,
-      stumble_knee_rate_deg_per_s: L.stumble_knee_rate_deg_per_s, fold_knee_rate_deg_per_s: L.fold_knee_rate_deg_per_s,
-      fold_window_of_stance_pct: L.fold_window_of_stance_pct }[b];
+      sf_to_se_knee_extension_deg_per_s: L.knee_extension_deg_per_s }[b] ?? L[b];   // the stumble ones by their name
   }
   if (c === "k_Nm_per_rad" && `${a}.${b}` === "knee.stance_flexion" && mass) {
     return { low: L.stance_k_Nm_per_rad.low, high: Math.min(L.stance_k_Nm_per_rad.high, supportFloor(L, mass)) };
@@ -79,9 +77,10 @@ export function liveViolations(values, L, mass) {
 
 const THRESHOLD_KEYS = ["sf_to_se_ankle_moment_Nm", "se_to_wf_load_N", "wf_to_we_knee_angle_deg", "we_to_sf_load_N",
   "min_state_time_s", "max_state_time_s", "sf_to_se_knee_extension_deg_per_s"];
-// the stumble support's trigger (controller_core/fsm.py, "Stumbles"); the support itself is the knee's stance-flexion row
+// the stumble support's trigger (controller_core/fsm.py, "Stumbles"); the support itself is the knee's stance-flexion row;
+// and the early landing on the forefoot's ("An early landing on the forefoot"), whose support is the ankle's row
 const STUMBLE_KEYS = ["stumble_knee_margin_deg", "stumble_knee_rate_deg_per_s", "fold_knee_rate_deg_per_s",
-  "fold_window_of_stance_pct"];
+  "fold_window_of_stance_pct", "early_landing_swing_pct", "forefoot_landing_pct"];
 
 export function parameterTable(p, canEdit) {
   const L = p.limits, mass = p.task.body_mass_kg;
@@ -177,7 +176,10 @@ export function parameterTable(p, canEdit) {
       "once to its stance-flexion setting (the knee's loading-response row above: that is the support), holds it until ",
       "the knee is back within the margin of that row's angle or the foot is lifted, and returns to the usual rows at ",
       "the next clean heel strike. The support cannot be switched off; the limits keep it from holding a freely ",
-      "swinging knee or pre-swing's flexion stiff."));
+      "swinging knee or pre-swing's flexion stiff. A foot put down early on its toe (on an obstacle's top, a step ",
+      "up): the swing ended before its early-landing share of the last ordinary swing and the weight landed beyond ",
+      "its share of the forefoot; the ankle then gives no toe-down push while the weight stays on the toe, so the heel ",
+      "comes down, and its stance row is the row again once the foot is flat."));
   if (canEdit) box.append(editForm(p));
   function rerender() {
     document.getElementById("table-card").replaceChildren(parameterTable(p, canEdit));

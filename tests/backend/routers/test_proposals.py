@@ -127,15 +127,20 @@ def test_the_stumble_support_is_shown_with_its_limits_and_edited_like_any_thresh
     v1 = api.propose(patient["id"])
     assert v1["thresholds"]["stumble_knee_margin_deg"] == 15.0 and v1["thresholds"]["fold_window_of_stance_pct"] == 50.0
     assert v1["limits"]["fold_knee_rate_deg_per_s"] == {"low": 60.0, "high": 300.0}
+    assert v1["thresholds"]["early_landing_swing_pct"] == 80.0 and v1["thresholds"]["forefoot_landing_pct"] == 50.0
+    assert v1["limits"]["early_landing_swing_pct"] == {"low": 50.0, "high": 95.0}
     r = api.client.post(f"/api/proposals/{v1['id']}/edits", headers=api.as_("prosthetist"), json={
-        "thresholds": {"stumble_knee_margin_deg": 12.0, "fold_knee_rate_deg_per_s": 110.0},
+        "thresholds": {"stumble_knee_margin_deg": 12.0, "fold_knee_rate_deg_per_s": 110.0,
+                       "forefoot_landing_pct": 60.0},
         "comment": "catch a stalled knee sooner"})
     assert r.status_code == 201, r.text
     v2 = r.json()
     assert v2["thresholds"]["stumble_knee_margin_deg"] == 12.0 and v2["thresholds"]["fold_knee_rate_deg_per_s"] == 110.0
+    assert v2["thresholds"]["forefoot_landing_pct"] == 60.0
     diff = api.client.get(f"/api/proposals/{v1['id']}/diff/{v2['id']}", headers=api.as_("viewer")).json()
     units = {c["field"]: c["unit"] for c in diff["changes"]}
-    assert units == {"thresholds.stumble_knee_margin_deg": "deg", "thresholds.fold_knee_rate_deg_per_s": "deg/s"}
+    assert units == {"thresholds.stumble_knee_margin_deg": "deg", "thresholds.fold_knee_rate_deg_per_s": "deg/s",
+                     "thresholds.forefoot_landing_pct": "%"}
 
 
 @pytest.mark.parametrize(("edit", "words"), [
