@@ -58,9 +58,7 @@ from backend.viewer3d import ViewerRegistry
 from controller_core import QuasiStiffnessModel, load_default_model, load_model
 from device_bridge.clock import WALL_CLOCK, Clock, PacedClock
 from device_bridge.mqtt_connection import MqttConnection
-from device_bridge.sim.leg_file import load_leg
-from device_bridge.sim.leg_model import LegGeometry
-from device_bridge.sim.swing_inertia import swing_inertia_ratio
+from device_bridge.sim.leg_file import LegFile, load_leg_file
 
 
 def _field(loc: tuple) -> str:
@@ -151,8 +149,9 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     app.state.db = open_engine(settings.database)
     app.state.model = ModelService(model_loader or _default_loader(settings)).start()
     specs = parse_device_specs(settings.device)
-    app.state.bench_leg = load_leg(settings.bench_leg) if settings.bench_leg is not None else LegGeometry()
-    app.state.swing_inertia_ratio = swing_inertia_ratio(app.state.bench_leg)   # the swing rows proposed for that leg
+    # the simulated leg's, and the leg a patient's versions are made for and walked on where theirs is not described
+    app.state.bench_leg_file = load_leg_file(settings.bench_leg) if settings.bench_leg is not None else LegFile()
+    app.state.bench_leg = app.state.bench_leg_file.geometry()
     app.state.benchmark_walks = BenchmarkWalks()   # previews' walks (the FSMIC's, the versions'), kept by content
     app.state.node_walks = NodeWalks(settings.bench_processes)   # envelope nodes walked alone, kept by content
     app.state.broker = None

@@ -14,7 +14,7 @@ from __future__ import annotations
 from sqlalchemy import Connection
 
 from backend.errors import ConflictError, InvalidError
-from backend.services import envelopes, proposals
+from backend.services import envelopes, legs, proposals
 from backend.session_strides import session_strides
 from backend.store import envelopes as envelope_rows
 from backend.store import proposals as proposal_rows
@@ -33,7 +33,7 @@ from controller_core.refine_evidence import (
 from controller_core.stride_features import MeasuredStride
 from device_bridge.as_run import as_run
 from device_bridge.bench.refine_walks import BenchStepCheck
-from device_bridge.sim.leg_model import LegGeometry
+from device_bridge.sim.leg_file import LegFile
 
 BENCH_SECONDS = 12.0
 
@@ -59,13 +59,6 @@ SENSITIVITY = ("measured on the simulated bench at the node's task (controller_c
                "little, on the nominal leg; each node's step is walked on the bench's leg before it is taken (halved, "
                "then quartered, then left out where the bench does not confirm it); this leg's response is checked "
                "each round and a feature that does not respond is held")
-
-
-def bench_leg_words(geometry: LegGeometry) -> str:
-    """Which leg the bench walked, in words: a leg file's, or the nominal one for want of a description."""
-    if geometry.name == LegGeometry().name:
-        return "the nominal bench leg (no description of this patient's leg is given to the server)"
-    return f"the leg described as '{geometry.name}' (the server's bench leg)"
 
 
 def _sessions(conn: Connection, kind: str, version_id: int, patient_id: int, session_ids: list[int]
@@ -111,9 +104,9 @@ def _strides(conn: Connection, sessions: list[dict]) -> tuple[list[MeasuredStrid
 
 
 def _evidence(counted: dict, strides: list[MeasuredStride], targets, nodes: list[dict], changes: list[dict],
-              session_ids: list[int], rules: RefineRules, geometry: LegGeometry) -> dict:
+              session_ids: list[int], rules: RefineRules, leg: LegFile) -> dict:
     return {**counted, "session_ids": session_ids, "feature_abs_error": feature_abs_errors(strides, targets),
-            "bench_leg": bench_leg_words(geometry),
+            "bench_leg": legs.words(leg),
             "quantities": {q.key: {"label": q.label, "tolerance": q.tolerance,
                                    "unit": q.unit} for q in QUANTITIES},
             "nodes": nodes, "changes": changes, "nodes_changed": sorted({tuple(c["node"]) for c in changes}),
@@ -132,8 +125,7 @@ def _nothing(nodes: list[dict]) -> InvalidError:
 
 
 def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: list[int], comment: str,
-                            actor: User, model: QuasiStiffnessModel,
-                            geometry: LegGeometry | None = None) -> dict:
+                            actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved envelope from its sessions (module docstring); returns the refinement."""
     row = envelope_rows.get_row(conn, envelope_id)
     if row["status"] != "approved":
@@ -146,8 +138,8 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
     evidence = gather_evidence(strides, parent.speeds_mps, parent.inclines_deg, targets)
     before = refinements.of_version(conn, "envelope", envelope_id)
     rules = RefineRules()
-    geometry = geometry or LegGeometry()
-    check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS, geometry)
+    leg = legs.version_leg(row)         # the leg the version was made for, walked by every bench check
+    check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS, leg.geometry())
     result = refine_envelope(parent, evidence, rules, before["nodes"] if before else None, check)
     if not result.changes:
         raise _nothing(result.nodes)
@@ -157,15 +149,14 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
             v.message for v in checked.violations))
     _bench_expectation(result.nodes, parent.tables(), result.envelope.tables(), check)
     body = _evidence(counted, strides, targets, result.nodes, result.changes, [s["id"] for s in sessions], rules,
-                     geometry)
+                     leg)
     created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
                                     refinements.recorder("envelope", envelope_id, body["session_ids"], body, actor))
     return {**refinements.of_version(conn, "envelope", created["id"]), "version": created}
 
 
 def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: list[int], comment: str,
-                            actor: User, model: QuasiStiffnessModel,
-                            geometry: LegGeometry | None = None) -> dict:
+                            actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved table from its sessions: the table is one node at its task, every stride its
     evidence; returns the refinement."""
     row = proposal_rows.get_row(conn, proposal_id)
@@ -179,8 +170,8 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
     [evidence] = gather_evidence(strides, [row["speed_mps"]], [row["incline_deg"]], targets)
     before = refinements.of_version(conn, "proposal", proposal_id)
     rules = RefineRules()
-    geometry = geometry or LegGeometry()
-    check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS, geometry)
+    leg = legs.version_leg(row)
+    check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS, leg.geometry())
     result = refine_node(table, evidence, rules, previous=before["nodes"][0] if before else None, check=check)
     node = {**evidence.to_json(), "changed": bool(result.changes), "left_alone": result.left_alone}
     if result.step_refused:
@@ -197,7 +188,7 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
                 **c} for c in result.changes]
     node["stride_weight"] = evidence.weight
     _bench_expectation([node], [table], [result.table], check)
-    body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules, geometry)
+    body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules, leg)
     created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
                                     refinements.recorder("proposal", proposal_id, body["session_ids"], body, actor))
     return {**refinements.of_version(conn, "proposal", created["id"]), "version": created}

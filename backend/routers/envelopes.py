@@ -21,7 +21,7 @@ from backend.schemas.envelopes import (
 )
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.proposals import DecisionRequest
-from backend.services import envelopes
+from backend.services import envelopes, legs
 from backend.services.versions import with_state
 from backend.store import envelopes as envelope_rows
 from backend.store import patients
@@ -44,11 +44,12 @@ def create_envelope(patient_id: IdPath, body: EnvelopeRequest, request: Request,
     patient = patients.get_patient(conn, patient_id)
     corners = [(s, g) for s in body.speed_range_mps for g in body.incline_range_deg]
     reason = extrapolation_reason(model, corners, body.extrapolate, body.reason)
+    leg = legs.patient_leg(patient, request.app.state.bench_leg_file)   # made for the patient's leg
     env = model.propose_envelope(np.linspace(*body.speed_range_mps, body.grid[0]),
                                  np.linspace(*body.incline_range_deg, body.grid[1]), patient["body_mass_kg"],
                                  nominal=(body.nominal_speed_mps, body.nominal_incline_deg),
-                                 swing_inertia_ratio=request.app.state.swing_inertia_ratio)
-    created = envelopes.create_from_model(conn, patient_id, env, user, reason)
+                                 swing_inertia_ratio=legs.swing_ratio(leg))
+    created = envelopes.create_from_model(conn, patient_id, env, user, reason, leg)
     return with_state(conn, "envelope", created)
 
 

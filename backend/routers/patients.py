@@ -23,7 +23,7 @@ def list_patients(conn: Conn, _user: CurrentUser) -> list[dict]:
              responses={**FORBIDDEN, **CONFLICT})
 def create_patient(body: PatientCreate, conn: Conn, user: Prosthetist) -> dict:
     """Register a patient (prosthetist)."""
-    return patients.create_patient(conn, body.model_dump(), user)
+    return patients.create_patient(conn, body.fields(), user)
 
 
 @router.get("/{patient_id}", response_model=PatientOut, responses=NOT_FOUND)

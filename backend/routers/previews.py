@@ -16,12 +16,12 @@ from backend.errors import ConflictError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, NOT_FOUND, TOO_MANY, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.previews import EnvelopePreviewOut, PreviewOut
+from backend.services import legs
 from backend.store import envelopes, previews, proposals
 from backend.threads import run_bench, run_waiting
 from controller_core.model import QuasiStiffnessModel
 from device_bridge.as_run import as_run
 from device_bridge.sim.course import COURSES
-from device_bridge.sim.leg_model import LegGeometry
 
 router = APIRouter(prefix="/api", tags=["previews"], responses=UNAUTHORIZED)
 
@@ -58,11 +58,11 @@ async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, user: C
     joint RMSE against the able-bodied reference, and the stride-averaged trajectories; ``safety`` flags the
     table's safety figures (falls, toe catches, time on swing settings under load) on their own bounds."""
     return await _walk_once(("proposal", proposal_id), user.username, _table_preview, proposal_id, conn, model,
-                            request.app.state.bench_leg, request.app.state.benchmark_walks)
+                            request.app.state.benchmark_walks)
 
 
-def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
-                   benchmark: BenchmarkWalks, walk: bool = True) -> dict | None:
+def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, benchmark: BenchmarkWalks,
+                   walk: bool = True) -> dict | None:
     """The stored preview, walked first if there is none (``walk=False``: None instead)."""
     row = proposals.get_row(conn, proposal_id)
     stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
@@ -73,7 +73,7 @@ def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessMode
         _refuse_unsafe(checked.violations, f"proposal {proposal_id}")
         table = checked.item
         result = preview_table(table, row["speed_mps"], row["incline_deg"], row["body_mass_kg"], model,
-                               PREVIEW_SECONDS, leg, benchmark)
+                               PREVIEW_SECONDS, legs.version_leg(row).geometry(), benchmark)
         stored = previews.store_preview(conn, proposal_id, row["table_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["table"], runs["fsmic"])}
@@ -91,12 +91,11 @@ async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn
     stride's true task, the leg's estimation accuracy, and the envelope's per-stride RMSE minus the FSMIC's with 95 %
     intervals."""
     return await _walk_once(("envelope", envelope_id), user.username, _envelope_preview, envelope_id, conn, model,
-                            request.app.state.bench_leg, request.app.state.benchmark_walks,
-                            request.app.state.node_walks)
+                            request.app.state.benchmark_walks, request.app.state.node_walks)
 
 
-def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, leg: LegGeometry,
-                      benchmark: BenchmarkWalks, nodes: NodeWalks, walk: bool = True) -> dict | None:
+def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, benchmark: BenchmarkWalks,
+                      nodes: NodeWalks, walk: bool = True) -> dict | None:
     """The stored preview, walked first if there is none (``walk=False``: None instead)."""
     row = envelopes.get_row(conn, envelope_id)
     stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
@@ -105,7 +104,8 @@ def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessM
     if stored is None:
         checked = as_run(envelopes.stored_envelope(row))
         _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
-        result = preview_envelope(checked.item, model, COURSES[PREVIEW_COURSE], leg, benchmark, nodes)
+        result = preview_envelope(checked.item, model, COURSES[PREVIEW_COURSE], legs.version_leg(row).geometry(),
+                                  benchmark, nodes)
         stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
     return {**stored, "safety": envelope_flags(stored)}
 

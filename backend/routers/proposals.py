@@ -17,7 +17,7 @@ from backend.schemas.proposals import (
     ProposalOut,
     ProposalRequest,
 )
-from backend.services import proposals
+from backend.services import legs, proposals
 from backend.services.versions import with_state
 from backend.store import patients
 from backend.store import proposals as proposal_rows
@@ -40,9 +40,10 @@ async def create_proposal(patient_id: IdPath, body: ProposalRequest, request: Re
     # the GIL; the write is one short transaction.
     patient = patients.get_patient(conn, patient_id)
     reason = extrapolation_reason(model, [(body.speed_mps, body.incline_deg)], body.extrapolate, body.reason)
+    leg = legs.patient_leg(patient, request.app.state.bench_leg_file)   # made for the patient's leg
     proposal = model.propose(speed_mps=body.speed_mps, incline_deg=body.incline_deg, mass_kg=patient["body_mass_kg"],
-                             swing_inertia_ratio=request.app.state.swing_inertia_ratio)
-    created = proposals.create_from_model(conn, patient_id, proposal, user, reason)
+                             swing_inertia_ratio=legs.swing_ratio(leg))
+    created = proposals.create_from_model(conn, patient_id, proposal, user, reason, leg)
     return with_state(conn, "proposal", created)
 
 

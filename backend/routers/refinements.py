@@ -33,11 +33,11 @@ async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, request:
     a damped step of the rows where the strides agree. The result is a new draft (diff, edit, preview, approve or
     reject, push as any), stored with its evidence and audited. Refused with why, storing nothing: sessions of another
     patient or version, still recording, in safe mode all along, no strides, nothing to change. The bench walks the
-    server's bench leg (``bench_leg``, the nominal one where none is described), and the refinement says which."""
+    leg the envelope was made for (the patient's, ``backend/services/legs.py``), and the refinement says which."""
     # it walks the bench: on the bench's queue, never in the request threads a command to a leg needs
     job = ("refinement", f"envelope {envelope_id}", f"/api/envelopes/{envelope_id}")
     return await run_bench(user.username, job, refine_envelope_version, conn, envelope_id, _ids(body), body.comment, user,
-                           model, request.app.state.bench_leg)
+                           model)
 
 
 @router.post("/proposals/{proposal_id}/refinements", response_model=RefinementOut,
@@ -48,7 +48,7 @@ async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, request:
     table's task; the same rules and refusals."""
     job = ("refinement", f"table {proposal_id}", f"/api/proposals/{proposal_id}")
     return await run_bench(user.username, job, refine_proposal_version, conn, proposal_id, _ids(body), body.comment, user,
-                           model, request.app.state.bench_leg)
+                           model)
 
 
 @router.get("/refinements/{refinement_id}", response_model=RefinementOut, responses=NOT_FOUND)

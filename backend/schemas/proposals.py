@@ -228,6 +228,16 @@ class ViaPointOut(BaseModel):
     moment_Nm_per_kg: float
 
 
+class VersionLeg(BaseModel):
+    """The leg a version was made for: its swing rows are proposed for it, its bench preview and refinements walk it."""
+
+    description: dict = Field(description="the leg file's fields given (device_bridge/sim/leg_file.py); the rest are "
+                                          "the nominal bench leg's; {} is the nominal leg")
+    leg_sha256: str = Field(description="what the bench walks, as one key (the description but its name)")
+    words: str = Field(description="which leg, in words")
+    nominal: bool = Field(description="the nominal bench leg: no description of the patient's leg was given")
+
+
 class DecidedVersion(BaseModel):
     """What every immutable version decided once has, a table's or an envelope's."""
 
@@ -244,6 +254,7 @@ class DecidedVersion(BaseModel):
     decision: Decision | None
     extrapolation_reason: str | None = Field(
         description="requested beyond the tasks the model knows: the prosthetist's written reason (else null)")
+    leg: VersionLeg
 
 
 class ProposalSummary(DecidedVersion):

@@ -7,6 +7,7 @@ from collections.abc import Callable
 from sqlalchemy import Connection, RowMapping
 
 from backend.errors import ConflictError
+from backend.services import legs
 from backend.services.bench_verdict import require_bench
 from backend.store import audit
 from backend.store.decisions import record_decision
@@ -71,4 +72,5 @@ def version_meta(row: RowMapping) -> dict:
             "status": row["status"], "by": row["decided_by_name"], "at": row["decided_at"],
             "comment": row["decision_comment"], "override_reason": row["decision_override"]},
         "extrapolation": bool(row["extrapolation"]), "extrapolation_reason": row["extrapolation_reason"],
+        "leg": legs.view(legs.version_leg(row)),
     }

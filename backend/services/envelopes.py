@@ -14,6 +14,7 @@ from sqlalchemy import Connection, RowMapping
 from backend.clinical_words import field_words
 from backend.db import write_transaction
 from backend.errors import NotFoundError
+from backend.services import legs
 from backend.services.decisions import decide_once, version_meta
 from backend.services.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS, swing_inertia
 from backend.store import audit
@@ -22,6 +23,7 @@ from backend.store.users import User
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
 from controller_core.table import LimitViolation, display_rows
 from device_bridge.as_run import AsRun, as_run
+from device_bridge.sim.leg_file import LegFile
 
 _UNITS = ROW_UNITS | THRESHOLD_UNITS
 
@@ -87,17 +89,19 @@ def list_envelopes(conn: Connection, patient_id: int, limit: int = 50,
 
 
 def create_from_model(conn: Connection, patient_id: int, envelope: Envelope, actor: User,
-                      extrapolation_reason: str | None = None) -> dict:
+                      extrapolation_reason: str | None = None, leg: LegFile | None = None) -> dict:
     """Store a freshly built envelope as the patient's next draft version, rounded to the node quanta (what the
     device runs); returns its API view. ``extrapolation_reason``: the prosthetist's reason for nodes beyond the
-    tasks the model knows (audited, shown with the version)."""
+    tasks the model knows (audited, shown with the version); ``leg``: the leg it was made for (None: the nominal
+    one)."""
     checked = as_run(envelope)
     envelope, violations = checked.item, checked.violations
     with write_transaction(conn):
         meta = _meta(insert_row(conn, patient_id, None, envelope, checked.wire_crc32, not violations, None, actor,
-                                extrapolation_reason))
+                                extrapolation_reason, legs.leg_json(leg or LegFile())))
         audit.record(conn, actor.id, actor.username, "envelope.create", "envelope", meta["id"],
-                     after={"patient_id": patient_id, "version": meta["version"], "speeds_mps": envelope.speeds_mps,
+                     after={"patient_id": patient_id, "version": meta["version"], "leg": meta["leg"]["words"],
+                            "speeds_mps": envelope.speeds_mps,
                             "inclines_deg": envelope.inclines_deg, "wire_crc32": _hex(meta["wire_crc32"]),
                             "safety_ok": not violations,
                             "extrapolation": meta["extrapolation"], "extrapolation_reason": extrapolation_reason})
@@ -115,7 +119,8 @@ def create_edit(conn: Connection, parent_id: int, checked: AsRun[Envelope], chan
     with write_transaction(conn):
         parent = get_row(conn, parent_id)
         meta = _meta(insert_row(conn, parent["patient_id"], parent_id, envelope, checked.wire_crc32,
-                                not checked.violations, comment, actor, parent["extrapolation_reason"]))
+                                not checked.violations, comment, actor, parent["extrapolation_reason"],
+                                parent["leg_json"]))
         extra = also(conn, meta) if also is not None else {}
         audit.record(conn, actor.id, actor.username, action, "envelope", meta["id"],
                      before={"envelope_id": parent_id, "version": parent["version"],

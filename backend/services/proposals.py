@@ -13,6 +13,7 @@ from pydantic_core import to_json
 from sqlalchemy import Connection, RowMapping
 
 from backend.db import write_transaction
+from backend.services import legs
 from backend.services.decisions import decide_once, version_meta
 from backend.store import audit
 from backend.store.proposals import get_row, insert_row, list_rows, stored_table, table_label
@@ -21,6 +22,7 @@ from controller_core.proposal import Proposal
 from controller_core.table import STUMBLE_THRESHOLDS, LimitViolation, ParameterTable, SafetyLimits, display_rows
 from controller_core.table_rules import SWING_SCALED
 from device_bridge.as_run import AsRun, as_run
+from device_bridge.sim.leg_file import LegFile
 
 LIMITS = SafetyLimits().model_dump()
 # display units of the table's values, for diffs
@@ -90,10 +92,11 @@ def _refuse_non_finite(proposal: Proposal) -> None:
 
 
 def insert_from_model(conn: Connection, patient_id: int, proposal: Proposal, actor: User,
-                      extrapolation_reason: str | None = None) -> dict:
+                      extrapolation_reason: str | None = None, leg: LegFile | None = None) -> dict:
     """Store a freshly computed proposal as the patient's next draft version, inside the caller's write
     transaction; returns its API view. ``extrapolation_reason``: the prosthetist's reason for a task beyond the
-    tasks the model knows (audited, shown with the version)."""
+    tasks the model knows (audited, shown with the version); ``leg``: the leg it was made for (None: the nominal
+    one)."""
     body = proposal.model_body()
     _refuse_non_finite(proposal)
     model_json = to_json(body).decode()   # pydantic-core's encoder: far faster than json.dumps on 808 floats
@@ -101,19 +104,19 @@ def insert_from_model(conn: Connection, patient_id: int, proposal: Proposal, act
     checked = as_run(proposal.table)   # stored, shown and checked as the device will run it
     table, violations = checked.item, checked.violations
     meta = _meta(insert_row(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, table, None,
-                            actor, not violations, extrapolation_reason))
+                            actor, not violations, extrapolation_reason, legs.leg_json(leg or LegFile())))
     audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
-                 after={"patient_id": patient_id, "version": meta["version"], "task": task,
+                 after={"patient_id": patient_id, "version": meta["version"], "task": task, "leg": meta["leg"]["words"],
                         "table_sha256": meta["table_sha256"], "safety_ok": not violations,
                         "extrapolation": meta["extrapolation"], "extrapolation_reason": extrapolation_reason})
     return _assemble(meta, table, body, full=True, violations=violations)
 
 
 def create_from_model(conn: Connection, patient_id: int, proposal: Proposal, actor: User,
-                      extrapolation_reason: str | None = None) -> dict:
+                      extrapolation_reason: str | None = None, leg: LegFile | None = None) -> dict:
     """:func:`insert_from_model` in a write transaction of its own."""
     with write_transaction(conn):
-        return insert_from_model(conn, patient_id, proposal, actor, extrapolation_reason)
+        return insert_from_model(conn, patient_id, proposal, actor, extrapolation_reason, leg)
 
 
 def create_edit(conn: Connection, parent_id: int, checked: AsRun[ParameterTable], changes: list[dict],
@@ -130,7 +133,7 @@ def create_edit(conn: Connection, parent_id: int, checked: AsRun[ParameterTable]
                 "body_mass_kg": parent["body_mass_kg"]}
         meta = _meta(insert_row(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
                                 parent["model_json"], table, comment, actor, not violations,
-                                parent["extrapolation_reason"]))
+                                parent["extrapolation_reason"], parent["leg_json"]))
         out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
         pid = meta["id"]
         extra = also(conn, meta) if also is not None else {}

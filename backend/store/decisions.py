@@ -29,7 +29,7 @@ def record_decision(conn: Connection, entity: str, version_id: int, status: str,
 
 # what every decided-once version's summary reads, besides its own columns
 VERSION_COLUMNS = ("id", "patient_id", "version", "parent_id", "source", "status", "created_at", "edit_comment",
-                   "decided_at", "decision_comment", "decision_override", "safety_ok")
+                   "decided_at", "decision_comment", "decision_override", "safety_ok", "leg_json")
 
 
 def version_select(table: Table, *columns) -> Select:

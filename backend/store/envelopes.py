@@ -68,11 +68,12 @@ def list_rows(conn: Connection, patient_id: int, limit: int = 50,
 
 
 def insert_row(conn: Connection, patient_id: int, parent_id: int | None, envelope: Envelope, wire_crc32: int | None,
-               safety_ok: bool, comment: str | None, actor: User, extrapolation_reason: str | None = None) -> RowMapping:
+               safety_ok: bool, comment: str | None, actor: User, extrapolation_reason: str | None = None,
+               leg_json: str = "{}") -> RowMapping:
     """Insert a draft inside the caller's write transaction: ``envelope`` as the device will run it, ``wire_crc32`` what
     the device will read back, ``safety_ok`` whether it passed the device-side check, ``extrapolation_reason`` why it
-    was requested beyond the tasks the model knows; numbered after the patient's versions while holding the patient's
-    row. Returns its row as :func:`get_row` reads it."""
+    was requested beyond the tasks the model knows, ``leg_json`` the leg it was made for; numbered after the patient's
+    versions while holding the patient's row. Returns its row as :func:`get_row` reads it."""
     body = canonical_json(envelope)
     n_s, n_i = envelope.shape
     lock_patient(conn, patient_id)
@@ -82,5 +83,5 @@ def insert_row(conn: Connection, patient_id: int, parent_id: int | None, envelop
         extrapolation=int(any(n.extrapolation for n in envelope.nodes) or extrapolation_reason is not None),
         extrapolation_reason=extrapolation_reason, safety_ok=int(safety_ok), envelope_json=body,
         envelope_sha256=content_sha256(body), wire_crc32=wire_crc32, edit_comment=comment,
-        created_by=actor.id, created_at=utc_now())).inserted_primary_key[0]
+        created_by=actor.id, created_at=utc_now(), leg_json=leg_json)).inserted_primary_key[0]
     return get_row(conn, int(new_id))

@@ -1,6 +1,9 @@
-"""Patients: pseudonymous code name, body mass (kg), height (m), amputated side, K-level, notes."""
+"""Patients: pseudonymous code name, body mass (kg), height (m), amputated side, K-level, notes, and a description of
+their leg (a leg file's fields, ``device_bridge/sim/leg_file.py``; None: none given)."""
 
 from __future__ import annotations
+
+import json
 
 from sqlalchemy import Connection, RowMapping, bindparam, func, insert, select, update
 
@@ -10,12 +13,23 @@ from backend.store import audit
 from backend.store.tables import patients
 from backend.store.users import User
 
-FIELDS = ("code_name", "body_mass_kg", "height_m", "side", "k_level", "notes")
+FIELDS = ("code_name", "body_mass_kg", "height_m", "side", "k_level", "notes", "leg")
+_COLUMNS = {f: f for f in FIELDS} | {"leg": "leg_json"}
 
 
 def _public(row: RowMapping) -> dict:
-    return {"id": row["id"], **{f: row[f] for f in FIELDS}, "created_at": row["created_at"],
+    leg = row["leg_json"]
+    return {"id": row["id"], **{f: row[f] for f in FIELDS if f != "leg"},
+            "leg": None if leg is None else json.loads(leg), "created_at": row["created_at"],
             "updated_at": row["updated_at"]}
+
+
+def _stored(data: dict) -> dict:
+    """Fields as columns: the leg's description as canonical JSON."""
+    out = {_COLUMNS[f]: v for f, v in data.items()}
+    if out.get("leg_json") is not None:
+        out["leg_json"] = json.dumps(out["leg_json"], sort_keys=True, separators=(",", ":"))
+    return out
 
 
 # on most requests: built once (see backend/store/__init__.py)
@@ -56,7 +70,7 @@ def create_patient(conn: Connection, data: dict, actor: User) -> dict:
     now = utc_now()
     with write_transaction(conn):
         _unique_code_name(conn, data["code_name"])
-        new_id = conn.execute(insert(patients).values(**{f: data[f] for f in FIELDS}, created_by=actor.id,
+        new_id = conn.execute(insert(patients).values(**_stored({f: data.get(f) for f in FIELDS}), created_by=actor.id,
                                                       created_at=now, updated_at=now)).inserted_primary_key[0]
         created = get_patient(conn, int(new_id))
         audit.record(conn, actor.id, actor.username, "patient.create", "patient", created["id"], after=created)
@@ -76,7 +90,8 @@ def update_patient(conn: Connection, patient_id: int, changes: dict, actor: User
             return before
         if "code_name" in changed:
             _unique_code_name(conn, changed["code_name"], patient_id)
-        conn.execute(update(patients).where(patients.c.id == patient_id).values(**changed, updated_at=utc_now()))
+        conn.execute(update(patients).where(patients.c.id == patient_id).values(**_stored(changed),
+                                                                                updated_at=utc_now()))
         after = get_patient(conn, patient_id)
         audit.record(conn, actor.id, actor.username, "patient.update", "patient", patient_id,
                      before={k: before[k] for k in changed}, after={k: after[k] for k in changed})

@@ -61,10 +61,11 @@ def list_rows(conn: Connection, patient_id: int, limit: int = 50,
 
 def insert_row(conn: Connection, patient_id: int, parent_id: int | None, source: str, task: dict,
                extrapolation: bool, model_json: str, table: ParameterTable, comment: str | None, actor: User,
-               safety_ok: bool, extrapolation_reason: str | None = None) -> RowMapping:
+               safety_ok: bool, extrapolation_reason: str | None = None, leg_json: str = "{}") -> RowMapping:
     """Insert a draft inside the caller's write transaction (``safety_ok``: its table passed the limit check;
-    ``extrapolation_reason``: why it was requested beyond the tasks the model knows), numbered after the patient's
-    versions while holding the patient's row; returns its row as :func:`get_row` reads it."""
+    ``extrapolation_reason``: why it was requested beyond the tasks the model knows; ``leg_json``: the leg it was made
+    for, :mod:`backend.services.legs`), numbered after the patient's versions while holding the patient's row; returns
+    its row as :func:`get_row` reads it."""
     table_json = canonical_json(table)
     lock_patient(conn, patient_id)
     new_id = conn.execute(_INSERT, dict(
@@ -73,5 +74,5 @@ def insert_row(conn: Connection, patient_id: int, parent_id: int | None, source:
         extrapolation=int(extrapolation or extrapolation_reason is not None),
         extrapolation_reason=extrapolation_reason, safety_ok=int(safety_ok), model_json=model_json,
         table_json=table_json, table_sha256=content_sha256(table_json), edit_comment=comment, created_by=actor.id,
-        created_at=utc_now())).inserted_primary_key[0]
+        created_at=utc_now(), leg_json=leg_json)).inserted_primary_key[0]
     return get_row(conn, int(new_id))

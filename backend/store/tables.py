@@ -76,6 +76,7 @@ patients = Table(
     Column("side", Text, nullable=False),
     Column("k_level", Integer),
     Column("notes", Text, nullable=False, server_default=text("''")),
+    Column("leg_json", Text),        # the patient's leg (a leg file's description; NULL: none given), revision 0019
     Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
     Column("created_at", Text, nullable=False),
     Column("updated_at", Text, nullable=False),
@@ -85,6 +86,7 @@ patients = Table(
     CheckConstraint("side IN ('left', 'right')"),
     CheckConstraint("k_level IS NULL OR k_level BETWEEN 0 AND 4"),
     CheckConstraint("length(notes) <= 4000"),
+    CheckConstraint("leg_json IS NULL OR json_valid(leg_json)").ddl_if(dialect="sqlite"),
 )
 
 
@@ -110,6 +112,8 @@ def _decision_columns() -> list:
         Column("decision_comment", Text),
         Column("decision_override", Text),
         Column("extrapolation_reason", Text),
+        # the leg it was made for and its bench walks walk (a leg file's description; '{}': the nominal leg)
+        Column("leg_json", Text, nullable=False, server_default="{}"),
     ]
 
 
@@ -121,6 +125,7 @@ def _version_checks() -> list:
         _flag("extrapolation"), _flag("safety_ok"),
         CheckConstraint("status IN ('draft', 'approved', 'rejected')"),
         UniqueConstraint("patient_id", "version"),
+        _json_check("leg_json"),
     ]
 
 

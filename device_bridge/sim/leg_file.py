@@ -16,6 +16,7 @@ inertia); friction up to 15 N·m (a harmonic or ball-screw drive with its seals)
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -49,7 +50,20 @@ class LegFile(BaseModel):
 
     def geometry(self) -> LegGeometry:
         """The bench geometry: the nominal bench with this file's fields over it."""
-        return LegGeometry(**{k: v for k, v in self.model_dump().items() if v is not None})
+        return LegGeometry(**self.description())
+
+    def description(self) -> dict[str, object]:
+        """The fields this file gives (the rest are the nominal bench's): what a patient's record keeps."""
+        return {k: v for k, v in self.model_dump().items() if v is not None}
+
+    def sha256(self) -> str:
+        """What the bench walks, as one key: SHA-256 of the given fields but the name (words only), canonical JSON.
+        Every file that gives nothing but a name is the nominal leg, :data:`NOMINAL_LEG_SHA256`."""
+        physics = {k: v for k, v in self.description().items() if k != "name"}
+        return hashlib.sha256(json.dumps(physics, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+
+NOMINAL_LEG_SHA256 = hashlib.sha256(b"{}").hexdigest()   # the nominal bench's key (LegFile.sha256 of no fields)
 
 
 def _reason(error: ValidationError) -> str:
@@ -62,8 +76,8 @@ def _reason(error: ValidationError) -> str:
     return "; ".join(parts)
 
 
-def parse_leg(body: object, source: str = "leg") -> LegGeometry:
-    """A leg from its parsed JSON.
+def parse_leg_file(body: object, source: str = "leg") -> LegFile:
+    """A leg file from its parsed JSON.
 
     Raises:
         ValueError: not an object, an unknown field, a value out of range (each named with the reason).
@@ -71,9 +85,14 @@ def parse_leg(body: object, source: str = "leg") -> LegGeometry:
     if not isinstance(body, dict):
         raise ValueError(f"{source}: a leg file is a JSON object of fields, got {type(body).__name__}")
     try:
-        return LegFile.model_validate(body).geometry()
+        return LegFile.model_validate(body)
     except ValidationError as e:
         raise ValueError(f"{source}: {_reason(e)}") from None
+
+
+def parse_leg(body: object, source: str = "leg") -> LegGeometry:
+    """A leg from its parsed JSON (:func:`parse_leg_file`'s refusals)."""
+    return parse_leg_file(body, source).geometry()
 
 
 def load_leg(path: Path | str) -> LegGeometry:
@@ -82,6 +101,11 @@ def load_leg(path: Path | str) -> LegGeometry:
     Raises:
         ValueError: no such file or leg, not JSON, or a field refused (named with the reason).
     """
+    return load_leg_file(path).geometry()
+
+
+def load_leg_file(path: Path | str) -> LegFile:
+    """:func:`load_leg`'s file itself (its description and key)."""
     p = Path(path)
     if not p.exists() and p.suffix == "" and (LEGS_DIR / f"{p.name}.json").exists():
         p = LEGS_DIR / f"{p.name}.json"
@@ -94,4 +118,4 @@ def load_leg(path: Path | str) -> LegGeometry:
         body = json.loads(text)
     except json.JSONDecodeError as e:
         raise ValueError(f"leg file {p}: not JSON ({e.msg} at line {e.lineno})") from None
-    return parse_leg(body, f"leg file {p}")
+    return parse_leg_file(body, f"leg file {p}")

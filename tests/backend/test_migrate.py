@@ -90,10 +90,11 @@ def _everything(conn: sqlite3.Connection) -> dict[str, list[tuple]]:
     return {t: [tuple(r) for r in conn.execute(f"SELECT * FROM {t} ORDER BY 1, 2")] for t in tables}
 
 
-LATER = ["0013", "0014", "0015", "0016", "0017", "0018"]                   # the revisions after the baseline
+LATER = ["0013", "0014", "0015", "0016", "0017", "0018", "0019"]           # the revisions after the baseline
 LATER_TABLES = {"login_failures", "session_sample_seconds", "gate_signoffs", "withdrawals",   # the tables they added
                 "instance_beats"}
-LATER_TRIGGERS = {"gate_signoffs_no_update", "gate_signoffs_no_delete", "withdrawals_no_update", "withdrawals_no_delete"}
+LATER_TRIGGERS = {"gate_signoffs_no_update", "gate_signoffs_no_delete", "withdrawals_no_update", "withdrawals_no_delete",
+                  "proposals_leg_kept", "envelopes_leg_kept"}
 
 
 def _triggers(conn: sqlite3.Connection) -> set[str]:
@@ -130,6 +131,9 @@ def test_a_database_of_the_hand_written_migrations_is_stamped_with_every_row_kep
     rows["walking_sessions"] = [(*r, None) for r in rows["walking_sessions"]]   # who walked them is not known (0016)
     assert rows["envelope_previews"]        # walked before nodes were walked alone: walked again on request (0018)
     rows["envelope_previews"] = [r for r in rows["envelope_previews"] if '"nodes":' in r[-1]]
+    rows["patients"] = [(*r, None) for r in rows["patients"]]         # no leg described (0019): the bench's stands in
+    for t in ("proposals", "envelopes"):                              # made on the nominal bench leg (0019)
+        rows[t] = [(*r, "{}") for r in rows[t]]
     assert {t: v for t, v in now.items() if t not in LATER_TABLES} == {t: v for t, v in rows.items()
                                                                        if t != "session_samples"}
     assert [r for (blob,) in conn.execute("SELECT samples FROM session_sample_seconds") for r in unpack(blob)] == \
@@ -159,6 +163,7 @@ def test_the_fresh_and_the_stamped_database_hold_the_same_rules(tmp_path):
                            ("UPDATE walking_sessions SET course = 'x'", "final"),
                            ("DELETE FROM refinements", "never deleted"),
                            ("UPDATE envelopes SET extrapolation_reason = 'x'", "kept as written"),
+                           ("UPDATE proposals SET leg_json = '{\"name\": \"x\"}'", "made for is kept as written"),
                            ("INSERT INTO users (username, role, password_hash, created_at) "
                             "VALUES ('dana', 'viewer', 'h', 'now')", "UNIQUE"),   # names are case-insensitive
                            ("INSERT INTO proposal_previews VALUES (1, 'x', 1, 'now', 'not json')", "CHECK")]:

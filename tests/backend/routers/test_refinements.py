@@ -55,7 +55,7 @@ def test_a_refinement_is_a_draft_with_its_evidence_that_moves_the_short_swing_up
     assert swing["act"] and swing["error"] < -2.0 and swing["ci95"][1] < 0.0 and swing["expected_error"] > swing["error"]
     bench = node["bench"]   # the bench walked the old and the new rows at the node's task, same feature definitions
     assert bench["walked"] and set(bench["after"]) == set(node["quantities"]) and bench["falls_after"] >= 0
-    assert ref["bench_leg"].startswith("the nominal bench leg (no description of this patient's leg")   # and it says so
+    assert ref["bench_leg"] == "the nominal bench leg"   # the leg the table was made for, and it says so
     assert all("spread" in q for q in node["quantities"].values())   # beside each bias, what no row moves
     theta = [ch for ch in ref["changes"] if ch["field"] == "knee.swing_flexion.theta_e_deg"]
     assert theta and theta[0]["after"] > theta[0]["before"] and "swing knee flexion" in theta[0]["why"]
@@ -133,10 +133,9 @@ def test_a_leg_on_target_gives_nothing_to_refine_and_says_why(api, model):
 
 
 def test_the_refinement_names_the_leg_its_bench_walked():
-    from backend.refinement import bench_leg_words
-    from device_bridge.sim.leg_file import load_leg
-    from device_bridge.sim.leg_model import LegGeometry
+    from backend.services.legs import words
+    from device_bridge.sim.leg_file import LegFile, load_leg_file
 
-    assert bench_leg_words(load_leg("heavy_foot")) == ("the leg described as 'heavy powered ankle and foot' (the "
-                                                       "server's bench leg)")
-    assert "no description of this patient's leg" in bench_leg_words(LegGeometry())
+    assert words(load_leg_file("heavy_foot")) == "the leg described as 'heavy powered ankle and foot'"
+    assert words(LegFile()) == words(LegFile(name="anything")) == "the nominal bench leg"
+    assert words(LegFile(body_height_m=1.7)) == "a leg described without a name"
