@@ -294,6 +294,28 @@ def test_body_mass_is_editable_on_the_patient_page(server, page):
     page.wait_for_selector("#patient-mass:has-text('90.0 kg')")
 
 
+def test_the_patients_leg_is_described_on_their_page_and_a_version_made_for_it_says_so(server, page):
+    sign_in(page, server, "dana")
+    create_patient(page, "P-LEG")
+    assert "No description of this patient's leg" in page.inner_text("#leg-description")
+    page.fill("#edit-leg textarea", '{"name": "short, light foot", "body_height_m": 1.3}')   # below an adult's
+    page.click("#edit-leg button[type=submit]")
+    page.wait_for_selector("#edit-leg .error:has-text('body height must be at least 1.4 m')")   # refused: why
+    assert "No description of this patient's leg" in page.inner_text("#leg-description")
+    page.fill("#edit-leg textarea", '{"name": "short, light foot", "body_height_m": 1.6, "foot_mass_kg": 0.6}')
+    page.click("#edit-leg button[type=submit]")
+    page.wait_for_selector("#leg-description tbody tr")
+    facts = page.inner_text("#leg-description")
+    assert "Body height" in facts and "1.6" in facts and "Foot" in facts and "kg" in facts, facts
+    shot(page, "04c-patient-leg")
+    page.fill("#propose input[name=speed_mps]", "1.2")
+    page.click("#propose button[type=submit]")
+    page.wait_for_selector("#param-table")
+    assert "made for the leg described as 'short, light foot'" in page.inner_text("#leg-chip")
+    page.wait_for_selector("#preview-leg", timeout=30_000)
+    assert "Walked on “short, light foot”, the leg this version was made for" in page.inner_text("#preview-leg")
+
+
 def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(server, browser, page):
     sign_in(page, server, "ada")
     page.click("#nav-users")

@@ -261,7 +261,7 @@ async function renderPreview(box, e) {
       pv.course.segments.map((s) => `${fmt(s.speed_mps, 2)} m/s ${s.incline_deg >= 0 ? "+" : ""}${fmt(s.incline_deg, 0)}° for ${fmt(s.duration_s, 0)} s`).join(" → "),
       `) twice at ${fmt(pv.mass_kg, 0, "kg")}: with this envelope (the leg estimating its own task and changing its rows at heel strikes) and with the FSMIC. `,
       "Each stride is scored against the reference at its true task. ", `Simulated ${when(pv.created_at)}.`),
-    benchLegNote(pv.leg),
+    benchLegNote(pv.leg, e.leg),
     safetyFigures(courseAndNodeFlags(pv), t, f, "This envelope"),
     h("h3", {}, "Errors per segment (RMSE, deg; [95 % interval])"),
     table(["Segment", "Task", "Strides (envelope / FSMIC)", "Knee: envelope", "Knee: FSMIC", "Ankle: envelope", "Ankle: FSMIC"], segRows,

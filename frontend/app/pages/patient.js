@@ -49,6 +49,7 @@ export async function patientPage(view, id) {
     h("p", { class: "crumbs" }, h("a", { href: "#/patients" }, "Patients"), " / ", patient.code_name),
     h("h1", {}, `Patient ${patient.code_name}`),
     h("section", { class: "card" }, details, app.me.role === "prosthetist" ? massForm(patient) : null),
+    legCard(patient, app.me.role === "prosthetist"),
     h("section", { class: "card" }, h("h2", {}, "Proposals"),
       app.me.role === "prosthetist" ? proposalForm(patient, range) : null,
       proposals.length ? table(["Version", "Speed (m/s)", "Incline (deg)", "Status", "Source", "", "By", "Created"],
@@ -187,6 +188,60 @@ function proposalForm(patient, range) {
 
 // Body mass sets every torque and load threshold of a proposal: editable here, and a version built for a mass
 // more than 5 % away is then pushed only with a written reason (propose again).
+// the leg file's fields (device_bridge/sim/leg_file.py) in words with their units, in the file's order
+const LEG_FIELDS = [["name", "Name", ""], ["body_height_m", "Body height", "m"], ["socket_mass_kg", "Socket and thigh", "kg"],
+  ["shank_mass_kg", "Shank", "kg"], ["ankle_unit_mass_kg", "Ankle unit", "kg"], ["foot_mass_kg", "Foot", "kg"],
+  ["heel_back_m", "Heel behind the ankle", "m"], ["contact_radius_m", "Foot contact radius", "m"],
+  ["knee_armature_kg_m2", "Knee drive's reflected inertia", "kg·m²"], ["ankle_armature_kg_m2", "Ankle drive's reflected inertia", "kg·m²"],
+  ["knee_friction_Nm", "Knee drive friction", "N·m"], ["ankle_friction_Nm", "Ankle drive friction", "N·m"],
+  ["knee_damping_Nm_s_per_rad", "Knee drive damping", "N·m·s/rad"], ["ankle_damping_Nm_s_per_rad", "Ankle drive damping", "N·m·s/rad"]];
+
+// The patient's leg: new versions are made for it (swing rows for its inertia) and the bench walks it for their
+// previews and refinements; none described: the server's bench leg stands in, and the card says so
+function legCard(patient, canEdit) {
+  const leg = patient.leg;
+  const given = leg ? LEG_FIELDS.filter(([k]) => k in leg) : [];
+  const shown = leg
+    ? table(["Leg", "Value", "Unit"], given.map(([k, words, unit]) => h("tr", {}, h("td", {}, words),
+      h("td", { class: k === "name" ? "" : "num" }, String(leg[k])), h("td", {}, unit))), { id: "leg-description" })
+    : h("p", { id: "leg-description", class: "muted" }, "No description of this patient's leg: new versions are made for ",
+      "the server's bench leg (the nominal one unless the server was started with --leg) and their previews walk it.");
+  const card = h("section", { class: "card", id: "leg-card" }, h("h2", {}, "The patient's leg (what the bench walks)"), shown,
+    h("p", { class: "muted small" }, leg ? "Fields not given are the nominal bench leg's. " : "",
+      "Versions keep the leg they were made for: after a change, propose again for the new leg."));
+  if (!canEdit) return card;
+  const error = h("p", { class: "error", role: "alert" });
+  const text = h("textarea", { name: "leg", rows: 4, cols: 60, spellcheck: "false",
+    placeholder: '{"name": "…", "body_height_m": 1.62, "foot_mass_kg": 1.2, "ankle_friction_Nm": 2.0}' },
+  leg ? JSON.stringify(leg) : "");
+  const save = async (value) => {
+    error.textContent = "";
+    try {
+      await api(`/api/patients/${patient.id}`, { method: "PATCH", body: { leg: value } });
+      await patientPage(document.getElementById("view"), patient.id);
+    } catch (err) {
+      error.textContent = err.message;
+    }
+  };
+  const form = h("form", { id: "edit-leg" }, h("label", {}, "Describe the leg (a leg file's fields, JSON) ", text),
+    h("button", { type: "submit", class: "secondary" }, "Save the leg"),
+    leg ? h("button", { type: "button", class: "secondary", id: "clear-leg", onclick: () => save(null) }, "No description") : null,
+    error);
+  form.addEventListener("submit", (ev) => {
+    ev.preventDefault();
+    let value;
+    try {
+      value = JSON.parse(text.value);
+    } catch (err) {
+      error.textContent = `not JSON: ${err.message}`;
+      return;
+    }
+    save(value);
+  });
+  card.append(form);
+  return card;
+}
+
 function massForm(patient) {
   const error = h("p", { class: "error", role: "alert" });
   const mass = h("input", { name: "body_mass_kg", type: "number", min: 20, max: 200, step: 0.1, required: true,

@@ -176,7 +176,7 @@ async function renderPreview(box, p) {
     h("p", { class: "muted small" }, `Both controllers walked ${fmt(pv.seconds, 0, "s")} each on the MuJoCo bench at this task `,
       `(socket driven along the able-bodied hip trajectory; metrics as in quasitune simulate). Reference: ${referenceLabel(t)} (${t.reference_source}). `,
       `Simulated ${when(pv.created_at)}.`),
-    benchLegNote(pv.leg),
+    benchLegNote(pv.leg, p.leg),
     safetyFigures(pv.safety || [], t, f),
     h("h3", {}, "Tracking the reference"),
     table(["Metric", "This table", "FSMIC (hand-tuned, not re-tuned)", "This table − FSMIC, 95 % interval"], [

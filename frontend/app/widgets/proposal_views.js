@@ -6,12 +6,17 @@ import { chip, fmt, h, interp, momentScale, momentUnit, momentView, pm, SUBPHASE
 
 const RAD = Math.PI / 180;
 
-// which leg the bench walked a preview on: the server's bench leg, since no patient's or device's own leg is described
-// to the server yet (issue 55, item 3): the verdict is that leg's, and the page says so
-export function benchLegNote(leg) {
-  return h("p", { class: "small", id: "preview-leg" }, "Walked on the server's bench leg, “", leg || "nominal",
-    "”: this patient's own leg (their height, segment and unit masses, drive friction) is not described to the server, ",
-    "so the walk and its safety figures are for that leg, not necessarily theirs.");
+// which leg the bench walked (``walked``: the preview's leg name) and why: the leg the version was made for
+// (``madeFor``: the version's leg), the patient's as described, or the server's bench leg for want of a description
+export function benchLegNote(walked, madeFor) {
+  if (madeFor && !madeFor.nominal) {
+    return h("p", { class: "small", id: "preview-leg" }, "Walked on “", walked, "”, the leg this version was made for ",
+      "(its swing rows are proposed for its inertia): the patient's leg as their page describes it, or the server's ",
+      "bench leg where none was described.");
+  }
+  return h("p", { class: "small", id: "preview-leg" }, "Walked on the server's bench leg, “", walked || "nominal",
+    "”: this patient's own leg (their height, segment and unit masses, drive friction) is not described to the server ",
+    "(their patient page can), so the walk and its safety figures are for that leg, not necessarily theirs.");
 }
 
 // the measured conditions behind the model, and the reference at this task with what it really is

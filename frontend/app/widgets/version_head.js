@@ -1,6 +1,6 @@
 // What a table's page and an envelope's page show alike about a version: its chips (status, where it runs, its limits,
-// the bench's verdict, an override, a withdrawal, extrapolation, where it came from) and its bench preview fetched
-// once with the bench's progress beside it. One place, so the two pages cannot drift apart.
+// the bench's verdict, an override, a withdrawal, extrapolation, where it came from, the leg it was made for) and its
+// bench preview fetched once with the bench's progress beside it. One place, so the two pages cannot drift apart.
 import { get } from "../api.js";
 import { onLeave } from "../state.js";
 import { chip, extrapolationChip, h } from "../ui.js";
@@ -22,7 +22,9 @@ export function versionChips(v, id, limitsWords, more = []) {
     v.decision?.override_reason ? chip("approved without a clean bench preview", "warn") : null,
     v.withdrawal ? h("span", { id: "withdrawn-chip" }, chip("WITHDRAWN", "bad")) : null,
     v.extrapolation_reason ? extrapolationChip(v) : null,
-    v.source === "edit" ? chip(`edited from v${v.parent_version}`) : chip("model"), ...more);
+    v.source === "edit" ? chip(`edited from v${v.parent_version}`) : chip("model"),
+    v.leg ? h("span", { id: "leg-chip", title: "its swing rows are proposed for this leg and its bench preview walks it" },
+      chip(`made for ${v.leg.words}`)) : null, ...more);
 }
 
 // the version's preview (``path`` its API path; ``job`` what the bench's queue calls the walk), walked on first
