@@ -306,7 +306,7 @@ def test_the_patients_leg_is_described_on_their_page_and_a_version_made_for_it_s
     page.click("#edit-leg button[type=submit]")
     page.wait_for_selector("#leg-description tbody tr")
     facts = page.inner_text("#leg-description")
-    assert "Body height" in facts and "1.6" in facts and "Foot" in facts and "kg" in facts, facts
+    assert "Body height" in facts and "1.6" in facts and "Foot mass" in facts and "kg" in facts, facts
     shot(page, "04c-patient-leg")
     page.fill("#propose input[name=speed_mps]", "1.2")
     page.click("#propose button[type=submit]")

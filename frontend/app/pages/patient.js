@@ -189,8 +189,8 @@ function proposalForm(patient, range) {
 // Body mass sets every torque and load threshold of a proposal: editable here, and a version built for a mass
 // more than 5 % away is then pushed only with a written reason (propose again).
 // the leg file's fields (device_bridge/sim/leg_file.py) in words with their units, in the file's order
-const LEG_FIELDS = [["name", "Name", ""], ["body_height_m", "Body height", "m"], ["socket_mass_kg", "Socket and thigh", "kg"],
-  ["shank_mass_kg", "Shank", "kg"], ["ankle_unit_mass_kg", "Ankle unit", "kg"], ["foot_mass_kg", "Foot", "kg"],
+const LEG_FIELDS = [["name", "Name", ""], ["body_height_m", "Body height", "m"], ["socket_mass_kg", "Socket and thigh mass", "kg"],
+  ["shank_mass_kg", "Shank mass", "kg"], ["ankle_unit_mass_kg", "Ankle unit mass", "kg"], ["foot_mass_kg", "Foot mass", "kg"],
   ["heel_back_m", "Heel behind the ankle", "m"], ["contact_radius_m", "Foot contact radius", "m"],
   ["knee_armature_kg_m2", "Knee drive's reflected inertia", "kg·m²"], ["ankle_armature_kg_m2", "Ankle drive's reflected inertia", "kg·m²"],
   ["knee_friction_Nm", "Knee drive friction", "N·m"], ["ankle_friction_Nm", "Ankle drive friction", "N·m"],
