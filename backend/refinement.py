@@ -11,7 +11,10 @@ change nothing, or that has nothing to learn from, is refused with why and store
 
 from __future__ import annotations
 
-from sqlalchemy import Connection
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from sqlalchemy import Connection, RowMapping
 
 from backend.errors import ConflictError, InvalidError
 from backend.services import envelopes, legs, proposals
@@ -124,23 +127,43 @@ def _nothing(nodes: list[dict]) -> InvalidError:
                         nodes=nodes)
 
 
+@dataclass(frozen=True)
+class _Inputs:
+    """What either kind of refinement starts from: the approved version's row, the sessions walked on it and their
+    strides (and what was counted of them), the model's targets, the last refinement of it, and the leg it was made
+    for, which every bench check walks."""
+
+    row: RowMapping
+    sessions: list[dict]
+    strides: list[MeasuredStride]
+    counted: dict
+    targets: Callable
+    before: dict | None
+    leg: LegFile
+
+
+def _inputs(conn: Connection, kind: str, version_id: int, session_ids: list[int], model: QuasiStiffnessModel,
+            get_row: Callable[[Connection, int], RowMapping]) -> _Inputs:
+    row = get_row(conn, version_id)
+    if row["status"] != "approved":
+        what = "envelope" if kind == "envelope" else "table"
+        raise ConflictError(f"{what} {version_id} is {row['status']}: a refinement derives from the approved version "
+                            "the leg walked")
+    sessions = _sessions(conn, kind, version_id, row["patient_id"], session_ids)
+    strides, counted = _strides(conn, sessions)
+    return _Inputs(row, sessions, strides, counted, model_targets(model), refinements.of_version(conn, kind, version_id),
+                   legs.version_leg(row))
+
+
 def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: list[int], comment: str,
                             actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved envelope from its sessions (module docstring); returns the refinement."""
-    row = envelope_rows.get_row(conn, envelope_id)
-    if row["status"] != "approved":
-        raise ConflictError(f"envelope {envelope_id} is {row['status']}: a refinement derives from the approved "
-                            "version the leg walked")
-    parent = envelope_rows.stored_envelope(row)
-    sessions = _sessions(conn, "envelope", envelope_id, row["patient_id"], session_ids)
-    strides, counted = _strides(conn, sessions)
-    targets = model_targets(model)
-    evidence = gather_evidence(strides, parent.speeds_mps, parent.inclines_deg, targets)
-    before = refinements.of_version(conn, "envelope", envelope_id)
+    x = _inputs(conn, "envelope", envelope_id, session_ids, model, envelope_rows.get_row)
+    parent = envelope_rows.stored_envelope(x.row)
+    evidence = gather_evidence(x.strides, parent.speeds_mps, parent.inclines_deg, x.targets)
     rules = RefineRules()
-    leg = legs.version_leg(row)         # the leg the version was made for, walked by every bench check
-    check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS, leg.geometry())
-    result = refine_envelope(parent, evidence, rules, before["nodes"] if before else None, check)
+    check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS, x.leg.geometry())
+    result = refine_envelope(parent, evidence, rules, x.before["nodes"] if x.before else None, check)
     if not result.changes:
         raise _nothing(result.nodes)
     checked = as_run(result.envelope)
@@ -148,8 +171,8 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
         raise InvalidError("the refined envelope breaks a limit, nothing stored: " + "; ".join(
             v.message for v in checked.violations))
     _bench_expectation(result.nodes, parent.tables(), result.envelope.tables(), check)
-    body = _evidence(counted, strides, targets, result.nodes, result.changes, [s["id"] for s in sessions], rules,
-                     leg)
+    body = _evidence(x.counted, x.strides, x.targets, result.nodes, result.changes, [s["id"] for s in x.sessions],
+                     rules, x.leg)
     created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
                                     refinements.recorder("envelope", envelope_id, body["session_ids"], body, actor))
     return {**refinements.of_version(conn, "envelope", created["id"]), "version": created}
@@ -159,20 +182,13 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
                             actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved table from its sessions: the table is one node at its task, every stride its
     evidence; returns the refinement."""
-    row = proposal_rows.get_row(conn, proposal_id)
-    if row["status"] != "approved":
-        raise ConflictError(f"table {proposal_id} is {row['status']}: a refinement derives from the approved version "
-                            "the leg walked")
+    x = _inputs(conn, "proposal", proposal_id, session_ids, model, proposal_rows.get_row)
+    row = x.row
     table = proposal_rows.stored_table(row)
-    sessions = _sessions(conn, "proposal", proposal_id, row["patient_id"], session_ids)
-    strides, counted = _strides(conn, sessions)
-    targets = model_targets(model)
-    [evidence] = gather_evidence(strides, [row["speed_mps"]], [row["incline_deg"]], targets)
-    before = refinements.of_version(conn, "proposal", proposal_id)
+    [evidence] = gather_evidence(x.strides, [row["speed_mps"]], [row["incline_deg"]], x.targets)
     rules = RefineRules()
-    leg = legs.version_leg(row)
-    check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS, leg.geometry())
-    result = refine_node(table, evidence, rules, previous=before["nodes"][0] if before else None, check=check)
+    check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS, x.leg.geometry())
+    result = refine_node(table, evidence, rules, previous=x.before["nodes"][0] if x.before else None, check=check)
     node = {**evidence.to_json(), "changed": bool(result.changes), "left_alone": result.left_alone}
     if result.step_refused:
         node["step_scale"], node["step_refused"] = result.step_scale, result.step_refused
@@ -188,7 +204,7 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
                 **c} for c in result.changes]
     node["stride_weight"] = evidence.weight
     _bench_expectation([node], [table], [result.table], check)
-    body = _evidence(counted, strides, targets, [node], changes, [s["id"] for s in sessions], rules, leg)
+    body = _evidence(x.counted, x.strides, x.targets, [node], changes, [s["id"] for s in x.sessions], rules, x.leg)
     created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
                                     refinements.recorder("proposal", proposal_id, body["session_ids"], body, actor))
     return {**refinements.of_version(conn, "proposal", created["id"]), "version": created}
