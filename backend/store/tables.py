@@ -5,7 +5,8 @@ with a database they made, through Alembic's own comparison and the reflected ch
 with the migrations: the triggers that keep versions, decisions, pushes, sessions and the audit log immutable.
 
 Checks that need SQLite's JSON functions apply on SQLite only (``ddl_if``); the user-name collation is SQLite's
-``NOCASE``. Times are ISO-8601 text (``backend.db.utc_now``), flags 0/1 integers, angles and speeds SI floats.
+``NOCASE``. Times are timestamps and flags booleans (``backend.store.column_types``: on SQLite, which has neither,
+ISO-8601 text and checked 0/1 integers), angles and speeds SI floats.
 """
 
 from __future__ import annotations
@@ -24,14 +25,18 @@ from sqlalchemy import (
     Table,
     Text,
     UniqueConstraint,
+    false,
     text,
 )
 from sqlalchemy.dialects.sqlite import REAL
+
+from backend.store.column_types import Flag, Timestamp
 
 metadata = MetaData()
 
 _Float = Double().with_variant(REAL(), "sqlite")            # SI floats, 8 bytes on every database (SQLite's REAL)
 _Crc32 = Integer().with_variant(BigInteger(), "postgresql")  # 0 … 2³²−1 does not fit a signed 32-bit integer
+_FALSE = false()            # a flag's default: false on PostgreSQL, 0 on SQLite
 
 
 def _json_check(column: str) -> CheckConstraint:
@@ -40,7 +45,8 @@ def _json_check(column: str) -> CheckConstraint:
 
 
 def _flag(name: str) -> CheckConstraint:
-    return CheckConstraint(f"{name} IN (0, 1)")
+    """A flag is 0 or 1 (SQLite; PostgreSQL's boolean is nothing else)."""
+    return CheckConstraint(f"{name} IN (0, 1)").ddl_if(dialect="sqlite")
 
 
 users = Table(
@@ -49,10 +55,10 @@ users = Table(
     Column("username", Text().with_variant(Text(collation="NOCASE"), "sqlite"), nullable=False, unique=True),
     Column("role", Text, nullable=False),
     Column("password_hash", Text, nullable=False),
-    Column("created_at", Text, nullable=False),
-    Column("disabled", Integer, nullable=False, server_default="0"),
-    Column("must_change_password", Integer, nullable=False, server_default="0"),
-    Column("password_changed_at", Text),
+    Column("created_at", Timestamp, nullable=False),
+    Column("disabled", Flag, nullable=False, server_default=_FALSE),
+    Column("must_change_password", Flag, nullable=False, server_default=_FALSE),
+    Column("password_changed_at", Timestamp),
     CheckConstraint("length(username) BETWEEN 1 AND 64"),
     CheckConstraint("role IN ('prosthetist', 'viewer', 'admin')"),
     _flag("disabled"), _flag("must_change_password"),
@@ -62,7 +68,7 @@ tokens = Table(
     "tokens", metadata,
     Column("token_sha256", Text, primary_key=True),
     Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
-    Column("issued_at", Text, nullable=False),
+    Column("issued_at", Timestamp, nullable=False),
     Column("expires_at_unix", _Float, nullable=False),
     Index("tokens_by_expiry", "expires_at_unix"),
 )
@@ -78,8 +84,8 @@ patients = Table(
     Column("notes", Text, nullable=False, server_default=text("''")),
     Column("leg_json", Text),        # the patient's leg (a leg file's description; NULL: none given), revision 0019
     Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
-    Column("created_at", Text, nullable=False),
-    Column("updated_at", Text, nullable=False),
+    Column("created_at", Timestamp, nullable=False),
+    Column("updated_at", Timestamp, nullable=False),
     CheckConstraint("length(code_name) BETWEEN 1 AND 64"),
     CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),
     CheckConstraint("height_m IS NULL OR height_m BETWEEN 0.5 AND 2.5"),
@@ -105,10 +111,10 @@ def _decision_columns() -> list:
     return [
         Column("edit_comment", Text),
         Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
-        Column("created_at", Text, nullable=False),
+        Column("created_at", Timestamp, nullable=False),
         Column("status", Text, nullable=False, server_default="draft"),
         Column("decided_by", Integer, ForeignKey("users.id")),
-        Column("decided_at", Text),
+        Column("decided_at", Timestamp),
         Column("decision_comment", Text),
         Column("decision_override", Text),
         Column("extrapolation_reason", Text),
@@ -135,8 +141,8 @@ proposals = Table(
     Column("speed_mps", _Float, nullable=False),
     Column("incline_deg", _Float, nullable=False),
     Column("body_mass_kg", _Float, nullable=False),
-    Column("extrapolation", Integer, nullable=False),
-    Column("safety_ok", Integer, nullable=False),
+    Column("extrapolation", Flag, nullable=False),
+    Column("safety_ok", Flag, nullable=False),
     Column("model_json", Text, nullable=False),
     Column("table_json", Text, nullable=False),
     Column("table_sha256", Text, nullable=False),
@@ -153,8 +159,8 @@ envelopes = Table(
     Column("body_mass_kg", _Float, nullable=False),
     Column("n_speeds", Integer, nullable=False),
     Column("n_inclines", Integer, nullable=False),
-    Column("extrapolation", Integer, nullable=False),
-    Column("safety_ok", Integer, nullable=False),
+    Column("extrapolation", Flag, nullable=False),
+    Column("safety_ok", Flag, nullable=False),
     Column("envelope_json", Text, nullable=False),
     Column("envelope_sha256", Text, nullable=False),
     Column("wire_crc32", _Crc32),
@@ -168,7 +174,7 @@ envelopes = Table(
 audit_log = Table(
     "audit_log", metadata,
     Column("id", Integer, primary_key=True),
-    Column("at", Text, nullable=False),
+    Column("at", Timestamp, nullable=False),
     Column("actor_id", Integer, ForeignKey("users.id")),
     Column("actor_name", Text, nullable=False),
     Column("action", Text, nullable=False),
@@ -185,10 +191,10 @@ devices = Table(
     Column("kind", Text, nullable=False),
     Column("interface", Text, nullable=False),
     Column("channel", Text, nullable=False),
-    Column("registered_at", Text, nullable=False),
+    Column("registered_at", Timestamp, nullable=False),
     Column("patient_id", Integer, ForeignKey("patients.id")),
     Column("assigned_by", Integer, ForeignKey("users.id")),
-    Column("assigned_at", Text),
+    Column("assigned_at", Timestamp),
     Column("last_wire_version", Integer, nullable=False, server_default="0"),
     Column("link_mode", Text, CheckConstraint("link_mode IN ('supervised', 'autonomous')"), nullable=False,
            server_default="supervised"),
@@ -210,15 +216,15 @@ walking_sessions = Table(
     Column("body_mass_kg", _Float, nullable=False),
     Column("status", Text, nullable=False),
     Column("started_by", Integer, ForeignKey("users.id"), nullable=False),
-    Column("started_at", Text, nullable=False),
+    Column("started_at", Timestamp, nullable=False),
     Column("stopped_by", Integer, ForeignKey("users.id")),
-    Column("stopped_at", Text),
+    Column("stopped_at", Timestamp),
     Column("summary_json", Text),
     Column("envelope_id", Integer, ForeignKey("envelopes.id")),
     Column("course", Text),
     # revision 0016: walked by the simulated patient on the simulated leg (1), a person on a real leg (0), or not known
     # (sessions recorded before it was kept)
-    Column("simulated", Integer, CheckConstraint("simulated IN (0, 1)")),
+    Column("simulated", Flag, CheckConstraint("simulated IN (0, 1)").ddl_if(dialect="sqlite")),
     CheckConstraint("speed_mps > 0 AND speed_mps <= 3"),
     CheckConstraint("incline_deg BETWEEN -20 AND 20"),
     CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),
@@ -248,7 +254,7 @@ proposal_previews = Table(
     Column("proposal_id", Integer, ForeignKey("proposals.id"), primary_key=True, autoincrement=False),
     Column("table_sha256", Text, nullable=False),
     Column("seconds", _Float, nullable=False),
-    Column("created_at", Text, nullable=False),
+    Column("created_at", Timestamp, nullable=False),
     Column("result_json", Text, nullable=False),
     CheckConstraint("length(table_sha256) = 64"),
     CheckConstraint("seconds > 0"),
@@ -260,7 +266,7 @@ envelope_previews = Table(
     Column("envelope_id", Integer, ForeignKey("envelopes.id"), primary_key=True, autoincrement=False),
     Column("envelope_sha256", Text, nullable=False),
     Column("course", Text, nullable=False),
-    Column("created_at", Text, nullable=False),
+    Column("created_at", Timestamp, nullable=False),
     Column("result_json", Text, nullable=False),
     CheckConstraint("length(envelope_sha256) = 64"),
     _json_check("result_json"),
@@ -276,10 +282,10 @@ pushes = Table(
     Column("crc32", _Crc32, nullable=False),
     Column("status", Text, nullable=False),
     Column("requested_by", Integer, ForeignKey("users.id"), nullable=False),
-    Column("requested_at", Text, nullable=False),
-    Column("acknowledged_at", Text),
-    Column("active_at", Text),
-    Column("ended_at", Text),
+    Column("requested_at", Timestamp, nullable=False),
+    Column("acknowledged_at", Timestamp),
+    Column("active_at", Timestamp),
+    Column("ended_at", Timestamp),
     Column("attempts", Integer),
     Column("elapsed_ms", _Float),
     Column("error", Text),
@@ -307,7 +313,7 @@ refinements = Table(
     Column("session_ids_json", Text, nullable=False),
     Column("evidence_json", Text, nullable=False),
     Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
-    Column("created_at", Text, nullable=False),
+    Column("created_at", Timestamp, nullable=False),
     _json_check("session_ids_json"), _json_check("evidence_json"),
     CheckConstraint("(envelope_id IS NULL) <> (proposal_id IS NULL)"),
 )
@@ -341,7 +347,7 @@ gate_signoffs = Table(
     Column("content_sha256", Text, nullable=False),
     Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
     Column("reason", Text, nullable=False),
-    Column("signed_at", Text, nullable=False),
+    Column("signed_at", Timestamp, nullable=False),
     CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
     CheckConstraint("length(content_sha256) = 64"),
     UniqueConstraint("proposal_id", "user_id"),
@@ -357,6 +363,6 @@ withdrawals = Table(
     Column("envelope_id", Integer, ForeignKey("envelopes.id"), unique=True),
     Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
     Column("reason", Text, nullable=False),
-    Column("withdrawn_at", Text, nullable=False),
+    Column("withdrawn_at", Timestamp, nullable=False),
     CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
 )

@@ -6,7 +6,7 @@ import time
 from dataclasses import dataclass
 from typing import Literal, get_args
 
-from sqlalchemy import Connection, RowMapping, bindparam, delete, func, insert, select, update
+from sqlalchemy import Connection, RowMapping, bindparam, delete, false, func, insert, select, update
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, InvalidError, NotFoundError
@@ -117,7 +117,7 @@ def list_users(conn: Connection) -> list[dict]:
 
 def credentials(conn: Connection, username: str) -> tuple[User, str] | None:
     """(user, stored password hash) of an enabled user, or None."""
-    row = conn.execute(select(users).where(_named(username), users.c.disabled == 0)).mappings().first()
+    row = conn.execute(select(users).where(_named(username), users.c.disabled == false())).mappings().first()
     return None if row is None else (_user(row), row["password_hash"])
 
 
@@ -154,7 +154,7 @@ def record_failed_login(conn: Connection, username: str, address: str) -> None:
 _BY_TOKEN = (select(users.c.id, users.c.username, users.c.role, users.c.must_change_password)
              .join(tokens, tokens.c.user_id == users.c.id)
              .where(tokens.c.token_sha256 == bindparam("digest"), tokens.c.expires_at_unix > bindparam("now_unix"),
-                    users.c.disabled == 0))
+                    users.c.disabled == false()))
 
 
 def user_for_token(conn: Connection, token: str) -> User | None:

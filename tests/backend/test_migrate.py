@@ -90,7 +90,7 @@ def _everything(conn: sqlite3.Connection) -> dict[str, list[tuple]]:
     return {t: [tuple(r) for r in conn.execute(f"SELECT * FROM {t} ORDER BY 1, 2")] for t in tables}
 
 
-LATER = ["0013", "0014", "0015", "0016", "0017", "0018", "0019"]           # the revisions after the baseline
+LATER = ["0013", "0014", "0015", "0016", "0017", "0018", "0019", "0020"]   # the revisions after the baseline
 LATER_TABLES = {"login_failures", "session_sample_seconds", "gate_signoffs", "withdrawals",   # the tables they added
                 "instance_beats"}
 LATER_TRIGGERS = {"gate_signoffs_no_update", "gate_signoffs_no_delete", "withdrawals_no_update", "withdrawals_no_delete",

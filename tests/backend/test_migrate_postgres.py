@@ -45,3 +45,39 @@ def test_the_command_line_upgrades_the_database_the_environment_names(empty, mon
     assert f"at revision {head()}" in out and "postgresql+psycopg://" in out
     require_current(empty)
     assert main(["db", "upgrade"]) == 0 and "nothing to apply" in capsys.readouterr().out
+
+
+def test_times_become_timestamps_and_flags_booleans_with_every_row_and_rule_kept(empty):
+    """A database at 0019 holding a user, a patient and a version, upgraded: its times are ``timestamp with time
+    zone`` and its flags ``boolean`` (the ISO text and the 0/1 it held, cast), the application reads them as it
+    always did, and the immutability triggers the change had to drop are back, word for word."""
+    from sqlalchemy import text
+
+    from backend.store import users
+    from backend.store.tables import proposals
+
+    migrate(empty, to="0019")
+    engine = create_engine(database_url(empty))
+    at = "2026-11-29T18:01:43.037Z"
+    with engine.begin() as conn:
+        conn.execute(text("INSERT INTO users (id, username, role, password_hash, created_at, disabled, "
+                          "must_change_password) VALUES (1, 'dana', 'prosthetist', 'h', :at, 0, 1)"), {"at": at})
+        conn.execute(text("INSERT INTO patients (id, code_name, body_mass_kg, side, created_by, created_at, "
+                          "updated_at) VALUES (1, 'P-1', 80, 'left', 1, :at, :at)"), {"at": at})
+        conn.execute(text("INSERT INTO proposals (id, patient_id, version, source, speed_mps, incline_deg, body_mass_kg, "
+                          "extrapolation, safety_ok, model_json, table_json, table_sha256, created_by, created_at) "
+                          "VALUES (1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 's', 1, :at)"), {"at": at})
+        triggers = set(conn.execute(text("SELECT tgname FROM pg_trigger WHERE NOT tgisinternal")).scalars())
+    migrate(empty)
+    with engine.connect() as conn:
+        types = {(r.table_name, r.column_name): r.data_type for r in conn.execute(text(
+            "SELECT table_name, column_name, data_type FROM information_schema.columns WHERE table_schema = 'public'"))}
+        assert types["proposals", "created_at"] == types["users", "created_at"] == "timestamp with time zone"
+        assert types["proposals", "safety_ok"] == types["users", "disabled"] == "boolean"
+        assert set(conn.execute(text("SELECT tgname FROM pg_trigger WHERE NOT tgisinternal")).scalars()) == triggers
+        row = conn.execute(proposals.select()).mappings().one()
+        assert row["created_at"] == at and row["safety_ok"] is True and row["extrapolation"] is False
+        assert users.list_users(conn)[0]["must_change_password"] is True and users.list_users(conn)[0]["disabled"] is False
+        with pytest.raises(Exception, match="immutable"):     # the rules are back
+            conn.execute(text("UPDATE proposals SET created_at = now()"))
+    engine.dispose()

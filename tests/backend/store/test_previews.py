@@ -27,7 +27,7 @@ def test_the_first_stored_preview_wins_and_is_tied_to_its_table(conn, draft):
 def test_an_envelope_preview_is_tied_to_its_envelope(conn, prosthetist, patient):
     eid = sql(conn, "INSERT INTO envelopes (patient_id, version, source, body_mass_kg, n_speeds, n_inclines, "
               "extrapolation, safety_ok, envelope_json, envelope_sha256, created_by, created_at) VALUES (:patient, 1, "
-              "'model', 80, 2, 2, 0, 1, '{}', :sha, :user, '2026-01-01T00:00:00Z') RETURNING id",
+              "'model', 80, 2, 2, false, true, '{}', :sha, :user, '2026-01-01T00:00:00Z') RETURNING id",
               patient=patient["id"], sha=A, user=prosthetist.id).scalar_one()
     stored = previews.store_envelope_preview(conn, eid, A, {"course": {"name": "mixed"}, "n": 1})
     assert stored["n"] == 1 and previews.get_envelope_preview(conn, eid, A)["course"]["name"] == "mixed"
