@@ -9,7 +9,7 @@ from pathlib import Path
 
 from backend.cli.formatting import print_proposal
 from controller_core import QuasiStiffnessModel
-from device_bridge.bench.command_line import model_named
+from device_bridge.bench.command_line import LEG_HELP, leg_named, model_named
 
 
 def load(args: argparse.Namespace) -> QuasiStiffnessModel:
@@ -25,8 +25,16 @@ def task_args(p: argparse.ArgumentParser, speed_required: bool = True) -> None:
     p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")
 
 
+def swing_ratio(args: argparse.Namespace) -> tuple[float, float]:
+    """The swing inertia of the leg named by ``--leg`` over the reference leg's: the swing rows are proposed for it."""
+    from device_bridge.sim.swing_inertia import swing_inertia_ratio
+
+    return swing_inertia_ratio(leg_named(args.leg))
+
+
 def cmd_predict(args: argparse.Namespace) -> int:
-    d = load(args).propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass).to_dict()
+    d = load(args).propose(speed_mps=args.speed, incline_deg=args.incline, mass_kg=args.mass,
+                           swing_inertia_ratio=swing_ratio(args)).to_dict()
     if args.format == "json":
         print(json.dumps(d, allow_nan=False))
     else:
@@ -52,7 +60,7 @@ def cmd_envelope(args: argparse.Namespace) -> int:
 
     (s0, s1), (g0, g1) = args.speeds, args.inclines
     env = load(args).propose_envelope(np.linspace(s0, s1, args.grid[0]), np.linspace(g0, g1, args.grid[1]), args.mass,
-                                      nominal=(args.nominal[0], args.nominal[1]))
+                                      nominal=(args.nominal[0], args.nominal[1]), swing_inertia_ratio=swing_ratio(args))
     checked = as_run(env)
     violations, wire_crc = checked.violations, checked.wire_crc32 if checked.ok else None
     sha256 = content_sha256(canonical_json(checked.item))
@@ -96,10 +104,12 @@ def add_commands(sub: argparse._SubParsersAction) -> None:
                    help="the task the leg returns to when unsure (clamped into the grid)")
     p.add_argument("--mass", type=float, default=75.0, help="patient body mass (kg), 20-200")
     p.add_argument("--model", type=Path, default=None, help="model directory from 'quasitune train'")
+    p.add_argument("--leg", default=None, help=LEG_HELP + " (the swing rows are proposed for its inertia)")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_envelope)
     p = sub.add_parser("predict", help="propose curves and a parameter table for a task")
     task_args(p)
+    p.add_argument("--leg", default=None, help=LEG_HELP + " (the swing rows are proposed for its inertia)")
     p.add_argument("--format", choices=["text", "json"], default="text")
     p.set_defaults(func=cmd_predict)
     p = sub.add_parser("train", help="fit a model from a standard-format dataset (CSV/Parquet)")

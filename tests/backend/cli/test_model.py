@@ -80,3 +80,17 @@ def test_cli_envelope_prints_the_grid_its_checks_and_crc_and_refuses_a_bad_grid(
     assert body["envelope_sha256"] == content_sha256(canonical_json(as_run(env).item))
     assert main(["envelope", "--grid", "1", "5"]) == 2
     assert "at least 2" in capsys.readouterr().err
+
+
+def test_cli_predict_for_a_leg_proposes_its_swing_rows_and_refuses_one_it_cannot_read(capsys):
+    """``--leg``: the swing rows are proposed for that leg's inertia, as the server does for a patient's leg; a leg
+    that is not there exits 2 naming it."""
+    def knee_swing_extension(extra: list[str]) -> dict:
+        assert main(["predict", "--speed", "1.2", "--format", "json", *extra]) == 0
+        table = json.loads(capsys.readouterr().out)["table"]
+        return next(r for r in table if (r["joint"], r["subphase"]) == ("knee", "swing_extension"))
+
+    plain, heavy = knee_swing_extension([]), knee_swing_extension(["--leg", "heavy_foot"])
+    assert heavy["k_Nm_per_rad"] < plain["k_Nm_per_rad"] - 10.0          # firmer for the heavier foot's inertia
+    assert main(["predict", "--speed", "1.2", "--leg", "no_such_leg"]) == 2
+    assert "no_such_leg" in capsys.readouterr().err
