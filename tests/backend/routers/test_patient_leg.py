@@ -63,3 +63,16 @@ def test_a_version_is_made_for_the_patients_leg_and_its_preview_walks_it(api):
     assert preview.json()["leg"] == "short person (1.58 m)"                  # walked on that leg
     listed = api.client.get(f"/api/patients/{p['id']}/proposals", headers=api.as_("viewer")).json()
     assert [v["leg"]["nominal"] for v in listed] == [False, False, True]
+
+
+def test_an_envelope_is_made_for_the_patients_leg_and_keeps_it(api):
+    p = api.new_patient(mass=75.0)
+    api.client.patch(f"/api/patients/{p['id']}", headers=api.as_("prosthetist"), json={"leg": SHORT.description()})
+    r = api.client.post(f"/api/patients/{p['id']}/envelopes", headers=api.as_("prosthetist"),
+                        json={"speed_range_mps": [1.0, 1.4], "incline_range_deg": [-4, 4], "grid": [2, 2]})
+    assert r.status_code == 201, r.text
+    envelope = r.json()
+    assert envelope["leg"]["leg_sha256"] == SHORT.sha256() and not envelope["leg"]["nominal"]
+    assert envelope["swing_inertia"]["knee_ratio"] == pytest.approx(swing_inertia_ratio(SHORT.geometry())[0], abs=1e-4)
+    listed = api.client.get(f"/api/patients/{p['id']}/envelopes", headers=api.as_("viewer")).json()
+    assert listed[0]["leg"] == envelope["leg"]
