@@ -44,23 +44,28 @@ body fold. So a swing-extension knee still well flexed that has stopped extendin
 the row's equilibrium, slower than ``stumble_knee_rate_rad_s``, for ``event_hold_s`` after the state's minimum time:
 the foot is held by the floor) goes to stance flexion; so does a loaded stance-extension knee that flexes faster than
 ``fold_knee_rate_rad_s`` early in stance (before ``fold_window_of_stance`` of the last stance's length: later, the
-flexion is pre-swing's; once per stance). That stance flexion is *recovering*: it does not leave on the ankle moment
-(which already says "late stance" in a fold) but when the knee is back within the margin of the stance-flexion
-equilibrium, or on toe-off's unloading; the next heel strike returns the leg to the table's usual rows and events.
+flexion is pre-swing's), a stance that was already supported included. That stance flexion is *recovering*: it does
+not leave on the ankle moment (which already says "late stance" in a fold) but when the knee is back within the margin
+of the stance-flexion equilibrium, or on an unloading that lasts ``RECOVERY_LIFT_S`` (a lift: a foot bouncing on an
+obstacle's edge unloads for about 20 ms, and ending the support then put the landing's load on stance extension's
+weak row); the next heel strike returns the leg to the table's usual rows and events.
 
 **An early landing on the forefoot** (a foot put down on an obstacle's top or a raised floor before its swing is over,
 on the toe): stance flexion's ankle row, made for a heel landing, then pushes the toe down with the shank held back,
 and the body's weight comes onto a knee far behind its foot. So where the swing that ended lasted less than
 the table's ``early_landing_swing_pct`` of the last ordinary one (80 %), and in its first ``FOREFOOT_LANDING_WINDOW_S``
 the centre of pressure (−ankle moment / load, from the pylon's load cell) lay beyond its ``forefoot_landing_pct`` of
-the forefoot rocker's distance ahead of the ankle (50 %), the ankle gives no plantarflexion torque while the centre
-of pressure stays out there: the heel comes down and the foot gets flat, then the row is the row again. A zero torque
-cannot inject energy; dorsiflexion torque (the row resisting a plantarflexed foot) is kept. Needs the foot's forefoot
-distance
+the forefoot rocker's distance ahead of the ankle (50 %), the ankle gives no more plantarflexion torque than a centre
+of pressure at that threshold needs (the threshold × the forefoot × the load) while the weight stays on the toe: the
+heel comes down and the foot gets flat, with the shank still supported; once the centre of pressure has been back
+for the event hold, the row is the row again (released on each sample, the torque moved the centre of pressure and
+the release beat against it at half the control rate). That stance flexion is recovering (above): a foot on its toe
+gives the ankle moment of late stance from its first sample. A capped torque injects nothing the row would not;
+dorsiflexion torque (the row resisting a plantarflexed foot) is kept. Needs the foot's forefoot distance
 (:meth:`StateMachineController.use_forefoot`; the firmware's ``forefoot_m``); without it the rule is off, and an
 actuator running the impedance itself (:meth:`StateMachineController.impedance`) runs the row without it. On the
 bench's grid the learned table's walks are unchanged on every repository leg (no ordinary landing is that early and on
-the toe); the sixteen stumble walks recover in 14 against 11 (``docs/results.md``).
+the toe); the sixteen stumble walks recover in 13 (``docs/results.md``: a 1.45 m person's grid 14 falls → 0).
 
 **Drive friction.** The swing rows of the ankle are soft (a few N·m of spring torque clear the toe), and a drive's
 Coulomb friction of the same size stops the foot short of the row's equilibrium: on the bench a leg with 3 N·m of
@@ -160,6 +165,7 @@ FRICTION_SHAPE_NM = 1.0        # spring torque at which the swing ankle's fricti
 FRICTION_COMPENSATED_FRACTION = 0.5   # of the ankle drive's stated friction (module docstring, "Drive friction")
 MAX_DRIVE_FRICTION_NM = 15.0   # a harmonic or ball-screw drive with its seals (the leg files' and leg config's bound)
 FOREFOOT_LANDING_WINDOW_S = 0.03  # the landing's first samples, read for where the foot landed (s)
+RECOVERY_LIFT_S = 0.05         # a recovering stance ends on an unloading this long: a lift, not a bounce (docstring)
 FOREFOOT_MIN_LOAD_N = 50.0     # below this the centre of pressure is too uncertain to say where the foot rests
 MAX_WALKING_SWING_S = 1.0      # a longer "swing" was a guard's or a lifted leg's wait, no measure of a walking one
 
@@ -387,6 +393,8 @@ class StateMachineController:
     last_swing_s_: float | None = field(init=False, default=None)
     early_landing_: bool = field(init=False, default=False)
     toe_landing_: bool = field(init=False, default=False)
+    toe_back_since_s_: float | None = field(init=False, default=None)
+    lifted_since_s_: float | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         self.state_ = GaitState(self.initial_state)
@@ -409,6 +417,8 @@ class StateMachineController:
         self.folding_since_s_ = None
         self.swing_entry_s_, self.last_swing_s_ = None, None
         self.early_landing_, self.toe_landing_ = False, False
+        self.toe_back_since_s_ = None
+        self.lifted_since_s_ = None
 
     def stand(self) -> None:
         """A person stands on the leg now (a leg switched on or given a table under them, the bench's standing start):
@@ -428,7 +438,8 @@ class StateMachineController:
             ext = sch.sf_to_se_knee_extension_rad_s
             if self.recovering_:            # held in stance flexion until the knee is back near its equilibrium
                 back = x.knee_angle_rad <= sch.knee_theta_e[0] + sch.stumble_knee_margin_rad
-                return x.load_N < sch.se_to_wf_load_N or back
+                self.lifted_since_s_ = held_since(self.lifted_since_s_, x.load_N < sch.se_to_wf_load_N, x.time_s)
+                return back or held_for(self.lifted_since_s_, x.time_s, RECOVERY_LIFT_S - sch.event_hold_s)
             return x.load_N >= sch.we_to_sf_load_N and (
                 x.ankle_moment_Nm <= sch.sf_to_se_ankle_moment_Nm or (ext > 0.0 and x.knee_velocity_rad_s <= -ext))
         if st == GaitState.STANCE_EXTENSION:
@@ -442,7 +453,7 @@ class StateMachineController:
         sch = self.schedule
         early = self.stance_entry_s_ is not None and \
             x.time_s - self.stance_entry_s_ < sch.fold_window_of_stance * self.last_stance_s_
-        folding = self.state_ == GaitState.STANCE_EXTENSION and early and not self.recovering_ and \
+        folding = self.state_ == GaitState.STANCE_EXTENSION and early and \
             x.load_N >= sch.we_to_sf_load_N and x.knee_velocity_rad_s > sch.fold_knee_rate_rad_s
         self.folding_since_s_ = held_since(self.folding_since_s_, folding, x.time_s)
         return held_for(self.folding_since_s_, x.time_s, sch.event_hold_s)
@@ -517,14 +528,25 @@ class StateMachineController:
         self.forefoot_m = forefoot_m
 
     def _landed_on_the_toe(self, x: SensorSample) -> bool:
-        """In stance flexion after an early landing: whether the foot bears weight on its forefoot, as it landed."""
-        if not (self.early_landing_ and self.forefoot_m is not None and x.load_N > FOREFOOT_MIN_LOAD_N
-                and math.isfinite(x.ankle_moment_Nm)):
+        """In stance flexion after an early landing: whether the foot still bears weight on its forefoot, as it landed.
+        Released once the centre of pressure has been back behind the threshold (or the load gone) for the machine's
+        event hold, not on one sample: the capped torque moves the centre of pressure, and a release on each sample
+        beat against it at half the control rate (the load alternating 0.66 / 0.13 of body weight every millisecond
+        on the bench, the ankle's torque with it, and no stance extension ever held)."""
+        if not (self.early_landing_ and self.forefoot_m is not None):
             return False
-        forward = -x.ankle_moment_Nm / x.load_N > self.schedule.forefoot_landing_fraction * self.forefoot_m
-        if forward and x.time_s - self.state_entry_time_s_ < FOREFOOT_LANDING_WINDOW_S:
+        measured = x.load_N > FOREFOOT_MIN_LOAD_N and math.isfinite(x.ankle_moment_Nm)
+        forward = measured and -x.ankle_moment_Nm / x.load_N > \
+            self.schedule.forefoot_landing_fraction * self.forefoot_m
+        if forward and x.time_s - self.state_entry_time_s_ < FOREFOOT_LANDING_WINDOW_S and not self.toe_landing_:
             self.toe_landing_ = True
-        return self.toe_landing_ and forward
+            self.recovering_ = True     # the ankle moment of a foot on its toe says "late stance": not its exit
+        if not self.toe_landing_:
+            return False
+        self.toe_back_since_s_ = held_since(self.toe_back_since_s_, not forward, x.time_s)
+        if held_for(self.toe_back_since_s_, x.time_s, self.schedule.event_hold_s):
+            self.toe_landing_ = False                                      # the heel is down: the row again
+        return self.toe_landing_
 
     def _standing_torques(self, x: SensorSample) -> tuple[float, float]:
         """The knee held against flexion where standing found it (the hold follows it as it extends), the ankle about
@@ -549,7 +571,7 @@ class StateMachineController:
                 swing < self.schedule.early_landing_fraction * self.last_swing_s_
             if walked and not self.early_landing_:
                 self.last_swing_s_ = max(swing, 0.2)
-            self.toe_landing_ = False
+            self.toe_landing_, self.toe_back_since_s_ = False, None
         elif state in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION) and \
                 self.state_ not in (GaitState.SWING_FLEXION, GaitState.SWING_EXTENSION):
             self.swing_entry_s_ = now_s                                        # a swing begins (toe-off, a lift)
@@ -562,6 +584,7 @@ class StateMachineController:
         self.event_since_s_ = None
         self.heel_load_since_s_ = None
         self.contact_since_s_ = None
+        self.lifted_since_s_ = None
         self.transitions_ += 1
         self.guard_transitions_ += int(guard)
 
@@ -609,7 +632,8 @@ class StateMachineController:
         tk, ta = self._standing_torques(x) if self.standing_ else self._row_torques(x)
         if self.early_landing_ and self.state_ == GaitState.STANCE_FLEXION and not self.standing_ \
                 and self._landed_on_the_toe(x):
-            ta = max(ta, 0.0)          # no plantarflexion torque: the heel comes down (docstring, "early landing")
+            # no more plantarflexion torque than a centre of pressure at the threshold needs: the heel comes down
+            ta = max(ta, -self.schedule.forefoot_landing_fraction * self.forefoot_m * max(x.load_N, 0.0))
         tk, sk = clip_torque(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
         ta, sa = clip_torque(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])
         return TorqueCommand(self.state_, tk, ta, sk or sa)

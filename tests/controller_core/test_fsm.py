@@ -341,19 +341,23 @@ def _stride(c: StateMachineController, t: float, swing_s: float) -> float:
     return t + 0.6 + swing_s
 
 
+FIRM_ANKLE = schedule(ankle_k=(-400.0, -120.0, -10.0, -10.0))   # a stance-flexion ankle row firmer than the cap
+
+
 @pytest.mark.parametrize(("swing_s", "cop_m", "withheld"), [
-    (0.25, 0.10, True),      # an early landing on the toe: no plantarflexion torque while the weight is on the toe
+    (0.25, 0.10, True),      # an early landing on the toe: the toe-down torque capped while the weight is on the toe
     (0.40, 0.10, False),     # an ordinary swing landing on the toe (a fast gait's flat landing): the row as it is
     (0.25, 0.02, False),     # early but on the heel or the whole foot: the row as it is
 ])
 def test_an_early_landing_on_the_toe_lets_the_heel_come_down(swing_s, cop_m, withheld):
     """The foot lands before its swing is over (three quarters of the last one's length here, under the rule's
     0.8) with the centre of pressure far forward (0.10 m of a 0.13 m forefoot): stance flexion's ankle row would push
-    the toe down; the machine gives no plantarflexion torque until the centre of pressure moves back, and keeps the
+    the toe down (56 N·m here); the machine gives no more plantarflexion torque than a centre of pressure at the
+    threshold needs (half the forefoot × the load: 39 N·m) until the centre of pressure moves back, and keeps the
     row's dorsiflexion torque. An ordinary-length swing, or a landing under the heel, runs the row unchanged; a
     machine that does not know its foot never does this."""
-    c = StateMachineController(schedule(), forefoot_m=0.13)
-    plain = StateMachineController(schedule())
+    c = StateMachineController(FIRM_ANKLE, forefoot_m=0.13)
+    plain = StateMachineController(FIRM_ANKLE)
     for m in (c, plain):
         m.step(sample(0.0))
         t = _stride(m, 0.002, 0.40)
@@ -368,7 +372,7 @@ def test_an_early_landing_on_the_toe_lets_the_heel_come_down(swing_s, cop_m, wit
     assert cmd.state == ref.state == SF and ref.ankle_torque_Nm < 0.0
     assert c.early_landing_ == (swing_s < 0.8 * 0.40)
     if withheld:
-        assert cmd.ankle_torque_Nm == 0.0
+        assert cmd.ankle_torque_Nm == pytest.approx(-0.5 * 0.13 * load) and ref.ankle_torque_Nm < -0.5 * 0.13 * load
         later = c.step(sample(t_land + 0.1, load=load, moment=-0.01 * load, ankle=ankle))   # the heel is down
         assert later.ankle_torque_Nm == pytest.approx(plain.step(sample(t_land + 0.1, load=load, moment=-0.01 * load,
                                                                          ankle=ankle)).ankle_torque_Nm)
@@ -388,11 +392,38 @@ def test_an_early_landing_on_the_toe_lets_the_heel_come_down(swing_s, cop_m, wit
 def test_the_early_landing_trigger_is_the_tables(early_pct, forefoot_pct, withheld):
     """The two shares that make a landing early and on the toe come from the table the leg runs (its thresholds
     ``early_landing_swing_pct`` and ``forefoot_landing_pct``), not from the machine."""
-    sch = dataclasses.replace(schedule(), early_landing_fraction=early_pct / 100.0,
+    sch = dataclasses.replace(FIRM_ANKLE, early_landing_fraction=early_pct / 100.0,
                               forefoot_landing_fraction=forefoot_pct / 100.0)
     c = StateMachineController(sch, forefoot_m=0.13)
     c.step(sample(0.0))
     t = _stride(c, _stride(c, 0.002, 0.40), 0.40)
     _stride(c, t, 0.30)
     cmd = c.step(sample(t + 0.9, load=600.0, moment=-0.10 * 600.0, ankle=math.radians(8.0)))
-    assert cmd.state == SF and (cmd.ankle_torque_Nm == 0.0) == withheld
+    capped = -forefoot_pct / 100.0 * 0.13 * 600.0
+    assert cmd.state == SF and (cmd.ankle_torque_Nm == pytest.approx(capped)) == withheld
+
+
+def test_the_toe_landings_release_is_held_so_the_ankle_does_not_chatter():
+    """Withholding the plantarflexion torque moves the centre of pressure, so a release decided on each sample beat
+    against it at half the control rate (on the bench the load alternated between two-thirds and an eighth of body
+    weight every millisecond). The release waits until the centre of pressure has stayed back for the event hold."""
+    c = StateMachineController(dataclasses.replace(FIRM_ANKLE, event_hold_s=0.02), forefoot_m=0.13)
+    plain = StateMachineController(dataclasses.replace(FIRM_ANKLE, event_hold_s=0.02))
+    for m in (c, plain):
+        m.step(sample(0.0))
+        t = _stride(m, _stride(m, 0.002, 0.40), 0.40)
+        _stride(m, t, 0.25)                                              # an early landing
+    t, ankle = t + 0.85, math.radians(8.0)
+    for m in (c, plain):                                                 # the landing, on the toe
+        _hold(m, t, t + 0.008, load=600.0, moment=-60.0, ankle=ankle)
+    t += 0.008
+    for i in range(20):                                                  # forward, back, forward … every millisecond
+        load, moment = (600.0, -60.0) if i % 2 == 0 else (100.0, -4.0)
+        cmd = c.step(sample(t + 0.001 * i, load=load, moment=moment, ankle=ankle))
+        plain.step(sample(t + 0.001 * i, load=load, moment=moment, ankle=ankle))
+        assert cmd.ankle_torque_Nm == pytest.approx(-0.5 * 0.13 * load), i      # capped throughout
+    assert c.state_ == SF and c.toe_landing_
+    assert plain.step(sample(t + 0.020, load=600.0, moment=-4.0, ankle=ankle)).ankle_torque_Nm < 0.0   # the row pushes
+    for i in range(30):                                                  # back, and held there: the heel is down
+        cmd = c.step(sample(t + 0.021 + 0.001 * i, load=600.0, moment=-4.0, ankle=ankle))
+    assert not c.toe_landing_ and cmd.ankle_torque_Nm < 0.0             # the row's own torque again
