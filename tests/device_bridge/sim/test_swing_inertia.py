@@ -32,11 +32,15 @@ def test_a_heavier_foot_weighs_on_the_knee_more_than_on_the_ankle():
 
 
 def test_on_a_heavy_foot_the_table_proposed_for_the_leg_walks_where_the_reference_legs_table_falls(model):
-    # 1.6 m/s level from standing: with the reference leg's swing rows the heavy foot overshot to full extension,
-    # landed late, then early on a bent knee, and fell; the rows proposed for its inertia walk it
+    # 1.6 m/s level from standing: with the reference leg's swing rows the heavy foot overshoots to full extension,
+    # lands late, then early on a bent knee (it fell, until the early landing on the toe was supported: now its hip
+    # sinks 130 mm of the 150 that are a fall, the loaded knee to 49°); the rows proposed for its inertia walk it
     leg, ref = load_leg("heavy_foot"), task_reference(1.6, 0.0, model, 75.0)
-    falls = {}
+    runs = {}
     for name, geometry in (("for the leg", leg), ("for the reference leg", None)):
         ctrl = make_controller("quasi-stiffness", 75.0, model, (1.6, 0.0), geometry=geometry)
-        falls[name] = score_walk(run_walk(ctrl, ref, 75.0, 20.0, leg), ref, settle_s=2.0).summary["falls"]
-    assert falls["for the leg"] == 0 and falls["for the reference leg"] > 0, falls
+        runs[name] = score_walk(run_walk(ctrl, ref, 75.0, 20.0, leg), ref, settle_s=2.0).summary
+    mine, other = runs["for the leg"], runs["for the reference leg"]
+    assert mine["falls"] == 0 and mine["hip_sink_max_mm"] < 0.75 * other["hip_sink_max_mm"], runs
+    assert mine["stance_knee_flexion_peak_max_deg"] < other["stance_knee_flexion_peak_max_deg"] - 8.0
+    assert mine["knee_angle_per_stride_rmse_deg"] < other["knee_angle_per_stride_rmse_deg"]
