@@ -314,6 +314,7 @@ def test_the_patients_leg_is_described_on_their_page_and_a_version_made_for_it_s
     assert "made for the leg described as 'short, light foot'" in page.inner_text("#leg-chip")
     page.wait_for_selector("#preview-leg", timeout=30_000)
     assert "Walked on “short, light foot”, the leg this version was made for" in page.inner_text("#preview-leg")
+    shot(page, "04d-version-made-for-the-leg")
 
 
 def test_an_admin_adds_a_user_who_must_choose_a_password_then_disables_them(server, browser, page):
