@@ -59,7 +59,7 @@ def _pushes(envelopes, pushes: int) -> np.ndarray:
     node = DeviceNode(can.Bus(interface="virtual", channel=channel)).start()
     link = DeviceLink(can.Bus(interface="virtual", channel=channel)).start()
     try:
-        return np.array([link.push_envelope(envelopes[i % len(envelopes)], version=i + 1).elapsed_ms
+        return np.array([link.push(envelopes[i % len(envelopes)], version=i + 1).elapsed_ms
                          for i in range(pushes)])
     finally:
         link.close()

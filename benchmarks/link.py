@@ -73,7 +73,7 @@ def pushes(broker, admin, model, n: int) -> dict:
     envelopes, tables = _items(model)
     out: dict = {}
     try:
-        for kind, items, push in (("envelope_5x5", envelopes, link.push_envelope), ("table", tables, link.push)):
+        for kind, items, push in (("envelope_5x5", envelopes, link.push), ("table", tables, link.push)):
             times = []
             for i in range(n):
                 result = push(items[i % 2], version=i % 0xFFFF + 1)

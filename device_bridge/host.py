@@ -6,12 +6,11 @@
 DEVICE_STATUS/HEALTH into :attr:`DeviceLink.status` and ``on_status``, telemetry (three frames per sample,
 joined on their sequence number) to ``on_telemetry``.
 
-:meth:`DeviceLink.push` returns only when the device acknowledged the exact CRC-32 of the table sent; on a
-refusal or silence it resends (only the missing rows when the device says which, the whole transfer under a
-new transfer id otherwise) until ``timeout_s``, then raises :class:`PushError`. A refusal for the safety
-limits is final (the same table would be refused again). :meth:`DeviceLink.push_envelope` does the same for a
-whole envelope (:mod:`device_bridge.envelope_wire`; the device names no missing frames then, only how many, and
-the data frames are sent again).
+:meth:`DeviceLink.push` returns only when the device acknowledged the exact CRC-32 of the table or envelope sent; on
+a refusal or silence it resends (a table's missing rows when the device says which, the whole transfer under a new
+transfer id otherwise) until ``timeout_s``, then raises :class:`PushError`. A refusal for the safety limits is final
+(the same table would be refused again). An envelope goes whole (:mod:`device_bridge.envelope_wire`; the device names
+no missing frames then, only how many, and the data frames are sent again).
 """
 
 from __future__ import annotations
@@ -532,59 +531,36 @@ class DeviceLink(BusThreads):
 
     # ------------------------------------------------------------------------------------------ push
 
-    def push(self, table: ParameterTable, version: int, timeout_s: float = 2.0,
+    def push(self, content: ParameterTable | Envelope, version: int, timeout_s: float | None = None,
              ack_timeout_s: float | None = None) -> PushResult:
-        """Send ``table`` as ``version`` and wait until the device acknowledges its exact CRC-32.
+        """Send a table or a whole envelope as ``version`` and wait until the device acknowledges its exact CRC-32
+        (all or nothing: until then the device runs what it ran before). The one push: each kind goes out in its
+        frames (a table's thirteen, an envelope's axes and nodes), the rest is the same.
 
         Args:
-            table: the (approved) table; rounded to the wire quanta, so the CRC is that of the rounded values.
-            version: table version, 1–65535 (the backend uses the proposal id).
-            timeout_s: give up after this long (s).
+            content: the (approved) table or envelope; rounded to the wire quanta, so the CRC is that of the rounded
+                values.
+            version: its version, 1–65535 (the backend uses the version's id).
+            timeout_s: give up after this long (s; default 2 for a table, 3 for an envelope).
             ack_timeout_s: how long to wait for one acknowledgement before resending (s). The device answers
-                within its 1 ms control period; 10 ms (default on a CAN bus) leaves room for a busy host, and an answer
-                that comes later only costs a repeated commit, which the device answers again (it is idempotent). A
-                bus with a ``round_trip_s`` (the broker link) is waited on at least that long: re-asking sooner than
-                the answer can come restarts whole transfers for nothing.
+                within its 1 ms control period; 10 ms for a table (20 for an envelope) on a CAN bus leaves room for
+                a busy host, and an answer that comes later only costs a repeated commit, which the device answers
+                again (it is idempotent). A bus with a ``round_trip_s`` (the broker link) is waited on at least that
+                long: re-asking sooner than the answer can come restarts whole transfers for nothing.
 
         Raises:
-            ProtocolError: a value does not fit the wire format (nothing sent).
-            PushError: refused for the safety limits (``reason`` "safety_limit"), aborted by a device error
-                ("device_error"), or no matching acknowledgement before ``timeout_s`` ("timeout": unconfirmed, the
-                device may have taken it as the acknowledgement was lost).
+            ProtocolError: a value does not fit the wire format, or the envelope the link (more than 64 nodes);
+                nothing sent.
+            PushError: refused for the safety limits or the neighbour rule (``reason`` "safety_limit"), aborted by a
+                device error ("device_error"), or no matching acknowledgement before ``timeout_s`` ("timeout":
+                unconfirmed, the device may have taken it as the acknowledgement was lost).
         """
-        _check_version(version, "table")
-        wire = WireTable.from_table(table)
-        crc = wire.crc32()
-
-        def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
-            missing = [i for i in range(ROW_COUNT) if ack["missing_rows"] >> i & 1]
-            return [frames[i] for i in missing], f"rows {missing} were lost"
-
-        transfer = _Outgoing(crc, wire.frames, lambda tid: begin_frame(tid, version, crc),
-                             lambda tid: commit_frame(tid, version, crc), resend, "table")
+        envelope = isinstance(content, Envelope)
+        _check_version(version, "envelope" if envelope else "table")
+        transfer = _envelope_transfer(content, version) if envelope else _table_transfer(content, version)
         with self._push_lock:
-            return self._push(transfer, version, timeout_s, self._ack_wait(ack_timeout_s, 0.01))
-
-    def push_envelope(self, envelope: Envelope, version: int, timeout_s: float = 3.0,
-                      ack_timeout_s: float | None = None) -> PushResult:
-        """Send a whole envelope as ``version`` and wait until the device acknowledges its exact CRC-32 (all or
-        nothing: until then the device runs what it ran before).
-
-        Raises:
-            ProtocolError: the envelope does not fit the link (more than 64 nodes, a value beyond its field).
-            PushError: refused for the safety limits or the neighbour rule, or no matching acknowledgement in time.
-        """
-        _check_version(version, "envelope")
-        wire = WireEnvelope.from_envelope(envelope)
-        crc, shape = wire.crc32(), wire.shape
-
-        def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
-            return frames, f"{ack['missing_rows']} frame(s) were lost"
-
-        transfer = _Outgoing(crc, wire.frames, lambda tid: envelope_begin_frame(tid, version, crc, shape),
-                             lambda tid: envelope_commit_frame(tid, version, crc, shape), resend, "envelope")
-        with self._push_lock:
-            return self._push(transfer, version, timeout_s, self._ack_wait(ack_timeout_s, 0.02))
+            return self._push(transfer, version, (3.0 if envelope else 2.0) if timeout_s is None else timeout_s,
+                              self._ack_wait(ack_timeout_s, 0.02 if envelope else 0.01))
 
     def _ack_wait(self, given: float | None, on_can_s: float) -> float:
         """The acknowledgement wait: as given, else ``on_can_s`` or the bus's own round trip if longer."""
@@ -699,3 +675,29 @@ class HeartbeatClock(BusThreads):
             self.beat()
             next_t += self.period_s
             clock.wait(self._stop, next_t - clock.monotonic())
+
+
+def _table_transfer(table: ParameterTable, version: int) -> _Outgoing:
+    """A table's frames, its CRC and how a commit that lost rows is answered: the lost rows again."""
+    wire = WireTable.from_table(table)
+    crc = wire.crc32()
+
+    def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
+        missing = [i for i in range(ROW_COUNT) if ack["missing_rows"] >> i & 1]
+        return [frames[i] for i in missing], f"rows {missing} were lost"
+
+    return _Outgoing(crc, wire.frames, lambda tid: begin_frame(tid, version, crc),
+                     lambda tid: commit_frame(tid, version, crc), resend, "table")
+
+
+def _envelope_transfer(envelope: Envelope, version: int) -> _Outgoing:
+    """An envelope's frames, its CRC and how a commit that lost frames is answered: every frame again (the device
+    keeps the nodes it has checked)."""
+    wire = WireEnvelope.from_envelope(envelope)
+    crc, shape = wire.crc32(), wire.shape
+
+    def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
+        return frames, f"{ack['missing_rows']} frame(s) were lost"
+
+    return _Outgoing(crc, wire.frames, lambda tid: envelope_begin_frame(tid, version, crc, shape),
+                     lambda tid: envelope_commit_frame(tid, version, crc, shape), resend, "envelope")

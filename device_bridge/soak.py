@@ -63,8 +63,6 @@ class _Known:
         return (held.envelope if isinstance(self.values, DeviceEnvelope) else held.table) == self.values
 
     def push(self, link: DeviceLink, version: int, timeout_s: float) -> PushResult:
-        if isinstance(self.item, Envelope):
-            return link.push_envelope(self.item, version, timeout_s=timeout_s)
         return link.push(self.item, version, timeout_s=timeout_s)
 
 

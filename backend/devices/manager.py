@@ -309,10 +309,7 @@ class DeviceManager:
     def push(self, device_id: str, content: ParameterTable | Envelope, version: int) -> PushResult:
         """Push a version's content, a table or a whole envelope, and wait for the CRC read-back (raises
         device_bridge's PushError on failure). The one push path of the server; the link sends each kind its way."""
-        link = self._link_for_push(device_id)
-        if isinstance(content, Envelope):
-            return link.push_envelope(content, version)
-        return link.push(content, version)
+        return self._link_for_push(device_id).push(content, version)
 
     def _link_for_push(self, device_id: str) -> DeviceLink:
         dev = self.get(device_id)

@@ -103,7 +103,7 @@ def test_an_8_by_8_envelope_pushed_on_a_running_node_keeps_control_alive(model):
     node, link = pair(leg=walker)
     try:
         until(lambda: link.status is not None, clock=link.clock)
-        result = link.push_envelope(envelope_of(model, (8, 8)), 9, timeout_s=5.0)
+        result = link.push(envelope_of(model, (8, 8)), 9, timeout_s=5.0)
         until(lambda: link.status is not None and link.status.active_crc32 == result.crc32, clock=link.clock)
         seen = link.status.received_monotonic_s
         until(lambda: link.status.received_monotonic_s > seen + 0.15, clock=link.clock)    # the device goes on reporting

@@ -148,7 +148,7 @@ def test_a_walking_leg_adapts_to_a_ramp_and_streams_its_estimate_to_the_host(env
     walker = SimWalker()
     node, link = pair(leg=walker, on_telemetry=samples.append)
     try:
-        result = link.push_envelope(envelopes[0], version=21)
+        result = link.push(envelopes[0], version=21)
         assert result.crc32 == WireEnvelope.from_envelope(envelopes[0]).crc32()
         until(lambda: link.status is not None and link.status.active_crc32 == result.crc32, clock=link.clock)
         walker.start(sloped_walking_reference(1.2, 8.0), 70.0)
