@@ -31,6 +31,7 @@ Times are seconds on the device's monotonic clock; torques N·m; angles rad insi
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -436,6 +437,18 @@ class DeviceFirmware:
         self._enter_safe(now_s)
         if self.staged_ is not None:
             self.active_, self.staged_ = self.staged_, None
+
+    def fit_leg(self, leg: FirmwareConfig) -> None:
+        """The leg this firmware drives is described anew (a simulated leg fitted to the patient who wears it): its
+        thigh, shank and forefoot (the task estimate, the early landing on the toe) and its actuators' limits and
+        drive friction are taken from ``leg``; everything else of the configuration stays. Safe mode, and a table or
+        envelope running now, go on with them from the next tick (call between two ticks)."""
+        self.config = dataclasses.replace(self.config, thigh_length_m=leg.thigh_length_m,
+                                          shank_length_m=leg.shank_length_m, forefoot_m=leg.forefoot_m,
+                                          actuator=leg.actuator)
+        self._safe = SafeModeController(self.config.safe_mode, self.config.actuator)
+        if self.mode_ == Mode.ACTIVE and self.active_ is not None:
+            self.controller_ = self._controller_for(self.active_)
 
     def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
         cfg = self.config

@@ -40,6 +40,7 @@ from device_bridge.host_calibration import CalibrationAnswer, CalibrationTimeout
 from device_bridge.protocol import CalibrationAction, CalibrationStep, Command, Fault
 from device_bridge.rig import Rig
 from device_bridge.sim.course import Course
+from device_bridge.sim.leg_file import parse_leg
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.walker import SimWalker
 
@@ -126,7 +127,7 @@ class DeviceManager:
         with pooled(self.db) as conn:
             for spec in self._specs:
                 worn = devices_store.assignment(conn, spec.device_id)
-                self.worn_by(spec.device_id, None if worn is None else worn["body_mass_kg"])
+                self.worn_by(spec.device_id, None if worn is None else worn["body_mass_kg"], _leg_of(worn))
         return self
 
     def _heartbeats_for(self, bus: can.BusABC) -> HeartbeatClock | None:
@@ -138,13 +139,22 @@ class DeviceManager:
             self._heartbeats = HeartbeatClock(float(getattr(bus, "heartbeat_period_s", 0.05)), clock=self.clock).start()
         return self._heartbeats
 
-    def worn_by(self, device_id: str, mass_kg: float | None) -> None:
-        """A simulated leg's patient: stands on it between walks (``mass_kg``), or nobody wears it (None). A walk
-        under way goes on; a real leg's sensors say for themselves."""
-        walker = self.get(device_id).walker
+    def worn_by(self, device_id: str, mass_kg: float | None, leg: LegGeometry | None = None) -> None:
+        """A simulated leg's patient: stands on it between walks (``mass_kg``), or nobody wears it (None). The leg is
+        fitted to the patient's: ``leg`` as their record describes it, the server's bench leg where it does not (the
+        leg walked, and its firmware's thigh, shank, forefoot and drive friction), so its sessions are walked on the
+        leg the patient's versions were made for. A walk under way goes on; a real leg's sensors say for
+        themselves."""
+        dev = self.get(device_id)
+        walker = dev.walker
         if walker is None or walker.walking:
             return
-        with self._leg_still(self.get(device_id)):
+        with self._leg_still(dev):
+            fitted = leg if leg is not None and mass_kg is not None else (self._bench_leg or LegGeometry())
+            if fitted != walker.geometry:
+                walker.geometry = fitted
+                if dev.node is not None:
+                    dev.node.firmware.fit_leg(walker.firmware_config())
             if mass_kg is None:
                 walker.stop()
             else:
@@ -223,6 +233,7 @@ class DeviceManager:
             "walking": None if dev.walker is None else dev.walker.walking,
             "bench_state": None if dev.walker is None else dev.walker.state,
             "bench_task": _bench_task(dev.walker),
+            "bench_leg": None if dev.walker is None else dev.walker.geometry.name,
             "recording_session_id": self.recorder.session_of(device_id),
             "link_mode": link_mode,
             "withdrawal_notice": notice,
@@ -432,7 +443,7 @@ class DeviceManager:
                 worn = devices_store.assignment(conn, device_id)
             with self._leg_still(dev):
                 dev.walker.stop()
-            self.worn_by(device_id, None if worn is None else worn["body_mass_kg"])   # the patient stands
+            self.worn_by(device_id, None if worn is None else worn["body_mass_kg"], _leg_of(worn))   # who stands
         total = sum(reports.values()) or 1
         out = []
         with pooled(self.db) as conn:
@@ -540,3 +551,8 @@ def _bench_task(walker: SimWalker | None) -> dict | None:
     if task is None:
         return None
     return {"speed_mps": round(task[0], 3), "incline_deg": round(task[1], 2), "course": walker.course}
+
+
+def _leg_of(worn: dict | None) -> LegGeometry | None:
+    """The leg described on the record of the patient wearing a device (None: none described, or nobody)."""
+    return None if worn is None or worn["leg"] is None else parse_leg(worn["leg"], "the patient's leg")

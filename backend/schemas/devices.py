@@ -117,6 +117,8 @@ class DeviceOut(BaseModel):
                                   "readings), or nobody wears it (no readings)")
     bench_task: BenchTask | None = Field(description="simulated leg only: the true task the bench walks now "
                                                      "(ground truth for the leg's own estimate)")
+    bench_leg: str | None = Field(default=None, description="simulated leg only: the leg it walks, fitted to its "
+                                                             "patient's described leg (else the server's bench leg)")
     recording_session_id: int | None
     link_mode: LinkModeName = Field(description="the prosthetist's choice of what a lost link does to this leg")
     withdrawal_notice: WithdrawalNotice | None = Field(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 from sqlalchemy import Connection, select, update
 
 from backend.db import utc_now, write_transaction
@@ -55,17 +57,18 @@ def set_link_mode(conn: Connection, device_id: str, mode: str, reason: str, acto
 
 
 def assignment(conn: Connection, device_id: str) -> dict | None:
-    """The patient the device is assigned to (id, code name, body mass, by whom and when), or None."""
+    """The patient the device is assigned to (id, code name, body mass, by whom and when, the leg their record
+    describes or None), or None."""
     row = conn.execute(
         select(devices.c.patient_id, patients.c.code_name, patients.c.body_mass_kg, users.c.username,
-               devices.c.assigned_at)
+               devices.c.assigned_at, patients.c.leg_json)
         .select_from(devices.join(patients, patients.c.id == devices.c.patient_id)
                      .outerjoin(users, users.c.id == devices.c.assigned_by))
         .where(devices.c.id == device_id)).first()
     if row is None:
         return None
     return {"patient_id": row[0], "patient_code": row[1], "body_mass_kg": row[2], "assigned_by": row[3],
-            "assigned_at": row[4]}
+            "assigned_at": row[4], "leg": None if row[5] is None else json.loads(row[5])}
 
 
 def assign(conn: Connection, device_id: str, patient_id: int | None, actor: User) -> None:

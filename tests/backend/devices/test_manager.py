@@ -44,3 +44,24 @@ def test_a_pushed_table_is_read_back_by_its_crc_and_then_run(manager, model):
     result = m.push(leg, table, version=1)
     assert result.crc32 == as_run(table).wire_crc32 and result.version == 1
     until(lambda: m.view(leg)["active_crc32"] == f"{result.crc32:08x}", 15.0, clock=m.clock)   # at its next heel strike
+
+
+def test_a_simulated_leg_is_fitted_to_the_leg_of_the_patient_who_wears_it(manager):
+    """The simulated device walks the leg its patient's record describes (and its firmware's thigh, shank and
+    forefoot are that leg's, as a real leg is set up for its wearer); worn by nobody, or by a patient whose leg is not
+    described, it is the server's bench leg again."""
+    from device_bridge.sim.leg_file import load_leg
+    from device_bridge.sim.leg_model import LegGeometry
+
+    m, leg = manager
+    short = load_leg("short_person")
+    dev = m.get(leg)
+    m.worn_by(leg, 70.0, short)
+    assert dev.walker.geometry == short and dev.node.firmware.config.thigh_length_m == short.thigh_m
+    assert dev.node.firmware.config.forefoot_m == short.toe_forward_m != LegGeometry().toe_forward_m
+    assert m.view(leg)["bench_leg"] == "short person (1.58 m)"
+    m.worn_by(leg, 70.0)                              # a patient whose leg is not described
+    assert dev.walker.geometry == LegGeometry() and dev.node.firmware.config.thigh_length_m == LegGeometry().thigh_m
+    m.worn_by(leg, 70.0, short)
+    m.worn_by(leg, None, short)                      # nobody: the bench leg
+    assert dev.walker.geometry == LegGeometry()

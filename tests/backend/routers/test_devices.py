@@ -347,3 +347,18 @@ def test_the_simulated_leg_has_nothing_to_calibrate_and_a_calibration_request_is
     audit = c.get("/api/audit", headers=api.as_("admin"), params={"limit": 20}).json()
     items = audit["items"] if isinstance(audit, dict) else audit
     assert [e["action"] for e in items].count("device.calibration.start") == 1
+
+
+def test_the_simulated_leg_walks_the_leg_its_patient_describes(sim_api):
+    """Assigned to a patient whose record describes their leg, the simulated device is fitted to it (and says so);
+    handed to a patient without a description, it walks the server's bench leg again."""
+    from device_bridge.sim.leg_file import load_leg_file
+
+    api = sim_api
+    c, pro = api.client, api.as_("prosthetist")
+    short, plain = api.new_patient("P-SHORT"), api.new_patient("P-PLAIN")
+    c.patch(f"/api/patients/{short['id']}", headers=pro, json={"leg": load_leg_file("short_person").description()})
+    assign(api, short["id"])
+    assert c.get(f"/api/devices/{DEVICE}", headers=pro).json()["bench_leg"] == "short person (1.58 m)"
+    assign(api, plain["id"])
+    assert c.get(f"/api/devices/{DEVICE}", headers=pro).json()["bench_leg"] == "nominal"
