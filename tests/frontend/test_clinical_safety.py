@@ -114,6 +114,7 @@ def test_monitor_says_when_there_is_no_data_and_what_safe_mode_means(server, pag
     assert "not scored" in page.inner_text("#recording-chip")
     assert "SAFE MODE" in page.inner_text("#sample-mode")
     page.wait_for_selector("#walk-state .chip.bad:has-text('SAFE MODE')")        # never "walking" alone over safe mode
+    assert "(the simulated leg: “nominal”)" in page.inner_text("#walk-state")   # and which leg the bench walks
     shot(page, "11-monitor-safe-mode")
     # Stop and Safe mode stay beside the charts on a small laptop and a tablet; each value sits under its label
     for width, height in ((1024, 700), (768, 1024)):

@@ -30,9 +30,10 @@ function walkState(status) {
   const el = document.getElementById("walk-state");
   if (!el || status.recording_session_id === null || status.bench_state === null || status.bench_state === undefined) return;
   const safe = status.safe_mode ? " — and the leg is in SAFE MODE: passive, it holds the loaded knee against bending and lets it straighten; its table does not run" : "";
+  const leg = status.bench_leg && status.bench_state !== "not_worn" ? ` (the simulated leg: “${status.bench_leg}”)` : "";
   const text = (status.bench_state === "walking" ? (status.bench_task?.course ? `walking the “${status.bench_task.course}” course`
     : "walking") : status.bench_state === "standing" ? "the walk has ended and the patient stands: the session still "
-      + "records (standing adds no strides); stop it to summarise" : "nobody wears the leg") + safe;
+      + "records (standing adds no strides); stop it to summarise" : "nobody wears the leg") + leg + safe;
   if (el.dataset.text === text) return;
   el.dataset.text = text;
   const what = status.bench_state === "walking" ? "walking" : status.bench_state === "standing" ? "standing" : "not worn";
