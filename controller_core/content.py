@@ -14,9 +14,14 @@ import json
 from pydantic import BaseModel
 
 
+def canonical_text(value: object) -> str:
+    """The one JSON text of a value: sorted keys, no spaces, no NaN."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
 def canonical_json(content: BaseModel) -> str:
     """The one text a table or an envelope is stored and hashed as."""
-    return json.dumps(content.model_dump(mode="json"), sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return canonical_text(content.model_dump(mode="json"))
 
 
 def content_sha256(text: str) -> str:

@@ -14,6 +14,7 @@ import functools
 import json
 from collections.abc import Mapping
 
+from controller_core.content import canonical_text
 from device_bridge.sim.leg_file import NOMINAL_LEG_SHA256, LegFile, parse_leg_file
 from device_bridge.sim.swing_inertia import swing_inertia_ratio
 
@@ -25,7 +26,7 @@ def leg_of(text: str | None) -> LegFile:
 
 def leg_json(leg: LegFile) -> str:
     """The description as stored: the fields it gives, canonical JSON."""
-    return json.dumps(leg.description(), sort_keys=True, separators=(",", ":"))
+    return canonical_text(leg.description())
 
 
 def words(leg: LegFile) -> str:
@@ -37,8 +38,8 @@ def words(leg: LegFile) -> str:
 
 def view(leg: LegFile) -> dict[str, object]:
     """The leg as the API shows it with a version: its description, its key and its name in words."""
-    return {"description": leg.description(), "leg_sha256": leg.sha256(), "words": words(leg),
-            "nominal": leg.sha256() == NOMINAL_LEG_SHA256}
+    key = leg.sha256()
+    return {"description": leg.description(), "leg_sha256": key, "words": words(leg), "nominal": key == NOMINAL_LEG_SHA256}
 
 
 def patient_leg(patient: Mapping, server_leg: LegFile) -> LegFile:

@@ -12,6 +12,7 @@ from backend.errors import ConflictError, NotFoundError
 from backend.store import audit
 from backend.store.tables import patients
 from backend.store.users import User
+from controller_core.content import canonical_text
 
 FIELDS = ("code_name", "body_mass_kg", "height_m", "side", "k_level", "notes", "leg")
 _COLUMNS = {f: f for f in FIELDS} | {"leg": "leg_json"}
@@ -28,7 +29,7 @@ def _stored(data: dict) -> dict:
     """Fields as columns: the leg's description as canonical JSON."""
     out = {_COLUMNS[f]: v for f, v in data.items()}
     if out.get("leg_json") is not None:
-        out["leg_json"] = json.dumps(out["leg_json"], sort_keys=True, separators=(",", ":"))
+        out["leg_json"] = canonical_text(out["leg_json"])
     return out
 
 

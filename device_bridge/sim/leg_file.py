@@ -16,12 +16,12 @@ inertia); friction up to 15 N·m (a harmonic or ball-screw drive with its seals)
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from controller_core.content import canonical_text, content_sha256
 from controller_core.fsm import MAX_DRIVE_FRICTION_NM
 from device_bridge.sim.leg_model import LegGeometry
 
@@ -60,10 +60,10 @@ class LegFile(BaseModel):
         """What the bench walks, as one key: SHA-256 of the given fields but the name (words only), canonical JSON.
         Every file that gives nothing but a name is the nominal leg, :data:`NOMINAL_LEG_SHA256`."""
         physics = {k: v for k, v in self.description().items() if k != "name"}
-        return hashlib.sha256(json.dumps(physics, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+        return content_sha256(canonical_text(physics))
 
 
-NOMINAL_LEG_SHA256 = hashlib.sha256(b"{}").hexdigest()   # the nominal bench's key (LegFile.sha256 of no fields)
+NOMINAL_LEG_SHA256 = content_sha256(canonical_text({}))   # the nominal bench's key (LegFile.sha256 of no fields)
 
 
 def _reason(error: ValidationError) -> str:
