@@ -151,7 +151,6 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
     specs = parse_device_specs(settings.device)
     # the simulated leg's, and the leg a patient's versions are made for and walked on where theirs is not described
     app.state.bench_leg_file = load_leg_file(settings.bench_leg) if settings.bench_leg is not None else LegFile()
-    app.state.bench_leg = app.state.bench_leg_file.geometry()
     app.state.benchmark_walks = BenchmarkWalks()   # previews' walks (the FSMIC's, the versions'), kept by content
     app.state.node_walks = NodeWalks(settings.bench_processes)   # envelope nodes walked alone, kept by content
     app.state.broker = None
@@ -167,7 +166,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         paced = PacedClock() if simulated_only else None
         clock = paced or WALL_CLOCK
     try:
-        app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg, bus_options=bus_options,
+        app.state.devices = DeviceManager(app.state.db, specs, app.state.bench_leg_file.geometry(), bus_options=bus_options,
                                           clock=clock).start()
     except BaseException:     # a leg refused at the broker: the connection's threads must not outlive the failed start
         if app.state.broker is not None:

@@ -126,8 +126,7 @@ class DeviceManager:
             self.recorder.start()
         with pooled(self.db) as conn:
             for spec in self._specs:
-                worn = devices_store.assignment(conn, spec.device_id)
-                self.worn_by(spec.device_id, None if worn is None else worn["body_mass_kg"], _leg_of(worn))
+                self.worn_by(spec.device_id, devices_store.assignment(conn, spec.device_id))
         return self
 
     def _heartbeats_for(self, bus: can.BusABC) -> HeartbeatClock | None:
@@ -139,26 +138,26 @@ class DeviceManager:
             self._heartbeats = HeartbeatClock(float(getattr(bus, "heartbeat_period_s", 0.05)), clock=self.clock).start()
         return self._heartbeats
 
-    def worn_by(self, device_id: str, mass_kg: float | None, leg: LegGeometry | None = None) -> None:
-        """A simulated leg's patient: stands on it between walks (``mass_kg``), or nobody wears it (None). The leg is
-        fitted to the patient's: ``leg`` as their record describes it, the server's bench leg where it does not (the
-        leg walked, and its firmware's thigh, shank, forefoot and drive friction), so its sessions are walked on the
-        leg the patient's versions were made for. A walk under way goes on; a real leg's sensors say for
-        themselves."""
+    def worn_by(self, device_id: str, worn: dict | None) -> None:
+        """A simulated leg's patient (``worn``: the device's assignment, :func:`backend.store.devices.assignment`):
+        stands on it between walks, or nobody wears it (None). The leg is fitted to the patient's: as their record
+        describes it, the server's bench leg where it does not (the leg walked, and its firmware's thigh, shank,
+        forefoot and drive friction), so its sessions are walked on the leg the patient's versions were made for. A
+        walk under way goes on; a real leg's sensors say for themselves."""
         dev = self.get(device_id)
         walker = dev.walker
         if walker is None or walker.walking:
             return
         with self._leg_still(dev):
-            fitted = leg if leg is not None and mass_kg is not None else (self._bench_leg or LegGeometry())
+            fitted = _leg_of(worn) or self._bench_leg or LegGeometry()
             if fitted != walker.geometry:
                 walker.geometry = fitted
                 if dev.node is not None:
                     dev.node.firmware.fit_leg(walker.firmware_config())
-            if mass_kg is None:
+            if worn is None:
                 walker.stop()
             else:
-                walker.stand(mass_kg)
+                walker.stand(worn["body_mass_kg"])
 
     def close(self) -> None:
         self.recorder.close()
@@ -443,7 +442,7 @@ class DeviceManager:
                 worn = devices_store.assignment(conn, device_id)
             with self._leg_still(dev):
                 dev.walker.stop()
-            self.worn_by(device_id, None if worn is None else worn["body_mass_kg"], _leg_of(worn))   # who stands
+            self.worn_by(device_id, worn)   # the patient stands
         total = sum(reports.values()) or 1
         out = []
         with pooled(self.db) as conn:

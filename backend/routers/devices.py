@@ -25,10 +25,8 @@ from backend.schemas.devices import (
 )
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.store import devices as devices_store
-from backend.store import patients
 from backend.store.users import user_for_token
 from device_bridge.protocol import CalibrationAction, CalibrationStep, Command
-from device_bridge.sim.leg_file import LegFile
 
 router = APIRouter(prefix="/api/devices", tags=["devices"])
 
@@ -63,9 +61,7 @@ def assign(device_id: DeviceIdPath, body: AssignmentRequest, request: Request, c
     m = manager(request)
     m.get(device_id)
     devices_store.assign(conn, device_id, body.patient_id, user)
-    patient = patients.get_patient(conn, body.patient_id)
-    leg = None if patient["leg"] is None else LegFile.model_validate(patient["leg"]).geometry()
-    m.worn_by(device_id, patient["body_mass_kg"], leg)   # a simulated patient stands, on a leg fitted to theirs
+    m.worn_by(device_id, devices_store.assignment(conn, device_id))   # a simulated patient stands, on their leg
     return m.view(device_id)
 
 

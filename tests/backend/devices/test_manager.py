@@ -50,18 +50,19 @@ def test_a_simulated_leg_is_fitted_to_the_leg_of_the_patient_who_wears_it(manage
     """The simulated device walks the leg its patient's record describes (and its firmware's thigh, shank and
     forefoot are that leg's, as a real leg is set up for its wearer); worn by nobody, or by a patient whose leg is not
     described, it is the server's bench leg again."""
-    from device_bridge.sim.leg_file import load_leg
+    from device_bridge.sim.leg_file import load_leg_file
     from device_bridge.sim.leg_model import LegGeometry
 
     m, leg = manager
-    short = load_leg("short_person")
+    described = load_leg_file("short_person").description()
+    short = load_leg_file("short_person").geometry()
     dev = m.get(leg)
-    m.worn_by(leg, 70.0, short)
+    m.worn_by(leg, {"body_mass_kg": 70.0, "leg": described})
     assert dev.walker.geometry == short and dev.node.firmware.config.thigh_length_m == short.thigh_m
     assert dev.node.firmware.config.forefoot_m == short.toe_forward_m != LegGeometry().toe_forward_m
     assert m.view(leg)["bench_leg"] == "short person (1.58 m)"
-    m.worn_by(leg, 70.0)                              # a patient whose leg is not described
+    m.worn_by(leg, {"body_mass_kg": 70.0, "leg": None})   # a patient whose leg is not described
     assert dev.walker.geometry == LegGeometry() and dev.node.firmware.config.thigh_length_m == LegGeometry().thigh_m
-    m.worn_by(leg, 70.0, short)
-    m.worn_by(leg, None, short)                      # nobody: the bench leg
+    m.worn_by(leg, {"body_mass_kg": 70.0, "leg": described})
+    m.worn_by(leg, None)                              # nobody: the bench leg
     assert dev.walker.geometry == LegGeometry()
