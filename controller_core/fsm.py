@@ -533,7 +533,7 @@ class StateMachineController:
         event hold, not on one sample: the capped torque moves the centre of pressure, and a release on each sample
         beat against it at half the control rate (the load alternating 0.66 / 0.13 of body weight every millisecond
         on the bench, the ankle's torque with it, and no stance extension ever held)."""
-        if not (self.early_landing_ and self.forefoot_m is not None):
+        if self.forefoot_m is None:          # the caller has checked the early landing (the cheap flag first)
             return False
         measured = x.load_N > FOREFOOT_MIN_LOAD_N and math.isfinite(x.ankle_moment_Nm)
         forward = measured and -x.ankle_moment_Nm / x.load_N > \

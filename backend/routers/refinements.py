@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Request, status
+from fastapi import APIRouter, status
 
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
@@ -26,8 +26,8 @@ def _ids(body: RefinementRequest) -> list[int]:
 
 @router.post("/envelopes/{envelope_id}/refinements", response_model=RefinementOut,
              status_code=status.HTTP_201_CREATED, responses=_REFUSALS)
-async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, request: Request, conn: Conn,
-                          user: Prosthetist, model: Model) -> dict:
+async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist,
+                          model: Model) -> dict:
     """Refine an approved envelope from the patient's stopped sessions on it (prosthetist): each stride's features
     against the model's targets at the leg's own estimate of its task, gathered per node by the leg's blend weights,
     a damped step of the rows where the strides agree. The result is a new draft (diff, edit, preview, approve or
@@ -42,8 +42,8 @@ async def refine_envelope(envelope_id: IdPath, body: RefinementRequest, request:
 
 @router.post("/proposals/{proposal_id}/refinements", response_model=RefinementOut,
              status_code=status.HTTP_201_CREATED, responses=_REFUSALS)
-async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, request: Request, conn: Conn,
-                          user: Prosthetist, model: Model) -> dict:
+async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, conn: Conn, user: Prosthetist,
+                          model: Model) -> dict:
     """Refine an approved table from the patient's stopped sessions on it (prosthetist), as an envelope's node at the
     table's task; the same rules and refusals."""
     job = ("refinement", f"table {proposal_id}", f"/api/proposals/{proposal_id}")
