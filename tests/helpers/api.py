@@ -135,12 +135,14 @@ def share_bench_walks(app) -> None:
 def wait_for(fetch: Callable[[], object], predicate: Callable[[object], bool], timeout_s: float = 10.0,
              clock: SteppedClock | None = None):
     """Call ``fetch`` until ``predicate`` holds for its value (returned); fail with the last value after the timeout.
-    With a stepped ``clock`` (an app's simulated leg) each poll moves it on 20 ms and the timeout is simulated time."""
-    time_of, pause = (WALL_CLOCK, time.sleep) if clock is None else (clock, clock.advance)
+    Each look is a request the app serves (the samples so far, a device's status), so looks are spaced to what is
+    waited for, seconds of walking: with a stepped ``clock`` (an app's simulated leg) each moves it on 100 ms and the
+    timeout is simulated time (at 20 ms a step the looks were most of a walking test's time); otherwise every 50 ms."""
+    time_of, pause, step_s = (WALL_CLOCK, time.sleep, 0.05) if clock is None else (clock, clock.advance, 0.1)
     deadline = time_of.monotonic() + timeout_s
     while not predicate(value := fetch()):
         assert time_of.monotonic() < deadline, f"condition not reached in {timeout_s:g} s; last value {value}"
-        pause(0.02)
+        pause(step_s)
     return value
 
 
