@@ -17,6 +17,7 @@ import os
 import shutil
 import tempfile
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import joblib
@@ -137,13 +138,30 @@ def cache_dir() -> Path:
 _DEFAULT_FIT = threading.Lock()
 
 
+@contextlib.contextmanager
+def _fit_lock(directory: Path) -> Iterator[None]:
+    """One fit at a time across processes too (an advisory ``flock`` beside the cache entry, the standard library's):
+    servers, commands and test processes started together on an empty cache each fitted the same model at once. Where
+    the lock file cannot be made (a read-only cache) or ``fcntl`` does not exist, the fit goes on unlocked."""
+    try:
+        import fcntl
+        directory.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(directory.with_name(directory.name + ".lock"), "a")  # noqa: SIM115 (held until the fit ends)
+    except (ImportError, OSError):
+        yield
+        return
+    with handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+
+
 def load_default_model(refit: bool = False) -> QuasiStiffnessModel:
     """The default model, from the per-user cache or fitted now (and cached) from the shipped data."""
     ref_hash = load_shipped_reference().data_sha256
     ramps_hash = sha256_of(data_dir() / SHIPPED_RAMPS_CSV)
     key = hashlib.sha256((ref_hash + incline_table_sha256() + ramps_hash + code_sha256()).encode()).hexdigest()[:16]
     directory = cache_dir() / "models" / key
-    with _DEFAULT_FIT:
+    with _DEFAULT_FIT, _fit_lock(directory):
         if not refit and (directory / MODEL_FILE).exists():
             try:
                 return load_model(directory)

@@ -58,3 +58,30 @@ def test_two_threads_asking_for_the_default_model_at_once_fit_it_once(model, tmp
         t.join(60)
     assert len(fits) == 1 and len(got) == 2          # the second read what the first fitted and cached
     assert all(m.model_version == model.model_version for m in got)
+
+
+# a process that asks for the default model; its fit (train_default) is counted in the file it is given and stands
+# in for the real one by a model saved before (a fit takes seconds: the other process asks meanwhile)
+_ASK = """
+import sys, time
+from controller_core import model_io
+def counting():
+    with open(sys.argv[1], "a") as f:
+        f.write("fit\\n")
+    time.sleep(1.0)
+    return model_io.load_model(sys.argv[2])
+model_io.train_default = counting
+model_io.load_default_model()
+"""
+
+
+def test_two_processes_asking_for_the_default_model_at_once_on_an_empty_cache_fit_it_once(model, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    fits, saved = tmp_path / "fits.txt", model_io.save_model(model, tmp_path / "saved")
+    env = {**os.environ, "QUASITUNE_CACHE_DIR": str(tmp_path / "cache")}
+    procs = [subprocess.Popen([sys.executable, "-c", _ASK, str(fits), str(saved)], env=env) for _ in range(2)]
+    assert [p.wait(120) for p in procs] == [0, 0]
+    assert fits.read_text().splitlines() == ["fit"]          # the other waited and read the one fitted
