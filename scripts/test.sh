@@ -7,6 +7,22 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 fast=0
 if [ "${1:-}" = "--fast" ]; then fast=1; shift; fi
+# the Debian packages, then the dashboard's npm packages (apt, then npm: one after the other, one package manager at a
+# time), are made beside the Python environment (uv): neither needs the other, and on a fresh machine each takes tens of
+# seconds. The browser tests drive Debian's Chromium, its headless shell (tests/helpers/browser.py; never 'playwright
+# install'); docker-compose checks the compose file; the store, router and concurrency tests also run on PostgreSQL: a
+# throwaway server the tests start themselves from Debian's binaries (tests/helpers/postgres.py), on loopback, in a
+# temporary folder, as 'nobody' under root; the broker link's tests start Mosquitto likewise (tests/helpers/
+# mosquitto.py: TLS with a CA made by openssl for the run)
+system_log=$(mktemp -t quasitune-system-XXXXXX.log)
+{
+  if [ "$fast" -eq 0 ]; then
+    bash scripts/ensure_debian.sh chromium-headless-shell chromium-headless-shell docker-compose docker-compose \
+        pg_ctlcluster postgresql mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
+  fi
+  bash scripts/setup_frontend.sh
+} > "$system_log" 2>&1 &
+system_install=$!
 bash scripts/setup_venv.sh
 # the leg's own environment (scripts/test_leg.sh: the Open Source Leg SDK pins numpy<2) is made while the rest sets up
 if [ "$fast" -eq 0 ] && [ "$#" -eq 0 ]; then
@@ -14,18 +30,13 @@ if [ "$fast" -eq 0 ] && [ "$#" -eq 0 ]; then
   bash scripts/test_leg.sh --install > "$leg_log" 2>&1 &
   leg_install=$!
 fi
-bash scripts/setup_frontend.sh
-# the browser tests drive Debian's Chromium, its headless shell (tests/helpers/browser.py; never 'playwright
-# install'); docker-compose checks the compose file; the store, router and concurrency tests also run on PostgreSQL: a
-# throwaway server the tests start themselves from Debian's binaries (tests/helpers/postgres.py), on loopback, in a
-# temporary folder, as 'nobody' under root; the broker link's tests start Mosquitto likewise (tests/helpers/
-# mosquitto.py: TLS with a CA made by openssl for the run)
-if [ "$fast" -eq 0 ]; then
-  bash scripts/ensure_debian.sh chromium-headless-shell chromium-headless-shell docker-compose docker-compose \
-      pg_ctlcluster postgresql mosquitto mosquitto mosquitto_ctrl mosquitto-clients openssl openssl
-fi
+status=0
+wait "$system_install" || status=$?
+cat "$system_log" >&2; rm -f "$system_log"
+if [ "$status" -ne 0 ]; then echo "the Debian or npm packages could not be installed (above)" >&2; exit 1; fi
 .venv/bin/ruff check .
-# one fit of the default model for every process of the run (the first to need it fits and caches it); --fast keeps
+# one fit of the default model for every process of the run (the first to need it fits and caches it, the others wait
+# for it: controller_core/model_io.py); --fast keeps
 # it between runs (the cache is keyed by the data's and the code's hashes, so a changed model is fitted again)
 if [ "$fast" -eq 1 ] && [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   export QUASITUNE_CACHE_DIR="${XDG_CACHE_HOME:-$HOME/.cache}/quasitune-tests"
