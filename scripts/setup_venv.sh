@@ -14,17 +14,19 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   log=.venv/install.log
   echo "Installing QuasiTune and its dependencies into .venv (log: $log) ..." >&2
   # uv (PyPI) resolves and installs the same packages from the same index as pip, in parallel: about 20 s on a fresh
-  # machine instead of pip's 40 (CI installs on every run); pip does it where uv cannot be had. Compiled to bytecode
-  # as pip does: where PYTHONDONTWRITEBYTECODE is set, every process would otherwise compile scikit-learn, SciPy and
-  # FastAPI again on import (a server's start 8 s instead of 3)
+  # machine instead of pip's 40 (CI installs on every run); pip does it where uv cannot be had
   if ! { { .venv/bin/python -m pip install uv &&
-           .venv/bin/uv pip install --compile-bytecode --python .venv/bin/python -e ".[server,view3d,dev]"; } ||
+           .venv/bin/uv pip install --python .venv/bin/python -e ".[server,view3d,dev]"; } ||
          { .venv/bin/python -m pip install --upgrade pip && .venv/bin/python -m pip install -e ".[server,view3d,dev]"; }; } \
        > "$log" 2>&1; then
     tail -n 40 "$log" >&2
     echo "installation failed; full log in $log" >&2
     exit 1
   fi
+  # what a server imports, compiled to bytecode by importing it once: where PYTHONDONTWRITEBYTECODE is set, every
+  # start would otherwise compile FastAPI, SQLAlchemy and SciPy again (8 s instead of 3). Only what is imported: all
+  # 1.3 GB of packages (uv's --compile-bytecode) took 15 s of a fresh machine's set-up, mostly modules nothing imports
+  env -u PYTHONDONTWRITEBYTECODE .venv/bin/python -c "import backend.serve, backend.cli, uvicorn" >> "$log" 2>&1
   touch "$stamp"
 fi
 # the project's own modules compiled once, here: every test process, server and CLI imports them, and where

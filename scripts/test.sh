@@ -45,6 +45,11 @@ elif [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   trap 'rm -rf "$QUASITUNE_CACHE_DIR"' EXIT
   export QUASITUNE_CACHE_DIR
 fi
+# bytecode written where Python writes it (.venv, the repository's __pycache__, both ignored by git), even where the
+# environment says not to: each module a test process, server or command imports is then compiled once for the whole
+# run instead of once per process, and pytest keeps its rewritten test modules (scripts/setup_venv.sh compiles only
+# what a server imports)
+unset PYTHONDONTWRITEBYTECODE
 # one BLAS/OpenMP thread per process: test processes on a 2-core machine each spinning two math threads ran the
 # model's fits several times slower than one process alone (the server does the same: backend/serve.py)
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1
