@@ -61,11 +61,18 @@ heel comes down and the foot gets flat, with the shank still supported; once the
 for the event hold, the row is the row again (released on each sample, the torque moved the centre of pressure and
 the release beat against it at half the control rate). That stance flexion is recovering (above): a foot on its toe
 gives the ankle moment of late stance from its first sample. A capped torque injects nothing the row would not;
-dorsiflexion torque (the row resisting a plantarflexed foot) is kept. Needs the foot's forefoot distance
+dorsiflexion torque (the row resisting a plantarflexed foot) is kept. **Except after a toe caught in swing while the
+knee gives way**: where the stance began with the swing's stall (``caught_``), the knee's row asks at least its
+drive's limit and the knee still flexes, the ankle runs its row uncapped, since pushing on the forefoot turns the
+shank back under the knee, the one thing left that extends it (on the bench's toe catch at 1.0 m/s −6° a knee 50°
+flexed under half the body's weight folded past 60° at 120 N·m with the cap). Not after an ordinary early landing on
+the toe: tall legs' fast steep descents land so, and uncapped there the grid of a 1.85 m person fell at 1.6 m/s −10°
+(0 → 2) and of a 1.95 m one more (3 → 4). Needs the foot's forefoot distance
 (:meth:`StateMachineController.use_forefoot`; the firmware's ``forefoot_m``); without it the rule is off, and an
 actuator running the impedance itself (:meth:`StateMachineController.impedance`) runs the row without it. On the
-bench's grid the learned table's walks are unchanged on every repository leg (no ordinary landing is that early and on
-the toe); the sixteen stumble walks recover in 13 (``docs/results.md``: a 1.45 m person's grid 14 falls → 0).
+bench's grid the learned table's walks are unchanged on every repository leg (no ordinary landing
+is that early and on the toe); the sixteen stumble walks recover in 14 (``docs/results.md``: a 1.45 m person's
+grid 14 falls → 0).
 
 **Drive friction.** The swing rows of the ankle are soft (a few N·m of spring torque clear the toe), and a drive's
 Coulomb friction of the same size stops the foot short of the row's equilibrium: on the bench a leg with 3 N·m of
@@ -365,6 +372,7 @@ class StateMachineController:
             (that rule off).
         swing_entry_s_, last_swing_s_: when this swing began, and how long the last ordinary (not early) one lasted (s).
         early_landing_, toe_landing_: this stance began with an early landing; and on the forefoot (docstring).
+        caught_: this stance began with a toe caught in swing (swing extension's stall, not a heel strike).
     """
 
     schedule: ImpedanceSchedule
@@ -393,6 +401,7 @@ class StateMachineController:
     last_swing_s_: float | None = field(init=False, default=None)
     early_landing_: bool = field(init=False, default=False)
     toe_landing_: bool = field(init=False, default=False)
+    caught_: bool = field(init=False, default=False)
     toe_back_since_s_: float | None = field(init=False, default=None)
     lifted_since_s_: float | None = field(init=False, default=None)
 
@@ -417,6 +426,7 @@ class StateMachineController:
         self.folding_since_s_ = None
         self.swing_entry_s_, self.last_swing_s_ = None, None
         self.early_landing_, self.toe_landing_ = False, False
+        self.caught_ = False
         self.toe_back_since_s_ = None
         self.lifted_since_s_ = None
 
@@ -613,10 +623,10 @@ class StateMachineController:
         if self._standing(x) or was_standing:
             pass                                     # standing (no event, no guard), or it ended on this sample
         elif self._heel_strike(x):
-            self.recovering_ = False
+            self.recovering_ = self.caught_ = False
             self._enter(GaitState.STANCE_FLEXION, x.time_s, guard=False)
         elif self._folding(x):
-            self.recovering_ = True
+            self.recovering_, self.caught_ = True, False
             self._enter(GaitState.STANCE_FLEXION, x.time_s, guard=False)
         elif dwell >= sch.min_state_time_s:
             guard = dwell >= sch.max_state_time_s
@@ -626,13 +636,15 @@ class StateMachineController:
             held = held_for(self.event_since_s_, x.time_s, sch.event_hold_s)
             if guard or held:
                 if self.state_ == GaitState.SWING_EXTENSION:     # stance again: caught by a stall, or a heel strike
-                    self.recovering_ = not guard and x.load_N <= sch.we_to_sf_load_N
+                    self.recovering_ = self.caught_ = not guard and x.load_N <= sch.we_to_sf_load_N
                 self._enter(GaitState((int(self.state_) + 1) % 4), x.time_s, guard)
         lim = self.limits
         tk, ta = self._standing_torques(x) if self.standing_ else self._row_torques(x)
         if self.early_landing_ and self.state_ == GaitState.STANCE_FLEXION and not self.standing_ \
-                and self._landed_on_the_toe(x):
+                and self._landed_on_the_toe(x) \
+                and not (self.caught_ and tk <= -lim.knee_torque_Nm and x.knee_velocity_rad_s > 0.0):
             # no more plantarflexion torque than a centre of pressure at the threshold needs: the heel comes down
+            # (not after a catch while the knee, at its drive's limit, still flexes: the ankle's row helps extend it)
             ta = max(ta, -self.schedule.forefoot_landing_fraction * self.forefoot_m * max(x.load_N, 0.0))
         tk, sk = clip_torque(tk, x.knee_angle_rad, lim.knee_torque_Nm, lim.knee_range_rad[0], lim.knee_range_rad[1])
         ta, sa = clip_torque(ta, x.ankle_angle_rad, lim.ankle_torque_Nm, lim.ankle_range_rad[0], lim.ankle_range_rad[1])

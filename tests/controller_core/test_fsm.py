@@ -427,3 +427,32 @@ def test_the_toe_landings_release_is_held_so_the_ankle_does_not_chatter():
     for i in range(30):                                                  # back, and held there: the heel is down
         cmd = c.step(sample(t + 0.021 + 0.001 * i, load=600.0, moment=-4.0, ankle=ankle))
     assert not c.toe_landing_ and cmd.ankle_torque_Nm < 0.0             # the row's own torque again
+
+
+@pytest.mark.parametrize(("caught", "knee_v", "capped"), [
+    (True, 1.0, False),     # a toe caught in swing, then the weight on it and the knee giving way: the ankle's row
+    (True, -0.5, True),     # caught, the knee at its limit but extending (or holding): the cap, the heel comes down
+    (False, 1.0, True),     # an early landing on the toe without a catch (a fast steep descent): the cap
+])
+def test_a_caught_toe_under_a_knee_that_gives_way_keeps_the_ankles_row(caught, knee_v, capped):
+    """A toe caught in swing (the knee stalls, flexed, with too little load for a heel strike: stance flexion at once)
+    and then the weight on the forefoot: the knee's row asks more than its drive gives (a knee far behind the foot
+    under half the body's weight: 120 N·m on the bench's toe catch at 1.0 m/s downhill) and it flexes on. Then the
+    ankle's plantarflexion torque is not capped: pushing on the forefoot turns the shank back under the knee, the one
+    thing still extending it. Holding or extending, or landing early on the toe without a catch, the cap stands (tall
+    legs' fast steep descents land so, and their grid fell more without the cap there: docs/results.md)."""
+    sch = dataclasses.replace(FIRM_ANKLE, knee_k=(-300.0, -50.0, -20.0, -10.0))
+    c, plain = StateMachineController(sch, forefoot_m=0.13), StateMachineController(sch)
+    knee, ankle = math.radians(60.0), math.radians(8.0)
+    for m in (c, plain):
+        m.step(sample(0.0))
+        t = _stride(m, _stride(m, 0.002, 0.40), 0.40)
+        _stride(m, t, 0.25)                                              # in swing extension, 0.25 s after toe-off
+        if caught:                                                       # stalled, flexed, the pylon barely loaded
+            assert m.step(sample(t + 0.86, load=60.0, knee=knee, knee_v=-0.2)).state == SF
+    land = sample(t + 0.87, load=600.0, moment=-0.10 * 600.0, knee=knee, knee_v=knee_v, ankle=ankle)
+    cmd, ref = c.step(land), plain.step(land)
+    assert c.caught_ == caught and c.early_landing_                      # landed before its swing was over
+    assert cmd.state == SF and c.toe_landing_ and cmd.knee_torque_Nm == -c.limits.knee_torque_Nm   # at the limit
+    assert ref.ankle_torque_Nm < -0.5 * 0.13 * 600.0                     # the row pushes harder than the cap
+    assert cmd.ankle_torque_Nm == pytest.approx(-0.5 * 0.13 * 600.0 if capped else ref.ankle_torque_Nm)
