@@ -26,7 +26,11 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   # what a server imports, compiled to bytecode by importing it once: where PYTHONDONTWRITEBYTECODE is set, every
   # start would otherwise compile FastAPI, SQLAlchemy and SciPy again (8 s instead of 3). Only what is imported: all
   # 1.3 GB of packages (uv's --compile-bytecode) took 15 s of a fresh machine's set-up, mostly modules nothing imports
-  env -u PYTHONDONTWRITEBYTECODE .venv/bin/python -c "import backend.serve, backend.cli, uvicorn" >> "$log" 2>&1
+  if ! env -u PYTHONDONTWRITEBYTECODE .venv/bin/python -c "import backend.serve, backend.cli, uvicorn" >> "$log" 2>&1; then
+    tail -n 20 "$log" >&2
+    echo "the installed server does not import; full log in $log" >&2
+    exit 1
+  fi
   touch "$stamp"
 fi
 # the project's own modules compiled once, here: every test process, server and CLI imports them, and where

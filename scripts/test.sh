@@ -36,8 +36,8 @@ cat "$system_log" >&2; rm -f "$system_log"
 if [ "$status" -ne 0 ]; then echo "the Debian or npm packages could not be installed (above)" >&2; exit 1; fi
 .venv/bin/ruff check .
 # one fit of the default model for every process of the run (the first to need it fits and caches it, the others wait
-# for it: controller_core/model_io.py); --fast keeps
-# it between runs (the cache is keyed by the data's and the code's hashes, so a changed model is fitted again)
+# for it: controller_core/model_io.py); --fast keeps it between runs (the cache is keyed by the data's and the code's
+# hashes, so a changed model is fitted again)
 if [ "$fast" -eq 1 ] && [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
   export QUASITUNE_CACHE_DIR="${XDG_CACHE_HOME:-$HOME/.cache}/quasitune-tests"
 elif [ -z "${QUASITUNE_CACHE_DIR:-}" ]; then
