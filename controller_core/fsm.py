@@ -425,8 +425,7 @@ class StateMachineController:
         self.stance_entry_s_ = None
         self.folding_since_s_ = None
         self.swing_entry_s_, self.last_swing_s_ = None, None
-        self.early_landing_, self.toe_landing_ = False, False
-        self.caught_ = False
+        self.early_landing_, self.toe_landing_, self.caught_ = False, False, False
         self.toe_back_since_s_ = None
         self.lifted_since_s_ = None
 

@@ -30,10 +30,10 @@ if [ "$fast" -eq 0 ] && [ "$#" -eq 0 ]; then
   bash scripts/test_leg.sh --install > "$leg_log" 2>&1 &
   leg_install=$!
 fi
-status=0
-wait "$system_install" || status=$?
+system_status=0
+wait "$system_install" || system_status=$?
 cat "$system_log" >&2; rm -f "$system_log"
-if [ "$status" -ne 0 ]; then echo "the Debian or npm packages could not be installed (above)" >&2; exit 1; fi
+if [ "$system_status" -ne 0 ]; then echo "the Debian or npm packages could not be installed (above)" >&2; exit 1; fi
 .venv/bin/ruff check .
 # one fit of the default model for every process of the run (the first to need it fits and caches it, the others wait
 # for it: controller_core/model_io.py); --fast keeps it between runs (the cache is keyed by the data's and the code's
