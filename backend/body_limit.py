@@ -31,6 +31,7 @@ BODY_BYTES = 64 * 1024
 SIGN_IN_BODY_BYTES = 16 * 1024      # a user name and a password or two (each at most 1024 characters)
 _SIGN_IN = ("/api/auth/token", "/api/auth/password", "/api/auth/logout")
 _WRITES = {"POST", "PUT", "PATCH", "DELETE"}
+TOKEN_HOLDER = "token_holder"     # request.state's name for the user the gate found holding the request's token
 
 
 @dataclass(frozen=True)
@@ -129,6 +130,7 @@ class GateBodies(HttpMiddleware):
         if user.role not in rule.roles:
             return _answer(403, f"this action needs the role {' or '.join(rule.roles)}; {user.username} is "
                                 f"{user.role}")
+        scope.setdefault("state", {})[TOKEN_HOLDER] = user     # the route's dependency takes it: one look-up a request
         return None
 
     async def http(self, scope: Scope, receive: Receive, send: Send) -> None:

@@ -13,6 +13,7 @@ from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
 from sqlalchemy import Connection
 
+from backend.body_limit import TOKEN_HOLDER
 from backend.db import pooled
 from backend.model_service import ModelService
 from backend.settings import Settings
@@ -40,12 +41,13 @@ def _unauthorized(message: str) -> HTTPException:
     return HTTPException(status.HTTP_401_UNAUTHORIZED, message, headers={"WWW-Authenticate": "Bearer"})
 
 
-async def signed_in(conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> User:
+async def signed_in(request: Request, conn: Conn, token: Annotated[str | None, Depends(oauth2)]) -> User:
     """The user holding the request's bearer token (401 when missing, unknown or expired), also one who must
-    still change a password someone else chose (only /api/auth/me, /password and /logout accept that)."""
+    still change a password someone else chose (only /api/auth/me, /password and /logout accept that). A write's
+    token was looked up moments ago by the body gate (:mod:`backend.body_limit`), which left its holder here."""
     if not token:
         raise _unauthorized("not signed in: send 'Authorization: Bearer <token>' from POST /api/auth/token")
-    user = user_for_token(conn, token)
+    user = getattr(request.state, TOKEN_HOLDER, None) or user_for_token(conn, token)
     if user is None:
         raise _unauthorized("the bearer token is unknown or has expired; sign in again")
     return user

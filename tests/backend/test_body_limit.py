@@ -77,3 +77,20 @@ def test_a_role_that_may_not_write_is_refused_before_its_body_is_read(api):
     status, read = _call_unread(app, "/api/patients", {**api.as_("prosthetist"), **json_})
     assert status == 413 and read > 0
     assert api.count("patients") == 0
+
+
+def test_a_writes_token_is_looked_up_once(api, monkeypatch):
+    """The gate finds the token's holder before the body is read and leaves it for the route's dependency: one
+    look-up a write, not two (a read, which the gate does not see, still looks it up in its dependency)."""
+    import backend.body_limit
+    import backend.deps
+
+    calls: list[str] = []
+    for module in (backend.body_limit, backend.deps):
+        real = module.user_for_token
+        monkeypatch.setattr(module, "user_for_token", lambda conn, token, real=real: calls.append(token) or
+                            real(conn, token))
+    h = api.as_("prosthetist")
+    r = api.client.post("/api/patients", headers=h, json={"code_name": "P-ONCE", "body_mass_kg": 70, "side": "left"})
+    assert r.status_code == 201 and len(calls) == 1
+    assert api.client.get(f"/api/patients/{r.json()['id']}", headers=h).status_code == 200 and len(calls) == 2
