@@ -19,11 +19,14 @@ import itertools
 import json
 import os
 import random
+import tempfile
 import time
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
-from tests.helpers.server import PASSWORD, temporary_server
+from tests.helpers.server import PASSWORD, add_user, start_server, stop_server
 
 DEVICE = "sim-leg-1"
 
@@ -105,7 +108,7 @@ async def _reads(base: str, headers: dict, paths: list[str], clients: int, secon
             **{f"reads_{k}": v for k, v in stream.items()}}
 
 
-async def _run(base: str, clients: int, seconds: float) -> dict:
+async def _run(base: str, clients: int, seconds: float, server_cpu_s: Callable[[], float | None]) -> dict:
     import httpx
 
     async with httpx.AsyncClient(base_url=base, timeout=30.0) as setup:
@@ -149,8 +152,9 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
     ws_url = base.replace("http://", "ws://") + f"/api/devices/{DEVICE}/telemetry?token={token['access_token']}"
     telemetry = asyncio.create_task(_telemetry(ws_url, stop))
     await asyncio.sleep(0.5)
-    t_start = time.perf_counter()
+    t_start, cpu_start = time.perf_counter(), server_cpu_s()
     await asyncio.gather(*(client(t_start + seconds, True) for _ in range(clients)))
+    cpu_end = server_cpu_s()
     stop.set()
     stream = await telemetry
     wall = max(finished) - t_start
@@ -166,12 +170,30 @@ async def _run(base: str, clients: int, seconds: float) -> dict:
             "proposals_per_s": round(statuses.get(201, 0) / wall, 1),
             "p50_ms": round(float(np.percentile(lat, 50)), 2), "p95_ms": round(float(np.percentile(lat, 95)), 2),
             "p99_ms": round(float(np.percentile(lat, 99)), 2), "max_ms": round(float(lat.max()), 2),
+            "server_cpu_ms_per_proposal": None if cpu_start is None or cpu_end is None or not statuses.get(201) else
+            round((cpu_end - cpu_start) * 1e3 / statuses[201], 2),
             "non_201": sum(v for k, v in statuses.items() if k != 201), **stream, **reads,
             "session_missing_samples": summary["missing_samples"]}
 
 
+def _cpu_s(pid: int) -> float | None:
+    """A process's CPU time so far (user + system, s), from /proc (None where there is none)."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def run(clients: int = 20, seconds: float = 10.0) -> dict:
-    """Run the benchmark against a fresh single-process server; the load generator shares the machine with it."""
-    with temporary_server("quasitune-loadbench-", device="sim") as base:
-        result = asyncio.run(_run(base, clients, seconds))
+    """Run the benchmark against a fresh single-process server; the load generator shares the machine with it.
+    Also the server's CPU time per proposal over the proposals' window (``server_cpu_ms_per_proposal``): steadier
+    from run to run than the rate, which moves with whatever else the two cores do."""
+    with tempfile.TemporaryDirectory(prefix="quasitune-loadbench-") as tmp:
+        add_user(Path(tmp), "bench", "prosthetist")
+        proc, base = start_server(Path(tmp), device="sim")
+        try:
+            result = asyncio.run(_run(base, clients, seconds, lambda: _cpu_s(proc.pid)))
+        finally:
+            stop_server(proc)
     return {**result, "cpu_count": os.cpu_count()}
