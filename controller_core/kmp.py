@@ -65,13 +65,6 @@ def _kron_eye_times(k: np.ndarray, M: np.ndarray, o: int) -> np.ndarray:
     return (k @ M.reshape(k.shape[1], -1)).reshape(k.shape[0] * o, -1)
 
 
-def _unit_columns(n: int, rows: np.ndarray) -> np.ndarray:
-    """(n, len(rows)) matrix whose column j is the unit vector at ``rows[j]``."""
-    E = np.zeros((n, rows.size))
-    E[rows, np.arange(rows.size)] = 1.0
-    return E
-
-
 def _chol(A: np.ndarray) -> np.ndarray:
     """Lower Cholesky factor via LAPACK (raises when A is not positive definite)."""
     L, info = dpotrf(A, lower=1, clean=1)

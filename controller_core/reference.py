@@ -118,10 +118,6 @@ class ReferenceSet:
         """(R, P) mean curves of one channel."""
         return np.vstack([r.mean[channel] for r in self.records])
 
-    def stack_sd(self, channel: str) -> np.ndarray:
-        """(R, P) SD curves of one channel."""
-        return np.vstack([r.sd[channel] for r in self.records])
-
     def subset(self, keep: list[int] | np.ndarray) -> ReferenceSet:
         """A new set with only the records at the given indices (same provenance)."""
         return ReferenceSet(

@@ -59,7 +59,7 @@ from controller_core.envelope import (
     table_with_values,
 )
 from controller_core.features import FEATURES_BY_NAME
-from controller_core.refine_evidence import QUANTITIES, QUANTITY_BY_KEY, NodeEvidence, Quantity
+from controller_core.refine_evidence import QUANTITIES, NodeEvidence, Quantity
 from controller_core.refine_search import (
     TOLERANCES,
     EnvelopeBench,
@@ -612,8 +612,3 @@ def change_in_steps(changes: Sequence[dict], rules: RefineRules | None = None) -
         moved = abs(c["after"] - c["before"]) if zero else abs(p.stepping(c["after"]) - p.stepping(c["before"]))
         total += moved / rules.step(p)
     return round(total, 3)
-
-
-def quantity_units() -> dict[str, str]:
-    """Each quantity's unit, for people: deg or % of the gait cycle."""
-    return {q.key: q.unit for q in QUANTITY_BY_KEY.values()}
