@@ -442,11 +442,13 @@ class DeviceFirmware:
         """The leg this firmware drives is described anew (a simulated leg fitted to the patient who wears it): its
         thigh, shank and forefoot (the task estimate, the early landing on the toe) and its actuators' limits and
         drive friction are taken from ``leg``; everything else of the configuration stays. Safe mode, and a table or
-        envelope running now, go on with them from the next tick (call between two ticks)."""
+        envelope running now, go on with them from the next tick (call between two ticks): safe mode keeps what it
+        knows of the load and the knee's hold (a fresh one forgot a lightly loaded knee and gave it the swing's
+        extension assist), only its limits are the new drive's."""
         self.config = dataclasses.replace(self.config, thigh_length_m=leg.thigh_length_m,
                                           shank_length_m=leg.shank_length_m, forefoot_m=leg.forefoot_m,
                                           actuator=leg.actuator)
-        self._safe = SafeModeController(self.config.safe_mode, self.config.actuator)
+        self._safe.limits = self.config.actuator
         if self.mode_ == Mode.ACTIVE and self.active_ is not None:
             self.controller_ = self._controller_for(self.active_)
 

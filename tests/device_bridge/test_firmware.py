@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import random
 
@@ -241,6 +242,32 @@ def test_heartbeat_loss_enters_safe_mode_on_the_first_tick_past_the_timeout(tabl
     p = cfg.safe_mode
     assert knee == pytest.approx(-p.knee_flexion_b_Nm_s_per_rad * 0.5)            # held where the load found it
     assert ankle == pytest.approx(-p.ankle_k_Nm_per_rad * 0.05 + p.ankle_b_Nm_s_per_rad * 0.2)   # toward neutral
+
+
+def test_fitting_a_new_leg_in_safe_mode_keeps_the_loaded_knee_held(tables):
+    """A simulated leg fitted to a patient's leg while it stands in safe mode (the server does it between walks): the
+    knee a light load holds (between the loaded and unloaded thresholds, the hysteresis band) stays held, the new
+    drive's limits taken at once. A fresh safe mode forgot that the leg was loaded and gave that knee the swing's
+    extension assist."""
+    cfg = FirmwareConfig(heartbeat_timeout_s=0.2)
+    fw = DeviceFirmware(cfg)
+    install(fw, tables[0], 1)
+    heartbeat(fw, 1.0)
+    fw.tick(standing(1.3), 1.3)
+    assert fw.mode_ == Mode.SAFE
+    p = cfg.safe_mode
+    light = (p.loaded_off_N + p.loaded_on_N) / 2.0
+    def lightly(t: float) -> SensorSample:
+        return SensorSample(time_s=t, knee_angle_rad=0.35, knee_velocity_rad_s=0.5, ankle_angle_rad=0.05,
+                            ankle_velocity_rad_s=0.0, load_N=light, ankle_moment_Nm=-5.0)
+    fw.tick(lightly(1.301), 1.301)             # still loaded: held at 0.3 rad, where the load found it
+    held = -p.knee_hold_k_Nm_per_rad * 0.05 - p.knee_flexion_b_Nm_s_per_rad * 0.5
+    knee, _, _ = fw.tick(lightly(1.302), 1.302)
+    assert knee == pytest.approx(held)
+    weaker = dataclasses.replace(cfg.actuator, knee_torque_Nm=40.0)
+    fw.fit_leg(dataclasses.replace(cfg, shank_length_m=cfg.shank_length_m + 0.03, actuator=weaker))
+    knee, _, _ = fw.tick(lightly(1.303), 1.303)
+    assert fw.mode_ == Mode.SAFE and knee == pytest.approx(-40.0)      # held, within the new drive's limit
 
 
 def health(frames: list[can.Message]) -> dict:
