@@ -450,7 +450,17 @@ class DeviceFirmware:
                                           actuator=leg.actuator)
         self._safe.limits = self.config.actuator
         if self.mode_ == Mode.ACTIVE and self.active_ is not None:
-            self.controller_ = self._controller_for(self.active_)
+            self._take_over(self._controller_for(self.active_))
+
+    def _take_over(self, new: StateMachineController | AdaptiveController) -> None:
+        """``new`` runs from the next tick, standing (:meth:`StateMachineController.stand`) where the one it replaces
+        stood: a fresh machine starts on the walking rows, stance flexion's, which bend a standing knee toward their
+        equilibrium in the half second standing takes to be noticed again. Standing ends by itself when the person
+        moves."""
+        old = self.controller_
+        if getattr(getattr(old, "machine_", old), "standing_", False):
+            new.stand()
+        self.controller_ = new
 
     def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
         cfg = self.config
@@ -465,7 +475,7 @@ class DeviceFirmware:
     def _run(self) -> None:
         """Start (or restart) the state machine on the active table or envelope."""
         assert self.active_ is not None
-        self.controller_ = self._controller_for(self.active_)
+        self._take_over(self._controller_for(self.active_))
         self.mode_ = Mode.ACTIVE
         self.faults_ &= ~(Fault.HEARTBEAT_LOST | Fault.NO_TABLE)
 
@@ -481,8 +491,9 @@ class DeviceFirmware:
                 ctrl.load(staged.schedule)
             else:
                 state = ctrl.state_
-                self.controller_ = self._controller_for(staged)
-                self.controller_.reset(state)   # a new envelope starts from its nominal task
+                new = self._controller_for(staged)
+                new.reset(state)                # a new envelope starts from its nominal task
+                self._take_over(new)
         else:
             self._run()
 

@@ -270,6 +270,26 @@ def test_fitting_a_new_leg_in_safe_mode_keeps_the_loaded_knee_held(tables):
     assert fw.mode_ == Mode.SAFE and knee == pytest.approx(-40.0)      # held, within the new drive's limit
 
 
+def test_a_leg_fitted_while_the_person_stands_on_it_goes_on_standing(tables):
+    """The server fits its simulated leg to the patient while they stand on it between walks: the machine that takes
+    over stands as the one it replaces did (a fresh one started on stance flexion's walking row, which bends a
+    standing knee toward its equilibrium until standing is noticed again, half a second later)."""
+    fw = DeviceFirmware()
+    install(fw, tables[0], 1)
+    t = 0.0
+    for _ in range(900):                      # loaded and still: the machine takes it for standing
+        t = round(t + 0.001, 6)
+        heartbeat(fw, t)
+        fw.tick(SensorSample(t, 0.05, 0.0, 0.0, 0.0, 600.0, -2.0), t)
+    assert fw.controller_.standing_
+    held = fw.controller_.standing_knee_rad_
+    fw.fit_leg(dataclasses.replace(fw.config, shank_length_m=fw.config.shank_length_m + 0.03))
+    t = round(t + 0.001, 6)
+    knee, _, _ = fw.tick(SensorSample(t, 0.05, 0.0, 0.0, 0.0, 600.0, -2.0), t)
+    assert fw.controller_.standing_ and fw.controller_.standing_knee_rad_ == pytest.approx(held)
+    assert knee == pytest.approx(0.0, abs=1e-9)   # held where it stands: no torque toward a walking row's equilibrium
+
+
 def health(frames: list[can.Message]) -> dict:
     return next(decode(m)[1] for m in reversed(frames) if decode(m)[0] == "DEVICE_HEALTH")
 
