@@ -13,8 +13,10 @@ runs the adaptive controller (:mod:`controller_core.adaptive`), whose rows chang
 states still to come in a stride, once the stride's own foot-flat slope is in, never under a running state. A staged
 table becomes active at the next heel strike (the state machine's swing → stance-flexion transition on load), or
 at once when the leg is not walking (no table yet, safe mode, no sensors, or no load-triggered heel strike for
-``idle_switch_s``). Loss, corruption, reordering, a bad CRC, a refused limit or a timeout only ever discard the
-buffer being received: the active table runs on untouched, so a mixed table cannot exist.
+``idle_switch_s``). A machine that starts while the leg is not walking, or takes over from one that stood, starts
+standing (the joints held where they are) until the person moves or lifts the leg. Loss, corruption, reordering, a
+bad CRC, a refused limit or a timeout only ever discard the buffer being received: the active table runs on
+untouched, so a mixed table cannot exist.
 
 The host's heartbeat is watched on every tick: when none arrived for ``heartbeat_timeout_s``, the device raises
 HEARTBEAT_LOST on that tick, and what else it does is the device's link mode (:class:`~device_bridge.protocol.LinkMode`,
@@ -196,6 +198,7 @@ class DeviceFirmware:
         self._rx: _Transfer | EnvelopeReceiver | None = None
         self._last_commit: _LastCommit | None = None
         self._last_heel_strike_s = -math.inf
+        self._now_s = now_s                # the device clock at the last tick or frame
         self._next_status_s = now_s
         self._next_telemetry_s = now_s
         self._status_counter = 0
@@ -209,6 +212,7 @@ class DeviceFirmware:
         Fails safe: any error while handling a frame aborts the transfer being received (a commit is answered
         DEVICE_ERROR), flags RECEIVE_ERROR and returns; the active and staged tables and the control loop are
         untouched."""
+        self._now_s = now_s
         try:
             decoded = decode(msg)
         except ProtocolError:
@@ -454,11 +458,13 @@ class DeviceFirmware:
 
     def _take_over(self, new: StateMachineController | AdaptiveController) -> None:
         """``new`` runs from the next tick, standing (:meth:`StateMachineController.stand`) where the one it replaces
-        stood: a fresh machine starts on the walking rows, stance flexion's, which bend a standing knee toward their
-        equilibrium in the half second standing takes to be noticed again. Standing ends by itself when the person
-        moves."""
+        stood or the leg is not walking (no heel strike for ``idle_switch_s``: a first table, safe mode left, a leg
+        fitted between walks): a fresh machine starts on the walking rows, and stance flexion's bends a standing knee
+        toward its equilibrium (+24 N·m of flexion at 3° under the default table) for the half second standing takes
+        to be noticed, longer if the knee moves. Standing ends by itself when the person moves or lifts the leg."""
         old = self.controller_
-        if getattr(getattr(old, "machine_", old), "standing_", False):
+        stood = getattr(getattr(old, "machine_", old), "standing_", False)
+        if stood or self._now_s - self._last_heel_strike_s > self.config.idle_switch_s:
             new.stand()
         self.controller_ = new
 
@@ -525,6 +531,7 @@ class DeviceFirmware:
     def _tick(self, sample: SensorSample | None, now_s: float,
               out: list[can.Message]) -> tuple[float, float, list[can.Message]]:
         cfg = self.config
+        self._now_s = now_s
         rx_timeout = cfg.envelope_transfer_timeout_s if isinstance(self._rx, EnvelopeReceiver) else cfg.transfer_timeout_s
         if self._rx is not None and now_s - self._rx.started_s > rx_timeout:
             out.append(self._refuse(self._rx.transfer_id, AckResult.TIMEOUT, self._rx.version))

@@ -113,6 +113,10 @@ def test_a_staged_envelope_switches_in_at_heel_strike_and_reports_the_task(envel
         heartbeat(fw, t)
         return fw.tick(SensorSample(t, knee, knee_velocity, 0.0, 0.0, load, moment, 0.2, 0.0), t)[2]
 
+    for _ in range(100):      # the table came to a leg under a standing person: it stands
+        step(loaded)
+    for _ in range(50):       # the first step: lifted with the knee bending, then landed (stance flexion)
+        step(0.0, knee_velocity=1.0)
     for _ in range(100):
         step(loaded)
     begin, data, commit, crc = frames_of(envelopes[1], 4, 12)
@@ -183,6 +187,10 @@ def test_a_table_pushed_after_an_envelope_replaces_it_at_heel_strike(envelopes, 
         heartbeat(fw, t)
         fw.tick(SensorSample(t, knee, knee_velocity, 0.0, 0.0, load, moment, 0.2, 0.0), t)
 
+    for _ in range(100):      # the table came to a leg under a standing person: it stands
+        step(loaded)
+    for _ in range(50):       # the first step: lifted with the knee bending, then landed (stance flexion)
+        step(0.0, knee_velocity=1.0)
     for _ in range(100):
         step(loaded)
     wire = WireTable.from_table(tables[1])

@@ -270,6 +270,24 @@ def test_fitting_a_new_leg_in_safe_mode_keeps_the_loaded_knee_held(tables):
     assert fw.mode_ == Mode.SAFE and knee == pytest.approx(-40.0)      # held, within the new drive's limit
 
 
+def test_a_table_given_to_a_leg_under_a_standing_person_holds_the_knee_where_it_stands(tables):
+    """A first table (or one after safe mode) reaches a leg that is not walking: the machine starts standing, the
+    knee held where it is. On stance flexion's walking row it met a knee standing at 3° with flexion torque (the
+    row's equilibrium lies near 10°) until standing was noticed half a second later."""
+    fw = DeviceFirmware()
+    begin, rows, commit, _ = transfer(tables[0], 1, 1)
+    feed(fw, [begin, *rows, commit], 0.0)
+    knees = []
+    for i in range(1, 200):
+        t = 0.001 * i
+        heartbeat(fw, t)
+        knee, _, _ = fw.tick(SensorSample(t, 0.05, 0.0, 0.0, 0.0, 600.0, -2.0), t)
+        knees.append(knee)
+    assert fw.controller_.standing_ and max(abs(k) for k in knees) < 1e-6
+    row = fw.active_.table.row("knee", "stance_flexion")
+    assert row.k_Nm_per_rad * (0.05 - math.radians(row.theta_e_deg)) > 10.0   # what the walking row would have given
+
+
 def test_a_leg_fitted_while_the_person_stands_on_it_goes_on_standing(tables):
     """The server fits its simulated leg to the patient while they stand on it between walks: the machine that takes
     over stands as the one it replaces did (a fresh one started on stance flexion's walking row, which bends a
@@ -424,9 +442,14 @@ def test_a_staged_table_waits_for_the_next_heel_strike_while_walking(tables):
         fw.tick(SensorSample(t, knee, knee_velocity, 0.0, 0.0, load, moment), t)
 
     loaded = th.we_to_sf_load_N + 50
-    for _ in range(100):      # loaded in the first state: a heel strike on load
+    for _ in range(100):      # a table given to a leg under a standing person: it stands
         step(loaded)
-    assert fw.controller_.state_ == GaitState.STANCE_FLEXION
+    assert fw.controller_.standing_
+    for _ in range(50):       # the first step: the leg lifted with the knee bending (swing), then landed on load
+        step(0.0, knee_velocity=1.0)
+    for _ in range(100):
+        step(loaded)
+    assert fw.controller_.state_ == GaitState.STANCE_FLEXION and not fw.controller_.standing_
     begin, rows, commit, new = transfer(tables[1], 2, 2)
     [ack] = feed(fw, [begin, *rows, commit], t)
     assert ack["result"] == AckResult.STAGED
@@ -466,20 +489,25 @@ def test_telemetry_carries_the_sample_in_display_units(tables):
 
 
 def test_telemetry_says_when_the_leg_stands_and_the_host_reads_it(tables):
-    """TELEMETRY_GAIT's behaviour: walking on the rows, then standing once the loaded leg has been still for the
-    machine's standing time (the monitor shows it; the FSM state alone stays the stance state)."""
+    """TELEMETRY_GAIT's behaviour: standing under a table given to a leg that is not walking, walking on the rows
+    from the first step, standing again once the loaded leg has been still for the machine's standing time (the
+    monitor shows it; the FSM state alone stays the stance state)."""
     from device_bridge.host import LEG_BEHAVIOURS
 
     fw = DeviceFirmware()
     install(fw, tables[0], 1)
     behaviours = []
-    for i in range(1, 1200):                              # 1.2 s: a heel strike, then the loaded leg still
+    for i in range(1, 1500):      # 0.2 s standing, a step (lifted 50 ms, the knee bending), then landed and still
         t = 0.001 * i
         if i % 100 == 0:
             heartbeat(fw, t)
-        _, _, out = fw.tick(SensorSample(t, 0.05, 0.0, 0.0, 0.0, 600.0, -2.0), t)
-        behaviours += [physical(*decode(m))["behaviour"] for m in out if decode(m)[0] == "TELEMETRY_GAIT"]
-    assert LEG_BEHAVIOURS[int(behaviours[0])] == "walking" and LEG_BEHAVIOURS[int(behaviours[-1])] == "standing"
+        lifted = 200 <= i < 250
+        x = SensorSample(t, 0.05, 1.0 if lifted else 0.0, 0.0, 0.0, 0.0 if lifted else 600.0, 0.0 if lifted else -2.0)
+        _, _, out = fw.tick(x, t)
+        behaviours += [LEG_BEHAVIOURS[int(physical(*decode(m))["behaviour"])] for m in out
+                       if decode(m)[0] == "TELEMETRY_GAIT"]
+    seen = [b for k, b in enumerate(behaviours) if k == 0 or b != behaviours[k - 1]]
+    assert seen == ["standing", "walking", "standing"]
 
 
 def test_a_host_lost_during_commanded_safe_mode_is_flagged_and_no_table_switches_in(tables):

@@ -95,7 +95,8 @@ def test_every_status_after_an_acknowledgement_says_what_the_device_has_staged(t
     from tests.device_bridge.test_device_node import StandingLeg
 
     class OneStep(StandingLeg):
-        """The foot comes down once, 0.3 s in, and the leg then stands loaded: one heel strike, none after it."""
+        """The person stands, takes one step (the leg lifted 0.25–0.3 s in, the knee bending) and stands loaded
+        again: one heel strike, none after it."""
 
         def __init__(self, clock) -> None:
             super().__init__(clock)
@@ -103,7 +104,7 @@ def test_every_status_after_an_acknowledgement_says_what_the_device_has_staged(t
 
         def sample(self):
             x = super().sample()
-            return x if x.time_s - self.t0 > 0.3 else replace(x, load_N=0.0)
+            return replace(x, load_N=0.0, knee_velocity_rad_s=1.0) if 0.25 < x.time_s - self.t0 <= 0.3 else x
 
     # after its one heel strike the leg is walking for a minute: a staged table stays staged
     rig = Rig(config=FirmwareConfig(idle_switch_s=60.0))
