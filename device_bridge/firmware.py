@@ -585,8 +585,12 @@ class DeviceFirmware:
 
     def _safe_torques(self, x: SensorSample) -> tuple[float, float, GaitState]:
         """Safe mode's passive torques (safe mode, and no table; :mod:`controller_core.safe_mode`), clipped to the
-        actuator and range limits."""
+        actuator and range limits. A foot loaded again counts as a heel strike: a person walking on in safe mode is
+        walking when the machine takes over again (:meth:`_take_over`)."""
+        landed = not self._safe.loaded_
         cmd = self._safe.step(x)
+        if landed and self._safe.loaded_:
+            self._last_heel_strike_s = self._now_s
         return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
 
     # ------------------------------------------------------------------------------------------ frames out

@@ -288,6 +288,39 @@ def test_a_table_given_to_a_leg_under_a_standing_person_holds_the_knee_where_it_
     assert row.k_Nm_per_rad * (0.05 - math.radians(row.theta_e_deg)) > 10.0   # what the walking row would have given
 
 
+def test_safe_mode_left_while_walking_walks_on_and_left_while_standing_stands(tables):
+    """Leaving safe mode, the machine stands only if the person is not walking: safe mode counts a foot loaded again as
+    a heel strike, so a leg that walked on through safe mode starts on its rows (its first state, about to touch
+    down), and one stood on for longer than ``idle_switch_s`` starts standing."""
+    def safe_fw() -> tuple[DeviceFirmware, float]:
+        fw = DeviceFirmware()
+        install(fw, tables[0], 1)
+        fw.receive(encode("DEVICE_COMMAND", {"command": int(Command.ENTER_SAFE_MODE)}), 0.01)
+        return fw, 0.01
+
+    def sample(t: float, load: float) -> SensorSample:
+        return SensorSample(t, 0.1, 0.0, 0.0, 0.0, load, 0.0)
+
+    walking, t = safe_fw()
+    for i in range(3000):                        # 3 s of strides: 0.6 s loaded, 0.4 s in the air
+        t = round(0.01 + 0.001 * (i + 1), 6)
+        heartbeat(walking, t)
+        walking.tick(sample(t, 700.0 if (i % 1000) < 600 else 0.0), t)
+    assert walking.mode_ == Mode.SAFE
+    walking.receive(encode("DEVICE_COMMAND", {"command": int(Command.LEAVE_SAFE_MODE)}), t)
+    walking.tick(sample(t + 0.001, 700.0), t + 0.001)
+    assert walking.mode_ == Mode.ACTIVE and not walking.controller_.standing_
+
+    standing, t = safe_fw()
+    for i in range(3000):                        # 3 s stood on
+        t = round(0.01 + 0.001 * (i + 1), 6)
+        heartbeat(standing, t)
+        standing.tick(sample(t, 700.0), t)
+    standing.receive(encode("DEVICE_COMMAND", {"command": int(Command.LEAVE_SAFE_MODE)}), t)
+    standing.tick(sample(t + 0.001, 700.0), t + 0.001)
+    assert standing.mode_ == Mode.ACTIVE and standing.controller_.standing_
+
+
 def test_a_leg_fitted_while_the_person_stands_on_it_goes_on_standing(tables):
     """The server fits its simulated leg to the patient while they stand on it between walks: the machine that takes
     over stands as the one it replaces did (a fresh one started on stance flexion's walking row, which bends a
