@@ -19,14 +19,13 @@ import itertools
 import json
 import os
 import random
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from tests.helpers.server import PASSWORD, add_user, start_server, stop_server
+from tests.helpers.server import PASSWORD, temporary_server_process
 
 DEVICE = "sim-leg-1"
 
@@ -189,11 +188,6 @@ def run(clients: int = 20, seconds: float = 10.0) -> dict:
     """Run the benchmark against a fresh single-process server; the load generator shares the machine with it.
     Also the server's CPU time per proposal over the proposals' window (``server_cpu_ms_per_proposal``): steadier
     from run to run than the rate, which moves with whatever else the two cores do."""
-    with tempfile.TemporaryDirectory(prefix="quasitune-loadbench-") as tmp:
-        add_user(Path(tmp), "bench", "prosthetist")
-        proc, base = start_server(Path(tmp), device="sim")
-        try:
-            result = asyncio.run(_run(base, clients, seconds, lambda: _cpu_s(proc.pid)))
-        finally:
-            stop_server(proc)
+    with temporary_server_process("quasitune-loadbench-", device="sim") as (proc, base):
+        result = asyncio.run(_run(base, clients, seconds, lambda: _cpu_s(proc.pid)))
     return {**result, "cpu_count": os.cpu_count()}

@@ -54,10 +54,11 @@ def start_server(data_dir: Path, bootstrap: bool = False, device: str = "none",
 
 
 @contextmanager
-def temporary_server(prefix: str, device: str = "none", user: str = "bench", viewer3d: bool = False,
-                     colleague: str | None = None) -> Iterator[str]:
+def temporary_server_process(prefix: str, device: str = "none", user: str = "bench", viewer3d: bool = False,
+                             colleague: str | None = None) -> Iterator[tuple[subprocess.Popen, str]]:
     """A fresh server on a temporary database with the prosthetist ``user`` (and a second one, ``colleague``, for the
-    bench gate's two-person override; password :data:`PASSWORD`); yields its base URL and stops it afterwards."""
+    bench gate's two-person override; password :data:`PASSWORD`); yields its process and base URL and stops it
+    afterwards."""
     with tempfile.TemporaryDirectory(prefix=prefix) as tmp:
         data_dir = Path(tmp)
         add_user(data_dir, user, "prosthetist")
@@ -65,9 +66,17 @@ def temporary_server(prefix: str, device: str = "none", user: str = "bench", vie
             add_user(data_dir, colleague, "prosthetist")
         proc, base = start_server(data_dir, device=device, viewer3d=viewer3d)
         try:
-            yield base
+            yield proc, base
         finally:
             stop_server(proc)
+
+
+@contextmanager
+def temporary_server(prefix: str, device: str = "none", user: str = "bench", viewer3d: bool = False,
+                     colleague: str | None = None) -> Iterator[str]:
+    """:func:`temporary_server_process`, yielding only the base URL."""
+    with temporary_server_process(prefix, device, user, viewer3d, colleague) as (_, base):
+        yield base
 
 
 def stop_server(proc: subprocess.Popen, grace_s: float = 3.0) -> None:
