@@ -464,9 +464,13 @@ class DeviceFirmware:
         to be noticed, longer if the knee moves. Standing ends by itself when the person moves or lifts the leg."""
         old = self.controller_
         stood = getattr(getattr(old, "machine_", old), "standing_", False)
-        if stood or self._now_s - self._last_heel_strike_s > self.config.idle_switch_s:
+        if stood or not self._walking(self._now_s):
             new.stand()
         self.controller_ = new
+
+    def _walking(self, now_s: float) -> bool:
+        """A heel strike within ``idle_switch_s`` (safe mode's landings count too)."""
+        return now_s - self._last_heel_strike_s <= self.config.idle_switch_s
 
     def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
         cfg = self.config
@@ -547,7 +551,7 @@ class DeviceFirmware:
             self.faults_ &= ~Fault.HEARTBEAT_LOST
             out += self._status_frames()
         if self.staged_ is not None and host_alive and self.mode_ != Mode.CALIBRATING:
-            idle = sample is None or self.mode_ != Mode.ACTIVE or now_s - self._last_heel_strike_s > cfg.idle_switch_s
+            idle = sample is None or self.mode_ != Mode.ACTIVE or not self._walking(now_s)
             if idle:
                 self._activate_staged()
                 out += self._status_frames()
@@ -587,9 +591,9 @@ class DeviceFirmware:
         """Safe mode's passive torques (safe mode, and no table; :mod:`controller_core.safe_mode`), clipped to the
         actuator and range limits. A foot loaded again counts as a heel strike: a person walking on in safe mode is
         walking when the machine takes over again (:meth:`_take_over`)."""
-        landed = not self._safe.loaded_
+        was_unloaded = not self._safe.loaded_
         cmd = self._safe.step(x)
-        if landed and self._safe.loaded_:
+        if was_unloaded and self._safe.loaded_:
             self._last_heel_strike_s = self._now_s
         return cmd.knee_torque_Nm, cmd.ankle_torque_Nm, cmd.state
 
