@@ -111,9 +111,9 @@ class EnvelopeNode(_Strict):
         default_factory=dict, description="value moved by the neighbour guard → the value the pipeline fitted")
 
 
-def _axis_problem(name: str, values: Sequence[float], lo: float, hi: float) -> str | None:
-    if len(values) < 2:
-        return f"{name} needs at least 2 values, got {len(values)}"
+def _axis_problem(name: str, values: Sequence[float], lo: float, hi: float, least: int) -> str | None:
+    if len(values) < least:
+        return f"{name} needs at least {least} values, got {len(values)}"
     if len(values) > 15:
         return f"{name} has {len(values)} values; at most 15 per axis"
     if any(not math.isfinite(v) for v in values):
@@ -125,20 +125,24 @@ def _axis_problem(name: str, values: Sequence[float], lo: float, hi: float) -> s
     return None
 
 
-def validate_axes(speeds_mps: Sequence[float], inclines_deg: Sequence[float]) -> None:
-    """Refuse a grid that is not a grid of walking tasks, with the reason.
+def validate_axes(speeds_mps: Sequence[float], inclines_deg: Sequence[float], single_node: bool = False) -> None:
+    """Refuse a grid that is not a grid of walking tasks, with the reason. A range of tasks has at least two values
+    on each axis; ``single_node`` also takes one task (one value on each axis: a fixed-task table, the 1 × 1 case).
 
     Raises:
-        InvalidTaskError: fewer than 2 or more than 15 values on an axis, not increasing, NaN or out of range.
+        InvalidTaskError: fewer than 2 (1 × 1 with ``single_node``) or more than 15 values on an axis, not
+            increasing, NaN or out of range.
     """
-    for problem in (_axis_problem("speeds_mps", speeds_mps, *SPEED_RANGE_MPS),
-                    _axis_problem("inclines_deg", inclines_deg, -INCLINE_LIMIT_DEG, INCLINE_LIMIT_DEG)):
+    least = 1 if single_node and len(speeds_mps) == len(inclines_deg) == 1 else 2
+    for problem in (_axis_problem("speeds_mps", speeds_mps, *SPEED_RANGE_MPS, least),
+                    _axis_problem("inclines_deg", inclines_deg, -INCLINE_LIMIT_DEG, INCLINE_LIMIT_DEG, least)):
         if problem:
             raise InvalidTaskError(problem)
 
 
 class Envelope(_Strict):
-    """Tables over a speed × incline grid (nodes speed-major: node ``i * len(inclines) + j``)."""
+    """Tables over a speed × incline grid (nodes speed-major: node ``i * len(inclines) + j``). A fixed-task table is
+    the grid of one node (1 × 1, :func:`envelope_of_table`): what the leg holds is always an envelope."""
 
     format: Literal["quasitune.envelope/1"] = ENVELOPE_FORMAT
     speeds_mps: list[float]
@@ -153,7 +157,7 @@ class Envelope(_Strict):
 
     @model_validator(mode="after")
     def _grid(self) -> Envelope:
-        validate_axes(self.speeds_mps, self.inclines_deg)
+        validate_axes(self.speeds_mps, self.inclines_deg, single_node=True)
         if len(self.nodes) != len(self.speeds_mps) * len(self.inclines_deg):
             raise ValueError(f"an envelope of {len(self.speeds_mps)} × {len(self.inclines_deg)} needs "
                              f"{len(self.speeds_mps) * len(self.inclines_deg)} nodes, got {len(self.nodes)}")
@@ -171,6 +175,11 @@ class Envelope(_Strict):
     @property
     def shape(self) -> tuple[int, int]:
         return len(self.speeds_mps), len(self.inclines_deg)
+
+    @property
+    def single_node(self) -> bool:
+        """One node (a fixed-task table): nothing to blend, the leg runs it as it runs a table."""
+        return len(self.nodes) == 1
 
     def node(self, i: int, j: int) -> EnvelopeNode:
         """The node at speed index ``i`` and incline index ``j``."""
@@ -194,6 +203,16 @@ class Envelope(_Strict):
         if not isinstance(body, dict):
             raise ValueError("an envelope is a JSON object")
         return cls.model_validate({k: v for k, v in body.items() if k != "crc32"})
+
+
+def envelope_of_table(table: ParameterTable) -> Envelope:
+    """A table as the envelope of its one node, at the task, mass and model its provenance names: the form the leg
+    holds (one kind of buffer on the link and on the device)."""
+    p = table.provenance
+    return Envelope(speeds_mps=[p.speed_mps], inclines_deg=[p.incline_deg], nominal_speed_mps=p.speed_mps,
+                    nominal_incline_deg=p.incline_deg, mass_kg=table.body_mass_kg, model_version=p.model_version,
+                    data_sha256=p.data_sha256, nodes=[EnvelopeNode(speed_mps=p.speed_mps, incline_deg=p.incline_deg,
+                                                                   table=table, extrapolation=p.extrapolation)])
 
 
 # ---------------------------------------------------------------- values, the neighbour rule

@@ -14,6 +14,7 @@ from controller_core.envelope import (
     Envelope,
     NeighbourSteps,
     check_envelope,
+    envelope_of_table,
     neighbour_guard,
     neighbour_violations,
     table_values,
@@ -107,6 +108,22 @@ def test_json_carries_units_and_a_content_hash_that_catches_a_changed_value(enve
 def test_a_grid_that_is_not_a_grid_of_walking_tasks_is_refused(model, speeds, inclines, why):
     with pytest.raises(InvalidTaskError, match=why):
         model.propose_envelope(speeds, inclines, 75.0)
+
+
+def test_a_range_of_one_task_is_refused_but_a_table_is_the_envelope_of_its_one_node(model):
+    """A range of tasks needs two values per axis (1 × 1 asked as a range is refused like 1 × 2); a fixed-task table
+    is the 1 × 1 envelope at its own task, mass and model, which checks, round-trips and blends as the table."""
+    with pytest.raises(InvalidTaskError, match="at least 2"):
+        model.propose_envelope([1.2], [0.0], 75.0)
+    table = model.propose(1.2, 3.0, 80.0).table
+    one = envelope_of_table(table)
+    assert one.single_node and one.shape == (1, 1) and one.nodes[0].table == table
+    assert (one.speeds_mps, one.inclines_deg, one.nominal_speed_mps, one.nominal_incline_deg) == ([1.2], [3.0], 1.2, 3.0)
+    assert (one.mass_kg, one.model_version) == (80.0, table.provenance.model_version)
+    assert Envelope.from_json(json.loads(canonical_json(one))) == one
+    assert check_envelope(one) == []
+    with pytest.raises(ValueError, match="at least 2"):       # one value on one axis only is not a grid
+        Envelope.model_validate({**one.to_json(), "inclines_deg": [3.0, 5.0]})
 
 
 def test_the_nominal_task_is_clamped_into_the_grid(model):
