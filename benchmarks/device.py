@@ -39,6 +39,9 @@ async def _run(base: str, seconds: float, pushes: int) -> dict:
         for i in range(pushes):
             prop = (await c.post(f"/api/patients/{patient['id']}/proposals", headers=h,
                                  json={"speed_mps": 1.0 + 0.05 * (i % 10), "incline_deg": 0.0})).json()
+            r = await c.get(f"/api/proposals/{prop['id']}/preview", headers=h)   # the gate approves a walked one
+            if r.status_code != 200:
+                raise RuntimeError(f"preview refused: {r.text}")
             r = await c.post(f"/api/proposals/{prop['id']}/approve", headers=h,
                              json={"comment": "bench", "override_reason": OVERRIDE})
             if r.status_code != 200:
