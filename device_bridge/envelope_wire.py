@@ -1,5 +1,8 @@
 """An envelope on the wire: axes, nominal task and every node's table as raw fixed-point integers.
 
+The link carries one kind of buffer: a fixed-task table travels, and is held by the leg, as the envelope of its one
+node (:func:`table_wire`; :func:`controller_core.envelope.envelope_of_table`), which the device runs as a table.
+
 A transfer is ENVELOPE_BEGIN, the axis frames (speeds, inclines, the nominal task, the body mass the envelope was
 built for, which the knee's stance support floor scales with) and their check, twelve frames per
 node (eight rows, two threshold frames, the stumble trigger and the early landing's, each carrying its node index)
@@ -29,8 +32,8 @@ from dataclasses import dataclass
 
 import can
 
-from controller_core.envelope import Envelope, NeighbourSteps, check_envelope, check_grid
-from controller_core.table import LimitViolation, SafetyLimits, Thresholds
+from controller_core.envelope import Envelope, NeighbourSteps, check_envelope, check_grid, envelope_of_table
+from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, Thresholds
 from device_bridge.protocol import (
     LANDING_SIGNALS,
     ROW_ORDER,
@@ -101,16 +104,17 @@ class WireEnvelope:
         nodes = []
         for k, node in enumerate(envelope.nodes):
             t = node.table
+            at = "" if envelope.single_node else f"node {k}: "    # a table's values are named as in the table
             rows = [tuple(quantize("ENVELOPE_ROW", f, getattr(t.row(j, s), SIGNAL_FIELDS[f]),
-                                    f"node {k}: {j}.{s}.{SIGNAL_FIELDS[f]}") for f in ROW_SIGNALS) for j, s in ROW_ORDER]
+                                    f"{at}{j}.{s}.{SIGNAL_FIELDS[f]}") for f in ROW_SIGNALS) for j, s in ROW_ORDER]
             a = tuple(quantize("ENVELOPE_THRESHOLDS_A", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
-                                f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in _A)
+                                f"{at}thresholds.{SIGNAL_FIELDS[f]}") for f in _A)
             b = tuple(quantize("ENVELOPE_THRESHOLDS_B", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
-                                f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in _B)
+                                f"{at}thresholds.{SIGNAL_FIELDS[f]}") for f in _B)
             stumble = tuple(quantize("ENVELOPE_STUMBLE", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
-                                     f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in STUMBLE_SIGNALS)
+                                     f"{at}thresholds.{SIGNAL_FIELDS[f]}") for f in STUMBLE_SIGNALS)
             landing = tuple(quantize("ENVELOPE_LANDING", f, getattr(t.thresholds, SIGNAL_FIELDS[f]),
-                                     f"node {k}: thresholds.{SIGNAL_FIELDS[f]}") for f in LANDING_SIGNALS)
+                                     f"{at}thresholds.{SIGNAL_FIELDS[f]}") for f in LANDING_SIGNALS)
             nodes.append((*rows, a, b, stumble, landing))
         return cls(speeds=tuple(axis(v, "speeds_mps") for v in envelope.speeds_mps),
                    inclines=tuple(axis(v, "inclines_deg") for v in envelope.inclines_deg),
@@ -172,6 +176,12 @@ class WireEnvelope:
                               inclines_deg=tuple(axis(v) for v in self.inclines),
                               nominal=(axis(self.nominal[0]), axis(self.nominal[1])), tables=tuple(tables),
                               body_mass_kg=mass)
+
+
+def table_wire(table: ParameterTable) -> WireEnvelope:
+    """A table's transfer: the envelope of its one node, rounded to the wire quanta (ProtocolError when a value does
+    not fit its field). Its CRC-32 is the one the device reads back while it runs the table."""
+    return WireEnvelope.from_envelope(envelope_of_table(table))
 
 
 def _node_crc(node: tuple[tuple[int, ...], ...]) -> int:

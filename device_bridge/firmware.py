@@ -6,10 +6,11 @@ safe mode, status and telemetry.
 It does no I/O, so every fault path is tested deterministically; :mod:`device_bridge.device_node` runs it on a bus.
 
 Three table buffers: the one being received, the staged one (complete, CRC-verified, safety-checked,
-acknowledged) and the active one the state machine runs. A buffer holds a single table or a whole envelope
-(:mod:`device_bridge.envelope_wire`): for an envelope the device re-checks every node's limits and the neighbour
-rule with its own settings (building :class:`controller_core.envelope_blend.EnvelopeBlender` is that check) and
-runs the adaptive controller (:mod:`controller_core.adaptive`), whose rows change at heel strike and, for the
+acknowledged) and the active one the state machine runs. A buffer holds one kind of thing, an envelope
+(:mod:`device_bridge.envelope_wire`): a fixed-task table is the envelope of one node, whose limits the device
+re-checks and which it runs as a table; for an envelope of more nodes the device re-checks every node's limits and
+the neighbour rule with its own settings (building :class:`controller_core.envelope_blend.EnvelopeBlender` is that
+check) and runs the adaptive controller (:mod:`controller_core.adaptive`), whose rows change at heel strike and, for the
 states still to come in a stride, once the stride's own foot-flat slope is in, never under a running state. A staged
 table becomes active at the next heel strike (the state machine's swing → stance-flexion transition on load), or
 at once when the leg is not walking (no table yet, safe mode, no sensors, or no load-triggered heel strike for
@@ -53,9 +54,8 @@ from controller_core.fsm import (
 from controller_core.safe_mode import SafeModeController, SafeModeParameters
 from controller_core.table import DEFAULT_LIMITS, SafetyLimitError, SafetyLimits, check_table
 from controller_core.task_estimator import TaskEstimator
-from device_bridge.envelope_wire import DeviceEnvelope, EnvelopeReceiver
+from device_bridge.envelope_wire import MAX_NODES, DeviceEnvelope, EnvelopeReceiver
 from device_bridge.protocol import (
-    ROW_COUNT,
     TELEMETRY_PERIOD_S,
     TEMPERATURE_UNKNOWN_RAW,
     AckResult,
@@ -65,7 +65,6 @@ from device_bridge.protocol import (
     LinkMode,
     Mode,
     ProtocolError,
-    WireTable,
     decode,
     encode,
     encode_scaled,
@@ -81,8 +80,10 @@ class FirmwareConfig:
 
     Attributes:
         heartbeat_timeout_s: safe mode when no host heartbeat arrived for this long.
-        transfer_timeout_s: a table transfer not committed this long after its begin is dropped.
-        envelope_transfer_timeout_s: the same for an envelope (ten times the frames, and resends on a noisy bus).
+        transfer_timeout_s: a transfer of one node (a fixed-task table) not committed this long after its begin is
+            dropped.
+        envelope_transfer_timeout_s: the same for an envelope of more nodes (ten times the frames, and resends on a
+            noisy bus).
         idle_switch_s: without a load-triggered heel strike for this long the leg is not walking, and a staged
             table becomes active at once.
         status_period_s, telemetry_period_s: DEVICE_STATUS/HEALTH and TELEMETRY periods.
@@ -119,24 +120,19 @@ class FirmwareConfig:
 
 @dataclass(frozen=True)
 class HeldTable:
-    """A verified table or envelope: its version, CRC-32, decoded values and controller schedule (an envelope's
-    is its nominal blend)."""
+    """A verified envelope: its version, CRC-32, decoded values and controller schedule (one node's table, or the
+    nominal blend of more), and the blender that adapts it (None for one node: nothing to blend)."""
 
     version: int
     crc32: int
-    table: DeviceTable | None
+    envelope: DeviceEnvelope
     schedule: ImpedanceSchedule
-    envelope: DeviceEnvelope | None = None
     blender: EnvelopeBlender | None = None
 
-
-@dataclass
-class _Transfer:
-    transfer_id: int
-    version: int
-    crc32: int
-    started_s: float
-    rows: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    @property
+    def table(self) -> DeviceTable | None:
+        """The one node's table when the envelope is a fixed-task table, else None."""
+        return self.envelope.tables[0] if self.blender is None else None
 
 
 @dataclass(frozen=True)
@@ -195,7 +191,7 @@ class DeviceFirmware:
         self.hardware_fault_: str | None = None
         self.controller_: StateMachineController | AdaptiveController | None = None
         self._safe = SafeModeController(self.config.safe_mode, self.config.actuator)   # safe mode, and no table
-        self._rx: _Transfer | EnvelopeReceiver | None = None
+        self._rx: EnvelopeReceiver | None = None
         self._last_commit: _LastCommit | None = None
         self._last_heel_strike_s = -math.inf
         self._now_s = now_s                # the device clock at the last tick or frame
@@ -228,7 +224,7 @@ class DeviceFirmware:
             self._rx = None   # a later frame of it meets no transfer; its commit is answered UNKNOWN_TRANSFER
             self.rx_errors_ += 1
             self.faults_ |= Fault.RECEIVE_ERROR
-            if name in ("TABLE_COMMIT", "ENVELOPE_COMMIT"):
+            if name == "ENVELOPE_COMMIT":
                 return [self._refuse(raw.get("transfer_id", 0), AckResult.DEVICE_ERROR, raw.get("version", 0))]
             return []
 
@@ -236,24 +232,9 @@ class DeviceFirmware:
         if name == "HOST_HEARTBEAT":
             self.last_heartbeat_s_ = now_s
             return []
-        if name == "TABLE_BEGIN":
-            self._rx = _Transfer(raw["transfer_id"], raw["version"], raw["crc32"], now_s)
-            if raw["row_count"] != ROW_COUNT:
-                self._rx = None
-                return [self._ack(raw["transfer_id"], AckResult.MALFORMED, version=raw["version"])]
-            return []
-        if name in ("TABLE_ROW", "TABLE_THRESHOLDS_A", "TABLE_THRESHOLDS_B", "TABLE_BODY", "TABLE_STUMBLE",
-                    "TABLE_LANDING"):
-            rx = self._rx
-            row = WireTable.row_from_frame(name, raw)
-            if isinstance(rx, _Transfer) and raw["transfer_id"] == rx.transfer_id and row is not None:
-                rx.rows.setdefault(row[0], row[1])   # the first copy wins; a corrupt one fails the CRC
-            return []
-        if name == "TABLE_COMMIT":
-            return [self._commit(raw, prepared)]
         if name == "ENVELOPE_BEGIN":
             n_s, n_i = raw["n_speeds"], raw["n_inclines"]
-            if n_s < 2 or n_i < 2 or n_s * n_i > 64:
+            if not (n_s == n_i == 1 or (min(n_s, n_i) >= 2 and n_s * n_i <= MAX_NODES)):   # one node, or a grid
                 self._rx = None
                 return [self._ack(raw["transfer_id"], AckResult.MALFORMED, version=raw["version"])]
             self._rx = EnvelopeReceiver(raw["transfer_id"], raw["version"], raw["crc32"], n_s, n_i, now_s)
@@ -261,11 +242,11 @@ class DeviceFirmware:
         if name in ("ENVELOPE_AXIS", "ENVELOPE_ROW", "ENVELOPE_THRESHOLDS_A", "ENVELOPE_THRESHOLDS_B", "ENVELOPE_STUMBLE",
                     "ENVELOPE_LANDING", "ENVELOPE_CHECK"):
             rx = self._rx
-            if isinstance(rx, EnvelopeReceiver) and raw["transfer_id"] == rx.transfer_id:
+            if rx is not None and raw["transfer_id"] == rx.transfer_id:
                 rx.add(name, raw)
             return []
         if name == "ENVELOPE_COMMIT":
-            return [self._commit_envelope(raw, prepared)]
+            return [self._commit(raw, prepared)]
         if name == "DEVICE_COMMAND":
             return self._command(raw["command"], now_s)
         if name == "CALIBRATION_COMMAND":
@@ -279,39 +260,8 @@ class DeviceFirmware:
                                     "crc32": crc32 if result == AckResult.STAGED else 0,
                                     "version_low": version & 0xFF})
 
-    def _commit(self, raw: dict[str, int], prepared: Prepared | None) -> can.Message:
-        tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
-        if not isinstance(self._rx, _Transfer) or self._rx.transfer_id != tid:
-            return self._unknown_or_repeat(tid, version, crc)
-        rx = self._rx
-        if (rx.version, rx.crc32) != (version, crc) or raw["row_count"] != ROW_COUNT:
-            self._rx = None
-            return self._refuse(tid, AckResult.MALFORMED, version)
-        missing = sum(1 << i for i in range(ROW_COUNT) if i not in rx.rows)
-        if missing:
-            return self._ack(tid, AckResult.MISSING_ROWS, missing=missing, version=version)   # keep the rows
-        self._rx = None
-        outcome = prepared.outcome if prepared is not None and prepared.rx is rx else self._verify_table(rx)
-        if isinstance(outcome, AckResult):
-            return self._refuse(tid, outcome, version)
-        return self._stage(tid, outcome)
-
-    def _verify_table(self, rx: _Transfer) -> HeldTable | AckResult:
-        """A complete table transfer checked (CRC, every limit) and made ready to run, or the refusal; changes nothing."""
-        wire = WireTable.from_row_values(rx.rows)
-        if wire.crc32() != rx.crc32:
-            return AckResult.CRC_MISMATCH
-        try:
-            table = wire.to_device_table()
-        except ValueError:
-            return AckResult.SAFETY_LIMIT
-        if check_table(table, self.config.limits):
-            return AckResult.SAFETY_LIMIT
-        schedule = ImpedanceSchedule.from_table(table, self.config.limits)
-        return HeldTable(version=rx.version, crc32=rx.crc32, table=table, schedule=schedule)
-
     def _stage(self, tid: int, held: HeldTable) -> can.Message:
-        """Keep a verified table or envelope for the next heel strike and acknowledge it with its CRC."""
+        """Keep a verified envelope for the next heel strike and acknowledge it with its CRC."""
         self.staged_ = held
         self._last_commit = _LastCommit(tid, held.version, held.crc32)
         self.faults_ &= ~(Fault.TABLE_REFUSED | Fault.RECEIVE_ERROR)
@@ -324,11 +274,11 @@ class DeviceFirmware:
             return self._ack(tid, AckResult.STAGED, crc32=crc, version=version)   # our acknowledgement was lost
         return self._ack(tid, AckResult.UNKNOWN_TRANSFER, version=version)
 
-    def _commit_envelope(self, raw: dict[str, int], prepared: Prepared | None) -> can.Message:
+    def _commit(self, raw: dict[str, int], prepared: Prepared | None) -> can.Message:
         """All or nothing: every frame, the CRC over all of them, every node's limits and the neighbour rule."""
         tid, version, crc = raw["transfer_id"], raw["version"], raw["crc32"]
         rx = self._rx
-        if not isinstance(rx, EnvelopeReceiver) or rx.transfer_id != tid:
+        if rx is None or rx.transfer_id != tid:
             return self._unknown_or_repeat(tid, version, crc)
         if (rx.version, rx.crc32, rx.n_speeds, rx.n_inclines) != (version, crc, raw["n_speeds"], raw["n_inclines"]):
             self._rx = None
@@ -337,19 +287,30 @@ class DeviceFirmware:
         if missing:   # the count of missing frames: the host sends the transfer's data again
             return self._ack(tid, AckResult.MISSING_ROWS, missing=min(missing, 0xFFFF), version=version)
         self._rx = None
-        outcome = prepared.outcome if prepared is not None and prepared.rx is rx else self._verify_envelope(rx)
+        outcome = prepared.outcome if prepared is not None and prepared.rx is rx else self._verify(rx)
         if isinstance(outcome, AckResult):
             return self._refuse(tid, outcome, version)
         return self._stage(tid, outcome)
 
-    def _verify_envelope(self, rx: EnvelopeReceiver) -> HeldTable | AckResult:
+    def _verify(self, rx: EnvelopeReceiver) -> HeldTable | AckResult:
         """A complete envelope transfer checked (CRC, every node's limits, the neighbour rule, the nominal task inside
-        the grid) and its blender built, or the refusal; changes nothing."""
+        the grid) and its blender built (none for one node: a table), or the refusal; changes nothing."""
         wire = rx.wire()
         if wire.crc32() != rx.crc32:
             return AckResult.CRC_MISMATCH
         try:
             device = wire.to_device()
+        except ValueError:
+            return AckResult.SAFETY_LIMIT
+        if rx.n_nodes == 1:
+            [table] = device.tables
+            if device.nominal != (device.speeds_mps[0], device.inclines_deg[0]):
+                return AckResult.MALFORMED   # a table's task is its node's: not a transfer the host can have built
+            if check_table(table, self.config.limits):
+                return AckResult.SAFETY_LIMIT
+            return HeldTable(version=rx.version, crc32=rx.crc32, envelope=device,
+                             schedule=ImpedanceSchedule.from_table(table, self.config.limits))
+        try:
             blender = EnvelopeBlender(device.speeds_mps, device.inclines_deg, device.tables, self.config.limits,
                                       self.config.neighbour_steps)
             nominal = blender.at(*device.nominal)
@@ -357,7 +318,7 @@ class DeviceFirmware:
             return AckResult.SAFETY_LIMIT
         if nominal.clamped:   # the nominal task lies outside the grid: not an envelope the host can have built
             return AckResult.MALFORMED
-        return HeldTable(version=rx.version, crc32=rx.crc32, table=None, schedule=nominal.schedule, envelope=device,
+        return HeldTable(version=rx.version, crc32=rx.crc32, envelope=device, schedule=nominal.schedule,
                          blender=blender)
 
     def prepare(self, msg: can.Message) -> Prepared | None:
@@ -370,17 +331,14 @@ class DeviceFirmware:
             decoded = decode(msg)
         except ProtocolError:
             return None
-        if decoded is None or decoded[0] not in ("TABLE_COMMIT", "ENVELOPE_COMMIT"):
+        if decoded is None or decoded[0] != "ENVELOPE_COMMIT":
             return None
-        name, raw = decoded
+        raw = decoded[1]
         rx = self._rx
         try:
-            if name == "TABLE_COMMIT" and isinstance(rx, _Transfer) and raw["transfer_id"] == rx.transfer_id \
-                    and (rx.version, rx.crc32) == (raw["version"], raw["crc32"]) and len(rx.rows) == ROW_COUNT:
-                return Prepared(rx, self._verify_table(rx))
-            if name == "ENVELOPE_COMMIT" and isinstance(rx, EnvelopeReceiver) and raw["transfer_id"] == rx.transfer_id \
+            if rx is not None and raw["transfer_id"] == rx.transfer_id \
                     and (rx.version, rx.crc32) == (raw["version"], raw["crc32"]) and not rx.missing():
-                return Prepared(rx, self._verify_envelope(rx))
+                return Prepared(rx, self._verify(rx))
         except Exception:   # receive() meets the same error and fails safe (DEVICE_ERROR)
             return None
         return None
@@ -474,7 +432,7 @@ class DeviceFirmware:
 
     def _controller_for(self, held: HeldTable) -> StateMachineController | AdaptiveController:
         cfg = self.config
-        if held.blender is None or held.envelope is None:
+        if held.blender is None:
             return StateMachineController(held.schedule, cfg.actuator, forefoot_m=cfg.forefoot_m)
         estimator = TaskEstimator(cfg.thigh_length_m, cfg.shank_length_m, forefoot_m=cfg.forefoot_m)
         adaptive = AdaptiveController(held.blender, estimator, held.envelope.nominal, cfg.actuator,
@@ -536,8 +494,8 @@ class DeviceFirmware:
               out: list[can.Message]) -> tuple[float, float, list[can.Message]]:
         cfg = self.config
         self._now_s = now_s
-        rx_timeout = cfg.envelope_transfer_timeout_s if isinstance(self._rx, EnvelopeReceiver) else cfg.transfer_timeout_s
-        if self._rx is not None and now_s - self._rx.started_s > rx_timeout:
+        if self._rx is not None and now_s - self._rx.started_s > (
+                cfg.transfer_timeout_s if self._rx.n_nodes == 1 else cfg.envelope_transfer_timeout_s):
             out.append(self._refuse(self._rx.transfer_id, AckResult.TIMEOUT, self._rx.version))
             self._rx = None
         host_alive = now_s - self.last_heartbeat_s_ <= cfg.heartbeat_timeout_s

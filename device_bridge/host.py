@@ -26,7 +26,7 @@ from typing import Self
 
 import can
 
-from controller_core.envelope import Envelope
+from controller_core.envelope import Envelope, envelope_of_table
 from controller_core.table import ParameterTable
 from device_bridge.bus_threads import BusThreads
 from device_bridge.clock import WALL_CLOCK, Clock
@@ -34,7 +34,6 @@ from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, enve
 from device_bridge.host_calibration import CalibrationClient
 from device_bridge.protocol import (
     FAULT_MASK,
-    ROW_COUNT,
     TELEMETRY_PERIOD_S,
     TEMPERATURE_UNKNOWN_RAW,
     TRANSFER_IDS,
@@ -45,9 +44,6 @@ from device_bridge.protocol import (
     LinkMode,
     Mode,
     ProtocolError,
-    WireTable,
-    begin_frame,
-    commit_frame,
     decode,
     encode,
     physical,
@@ -233,14 +229,28 @@ def _check_version(version: int, what: str) -> None:
 
 @dataclass(frozen=True)
 class _Outgoing:
-    """One push's frames and how to resend what the device says is missing."""
+    """One push: the envelope's raw values (a table's: its one node), its version and CRC, and what the clinic calls
+    it in a refusal ("table" for one node)."""
 
+    wire: WireEnvelope
+    version: int
     crc: int
-    frames: Callable[[int], list[can.Message]]
-    begin: Callable[[int], can.Message]
-    commit: Callable[[int], can.Message]
-    resend: Callable[[list[can.Message], dict[str, int]], tuple[list[can.Message], str]]
     kind: str
+
+    @classmethod
+    def of(cls, content: ParameterTable | Envelope, version: int) -> _Outgoing:
+        envelope = content if isinstance(content, Envelope) else envelope_of_table(content)
+        wire = WireEnvelope.from_envelope(envelope)
+        return cls(wire, version, wire.crc32(), "table" if envelope.single_node else "envelope")
+
+    def frames(self, tid: int) -> list[can.Message]:
+        return self.wire.frames(tid)
+
+    def begin(self, tid: int) -> can.Message:
+        return envelope_begin_frame(tid, self.version, self.crc, self.wire.shape)
+
+    def commit(self, tid: int) -> can.Message:
+        return envelope_commit_frame(tid, self.version, self.crc, self.wire.shape)
 
 
 class DeviceLink(BusThreads):
@@ -534,8 +544,8 @@ class DeviceLink(BusThreads):
     def push(self, content: ParameterTable | Envelope, version: int, timeout_s: float | None = None,
              ack_timeout_s: float | None = None) -> PushResult:
         """Send a table or a whole envelope as ``version`` and wait until the device acknowledges its exact CRC-32
-        (all or nothing: until then the device runs what it ran before). The one push: each kind goes out in its
-        frames (a table's thirteen, an envelope's axes and nodes), the rest is the same.
+        (all or nothing: until then the device runs what it ran before). The one push: a table goes out as the
+        envelope of its one node (axes, the node and their checks), which the device runs as a table.
 
         Args:
             content: the (approved) table or envelope; rounded to the wire quanta, so the CRC is that of the rounded
@@ -555,12 +565,12 @@ class DeviceLink(BusThreads):
                 device error ("device_error"), or no matching acknowledgement before ``timeout_s`` ("timeout":
                 unconfirmed, the device may have taken it as the acknowledgement was lost).
         """
-        envelope = isinstance(content, Envelope)
-        _check_version(version, "envelope" if envelope else "table")
-        transfer = _envelope_transfer(content, version) if envelope else _table_transfer(content, version)
+        transfer = _Outgoing.of(content, version)
+        _check_version(version, transfer.kind)
+        one = transfer.kind == "table"
         with self._push_lock:
-            return self._push(transfer, version, (3.0 if envelope else 2.0) if timeout_s is None else timeout_s,
-                              self._ack_wait(ack_timeout_s, 0.02 if envelope else 0.01))
+            return self._push(transfer, version, (2.0 if one else 3.0) if timeout_s is None else timeout_s,
+                              self._ack_wait(ack_timeout_s, 0.01 if one else 0.02))
 
     def _ack_wait(self, given: float | None, on_can_s: float) -> float:
         """The acknowledgement wait: as given, else ``on_can_s`` or the bus's own round trip if longer."""
@@ -622,9 +632,9 @@ class DeviceLink(BusThreads):
                     last_reason = f"the device acknowledged CRC {ack['crc32']:08x}, expected {crc:08x}"
                     self._send(commit)
                     continue
-                if result == AckResult.MISSING_ROWS:
-                    again, last_reason = transfer.resend(frames, ack)
-                    self._send_all([*again, commit])
+                if result == AckResult.MISSING_ROWS:   # the device keeps the nodes it has checked: send the data again
+                    last_reason = f"{ack['missing_rows']} frame(s) were lost"
+                    self._send_all([*frames, commit])
                     continue
                 if result == AckResult.SAFETY_LIMIT:
                     rule = " or two neighbouring nodes break the neighbour rule" if transfer.kind == "envelope" else ""
@@ -675,29 +685,3 @@ class HeartbeatClock(BusThreads):
             self.beat()
             next_t += self.period_s
             clock.wait(self._stop, next_t - clock.monotonic())
-
-
-def _table_transfer(table: ParameterTable, version: int) -> _Outgoing:
-    """A table's frames, its CRC and how a commit that lost rows is answered: the lost rows again."""
-    wire = WireTable.from_table(table)
-    crc = wire.crc32()
-
-    def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
-        missing = [i for i in range(ROW_COUNT) if ack["missing_rows"] >> i & 1]
-        return [frames[i] for i in missing], f"rows {missing} were lost"
-
-    return _Outgoing(crc, wire.frames, lambda tid: begin_frame(tid, version, crc),
-                     lambda tid: commit_frame(tid, version, crc), resend, "table")
-
-
-def _envelope_transfer(envelope: Envelope, version: int) -> _Outgoing:
-    """An envelope's frames, its CRC and how a commit that lost frames is answered: every frame again (the device
-    keeps the nodes it has checked)."""
-    wire = WireEnvelope.from_envelope(envelope)
-    crc, shape = wire.crc32(), wire.shape
-
-    def resend(frames: list[can.Message], ack: dict[str, int]) -> tuple[list[can.Message], str]:
-        return frames, f"{ack['missing_rows']} frame(s) were lost"
-
-    return _Outgoing(crc, wire.frames, lambda tid: envelope_begin_frame(tid, version, crc, shape),
-                     lambda tid: envelope_commit_frame(tid, version, crc, shape), resend, "envelope")

@@ -1,13 +1,9 @@
 """The device link's frames: defined once in ``quasitune.dbc``, encoded and decoded here with cantools.
 
-A parameter table travels as thirteen classic-CAN frames in fixed-point: eight impedance rows (knee then ankle,
-sub-phases in walking order), two threshold frames, the body mass, the stumble support's trigger and the early
-landing's.
-:class:`WireTable` holds those raw integers; its CRC-32 (zlib's polynomial) covers every raw value in row order, packed
-as little-endian int32, so the host and the device compute it from exactly the numbers the device will run. The wire
-quanta are the table's precision on the device: 0.001 N·m/rad, 0.001°, 0.001 N·m·s/rad, 0.01 N·m, 0.1 N, 1 ms (the
-stumble trigger: 0.01°, 0.1 deg/s, 1 % of stance; the early landing's: 1 %); the host rounds to them before
-computing the CRC, and :meth:`WireTable.from_table` refuses any value that does not fit its field.
+Parameters travel in one kind of transfer, an envelope's (:mod:`device_bridge.envelope_wire`; a fixed-task table is
+the envelope of its one node) of classic-CAN frames in fixed-point, each value rounded to its field's quantum
+(:func:`quantize`, which refuses any value that does not fit) and covered by a CRC-32 (:func:`wire_crc32`), so the
+host and the device compute it from exactly the numbers the device will run.
 
 Every decoded frame is checked for its declared length first: a truncated or over-long frame is a
 :class:`ProtocolError` naming the message, never a partly decoded one.
@@ -28,18 +24,12 @@ import cantools
 from cantools.database.can import Database, Message
 
 from controller_core.quasi_stiffness import SUBPHASES
-from controller_core.table import LimitViolation, ParameterTable, SafetyLimits, Thresholds, check_table
+from controller_core.table import ParameterTable, Thresholds
 
 DBC_PATH = Path(__file__).with_name("quasitune.dbc")
 
 JOINTS: tuple[str, str] = ("knee", "ankle")
 ROW_ORDER: tuple[tuple[str, str], ...] = tuple((j, s) for j in JOINTS for s in SUBPHASES)
-THRESHOLDS_A_INDEX = len(ROW_ORDER)        # 8
-THRESHOLDS_B_INDEX = len(ROW_ORDER) + 1    # 9
-BODY_INDEX = len(ROW_ORDER) + 2            # 10: the body mass the table was built for (the support floor needs it)
-STUMBLE_INDEX = len(ROW_ORDER) + 3         # 11: the stumble support's trigger
-LANDING_INDEX = len(ROW_ORDER) + 4         # 12: the early landing's trigger
-ROW_COUNT = len(ROW_ORDER) + 5             # 13 frames between begin and commit
 TRANSFER_IDS = 16                          # 4-bit transfer id
 TELEMETRY_PERIOD_S = 0.01                  # one telemetry sample every 10 ms (the DBC's TELEMETRY_GAIT comment)
 
@@ -297,7 +287,7 @@ def physical(name: str, raw: dict[str, int]) -> dict[str, float]:
     return {s.name: raw[s.name] * s.scale + s.offset for s in m.signals}
 
 
-# --------------------------------------------------------------------------------------------- tables
+# --------------------------------------------------------------------------------------------- parameters
 
 ROW_SIGNALS = ("k", "theta_e", "b")   # an impedance row's signals, in frame order (tables and envelope nodes)
 # the one map from a wire signal to the table field it carries (rows: ParameterRow; thresholds: Thresholds)
@@ -311,10 +301,8 @@ SIGNAL_FIELDS = {
     "fold_knee_rate": "fold_knee_rate_deg_per_s", "fold_window": "fold_window_of_stance_pct",
     "early_landing_swing": "early_landing_swing_pct", "forefoot_landing": "forefoot_landing_pct",
 }
-_THRESH_A = ("sf_to_se_ankle_moment", "se_to_wf_load", "we_to_sf_load", "sf_to_se_knee_extension")
-_THRESH_B = ("wf_to_we_knee_angle", "min_state_time", "max_state_time")
-STUMBLE_SIGNALS = ("stumble_knee_margin", "stumble_knee_rate", "fold_knee_rate", "fold_window")   # tables, nodes
-LANDING_SIGNALS = ("early_landing_swing", "forefoot_landing")   # tables and nodes
+STUMBLE_SIGNALS = ("stumble_knee_margin", "stumble_knee_rate", "fold_knee_rate", "fold_window")   # each node's
+LANDING_SIGNALS = ("early_landing_swing", "forefoot_landing")
 
 
 def quantize(msg_name: str, signal: str, value: float, field: str) -> int:
@@ -358,123 +346,8 @@ class DeviceTable:
 
 def wire_crc32(raw: list[int]) -> int:
     """The link's one checksum: CRC-32 (zlib) of raw field values, little-endian int32 each, in transfer order. The
-    device computes the same over what it received; a table, an envelope and each envelope node use it."""
+    device computes the same over what it received; a whole transfer, its axes and each node use it."""
     return zlib.crc32(struct.pack(f"<{len(raw)}i", *raw))
-
-
-@dataclass(frozen=True)
-class WireTable:
-    """A parameter table as raw fixed-point integers, in transfer order.
-
-    Attributes:
-        rows: eight (k, θe, b) raw triples in :data:`ROW_ORDER`.
-        thresholds: seven raw threshold values (A: moment, toe-off load, heel-strike load, SF→SE knee
-            extension speed; B: knee angle, minimum and maximum state time).
-        body_mass: the body mass the table was built for (TABLE_BODY, 0.01 kg): the device checks the knee's
-            stance support floor, which scales with it, on exactly what it will run.
-        stumble: the stumble support's trigger (TABLE_STUMBLE: :data:`STUMBLE_SIGNALS`).
-        landing: the early landing's trigger (TABLE_LANDING: :data:`LANDING_SIGNALS`).
-    """
-
-    rows: tuple[tuple[int, int, int], ...]
-    thresholds: tuple[int, int, int, int, int, int, int]
-    body_mass: int
-    stumble: tuple[int, int, int, int]
-    landing: tuple[int, int]
-
-    @classmethod
-    def from_table(cls, table: ParameterTable) -> WireTable:
-        """Round a table to the wire quanta (ProtocolError when a value does not fit its field)."""
-        rows = []
-        for joint, sub in ROW_ORDER:
-            r = table.row(joint, sub)
-            rows.append(tuple(quantize("TABLE_ROW", f, getattr(r, SIGNAL_FIELDS[f]),
-                                        f"{joint}.{sub}.{SIGNAL_FIELDS[f]}") for f in ROW_SIGNALS))
-        t = table.thresholds
-        th = [quantize("TABLE_THRESHOLDS_A", f, getattr(t, SIGNAL_FIELDS[f]),
-                        f"thresholds.{SIGNAL_FIELDS[f]}") for f in _THRESH_A]
-        th += [quantize("TABLE_THRESHOLDS_B", f, getattr(t, SIGNAL_FIELDS[f]),
-                         f"thresholds.{SIGNAL_FIELDS[f]}") for f in _THRESH_B]
-        mass = quantize("TABLE_BODY", "body_mass", table.body_mass_kg, "body_mass_kg")
-        stumble = tuple(quantize("TABLE_STUMBLE", f, getattr(t, SIGNAL_FIELDS[f]), f"thresholds.{SIGNAL_FIELDS[f]}")
-                        for f in STUMBLE_SIGNALS)
-        landing = tuple(quantize("TABLE_LANDING", f, getattr(t, SIGNAL_FIELDS[f]), f"thresholds.{SIGNAL_FIELDS[f]}")
-                        for f in LANDING_SIGNALS)
-        return cls(rows=tuple(rows), thresholds=tuple(th), body_mass=mass, stumble=stumble,  # type: ignore[arg-type]
-                   landing=landing)  # type: ignore[arg-type]
-
-    def crc32(self) -> int:
-        """CRC-32 of the raw values in transfer order (what the device verifies and reads back)."""
-        return wire_crc32([v for row in self.rows for v in row] + list(self.thresholds) + [self.body_mass]
-                          + list(self.stumble) + list(self.landing))
-
-    def to_device_table(self) -> DeviceTable:
-        """The physical values the device runs (raises pydantic's ValidationError on a non-physical threshold)."""
-        rows = tuple(DeviceRow(joint, sub, *(to_physical("TABLE_ROW", f, raw)
-                                             for raw, f in zip(r, ROW_SIGNALS, strict=True)))
-                     for (joint, sub), r in zip(ROW_ORDER, self.rows, strict=True))
-        names = [("TABLE_THRESHOLDS_A", f) for f in _THRESH_A] + [("TABLE_THRESHOLDS_B", f) for f in _THRESH_B]
-        values = {SIGNAL_FIELDS[f]: to_physical(m, f, raw)
-                  for (m, f), raw in zip(names, self.thresholds, strict=True)}
-        values |= {SIGNAL_FIELDS[f]: to_physical("TABLE_STUMBLE", f, raw)
-                   for f, raw in zip(STUMBLE_SIGNALS, self.stumble, strict=True)}
-        values |= {SIGNAL_FIELDS[f]: to_physical("TABLE_LANDING", f, raw)
-                   for f, raw in zip(LANDING_SIGNALS, self.landing, strict=True)}
-        return DeviceTable(rows=rows, thresholds=Thresholds(**values),
-                           body_mass_kg=to_physical("TABLE_BODY", "body_mass", self.body_mass))
-
-    def frames(self, transfer_id: int) -> list[can.Message]:
-        """The thirteen data frames (row_index 0–12) of a transfer."""
-        out = [encode("TABLE_ROW", {"transfer_id": transfer_id, "row_index": i, "k": k, "theta_e": th, "b": b})
-               for i, (k, th, b) in enumerate(self.rows)]
-        a, b = self.thresholds[:len(_THRESH_A)], self.thresholds[len(_THRESH_A):]
-        out.append(encode("TABLE_THRESHOLDS_A", {"transfer_id": transfer_id, "row_index": THRESHOLDS_A_INDEX,
-                                                 **dict(zip(_THRESH_A, a, strict=True))}))
-        out.append(encode("TABLE_THRESHOLDS_B", {"transfer_id": transfer_id, "row_index": THRESHOLDS_B_INDEX,
-                                                 **dict(zip(_THRESH_B, b, strict=True))}))
-        out.append(encode("TABLE_BODY", {"transfer_id": transfer_id, "row_index": BODY_INDEX,
-                                         "body_mass": self.body_mass}))
-        out.append(encode("TABLE_STUMBLE", {"transfer_id": transfer_id, "row_index": STUMBLE_INDEX,
-                                            **dict(zip(STUMBLE_SIGNALS, self.stumble, strict=True))}))
-        out.append(encode("TABLE_LANDING", {"transfer_id": transfer_id, "row_index": LANDING_INDEX,
-                                            **dict(zip(LANDING_SIGNALS, self.landing, strict=True))}))
-        return out
-
-    @staticmethod
-    def row_from_frame(name: str, raw: dict[str, int]) -> tuple[int, tuple[int, ...]] | None:
-        """(row index, raw values) of a decoded data frame; None when its index does not belong to its kind."""
-        i = raw["row_index"]
-        if name == "TABLE_ROW" and i < THRESHOLDS_A_INDEX:
-            return i, tuple(raw[f] for f in ROW_SIGNALS)
-        if name == "TABLE_THRESHOLDS_A" and i == THRESHOLDS_A_INDEX:
-            return i, tuple(raw[f] for f in _THRESH_A)
-        if name == "TABLE_THRESHOLDS_B" and i == THRESHOLDS_B_INDEX:
-            return i, tuple(raw[f] for f in _THRESH_B)
-        if name == "TABLE_BODY" and i == BODY_INDEX:
-            return i, (raw["body_mass"],)
-        if name == "TABLE_STUMBLE" and i == STUMBLE_INDEX:
-            return i, tuple(raw[f] for f in STUMBLE_SIGNALS)
-        if name == "TABLE_LANDING" and i == LANDING_INDEX:
-            return i, tuple(raw[f] for f in LANDING_SIGNALS)
-        return None
-
-    @classmethod
-    def from_row_values(cls, values: dict[int, tuple[int, ...]]) -> WireTable:
-        """Assemble from the row values of a complete transfer (index → raw values)."""
-        rows = tuple(values[i] for i in range(THRESHOLDS_A_INDEX))
-        th = values[THRESHOLDS_A_INDEX] + values[THRESHOLDS_B_INDEX]
-        return cls(rows=rows, thresholds=th, body_mass=values[BODY_INDEX][0],  # type: ignore[arg-type]
-                   stumble=values[STUMBLE_INDEX], landing=values[LANDING_INDEX])
-
-
-def begin_frame(transfer_id: int, version: int, crc32: int) -> can.Message:
-    return encode("TABLE_BEGIN", {"transfer_id": transfer_id, "version": version, "row_count": ROW_COUNT,
-                                  "crc32": crc32})
-
-
-def commit_frame(transfer_id: int, version: int, crc32: int) -> can.Message:
-    return encode("TABLE_COMMIT", {"transfer_id": transfer_id, "version": version, "row_count": ROW_COUNT,
-                                   "crc32": crc32})
 
 
 def with_device_values(table: ParameterTable, device: DeviceTable) -> ParameterTable:
@@ -482,39 +355,3 @@ def with_device_values(table: ParameterTable, device: DeviceTable) -> ParameterT
     fields = [SIGNAL_FIELDS[s] for s in ROW_SIGNALS]
     rows = [r.model_copy(update={f: getattr(device.row(r.joint, r.subphase), f) for f in fields}) for r in table.rows]
     return table.model_copy(update={"rows": rows, "thresholds": device.thresholds})
-
-
-def as_run(table: ParameterTable, device: DeviceTable | None = None) -> ParameterTable:
-    """The table rounded to the wire's precision: bit for bit the values the device will run, so that what is
-    checked, stored, shown and approved is what runs. A table with a value no wire field can carry is returned
-    unchanged (:func:`check_as_run` reports that value). ``device``: its decoded values, when the caller has them."""
-    if device is None:
-        try:
-            device = WireTable.from_table(table).to_device_table()
-        except ValueError:
-            return table
-    return with_device_values(table, device)
-
-
-AS_RUN = "as the device will run it (rounded to the wire's precision): "
-
-
-def check_as_run(table: ParameterTable, limits: SafetyLimits | None = None,
-                 device: DeviceTable | None = None) -> list[LimitViolation]:
-    """Every safety violation of the values the device will run: the table rounded to the wire's quanta, which
-    is what the firmware decodes and checks itself. A violation that only the rounding creates says so; a value
-    that no wire field can carry is a violation too. The one check the server makes of a table (build, edit,
-    approval, push), so that the server never approves what the device would refuse. ``device``: its decoded
-    values, when the caller has them already."""
-    if device is None:
-        try:
-            device = WireTable.from_table(table).to_device_table()
-        except ValueDoesNotFitError as exc:   # the limits say it better when they are broken too (they lie inside)
-            return check_table(table, limits) or [
-                LimitViolation(field=exc.field, value=exc.value, low=exc.low, high=exc.high, message=str(exc))]
-    found = check_table(device, limits)
-    if not found:
-        return []
-    as_typed = {(v.field, v.low, v.high) for v in check_table(table, limits)}
-    return [v if (v.field, v.low, v.high) in as_typed else v.model_copy(update={"message": AS_RUN + v.message})
-            for v in found]

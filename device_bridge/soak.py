@@ -30,11 +30,11 @@ from controller_core.envelope import Envelope
 from controller_core.fsmic import fsmic_table
 from controller_core.table import ParameterTable
 from device_bridge.device_node import DeviceNode
-from device_bridge.envelope_wire import DeviceEnvelope, WireEnvelope
+from device_bridge.envelope_wire import DeviceEnvelope, WireEnvelope, table_wire
 from device_bridge.faults import FaultInjectingBus
 from device_bridge.firmware import FirmwareConfig, HeldTable
 from device_bridge.host import DeviceLink, PushError, PushResult
-from device_bridge.protocol import DeviceTable, Mode, WireTable
+from device_bridge.protocol import Mode
 
 _channel_counter = itertools.count()
 
@@ -45,22 +45,20 @@ def _channel(prefix: str) -> str:
 
 @dataclass(frozen=True)
 class _Known:
-    """A table or envelope the soak pushes, with the values and CRC-32 the device holds when it arrives intact."""
+    """A table or envelope the soak pushes, with the values and CRC-32 the device holds when it arrives intact (a
+    table: the envelope of its one node)."""
 
     item: ParameterTable | Envelope
-    values: DeviceTable | DeviceEnvelope
+    values: DeviceEnvelope
     crc32: int
 
     @classmethod
     def of(cls, item: ParameterTable | Envelope) -> _Known:
-        if isinstance(item, Envelope):
-            env = WireEnvelope.from_envelope(item)
-            return cls(item, env.to_device(), env.crc32())
-        wire = WireTable.from_table(item)
-        return cls(item, wire.to_device_table(), wire.crc32())
+        wire = WireEnvelope.from_envelope(item) if isinstance(item, Envelope) else table_wire(item)
+        return cls(item, wire.to_device(), wire.crc32())
 
     def held_as(self, held: HeldTable) -> bool:
-        return (held.envelope if isinstance(self.values, DeviceEnvelope) else held.table) == self.values
+        return held.envelope == self.values
 
     def push(self, link: DeviceLink, version: int, timeout_s: float) -> PushResult:
         return link.push(self.item, version, timeout_s=timeout_s)

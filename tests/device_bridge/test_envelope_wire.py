@@ -10,7 +10,13 @@ import pytest
 from controller_core.adaptive import AdaptiveController
 from controller_core.envelope import Envelope
 from controller_core.fsm import GaitState, SensorSample, StateMachineController
-from device_bridge.envelope_wire import WireEnvelope, check_envelope_as_run, envelope_begin_frame, envelope_commit_frame
+from device_bridge.envelope_wire import (
+    WireEnvelope,
+    check_envelope_as_run,
+    envelope_begin_frame,
+    envelope_commit_frame,
+    table_wire,
+)
 from device_bridge.firmware import DeviceFirmware
 from device_bridge.protocol import AckResult, Mode, ProtocolError, decode, physical
 from device_bridge.soak import soak
@@ -170,8 +176,6 @@ def test_a_walking_leg_adapts_to_a_ramp_and_streams_its_estimate_to_the_host(env
 
 
 def test_a_table_pushed_after_an_envelope_replaces_it_at_heel_strike(envelopes, tables):
-    from device_bridge.protocol import WireTable, begin_frame, commit_frame
-
     fw = DeviceFirmware()
     begin, data, commit, env_crc = frames_of(envelopes[0], 1, 40)
     feed(fw, [begin, *data, commit], 0.0)
@@ -193,8 +197,9 @@ def test_a_table_pushed_after_an_envelope_replaces_it_at_heel_strike(envelopes, 
         step(0.0, knee_velocity=1.0)
     for _ in range(100):
         step(loaded)
-    wire = WireTable.from_table(tables[1])
-    [ack] = feed(fw, [begin_frame(2, 41, wire.crc32()), *wire.frames(2), commit_frame(2, 41, wire.crc32())], t)
+    wire = table_wire(tables[1])       # the envelope of one node
+    [ack] = feed(fw, [envelope_begin_frame(2, 41, wire.crc32(), (1, 1)), *wire.frames(2),
+                      envelope_commit_frame(2, 41, wire.crc32(), (1, 1))], t)
     assert ack["result"] == AckResult.STAGED and fw.active_.crc32 == env_crc
     for load, moment, knee, velocity in [(loaded, th.sf_to_se_ankle_moment_Nm - 1, 0.3, 0.0)] * 100 + \
             [(0.0, 0.0, 0.3, 1.0)] * 100 + [(0.0, 0.0, math.radians(th.wf_to_we_knee_angle_deg) + 0.1, -2.0)] * 100:
@@ -203,7 +208,8 @@ def test_a_table_pushed_after_an_envelope_replaces_it_at_heel_strike(envelopes, 
     for _ in range(20):
         step(loaded)
     assert fw.active_.crc32 == wire.crc32() and isinstance(fw.controller_, StateMachineController)
-    assert fw.controller_.state_ == GaitState.STANCE_FLEXION and fw.active_.envelope is None
+    assert fw.controller_.state_ == GaitState.STANCE_FLEXION and fw.active_.blender is None   # run as a table
+    assert fw.active_.table == wire.to_device().tables[0]
 
 
 def test_a_commit_is_checked_before_the_firmware_is_taken_so_a_push_never_holds_up_a_control_tick(envelopes):
@@ -217,13 +223,13 @@ def test_a_commit_is_checked_before_the_firmware_is_taken_so_a_push_never_holds_
     node = DeviceNode(can.Bus(interface="virtual", channel="prepare-test"), leg=None)
     fw = node.firmware
     checked = []
-    verify = fw._verify_envelope
+    verify = fw._verify
 
     def spy(rx):
         checked.append(node.ticking.locked())
         return verify(rx)
 
-    fw._verify_envelope = spy
+    fw._verify = spy
     begin, data, commit, crc = frames_of(envelopes[0], 2, 5)
     for f in [begin, *data, commit]:
         node.handle(f, 0.0)

@@ -11,30 +11,38 @@ import pytest
 
 from controller_core.fsm import GaitState, SensorSample
 from controller_core.table import ParameterTable
+from device_bridge.envelope_wire import (
+    LANDING_ROW,
+    STUMBLE_ROW,
+    envelope_begin_frame,
+    envelope_commit_frame,
+    table_wire,
+)
 from device_bridge.firmware import DeviceFirmware, FirmwareConfig
 from device_bridge.protocol import (
-    BODY_INDEX,
-    LANDING_INDEX,
-    ROW_COUNT,
-    STUMBLE_INDEX,
     AckResult,
     Command,
     Fault,
     LinkMode,
     Mode,
-    WireTable,
-    begin_frame,
-    commit_frame,
     decode,
     encode,
     physical,
 )
 
+BODY = 4   # a table's transfer: the axis frames (speed, incline, the nominal task's two, the body mass) and their check,
+NODE = 6   # then its one node's twelve frames (eight rows, two threshold frames, the stumble and landing triggers)
+
+
+def commit_frame(tid: int, version: int, crc: int) -> can.Message:
+    return envelope_commit_frame(tid, version, crc, (1, 1))
+
 
 def transfer(table: ParameterTable, tid: int, version: int) -> tuple[can.Message, list[can.Message], can.Message, int]:
-    wire = WireTable.from_table(table)
+    """A table's transfer: the envelope of its one node (begin, data frames, commit) and its CRC."""
+    wire = table_wire(table)
     crc = wire.crc32()
-    return begin_frame(tid, version, crc), wire.frames(tid), commit_frame(tid, version, crc), crc
+    return envelope_begin_frame(tid, version, crc, (1, 1)), wire.frames(tid), commit_frame(tid, version, crc), crc
 
 
 def feed(fw: DeviceFirmware, frames: list[can.Message], now: float) -> list[dict]:
@@ -88,28 +96,32 @@ def test_reordered_rows_still_make_the_table(tables):
     assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
 
 
-def test_a_lost_row_is_named_resent_and_then_accepted(tables):
+def test_a_lost_row_is_counted_resent_and_then_accepted(tables):
     fw = DeviceFirmware()
     old = install(fw, tables[0], 1)
     begin, rows, commit, crc = transfer(tables[1], 2, 2)
-    [nack] = feed(fw, [begin, *rows[:4], *rows[5:], commit], 0.1)
-    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << 4 and nack["crc32"] == 0
+    lost = NODE + 4
+    [nack] = feed(fw, [begin, *rows[:lost], *rows[lost + 1:], commit], 0.1)
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 and nack["crc32"] == 0
     assert fw.active_.crc32 == old and fw.staged_ is None
-    [ack] = feed(fw, [rows[4], commit], 0.11)
+    [ack] = feed(fw, [rows[lost], commit], 0.11)
     assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
 
 
-def test_a_corrupted_row_fails_the_crc_and_the_old_table_stays(tables):
+def test_a_corrupted_row_fails_its_check_and_the_old_table_stays_until_clean_copies_come(tables):
     fw = DeviceFirmware()
     old = install(fw, tables[0], 1)
-    begin, rows, commit, _ = transfer(tables[1], 2, 2)
-    bad = bytearray(rows[6].data)
+    begin, rows, commit, crc = transfer(tables[1], 2, 2)
+    clean = list(rows)
+    bad = bytearray(rows[NODE + 6].data)
     bad[3] ^= 0x10   # one bit of the ankle swing-flexion stiffness
-    rows[6] = can.Message(arbitration_id=rows[6].arbitration_id, data=bytes(bad), is_extended_id=False)
+    rows[NODE + 6] = can.Message(arbitration_id=rows[NODE + 6].arbitration_id, data=bytes(bad), is_extended_id=False)
     [nack] = feed(fw, [begin, *rows, commit], 0.1)
-    assert nack["result"] == AckResult.CRC_MISMATCH
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 13   # the node's frames and check
     fw.tick(None, 0.2)
-    assert fw.active_.crc32 == old and fw.staged_ is None and Fault.TABLE_REFUSED in fw.faults_
+    assert fw.active_.crc32 == old and fw.staged_ is None
+    [ack] = feed(fw, [*clean, commit], 0.21)
+    assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
 
 
 def test_rows_of_another_transfer_are_not_mixed_in(tables):
@@ -117,7 +129,7 @@ def test_rows_of_another_transfer_are_not_mixed_in(tables):
     begin, rows, commit, _ = transfer(tables[0], 5, 1)
     _, other_rows, _, _ = transfer(tables[1], 6, 2)
     [nack] = feed(fw, [begin, *rows[:9], other_rows[9], *rows[10:], commit], 0.0)
-    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << 9
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1
 
 
 def test_begin_and_commit_must_agree(tables):
@@ -155,7 +167,7 @@ def test_the_device_refuses_an_unsafe_table_itself(tables):
 
 
 def test_the_device_holds_the_stance_support_floor_for_the_mass_on_the_wire(tables):
-    """The body mass travels in the transfer (TABLE_BODY, under the CRC): the same rows pass for the 75 kg they were
+    """The body mass travels in the transfer (an axis frame, under the CRC): the same rows pass for the 75 kg they were
     built for and are refused for 180 kg, whose floor (−216 N·m/rad) the knee's stance flexion is softer than."""
     fw = DeviceFirmware()
     table = tables[0]
@@ -168,18 +180,18 @@ def test_the_device_holds_the_stance_support_floor_for_the_mass_on_the_wire(tabl
     assert nack["result"] == AckResult.SAFETY_LIMIT and fw.staged_ is None
 
 
-@pytest.mark.parametrize("index", [BODY_INDEX, STUMBLE_INDEX, LANDING_INDEX])
+@pytest.mark.parametrize("index", [BODY, NODE + STUMBLE_ROW, NODE + LANDING_ROW])
 def test_the_body_mass_stumble_and_landing_frames_are_part_of_the_transfer(tables, index):
     begin, rows, commit, crc = transfer(tables[0], 3, 3)
     fw = DeviceFirmware()
     [nack] = feed(fw, [begin, *rows[:index], *rows[index + 1:], commit], 0.0)   # that frame lost
-    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1 << index
+    assert nack["result"] == AckResult.MISSING_ROWS and nack["missing_rows"] == 1
     [ack] = feed(fw, [rows[index], commit], 0.1)
     assert ack["result"] == AckResult.STAGED and ack["crc32"] == crc
 
 
 def test_the_device_runs_the_stumble_support_it_was_sent_and_refuses_one_out_of_its_limits(tables):
-    """The stumble and early-landing triggers travel in the transfer (TABLE_STUMBLE, TABLE_LANDING, under the CRC):
+    """The stumble and early-landing triggers travel in the transfer (ENVELOPE_STUMBLE, ENVELOPE_LANDING, under the CRC):
     the leg's state machine runs the values sent, and the device refuses a fold speed at which every downhill stance
     would be held stiff, and an early-landing share that ordinary stride-to-stride variation would trip."""
     fw = DeviceFirmware()
@@ -218,10 +230,28 @@ def test_a_truncated_frame_is_counted_and_harms_nothing(tables):
     assert fw.rx_errors_ == 1 and Fault.MALFORMED_FRAME in fw.faults_
 
 
-def test_row_count_must_be_the_protocols():
+def test_a_table_whose_nominal_task_is_not_its_node_is_refused_and_one_runs_as_a_table(tables):
+    """One node is a table: the leg runs it on the state machine alone (nothing to blend, no task telemetry), and a
+    one-node transfer whose nominal task is elsewhere is no table the host can have built."""
     fw = DeviceFirmware()
-    bad_begin = encode("TABLE_BEGIN", {"transfer_id": 1, "version": 1, "row_count": ROW_COUNT - 1, "crc32": 5})
-    [nack] = feed(fw, [bad_begin], 0.0)
+    install(fw, tables[0], 1)
+    assert fw.active_.blender is None and fw.active_.table is not None
+    assert type(fw.controller_).__name__ == "StateMachineController"
+    _, _, out = fw.tick(standing(0.01), 0.01)
+    assert not [m for m in out if decode(m)[0] == "TELEMETRY_TASK"]
+    wire = table_wire(tables[1])
+    odd = dataclasses.replace(wire, nominal=(wire.nominal[0] + 100, wire.nominal[1]))
+    crc = odd.crc32()
+    [nack] = feed(fw, [envelope_begin_frame(2, 2, crc, (1, 1)), *odd.frames(2), commit_frame(2, 2, crc)], 0.1)
+    assert nack["result"] == AckResult.MALFORMED and fw.staged_ is None
+
+
+@pytest.mark.parametrize("shape", [(1, 2), (2, 1), (0, 1), (8, 9)])
+def test_a_transfer_is_one_node_or_a_grid_the_leg_can_hold(shape):
+    """A table is one node (1 × 1), a range of tasks at least 2 × 2 and at most 64 nodes: anything else is refused at
+    its begin."""
+    fw = DeviceFirmware()
+    [nack] = feed(fw, [envelope_begin_frame(1, 1, 5, shape)], 0.0)
     assert nack["result"] == AckResult.MALFORMED
 
 

@@ -6,9 +6,10 @@ import can
 import pytest
 
 from device_bridge.clock import SteppedClock
+from device_bridge.envelope_wire import table_wire
 from device_bridge.firmware import FirmwareConfig
 from device_bridge.host import DeviceLink, PushError
-from device_bridge.protocol import Command, Mode, WireTable
+from device_bridge.protocol import Command, Mode
 from tests.helpers.device import pair, until
 
 
@@ -16,7 +17,7 @@ def test_a_push_returns_the_crc_the_device_then_reports_active(tables):
     node, link = pair()
     try:
         result = link.push(tables[0], version=42)
-        assert result.crc32 == WireTable.from_table(tables[0]).crc32() and result.version == 42
+        assert result.crc32 == table_wire(tables[0]).crc32() and result.version == 42
         until(lambda: link.status is not None and link.status.active_crc32 == result.crc32, clock=link.clock)
         assert link.status.mode == Mode.ACTIVE and link.status.active_version == 42
         assert node.snapshot().active.crc32 == result.crc32
@@ -31,8 +32,8 @@ def test_a_table_the_device_finds_unsafe_is_refused_and_the_old_one_stays(tables
         old = link.push(tables[0], version=1).crc32
         until(lambda: node.snapshot().active is not None, clock=link.clock)   # a leg at rest switches at its next tick
         row = tables[1].rows[0]
-        unsafe = tables[1].model_copy(update={"rows": [row.model_copy(update={"b_Nm_s_per_rad": 60.0}),
-                                                       *tables[1].rows[1:]]})
+        unsafe = tables[1].model_copy(update={"rows": [row.model_copy(update={"k_Nm_per_rad": 900.0}),
+                                                       *tables[1].rows[1:]]})   # fits the wire; injects energy
         with pytest.raises(PushError, match="outside its own safety limits") as err:
             link.push(unsafe, version=2)
         assert err.value.reason == "safety_limit"
@@ -78,7 +79,7 @@ def test_a_failing_callback_does_not_stop_the_link(tables):
     node, link = pair(on_status=broken)
     try:
         until(lambda: link.callback_errors > 0, clock=link.clock)
-        assert link.push(tables[0], version=5).crc32 == WireTable.from_table(tables[0]).crc32()
+        assert link.push(tables[0], version=5).crc32 == table_wire(tables[0]).crc32()
     finally:
         link.close()
         node.close()

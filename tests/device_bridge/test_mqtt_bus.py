@@ -14,10 +14,11 @@ from paho.mqtt.enums import CallbackAPIVersion
 
 from device_bridge.broker_admin import Identity
 from device_bridge.device_node import DeviceNode
+from device_bridge.envelope_wire import table_wire
 from device_bridge.gateway import Gateway
 from device_bridge.host import DeviceLink, PushError
 from device_bridge.mqtt_bus import MqttBus, pack_frames, topic, unpack_frames
-from device_bridge.protocol import WireTable, frame_id
+from device_bridge.protocol import frame_id
 from tests.helpers.device import until
 from tests.helpers.mosquitto import connect_as
 
@@ -155,7 +156,7 @@ def test_a_replaced_password_shuts_the_old_one_out(broker, broker_admin):
 
 
 class _Tamper(can.BusABC):
-    """A bridge that alters one byte of every TABLE_ROW frame it forwards while ``active`` (a broker or bridge gone
+    """A bridge that alters one byte of every ENVELOPE_ROW frame it forwards while ``active`` (a broker or bridge gone
     bad)."""
 
     def __init__(self, inner: MqttBus) -> None:
@@ -170,7 +171,7 @@ class _Tamper(can.BusABC):
 
     def _recv_internal(self, timeout):
         msg = self.inner.recv(timeout)
-        if self.active and msg is not None and msg.arbitration_id == frame_id("TABLE_ROW"):
+        if self.active and msg is not None and msg.arbitration_id == frame_id("ENVELOPE_ROW"):
             data = bytearray(msg.data)
             data[3] ^= 0x01
             msg = can.Message(arbitration_id=msg.arbitration_id, data=bytes(data), is_extended_id=False)
@@ -197,7 +198,7 @@ def test_a_push_is_acknowledged_with_its_crc_through_the_broker(broker, broker_a
     node, gateway, link = _bridged(broker, broker_admin, server_identity)
     try:
         result = link.push(tables[0], version=5)
-        assert result.crc32 == WireTable.from_table(tables[0]).crc32() == node.snapshot().staged_or_active_crc32()
+        assert result.crc32 == table_wire(tables[0]).crc32() == node.snapshot().staged_or_active_crc32()
         # the bridge counts a frame once sent, and the host may read the acknowledgement before the count is made
         until(lambda: gateway.forwarded["b_to_a"] >= 12 and gateway.forwarded["a_to_b"] > 0, 5.0, poll_s=0.05)
     finally:
@@ -219,7 +220,7 @@ def test_a_frame_altered_in_transit_never_yields_a_mixed_table(broker, broker_ad
         with pytest.raises(PushError):
             link.push(tables[1], version=6, timeout_s=2.0)
         assert tamper.altered > 0
-        assert node.snapshot().staged_or_active_crc32() == held == WireTable.from_table(tables[0]).crc32()
+        assert node.snapshot().staged_or_active_crc32() == held == table_wire(tables[0]).crc32()
     finally:
         link.close()
         gateway.close()

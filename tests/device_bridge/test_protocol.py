@@ -1,4 +1,4 @@
-"""The wire: fixed-point tables, their CRC, frames of the wrong length."""
+"""The wire: a table in fixed point (the envelope of its one node), its CRC, frames of the wrong length."""
 
 from __future__ import annotations
 
@@ -7,12 +7,9 @@ import dataclasses
 import can
 import pytest
 
-from controller_core.table import check_table
+from device_bridge.envelope_wire import FRAMES_PER_NODE, table_wire
 from device_bridge.protocol import (
-    AS_RUN,
     ProtocolError,
-    WireTable,
-    check_as_run,
     decode,
     encode,
     message,
@@ -22,8 +19,8 @@ from device_bridge.protocol import (
 
 def test_a_real_table_survives_the_wire_within_half_a_quantum(tables):
     table = tables[0]
-    device = WireTable.from_table(table).to_device_table()
-    q = {"k_Nm_per_rad": 0.001, "theta_e_deg": 0.001, "b_Nm_s_per_rad": 0.001}
+    [device] = table_wire(table).to_device().tables
+    q = {"k_Nm_per_rad": 0.001, "theta_e_deg": 0.01, "b_Nm_s_per_rad": 0.01}
     for r in table.rows:
         d = device.row(r.joint, r.subphase)
         for name, quantum in q.items():
@@ -33,56 +30,47 @@ def test_a_real_table_survives_the_wire_within_half_a_quantum(tables):
     assert abs(dth.we_to_sf_load_N - th.we_to_sf_load_N) <= 0.05 + 1e-9
     assert abs(dth.max_state_time_s - th.max_state_time_s) <= 0.0005 + 1e-9
     assert dth.sf_to_se_knee_extension_deg_per_s == th.sf_to_se_knee_extension_deg_per_s > 0   # whole deg/s
+    assert abs(device.body_mass_kg - table.body_mass_kg) <= 0.0005 + 1e-9
 
 
 def test_the_crc_covers_every_value(tables):
-    wire = WireTable.from_table(tables[0])
+    """A table's transfer is the envelope of its one node: its task, nominal task and body mass, and each of the
+    node's values (8 rows × 3, thresholds, the stumble and landing triggers) are under the CRC."""
+    wire = table_wire(tables[0])
     base = wire.crc32()
-    for i in range(8):
-        for j in range(3):
-            rows = [list(r) for r in wire.rows]
-            rows[i][j] += 1
-            assert dataclasses.replace(wire, rows=tuple(tuple(r) for r in rows)).crc32() != base
-    assert dataclasses.replace(wire, body_mass=wire.body_mass + 1).crc32() != base
-    for name in ("thresholds", "stumble", "landing"):
+    [node] = wire.nodes
+    assert len(node) == FRAMES_PER_NODE
+    for i, part in enumerate(node):
+        for j in range(len(part)):
+            changed = [list(p) for p in node]
+            changed[i][j] += 1
+            assert dataclasses.replace(wire, nodes=(tuple(tuple(p) for p in changed),)).crc32() != base, (i, j)
+    for name in ("speeds", "inclines", "nominal"):
         values = getattr(wire, name)
         for j in range(len(values)):
             changed = list(values)
             changed[j] += 1
             assert dataclasses.replace(wire, **{name: tuple(changed)}).crc32() != base, (name, j)
+    assert dataclasses.replace(wire, body_mass=wire.body_mass + 1).crc32() != base
 
 
 def test_a_value_that_does_not_fit_its_field_is_refused_before_sending(tables):
     row = tables[0].rows[0]
     big = tables[0].model_copy(update={"rows": [row.model_copy(update={"k_Nm_per_rad": -2500.0}), *tables[0].rows[1:]]})
-    with pytest.raises(ProtocolError, match=r"knee\.stance_flexion\.k_Nm_per_rad = -2500 does not fit"):
-        WireTable.from_table(big)
+    with pytest.raises(ProtocolError, match=r"^knee\.stance_flexion\.k_Nm_per_rad = -2500 does not fit"):
+        table_wire(big)     # named as in the table, not as a node of an envelope
     fast = tables[0].thresholds.model_copy(update={"sf_to_se_knee_extension_deg_per_s": 300.0})
     with pytest.raises(ProtocolError, match=r"sf_to_se_knee_extension_deg_per_s = 300 does not fit.*\[0, 255\] deg/s"):
-        WireTable.from_table(tables[0].model_copy(update={"thresholds": fast}))
+        table_wire(tables[0].model_copy(update={"thresholds": fast}))
 
 
 def test_a_truncated_frame_is_refused_and_unknown_ids_are_ignored():
-    good = encode("TABLE_ROW", {"transfer_id": 1, "row_index": 2, "k": -5000, "theta_e": 1000, "b": 500})
+    good = encode("ENVELOPE_ROW", {"transfer_id": 1, "node": 0, "row_index": 2, "k": -5000, "theta_e": 100, "b": 50})
     short = can.Message(arbitration_id=good.arbitration_id, data=good.data[:5], is_extended_id=False)
-    with pytest.raises(ProtocolError, match=r"TABLE_ROW \(id 0x201\) must be 8 bytes, got 5"):
+    with pytest.raises(ProtocolError, match=r"ENVELOPE_ROW \(id 0x207\) must be 8 bytes, got 5"):
         decode(short)
     assert decode(can.Message(arbitration_id=0x7FF, data=bytes(8), is_extended_id=False)) is None
+    assert decode(can.Message(arbitration_id=0x201, data=bytes(8), is_extended_id=False)) is None   # link 5's tables
     name, raw = decode(good)
-    assert name == "TABLE_ROW" and physical(name, raw)["k"] == pytest.approx(-5.0)
-    assert message("TABLE_ROW").get_signal_by_name("k").unit == "N.m/rad"
-
-
-def test_the_servers_check_is_of_the_values_the_device_will_run(tables):
-    table = tables[0]
-    th = table.thresholds
-    near = table.model_copy(update={"thresholds": th.model_copy(update={"min_state_time_s": 1.49951,
-                                                                         "max_state_time_s": 1.5})})
-    assert check_table(near) == []                          # fine as typed …
-    [v] = check_as_run(near)                                # … but the device runs 1.500 s ≥ 1.500 s
-    assert v.field == "thresholds.min_state_time_s" and v.message.startswith(AS_RUN)
-    assert check_as_run(table) == []
-    row = table.rows[0]
-    huge = table.model_copy(update={"rows": [row.model_copy(update={"k_Nm_per_rad": -5000.0}), *table.rows[1:]]})
-    [v] = check_as_run(huge)                                # beyond the wire too: the limit says it in its own words
-    assert "is outside [-1200, 0]" in v.message
+    assert name == "ENVELOPE_ROW" and physical(name, raw)["k"] == pytest.approx(-5.0)
+    assert message("ENVELOPE_ROW").get_signal_by_name("k").unit == "N.m/rad"

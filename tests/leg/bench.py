@@ -6,7 +6,7 @@ from __future__ import annotations
 import tempfile
 from collections.abc import Callable
 
-from controller_core.envelope import Envelope
+from controller_core.envelope import Envelope, envelope_of_table
 from controller_core.table import ParameterTable
 from device_bridge.envelope_wire import WireEnvelope, envelope_begin_frame, envelope_commit_frame
 from device_bridge.firmware import DeviceFirmware
@@ -14,7 +14,6 @@ from device_bridge.osl.bench_sdk import BenchActuator, BenchEncoder, BenchLoadce
 from device_bridge.osl.config import Calibration, LegConfig, parse_config
 from device_bridge.osl.hardware import sdk_log_folder
 from device_bridge.osl.leg import OSLLeg
-from device_bridge.protocol import WireTable, begin_frame, commit_frame
 from device_bridge.sim.leg_model import LegGeometry
 from device_bridge.sim.walker import SimWalker
 from tests.leg.fixtures import ENVELOPE, TABLE
@@ -60,13 +59,9 @@ def bench_leg(cfg: LegConfig, mounting: Mounting | None = None, walker: SimWalke
 def firmware_with(item: ParameterTable | Envelope) -> DeviceFirmware:
     """A firmware holding ``item`` as pushed (frames through its receiver), active."""
     fw = DeviceFirmware()
-    if isinstance(item, Envelope):
-        wire = WireEnvelope.from_envelope(item)
-        frames = [envelope_begin_frame(1, 1, wire.crc32(), wire.shape), *wire.frames(1),
-                  envelope_commit_frame(1, 1, wire.crc32(), wire.shape)]
-    else:
-        wire = WireTable.from_table(item)
-        frames = [begin_frame(1, 1, wire.crc32()), *wire.frames(1), commit_frame(1, 1, wire.crc32())]
+    wire = WireEnvelope.from_envelope(item if isinstance(item, Envelope) else envelope_of_table(item))
+    frames = [envelope_begin_frame(1, 1, wire.crc32(), wire.shape), *wire.frames(1),
+              envelope_commit_frame(1, 1, wire.crc32(), wire.shape)]
     for f in frames:
         fw.receive(f, 0.0)
     fw.tick(None, 0.0)

@@ -8,7 +8,7 @@ import pytest
 from starlette.websockets import WebSocketDisconnect
 
 from backend.routers.devices import RECHECK_TOKEN_S
-from device_bridge.protocol import WireTable
+from device_bridge.envelope_wire import table_wire
 from tests.helpers.api import (
     DEVICE,
     FIXTURE_OVERRIDE,
@@ -36,7 +36,7 @@ def test_approve_push_active_telemetry_and_a_session_summary(sim_api, model):
     assert r.status_code == 201, r.text
     push = r.json()
     table = model.propose(1.2, 0.0, 80.0).table
-    assert push["crc32"] == f"{WireTable.from_table(table).crc32():08x}"
+    assert push["crc32"] == f"{table_wire(table).crc32():08x}"
     assert push["status"] in ("acknowledged", "active") and push["table_version"] == 1   # the device's counter
     assert push["table_label"] == f"P-001 · table v{prop['version']}"
 

@@ -28,7 +28,7 @@ def test_proposal_carries_features_curves_table_units_and_provenance(api, model)
     for row, ref in zip(p["table"], direct.table.rows, strict=True):
         assert row["k_Nm_per_rad"] == pytest.approx(ref.k_Nm_per_rad, abs=1e-3)
         assert row["k_Nm_per_deg"] == pytest.approx(ref.k_Nm_per_rad * 3.141592653589793 / 180, abs=1e-4)
-        assert row["theta_e_deg"] == pytest.approx(ref.theta_e_deg, abs=1e-3)
+        assert row["theta_e_deg"] == pytest.approx(ref.theta_e_deg, abs=5e-3)   # as run: to the wire's 0.01°
     assert len(p["curves"]["knee_angle_deg"]) == 101 and len(p["curves"]["knee_angle_deg_std"]) == 101
     assert {f["unit"] for f in p["features"]} >= {"deg", "N·m/kg"}
     assert p["safety"] == {"ok": True, "violations": []}
@@ -287,7 +287,7 @@ def test_proposal_carries_its_via_points_on_its_curves(api):
 def test_a_value_within_half_a_wire_step_of_a_limit_is_stored_shown_and_approved_as_the_device_runs_it(api):
     """+0.000316 N·m/rad on a stance row rounds to 0 on the wire: it is stored and shown as 0.0, never as a value
     outside the limit that the preview then refuses to walk."""
-    from device_bridge.protocol import WireTable
+    from device_bridge.envelope_wire import table_wire
     from tests.helpers.device import assert_same_as_device
 
     p = api.propose(api.new_patient()["id"], speed=1.2)
@@ -305,7 +305,7 @@ def test_a_value_within_half_a_wire_step_of_a_limit_is_stored_shown_and_approved
         stored = proposal_store.stored_table(proposal_store.get_row(conn, v2["id"]))
     finally:
         conn.close()
-    assert_same_as_device(stored, WireTable.from_table(stored).to_device_table())
+    assert_same_as_device(stored, table_wire(stored).to_device().tables[0])
     assert api.client.get(f"/api/proposals/{v2['id']}/preview", headers=api.as_("viewer")).status_code == 200
 
 
@@ -362,7 +362,7 @@ def test_a_server_on_a_heavier_leg_proposes_swing_rows_for_that_leg(tmp_path, mo
     knee_swing = [i for i, row in enumerate(plain.rows) if (row.joint, row.subphase) == ("knee", "swing_extension")]
     for row, ref in zip(p["table"], for_leg.rows, strict=True):
         assert row["k_Nm_per_rad"] == pytest.approx(ref.k_Nm_per_rad, abs=1e-3)
-        assert row["b_Nm_s_per_rad"] == pytest.approx(ref.b_Nm_s_per_rad, abs=1e-3)
+        assert row["b_Nm_s_per_rad"] == pytest.approx(ref.b_Nm_s_per_rad, abs=5e-3)   # as run: to 0.01
     assert p["table"][knee_swing[0]]["k_Nm_per_rad"] < plain.rows[knee_swing[0]].k_Nm_per_rad - 10.0   # firmer
     assert p["swing_inertia"] == {"knee_ratio": round(ratio[0], 4), "ankle_ratio": round(ratio[1], 4),   # and says so
                                   "scaled_rows": ["knee.swing_extension", "ankle.swing_flexion", "ankle.swing_extension"]}
