@@ -24,7 +24,7 @@ from backend.bench.preview import BenchmarkWalks
 from backend.body_limit import GateBodies, body_rules
 from backend.db import open_engine
 from backend.devices import DeviceManager, parse_device_specs
-from backend.errors import DomainError
+from backend.errors import DomainError, MovedError
 from backend.frontend import mount_frontend
 from backend.headers import RefuseAnonymousWrites, add_security_headers, mount_docs
 from backend.instance_beat import InstanceBeat
@@ -192,8 +192,11 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
         return JSONResponse({"detail": exc.detail}, status_code=exc.status_code, headers=headers)
 
     @app.exception_handler(DomainError)
-    async def _on_domain(_request: Request, exc: DomainError) -> JSONResponse:
+    async def _on_domain(request: Request, exc: DomainError) -> JSONResponse:
         headers = {"Retry-After": str(exc.extra["retry_after_s"])} if "retry_after_s" in exc.extra else None
+        if isinstance(exc, MovedError):   # the same path under the envelope's version id
+            path = request.url.path.replace(f"/envelopes/{exc.moved_from}", f"/envelopes/{exc.extra['moved_to']}", 1)
+            headers = {"Location": str(request.url.replace(path=path))}
         return JSONResponse({"detail": exc.message, **exc.extra}, status_code=exc.status, headers=headers)
 
     for router in (health.router, auth.router, users.router, patients.router, proposals.router, envelopes.router,

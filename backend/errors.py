@@ -21,6 +21,17 @@ class NotFoundError(DomainError):
     status = 404
 
 
+class MovedError(DomainError):
+    """An envelope named by its id from before one version (revision 0021): answered with a permanent redirect to the
+    same path under its version id (``moved_from`` → ``moved_to``)."""
+
+    status = 308
+
+    def __init__(self, message: str, moved_from: int, moved_to: int) -> None:
+        super().__init__(message, moved_to=moved_to)
+        self.moved_from = moved_from
+
+
 class ForbiddenError(DomainError):
     """The signed-in user may not do this to this item (someone else's)."""
 

@@ -19,11 +19,10 @@ from sqlalchemy import Connection, RowMapping
 from backend.errors import ConflictError, InvalidError
 from backend.services import envelopes, legs, proposals
 from backend.session_strides import session_strides
-from backend.store import envelopes as envelope_rows
-from backend.store import proposals as proposal_rows
-from backend.store import refinements
+from backend.store import refinements, versions
 from backend.store import sessions as sessions_store
 from backend.store.users import User
+from backend.store.versions import Item
 from controller_core.model import QuasiStiffnessModel
 from controller_core.refine import REACH_FRACTION, RefineRules, change_in_steps, refine_envelope, refine_node
 from controller_core.refine_evidence import (
@@ -142,24 +141,24 @@ class _Inputs:
     leg: LegFile
 
 
-def _inputs(conn: Connection, kind: str, version_id: int, session_ids: list[int], model: QuasiStiffnessModel,
-            get_row: Callable[[Connection, int], RowMapping]) -> _Inputs:
-    row = get_row(conn, version_id)
+def _inputs(conn: Connection, kind: Item, version_id: int, session_ids: list[int], model: QuasiStiffnessModel
+            ) -> _Inputs:
+    row = versions.get_row(conn, kind, version_id)
     if row["status"] != "approved":
         what = "envelope" if kind == "envelope" else "table"
         raise ConflictError(f"{what} {version_id} is {row['status']}: a refinement derives from the approved version "
                             "the leg walked")
     sessions = _sessions(conn, kind, version_id, row["patient_id"], session_ids)
     strides, counted = _strides(conn, sessions)
-    return _Inputs(row, sessions, strides, counted, model_targets(model), refinements.of_version(conn, kind, version_id),
+    return _Inputs(row, sessions, strides, counted, model_targets(model), refinements.of_version(conn, version_id),
                    legs.version_leg(row))
 
 
 def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: list[int], comment: str,
                             actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved envelope from its sessions (module docstring); returns the refinement."""
-    x = _inputs(conn, "envelope", envelope_id, session_ids, model, envelope_rows.get_row)
-    parent = envelope_rows.stored_envelope(x.row)
+    x = _inputs(conn, "envelope", envelope_id, session_ids, model)
+    parent = versions.stored_envelope(x.row)
     evidence = gather_evidence(x.strides, parent.speeds_mps, parent.inclines_deg, x.targets)
     rules = RefineRules()
     check = BenchStepCheck(model, parent.mass_kg, BENCH_SECONDS, x.leg.geometry())
@@ -174,17 +173,17 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
     body = _evidence(x.counted, x.strides, x.targets, result.nodes, result.changes, [s["id"] for s in x.sessions],
                      rules, x.leg)
     created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
-                                    refinements.recorder("envelope", envelope_id, body["session_ids"], body, actor))
-    return {**refinements.of_version(conn, "envelope", created["id"]), "version": created}
+                                    refinements.recorder(envelope_id, body["session_ids"], body, actor))
+    return {**refinements.of_version(conn, created["id"]), "version": created}
 
 
 def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: list[int], comment: str,
                             actor: User, model: QuasiStiffnessModel) -> dict:
     """A refined draft of an approved table from its sessions: the table is one node at its task, every stride its
     evidence; returns the refinement."""
-    x = _inputs(conn, "proposal", proposal_id, session_ids, model, proposal_rows.get_row)
+    x = _inputs(conn, "proposal", proposal_id, session_ids, model)
     row = x.row
-    table = proposal_rows.stored_table(row)
+    table = versions.stored_table(row)
     [evidence] = gather_evidence(x.strides, [row["speed_mps"]], [row["incline_deg"]], x.targets)
     rules = RefineRules()
     check = BenchStepCheck(model, row["body_mass_kg"], BENCH_SECONDS, x.leg.geometry())
@@ -206,5 +205,5 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
     _bench_expectation([node], [table], [result.table], check)
     body = _evidence(x.counted, x.strides, x.targets, [node], changes, [s["id"] for s in x.sessions], rules, x.leg)
     created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
-                                    refinements.recorder("proposal", proposal_id, body["session_ids"], body, actor))
-    return {**refinements.of_version(conn, "proposal", created["id"]), "version": created}
+                                    refinements.recorder(proposal_id, body["session_ids"], body, actor))
+    return {**refinements.of_version(conn, created["id"]), "version": created}

@@ -41,7 +41,7 @@ from sqlalchemy import func, select
 from backend.db import connect
 from backend.migrate import migrate
 from backend.settings import DB_FILE
-from backend.store.tables import audit_log, envelopes, proposals
+from backend.store.tables import audit_log, versions
 from backend.store.users import create_user
 
 PASSWORD = "benchmark password"
@@ -182,10 +182,11 @@ def _checks(database: str | Path, load: Load) -> dict:
     """The database against what the clients were told."""
     conn = connect(database)
     try:
+        v = versions
         stored = {r.id: (r.patient_id, r.version, r.status) for r in conn.execute(
-            select(proposals.c.id, proposals.c.patient_id, proposals.c.version, proposals.c.status))}
+            select(v.c.id, v.c.patient_id, v.c.version, v.c.status).where(v.c.kind == "table"))}
         stored_env = {r.id: (r.patient_id, r.version) for r in conn.execute(
-            select(envelopes.c.id, envelopes.c.patient_id, envelopes.c.version))}
+            select(v.c.id, v.c.patient_id, v.c.version).where(v.c.kind == "envelope"))}
         decisions = dict(conn.execute(
             select(audit_log.c.entity_id, func.count()).where(
                 audit_log.c.entity == "proposal", audit_log.c.action.in_(("proposal.approve", "proposal.reject")))

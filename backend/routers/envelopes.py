@@ -23,8 +23,7 @@ from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED,
 from backend.schemas.proposals import DecisionRequest
 from backend.services import envelopes, legs
 from backend.services.versions import with_state
-from backend.store import envelopes as envelope_rows
-from backend.store import patients
+from backend.store import patients, versions
 from backend.task_range import extrapolation_reason
 from controller_core.envelope_edit import edit_envelope, hold_to_neighbour_rule
 from controller_core.table_edit import EditError
@@ -76,8 +75,8 @@ def get_node(envelope_id: IdPath, i: Annotated[int, Path(ge=0, le=14, descriptio
              model: Model) -> dict:
     """One node as a proposal is shown: its table as stored in the envelope (held to the neighbour rule, edited as
     approved) with its check, and the model's curves, features and via-points at the node's task."""
-    row = envelope_rows.get_row(conn, envelope_id)
-    env = envelope_rows.stored_envelope(row)
+    row = versions.get_row(conn, "envelope", envelope_id)
+    env = versions.stored_envelope(row)
     view = envelopes.node_view(row, env, i, j)
     return {**view, **model.propose(view["task"]["speed_mps"], view["task"]["incline_deg"], env.mass_kg).model_body()}
 
@@ -89,7 +88,7 @@ def edit(envelope_id: IdPath, body: EnvelopeEditRequest, conn: Conn, user: Prost
     knee stance flexion 10 % firmer everywhere. Every node's limits and the neighbour rule are re-checked as the
     device runs them; a refused edit stores nothing. With ``hold_to_neighbour_rule``, values the edit would put more
     than a step from a neighbour are held within it (listed in the changes with ``held_from``) instead."""
-    parent = envelope_rows.stored_envelope(envelope_rows.get_row(conn, envelope_id))
+    parent = versions.stored_envelope(versions.get_row(conn, "envelope", envelope_id))
     try:
         edited, changes = edit_envelope(parent, [e.model_dump() for e in body.edits])
         if body.hold_to_neighbour_rule:

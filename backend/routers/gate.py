@@ -24,7 +24,7 @@ from backend.schemas.gate import SignoffRequest, SignoffsOut, WithdrawOut, Withd
 from backend.services import bench_verdict, envelopes, proposals
 from backend.services.versions import stored_content
 from backend.store import pushes as pushes_store
-from backend.store import signoffs, withdrawals
+from backend.store import signoffs, versions, withdrawals
 from backend.store.users import User
 from backend.threads import run_waiting
 from device_bridge.as_run import as_run
@@ -33,18 +33,17 @@ from device_bridge.protocol import Command
 
 router = APIRouter(prefix="/api", tags=["gate"], responses=UNAUTHORIZED)
 Kind = Literal["proposal", "envelope"]
-_STORES = {"proposal": proposals, "envelope": envelopes}
 _RESPONSES = {**FORBIDDEN, **NOT_FOUND, **CONFLICT}
 
 
 def _sign(kind: Kind, item_id: int, body: SignoffRequest, conn: Connection, user: User) -> dict:
     with write_transaction(conn):
-        row = _STORES[kind].get_row(conn, item_id)
+        row = versions.get_row(conn, kind, item_id)
         if row["status"] == "rejected":
             raise ConflictError(f"{kind} {item_id} was rejected; there is nothing to sign off")
         if bench_verdict.verdict(conn, kind, row)["status"] == "clean":
             raise ConflictError(f"{kind} {item_id}'s bench preview is clean: it needs no sign-off to go ahead")
-        signed = signoffs.sign(conn, kind, item_id, bench_verdict.content_sha256(kind, row), user, body.reason)
+        signed = signoffs.sign(conn, kind, item_id, bench_verdict.content_sha256(row), user, body.reason)
     return {"signoffs": [{k: s[k] for k in ("by", "reason", "at")} for s in signed], "needed": signoffs.NEEDED,
             "complete": len(signed) >= signoffs.NEEDED}
 
@@ -82,7 +81,7 @@ async def withdraw_envelope(envelope_id: IdPath, body: WithdrawRequest, request:
 def _withdraw(kind: Kind, item_id: int, body: WithdrawRequest, devices: DeviceManager, conn: Connection,
               user: User) -> dict:
     with write_transaction(conn):
-        row = _STORES[kind].get_row(conn, item_id)
+        row = versions.get_row(conn, kind, item_id)
         done = withdrawals.withdraw(conn, kind, row, user, body.reason)
     devices.withdrawn()
     label = _label(conn, kind, row)

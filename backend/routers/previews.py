@@ -17,7 +17,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, NOT_FOUND, TOO_MANY, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.previews import EnvelopePreviewOut, PreviewOut
 from backend.services import legs
-from backend.store import envelopes, previews, proposals
+from backend.store import previews, versions
 from backend.threads import run_bench, run_waiting
 from controller_core.model import QuasiStiffnessModel
 from device_bridge.as_run import as_run
@@ -64,17 +64,17 @@ async def get_preview(proposal_id: IdPath, request: Request, conn: Conn, user: C
 def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessModel, benchmark: BenchmarkWalks,
                    walk: bool = True) -> dict | None:
     """The stored preview, walked first if there is none (``walk=False``: None instead)."""
-    row = proposals.get_row(conn, proposal_id)
-    stored = previews.get_preview(conn, proposal_id, row["table_sha256"])
+    row = versions.get_row(conn, "proposal", proposal_id)
+    stored = previews.get_preview(conn, "proposal", proposal_id, row["content_sha256"])
     if stored is None and not walk:
         return None
     if stored is None:
-        checked = as_run(proposals.stored_table(row))   # walked as the device would run it
+        checked = as_run(versions.stored_table(row))   # walked as the device would run it
         _refuse_unsafe(checked.violations, f"proposal {proposal_id}")
         table = checked.item
         result = preview_table(table, row["speed_mps"], row["incline_deg"], row["body_mass_kg"], model,
                                PREVIEW_SECONDS, legs.version_leg(row).geometry(), benchmark)
-        stored = previews.store_preview(conn, proposal_id, row["table_sha256"], result)
+        stored = previews.store_preview(conn, "proposal", proposal_id, row["content_sha256"], result)
     runs = stored["controllers"]
     return {**stored, "safety": safety_flags(runs["table"], runs["fsmic"])}
 
@@ -97,16 +97,16 @@ async def get_envelope_preview(envelope_id: IdPath, request: Request, conn: Conn
 def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessModel, benchmark: BenchmarkWalks,
                       nodes: NodeWalks, walk: bool = True) -> dict | None:
     """The stored preview, walked first if there is none (``walk=False``: None instead)."""
-    row = envelopes.get_row(conn, envelope_id)
-    stored = previews.get_envelope_preview(conn, envelope_id, row["envelope_sha256"])
+    row = versions.get_row(conn, "envelope", envelope_id)
+    stored = previews.get_preview(conn, "envelope", envelope_id, row["content_sha256"])
     if stored is None and not walk:
         return None
     if stored is None:
-        checked = as_run(envelopes.stored_envelope(row))
+        checked = as_run(versions.stored_envelope(row))
         _refuse_unsafe(checked.violations, f"envelope {envelope_id}")
         result = preview_envelope(checked.item, model, COURSES[PREVIEW_COURSE], legs.version_leg(row).geometry(),
                                   benchmark, nodes)
-        stored = previews.store_envelope_preview(conn, envelope_id, row["envelope_sha256"], result)
+        stored = previews.store_preview(conn, "envelope", envelope_id, row["content_sha256"], result)
     return {**stored, "safety": envelope_flags(stored)}
 
 

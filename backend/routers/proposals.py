@@ -19,8 +19,7 @@ from backend.schemas.proposals import (
 )
 from backend.services import legs, proposals
 from backend.services.versions import with_state
-from backend.store import patients
-from backend.store import proposals as proposal_rows
+from backend.store import patients, versions
 from backend.task_range import extrapolation_reason
 from controller_core.table_edit import EditError, edit_table
 from device_bridge.as_run import as_run
@@ -69,9 +68,9 @@ def get_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
 def edit_proposal(proposal_id: IdPath, body: EditRequest, conn: Conn, user: Prosthetist) -> dict:
     """Derive a new draft version with edited table cells (prosthetist). The edited table is re-checked against
     every safety limit and refused (nothing stored) if any value is outside."""
-    parent = proposal_rows.get_row(conn, proposal_id)
+    parent = versions.get_row(conn, "proposal", proposal_id)
     try:
-        table, changes = edit_table(proposal_rows.stored_table(parent),
+        table, changes = edit_table(versions.stored_table(parent),
                                     [r.model_dump(exclude_none=True) for r in body.rows],
                                     body.thresholds.model_dump(exclude_none=True) if body.thresholds else None)
     except (EditError, ValidationError) as exc:

@@ -17,7 +17,7 @@ from backend.schemas.pushes import PushOut, PushRequest
 from backend.services import bench_verdict
 from backend.services.versions import stored_content
 from backend.store import devices as devices_store
-from backend.store import envelopes, patients, proposals, withdrawals
+from backend.store import patients, versions, withdrawals
 from backend.store import pushes as store
 from backend.store.users import User
 from backend.threads import run_waiting
@@ -146,12 +146,12 @@ def _check_replaces(conn: Connection, devices: DeviceManager, body: PushRequest)
 @router.get("/proposals/{proposal_id}/pushes", response_model=list[PushOut], responses=NOT_FOUND)
 def list_pushes(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     """Every push of this proposal, newest first."""
-    proposals.get_row(conn, proposal_id)
+    versions.get_row(conn, "proposal", proposal_id)
     return store.pushes_of(conn, ("proposal", proposal_id))
 
 
 @router.get("/envelopes/{envelope_id}/pushes", response_model=list[PushOut], responses=NOT_FOUND)
 def list_envelope_pushes(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     """Every push of this envelope, newest first."""
-    envelopes.get_row(conn, envelope_id)
+    versions.get_row(conn, "envelope", envelope_id)
     return store.pushes_of(conn, ("envelope", envelope_id))

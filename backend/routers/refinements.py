@@ -10,7 +10,7 @@ from backend.refinement import refine_envelope_version, refine_proposal_version
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, TOO_MANY, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.refinements import RefinementOut, RefinementRequest
-from backend.store import envelopes, proposals, refinements
+from backend.store import refinements, versions
 from backend.threads import run_bench
 
 router = APIRouter(prefix="/api", tags=["refinements"], responses=UNAUTHORIZED)
@@ -60,12 +60,12 @@ def get_refinement(refinement_id: IdPath, conn: Conn, _user: CurrentUser) -> dic
 @router.get("/envelopes/{envelope_id}/refinement", response_model=RefinementOut | None, responses=NOT_FOUND)
 def refinement_of_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict | None:
     """The refinement that made this envelope, or null when it was not made by one (404: no such envelope)."""
-    envelopes.get_row(conn, envelope_id)
-    return refinements.of_version(conn, "envelope", envelope_id)
+    versions.get_row(conn, "envelope", envelope_id)
+    return refinements.of_version(conn, envelope_id)
 
 
 @router.get("/proposals/{proposal_id}/refinement", response_model=RefinementOut | None, responses=NOT_FOUND)
 def refinement_of_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict | None:
     """The refinement that made this table, or null when it was not made by one (404: no such table)."""
-    proposals.get_row(conn, proposal_id)
-    return refinements.of_version(conn, "proposal", proposal_id)
+    versions.get_row(conn, "proposal", proposal_id)
+    return refinements.of_version(conn, proposal_id)

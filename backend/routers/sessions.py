@@ -20,7 +20,7 @@ from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest, Tre
 from backend.session_export import samples_csv, samples_parquet
 from backend.session_strides import stride_tasks
 from backend.store import devices as devices_store
-from backend.store import envelopes, patients
+from backend.store import patients, versions
 from backend.store import sessions as store
 from controller_core.session_regions import adaptive_summary, own_task_errors
 from controller_core.session_summary import device_times, session_strikes, summarize_session
@@ -108,7 +108,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
                                 reference_at(t["speed_mps"], t["incline_deg"]), running_table=running)
     strikes = session_strikes(times, load, t["body_mass_kg"])
     if session["envelope_id"] is not None:
-        envelope = envelopes.stored_envelope(envelopes.get_row(conn, session["envelope_id"]))
+        envelope = versions.stored_envelope(versions.get_row(conn, "envelope", session["envelope_id"]))
         summary["adaptive"] = adaptive_summary(
             times, knee, ankle, strikes, _floats(cols["estimated_speed_mps"]), _floats(cols["estimated_incline_deg"]),
             cols["adaptive_mode"], envelope.speeds_mps, envelope.inclines_deg, reference_at, running_table=running)

@@ -19,7 +19,7 @@ from backend.bench.node_previews import envelope_flags, flagged_nodes
 from backend.bench.safety_figures import safety_figures, safety_flags
 from backend.errors import ConflictError
 from backend.store import previews, signoffs
-from backend.store.tables import envelopes, proposals
+from backend.store.tables import versions
 from backend.store.users import User
 
 MIN_OVERRIDE_CHARS = 20
@@ -29,9 +29,9 @@ _WORDS = {"clean": "bench preview clean", "unsafe": "bench preview UNSAFE",
           "not_walked": "bench preview not walked yet"}
 
 
-def content_sha256(kind: Kind, row: Mapping) -> str:
-    """The SHA-256 of what the version is (its table, or its envelope): what a preview and a sign-off are of."""
-    return str(row["table_sha256"] if kind == "proposal" else row["envelope_sha256"])
+def content_sha256(row: Mapping) -> str:
+    """The SHA-256 of what the version is (its stored content): what a preview and a sign-off are of."""
+    return str(row["content_sha256"])
 
 
 # how much larger a safety figure must be than the parent's to count as worse, per unit: any count; otherwise a step
@@ -45,8 +45,7 @@ _OWN = {"proposal": "table", "envelope": "envelope"}     # the version's own wal
 
 def _stored(conn: Connection, kind: Kind, version_id: int, sha: str) -> dict | None:
     """The stored preview of exactly this content of a version (None: not walked)."""
-    return (previews.get_preview(conn, version_id, sha) if kind == "proposal"
-            else previews.get_envelope_preview(conn, version_id, sha))
+    return previews.get_preview(conn, kind, version_id, sha)
 
 
 def worse_than_parent(conn: Connection, kind: Kind, row: Mapping, figures: list[dict]) -> dict | None:
@@ -56,9 +55,8 @@ def worse_than_parent(conn: Connection, kind: Kind, row: Mapping, figures: list[
     parent_id = row.get("parent_id")
     if parent_id is None:
         return None
-    table = proposals if kind == "proposal" else envelopes
-    sha_col = table.c.table_sha256 if kind == "proposal" else table.c.envelope_sha256
-    parent = conn.execute(select(table.c.version, sha_col.label("sha")).where(table.c.id == parent_id)).mappings().first()
+    parent = conn.execute(select(versions.c.version, versions.c.content_sha256.label("sha"))
+                          .where(versions.c.id == parent_id)).mappings().first()
     if parent is None:
         return None
     stored = _stored(conn, kind, parent_id, str(parent["sha"]))
@@ -87,7 +85,7 @@ def _figures(kind: Kind, stored: Mapping) -> list[dict]:
 def verdict(conn: Connection, kind: Kind, row: Mapping) -> dict:
     """``status`` clean / unsafe / not_walked, the ``flags`` (one per figure beyond its bound), every safety ``figure``
     beside the FSMIC's, ``words`` for the chip, and the prosthetists' ``signoffs`` on exactly this content."""
-    sha = content_sha256(kind, row)
+    sha = content_sha256(row)
     signed = [{k: s[k] for k in ("by", "reason", "at")} for s in signoffs.signoffs(conn, kind, row["id"], sha)]
     stored, own = _stored(conn, kind, row["id"], sha), _OWN[kind]
     if stored is None:
@@ -112,7 +110,7 @@ def require_bench(conn: Connection, kind: Kind, row: Mapping, override_reason: s
     v = verdict(conn, kind, row)
     if v["status"] == "clean":
         return v, None
-    sha = content_sha256(kind, row)
+    sha = content_sha256(row)
     signed = signoffs.signoffs(conn, kind, row["id"], sha)
     mine = any(s["user_id"] == actor.id for s in signed)
     if action == "approved" and override_reason and not mine and len(signed) + 1 >= signoffs.NEEDED:

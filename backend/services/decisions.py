@@ -1,4 +1,5 @@
-"""Approving or rejecting a draft once: the rule proposals and envelopes share (their triggers enforce "once" too)."""
+"""Approving or rejecting a draft once: the rule every version follows, a table or an envelope (the triggers enforce
+"once" too)."""
 
 from __future__ import annotations
 
@@ -52,7 +53,7 @@ def decide_once(conn: Connection, entity: str, row: RowMapping, status: str, com
         verdict, override = require_bench(conn, entity, row, override_reason, "approved",   # type: ignore[arg-type]
                                           actor)
         bench = verdict["status"]
-    if not record_decision(conn, entity, row["id"], status, comment, actor, override):
+    if not record_decision(conn, row["id"], status, comment, actor, override):
         raise ConflictError(f"{entity} {row['id']} was decided by someone else a moment ago; reload it to see the "
                             "decision")
     audit.record(conn, actor.id, actor.username, f"{entity}.{'approve' if status == 'approved' else 'reject'}",

@@ -2,7 +2,7 @@
 one node as a table is shown, the diff in clinical words, and the rules around storing one: checked as the device will
 run it when created or edited, re-checked and gated on the bench's verdict when approved
 (:mod:`backend.services.decisions`). Every read re-runs the device-side check (every node's limits and the neighbour
-rule), so what is shown and approved is what the device would accept. Storage is :mod:`backend.store.envelopes`.
+rule), so what is shown and approved is what the device would accept. Storage is :mod:`backend.store.versions`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from backend.services import legs
 from backend.services.decisions import decide_once, version_meta
 from backend.services.proposals import LIMITS, ROW_UNITS, THRESHOLD_UNITS, swing_inertia
 from backend.store import audit
-from backend.store.envelopes import envelope_label, get_row, insert_row, list_rows, stored_envelope
 from backend.store.users import User
+from backend.store.versions import get_row, insert_row, list_rows, stored_envelope, version_label
 from controller_core.envelope import VALUE_FIELDS, Envelope, table_values
 from controller_core.table import LimitViolation, display_rows
 from device_bridge.as_run import AsRun, as_run
@@ -34,9 +34,10 @@ def _hex(crc32: int | None) -> str | None:
 
 
 def _meta(row: RowMapping) -> dict:
-    return {**version_meta(row), "envelope_label": envelope_label(row["patient_code"], row["version"]),
+    return {**version_meta(row), "envelope_label": version_label("envelope", row["patient_code"], row["version"]),
             "body_mass_kg": row["body_mass_kg"], "grid": [row["n_speeds"], row["n_inclines"]],
-            "wire_crc32": row["wire_crc32"], "envelope_sha256": row["envelope_sha256"]}
+            "wire_crc32": row["wire_crc32"], "envelope_sha256": row["content_sha256"],
+            "content_sha256": row["content_sha256"]}
 
 
 def _public(meta: dict, envelope: Envelope, full: bool, violations: list[LimitViolation] | None = None) -> dict:
@@ -63,7 +64,7 @@ def node_view(row: RowMapping, envelope: Envelope, i: int, j: int) -> dict:
         raise NotFoundError(f"envelope {row['id']} has nodes [0..{n_s - 1}] × [0..{n_i - 1}], not [{i}, {j}]")
     node = envelope.node(i, j)
     violations = as_run(node.table).violations
-    return {"envelope_id": row["id"], "envelope_label": envelope_label(row["patient_code"], row["version"]),
+    return {"envelope_id": row["id"], "envelope_label": version_label("envelope", row["patient_code"], row["version"]),
             "envelope_status": row["status"], "patient_id": row["patient_id"], "node": [i, j],
             "task": {"speed_mps": node.speed_mps, "incline_deg": node.incline_deg, "body_mass_kg": envelope.mass_kg},
             "extrapolation": node.extrapolation, "feature_std": node.feature_std,
@@ -75,7 +76,7 @@ def node_view(row: RowMapping, envelope: Envelope, i: int, j: int) -> dict:
 
 
 def get_envelope(conn: Connection, envelope_id: int, full: bool = True) -> dict:
-    row = get_row(conn, envelope_id)
+    row = get_row(conn, "envelope", envelope_id)
     return _public(_meta(row), stored_envelope(row), full)
 
 
@@ -83,7 +84,7 @@ def list_envelopes(conn: Connection, patient_id: int, limit: int = 50,
                    before_version: int | None = None) -> tuple[list[dict], int]:
     """One page of summaries, newest version first (metadata and axes: the nodes and the live device-side check are
     the full version's, on its own endpoint), and how many versions the patient has in all."""
-    rows, total = list_rows(conn, patient_id, limit, before_version)
+    rows, total = list_rows(conn, "envelope", patient_id, limit, before_version)
     return [{**_meta(r), "speeds_mps": r["speeds_mps"], "inclines_deg": r["inclines_deg"],
              "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
@@ -117,7 +118,7 @@ def create_edit(conn: Connection, parent_id: int, checked: AsRun[Envelope], chan
     with the new version's metadata (e.g. store the refinement's evidence), its result added to the audit entry."""
     envelope = checked.item
     with write_transaction(conn):
-        parent = get_row(conn, parent_id)
+        parent = get_row(conn, "envelope", parent_id)
         meta = _meta(insert_row(conn, parent["patient_id"], parent_id, envelope, checked.wire_crc32,
                                 not checked.violations, comment, actor, parent["extrapolation_reason"],
                                 parent["leg_json"]))
@@ -132,7 +133,7 @@ def create_edit(conn: Connection, parent_id: int, checked: AsRun[Envelope], chan
 
 def diff(conn: Connection, a_id: int, b_id: int) -> dict:
     """What changed from envelope ``a_id`` to ``b_id``: the grid, or node by node every value (with units)."""
-    ra, rb = get_row(conn, a_id), get_row(conn, b_id)
+    ra, rb = get_row(conn, "envelope", a_id), get_row(conn, "envelope", b_id)
     a, b = stored_envelope(ra), stored_envelope(rb)
     changes: list[dict] = []
     same_grid = (a.speeds_mps, a.inclines_deg) == (b.speeds_mps, b.inclines_deg)
@@ -157,7 +158,7 @@ def decide(conn: Connection, envelope_id: int, status: str, comment: str, actor:
            override_reason: str | None = None) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored envelope and re-runs the device-side check."""
     with write_transaction(conn):
-        row = get_row(conn, envelope_id)
+        row = get_row(conn, "envelope", envelope_id)
         decide_once(conn, "envelope", row, status, comment, actor, lambda: as_run(stored_envelope(row)).violations,
                     "the safety limits or the neighbour rule", {"wire_crc32": _hex(row["wire_crc32"])}, override_reason)
         return get_envelope(conn, envelope_id)

@@ -1,6 +1,7 @@
 """Proposal versions for the clinic: the view the page and the API give (table, curves, the live limit check), and the
 rules around storing one: checked as the device will run it when created or edited, re-checked and gated on the
-bench's verdict when approved (:mod:`backend.services.decisions`). Storage is :mod:`backend.store.proposals`.
+bench's verdict when approved (:mod:`backend.services.decisions`). Storage is :mod:`backend.store.versions` (a table
+is stored as the envelope of its one node, with the model's output it came from).
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from backend.db import write_transaction
 from backend.services import legs
 from backend.services.decisions import decide_once, version_meta
 from backend.store import audit
-from backend.store.proposals import get_row, insert_row, list_rows, stored_table, table_label
 from backend.store.users import User
+from backend.store.versions import get_row, insert_row, list_rows, stored_table, version_label
 from controller_core.proposal import Proposal
 from controller_core.table import STUMBLE_THRESHOLDS, LimitViolation, ParameterTable, SafetyLimits, display_rows
 from controller_core.table_rules import SWING_SCALED
@@ -61,10 +62,10 @@ def swing_inertia(table: ParameterTable) -> dict[str, object]:
 
 
 def _meta(row: RowMapping) -> dict:
-    return {**version_meta(row), "table_label": table_label(row["patient_code"], row["version"]),
+    return {**version_meta(row), "table_label": version_label("table", row["patient_code"], row["version"]),
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
                      "body_mass_kg": row["body_mass_kg"]},
-            "table_sha256": row["table_sha256"]}
+            "table_sha256": row["content_sha256"], "content_sha256": row["content_sha256"]}
 
 
 def _public(row: RowMapping, full: bool) -> dict:
@@ -72,14 +73,14 @@ def _public(row: RowMapping, full: bool) -> dict:
 
 
 def get_proposal(conn: Connection, proposal_id: int, full: bool = True) -> dict:
-    return _public(get_row(conn, proposal_id), full)
+    return _public(get_row(conn, "proposal", proposal_id), full)
 
 
 def list_proposals(conn: Connection, patient_id: int, limit: int = 50,
                    before_version: int | None = None) -> tuple[list[dict], int]:
     """One page of summaries, newest version first (metadata only: the table, curves and the live limit check are
     the full version's, on its own endpoint), and how many versions the patient has in all."""
-    rows, total = list_rows(conn, patient_id, limit, before_version)
+    rows, total = list_rows(conn, "proposal", patient_id, limit, before_version)
     return [{**_meta(r), "safety_ok": bool(r["safety_ok"])} for r in rows], total
 
 
@@ -103,8 +104,8 @@ def insert_from_model(conn: Connection, patient_id: int, proposal: Proposal, act
     task = {"speed_mps": proposal.speed_mps, "incline_deg": proposal.incline_deg, "body_mass_kg": proposal.mass_kg}
     checked = as_run(proposal.table)   # stored, shown and checked as the device will run it
     table, violations = checked.item, checked.violations
-    meta = _meta(insert_row(conn, patient_id, None, "model", task, proposal.extrapolation, model_json, table, None,
-                            actor, not violations, extrapolation_reason, legs.leg_json(leg or LegFile())))
+    meta = _meta(insert_row(conn, patient_id, None, table, checked.wire_crc32, not violations, None, actor,
+                            extrapolation_reason, legs.leg_json(leg or LegFile()), model_json=model_json))
     audit.record(conn, actor.id, actor.username, "proposal.create", "proposal", meta["id"],
                  after={"patient_id": patient_id, "version": meta["version"], "task": task, "leg": meta["leg"]["words"],
                         "table_sha256": meta["table_sha256"], "safety_ok": not violations,
@@ -128,18 +129,16 @@ def create_edit(conn: Connection, parent_id: int, checked: AsRun[ParameterTable]
     with the new version's metadata (e.g. store the refinement's evidence), its result added to the audit entry."""
     table, violations = checked.item, checked.violations
     with write_transaction(conn):
-        parent = get_row(conn, parent_id)
-        task = {"speed_mps": parent["speed_mps"], "incline_deg": parent["incline_deg"],
-                "body_mass_kg": parent["body_mass_kg"]}
-        meta = _meta(insert_row(conn, parent["patient_id"], parent_id, "edit", task, bool(parent["extrapolation"]),
-                                parent["model_json"], table, comment, actor, not violations,
-                                parent["extrapolation_reason"], parent["leg_json"]))
+        parent = get_row(conn, "proposal", parent_id)
+        meta = _meta(insert_row(conn, parent["patient_id"], parent_id, table, checked.wire_crc32, not violations,
+                                comment, actor, parent["extrapolation_reason"], parent["leg_json"],
+                                model_json=parent["model_json"]))
         out = _assemble(meta, table, json.loads(parent["model_json"]), full=True, violations=violations)
         pid = meta["id"]
         extra = also(conn, meta) if also is not None else {}
         audit.record(conn, actor.id, actor.username, action, "proposal", pid,
                      before={"proposal_id": parent_id, "version": parent["version"],
-                             "table_sha256": parent["table_sha256"],
+                             "table_sha256": parent["content_sha256"],
                              **{c["field"]: c["before"] for c in changes}},
                      after={"version": out["version"], "table_sha256": out["table_sha256"], "comment": comment,
                             **{c["field"]: c["after"] for c in changes}, **extra})
@@ -150,15 +149,15 @@ def decide(conn: Connection, proposal_id: int, status: str, comment: str, actor:
            override_reason: str | None = None) -> dict:
     """Approve or reject a draft once. Approval re-validates the stored table and re-checks every limit."""
     with write_transaction(conn):
-        row = get_row(conn, proposal_id)
+        row = get_row(conn, "proposal", proposal_id)
         decide_once(conn, "proposal", row, status, comment, actor, lambda: as_run(stored_table(row)).violations,
-                    "the safety limits", {"table_sha256": row["table_sha256"]}, override_reason)
+                    "the safety limits", {"table_sha256": row["content_sha256"]}, override_reason)
         return get_proposal(conn, proposal_id)
 
 
 def diff(conn: Connection, a_id: int, b_id: int) -> dict:
     """Field-by-field differences from proposal ``a_id`` to ``b_id`` (task, table cells, thresholds)."""
-    a, b = get_row(conn, a_id), get_row(conn, b_id)
+    a, b = get_row(conn, "proposal", a_id), get_row(conn, "proposal", b_id)
     ta, tb = stored_table(a), stored_table(b)
     changes: list[dict] = []
 

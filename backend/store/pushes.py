@@ -4,8 +4,9 @@ A push row is written before anything goes on the bus (status ``sending``) and f
 (``acknowledged`` with the CRC the device read back, or ``failed`` with the reason); ``active`` is set only when
 the device's own status reports that version and CRC running. The version is the device's own counter
 (:func:`backend.store.devices.next_wire_version`); a table is named to people as "patient code · table vN",
-N being the proposal's version for that patient (:func:`backend.store.proposals.table_label`), an envelope as
-"patient code · envelope vN". Exactly one of ``proposal_id`` and ``envelope_id`` is set (``kind`` says which).
+N being the table's version for that patient (:func:`backend.store.versions.version_label`), an envelope as
+"patient code · envelope vN". A push names its version (``version_id``); the API says it as the ``proposal_id`` of a
+table or the ``envelope_id`` of an envelope.
 """
 
 from __future__ import annotations
@@ -13,52 +14,39 @@ from __future__ import annotations
 from datetime import UTC, datetime, timedelta
 from typing import Literal
 
-from sqlalchemy import Connection, RowMapping, and_, bindparam, case, func, insert, or_, select, update
+from sqlalchemy import Connection, RowMapping, and_, bindparam, case, insert, or_, select, update
 from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now, utc_text, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit, devices
-from backend.store.dialect import json_of, unique_violation
-from backend.store.envelopes import envelope_label
+from backend.store.dialect import unique_violation
 from backend.store.instance_beats import is_dead
-from backend.store.proposals import table_label
-from backend.store.tables import envelopes, patients, proposals, pushes, users, withdrawals
+from backend.store.tables import patients, pushes, users, versions, withdrawals
 from backend.store.users import User
+from backend.store.versions import Item, version_label
 
-_pu, _pr, _en = pushes, proposals, envelopes
-_wp, _we, _wu = withdrawals.alias("wp"), withdrawals.alias("we"), users.alias("wu")
+_pu, _v, _wd, _wu = pushes, versions, withdrawals, users.alias("wu")
 _PUSH_SELECT = (
-    select(_pu, users.c.username.label("requested_by_name"), _pr.c.version.label("proposal_version"),
-           _en.c.version.label("envelope_version"),
-           func.coalesce(_pr.c.patient_id, _en.c.patient_id).label("patient_id"),
-           patients.c.code_name.label("patient_code"),
-           func.coalesce(_pr.c.speed_mps, json_of(_en.c.envelope_json)["nominal_speed_mps"].as_float())
-           .label("speed_mps"),
-           func.coalesce(_pr.c.incline_deg, json_of(_en.c.envelope_json)["nominal_incline_deg"].as_float())
-           .label("incline_deg"),
-           func.coalesce(_pr.c.body_mass_kg, _en.c.body_mass_kg).label("built_for_mass_kg"),
-           func.coalesce(_pr.c.decision_override, _en.c.decision_override).label("approval_override"),
-           func.coalesce(_pr.c.extrapolation_reason, _en.c.extrapolation_reason).label("extrapolation_reason"),
-           func.coalesce(_wp.c.reason, _we.c.reason).label("withdrawn_reason"),
-           func.coalesce(_wp.c.withdrawn_at, _we.c.withdrawn_at).label("withdrawn_at"),
+    select(_pu, users.c.username.label("requested_by_name"), _v.c.kind, _v.c.version, _v.c.patient_id,
+           patients.c.code_name.label("patient_code"), _v.c.speed_mps, _v.c.incline_deg,
+           _v.c.body_mass_kg.label("built_for_mass_kg"), _v.c.decision_override.label("approval_override"),
+           _v.c.extrapolation_reason, _wd.c.reason.label("withdrawn_reason"), _wd.c.withdrawn_at,
            _wu.c.username.label("withdrawn_by_name"))
-    .select_from(_pu.join(users, users.c.id == _pu.c.requested_by).outerjoin(_pr, _pr.c.id == _pu.c.proposal_id)
-                 .outerjoin(_en, _en.c.id == _pu.c.envelope_id)
-                 .join(patients, patients.c.id == func.coalesce(_pr.c.patient_id, _en.c.patient_id))
-                 .outerjoin(_wp, _wp.c.proposal_id == _pu.c.proposal_id)
-                 .outerjoin(_we, _we.c.envelope_id == _pu.c.envelope_id)
-                 .outerjoin(_wu, _wu.c.id == func.coalesce(_wp.c.user_id, _we.c.user_id))))
+    .select_from(_pu.join(users, users.c.id == _pu.c.requested_by).join(_v, _v.c.id == _pu.c.version_id)
+                 .join(patients, patients.c.id == _v.c.patient_id)
+                 .outerjoin(_wd, _wd.c.version_id == _pu.c.version_id)
+                 .outerjoin(_wu, _wu.c.id == _wd.c.user_id)))
 
 
 def _push(row: RowMapping) -> dict:
-    table = row["proposal_id"] is not None
-    label = (table_label(row["patient_code"], row["proposal_version"]) if table
-             else envelope_label(row["patient_code"], row["envelope_version"]))
-    return {"id": row["id"], "kind": "table" if table else "envelope", "proposal_id": row["proposal_id"],
-            "envelope_id": row["envelope_id"], "device_id": row["device_id"],
+    table = row["kind"] == "table"
+    label = version_label(row["kind"], row["patient_code"], row["version"])
+    return {"id": row["id"], "kind": row["kind"], "proposal_id": row["version_id"] if table else None,
+            "envelope_id": None if table else row["version_id"], "device_id": row["device_id"],
             "patient_id": row["patient_id"], "patient_code": row["patient_code"],
-            "proposal_version": row["proposal_version"], "envelope_version": row["envelope_version"],
+            "proposal_version": row["version"] if table else None,
+            "envelope_version": None if table else row["version"],
             "label": label, "table_label": label if table else None,
             "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"]},
             "body_mass_kg": row["built_for_mass_kg"], "override_reason": row["override_reason"],
@@ -79,14 +67,13 @@ def get_push(conn: Connection, push_id: int) -> dict:
     return _push(row)
 
 
-PushedKind = Literal["proposal", "envelope"]
-Pushed = tuple[PushedKind, int]      # ("proposal", id): its table; ("envelope", id): the whole envelope
+PushedKind = Item
+Pushed = tuple[PushedKind, int]      # ("proposal", id): a table; ("envelope", id): the whole envelope
 
 
 def pushes_of(conn: Connection, item: Pushed) -> list[dict]:
     """Every push of this proposal or envelope, newest first."""
-    kind, item_id = item
-    rows = conn.execute(_PUSH_SELECT.where(_pu.c[f"{kind}_id"] == item_id).order_by(_pu.c.id.desc())).mappings()
+    rows = conn.execute(_PUSH_SELECT.where(_pu.c.version_id == item[1]).order_by(_pu.c.id.desc())).mappings()
     return [_push(r) for r in rows]
 
 
@@ -102,7 +89,7 @@ def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor
         version = devices.next_wire_version(conn, device_id)
         try:
             push_id = int(conn.execute(insert(_pu).values(
-                {f"{kind}_id": item_id, "device_id": device_id, "table_version": version, "crc32": crc32,
+                {"version_id": item_id, "device_id": device_id, "table_version": version, "crc32": crc32,
                  "status": "sending", "requested_by": actor.id, "requested_at": utc_now(),
                  "instance_name": instance_name,
                  "override_reason": override_reason, "sent_back_reason": sent_back_reason})).inserted_primary_key[0])
@@ -187,10 +174,10 @@ def reconcile(conn: Connection, device_id: str, active: tuple[int, int] | None, 
             select(_pu.c.id).where(_pu.c.device_id == device_id, _pu.c.table_version == active[0],
                                    _pu.c.crc32 == active[1]).order_by(_pu.c.id.desc()).limit(1)).scalar()
         rows = conn.execute(
-            select(_pu.c.id, _pu.c.proposal_id, _pu.c.envelope_id, _pu.c.status, _pu.c.table_version)
-            .where(_pu.c.device_id == device_id,
+            select(_pu.c.id, _pu.c.version_id, _v.c.kind, _pu.c.status, _pu.c.table_version)
+            .join_from(_pu, _v, _v.c.id == _pu.c.version_id).where(_pu.c.device_id == device_id,
                    or_(_pu.c.status.in_(("sending", "unconfirmed", "acknowledged", "active")), _pu.c.id == running_id))
-            .order_by(_pu.c.id).with_for_update()).mappings().all()
+            .order_by(_pu.c.id).with_for_update(of=_pu)).mappings().all()
         for r in rows:
             status, error, at = r["status"], None, {}
             if r["id"] == running_id:   # the device's word on this push is final, in flight or not
@@ -219,7 +206,7 @@ def reconcile(conn: Connection, device_id: str, active: tuple[int, int] | None, 
 
 
 def _item(row: RowMapping) -> Pushed:
-    return ("proposal", row["proposal_id"]) if row["proposal_id"] is not None else ("envelope", row["envelope_id"])
+    return ("proposal" if row["kind"] == "table" else "envelope", row["version_id"])
 
 
 def push_of_version(conn: Connection, device_id: str, version: int | None,
@@ -241,11 +228,9 @@ def last_run_not_withdrawn(conn: Connection, device_id: str, besides: Pushed) ->
     assigned = devices.assignment(conn, device_id)
     if assigned is None:
         return None
-    kind, item_id = besides
     row = conn.execute(_PUSH_SELECT.where(
-        _pu.c.device_id == device_id, _pu.c.active_at.is_not(None), _wp.c.id.is_(None), _we.c.id.is_(None),
-        func.coalesce(_pr.c.patient_id, _en.c.patient_id) == assigned["patient_id"],
-        or_(_pu.c[f"{kind}_id"].is_(None), _pu.c[f"{kind}_id"] != item_id))
+        _pu.c.device_id == device_id, _pu.c.active_at.is_not(None), _wd.c.id.is_(None),
+        _v.c.patient_id == assigned["patient_id"], _pu.c.version_id != besides[1])
         .order_by(_pu.c.id.desc()).limit(1)).mappings().first()
     return None if row is None else _push(row)
 
@@ -259,8 +244,7 @@ def current_push(conn: Connection, device_id: str) -> dict | None:
 
 
 # shown with every version: built once (see backend/store/__init__.py)
-_STATUSES = {kind: select(_pu.c.status).where(_pu.c[f"{kind}_id"] == bindparam("item_id")).order_by(_pu.c.id.desc())
-             for kind in ("proposal", "envelope")}
+_STATUSES = select(_pu.c.status).where(_pu.c.version_id == bindparam("item_id")).order_by(_pu.c.id.desc())
 
 
 def deployment_state(conn: Connection, item: Pushed) -> str | None:
@@ -268,8 +252,7 @@ def deployment_state(conn: Connection, item: Pushed) -> str | None:
     its way: sent or read back, not yet running) / ``unconfirmed`` (no acknowledgement yet; the device's next status
     decides) / ``replaced`` (ran or was sent, then another table took its place) / ``not_on_device`` (the device
     reported it no longer holds it: restarted or lost) / ``push_failed`` / None (never pushed)."""
-    kind, item_id = item
-    newest_first = list(conn.execute(_STATUSES[kind], {"item_id": item_id}).scalars())
+    newest_first = list(conn.execute(_STATUSES, {"item_id": item[1]}).scalars())
     statuses = set(newest_first)
     if "active" in statuses:
         return "active_on_device"

@@ -9,19 +9,17 @@ from sqlalchemy import Connection, RowMapping, insert, select
 
 from backend.db import utc_now
 from backend.errors import NotFoundError
-from backend.store.tables import refinements, users
+from backend.store.tables import refinements, users, versions
 from backend.store.users import User
 
 
-def recorder(kind: str, parent_id: int, session_ids: list[int], evidence: dict, actor: User
-             ) -> Callable[[Connection, dict], dict]:
+def recorder(parent_id: int, session_ids: list[int], evidence: dict, actor: User) -> Callable[[Connection, dict], dict]:
     """What the version store runs inside its transaction once the refined version is inserted: the refinement row
-    (``kind`` ``envelope`` or ``proposal``); returns what the audit entry adds."""
-    column = {"envelope": "envelope_id", "proposal": "proposal_id"}[kind]
+    (of the new version, derived from ``parent_id``); returns what the audit entry adds."""
 
     def record(conn: Connection, meta: dict) -> dict:
         new_id = conn.execute(insert(refinements).values(
-            {column: meta["id"], "parent_id": parent_id, "session_ids_json": json.dumps(session_ids),
+            {"version_id": meta["id"], "parent_id": parent_id, "session_ids_json": json.dumps(session_ids),
              "evidence_json": json.dumps(evidence, allow_nan=False), "created_by": actor.id,
              "created_at": utc_now()})).inserted_primary_key[0]
         return {"refinement_id": int(new_id), "session_ids": session_ids,
@@ -31,13 +29,16 @@ def recorder(kind: str, parent_id: int, session_ids: list[int], evidence: dict, 
 
 
 def _public(row: RowMapping) -> dict:
-    return {"id": row["id"], "envelope_id": row["envelope_id"], "proposal_id": row["proposal_id"],
+    table = row["kind"] == "table"
+    return {"id": row["id"], "envelope_id": None if table else row["version_id"],
+            "proposal_id": row["version_id"] if table else None,
             "parent_id": row["parent_id"], "session_ids": json.loads(row["session_ids_json"]),
             "created_by": row["created_by_name"], "created_at": row["created_at"],
             **json.loads(row["evidence_json"])}
 
 
-_SELECT = select(refinements, users.c.username.label("created_by_name")).join(users, users.c.id == refinements.c.created_by)
+_SELECT = (select(refinements, users.c.username.label("created_by_name"), versions.c.kind)
+           .join(users, users.c.id == refinements.c.created_by).join(versions, versions.c.id == refinements.c.version_id))
 
 
 def get_refinement(conn: Connection, refinement_id: int) -> dict:
@@ -47,8 +48,7 @@ def get_refinement(conn: Connection, refinement_id: int) -> dict:
     return _public(row)
 
 
-def of_version(conn: Connection, kind: str, version_id: int) -> dict | None:
-    """The refinement that made this envelope or proposal, if one did."""
-    column = {"envelope": "envelope_id", "proposal": "proposal_id"}[kind]
-    row = conn.execute(_SELECT.where(refinements.c[column] == version_id)).mappings().first()
+def of_version(conn: Connection, version_id: int) -> dict | None:
+    """The refinement that made this version (a table or an envelope), if one did."""
+    row = conn.execute(_SELECT.where(refinements.c.version_id == version_id)).mappings().first()
     return None if row is None else _public(row)

@@ -5,40 +5,39 @@ from __future__ import annotations
 import json
 from collections.abc import Iterable
 
-from sqlalchemy import Connection, RowMapping, func, insert, select, update
+from sqlalchemy import Connection, RowMapping, insert, select, update
 from sqlalchemy.exc import IntegrityError
 
 from backend.db import utc_now, write_transaction
 from backend.errors import ConflictError, NotFoundError
 from backend.store import audit, sample_pack
 from backend.store.dialect import insert_or_ignore, unique_violation
-from backend.store.envelopes import envelope_label
-from backend.store.proposals import table_label
-from backend.store.tables import envelopes, patients, proposals, session_sample_seconds, users, walking_sessions
+from backend.store.tables import patients, session_sample_seconds, users, versions, walking_sessions
 from backend.store.users import User
+from backend.store.versions import version_label
 from device_bridge.sim.course import COURSES
 
 _s, _su, _pu, _pa, _pp = (walking_sessions, users.alias("su"), users.alias("pu"), patients.alias("pa"),
                           patients.alias("pp"))
 _SESSION_SELECT = (
     select(_s, _su.c.username.label("started_by_name"), _pu.c.username.label("stopped_by_name"),
-           _pa.c.code_name.label("patient_code"), proposals.c.version.label("proposal_version"),
-           envelopes.c.version.label("envelope_version"), _pp.c.code_name.label("table_patient_code"),
-           func.coalesce(proposals.c.decision_override, envelopes.c.decision_override).label("approval_override"),
-           func.coalesce(proposals.c.extrapolation_reason, envelopes.c.extrapolation_reason)
-           .label("extrapolation_reason"))
+           _pa.c.code_name.label("patient_code"), versions.c.kind, versions.c.version,
+           _pp.c.code_name.label("table_patient_code"), versions.c.decision_override.label("approval_override"),
+           versions.c.extrapolation_reason)
     .select_from(_s.join(_su, _su.c.id == _s.c.started_by).outerjoin(_pu, _pu.c.id == _s.c.stopped_by)
-                 .join(_pa, _pa.c.id == _s.c.patient_id).outerjoin(proposals, proposals.c.id == _s.c.proposal_id)
-                 .outerjoin(envelopes, envelopes.c.id == _s.c.envelope_id)
-                 .outerjoin(_pp, _pp.c.id == func.coalesce(proposals.c.patient_id, envelopes.c.patient_id))))
+                 .join(_pa, _pa.c.id == _s.c.patient_id).outerjoin(versions, versions.c.id == _s.c.version_id)
+                 .outerjoin(_pp, _pp.c.id == versions.c.patient_id)))
 
 
 def _label(row: RowMapping) -> str | None:
-    if row["proposal_id"] is not None:
-        return table_label(row["table_patient_code"], row["proposal_version"])
-    if row["envelope_id"] is not None:
-        return envelope_label(row["table_patient_code"], row["envelope_version"])
-    return None
+    return None if row["version_id"] is None else version_label(row["kind"], row["table_patient_code"], row["version"])
+
+
+def _ids(row: RowMapping) -> dict:
+    """The version the leg ran, as the API names it: a table's ``proposal_id`` or an envelope's ``envelope_id``."""
+    table = row["kind"] == "table"
+    return {"proposal_id": row["version_id"] if table else None,
+            "envelope_id": row["version_id"] if row["kind"] == "envelope" else None}
 
 
 def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
@@ -57,7 +56,7 @@ def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
 
 def _session(row: RowMapping) -> dict:
     return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
-            "device_id": row["device_id"], "proposal_id": row["proposal_id"], "envelope_id": row["envelope_id"],
+            "device_id": row["device_id"], **_ids(row),
             "table_label": _label(row), "course": row["course"],
             "simulated": None if row["simulated"] is None else bool(row["simulated"]),
             "task_words": task_words(row["course"], row["speed_mps"], row["incline_deg"]),
@@ -94,8 +93,9 @@ def start_session(conn: Connection, patient_id: int, device_id: str, task: dict,
             raise busy
         try:
             session_id = int(conn.execute(insert(_s).values(
-                patient_id=patient_id, device_id=device_id, proposal_id=ran["proposal_id"],
-                envelope_id=ran["envelope_id"], table_version=ran["table_version"], table_crc32=ran["crc32"],
+                patient_id=patient_id, device_id=device_id,
+                version_id=ran["proposal_id"] if ran["proposal_id"] is not None else ran["envelope_id"],
+                table_version=ran["table_version"], table_crc32=ran["crc32"],
                 speed_mps=task["speed_mps"], incline_deg=task["incline_deg"], body_mass_kg=task["body_mass_kg"],
                 course=course, status="recording", started_by=actor.id, started_at=utc_now(),
                 simulated=None if simulated is None else int(simulated))).inserted_primary_key[0])

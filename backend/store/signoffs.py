@@ -22,19 +22,17 @@ from backend.store.users import User
 
 Kind = Literal["proposal", "envelope"]
 NEEDED = 2      # sign-offs by distinct prosthetists that override the bench's gate
-_COLUMN = {"proposal": gate_signoffs.c.proposal_id, "envelope": gate_signoffs.c.envelope_id}
 # read with every version shown: built once (see backend/store/__init__.py)
-_OF = {kind: select(gate_signoffs.c.content_sha256, gate_signoffs.c.reason, gate_signoffs.c.signed_at,
-                    gate_signoffs.c.user_id, users.c.username)
+_OF = (select(gate_signoffs.c.content_sha256, gate_signoffs.c.reason, gate_signoffs.c.signed_at,
+              gate_signoffs.c.user_id, users.c.username)
        .select_from(gate_signoffs.join(users, users.c.id == gate_signoffs.c.user_id))
-       .where(column == bindparam("item_id")).order_by(gate_signoffs.c.id)
-       for kind, column in _COLUMN.items()}
+       .where(gate_signoffs.c.version_id == bindparam("item_id")).order_by(gate_signoffs.c.id))
 
 
 def signoffs(conn: Connection, kind: Kind, item_id: int, content_sha256: str) -> list[dict]:
     """The sign-offs on this version's content, oldest first: ``by``, ``reason``, ``at``."""
     return [{"by": r["username"], "user_id": r["user_id"], "reason": r["reason"], "at": r["signed_at"]}
-            for r in conn.execute(_OF[kind], {"item_id": item_id}).mappings() if r["content_sha256"] == content_sha256]
+            for r in conn.execute(_OF, {"item_id": item_id}).mappings() if r["content_sha256"] == content_sha256]
 
 
 def sign(conn: Connection, kind: Kind, item_id: int, content_sha256: str, actor: User, reason: str) -> list[dict]:
@@ -44,10 +42,10 @@ def sign(conn: Connection, kind: Kind, item_id: int, content_sha256: str, actor:
         raise ConflictError(f"you ({actor.username}) already signed off {kind} {item_id}'s bench findings; the "
                             "second sign-off must come from another prosthetist's account")
     try:
-        conn.execute(insert(gate_signoffs).values(**{f"{kind}_id": item_id}, content_sha256=content_sha256,
+        conn.execute(insert(gate_signoffs).values(version_id=item_id, content_sha256=content_sha256,
                                                   user_id=actor.id, reason=reason, signed_at=utc_now()))
     except IntegrityError as exc:   # the same person's other request (another instance) signed a moment ago
-        if not unique_violation(exc, f"gate_signoffs_{kind}_id_user_id_key", f"gate_signoffs.{kind}_id, "
+        if not unique_violation(exc, "gate_signoffs_version_id_user_id_key", "gate_signoffs.version_id, "
                                 "gate_signoffs.user_id"):
             raise
         raise ConflictError(f"your ({actor.username}) sign-off on {kind} {item_id} was recorded a moment ago by another "

@@ -96,17 +96,6 @@ patients = Table(
 )
 
 
-def _version_columns(kind: str) -> list:
-    """What a table version and an envelope version share: patient, lineage, authorship and the decision."""
-    return [
-        Column("id", Integer, primary_key=True),
-        Column("patient_id", Integer, ForeignKey("patients.id"), nullable=False),
-        Column("version", Integer, nullable=False),
-        Column("parent_id", Integer, ForeignKey(f"{kind}.id")),
-        Column("source", Text, nullable=False),
-    ]
-
-
 def _decision_columns() -> list:
     return [
         Column("edit_comment", Text),
@@ -123,52 +112,52 @@ def _decision_columns() -> list:
     ]
 
 
-def _version_checks() -> list:
-    return [
-        CheckConstraint("version >= 1"),
-        CheckConstraint("source IN ('model', 'edit')"),
-        CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),
-        _flag("extrapolation"), _flag("safety_ok"),
-        CheckConstraint("status IN ('draft', 'approved', 'rejected')"),
-        UniqueConstraint("patient_id", "version"),
-        _json_check("leg_json"),
-    ]
-
-
-proposals = Table(
-    "proposals", metadata,
-    *_version_columns("proposals"),
-    Column("speed_mps", _Float, nullable=False),
+# a patient's parameters, one version each (revision 0021): an envelope over a speed × incline grid, of which a
+# fixed-task table is the one-node case (1 × 1); what the clinic calls it ("table" or "envelope") is numbered apart,
+# as before (the patient's table v3 and envelope v3 are two versions)
+versions = Table(
+    "versions", metadata,
+    Column("id", Integer, primary_key=True),
+    Column("patient_id", Integer, ForeignKey("patients.id"), nullable=False),
+    Column("kind", Text, nullable=False),           # 'table': one task (1 × 1); 'envelope': a range of tasks
+    Column("version", Integer, nullable=False),
+    Column("parent_id", Integer, ForeignKey("versions.id")),
+    Column("source", Text, nullable=False),
+    Column("n_speeds", Integer, nullable=False),
+    Column("n_inclines", Integer, nullable=False),
+    Column("speed_mps", _Float, nullable=False),    # its task (a range's nominal task)
     Column("incline_deg", _Float, nullable=False),
     Column("body_mass_kg", _Float, nullable=False),
     Column("extrapolation", Flag, nullable=False),
     Column("safety_ok", Flag, nullable=False),
-    Column("model_json", Text, nullable=False),
-    Column("table_json", Text, nullable=False),
-    Column("table_sha256", Text, nullable=False),
+    Column("content_json", Text, nullable=False),   # the envelope as the device runs it (a table: its one node)
+    Column("content_sha256", Text, nullable=False),
+    Column("wire_crc32", _Crc32),
+    Column("model_json", Text),                     # a table's model output (features, curves); none for a range
     *_decision_columns(),
+    CheckConstraint("kind IN ('table', 'envelope')"),
+    CheckConstraint("(kind = 'table' AND n_speeds = 1 AND n_inclines = 1) OR (kind = 'envelope' AND n_speeds BETWEEN 2 "
+                    "AND 15 AND n_inclines BETWEEN 2 AND 15 AND n_speeds * n_inclines <= 64)"),
     CheckConstraint("speed_mps > 0 AND speed_mps <= 3"),
     CheckConstraint("incline_deg BETWEEN -20 AND 20"),
-    *_version_checks(),
-    Index("proposals_by_patient", "patient_id", "version"),
+    CheckConstraint("version >= 1"),
+    CheckConstraint("source IN ('model', 'edit')"),
+    CheckConstraint("body_mass_kg BETWEEN 20 AND 200"),
+    _flag("extrapolation"), _flag("safety_ok"),
+    CheckConstraint("status IN ('draft', 'approved', 'rejected')"),
+    UniqueConstraint("patient_id", "kind", "version"),
+    _json_check("content_json"), _json_check("leg_json"),
 )
 
-envelopes = Table(
-    "envelopes", metadata,
-    *_version_columns("envelopes"),
-    Column("body_mass_kg", _Float, nullable=False),
-    Column("n_speeds", Integer, nullable=False),
-    Column("n_inclines", Integer, nullable=False),
-    Column("extrapolation", Flag, nullable=False),
-    Column("safety_ok", Flag, nullable=False),
-    Column("envelope_json", Text, nullable=False),
-    Column("envelope_sha256", Text, nullable=False),
-    Column("wire_crc32", _Crc32),
-    *_decision_columns(),
-    CheckConstraint("n_speeds BETWEEN 2 AND 15"),
-    CheckConstraint("n_inclines BETWEEN 2 AND 15"),
-    *_version_checks(),
-    Index("envelopes_by_patient", "patient_id", "version"),
+# the ids versions had before revision 0021 (a table's proposal id, an envelope's envelope id): audit rows written
+# before it name them, and an old envelope link is sent on to its version
+legacy_ids = Table(
+    "legacy_ids", metadata,
+    Column("kind", Text, nullable=False),
+    Column("old_id", Integer, nullable=False),
+    Column("version_id", Integer, ForeignKey("versions.id"), nullable=False, unique=True),
+    CheckConstraint("kind IN ('proposal', 'envelope')"),
+    PrimaryKeyConstraint("kind", "old_id"),
 )
 
 audit_log = Table(
@@ -208,7 +197,7 @@ walking_sessions = Table(
     Column("id", Integer, primary_key=True),
     Column("patient_id", Integer, ForeignKey("patients.id"), nullable=False),
     Column("device_id", Text, ForeignKey("devices.id"), nullable=False),
-    Column("proposal_id", Integer, ForeignKey("proposals.id")),
+    Column("version_id", Integer, ForeignKey("versions.id")),   # what the leg ran, when this server sent it
     Column("table_version", Integer),
     Column("table_crc32", _Crc32),
     Column("speed_mps", _Float, nullable=False),
@@ -220,7 +209,6 @@ walking_sessions = Table(
     Column("stopped_by", Integer, ForeignKey("users.id")),
     Column("stopped_at", Timestamp),
     Column("summary_json", Text),
-    Column("envelope_id", Integer, ForeignKey("envelopes.id")),
     Column("course", Text),
     # revision 0016: walked by the simulated patient on the simulated leg (1), a person on a real leg (0), or not known
     # (sessions recorded before it was kept)
@@ -249,34 +237,24 @@ session_sample_seconds = Table(
     PrimaryKeyConstraint("session_id", "second"),
 )
 
-proposal_previews = Table(
-    "proposal_previews", metadata,
-    Column("proposal_id", Integer, ForeignKey("proposals.id"), primary_key=True, autoincrement=False),
-    Column("table_sha256", Text, nullable=False),
-    Column("seconds", _Float, nullable=False),
+# a version's bench preview (computed once: a version never changes): a table's walk at its task, an envelope's course
+previews = Table(
+    "previews", metadata,
+    Column("version_id", Integer, ForeignKey("versions.id"), primary_key=True, autoincrement=False),
+    Column("content_sha256", Text, nullable=False),
+    Column("seconds", _Float),     # a table's walk (s)
+    Column("course", Text),        # an envelope's course
     Column("created_at", Timestamp, nullable=False),
     Column("result_json", Text, nullable=False),
-    CheckConstraint("length(table_sha256) = 64"),
-    CheckConstraint("seconds > 0"),
-    _json_check("result_json"),
-)
-
-envelope_previews = Table(
-    "envelope_previews", metadata,
-    Column("envelope_id", Integer, ForeignKey("envelopes.id"), primary_key=True, autoincrement=False),
-    Column("envelope_sha256", Text, nullable=False),
-    Column("course", Text, nullable=False),
-    Column("created_at", Timestamp, nullable=False),
-    Column("result_json", Text, nullable=False),
-    CheckConstraint("length(envelope_sha256) = 64"),
+    CheckConstraint("length(content_sha256) = 64"),
+    CheckConstraint("seconds IS NULL OR seconds > 0"),
     _json_check("result_json"),
 )
 
 pushes = Table(
     "pushes", metadata,
     Column("id", Integer, primary_key=True),
-    Column("proposal_id", Integer, ForeignKey("proposals.id")),
-    Column("envelope_id", Integer, ForeignKey("envelopes.id")),
+    Column("version_id", Integer, ForeignKey("versions.id"), nullable=False),
     Column("device_id", Text, ForeignKey("devices.id"), nullable=False),
     Column("table_version", Integer, nullable=False),
     Column("crc32", _Crc32, nullable=False),
@@ -295,9 +273,7 @@ pushes = Table(
     CheckConstraint("table_version BETWEEN 1 AND 65535"),
     CheckConstraint("crc32 BETWEEN 0 AND 4294967295"),
     CheckConstraint("status IN ('sending', 'unconfirmed', 'acknowledged', 'active', 'failed', 'superseded', 'lost')"),
-    CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
-    Index("pushes_by_proposal", "proposal_id"),
-    Index("pushes_by_envelope", "envelope_id"),
+    Index("pushes_by_version", "version_id"),
     Index("pushes_by_device", "device_id", "status"),
     # one push on its way per device (revision 0013): the guarantee holds across API instances, not only in one process
     Index("one_push_sending_per_device", "device_id", unique=True,
@@ -307,15 +283,13 @@ pushes = Table(
 refinements = Table(
     "refinements", metadata,
     Column("id", Integer, primary_key=True),
-    Column("envelope_id", Integer, ForeignKey("envelopes.id"), unique=True),
-    Column("proposal_id", Integer, ForeignKey("proposals.id"), unique=True),
+    Column("version_id", Integer, ForeignKey("versions.id"), nullable=False, unique=True),   # the draft it made
     Column("parent_id", Integer, nullable=False),
     Column("session_ids_json", Text, nullable=False),
     Column("evidence_json", Text, nullable=False),
     Column("created_by", Integer, ForeignKey("users.id"), nullable=False),
     Column("created_at", Timestamp, nullable=False),
     _json_check("session_ids_json"), _json_check("evidence_json"),
-    CheckConstraint("(envelope_id IS NULL) <> (proposal_id IS NULL)"),
 )
 
 # each API instance's last heartbeat (revision 0017, backend.instance_beat): one that stopped beating is dead
@@ -342,16 +316,13 @@ login_failures = Table(
 gate_signoffs = Table(
     "gate_signoffs", metadata,
     Column("id", Integer, primary_key=True),
-    Column("proposal_id", Integer, ForeignKey("proposals.id")),
-    Column("envelope_id", Integer, ForeignKey("envelopes.id")),
+    Column("version_id", Integer, ForeignKey("versions.id"), nullable=False),
     Column("content_sha256", Text, nullable=False),
     Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
     Column("reason", Text, nullable=False),
     Column("signed_at", Timestamp, nullable=False),
-    CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
     CheckConstraint("length(content_sha256) = 64"),
-    UniqueConstraint("proposal_id", "user_id"),
-    UniqueConstraint("envelope_id", "user_id"),
+    UniqueConstraint("version_id", "user_id"),
 )
 
 # an approved version taken back (revision 0016): it is never pushed again, and a leg running it is sent back to the
@@ -359,10 +330,8 @@ gate_signoffs = Table(
 withdrawals = Table(
     "withdrawals", metadata,
     Column("id", Integer, primary_key=True),
-    Column("proposal_id", Integer, ForeignKey("proposals.id"), unique=True),
-    Column("envelope_id", Integer, ForeignKey("envelopes.id"), unique=True),
+    Column("version_id", Integer, ForeignKey("versions.id"), nullable=False, unique=True),
     Column("user_id", Integer, ForeignKey("users.id"), nullable=False),
     Column("reason", Text, nullable=False),
     Column("withdrawn_at", Timestamp, nullable=False),
-    CheckConstraint("(proposal_id IS NULL) <> (envelope_id IS NULL)"),
 )

@@ -19,16 +19,15 @@ from backend.store.tables import users, withdrawals
 from backend.store.users import User
 
 Kind = Literal["proposal", "envelope"]
-_COLUMN = {"proposal": withdrawals.c.proposal_id, "envelope": withdrawals.c.envelope_id}
 # read with every version shown and every push: built once (see backend/store/__init__.py)
-_OF = {kind: select(withdrawals.c.reason, withdrawals.c.withdrawn_at, users.c.username)
-       .select_from(withdrawals.join(users, users.c.id == withdrawals.c.user_id)).where(column == bindparam("item_id"))
-       for kind, column in _COLUMN.items()}
+_OF = (select(withdrawals.c.reason, withdrawals.c.withdrawn_at, users.c.username)
+       .select_from(withdrawals.join(users, users.c.id == withdrawals.c.user_id))
+       .where(withdrawals.c.version_id == bindparam("item_id")))
 
 
 def withdrawal(conn: Connection, kind: Kind, item_id: int) -> dict | None:
     """``by``, ``at``, ``reason`` of the version's withdrawal, or None."""
-    row = conn.execute(_OF[kind], {"item_id": item_id}).mappings().first()
+    row = conn.execute(_OF, {"item_id": item_id}).mappings().first()
     return None if row is None else {"by": row["username"], "at": row["withdrawn_at"], "reason": row["reason"]}
 
 
@@ -40,7 +39,7 @@ def withdraw(conn: Connection, kind: Kind, row, actor: User, reason: str) -> dic
     done = withdrawal(conn, kind, row["id"])
     if done is not None:
         raise ConflictError(f"{kind} {row['id']} was already withdrawn by {done['by']} at {done['at']}")
-    conn.execute(insert(withdrawals).values(**{f"{kind}_id": row["id"]}, user_id=actor.id, reason=reason,
+    conn.execute(insert(withdrawals).values(version_id=row["id"], user_id=actor.id, reason=reason,
                                             withdrawn_at=utc_now()))
     audit.record(conn, actor.id, actor.username, f"{kind}.withdraw", kind, row["id"], before={"withdrawn": False},
                  after={"withdrawn": True, "reason": reason})

@@ -8,7 +8,7 @@ from sqlalchemy import func, insert, select
 
 from backend.db import connect
 from backend.store import patients, users
-from backend.store.tables import proposals
+from backend.store.tables import versions
 
 
 @pytest.fixture
@@ -39,16 +39,18 @@ def patient(conn, prosthetist) -> dict:
 
 @pytest.fixture
 def draft(conn, prosthetist, patient):
-    """A function making a draft proposal row with a given table text (its sha256 as stored), returning its id."""
+    """A function making a draft table version with a given content text (its sha256 as stored), returning its id."""
     from controller_core.content import content_sha256
 
     def make(table_json: str = '{"rows": []}', version: int | None = None, parent_id: int | None = None) -> int:
-        v = version or conn.execute(select(func.coalesce(func.max(proposals.c.version), 0) + 1)).scalar_one()
-        return int(conn.execute(insert(proposals).values(
-            patient_id=patient["id"], parent_id=parent_id, version=v, source="model" if parent_id is None else "edit",
+        v = version or conn.execute(select(func.coalesce(func.max(versions.c.version), 0) + 1)
+                                    .where(versions.c.kind == "table")).scalar_one()
+        return int(conn.execute(insert(versions).values(
+            patient_id=patient["id"], kind="table", parent_id=parent_id, version=v,
+            source="model" if parent_id is None else "edit", n_speeds=1, n_inclines=1,
             speed_mps=1.2, incline_deg=0, body_mass_kg=80,
-            extrapolation=0, safety_ok=1, model_json="{}", table_json=table_json,
-            table_sha256=content_sha256(table_json), created_by=prosthetist.id, created_at="2026-01-01T00:00:00Z",
+            extrapolation=0, safety_ok=1, model_json="{}", content_json=table_json,
+            content_sha256=content_sha256(table_json), created_by=prosthetist.id, created_at="2026-01-01T00:00:00Z",
         )).inserted_primary_key[0])
 
     return make

@@ -17,6 +17,9 @@ from tests.helpers.migrators import migrate_at_once
 
 LEGACY = sorted((MIGRATIONS_DIR / LEGACY_DIR_NAME).glob("*.sql"))
 NOW = "2026-11-24T00:00:00Z"
+DATA = Path(__file__).parents[1] / "leg" / "data"          # a table and an envelope as QuasiTune stored them
+TABLE_JSON = (DATA / "table_1.2mps_level_75kg.json").read_text()
+ENVELOPE_JSON = (DATA / "envelope_default_75kg.json").read_text()
 
 
 def connect(path: Path) -> sqlite3.Connection:
@@ -59,10 +62,10 @@ def _fill(conn: sqlite3.Connection) -> None:
       "VALUES (1, 'P-1', 80, 1.8, 'left', 3, 1, ?, ?)", (NOW, NOW))
     x("INSERT INTO proposals (id, patient_id, version, source, speed_mps, incline_deg, body_mass_kg, extrapolation, "
       "safety_ok, model_json, table_json, table_sha256, created_by, created_at, extrapolation_reason) VALUES "
-      "(1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 's', 1, ?, NULL)", (NOW,))
+      "(1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', ?, 's', 1, ?, NULL)", (TABLE_JSON, NOW))
     x("INSERT INTO envelopes (id, patient_id, version, source, body_mass_kg, n_speeds, n_inclines, extrapolation, "
       "safety_ok, envelope_json, envelope_sha256, wire_crc32, created_by, created_at) VALUES "
-      "(1, 1, 1, 'model', 80, 2, 2, 0, 1, '{}', 'e', 4294967295, 1, ?)", (NOW,))
+      "(1, 1, 1, 'model', 80, 5, 5, 0, 1, ?, 'e', 4294967295, 1, ?)", (ENVELOPE_JSON, NOW))
     x("INSERT INTO devices (id, kind, interface, channel, registered_at, patient_id, last_wire_version) VALUES "
       "('leg', 'simulated', 'virtual', 'c', ?, 1, 7)", (NOW,))
     x("INSERT INTO pushes (proposal_id, device_id, table_version, crc32, status, requested_by, requested_at, "
@@ -79,9 +82,27 @@ def _fill(conn: sqlite3.Connection) -> None:
       (NOW,))
     x("INSERT INTO envelopes (id, patient_id, version, parent_id, source, body_mass_kg, n_speeds, n_inclines, "
       "extrapolation, safety_ok, envelope_json, envelope_sha256, created_by, created_at) VALUES "
-      "(2, 1, 2, 1, 'edit', 80, 2, 2, 0, 1, '{}', 'f', 1, ?)", (NOW,))
+      "(2, 1, 2, 1, 'edit', 80, 5, 5, 0, 1, ?, 'f', 1, ?)", (ENVELOPE_JSON, NOW))
     x("INSERT INTO refinements (envelope_id, parent_id, session_ids_json, evidence_json, created_by, created_at) "
       "VALUES (2, 1, '[1]', '{}', 1, ?)", (NOW,))
+
+
+def _fill_now(conn: sqlite3.Connection) -> None:
+    """A row in each table the rules below touch, at the newest revision."""
+    x = conn.execute
+    x("INSERT INTO users (id, username, role, password_hash, created_at) VALUES (1, 'Dana', 'prosthetist', 'h', ?)",
+      (NOW,))
+    x("INSERT INTO patients (id, code_name, body_mass_kg, side, created_by, created_at, updated_at) "
+      "VALUES (1, 'P-1', 80, 'left', 1, ?, ?)", (NOW, NOW))
+    x("INSERT INTO versions (id, patient_id, kind, version, source, n_speeds, n_inclines, speed_mps, incline_deg, "
+      "body_mass_kg, extrapolation, safety_ok, content_json, content_sha256, created_by, created_at) VALUES "
+      "(1, 1, 'table', 1, 'model', 1, 1, 1.2, 0, 80, 0, 1, '{}', ?, 1, ?)", ("0" * 64, NOW))
+    x("INSERT INTO devices (id, kind, interface, channel, registered_at) VALUES ('leg', 'simulated', 'virtual', 'c', ?)",
+      (NOW,))
+    x("INSERT INTO walking_sessions (id, patient_id, device_id, version_id, speed_mps, incline_deg, body_mass_kg, "
+      "status, started_by, started_at) VALUES (1, 1, 'leg', 1, 1.2, 0, 80, 'recording', 1, ?)", (NOW,))
+    x("INSERT INTO refinements (version_id, parent_id, session_ids_json, evidence_json, created_by, created_at) "
+      "VALUES (1, 1, '[1]', '{}', 1, ?)", (NOW,))
 
 
 def _everything(conn: sqlite3.Connection) -> dict[str, list[tuple]]:
@@ -90,11 +111,17 @@ def _everything(conn: sqlite3.Connection) -> dict[str, list[tuple]]:
     return {t: [tuple(r) for r in conn.execute(f"SELECT * FROM {t} ORDER BY 1, 2")] for t in tables}
 
 
-LATER = ["0013", "0014", "0015", "0016", "0017", "0018", "0019", "0020"]   # the revisions after the baseline
+LATER = ["0013", "0014", "0015", "0016", "0017", "0018", "0019", "0020", "0021"]   # the revisions after the baseline
 LATER_TABLES = {"login_failures", "session_sample_seconds", "gate_signoffs", "withdrawals",   # the tables they added
                 "instance_beats"}
 LATER_TRIGGERS = {"gate_signoffs_no_update", "gate_signoffs_no_delete", "withdrawals_no_update", "withdrawals_no_delete",
-                  "proposals_leg_kept", "envelopes_leg_kept"}
+                  "proposals_leg_kept", "envelopes_leg_kept"}          # through 0020
+# the rules at the newest revision: those of tables and envelopes became the versions' (0021)
+NOW_TRIGGERS = {"audit_no_delete", "audit_no_update", "gate_signoffs_no_delete", "gate_signoffs_no_update",
+                "legacy_ids_kept", "pushes_never_deleted", "pushes_override_kept", "refinements_never_change",
+                "refinements_never_deleted", "sessions_stopped_once", "versions_content_immutable",
+                "versions_decided_once", "versions_extrapolation_reason_kept", "versions_leg_kept",
+                "versions_never_deleted", "withdrawals_no_delete", "withdrawals_no_update"}
 
 
 def _triggers(conn: sqlite3.Connection) -> set[str]:
@@ -120,7 +147,7 @@ def test_a_database_of_the_hand_written_migrations_is_stamped_with_every_row_kep
     rows, triggers = _everything(old), _triggers(old)
     old.close()
     assert all(rows.values()) and len(rows) == 13 and len(triggers) == 18
-    assert migrate(db) == LATER                    # stamped at the baseline, then the later revisions applied
+    assert migrate(db, to="0020") == LATER[:-1]     # stamped at the baseline, then the later revisions applied
     conn = connect(db)
     now = _everything(conn)
     # every row kept; the samples now a row per second (revision 0014), read back the same; every device supervised
@@ -139,13 +166,19 @@ def test_a_database_of_the_hand_written_migrations_is_stamped_with_every_row_kep
     assert [r for (blob,) in conn.execute("SELECT samples FROM session_sample_seconds") for r in unpack(blob)] == \
         [tuple(r[1:]) for r in rows["session_samples"]]
     assert _triggers(conn) == (triggers - {"session_samples_append_only"}) | LATER_TRIGGERS
-    assert schema_version(conn) == int(head())
+    assert schema_version(conn) == 20
     assert conn.execute("SELECT 1 FROM sqlite_master WHERE name = 'schema_version'").fetchone() is None
     with pytest.raises(sqlite3.IntegrityError, match="append-only"):   # its rules still hold
         conn.execute("DELETE FROM audit_log")
     with pytest.raises(sqlite3.IntegrityError, match="CHECK"):
         conn.execute("INSERT INTO pushes (device_id, table_version, crc32, status, requested_by, requested_at) "
                      "VALUES ('leg', 4, 1, 'sending', 1, ?)", (NOW,))
+    conn.close()
+    assert migrate(db) == ["0021"]                  # and on to one version (tests/backend/test_migrate_one_version.py)
+    conn = connect(db)
+    assert [tuple(r) for r in conn.execute("SELECT id, kind, version FROM versions ORDER BY id")] == [
+        (1, "table", 1), (3, "envelope", 1), (4, "envelope", 2)]   # envelopes past the largest id of either kind
+    assert _triggers(conn) == NOW_TRIGGERS
     conn.close()
 
 
@@ -155,23 +188,28 @@ def test_the_fresh_and_the_stamped_database_hold_the_same_rules(tmp_path):
     _legacy_database(stamped).close()
     migrate(stamped)
     a, b = connect(fresh), connect(stamped)
-    assert _triggers(a) == _triggers(b)
+    assert _triggers(a) == _triggers(b) == NOW_TRIGGERS
     for conn in (a, b):
-        _fill(conn)
-        for sql, match in [("UPDATE proposals SET table_json = '[]'", "immutable"),
+        _fill_now(conn)
+        for sql, match in [("UPDATE versions SET content_json = '[]'", "immutable"),
                            ("UPDATE walking_sessions SET status = 'stopped'", None),
                            ("UPDATE walking_sessions SET course = 'x'", "final"),
                            ("DELETE FROM refinements", "never deleted"),
-                           ("UPDATE envelopes SET extrapolation_reason = 'x'", "kept as written"),
-                           ("UPDATE proposals SET leg_json = '{\"name\": \"x\"}'", "made for is kept as written"),
+                           ("UPDATE versions SET extrapolation_reason = 'x'", "kept as written"),
+                           ("UPDATE versions SET leg_json = '{\"name\": \"x\"}'", "made for is kept as written"),
                            ("INSERT INTO users (username, role, password_hash, created_at) "
                             "VALUES ('dana', 'viewer', 'h', 'now')", "UNIQUE"),   # names are case-insensitive
-                           ("INSERT INTO proposal_previews VALUES (1, 'x', 1, 'now', 'not json')", "CHECK")]:
+                           ("INSERT INTO previews VALUES (1, ?, 1, NULL, 'now', 'not json')", "CHECK"),
+                           ("INSERT INTO versions (patient_id, kind, version, source, n_speeds, n_inclines, speed_mps, "
+                            "incline_deg, body_mass_kg, extrapolation, safety_ok, content_json, content_sha256, "
+                            "created_by, created_at) VALUES (1, 'table', 9, 'model', 2, 2, 1.2, 0, 80, 0, 1, '{}', ?, 1, "
+                            "'now')", "CHECK")]:      # a table is one node
+            params = ("0" * 64,) if "?" in sql else ()
             if match is None:
-                conn.execute(sql)
+                conn.execute(sql, params)
             else:
                 with pytest.raises(sqlite3.IntegrityError, match=match):
-                    conn.execute(sql)
+                    conn.execute(sql, params)
     a.close()
     b.close()
 
@@ -222,5 +260,5 @@ def test_two_processes_starting_at_once_upgrade_once(tmp_path):
     assert migrate_at_once(db) == [0, 0, 0]
     conn = connect(db)
     assert [r[0] for r in conn.execute("SELECT version_num FROM alembic_version")] == [head()]
-    assert len(_triggers(conn)) == 17 + len(LATER_TRIGGERS)
+    assert _triggers(conn) == NOW_TRIGGERS
     conn.close()

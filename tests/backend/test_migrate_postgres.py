@@ -51,10 +51,10 @@ def test_times_become_timestamps_and_flags_booleans_with_every_row_and_rule_kept
     """A database at 0019 holding a user, a patient and a version, upgraded: its times are ``timestamp with time
     zone`` and its flags ``boolean`` (the ISO text and the 0/1 it held, cast), the application reads them as it
     always did, and the immutability triggers the change had to drop are back, word for word."""
-    from sqlalchemy import text
+    from sqlalchemy import MetaData, Table, text
 
+    from backend.db import utc_text
     from backend.store import users
-    from backend.store.tables import proposals
 
     migrate(empty, to="0019")
     engine = create_engine(database_url(empty))
@@ -68,15 +68,16 @@ def test_times_become_timestamps_and_flags_booleans_with_every_row_and_rule_kept
                           "extrapolation, safety_ok, model_json, table_json, table_sha256, created_by, created_at) "
                           "VALUES (1, 1, 1, 'model', 1.2, 0, 80, 0, 1, '{}', '{}', 's', 1, :at)"), {"at": at})
         triggers = set(conn.execute(text("SELECT tgname FROM pg_trigger WHERE NOT tgisinternal")).scalars())
-    migrate(empty)
+    migrate(empty, to="0020")
     with engine.connect() as conn:
+        proposals = Table("proposals", MetaData(), autoload_with=conn)
         types = {(r.table_name, r.column_name): r.data_type for r in conn.execute(text(
             "SELECT table_name, column_name, data_type FROM information_schema.columns WHERE table_schema = 'public'"))}
         assert types["proposals", "created_at"] == types["users", "created_at"] == "timestamp with time zone"
         assert types["proposals", "safety_ok"] == types["users", "disabled"] == "boolean"
         assert set(conn.execute(text("SELECT tgname FROM pg_trigger WHERE NOT tgisinternal")).scalars()) == triggers
         row = conn.execute(proposals.select()).mappings().one()
-        assert row["created_at"] == at and row["safety_ok"] is True and row["extrapolation"] is False
+        assert utc_text(row["created_at"]) == at and row["safety_ok"] is True and row["extrapolation"] is False
         assert users.list_users(conn)[0]["must_change_password"] is True and users.list_users(conn)[0]["disabled"] is False
         with pytest.raises(Exception, match="immutable"):     # the rules are back
             conn.execute(text("UPDATE proposals SET created_at = now()"))

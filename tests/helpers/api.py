@@ -47,9 +47,14 @@ class Api:
         return connect(self.database or self.data_dir / "quasitune.sqlite")
 
     def count(self, table: str) -> int:
-        """Rows in a table of the app's database (to check that a refused request stored nothing)."""
+        """Rows in a table of the app's database (to check that a refused request stored nothing); "proposals" and
+        "envelopes" count the versions of that kind (one table holds both)."""
+        kinds = {"proposals": "table", "envelopes": "envelope"}
+        versions = metadata.tables["versions"]
+        query = (select(func.count()).select_from(versions).where(versions.c.kind == kinds[table]) if table in kinds
+                 else select(func.count()).select_from(metadata.tables[table]))
         with self.db() as conn:
-            return conn.execute(select(func.count()).select_from(metadata.tables[table])).scalar_one()
+            return conn.execute(query).scalar_one()
 
     def new_patient(self, code: str = "P-001", mass: float = 80.0) -> dict:
         r = self.client.post("/api/patients", headers=self.as_("prosthetist"),

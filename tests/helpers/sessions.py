@@ -12,8 +12,8 @@ import numpy as np
 
 from backend.db import connect
 from backend.store import devices as devices_store
-from backend.store import proposals as proposals_store
 from backend.store import sessions as sessions_store
+from backend.store import versions as versions_store
 from backend.store.users import User
 from controller_core.fsm import ImpedanceSchedule, StateMachineController
 from controller_core.table import ParameterTable
@@ -57,14 +57,14 @@ def record_offline(db_path: Path | str, model, patient: dict, proposal_id: int, 
     try:
         if sql(conn, "SELECT 1 FROM devices WHERE id = :id", id=BENCH_DEVICE).first() is None:
             devices_store.register_device(conn, BENCH_DEVICE, "can", "virtual", "bench")
-        row = proposals_store.get_row(conn, proposal_id)
+        row = versions_store.get_row(conn, "proposal", proposal_id)
         user_id = sql(conn, "SELECT id FROM users WHERE role = 'prosthetist' ORDER BY id LIMIT 1").scalar_one()
         user = User(id=user_id, username="prosthetist", role="prosthetist")
         task = {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"], "body_mass_kg": patient["body_mass_kg"]}
         sid = sessions_store.start_session(conn, patient["id"], BENCH_DEVICE, task,
                                            {"proposal_id": proposal_id, "envelope_id": None, "table_version": 1,
                                             "crc32": 1}, user, simulated=True)
-        samples = bench_samples(proposals_store.stored_table(row), row["speed_mps"], row["incline_deg"], model,
+        samples = bench_samples(versions_store.stored_table(row), row["speed_mps"], row["incline_deg"], model,
                                 patient["body_mass_kg"], seconds, **walk)
         sessions_store.add_samples(conn, sid, samples)
         return sid

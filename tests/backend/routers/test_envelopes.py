@@ -63,6 +63,24 @@ def test_a_request_that_is_not_an_envelope_is_refused_and_nothing_is_stored(api,
     assert api.client.get(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("viewer")).json() == []
 
 
+def test_an_envelope_named_by_its_id_from_before_one_version_is_sent_on_to_its_version(api):
+    """Envelopes moved to version ids in revision 0021 (``legacy_ids``): an old link answers 308 to the same path
+    under the version id, a method and body kept; an old id never names another version."""
+    patient = api.new_patient()
+    env = request_envelope(api, patient["id"])
+    table = api.propose(patient["id"])
+    with api.db() as conn, write_transaction(conn):
+        sql(conn, "INSERT INTO legacy_ids (kind, old_id, version_id) VALUES ('envelope', :old, :id)",
+            old=table["id"], id=env["id"])          # the old envelope id is a table's id now
+    viewer = api.as_("viewer")
+    r = api.client.get(f"/api/envelopes/{table['id']}/preview?x=1", headers=viewer, follow_redirects=False)
+    assert r.status_code == 308 and r.headers["location"].endswith(f"/api/envelopes/{env['id']}/preview?x=1")
+    moved = api.client.get(f"/api/envelopes/{table['id']}", headers=viewer)
+    assert moved.status_code == 200 and moved.json()["id"] == env["id"]
+    assert api.client.get(f"/api/proposals/{table['id']}", headers=viewer).json()["id"] == table["id"]
+    assert api.client.get(f"/api/envelopes/{env['id'] + 100}", headers=viewer).status_code == 404
+
+
 def test_only_a_prosthetist_builds_or_decides_and_a_decision_is_taken_once(api):
     patient = api.new_patient()
     r = api.client.post(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("viewer"), json={"grid": [2, 2]})
@@ -88,12 +106,12 @@ def test_a_stored_envelope_cannot_be_changed_and_a_tampered_one_is_refused_at_ap
     e = request_envelope(api, patient["id"], grid=[2, 2])
     conn = api.db()
     with pytest.raises(IntegrityError, match="immutable"):
-        sql(conn, "UPDATE envelopes SET envelope_json = '{}' WHERE id = :id", id=e["id"])
+        sql(conn, "UPDATE versions SET content_json = '{}' WHERE id = :id", id=e["id"])
     with pytest.raises(IntegrityError, match="never deleted"):
-        sql(conn, "DELETE FROM envelopes WHERE id = :id", id=e["id"])
+        sql(conn, "DELETE FROM versions WHERE id = :id", id=e["id"])
     with write_transaction(conn):   # simulate on-disk corruption: drop the trigger, change one value
-        drop_trigger(conn, "envelopes_content_immutable", "envelopes")
-        sql(conn, "UPDATE envelopes SET envelope_json = replace(envelope_json, '\"knee\"', '\"knee\" ') "
+        drop_trigger(conn, "versions_content_immutable", "versions")
+        sql(conn, "UPDATE versions SET content_json = replace(content_json, '\"knee\"', '\"knee\" ') "
             "WHERE id = :id", id=e["id"])
     conn.close()
     r = api.client.post(f"/api/envelopes/{e['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
@@ -282,14 +300,14 @@ def test_a_huge_envelope_offset_is_refused_at_the_schema_naming_the_field(api, v
 
 
 def test_an_envelope_is_stored_exactly_as_the_device_runs_it(api):
-    from backend.store import envelopes as envelope_store
+    from backend.store import versions
     from tests.helpers.device import assert_same_as_device
 
     patient = api.new_patient()
     e = request_envelope(api, patient["id"], grid=[3, 2])
     conn = api.db()
     try:
-        stored = envelope_store.stored_envelope(envelope_store.get_row(conn, e["id"]))
+        stored = versions.stored_envelope(versions.get_row(conn, "envelope", e["id"]))
     finally:
         conn.close()
     device = WireEnvelope.from_envelope(stored).to_device()

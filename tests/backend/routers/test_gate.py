@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from backend.db import write_transaction
 from backend.devices import manager as manager_module
-from backend.store import proposals, withdrawals
+from backend.store import versions, withdrawals
 from backend.store.users import User
 from tests.helpers.api import DEVICE, approve_anyway, approved_proposal, push_body, push_to_leg, wait_for, walk_preview
 
@@ -93,8 +93,8 @@ def test_a_leg_found_running_a_version_withdrawn_elsewhere_is_put_in_safe_mode(s
     assert push_to_leg(api, prop).status_code == 201
     _running(api, prop["id"])
     with api.db() as conn, write_transaction(conn):
-        withdrawals.withdraw(conn, "proposal", proposals.get_row(conn, prop["id"]), User(1, "prosthetist", "prosthetist"),
-                             WHY)
+        withdrawals.withdraw(conn, "proposal", versions.get_row(conn, "proposal", prop["id"]),
+                             User(1, "prosthetist", "prosthetist"), WHY)
     device = wait_for(lambda: _device(api), lambda d: d["safe_mode"], clock=api.clock)
     assert device["withdrawal_notice"]["state"] == "runs_withdrawn"
 

@@ -42,13 +42,13 @@ def test_a_preview_walks_as_a_job_its_owner_watches_and_cancels(api):
     r = answer["r"]
     assert r.status_code == 409 and r.json()["detail"] == (f"the table preview of table {prop['id']} was cancelled by "
                                                            "prosthetist; nothing was stored")
-    assert api.count("proposal_previews") == 0
+    assert api.count("previews") == 0
     after = api.client.get(f"/api/jobs/{job['id']}", headers=api.as_("viewer")).json()
     assert after["state"] == "cancelled" and after["words"] == "cancelled by prosthetist; nothing was stored"
     assert after["seconds_left_s"] == 0
     assert api.client.delete(f"/api/jobs/{job['id']}", headers=api.as_("prosthetist")).status_code == 409
     assert api.client.get("/api/jobs/999999", headers=api.as_("viewer")).status_code == 404
     r = api.client.get(f"{path}/preview", headers=api.as_("viewer"))        # asked again: walked whole, stored
-    assert r.status_code == 200 and api.count("proposal_previews") == 1
+    assert r.status_code == 200 and api.count("previews") == 1
     done = next(j for j in api.client.get("/api/jobs", headers=api.as_("viewer")).json() if j["state"] == "done")
     assert done["fraction"] == 1.0 and done["user"] == "viewer" and done["words"] == "done"

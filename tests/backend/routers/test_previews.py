@@ -42,7 +42,7 @@ def test_preview_walks_the_table_and_the_fsmic_once_and_keeps_it(api):
     again = c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer).json()
     assert again == first   # stored, not re-simulated (same created_at)
     with api.db() as conn:
-        assert sql(conn, "SELECT count(*) FROM proposal_previews").scalar_one() == 1
+        assert sql(conn, "SELECT count(*) FROM previews").scalar_one() == 1
     assert c.get("/api/proposals/999/preview", headers=viewer).status_code == 404
 
 
@@ -51,7 +51,7 @@ def test_preview_made_from_another_table_is_refused(api):
     c, viewer = api.client, api.as_("viewer")
     assert c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer).status_code == 200
     with api.db() as conn:
-        sql(conn, "UPDATE proposal_previews SET table_sha256 = :sha", sha="0" * 64)
+        sql(conn, "UPDATE previews SET content_sha256 = :sha", sha="0" * 64)
     r = c.get(f"/api/proposals/{prop['id']}/preview", headers=viewer)
     assert r.status_code == 409 and "another table" in r.json()["detail"]
 

@@ -12,7 +12,7 @@ from sqlalchemy.exc import IntegrityError
 
 from backend.db import write_transaction
 from backend.services import proposals as proposal_versions
-from backend.store import proposals as proposal_store
+from backend.store import versions
 from backend.store.users import User
 from tests.helpers.api import walk_preview
 from tests.helpers.sql import drop_trigger, sql
@@ -189,11 +189,11 @@ def test_approve_once_then_immutable(api):
         assert again.status_code == 409 and "already approved" in again.json()["detail"]
     conn = api.db()
     with pytest.raises(IntegrityError, match="immutable"):
-        sql(conn, "UPDATE proposals SET table_json = '{}' WHERE id = :id", id=p["id"])
+        sql(conn, "UPDATE versions SET content_json = '{}' WHERE id = :id", id=p["id"])
     with pytest.raises(IntegrityError, match="already been approved"):
-        sql(conn, "UPDATE proposals SET status = 'draft' WHERE id = :id", id=p["id"])
+        sql(conn, "UPDATE versions SET status = 'draft' WHERE id = :id", id=p["id"])
     with pytest.raises(IntegrityError, match="never deleted"):
-        sql(conn, "DELETE FROM proposals")
+        sql(conn, "DELETE FROM versions")
     with pytest.raises(IntegrityError, match="append-only"):
         sql(conn, "DELETE FROM audit_log")
     with pytest.raises(IntegrityError, match="append-only"):
@@ -240,8 +240,8 @@ def test_tampered_table_is_refused_at_approval(api):
     p = api.propose(api.new_patient()["id"])
     conn = api.db()
     with write_transaction(conn):   # simulate on-disk corruption: drop the trigger, change one byte
-        drop_trigger(conn, "proposals_content_immutable", "proposals")
-        sql(conn, "UPDATE proposals SET table_json = replace(table_json, '\"knee\"', '\"knee\" ') WHERE id = :id",
+        drop_trigger(conn, "versions_content_immutable", "versions")
+        sql(conn, "UPDATE versions SET content_json = replace(content_json, '\"knee\"', '\"knee\" ') WHERE id = :id",
             id=p["id"])
     conn.close()
     r = api.client.post(f"/api/proposals/{p['id']}/approve", headers=api.as_("prosthetist"), json={"comment": "ok"})
@@ -302,7 +302,7 @@ def test_a_value_within_half_a_wire_step_of_a_limit_is_stored_shown_and_approved
     assert v2["safety"]["ok"]
     conn = api.db()
     try:
-        stored = proposal_store.stored_table(proposal_store.get_row(conn, v2["id"]))
+        stored = versions.stored_table(versions.get_row(conn, "proposal", v2["id"]))
     finally:
         conn.close()
     assert_same_as_device(stored, table_wire(stored).to_device().tables[0])

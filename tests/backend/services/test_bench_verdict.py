@@ -9,17 +9,17 @@ from backend.db import write_transaction
 from backend.errors import ConflictError
 from backend.services import bench_verdict
 from backend.services import envelopes as envelope_versions
-from backend.store import envelopes, previews, proposals, signoffs
+from backend.store import previews, signoffs, versions
 from tests.backend.conftest import CLEAN_WALK
 
 WHY = "seated in the bars, every row checked by hand"
 
 
 def _walked(conn, pid, mine):
-    row = proposals.get_row(conn, pid)
-    previews.store_preview(conn, pid, row["table_sha256"], {"seconds": 10.0, "controllers": {
+    row = versions.get_row(conn, "proposal", pid)
+    previews.store_preview(conn, "proposal", pid, row["content_sha256"], {"seconds": 10.0, "controllers": {
         "table": mine, "fsmic": CLEAN_WALK}})
-    return proposals.get_row(conn, pid)
+    return versions.get_row(conn, "proposal", pid)
 
 
 def test_a_clean_walk_passes_alone(conn, draft, prosthetist):
@@ -45,9 +45,9 @@ def test_the_override_takes_two_accounts_each_with_its_reason_on_exactly_this_co
                                                                                       colleague):
     row = _walked(conn, draft(), {**CLEAN_WALK, "falls": 2})
     with write_transaction(conn):
-        signoffs.sign(conn, "proposal", row["id"], row["table_sha256"], prosthetist, WHY)
+        signoffs.sign(conn, "proposal", row["id"], row["content_sha256"], prosthetist, WHY)
     with pytest.raises(ConflictError, match="already signed off"), write_transaction(conn):
-        signoffs.sign(conn, "proposal", row["id"], row["table_sha256"], prosthetist, WHY + " again")
+        signoffs.sign(conn, "proposal", row["id"], row["content_sha256"], prosthetist, WHY + " again")
     with pytest.raises(ConflictError, match="signed off so far by pat"):    # the signer cannot be the second as well
         bench_verdict.require_bench(conn, "proposal", row, WHY, "approved", prosthetist)
     with write_transaction(conn):      # the colleague approves: their reason is the second sign-off, kept with it
@@ -65,7 +65,7 @@ def test_the_override_takes_two_accounts_each_with_its_reason_on_exactly_this_co
 
 
 def test_not_walked_is_refused_with_the_way_to_walk_it(conn, draft, prosthetist):
-    row = proposals.get_row(conn, draft())
+    row = versions.get_row(conn, "proposal", draft())
     assert bench_verdict.verdict(conn, "proposal", row)["status"] == "not_walked"
     with pytest.raises(ConflictError, match=r"not approved: its bench preview has not been walked.*GET /api/proposals"):
         bench_verdict.require_bench(conn, "proposal", row, None, "approved", prosthetist)
@@ -76,7 +76,7 @@ def test_a_version_worse_than_its_parent_on_the_bench_says_in_which_figures(conn
     worse than its parent's, beyond the bench's resolution (any count; 10 ms, 5 mm, 1°), even within its bound."""
     parent = _walked(conn, draft('{"rows": [1]}'), {**CLEAN_WALK, "toe_catches": 0, "hip_sink_max_mm": 20.0})
     child_id = draft('{"rows": [2]}', parent_id=parent["id"])
-    assert bench_verdict.verdict(conn, "proposal", proposals.get_row(conn, child_id))["worse_than_parent"] is None
+    assert bench_verdict.verdict(conn, "proposal", versions.get_row(conn, "proposal", child_id))["worse_than_parent"] is None
     child = _walked(conn, child_id, {**CLEAN_WALK, "toe_catches": 1, "hip_sink_max_mm": 24.0,
                                      "heel_strike_to_stance_ms_max": CLEAN_WALK["heel_strike_to_stance_ms_max"] + 25})
     worse = bench_verdict.verdict(conn, "proposal", child)["worse_than_parent"]
@@ -97,11 +97,11 @@ def _envelope_walked(conn, model, patient, prosthetist, nodes):
     nodes were walked alone)."""
     created = envelope_versions.create_from_model(conn, patient["id"], model.propose_envelope([0.8, 1.4], [-5.0, 5.0], 80.0),
                                           prosthetist)
-    row = envelopes.get_row(conn, created["id"])
+    row = versions.get_row(conn, "envelope", created["id"])
     result = {"course": {"name": "mixed"}, "controllers": {"envelope": CLEAN_WALK, "fsmic": CLEAN_WALK}}
-    previews.store_envelope_preview(conn, row["id"], row["envelope_sha256"],
+    previews.store_preview(conn, "envelope", row["id"], row["content_sha256"],
                                     result if nodes is None else {**result, "nodes": nodes})
-    return envelopes.get_row(conn, row["id"])
+    return versions.get_row(conn, "envelope", row["id"])
 
 
 def test_an_envelope_node_beyond_a_bound_gates_the_envelope_and_is_named(conn, model, patient, prosthetist):

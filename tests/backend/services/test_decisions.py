@@ -7,7 +7,7 @@ import pytest
 from backend.db import connect, write_transaction
 from backend.errors import ConflictError
 from backend.services.decisions import decide_once
-from backend.store import audit, proposals, signoffs
+from backend.store import audit, signoffs, versions
 from controller_core.table import LimitViolation
 
 REASON = "walked with the patient in the parallel bars"
@@ -16,12 +16,12 @@ REASON = "walked with the patient in the parallel bars"
 def _signed(conn, pid, colleague):
     """The colleague's sign-off on the draft's content (it has no preview walked): the approver's is then the second."""
     with write_transaction(conn):
-        signoffs.sign(conn, "proposal", pid, proposals.get_row(conn, pid)["table_sha256"], colleague, REASON)
+        signoffs.sign(conn, "proposal", pid, versions.get_row(conn, "proposal", pid)["content_sha256"], colleague, REASON)
 
 
 def _decide(conn, pid, actor, status, recheck=list, override=REASON):
     with write_transaction(conn):
-        decide_once(conn, "proposal", proposals.get_row(conn, pid), status, "looked at it", actor, recheck,
+        decide_once(conn, "proposal", versions.get_row(conn, "proposal", pid), status, "looked at it", actor, recheck,
                     "the safety limits", {"note": 1}, override)
 
 
@@ -29,7 +29,7 @@ def test_a_draft_is_decided_once_and_audited(conn, prosthetist, colleague, draft
     pid = draft()
     _signed(conn, pid, colleague)
     _decide(conn, pid, prosthetist, "approved")
-    row = proposals.get_row(conn, pid)
+    row = versions.get_row(conn, "proposal", pid)
     assert (row["status"], row["decided_by_name"], row["decision_override"]) == ("approved", "pat",
                                                                                  f"kim: {REASON}; pat: {REASON}")
     entry = audit.list_entries(conn, entity="proposal", entity_id=pid)[0]
@@ -44,9 +44,9 @@ def test_an_approval_whose_content_fails_its_check_writes_nothing(conn, prosthet
                           message="knee stance flexion k 10 is outside [-1200, 0]")]
     with pytest.raises(ConflictError, match="cannot be approved: 1 value"):
         _decide(conn, pid, prosthetist, "approved", recheck=lambda: bad)
-    assert proposals.get_row(conn, pid)["status"] == "draft"
+    assert versions.get_row(conn, "proposal", pid)["status"] == "draft"
     _decide(conn, pid, prosthetist, "rejected", recheck=lambda: bad)   # a rejection needs no check
-    assert proposals.get_row(conn, pid)["status"] == "rejected"
+    assert versions.get_row(conn, "proposal", pid)["status"] == "rejected"
     with pytest.raises(ValueError, match="approved' or 'rejected"):
         _decide(conn, draft(), prosthetist, "maybe")
 
@@ -58,7 +58,7 @@ def test_a_decision_made_on_a_row_read_before_another_server_decided_it_writes_n
     while the version is still a draft, changes nothing, and it is refused: no second decision, no second audit."""
     pid = draft()
     _signed(conn, pid, colleague)
-    stale = proposals.get_row(conn, pid)            # read while still a draft
+    stale = versions.get_row(conn, "proposal", pid)            # read while still a draft
     other = connect(database)
     try:
         _decide(other, pid, prosthetist, "rejected")
@@ -67,7 +67,7 @@ def test_a_decision_made_on_a_row_read_before_another_server_decided_it_writes_n
     with pytest.raises(ConflictError, match="decided by someone else a moment ago"), write_transaction(conn):
         decide_once(conn, "proposal", stale, "approved", "me too", prosthetist, list, "the safety limits", {},
                     REASON)
-    assert proposals.get_row(conn, pid)["status"] == "rejected"
+    assert versions.get_row(conn, "proposal", pid)["status"] == "rejected"
     decisions = [e["action"] for e in audit.list_entries(conn, entity="proposal", entity_id=pid)]
     assert decisions == ["proposal.reject", "proposal.gate_signoff"]          # the approver's sign-off was not kept
-    assert [s["by"] for s in signoffs.signoffs(conn, "proposal", pid, stale["table_sha256"])] == ["kim"]
+    assert [s["by"] for s in signoffs.signoffs(conn, "proposal", pid, stale["content_sha256"])] == ["kim"]
