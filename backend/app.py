@@ -36,18 +36,17 @@ from backend.routers import (
     auth,
     device_credentials,
     devices,
-    envelopes,
     gate,
     health,
     jobs,
     patients,
     previews,
-    proposals,
     pushes,
     reference,
     refinements,
     sessions,
     users,
+    versions,
 )
 from backend.schemas.errors import FieldError
 from backend.security import set_hash_cost
@@ -199,7 +198,7 @@ def create_app(settings: Settings, model_loader: Callable[[], QuasiStiffnessMode
             headers = {"Location": str(request.url.replace(path=path))}
         return JSONResponse({"detail": exc.message, **exc.extra}, status_code=exc.status, headers=headers)
 
-    for router in (health.router, auth.router, users.router, patients.router, proposals.router, envelopes.router,
+    for router in (health.router, auth.router, users.router, patients.router, versions.router,
                    previews.router, reference.router, pushes.router, sessions.router, devices.router, audit.router,
                    refinements.router, device_credentials.router, gate.router, jobs.router):
         app.include_router(router)

@@ -27,7 +27,7 @@ def soak_envelopes(args: argparse.Namespace, shape: tuple[int, int] = (5, 5), n:
 
 def accepted_grids() -> list[tuple[int, int]]:
     """Every envelope grid the API accepts (2–15 nodes per axis, at most 64): what one transfer must carry."""
-    from backend.schemas.envelopes import MAX_NODES
+    from backend.schemas.versions import MAX_NODES
 
     return [(a, b) for a in range(2, 16) for b in range(2, 16) if a * b <= MAX_NODES]
 

@@ -8,9 +8,9 @@ from typing import Annotated
 from fastapi import APIRouter, Query
 
 from backend.deps import CurrentUser, Model
-from backend.schemas.envelopes import MAX_NODES
 from backend.schemas.errors import UNAUTHORIZED
 from backend.schemas.reference import ReferenceOut, TaskRangeOut
+from backend.schemas.versions import MAX_NODES
 from controller_core.known_range import known_range
 from controller_core.model import QuasiStiffnessModel
 from controller_core.reference import CITATIONS

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from backend.schemas.envelopes import MAX_NODES
+from backend.schemas.versions import MAX_NODES
 from controller_core.fsm import SensorSample
 from device_bridge.envelope_wire import EnvelopeReceiver, WireEnvelope
 from device_bridge.firmware import DeviceFirmware

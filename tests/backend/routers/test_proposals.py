@@ -39,7 +39,7 @@ def test_proposal_carries_features_curves_table_units_and_provenance(api, model)
 
 
 def test_a_new_proposal_answer_is_exactly_its_schema_and_what_is_stored(api):
-    from backend.schemas.proposals import ProposalOut
+    from backend.schemas.versions import ProposalOut
 
     patient = api.new_patient()
     r = api.client.post(f"/api/patients/{patient['id']}/proposals", headers=api.as_("prosthetist"),
