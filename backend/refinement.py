@@ -18,9 +18,9 @@ from sqlalchemy import Connection, RowMapping
 
 from backend.errors import ConflictError, InvalidError
 from backend.services import envelopes, legs, proposals
+from backend.services import sessions as session_views
 from backend.session_strides import session_strides
 from backend.store import refinements, versions
-from backend.store import sessions as sessions_store
 from backend.store.users import User
 from backend.store.versions import Item
 from controller_core.model import QuasiStiffnessModel
@@ -69,7 +69,7 @@ def _sessions(conn: Connection, kind: str, version_id: int, patient_id: int, ses
     label = {"envelope": "this envelope", "proposal": "this table"}[kind]
     out = []
     for sid in dict.fromkeys(session_ids):
-        s = sessions_store.get_session(conn, sid)   # 404 for an unknown id
+        s = session_views.get_session(conn, sid)   # 404 for an unknown id
         if s["patient_id"] != patient_id:
             raise InvalidError(f"session {sid} records patient {s['patient_code']}, not the patient of {label}: a "
                                "refinement learns from the patient's own strides only")

@@ -28,6 +28,7 @@ from backend.devices.fanout import TelemetryFanout
 from backend.devices.recorder import FLUSH_PERIOD_S, SessionRecorder
 from backend.devices.specs import DeviceSpec
 from backend.errors import ConflictError, NotFoundError
+from backend.services import pushes as push_views
 from backend.store import devices as devices_store
 from backend.store import pushes as pushes_store
 from controller_core.envelope import Envelope
@@ -194,7 +195,7 @@ class DeviceManager:
             return None
         key = (version, crc32)
         if key not in dev.tables:
-            push = pushes_store.push_of_version(conn, dev.spec.device_id, version, crc32)
+            push = push_views.push_of_version(conn, dev.spec.device_id, version, crc32)
             if push is None:
                 return None
             dev.tables[key] = {k: push[k] for k in ("kind", "proposal_id", "proposal_version", "envelope_id",
@@ -272,11 +273,11 @@ class DeviceManager:
             return {"push": None, "version": None, "crc32": None, "mode": None, "words": "nothing reported yet"}
         push = None
         if not running_only and dev.acknowledged is not None and dev.acknowledged[1] > s.received_monotonic_s:
-            push = pushes_store.get_push(conn, dev.acknowledged[0])
+            push = push_views.get_push(conn, dev.acknowledged[0])
         elif not running_only and s.pending_version is not None:
-            push = pushes_store.push_of_version(conn, device_id, s.pending_version)
+            push = push_views.push_of_version(conn, device_id, s.pending_version)
         if push is None and s.active_version is not None:
-            push = pushes_store.push_of_version(conn, device_id, s.active_version, s.active_crc32)
+            push = push_views.push_of_version(conn, device_id, s.active_version, s.active_crc32)
         if push is not None:
             words = push["label"]
         elif s.active_version is None:
@@ -447,7 +448,7 @@ class DeviceManager:
         out = []
         with pooled(self.db) as conn:
             for (mode, active), n in reports.most_common():
-                push = None if active is None else pushes_store.push_of_version(conn, device_id, *active)
+                push = None if active is None else push_views.push_of_version(conn, device_id, *active)
                 out.append({"mode": mode, "table_version": None if active is None else active[0],
                             "crc32": None if active is None else f"{active[1]:08x}",
                             "label": None if push is None else push["label"], "share": round(n / total, 3)})
@@ -497,8 +498,8 @@ MASS_MISMATCH = 0.05   # a table built for a body mass more than 5 % from the pa
 def _withdrawal_notice(conn: Connection, device_id: str, s: DeviceStatus) -> dict | None:
     """What the monitor says about a withdrawal on this leg: it runs a withdrawn version (and is put in safe mode), or
     what it runs or will run was sent back because the version before was withdrawn (which, by whom, why)."""
-    active = pushes_store.push_of_version(conn, device_id, s.active_version, s.active_crc32)
-    pending = pushes_store.push_of_version(conn, device_id, s.pending_version)
+    active = push_views.push_of_version(conn, device_id, s.active_version, s.active_crc32)
+    pending = push_views.push_of_version(conn, device_id, s.pending_version)
     if active is not None and active["withdrawal"] is not None and (pending is None or pending["withdrawal"]):
         w = active["withdrawal"]
         return {"state": "runs_withdrawn", "label": active["label"], **w,

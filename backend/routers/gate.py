@@ -22,6 +22,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.gate import SignoffRequest, SignoffsOut, WithdrawOut, WithdrawRequest
 from backend.services import bench_verdict, envelopes, proposals
+from backend.services import pushes as push_views
 from backend.services.versions import stored_content
 from backend.store import pushes as pushes_store
 from backend.store import signoffs, versions, withdrawals
@@ -103,7 +104,7 @@ def _holds(conn: Connection, devices: DeviceManager, device_id: str, item: pushe
     if s is None:
         return False
     for version, crc in ((s.active_version, s.active_crc32), (s.pending_version, None)):
-        push = pushes_store.push_of_version(conn, device_id, version, crc)
+        push = push_views.push_of_version(conn, device_id, version, crc)
         if push is not None and ((push["kind"] == "table" and item == ("proposal", push["proposal_id"]))
                                  or (push["kind"] == "envelope" and item == ("envelope", push["envelope_id"]))):
             return True
@@ -117,7 +118,7 @@ def _send_back(conn: Connection, devices: DeviceManager, device_id: str, withdra
     if not devices.online(dev):
         return {"device_id": device_id, "action": "offline", "to_label": None,
                 "detail": "the leg is offline: it is put in safe mode when it next reports"}
-    back = pushes_store.last_run_not_withdrawn(conn, device_id, withdrawn)
+    back = push_views.last_run_not_withdrawn(conn, device_id, withdrawn)
     if back is not None:
         try:
             sent = _resend(conn, devices, device_id, back, why, user)
@@ -153,4 +154,4 @@ def _resend(conn: Connection, devices: DeviceManager, device_id: str, back: dict
             raise
         pushes_store.finish_push(conn, push_id, "acknowledged", result.attempts, result.elapsed_ms, None)
         devices.push_finished(device_id, push_id, acknowledged=True)
-    return pushes_store.get_push(conn, push_id)
+    return push_views.get_push(conn, push_id)

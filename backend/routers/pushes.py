@@ -15,6 +15,7 @@ from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, DEVICE_FAILED, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.pushes import PushOut, PushRequest
 from backend.services import bench_verdict
+from backend.services import pushes as push_views
 from backend.services.versions import stored_content
 from backend.store import devices as devices_store
 from backend.store import patients, versions, withdrawals
@@ -94,7 +95,7 @@ def _push(conn: Connection, devices: DeviceManager, user: User, body: PushReques
                               (time.monotonic() - t0) * 1e3, str(exc))
             devices.push_finished(body.device_id, push_id, acknowledged=False)
             raise DeviceError(f"push {push_id} {'unconfirmed' if unconfirmed else 'failed'}: {exc}",
-                              push=store.get_push(conn, push_id)) from exc
+                              push=push_views.get_push(conn, push_id)) from exc
         except BaseException:
             store.finish_push(conn, push_id, "unconfirmed", None, (time.monotonic() - t0) * 1e3,
                               "the push was interrupted; the device's next status tells whether it holds it")
@@ -102,7 +103,7 @@ def _push(conn: Connection, devices: DeviceManager, user: User, body: PushReques
             raise
         store.finish_push(conn, push_id, "acknowledged", result.attempts, result.elapsed_ms, None)
         devices.push_finished(body.device_id, push_id, acknowledged=True)
-    return store.get_push(conn, push_id)
+    return push_views.get_push(conn, push_id)
 
 
 def _check_patient(conn: Connection, row: RowMapping, device_id: str, what: str,
@@ -147,11 +148,11 @@ def _check_replaces(conn: Connection, devices: DeviceManager, body: PushRequest)
 def list_pushes(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     """Every push of this proposal, newest first."""
     versions.get_row(conn, "proposal", proposal_id)
-    return store.pushes_of(conn, ("proposal", proposal_id))
+    return push_views.pushes_of(conn, ("proposal", proposal_id))
 
 
 @router.get("/envelopes/{envelope_id}/pushes", response_model=list[PushOut], responses=NOT_FOUND)
 def list_envelope_pushes(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     """Every push of this envelope, newest first."""
     versions.get_row(conn, "envelope", envelope_id)
-    return store.pushes_of(conn, ("envelope", envelope_id))
+    return push_views.pushes_of(conn, ("envelope", envelope_id))

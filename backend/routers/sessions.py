@@ -17,6 +17,7 @@ from backend.report import session_report_pdf
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.sessions import SamplesOut, SessionOut, SessionRequest, TrendDay
+from backend.services import sessions as session_views
 from backend.session_export import samples_csv, samples_parquet
 from backend.session_strides import stride_tasks
 from backend.store import devices as devices_store
@@ -77,7 +78,7 @@ def start_session(patient_id: IdPath, body: SessionRequest, request: Request, co
     session_id = store.start_session(conn, patient_id, body.device_id, task, ran, user, body.course,
                                      simulated=devices.get(body.device_id).spec.kind == "simulated")
     devices.start_recording(body.device_id, session_id, reference, mass, course)
-    return store.get_session(conn, session_id)
+    return session_views.get_session(conn, session_id)
 
 
 @router.post("/sessions/{session_id}/stop", response_model=SessionOut,
@@ -86,7 +87,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
     """Stop recording and store the summary: strides, cadence, joint RMSE against the reference for the task. The
     prosthetist's (a viewer who watches remotely must not end the prosthetist's recording: 403)."""
     devices: DeviceManager = request.app.state.devices
-    session = store.get_session(conn, session_id)
+    session = session_views.get_session(conn, session_id)
     if session["status"] != "recording":
         raise ConflictError(f"session {session_id} was already stopped at {session['stopped_at']}")
     reported: list[dict] = []
@@ -123,7 +124,7 @@ def stop_session(session_id: IdPath, request: Request, conn: Conn, user: Prosthe
     summary["missing_samples"] = int(seqs[-1] - seqs[0] + 1 - len(seqs)) if seqs else 0
     summary["late_samples"] = late   # kept by the leg's bridge while its link was down, delivered after
     store.stop_session(conn, session_id, summary, user)
-    return store.get_session(conn, session_id)
+    return session_views.get_session(conn, session_id)
 
 
 def _floats(values: list) -> np.ndarray:
@@ -134,7 +135,7 @@ def _floats(values: list) -> np.ndarray:
 @router.get("/patients/{patient_id}/sessions", response_model=list[SessionOut], responses=NOT_FOUND)
 def list_sessions(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     patients.get_patient(conn, patient_id)
-    return store.sessions_of_patient(conn, patient_id)
+    return session_views.sessions_of_patient(conn, patient_id)
 
 
 @router.get("/patients/{patient_id}/trend", response_model=list[TrendDay], responses=NOT_FOUND)
@@ -143,7 +144,7 @@ def get_trend(patient_id: IdPath, conn: Conn, _user: CurrentUser) -> list[dict]:
     cadence and joint-angle errors, and time per task class (slow / moderate / fast × downhill / level / uphill: edges
     0.9 and 1.3 m/s, ±4°; an adaptive session by the leg's own estimate, a single-table session at its task)."""
     patients.get_patient(conn, patient_id)
-    return session_trend(store.sessions_of_patient(conn, patient_id))
+    return session_trend(session_views.sessions_of_patient(conn, patient_id))
 
 
 @router.get("/sessions/{session_id}/report.pdf", response_class=Response,
@@ -153,7 +154,7 @@ def get_report_pdf(session_id: IdPath, conn: Conn, _user: CurrentUser) -> Respon
     """The session report as a PDF: task, the table or envelope that ran with its version and CRC, strides,
     cadence, trajectories against the reference, errors; with an envelope a second page of time, strides and errors
     per region (a stopped session: the summary is made on stop)."""
-    session = store.get_session(conn, session_id)
+    session = session_views.get_session(conn, session_id)
     if session["status"] != "stopped":
         raise ConflictError(f"session {session_id} is still recording; stop it first, the report needs its summary")
     pdf = session_report_pdf(session, patients.get_patient(conn, session["patient_id"]))
@@ -163,7 +164,7 @@ def get_report_pdf(session_id: IdPath, conn: Conn, _user: CurrentUser) -> Respon
 
 @router.get("/sessions/{session_id}", response_model=SessionOut, responses=NOT_FOUND)
 def get_session(session_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
-    return store.get_session(conn, session_id)
+    return session_views.get_session(conn, session_id)
 
 
 _DEG = 180 / math.pi
@@ -190,7 +191,7 @@ def get_samples(session_id: IdPath, conn: Conn, _user: CurrentUser,
                 every: Annotated[int, Query(ge=1, le=1000, description="keep every n-th sample")] = 1) -> dict:
     """The recorded telemetry in display units (deg, deg/s, N·m, N), columns of equal length; ``mode`` per sample
     says whether the leg ran its table (``active``), was in ``safe`` mode or had ``no_table``."""
-    store.get_session(conn, session_id)
+    session_views.get_session(conn, session_id)
     out = _display_columns(conn, session_id, every)
     return {"session_id": session_id, "count": len(out["seq"]), "every": every, "columns": out}
 
@@ -202,7 +203,7 @@ def export_samples(session_id: IdPath, fmt: Literal["csv", "parquet"], conn: Con
     """Every recorded sample of the session as CSV or Parquet (what engineers open in their own tools): the columns
     of ``/samples`` with the unit in each name; the Parquet file also carries the session's facts as metadata
     (patient code, version on the leg with its CRC, whether the walk was simulated)."""
-    session = store.get_session(conn, session_id)
+    session = session_views.get_session(conn, session_id)
     facts = {"session_id": str(session_id), "simulated": str(session.get("simulated")),
              "version_on_leg": str(session.get("table_label")), "crc32": str(session.get("table_crc32")),
              "started_at": str(session.get("started_at")), "source": "QuasiTune session recording"}

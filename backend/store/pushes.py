@@ -24,7 +24,7 @@ from backend.store.dialect import unique_violation
 from backend.store.instance_beats import is_dead
 from backend.store.tables import patients, pushes, users, versions, withdrawals
 from backend.store.users import User
-from backend.store.versions import Item, version_label
+from backend.store.versions import Item
 
 _pu, _v, _wd, _wu = pushes, versions, withdrawals, users.alias("wu")
 _PUSH_SELECT = (
@@ -39,42 +39,21 @@ _PUSH_SELECT = (
                  .outerjoin(_wu, _wu.c.id == _wd.c.user_id)))
 
 
-def _push(row: RowMapping) -> dict:
-    table = row["kind"] == "table"
-    label = version_label(row["kind"], row["patient_code"], row["version"])
-    return {"id": row["id"], "kind": row["kind"], "proposal_id": row["version_id"] if table else None,
-            "envelope_id": None if table else row["version_id"], "device_id": row["device_id"],
-            "patient_id": row["patient_id"], "patient_code": row["patient_code"],
-            "proposal_version": row["version"] if table else None,
-            "envelope_version": None if table else row["version"],
-            "label": label, "table_label": label if table else None,
-            "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"]},
-            "body_mass_kg": row["built_for_mass_kg"], "override_reason": row["override_reason"],
-            "approval_override": row["approval_override"], "extrapolation_reason": row["extrapolation_reason"],
-            "table_version": row["table_version"], "crc32": f"{row['crc32']:08x}", "status": row["status"],
-            "requested_by": row["requested_by_name"], "requested_at": row["requested_at"],
-            "acknowledged_at": row["acknowledged_at"], "active_at": row["active_at"], "ended_at": row["ended_at"],
-            "attempts": row["attempts"], "elapsed_ms": row["elapsed_ms"], "error": row["error"],
-            "withdrawal": None if row["withdrawn_at"] is None else {
-                "by": row["withdrawn_by_name"], "at": row["withdrawn_at"], "reason": row["withdrawn_reason"]},
-            "sent_back_reason": row["sent_back_reason"]}
-
-
-def get_push(conn: Connection, push_id: int) -> dict:
+def push_row(conn: Connection, push_id: int) -> RowMapping:
+    """A push with its version's kind, number, patient and task, who asked and any withdrawal of its version."""
     row = conn.execute(_PUSH_SELECT.where(_pu.c.id == push_id)).mappings().first()
     if row is None:
         raise NotFoundError(f"push {push_id} not found")
-    return _push(row)
+    return row
 
 
 PushedKind = Item
 Pushed = tuple[PushedKind, int]      # ("proposal", id): a table; ("envelope", id): the whole envelope
 
 
-def pushes_of(conn: Connection, item: Pushed) -> list[dict]:
-    """Every push of this proposal or envelope, newest first."""
-    rows = conn.execute(_PUSH_SELECT.where(_pu.c.version_id == item[1]).order_by(_pu.c.id.desc())).mappings()
-    return [_push(r) for r in rows]
+def rows_of(conn: Connection, item: Pushed) -> list[RowMapping]:
+    """Every push of this proposal or envelope, newest first (rows as :func:`push_row` reads them)."""
+    return list(conn.execute(_PUSH_SELECT.where(_pu.c.version_id == item[1]).order_by(_pu.c.id.desc())).mappings())
 
 
 def begin_push(conn: Connection, item: Pushed, device_id: str, crc32: int, actor: User,
@@ -209,8 +188,8 @@ def _item(row: RowMapping) -> Pushed:
     return ("proposal" if row["kind"] == "table" else "envelope", row["version_id"])
 
 
-def push_of_version(conn: Connection, device_id: str, version: int | None,
-                    crc32: int | None = None) -> dict | None:
+def row_of_version(conn: Connection, device_id: str, version: int | None,
+                   crc32: int | None = None) -> RowMapping | None:
     """The newest push of this table version (and CRC, when given) to the device: what its status reports
     running or waiting for heel strike. None for no version, or a table this server never sent."""
     if version is None:
@@ -218,29 +197,19 @@ def push_of_version(conn: Connection, device_id: str, version: int | None,
     query = _PUSH_SELECT.where(_pu.c.device_id == device_id, _pu.c.table_version == version)
     if crc32 is not None:
         query = query.where(_pu.c.crc32 == crc32)
-    row = conn.execute(query.order_by(_pu.c.id.desc()).limit(1)).mappings().first()
-    return None if row is None else _push(row)
+    return conn.execute(query.order_by(_pu.c.id.desc()).limit(1)).mappings().first()
 
 
-def last_run_not_withdrawn(conn: Connection, device_id: str, besides: Pushed) -> dict | None:
+def last_run_not_withdrawn(conn: Connection, device_id: str, besides: Pushed) -> RowMapping | None:
     """The newest push of a version that ran on the device (it reported it active once), was not withdrawn, is not
     ``besides``, and is of the patient the device is assigned to now: where a withdrawal sends the leg back."""
     assigned = devices.assignment(conn, device_id)
     if assigned is None:
         return None
-    row = conn.execute(_PUSH_SELECT.where(
+    return conn.execute(_PUSH_SELECT.where(
         _pu.c.device_id == device_id, _pu.c.active_at.is_not(None), _wd.c.id.is_(None),
         _v.c.patient_id == assigned["patient_id"], _pu.c.version_id != besides[1])
         .order_by(_pu.c.id.desc()).limit(1)).mappings().first()
-    return None if row is None else _push(row)
-
-
-def current_push(conn: Connection, device_id: str) -> dict | None:
-    """The table the device runs or will run from its next heel strike: its newest push that is ``active`` or
-    ``acknowledged`` (a CRC read back but no status frame reporting it yet)."""
-    row = conn.execute(_PUSH_SELECT.where(_pu.c.device_id == device_id, _pu.c.status.in_(("active", "acknowledged")))
-                       .order_by(_pu.c.id.desc()).limit(1)).mappings().first()
-    return None if row is None else _push(row)
 
 
 # shown with every version: built once (see backend/store/__init__.py)

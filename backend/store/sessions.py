@@ -14,8 +14,6 @@ from backend.store import audit, sample_pack
 from backend.store.dialect import insert_or_ignore, unique_violation
 from backend.store.tables import patients, session_sample_seconds, users, versions, walking_sessions
 from backend.store.users import User
-from backend.store.versions import version_label
-from device_bridge.sim.course import COURSES
 
 _s, _su, _pu, _pa, _pp = (walking_sessions, users.alias("su"), users.alias("pu"), patients.alias("pa"),
                           patients.alias("pp"))
@@ -29,57 +27,17 @@ _SESSION_SELECT = (
                  .outerjoin(_pp, _pp.c.id == versions.c.patient_id)))
 
 
-def _label(row: RowMapping) -> str | None:
-    return None if row["version_id"] is None else version_label(row["kind"], row["table_patient_code"], row["version"])
-
-
-def _ids(row: RowMapping) -> dict:
-    """The version the leg ran, as the API names it: a table's ``proposal_id`` or an envelope's ``envelope_id``."""
-    table = row["kind"] == "table"
-    return {"proposal_id": row["version_id"] if table else None,
-            "envelope_id": row["version_id"] if row["kind"] == "envelope" else None}
-
-
-def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
-    """A session's task as people read it: a bench course by its name and range, else the speed and incline."""
-    walked = COURSES.get(course) if course else None
-    if walked is None:
-        return f"{speed_mps:.2f} m/s, incline {incline_deg:+.1f}°"
-    speeds = [seg.speed_mps for seg in walked.segments]
-    inclines = [seg.incline_deg for seg in walked.segments]
-    slope = (f"incline {min(inclines):+.0f}° to {max(inclines):+.0f}°" if min(inclines) != max(inclines)
-             else f"incline {inclines[0]:+.0f}°")
-    pace = (f"{min(speeds):.2f}–{max(speeds):.2f} m/s" if min(speeds) != max(speeds)   # never "1.00–1.00 m/s"
-            else f"{speeds[0]:.2f} m/s")
-    return f"'{course}' course: {pace}, {slope}"
-
-
-def _session(row: RowMapping) -> dict:
-    return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
-            "device_id": row["device_id"], **_ids(row),
-            "table_label": _label(row), "course": row["course"],
-            "simulated": None if row["simulated"] is None else bool(row["simulated"]),
-            "task_words": task_words(row["course"], row["speed_mps"], row["incline_deg"]),
-            "approval_override": row["approval_override"],
-            "extrapolation_reason": row["extrapolation_reason"], "table_version": row["table_version"],
-            "table_crc32": None if row["table_crc32"] is None else f"{row['table_crc32']:08x}",
-            "task": {"speed_mps": row["speed_mps"], "incline_deg": row["incline_deg"],
-                     "body_mass_kg": row["body_mass_kg"]},
-            "status": row["status"], "started_by": row["started_by_name"], "started_at": row["started_at"],
-            "stopped_by": row["stopped_by_name"], "stopped_at": row["stopped_at"],
-            "summary": None if row["summary_json"] is None else json.loads(row["summary_json"])}
-
-
-def get_session(conn: Connection, session_id: int) -> dict:
+def session_row(conn: Connection, session_id: int) -> RowMapping:
+    """A session with who started and stopped it, its patient and the version the leg ran (its kind and number)."""
     row = conn.execute(_SESSION_SELECT.where(_s.c.id == session_id)).mappings().first()
     if row is None:
         raise NotFoundError(f"session {session_id} not found")
-    return _session(row)
+    return row
 
 
-def sessions_of_patient(conn: Connection, patient_id: int) -> list[dict]:
-    rows = conn.execute(_SESSION_SELECT.where(_s.c.patient_id == patient_id).order_by(_s.c.id.desc())).mappings()
-    return [_session(r) for r in rows]
+def rows_of_patient(conn: Connection, patient_id: int) -> list[RowMapping]:
+    """A patient's sessions, newest first (rows as :func:`session_row` reads them)."""
+    return list(conn.execute(_SESSION_SELECT.where(_s.c.patient_id == patient_id).order_by(_s.c.id.desc())).mappings())
 
 
 def start_session(conn: Connection, patient_id: int, device_id: str, task: dict, ran: dict,

@@ -15,8 +15,10 @@ from sqlalchemy import MetaData, create_engine, func, select, text
 from backend.db import connect, database_url
 from backend.errors import ConflictError, MovedError, NotFoundError
 from backend.migrate import migrate
+from backend.services import pushes as push_views
+from backend.services import sessions as session_views
 from backend.store import previews as previews_store
-from backend.store import pushes, refinements, sessions, signoffs, versions, withdrawals
+from backend.store import refinements, signoffs, versions, withdrawals
 from backend.store.tables import legacy_ids
 from backend.store.users import User
 from controller_core.envelope import Envelope
@@ -158,11 +160,11 @@ def test_every_row_is_carried_to_one_version_and_read_back_as_before(at_0020):
         refined = refinements.of_version(conn, 5)
         assert (refined["envelope_id"], refined["proposal_id"], refined["parent_id"]) == (5, None, 4)
         assert refinements.of_version(conn, 2)["parent_id"] == 1
-        [p1] = pushes.pushes_of(conn, ("proposal", 1))
-        [p2] = pushes.pushes_of(conn, ("envelope", 4))
+        [p1] = push_views.pushes_of(conn, ("proposal", 1))
+        [p2] = push_views.pushes_of(conn, ("envelope", 4))
         assert (p1["kind"], p1["proposal_id"], p1["label"], p1["withdrawal"]) == ("table", 1, "P-1 · table v1", None)
         assert (p2["envelope_id"], p2["label"], p2["withdrawal"]["reason"]) == (4, "P-1 · envelope v1", WHY)
-        s1, s2, s3 = (sessions.get_session(conn, i) for i in (1, 2, 3))
+        s1, s2, s3 = (session_views.get_session(conn, i) for i in (1, 2, 3))
         assert (s1["proposal_id"], s1["envelope_id"], s1["table_label"]) == (1, None, "P-1 · table v1")
         assert (s2["proposal_id"], s2["envelope_id"], s2["table_label"]) == (None, 5, "P-1 · envelope v2")
         assert (s3["proposal_id"], s3["envelope_id"], s3["table_label"]) == (None, None, None)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from backend.errors import ConflictError, NotFoundError
+from backend.services import sessions as session_views
 from backend.store import devices, sessions
 
 TASK = {"speed_mps": 1.2, "incline_deg": 0.0, "body_mass_kg": 80.0}
@@ -25,10 +26,10 @@ def session_id(conn, prosthetist, patient):
 def test_one_recording_per_device_and_what_the_device_ran_is_kept(conn, prosthetist, patient, session_id):
     with pytest.raises(ConflictError, match="already recording"):
         sessions.start_session(conn, patient["id"], "leg", TASK, NOTHING_RAN, prosthetist)
-    s = sessions.get_session(conn, session_id)
+    s = session_views.get_session(conn, session_id)
     assert s["status"] == "recording" and s["table_label"] is None and s["table_crc32"] is None
     assert s["task_words"].startswith("'mixed' course: ") and s["task"] == TASK
-    assert [x["id"] for x in sessions.sessions_of_patient(conn, patient["id"])] == [session_id]
+    assert [x["id"] for x in session_views.sessions_of_patient(conn, patient["id"])] == [session_id]
 
 
 def test_a_retried_batch_never_duplicates_a_sample_and_samples_read_in_order(conn, session_id):
@@ -42,22 +43,14 @@ def test_a_retried_batch_never_duplicates_a_sample_and_samples_read_in_order(con
 def test_a_session_stops_once_with_its_summary(conn, prosthetist, session_id):
     with pytest.raises(ValueError):                       # a summary that is not JSON: nothing written
         sessions.stop_session(conn, session_id, {"x": float("nan")}, prosthetist)
-    assert sessions.get_session(conn, session_id)["status"] == "recording"
+    assert session_views.get_session(conn, session_id)["status"] == "recording"
     sessions.stop_session(conn, session_id, {"samples": 4, "strides": 0}, prosthetist)
-    s = sessions.get_session(conn, session_id)
+    s = session_views.get_session(conn, session_id)
     assert s["status"] == "stopped" and s["summary"] == {"samples": 4, "strides": 0} and s["stopped_by"] == "pat"
     with pytest.raises(ConflictError, match="already stopped"):
         sessions.stop_session(conn, session_id, {}, prosthetist)
     with pytest.raises(NotFoundError):
         sessions.stop_session(conn, 999, {}, prosthetist)
-
-
-def test_task_words_name_a_course_by_its_range_and_a_fixed_task_by_its_values():
-    assert sessions.task_words(None, 1.234, -3.0) == "1.23 m/s, incline -3.0°"
-    assert sessions.task_words("unknown", 1.0, 0.0) == "1.00 m/s, incline +0.0°"
-    words = sessions.task_words("mixed", 1.0, 0.0)
-    assert "0.85–1.60 m/s" in words and "incline -8° to +8°" in words
-    assert sessions.task_words("terrain", 1.0, 0.0) == "'terrain' course: 1.00 m/s, incline -8° to +8°"   # one speed
 
 
 def test_a_second_recording_started_past_the_check_is_refused_by_the_database(conn, prosthetist, patient, session_id,
