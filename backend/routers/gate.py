@@ -12,7 +12,7 @@ from __future__ import annotations
 from typing import Literal
 
 from fastapi import APIRouter, Request, status
-from sqlalchemy import Connection, RowMapping
+from sqlalchemy import Connection
 
 from backend.db import write_transaction
 from backend.deps import Conn, Prosthetist
@@ -21,7 +21,7 @@ from backend.errors import ConflictError
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, UNAUTHORIZED
 from backend.schemas.gate import SignoffRequest, SignoffsOut, WithdrawOut, WithdrawRequest
-from backend.services import bench_verdict, envelopes, proposals
+from backend.services import bench_verdict
 from backend.services import pushes as push_views
 from backend.services.versions import stored_content
 from backend.store import pushes as pushes_store
@@ -85,16 +85,11 @@ def _withdraw(kind: Kind, item_id: int, body: WithdrawRequest, devices: DeviceMa
         row = versions.get_row(conn, kind, item_id)
         done = withdrawals.withdraw(conn, kind, row, user, body.reason)
     devices.withdrawn()
-    label = _label(conn, kind, row)
+    label = versions.version_label(row["kind"], row["patient_code"], row["version"])
     why = f"{label} was withdrawn by {done['by']} at {done['at']}: {done['reason']}"
     legs = [_send_back(conn, devices, device_id, (kind, item_id), why, user)
             for device_id in devices.ids() if _holds(conn, devices, device_id, (kind, item_id))]
     return {"withdrawal": done, "legs": legs}
-
-
-def _label(conn: Connection, kind: Kind, row: RowMapping) -> str:
-    shown = (proposals.get_proposal(conn, row["id"]) if kind == "proposal" else envelopes.get_envelope(conn, row["id"]))
-    return str(shown.get("table_label") or shown.get("label") or f"{kind} {row['id']}")
 
 
 def _holds(conn: Connection, devices: DeviceManager, device_id: str, item: pushes_store.Pushed) -> bool:
