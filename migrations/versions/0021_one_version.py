@@ -189,9 +189,23 @@ def one_node_envelope(table_json: str) -> str:
     return json.dumps(envelope, sort_keys=True, separators=(",", ":"), allow_nan=False)
 
 
+BATCH = 200     # versions read and written at a time (an envelope's JSON is about 100 kB): memory stays bounded
+
+
+def _batches(bind, table: sa.Table):
+    """The rows of ``table`` in id order, :data:`BATCH` at a time (keyset pages: no cursor held open across writes)."""
+    last = 0
+    while True:
+        rows = bind.execute(sa.select(table).where(table.c.id > last).order_by(table.c.id).limit(BATCH)).mappings().all()
+        if not rows:
+            return
+        yield rows
+        last = rows[-1]["id"]
+
+
 def _copy_versions(bind) -> tuple[int, dict[int, tuple[str, str]]]:
-    """Every proposal and envelope into ``versions`` and ``legacy_ids``; returns the envelopes' id offset and each
-    table's (old, new) content hash."""
+    """Every proposal and envelope into ``versions`` and ``legacy_ids`` (tables, then envelopes, each in id order: a
+    parent before its children); returns the envelopes' id offset and each table's (old, new) content hash."""
     old = sa.MetaData()
     proposals = sa.Table("proposals", old, autoload_with=bind)
     envelopes = sa.Table("envelopes", old, autoload_with=bind)
@@ -203,31 +217,32 @@ def _copy_versions(bind) -> tuple[int, dict[int, tuple[str, str]]]:
               "created_by", "created_at", "status", "decided_by", "decided_at", "decision_comment", "decision_override",
               "extrapolation_reason", "leg_json")
     table_sha: dict[int, tuple[str, str]] = {}
-    rows = []
-    for r in bind.execute(sa.select(proposals).order_by(proposals.c.id)).mappings():
+
+    def table(r) -> dict:
         content = one_node_envelope(r["table_json"])
         intact = hashlib.sha256(r["table_json"].encode()).hexdigest() == r["table_sha256"]
         # a table whose stored text no longer gives its hash keeps the hash it had: still refused at every read
         new_sha = hashlib.sha256(content.encode()).hexdigest() if intact else r["table_sha256"]
         table_sha[r["id"]] = (r["table_sha256"], new_sha)
-        rows.append({**{k: r[k] for k in shared}, "id": r["id"], "kind": "table", "parent_id": r["parent_id"],
-                     "n_speeds": 1, "n_inclines": 1, "speed_mps": r["speed_mps"], "incline_deg": r["incline_deg"],
-                     "content_json": content, "content_sha256": new_sha, "wire_crc32": None,
-                     "model_json": r["model_json"]})
-    for r in bind.execute(sa.select(envelopes).order_by(envelopes.c.id)).mappings():
+        return {**{k: r[k] for k in shared}, "id": r["id"], "kind": "table", "parent_id": r["parent_id"],
+                "n_speeds": 1, "n_inclines": 1, "speed_mps": r["speed_mps"], "incline_deg": r["incline_deg"],
+                "content_json": content, "content_sha256": new_sha, "wire_crc32": None, "model_json": r["model_json"]}
+
+    def envelope(r) -> dict:
         body = json.loads(r["envelope_json"])
-        rows.append({**{k: r[k] for k in shared}, "id": r["id"] + offset, "kind": "envelope",
-                     "parent_id": None if r["parent_id"] is None else r["parent_id"] + offset,
-                     "n_speeds": r["n_speeds"], "n_inclines": r["n_inclines"],
-                     "speed_mps": body["nominal_speed_mps"], "incline_deg": body["nominal_incline_deg"],
-                     "content_json": r["envelope_json"], "content_sha256": r["envelope_sha256"],
-                     "wire_crc32": r["wire_crc32"], "model_json": None})
-    rows.sort(key=lambda x: x["id"])     # a parent before its children (the foreign key to itself)
-    if rows:
-        bind.execute(versions.insert(), rows)
-        bind.execute(legacy.insert(), [{"kind": "proposal" if x["kind"] == "table" else "envelope",
-                                        "old_id": x["id"] if x["kind"] == "table" else x["id"] - offset,
-                                        "version_id": x["id"]} for x in rows])
+        return {**{k: r[k] for k in shared}, "id": r["id"] + offset, "kind": "envelope",
+                "parent_id": None if r["parent_id"] is None else r["parent_id"] + offset,
+                "n_speeds": r["n_speeds"], "n_inclines": r["n_inclines"],
+                "speed_mps": body["nominal_speed_mps"], "incline_deg": body["nominal_incline_deg"],
+                "content_json": r["envelope_json"], "content_sha256": r["envelope_sha256"],
+                "wire_crc32": r["wire_crc32"], "model_json": None}
+
+    for source, make, kind in ((proposals, table, "proposal"), (envelopes, envelope, "envelope")):
+        for batch in _batches(bind, source):
+            rows = [make(r) for r in batch]
+            bind.execute(versions.insert(), rows)
+            bind.execute(legacy.insert(), [{"kind": kind, "old_id": r["id"], "version_id": x["id"]}
+                                           for r, x in zip(batch, rows, strict=True)])
     op.create_table("_sha_map", sa.Column("id", sa.Integer(), primary_key=True), sa.Column("old", sa.Text()),
                     sa.Column("new", sa.Text()))
     if table_sha:

@@ -187,3 +187,58 @@ def test_every_row_is_carried_to_one_version_and_read_back_as_before(at_0020):
         assert (row["id"], row["kind"], row["version"]) == (6, "table", 4)
     finally:
         conn.close()
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def many_at_0020(request, tmp_path):
+    """A database at 0020 with more tables than the migration copies at a time (its ``BATCH``, 200) and an envelope."""
+    target: str | Path
+    if request.param == "sqlite":
+        target = tmp_path / "q.sqlite"
+        yield from _many(target)
+        return
+    with request.getfixturevalue("postgres").new_database() as url:
+        yield from _many(url)
+
+
+def _many(target: str | Path):
+    migrate(target, to="0020")
+    engine = create_engine(database_url(target))
+    pg = engine.dialect.name == "postgresql"
+    at = datetime(2026, 11, 29, 10, tzinfo=UTC) if pg else AT
+    with engine.begin() as conn:
+        md = MetaData()
+        md.reflect(conn)
+        t = md.tables
+        conn.execute(t["users"].insert().values(id=1, username="dana", role="prosthetist", password_hash="h",
+                                                created_at=at))
+        conn.execute(t["patients"].insert().values(id=1, code_name="P-1", body_mass_kg=75.0, side="left", created_by=1,
+                                                   created_at=at, updated_at=at))
+        conn.execute(t["proposals"].insert(), [
+            {"id": i, "patient_id": 1, "version": i, "parent_id": i - 1 if i > 1 else None,
+             "source": "edit" if i > 1 else "model", "speed_mps": 1.2, "incline_deg": 0.0, "body_mass_kg": 75.0,
+             "extrapolation": False, "safety_ok": True, "model_json": "{}", "table_json": T1, "table_sha256": _sha(T1),
+             "created_by": 1, "created_at": at} for i in range(1, 451)])
+        conn.execute(t["envelopes"].insert().values(
+            id=1, patient_id=1, version=1, source="model", body_mass_kg=75.0, n_speeds=5, n_inclines=5,
+            extrapolation=False, safety_ok=True, envelope_json=E1, envelope_sha256=_sha(E1), created_by=1,
+            created_at=at))
+    engine.dispose()
+    yield target
+
+
+def test_a_database_larger_than_one_batch_is_carried_whole_in_order(many_at_0020):
+    """Versions are copied a batch at a time (memory stays bounded on a large database), each a parent before its
+    child: 450 tables in a chain of edits and an envelope arrive whole."""
+    assert migrate(many_at_0020) == ["0021"]
+    conn = connect(many_at_0020)
+    try:
+        got = [tuple(r) for r in conn.execute(text("SELECT kind, count(*), min(id), max(id) FROM versions GROUP BY kind "
+                                                   "ORDER BY kind"))]
+        assert got == [("envelope", 1, 451, 451), ("table", 450, 1, 450)]   # moved past the largest old id (450)
+        assert conn.execute(select(func.count()).select_from(legacy_ids)).scalar_one() == 451
+        last = versions.get_row(conn, "proposal", 450)
+        assert (last["parent_version"], versions.stored_table(last)) == (449, ParameterTable.model_validate(TABLE))
+        assert versions.moved_to(conn, "envelope", 1) == 451
+    finally:
+        conn.close()
