@@ -67,12 +67,12 @@ class AckResult(IntEnum):
     """TABLE_ACK.result: 0 staged, anything else a refusal with its reason."""
 
     STAGED = 0
-    UNKNOWN_TRANSFER = 1   # rows or commit for a transfer the device has not begun (or has dropped)
-    MISSING_ROWS = 2       # commit before every row arrived; missing_rows is the bitmask to resend
-    CRC_MISMATCH = 3       # the rows held do not give the announced CRC-32 (loss, corruption): nothing kept
+    UNKNOWN_TRANSFER = 1   # frames or commit for a transfer the device has not begun (or has dropped)
+    MISSING_ROWS = 2       # commit before every frame arrived; missing_rows is how many are still missing
+    CRC_MISMATCH = 3       # the frames held do not give the announced CRC-32 (loss, corruption): nothing kept
     SAFETY_LIMIT = 4       # intact, but a value is outside the device's own safety limits: nothing kept
     TIMEOUT = 5            # the transfer did not complete in time: nothing kept
-    MALFORMED = 6          # begin and commit disagree (version, row count, CRC): nothing kept
+    MALFORMED = 6          # begin and commit disagree (version, grid, CRC), or a grid the leg cannot hold: nothing kept
     DEVICE_ERROR = 7       # the device failed while handling the transfer: it was aborted, nothing kept
 
 
