@@ -11,6 +11,7 @@ change nothing, or that has nothing to learn from, is refused with why and store
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -126,6 +127,27 @@ def _nothing(nodes: list[dict]) -> InvalidError:
                         nodes=nodes)
 
 
+
+def view(row: RowMapping) -> dict:
+    """A refinement as the API gives it: the version it made (a table's ``proposal_id`` or an envelope's
+    ``envelope_id``), its parent, sessions, author and time, and its stored evidence."""
+    table = row["kind"] == "table"
+    return {"id": row["id"], "envelope_id": None if table else row["version_id"],
+            "proposal_id": row["version_id"] if table else None,
+            "parent_id": row["parent_id"], "session_ids": json.loads(row["session_ids_json"]),
+            "created_by": row["created_by_name"], "created_at": row["created_at"],
+            **json.loads(row["evidence_json"])}
+
+
+def get_refinement(conn: Connection, refinement_id: int) -> dict:
+    return view(refinements.refinement_row(conn, refinement_id))
+
+
+def of_version(conn: Connection, version_id: int) -> dict | None:
+    """The refinement that made this version, if one did."""
+    row = refinements.row_of_version(conn, version_id)
+    return None if row is None else view(row)
+
 @dataclass(frozen=True)
 class _Inputs:
     """What either kind of refinement starts from: the approved version's row, the sessions walked on it and their
@@ -150,7 +172,7 @@ def _inputs(conn: Connection, kind: Item, version_id: int, session_ids: list[int
                             "the leg walked")
     sessions = _sessions(conn, kind, version_id, row["patient_id"], session_ids)
     strides, counted = _strides(conn, sessions)
-    return _Inputs(row, sessions, strides, counted, model_targets(model), refinements.of_version(conn, version_id),
+    return _Inputs(row, sessions, strides, counted, model_targets(model), of_version(conn, version_id),
                    legs.version_leg(row))
 
 
@@ -174,7 +196,7 @@ def refine_envelope_version(conn: Connection, envelope_id: int, session_ids: lis
                      rules, x.leg)
     created = envelopes.create_edit(conn, envelope_id, checked, result.changes, comment, actor, "envelope.refine",
                                     refinements.recorder(envelope_id, body["session_ids"], body, actor))
-    return {**refinements.of_version(conn, created["id"]), "version": created}
+    return {**of_version(conn, created["id"]), "version": created}
 
 
 def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: list[int], comment: str,
@@ -206,4 +228,4 @@ def refine_proposal_version(conn: Connection, proposal_id: int, session_ids: lis
     body = _evidence(x.counted, x.strides, x.targets, [node], changes, [s["id"] for s in x.sessions], rules, x.leg)
     created = proposals.create_edit(conn, proposal_id, checked, result.changes, comment, actor, "proposal.refine",
                                     refinements.recorder(proposal_id, body["session_ids"], body, actor))
-    return {**refinements.of_version(conn, created["id"]), "version": created}
+    return {**of_version(conn, created["id"]), "version": created}

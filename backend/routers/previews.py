@@ -76,7 +76,8 @@ def _table_preview(proposal_id: int, conn: Connection, model: QuasiStiffnessMode
                                PREVIEW_SECONDS, legs.version_leg(row).geometry(), benchmark)
         stored = previews.store_preview(conn, "proposal", proposal_id, row["content_sha256"], result)
     runs = stored["controllers"]
-    return {**stored, "safety": safety_flags(runs["table"], runs["fsmic"])}
+    return {"proposal_id": proposal_id, "table_sha256": row["content_sha256"], **stored,
+            "safety": safety_flags(runs["table"], runs["fsmic"])}
 
 
 @router.get("/envelopes/{envelope_id}/preview", response_model=EnvelopePreviewOut,
@@ -107,7 +108,7 @@ def _envelope_preview(envelope_id: int, conn: Connection, model: QuasiStiffnessM
         result = preview_envelope(checked.item, model, COURSES[PREVIEW_COURSE], legs.version_leg(row).geometry(),
                                   benchmark, nodes)
         stored = previews.store_preview(conn, "envelope", envelope_id, row["content_sha256"], result)
-    return {**stored, "safety": envelope_flags(stored)}
+    return {"envelope_id": envelope_id, **stored, "safety": envelope_flags(stored)}
 
 
 def _refuse_unsafe(violations: list, what: str) -> None:

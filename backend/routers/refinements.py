@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from fastapi import APIRouter, status
 
+from backend import refinement
 from backend.deps import Conn, CurrentUser, Model, Prosthetist
 from backend.errors import InvalidError
 from backend.refinement import refine_envelope_version, refine_proposal_version
 from backend.schemas.common import IdPath
 from backend.schemas.errors import CONFLICT, FORBIDDEN, NOT_FOUND, TOO_MANY, UNAUTHORIZED, UNAVAILABLE
 from backend.schemas.refinements import RefinementOut, RefinementRequest
-from backend.store import refinements, versions
+from backend.store import versions
 from backend.threads import run_bench
 
 router = APIRouter(prefix="/api", tags=["refinements"], responses=UNAUTHORIZED)
@@ -54,18 +55,18 @@ async def refine_proposal(proposal_id: IdPath, body: RefinementRequest, conn: Co
 @router.get("/refinements/{refinement_id}", response_model=RefinementOut, responses=NOT_FOUND)
 def get_refinement(refinement_id: IdPath, conn: Conn, _user: CurrentUser) -> dict:
     """A refinement: its evidence per node, its changes and where it came from."""
-    return refinements.get_refinement(conn, refinement_id)
+    return refinement.get_refinement(conn, refinement_id)
 
 
 @router.get("/envelopes/{envelope_id}/refinement", response_model=RefinementOut | None, responses=NOT_FOUND)
 def refinement_of_envelope(envelope_id: IdPath, conn: Conn, _user: CurrentUser) -> dict | None:
     """The refinement that made this envelope, or null when it was not made by one (404: no such envelope)."""
     versions.get_row(conn, "envelope", envelope_id)
-    return refinements.of_version(conn, envelope_id)
+    return refinement.of_version(conn, envelope_id)
 
 
 @router.get("/proposals/{proposal_id}/refinement", response_model=RefinementOut | None, responses=NOT_FOUND)
 def refinement_of_proposal(proposal_id: IdPath, conn: Conn, _user: CurrentUser) -> dict | None:
     """The refinement that made this table, or null when it was not made by one (404: no such table)."""
     versions.get_row(conn, "proposal", proposal_id)
-    return refinements.of_version(conn, proposal_id)
+    return refinement.of_version(conn, proposal_id)

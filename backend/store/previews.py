@@ -18,16 +18,15 @@ _PREVIEW = select(previews).where(previews.c.version_id == bindparam("version_id
 
 
 def get_preview(conn: Connection, item: Item, version_id: int, content_sha256: str) -> dict | None:
-    """The stored preview of a version, or ``None``; refuses one made from different content."""
+    """The stored preview of a version (when it was walked, and what it found), or ``None``; refuses one made from
+    different content."""
     row = conn.execute(_PREVIEW, {"version_id": version_id}).mappings().first()
     if row is None:
         return None
     if row["content_sha256"] != content_sha256:
         raise ConflictError(f"the stored preview of {item} {version_id} was simulated from another "
                             f"{'table' if item == 'proposal' else 'envelope'}; refusing to show it")
-    ids = ({"proposal_id": version_id, "table_sha256": content_sha256} if item == "proposal"
-           else {"envelope_id": version_id})
-    return {**ids, "created_at": row["created_at"], **json.loads(row["result_json"])}
+    return {"created_at": row["created_at"], **json.loads(row["result_json"])}
 
 
 def store_preview(conn: Connection, item: Item, version_id: int, content_sha256: str, result: dict) -> dict:

@@ -28,27 +28,18 @@ def recorder(parent_id: int, session_ids: list[int], evidence: dict, actor: User
     return record
 
 
-def _public(row: RowMapping) -> dict:
-    table = row["kind"] == "table"
-    return {"id": row["id"], "envelope_id": None if table else row["version_id"],
-            "proposal_id": row["version_id"] if table else None,
-            "parent_id": row["parent_id"], "session_ids": json.loads(row["session_ids_json"]),
-            "created_by": row["created_by_name"], "created_at": row["created_at"],
-            **json.loads(row["evidence_json"])}
-
-
 _SELECT = (select(refinements, users.c.username.label("created_by_name"), versions.c.kind)
            .join(users, users.c.id == refinements.c.created_by).join(versions, versions.c.id == refinements.c.version_id))
 
 
-def get_refinement(conn: Connection, refinement_id: int) -> dict:
+def refinement_row(conn: Connection, refinement_id: int) -> RowMapping:
+    """A refinement with who made it and the kind of version it made."""
     row = conn.execute(_SELECT.where(refinements.c.id == refinement_id)).mappings().first()
     if row is None:
         raise NotFoundError(f"refinement {refinement_id} not found")
-    return _public(row)
+    return row
 
 
-def of_version(conn: Connection, version_id: int) -> dict | None:
+def row_of_version(conn: Connection, version_id: int) -> RowMapping | None:
     """The refinement that made this version (a table or an envelope), if one did."""
-    row = conn.execute(_SELECT.where(refinements.c.version_id == version_id)).mappings().first()
-    return None if row is None else _public(row)
+    return conn.execute(_SELECT.where(refinements.c.version_id == version_id)).mappings().first()

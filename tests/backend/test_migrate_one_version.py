@@ -15,10 +15,11 @@ from sqlalchemy import MetaData, create_engine, func, select, text
 from backend.db import connect, database_url
 from backend.errors import ConflictError, MovedError, NotFoundError
 from backend.migrate import migrate
+from backend.refinement import of_version as refinement_of
 from backend.services import pushes as push_views
 from backend.services import sessions as session_views
 from backend.store import previews as previews_store
-from backend.store import refinements, signoffs, versions, withdrawals
+from backend.store import signoffs, versions, withdrawals
 from backend.store.tables import legacy_ids
 from backend.store.users import User
 from controller_core.envelope import Envelope
@@ -157,9 +158,9 @@ def test_every_row_is_carried_to_one_version_and_read_back_as_before(at_0020):
         assert [s["by"] for s in signoffs.signoffs(conn, "envelope", 5, _sha(E2))] == ["kim"]
         assert withdrawals.withdrawal(conn, "envelope", 4)["reason"] == WHY
         assert withdrawals.withdrawal(conn, "proposal", 1) is None
-        refined = refinements.of_version(conn, 5)
+        refined = refinement_of(conn, 5)
         assert (refined["envelope_id"], refined["proposal_id"], refined["parent_id"]) == (5, None, 4)
-        assert refinements.of_version(conn, 2)["parent_id"] == 1
+        assert refinement_of(conn, 2)["parent_id"] == 1
         [p1] = push_views.pushes_of(conn, ("proposal", 1))
         [p2] = push_views.pushes_of(conn, ("envelope", 4))
         assert (p1["kind"], p1["proposal_id"], p1["label"], p1["withdrawal"]) == ("table", 1, "P-1 · table v1", None)
