@@ -9,6 +9,7 @@ from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, Path, Request, Response, status
+from fastapi.responses import RedirectResponse
 from pydantic import ValidationError
 from sqlalchemy import Connection
 
@@ -121,6 +122,16 @@ def _register(k: _Kind) -> None:
 
 for _k in _KINDS:
     _register(_k)
+
+
+@router.get("/versions/{version_id}", status_code=status.HTTP_307_TEMPORARY_REDIRECT, responses=NOT_FOUND,
+            response_class=RedirectResponse, tags=["versions"])
+def find_version(version_id: IdPath, conn: Conn, _user: CurrentUser) -> RedirectResponse:
+    """Any version by its id (tables and envelopes share one id space): sent on to its kind's path,
+    ``/api/proposals/{id}`` for a table or ``/api/envelopes/{id}`` for an envelope."""
+    kind = versions.kind_of(conn, version_id)
+    return RedirectResponse(f"/api/{versions.ITEM_OF[kind]}s/{version_id}",
+                            status_code=status.HTTP_307_TEMPORARY_REDIRECT)
 
 
 # ---------------------------------------------------------------------------------------------- a table (one task)

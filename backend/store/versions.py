@@ -68,9 +68,15 @@ def get_row(conn: Connection, item: Item, version_id: int) -> RowMapping:
     return row
 
 
-def item_of(row: RowMapping) -> tuple[Item, int]:
-    """(what the API calls it, its id)."""
-    return ITEM_OF[row["kind"]], row["id"]
+_KIND = select(_v.c.kind).where(_v.c.id == bindparam("id"))
+
+
+def kind_of(conn: Connection, version_id: int) -> str:
+    """What the clinic calls version ``version_id``: "table" or "envelope" (NotFoundError when there is none)."""
+    kind = conn.execute(_KIND, {"id": version_id}).scalar()
+    if kind is None:
+        raise NotFoundError(f"version {version_id} not found")
+    return str(kind)
 
 
 def stored_envelope(row: RowMapping) -> Envelope:
