@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
-from sqlalchemy import MetaData, create_engine, func, select, text
+from sqlalchemy import Connection, MetaData, create_engine, func, select, text
 
 from backend.db import connect, database_url
 from backend.errors import ConflictError, MovedError, NotFoundError
@@ -47,17 +49,25 @@ E1 = _text(ENVELOPE)
 E2 = _text({**ENVELOPE, "neighbour_steps": {**ENVELOPE.get("neighbour_steps", {}), "load_N": 140.0}})
 
 
+@contextmanager
+def _writing(target: str | Path) -> Iterator[tuple[Connection, dict, object]]:
+    """A transaction on ``target`` with its tables as they are (reflected) and a time in the form its columns take."""
+    engine = create_engine(database_url(target))
+    at = datetime(2026, 11, 29, 10, tzinfo=UTC) if engine.dialect.name == "postgresql" else AT
+    try:
+        with engine.begin() as conn:
+            md = MetaData()
+            md.reflect(conn)
+            yield conn, md.tables, at
+    finally:
+        engine.dispose()
+
+
 def _fill_0020(target: str | Path) -> None:
     """What the code before revision 0021 stored, row by row (its tables as they were at 0020)."""
-    engine = create_engine(database_url(target))
-    pg = engine.dialect.name == "postgresql"
-    at = datetime(2026, 11, 29, 10, tzinfo=UTC) if pg else AT
-    with engine.begin() as conn:
-        md = MetaData()
-        md.reflect(conn)
-
+    with _writing(target) as (conn, tables, at):
         def add(table: str, **values: object) -> None:
-            conn.execute(md.tables[table].insert().values(**values))
+            conn.execute(tables[table].insert().values(**values))
 
         decided = {"status": "approved", "decided_by": 1, "decided_at": at, "decision_comment": "looked at it"}
         add("users", id=1, username="dana", role="prosthetist", password_hash="h", created_at=at)
@@ -101,7 +111,6 @@ def _fill_0020(target: str | Path) -> None:
             created_at=at)
         add("audit_log", at=at, actor_id=1, actor_name="dana", action="envelope.create", entity="envelope",
             entity_id=1)
-    engine.dispose()
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])
@@ -204,13 +213,7 @@ def many_at_0020(request, tmp_path):
 
 def _many(target: str | Path):
     migrate(target, to="0020")
-    engine = create_engine(database_url(target))
-    pg = engine.dialect.name == "postgresql"
-    at = datetime(2026, 11, 29, 10, tzinfo=UTC) if pg else AT
-    with engine.begin() as conn:
-        md = MetaData()
-        md.reflect(conn)
-        t = md.tables
+    with _writing(target) as (conn, t, at):
         conn.execute(t["users"].insert().values(id=1, username="dana", role="prosthetist", password_hash="h",
                                                 created_at=at))
         conn.execute(t["patients"].insert().values(id=1, code_name="P-1", body_mass_kg=75.0, side="left", created_by=1,
@@ -224,7 +227,6 @@ def _many(target: str | Path):
             id=1, patient_id=1, version=1, source="model", body_mass_kg=75.0, n_speeds=5, n_inclines=5,
             extrapolation=False, safety_ok=True, envelope_json=E1, envelope_sha256=_sha(E1), created_by=1,
             created_at=at))
-    engine.dispose()
     yield target
 
 
