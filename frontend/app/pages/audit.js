@@ -49,7 +49,9 @@ export async function auditPage(view, params) {
   });
   const rows = page.items.map((e) => h("tr", {},
     h("td", {}, when(e.at)), h("td", {}, e.actor), h("td", { class: "mono" }, e.action),
-    h("td", {}, e.entity_id !== null && LINKS[e.entity] ? h("a", { href: LINKS[e.entity](e.entity_id) }, `${e.entity} ${e.entity_id}`)
+    h("td", {}, e.entity_id !== null && LINKS[e.entity]
+      ? h("a", { href: LINKS[e.entity](e.now_version_id ?? e.entity_id) }, `${e.entity} ${e.entity_id}`,
+        e.now_version_id ? ` (now version ${e.now_version_id})` : "")
       : `${e.entity}${e.entity_id === null ? "" : ` ${e.entity_id}`}`),
     h("td", { class: "small", title: JSON.stringify(e.before) }, brief(e.before)),
     h("td", { class: "small", title: JSON.stringify(e.after) }, brief(e.after))));
