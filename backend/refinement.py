@@ -23,7 +23,7 @@ from backend.services import sessions as session_views
 from backend.session_strides import session_strides
 from backend.store import refinements, versions
 from backend.store.users import User
-from backend.store.versions import Item
+from backend.store.versions import Item, api_ids
 from controller_core.model import QuasiStiffnessModel
 from controller_core.refine import REACH_FRACTION, RefineRules, change_in_steps, refine_envelope, refine_node
 from controller_core.refine_evidence import (
@@ -131,10 +131,8 @@ def _nothing(nodes: list[dict]) -> InvalidError:
 def view(row: RowMapping) -> dict:
     """A refinement as the API gives it: the version it made (a table's ``proposal_id`` or an envelope's
     ``envelope_id``), its parent, sessions, author and time, and its stored evidence."""
-    table = row["kind"] == "table"
-    return {"id": row["id"], "envelope_id": None if table else row["version_id"],
-            "proposal_id": row["version_id"] if table else None,
-            "parent_id": row["parent_id"], "session_ids": json.loads(row["session_ids_json"]),
+    return {"id": row["id"], **api_ids(row["kind"], row["version_id"]), "parent_id": row["parent_id"],
+            "session_ids": json.loads(row["session_ids_json"]),
             "created_by": row["created_by_name"], "created_at": row["created_at"],
             **json.loads(row["evidence_json"])}
 

@@ -8,15 +8,15 @@ from sqlalchemy import Connection, RowMapping
 
 from backend.store import pushes as store
 from backend.store.pushes import Pushed
-from backend.store.versions import version_label
+from backend.store.versions import api_ids, version_label
 
 
 def view(row: RowMapping) -> dict:
     """The API's view of a push row (:func:`backend.store.pushes.push_row`)."""
     table = row["kind"] == "table"
     label = version_label(row["kind"], row["patient_code"], row["version"])
-    return {"id": row["id"], "kind": row["kind"], "proposal_id": row["version_id"] if table else None,
-            "envelope_id": None if table else row["version_id"], "device_id": row["device_id"],
+    return {"id": row["id"], "kind": row["kind"], **api_ids(row["kind"], row["version_id"]),
+            "device_id": row["device_id"],
             "patient_id": row["patient_id"], "patient_code": row["patient_code"],
             "proposal_version": row["version"] if table else None,
             "envelope_version": None if table else row["version"],

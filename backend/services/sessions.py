@@ -9,19 +9,12 @@ import json
 from sqlalchemy import Connection, RowMapping
 
 from backend.store import sessions as store
-from backend.store.versions import version_label
+from backend.store.versions import api_ids, version_label
 from device_bridge.sim.course import COURSES
 
 
 def _label(row: RowMapping) -> str | None:
     return None if row["version_id"] is None else version_label(row["kind"], row["table_patient_code"], row["version"])
-
-
-def _ids(row: RowMapping) -> dict:
-    """The version the leg ran, as the API names it: a table's ``proposal_id`` or an envelope's ``envelope_id``."""
-    table = row["kind"] == "table"
-    return {"proposal_id": row["version_id"] if table else None,
-            "envelope_id": row["version_id"] if row["kind"] == "envelope" else None}
 
 
 def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
@@ -41,7 +34,7 @@ def task_words(course: str | None, speed_mps: float, incline_deg: float) -> str:
 def view(row: RowMapping) -> dict:
     """The API's view of a session row (:func:`backend.store.sessions.session_row`)."""
     return {"id": row["id"], "patient_id": row["patient_id"], "patient_code": row["patient_code"],
-            "device_id": row["device_id"], **_ids(row),
+            "device_id": row["device_id"], **api_ids(row["kind"], row["version_id"]),
             "table_label": _label(row), "course": row["course"],
             "simulated": None if row["simulated"] is None else bool(row["simulated"]),
             "task_words": task_words(row["course"], row["speed_mps"], row["incline_deg"]),

@@ -24,7 +24,7 @@ from backend.store.dialect import unique_violation
 from backend.store.instance_beats import is_dead
 from backend.store.tables import patients, pushes, users, versions, withdrawals
 from backend.store.users import User
-from backend.store.versions import Item
+from backend.store.versions import ITEM_OF, Item
 
 _pu, _v, _wd, _wu = pushes, versions, withdrawals, users.alias("wu")
 _PUSH_SELECT = (
@@ -185,7 +185,7 @@ def reconcile(conn: Connection, device_id: str, active: tuple[int, int] | None, 
 
 
 def _item(row: RowMapping) -> Pushed:
-    return ("proposal" if row["kind"] == "table" else "envelope", row["version_id"])
+    return ITEM_OF[row["kind"]], row["version_id"]
 
 
 def row_of_version(conn: Connection, device_id: str, version: int | None,

@@ -39,6 +39,13 @@ _BY_ID = _select(_v).where(_v.c.id == bindparam("id"))   # built once (see backe
 _INSERT = insert(_v)
 
 
+def api_ids(kind: str | None, version_id: int | None) -> dict[str, int | None]:
+    """A version as the API names it where either kind may be meant (a push, a session, a refinement): a table's
+    ``proposal_id`` or an envelope's ``envelope_id``, the other None (both None for no version)."""
+    return {"proposal_id": version_id if kind == "table" else None,
+            "envelope_id": version_id if kind == "envelope" else None}
+
+
 def version_label(kind: str, patient_code: str, version: int) -> str:
     """The one name a version has everywhere (its page, the device, the monitor, the report): "P-001 · table v3"."""
     return f"{patient_code} · {kind} v{version}"

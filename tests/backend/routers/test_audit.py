@@ -28,14 +28,12 @@ def test_an_envelopes_entries_from_before_one_version_say_its_version_and_are_fo
     version it is now, and asking for the envelope by its version id finds them beside the new ones."""
     from backend.db import write_transaction
     from backend.store import audit
+    from tests.backend.routers.test_envelopes import request_envelope
     from tests.helpers.sql import sql
 
     patient = api.new_patient()
     table = api.propose(patient["id"])
-    r = api.client.post(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("prosthetist"),
-                        json={"speed_range_mps": [1.0, 1.4], "incline_range_deg": [-4, 4], "grid": [2, 2]})
-    assert r.status_code == 201, r.text
-    envelope = r.json()
+    envelope = request_envelope(api, patient["id"], grid=[2, 2])
     old = table["id"]              # its id before 0021: as after a real migration, a table's id now
     assert old < envelope["id"]
     with api.db() as conn, write_transaction(conn):

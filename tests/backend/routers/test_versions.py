@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
+from tests.backend.routers.test_envelopes import request_envelope
+
 
 def test_a_version_is_found_by_its_id_whichever_kind_it_is(api):
     patient = api.new_patient()
     table = api.propose(patient["id"])
-    r = api.client.post(f"/api/patients/{patient['id']}/envelopes", headers=api.as_("prosthetist"),
-                        json={"speed_range_mps": [1.0, 1.4], "incline_range_deg": [-4, 4], "grid": [2, 2]})
-    assert r.status_code == 201, r.text
-    envelope = r.json()
+    envelope = request_envelope(api, patient["id"], grid=[2, 2])
     assert envelope["id"] != table["id"]                                      # one id space
     viewer = api.as_("viewer")
     for version, path in ((table, "proposals"), (envelope, "envelopes")):
